@@ -1,0 +1,48 @@
+"""The ``hideseek`` command line: one entry point, one module per subcommand.
+
+Each subcommand lives in its own module under ``tui/`` exposing
+``add_arguments(parser)`` and ``run(args) -> int`` (the exit status). Modules
+are imported only when their subcommand runs, so a slow import (Textual) never
+delays ``hideseek run``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+#: subcommand -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("tui.cmd_demo", "a small supervised actor tree under fault, printed as it recovers"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="hideseek",
+        description="Three-rover hide-and-seek on a supervised actor system.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (module_name, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        p.set_defaults(_module=module_name)
+        importlib.import_module(module_name).add_arguments(p)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "_module", None):
+        parser.print_help()
+        return 2
+    module = importlib.import_module(args._module)
+    try:
+        return int(module.run(args) or 0)
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
