@@ -1,0 +1,116 @@
+"""Trio hosted as a guest on the running asyncio loop (Textual's), in one thread.
+
+Why guest mode: the system is a Trio program and Textual runs on asyncio.
+Guest mode interleaves the two schedulers in one thread, so a Textual handler
+may call synchronous Trio operations directly (``send_nowait`` on a memory
+channel, ``CancelScope.cancel``) and they wake Trio even when it is idle, with
+no locks and no cross-thread hops (a Trio thread instead cost 5-8 ms of UI lag,
+see ``shared/notes/measured-facts.md``). Trio talks back with ``App.post_message``
+or plain calls, since it is the same thread.
+
+What this is not: ``trio.from_thread`` must not be used from the asyncio side
+(it hangs forever in guest mode); and the guest run must finish before the
+asyncio loop closes, or Trio warns that the run was abandoned. `TrioGuest.stop`
+is the one way to end it: cancel the root scope, then wait for the run.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Awaitable, Callable
+
+import outcome
+import trio
+
+__all__ = ["TrioGuest"]
+
+#: How long `TrioGuest.stop` waits for a cancelled run before giving up [s, wall].
+STOP_TIMEOUT_S = 5.0
+
+
+class TrioGuest:
+    """One Trio run hosted on the current asyncio loop.
+
+    Args:
+        on_done: called (on the asyncio side) with the run's `outcome.Outcome`
+            when it ends for any reason, including an exception in the system.
+    """
+
+    def __init__(self, on_done: Callable[[outcome.Outcome], object] | None = None) -> None:
+        self._on_done = on_done
+        self._scope: trio.CancelScope | None = None
+        self._cancel_requested = False
+        self._finished: asyncio.Future[outcome.Outcome] | None = None
+
+    @property
+    def started(self) -> bool:
+        """`start` was called."""
+        return self._finished is not None
+
+    @property
+    def finished(self) -> bool:
+        """The guest run has ended (never true before `start`)."""
+        return self._finished is not None and self._finished.done()
+
+    @property
+    def outcome(self) -> outcome.Outcome | None:
+        """How the run ended, None while it runs."""
+        return self._finished.result() if self.finished else None  # type: ignore[union-attr]
+
+    def start(self, async_fn: Callable[..., Awaitable[object]], *args: object,
+              clock: trio.abc.Clock | None = None) -> None:
+        """Start ``async_fn(*args)`` as the root task of a guest Trio run.
+
+        Must be called from a coroutine or callback of the running asyncio loop.
+
+        Raises:
+            RuntimeError: when already started, or when no asyncio loop is running.
+        """
+        if self._finished is not None:
+            raise RuntimeError("this TrioGuest was already started")
+        loop = asyncio.get_running_loop()
+        self._finished = loop.create_future()
+
+        async def root() -> None:
+            with trio.CancelScope() as scope:
+                self._scope = scope
+                if self._cancel_requested:
+                    scope.cancel()
+                await async_fn(*args)
+
+        trio.lowlevel.start_guest_run(
+            root,
+            run_sync_soon_threadsafe=loop.call_soon_threadsafe,
+            run_sync_soon_not_threadsafe=loop.call_soon,
+            done_callback=self._done,
+            host_uses_signal_set_wakeup_fd=True,
+            clock=clock,
+        )
+
+    def cancel(self) -> None:
+        """Cancel the run's root scope (synchronous; takes effect at Trio's next checkpoint)."""
+        self._cancel_requested = True
+        if self._scope is not None:
+            self._scope.cancel()
+
+    async def stop(self, timeout_s: float = STOP_TIMEOUT_S) -> outcome.Outcome | None:
+        """Cancel the run and wait until it has finished; idempotent.
+
+        Returns:
+            The run's outcome, or None when it was never started or did not
+            finish within ``timeout_s`` wall seconds.
+        """
+        if self._finished is None:
+            return None
+        self.cancel()
+        try:
+            return await asyncio.wait_for(asyncio.shield(self._finished), timeout_s)
+        except TimeoutError:
+            return None
+
+    def _done(self, result: outcome.Outcome) -> None:
+        assert self._finished is not None
+        if not self._finished.done():
+            self._finished.set_result(result)
+        if self._on_done is not None:
+            self._on_done(result)
