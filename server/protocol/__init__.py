@@ -1,0 +1,87 @@
+"""The message layer between server and rovers: pure codec, no I/O, no clock.
+
+Layering (lower modules never import higher ones)::
+
+    frame      one JSON line <-> `Frame`, size limit, fault codes
+    lines      byte stream -> lines, bounded
+    catalogue  every cmd: type, payload schema, direction, reliability
+    pose       poses and frame changes (room, map, rover)
+    mapcodec   occupancy grid <-> numbered chunks, assembler
+    session    reliable delivery: seq, cumulative ack, resend, liveness, stats
+
+Imported by the server and by the rovers' firmware (the only server module the
+firmware may import). The wire format is specified for firmware authors in
+docs/protocol.md.
+"""
+
+from .catalogue import (
+    ACK,
+    ARRIVED,
+    CATALOGUE,
+    DESTINATION,
+    ERROR,
+    FOUND,
+    HEARTBEAT,
+    HELLO,
+    INVALID_SPOT,
+    MAP,
+    MAP_REQUEST,
+    NOT_FOUND,
+    ORIGIN,
+    POSE,
+    ROLES,
+    START,
+    STATUS,
+    STOP,
+    WELCOME,
+    Destination,
+    ErrorInfo,
+    Found,
+    Hello,
+    MapChunk,
+    Pose,
+    Reason,
+    Spec,
+    Status,
+    Welcome,
+    make_frame,
+    read_data,
+)
+from .frame import (
+    MAX_LINE_BYTES,
+    MAX_SEQ,
+    Fault,
+    Frame,
+    FrameError,
+    decode_line,
+    encode_frame,
+    error_frame,
+)
+from .lines import TOO_LONG, LineBuffer
+from .mapcodec import (
+    CHUNK_B64_CHARS,
+    FREE,
+    OCCUPIED,
+    UNKNOWN,
+    MapAssembler,
+    MapError,
+    MapGrid,
+    decode_runs,
+    encode_runs,
+    map_chunks,
+)
+from .pose import Pose2, compose, inverse, relative, wrap_deg
+from .session import LinkStats, OutboxFull, ReliableSession
+
+__all__ = [
+    "ACK", "ARRIVED", "CATALOGUE", "DESTINATION", "ERROR", "FOUND", "HEARTBEAT", "HELLO",
+    "INVALID_SPOT", "MAP", "MAP_REQUEST", "NOT_FOUND", "ORIGIN", "POSE", "ROLES", "START",
+    "STATUS", "STOP", "WELCOME", "Destination", "ErrorInfo", "Found", "Hello", "MapChunk",
+    "Pose", "Reason", "Spec", "Status", "Welcome", "make_frame", "read_data",
+    "MAX_LINE_BYTES", "MAX_SEQ", "Fault", "Frame", "FrameError", "decode_line", "encode_frame",
+    "error_frame", "TOO_LONG", "LineBuffer",
+    "CHUNK_B64_CHARS", "FREE", "OCCUPIED", "UNKNOWN", "MapAssembler", "MapError", "MapGrid",
+    "decode_runs", "encode_runs", "map_chunks",
+    "Pose2", "compose", "inverse", "relative", "wrap_deg",
+    "LinkStats", "OutboxFull", "ReliableSession",
+]
