@@ -1,0 +1,446 @@
+"""Log-odds occupancy grid built from batches of LIDAR returns, and its snapshot.
+
+Algorithm
+    Binary Bayes filter per cell in log-odds form (inverse sensor model): every
+    cell a ray passes through before its hit gets ``l_free`` added, the cell
+    holding the hit gets ``l_occ``, and log-odds are clamped to
+    ``[l_min, l_max]`` so the map stays able to change its mind. A batch (one
+    LIDAR revolution, or any part of one) updates each touched cell once: a cell
+    crossed by several rays of one batch is one observation, and a cell hit by
+    any ray of the batch is not also cleared by another ray of that batch
+    (grazing rays would otherwise erase thin walls). Rays are sampled every
+    ``ray_step`` [cells] (half a cell by default) and all samples of the batch
+    are handled at once with numpy; there is no per-cell Python loop.
+
+    A return of range 0 means "no return" (nothing within the sensor's range):
+    the ray is free up to ``max_range_cm`` and has no hit. So is any return
+    beyond ``max_range_cm`` (too uncertain to mark as an obstacle).
+
+Reference
+    Thrun, Burgard, Fox, *Probabilistic Robotics*, chapter 9 (occupancy grid
+    mapping, algorithm ``occupancy_grid_mapping``); PythonRobotics
+    ``Mapping/lidar_to_grid_map``.
+
+Frame and units
+    The rover's own frame [cm], (0, 0) @ 0 [deg] at its start. Cell ``[row,
+    col]`` covers ``x`` in ``[ox + col * res, ox + (col + 1) * res)`` and ``y``
+    in ``[oy + row * res, oy + (row + 1) * res)``, where ``origin_cm = (ox,
+    oy)`` is the lower-left corner of cell ``[0, 0]``: row 0 is the lowest
+    ``y`` (an image viewer shows the map upside down; exporters flip it).
+
+Cell values of a snapshot (`GridMap.cells`, int8)
+    ``-1`` unknown, ``0`` free, ``100`` occupied. A cell is free when its
+    log-odds are below ``free_threshold`` and occupied above
+    ``occ_threshold`` (defaults -0.4 and +0.4, i.e. p < 0.40 and p > 0.60);
+    in between it is unknown. With the default increments one observation is
+    enough to make a cell free (-0.7) or occupied (+0.9).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from actors.firmware.odometry import Pose
+
+__all__ = [
+    "UNKNOWN",
+    "FREE",
+    "OCCUPIED",
+    "LogOddsModel",
+    "GridMap",
+    "OccupancyGrid",
+]
+
+UNKNOWN = -1
+"""Cell value: never observed, or evidence too mixed to tell."""
+FREE = 0
+"""Cell value: observed free."""
+OCCUPIED = 100
+"""Cell value: observed occupied."""
+
+
+@dataclass(frozen=True, slots=True)
+class LogOddsModel:
+    """Inverse sensor model and classification thresholds (all in log-odds)."""
+
+    l_free: float = -0.7
+    """Added to a cell a ray passes through."""
+    l_occ: float = 0.9
+    """Added to the cell holding a hit."""
+    l_min: float = -2.0
+    """Lower clamp: how sure "free" may become."""
+    l_max: float = 3.5
+    """Upper clamp: how sure "occupied" may become."""
+    free_threshold: float = -0.4
+    """Below this a cell reads free."""
+    occ_threshold: float = 0.4
+    """Above this a cell reads occupied."""
+    max_range_cm: float = 600.0
+    """Longest range trusted [cm]: longer returns and "no return" (0) clear
+    free space up to here and mark no hit."""
+    ray_step: float = 0.5
+    """Sampling step along a ray [cells]."""
+
+    def __post_init__(self) -> None:
+        if not (self.l_min < self.free_threshold < 0 < self.occ_threshold < self.l_max):
+            raise ValueError(
+                "LogOddsModel needs l_min < free_threshold < 0 < occ_threshold < l_max, got "
+                f"{self.l_min}, {self.free_threshold}, {self.occ_threshold}, {self.l_max}"
+            )
+        if not (self.l_free < 0 < self.l_occ):
+            raise ValueError(f"LogOddsModel needs l_free < 0 < l_occ, got {self.l_free}, "
+                             f"{self.l_occ}")
+        if not (self.max_range_cm > 0 and 0 < self.ray_step <= 1):
+            raise ValueError(f"max_range_cm must be > 0 and ray_step in (0, 1], got "
+                             f"{self.max_range_cm}, {self.ray_step}")
+
+
+def _check_resolution(resolution_cm: float) -> float:
+    if not (isinstance(resolution_cm, int | float) and math.isfinite(resolution_cm)
+            and resolution_cm > 0):
+        raise ValueError(f"resolution_cm must be a positive number, got {resolution_cm!r}")
+    return float(resolution_cm)
+
+
+def _check_origin(origin_cm: tuple[float, float]) -> tuple[float, float]:
+    try:
+        ox, oy = (float(v) for v in origin_cm)
+    except (TypeError, ValueError):
+        raise ValueError(f"origin_cm must be a pair of numbers, got {origin_cm!r}") from None
+    if not (math.isfinite(ox) and math.isfinite(oy)):
+        raise ValueError(f"origin_cm must be finite, got {origin_cm!r}")
+    return ox, oy
+
+
+def normalise_cells(cells: np.ndarray) -> np.ndarray:
+    """Map cell values to the snapshot convention -1 / 0 / 100.
+
+    Accepts the map_server-like convention of a received map: -1 unknown,
+    0..49 free, 50..100 occupied.
+
+    Raises:
+        ValueError: if ``cells`` is not a non-empty 2-D integer array or holds a
+            value outside -1..100.
+    """
+    arr = np.asarray(cells)
+    if arr.ndim != 2 or arr.size == 0:
+        raise ValueError(f"cells must be a non-empty 2-D array, got shape {arr.shape}")
+    if not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"cells must hold integers, got dtype {arr.dtype}")
+    bad = (arr < -1) | (arr > 100)
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise ValueError(f"cells must hold -1..100, got {int(arr[r, c])} at [{r}, {c}]")
+    out = np.full(arr.shape, UNKNOWN, dtype=np.int8)
+    out[(arr >= 0) & (arr < 50)] = FREE
+    out[arr >= 50] = OCCUPIED
+    return out
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class GridMap:
+    """An immutable map snapshot: cells, resolution and where cell [0, 0] is.
+
+    This is what Map Management publishes and uploads, what hiding and seeking
+    navigation receive, and what the planner, frontier search and clearance
+    check read. ``cells`` is read-only.
+    """
+
+    cells: np.ndarray
+    """int8 (ny, nx): -1 unknown, 0 free, 100 occupied; row 0 is the lowest y."""
+    resolution_cm: float = 5.0
+    """Cell side [cm]."""
+    origin_cm: tuple[float, float] = (0.0, 0.0)
+    """Lower-left corner of cell [0, 0] in the rover frame [cm]."""
+
+    def __post_init__(self) -> None:
+        cells = self.cells
+        if not (isinstance(cells, np.ndarray) and cells.dtype == np.int8 and cells.ndim == 2
+                and not cells.flags.writeable):
+            cells = normalise_cells(cells)
+            cells.flags.writeable = False
+        object.__setattr__(self, "cells", cells)
+        object.__setattr__(self, "resolution_cm", _check_resolution(self.resolution_cm))
+        object.__setattr__(self, "origin_cm", _check_origin(self.origin_cm))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(ny, nx) [cells]."""
+        return self.cells.shape  # type: ignore[return-value]
+
+    def world_to_cell(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) of the cell holding point (x, y) [cm]; may lie outside the grid."""
+        ox, oy = self.origin_cm
+        return (math.floor((y - oy) / self.resolution_cm),
+                math.floor((x - ox) / self.resolution_cm))
+
+    def cell_to_world(self, row: float, col: float) -> tuple[float, float]:
+        """Centre (x, y) [cm] of cell (row, col)."""
+        ox, oy = self.origin_cm
+        return (ox + (col + 0.5) * self.resolution_cm, oy + (row + 0.5) * self.resolution_cm)
+
+    def contains(self, row: int, col: int) -> bool:
+        """Whether (row, col) is a cell of this grid."""
+        ny, nx = self.cells.shape
+        return 0 <= row < ny and 0 <= col < nx
+
+    def known_bounds(self) -> tuple[int, int, int, int] | None:
+        """Half-open box ``(row0, row1, col0, col1)`` of the known cells, or None."""
+        known = self.cells != UNKNOWN
+        rows = np.flatnonzero(known.any(axis=1))
+        if rows.size == 0:
+            return None
+        cols = np.flatnonzero(known.any(axis=0))
+        return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+
+    def crop(self, row0: int, row1: int, col0: int, col1: int) -> GridMap:
+        """The sub-map of rows [row0, row1) and columns [col0, col1), clipped to the grid."""
+        ny, nx = self.cells.shape
+        row0, row1 = max(0, row0), min(ny, row1)
+        col0, col1 = max(0, col0), min(nx, col1)
+        if row0 >= row1 or col0 >= col1:
+            raise ValueError(f"crop box is empty: rows [{row0}, {row1}) cols [{col0}, {col1})")
+        ox, oy = self.origin_cm
+        sub = self.cells[row0:row1, col0:col1]
+        return GridMap(sub, self.resolution_cm,
+                       (ox + col0 * self.resolution_cm, oy + row0 * self.resolution_cm))
+
+    def crop_known(self, margin_cells: int = 1) -> GridMap:
+        """The smallest sub-map holding every known cell plus a margin of unknown ones.
+
+        An all-unknown map crops to itself.
+        """
+        box = self.known_bounds()
+        if box is None:
+            return self
+        r0, r1, c0, c1 = box
+        m = max(0, int(margin_cells))
+        return self.crop(r0 - m, r1 + m, c0 - m, c1 + m)
+
+
+class OccupancyGrid:
+    """Map Management's mutable log-odds grid with a fixed extent.
+
+    The extent is fixed when the grid is made (24 m x 24 m centred on the start
+    by default: a 10 m x 8 m hall fits from any start pose), so cell indices
+    never shift while mapping.
+
+    Args:
+        width_cm: extent along x [cm].
+        height_cm: extent along y [cm].
+        resolution_cm: cell side [cm].
+        origin_cm: lower-left corner of cell [0, 0]; default centres the grid
+            on (0, 0).
+        model: sensor model and thresholds.
+
+    Raises:
+        ValueError: for a non-positive size or resolution, or a grid of more than
+            2**24 cells.
+    """
+
+    def __init__(
+        self,
+        width_cm: float = 2400.0,
+        height_cm: float = 2400.0,
+        resolution_cm: float = 5.0,
+        *,
+        origin_cm: tuple[float, float] | None = None,
+        model: LogOddsModel | None = None,
+    ) -> None:
+        self.resolution_cm = _check_resolution(resolution_cm)
+        """Cell side [cm]."""
+        for name, v in (("width_cm", width_cm), ("height_cm", height_cm)):
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive number, got {v!r}")
+        nx = max(1, round(width_cm / self.resolution_cm))
+        ny = max(1, round(height_cm / self.resolution_cm))
+        if nx * ny > 1 << 24:
+            raise ValueError(f"grid of {nx} x {ny} cells is too large (limit 2**24 cells)")
+        if origin_cm is None:
+            origin_cm = (-0.5 * nx * self.resolution_cm, -0.5 * ny * self.resolution_cm)
+        self.origin_cm = _check_origin(origin_cm)
+        """Lower-left corner of cell [0, 0] in the rover frame [cm]."""
+        self.model = model or LogOddsModel()
+        """Sensor model and thresholds."""
+        self._log_odds = np.zeros((ny, nx), dtype=np.float32)
+        self.batches = 0
+        """Batches integrated so far (one per `integrate` call with at least one ray)."""
+        self.rays = 0
+        """Rays integrated so far."""
+        self.changed_total = 0
+        """Cells whose class (unknown / free / occupied) changed, summed over all batches."""
+
+    # -- construction from a received map ---------------------------------
+
+    @classmethod
+    def from_cells(
+        cls,
+        cells: np.ndarray,
+        resolution_cm: float,
+        origin_cm: tuple[float, float],
+        *,
+        model: LogOddsModel | None = None,
+    ) -> OccupancyGrid:
+        """Rebuild a grid from a snapshot (e.g. after a restart, or a received map).
+
+        Free cells get ``l_min`` and occupied ``l_max`` (fully confident),
+        unknown 0; the extent is that of ``cells``.
+
+        Raises:
+            ValueError: for bad cells, resolution or origin (see `normalise_cells`).
+        """
+        norm = normalise_cells(cells)
+        ny, nx = norm.shape
+        res = _check_resolution(resolution_cm)
+        grid = cls(nx * res, ny * res, res, origin_cm=origin_cm, model=model)
+        lo = grid._log_odds
+        lo[norm == FREE] = grid.model.l_min
+        lo[norm == OCCUPIED] = grid.model.l_max
+        return grid
+
+    # -- geometry -----------------------------------------------------------
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(ny, nx) [cells]."""
+        return self._log_odds.shape  # type: ignore[return-value]
+
+    def world_to_cell(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) of the cell holding (x, y) [cm]; may lie outside the grid."""
+        ox, oy = self.origin_cm
+        return (math.floor((y - oy) / self.resolution_cm),
+                math.floor((x - ox) / self.resolution_cm))
+
+    def cell_to_world(self, row: float, col: float) -> tuple[float, float]:
+        """Centre (x, y) [cm] of cell (row, col)."""
+        ox, oy = self.origin_cm
+        return (ox + (col + 0.5) * self.resolution_cm, oy + (row + 0.5) * self.resolution_cm)
+
+    # -- update ---------------------------------------------------------------
+
+    def integrate(self, pose: Pose, angles_deg: np.ndarray, ranges_cm: np.ndarray) -> int:
+        """Fuse one batch of LIDAR returns taken at ``pose``.
+
+        Args:
+            pose: the rover pose when the batch was taken (rover frame).
+            angles_deg: ray angles relative to the rover heading, counter-
+                clockwise [deg], shape (n,).
+            ranges_cm: measured ranges [cm], shape (n,); 0 means no return.
+
+        Returns:
+            How many cells changed class (unknown / free / occupied) in this
+            batch: the cheap change signal for "the map has stopped changing".
+
+        Raises:
+            ValueError: if the arrays differ in shape, are not 1-D, or hold a
+                non-finite angle or a negative or non-finite range.
+        """
+        angles = np.asarray(angles_deg, dtype=np.float64)
+        ranges = np.asarray(ranges_cm, dtype=np.float64)
+        if angles.ndim != 1 or angles.shape != ranges.shape:
+            raise ValueError(f"angles_deg and ranges_cm must be 1-D of one length, got "
+                             f"{angles.shape} and {ranges.shape}")
+        if angles.size == 0:
+            return 0
+        if not np.isfinite(angles).all():
+            raise ValueError("angles_deg must be finite")
+        if not (np.isfinite(ranges).all() and (ranges >= 0).all()):
+            raise ValueError("ranges_cm must be finite and >= 0")
+        m = self.model
+        res = self.resolution_cm
+        ny, nx = self._log_odds.shape
+        ox, oy = self.origin_cm
+
+        has_hit = (ranges > 0) & (ranges <= m.max_range_cm)
+        length = np.where(has_hit, ranges, m.max_range_cm)  # [cm]
+        theta = np.radians(angles + pose.heading_deg)
+        cos, sin = np.cos(theta), np.sin(theta)
+        # ray origin and geometry in cell units
+        px, py = (pose.x - ox) / res, (pose.y - oy) / res
+        length_c = length / res
+        step = m.ray_step
+
+        # free samples: t = 0, step, 2 step, ... strictly before the ray's end
+        n_samples = np.ceil(length_c / step).astype(np.int64)
+        total = int(n_samples.sum())
+        ray_of = np.repeat(np.arange(n_samples.size), n_samples)
+        first = np.cumsum(n_samples) - n_samples
+        t = (np.arange(total) - np.repeat(first, n_samples)) * step
+        fc = np.floor(px + cos[ray_of] * t).astype(np.int64)
+        fr = np.floor(py + sin[ray_of] * t).astype(np.int64)
+        inside = (fc >= 0) & (fc < nx) & (fr >= 0) & (fr < ny)
+        free_flat = fr[inside] * nx + fc[inside]
+
+        hc = np.floor(px + cos[has_hit] * length_c[has_hit]).astype(np.int64)
+        hr = np.floor(py + sin[has_hit] * length_c[has_hit]).astype(np.int64)
+        inside = (hc >= 0) & (hc < nx) & (hr >= 0) & (hr < ny)
+        hit_flat = hr[inside] * nx + hc[inside]
+
+        flat = self._log_odds.reshape(-1)
+        touched = np.zeros(flat.size, dtype=bool)
+        touched[free_flat] = True
+        touched[hit_flat] = False
+        free_idx = np.flatnonzero(touched)
+        hit_idx = np.unique(hit_flat)
+        idx = np.concatenate([free_idx, hit_idx])
+        before = self._classify(flat[idx])
+        flat[free_idx] += m.l_free
+        flat[hit_idx] += m.l_occ
+        flat[idx] = np.clip(flat[idx], m.l_min, m.l_max)
+        changed = int(np.count_nonzero(self._classify(flat[idx]) != before))
+
+        self.batches += 1
+        self.rays += int(angles.size)
+        self.changed_total += changed
+        return changed
+
+    def _classify(self, log_odds: np.ndarray) -> np.ndarray:
+        m = self.model
+        out = np.full(log_odds.shape, UNKNOWN, dtype=np.int8)
+        out[log_odds < m.free_threshold] = FREE
+        out[log_odds > m.occ_threshold] = OCCUPIED
+        return out
+
+    # -- reading ----------------------------------------------------------------
+
+    def log_odds(self) -> np.ndarray:
+        """A read-only view of the log-odds (ny, nx); it changes as the grid is updated."""
+        view = self._log_odds.view()
+        view.flags.writeable = False
+        return view
+
+    def cells(self) -> np.ndarray:
+        """A new int8 array (ny, nx): -1 unknown, 0 free, 100 occupied."""
+        return self._classify(self._log_odds)
+
+    def snapshot(self) -> GridMap:
+        """An immutable `GridMap` of the whole grid."""
+        cells = self.cells()
+        cells.flags.writeable = False
+        return GridMap(cells, self.resolution_cm, self.origin_cm)
+
+    def bounds(self) -> tuple[int, int, int, int] | None:
+        """Half-open box ``(row0, row1, col0, col1)`` of the known cells, or None."""
+        return self.snapshot().known_bounds()
+
+    def cropped_cells(self, margin_cells: int = 0) -> tuple[np.ndarray, tuple[float, float]]:
+        """Cells of the known area (plus a margin) and the crop's origin [cm], for upload.
+
+        An all-unknown grid returns the whole grid.
+        """
+        snap = self.snapshot().crop_known(margin_cells)
+        return np.array(snap.cells), snap.origin_cm
+
+    def known_count(self) -> int:
+        """Number of known (free or occupied) cells."""
+        m = self.model
+        lo = self._log_odds
+        return int(np.count_nonzero((lo < m.free_threshold) | (lo > m.occ_threshold)))
+
+    def __repr__(self) -> str:
+        ny, nx = self._log_odds.shape
+        return (f"<OccupancyGrid {nx}x{ny} @ {self.resolution_cm:g} cm, origin "
+                f"{self.origin_cm}, batches={self.batches}, known={self.known_count()}>")
