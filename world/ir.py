@@ -1,0 +1,74 @@
+"""The seeker's IR reflectance sensor, its timer (Int D) and ADC (Int C).
+
+The hider is reflective on all sides. The reading is high when the hider's
+body is within ``ir_range_cm`` of the seeker's nose and its centre lies within
+``+-ir_fov_deg`` of the seeker's heading: it falls linearly from ``ir_high``
+at contact to 2500 at the range limit; otherwise it is ``ir_low``. Gaussian
+noise (``ir_noise``) is added and the result clipped to the 12-bit ADC range.
+Walls do not occlude the beam (a simplification: the sensor's range is short).
+"""
+
+from __future__ import annotations
+
+import math
+
+import shapely
+
+from world.geometry import Pose, footprint
+from world.params import DeviceParams
+
+ADC_MAX = 4095
+#: reading at the edge of range [counts]
+IR_EDGE = 2500.0
+#: at most this many Int D per tick
+MAX_TIMER_EVENTS_PER_TICK = 100
+
+
+class IrSensor:
+    """IR timer phase and ADC state."""
+
+    def __init__(self, params: DeviceParams) -> None:
+        self.p = params
+        self.rate_hz = 0.0
+        self._phase = 0.0
+        self.adc_pending = False
+        """A conversion was started and its Int C has not fired yet."""
+        self.adc_overruns = 0
+        """Conversions started while one was pending (ignored, as a busy ADC does)."""
+
+    def set_rate(self, rate_hz: float) -> None:
+        self.rate_hz = rate_hz
+        if rate_hz == 0:
+            self._phase = 0.0
+
+    def start(self) -> None:
+        if self.adc_pending:
+            self.adc_overruns += 1
+        self.adc_pending = True
+
+    def timer_events(self, dt: float) -> int:
+        """How many Int D fire in the next ``dt`` [s]."""
+        self._phase += self.rate_hz * dt
+        n = min(int(self._phase), MAX_TIMER_EVENTS_PER_TICK)
+        self._phase -= int(self._phase)
+        return n
+
+    def reading(self, seeker: Pose, hider: Pose, noise: float) -> float:
+        """Noise-free-plus-``noise`` analogue value before clipping [counts]."""
+        p = self.p
+        h = math.radians(seeker.heading_deg)
+        nose = (seeker.x + math.cos(h) * p.length_cm / 2, seeker.y + math.sin(h) * p.length_cm / 2)
+        bearing = math.degrees(math.atan2(hider.y - nose[1], hider.x - nose[0]) - h)
+        bearing = (bearing + 180.0) % 360.0 - 180.0
+        level = p.ir_low
+        if abs(bearing) <= p.ir_fov_deg:
+            body = footprint(hider, p.length_cm, p.width_cm)
+            d = shapely.distance(shapely.Point(nose), body)
+            if d <= p.ir_range_cm:
+                level = p.ir_high - (p.ir_high - IR_EDGE) * d / max(p.ir_range_cm, 1e-9)
+        return level + noise
+
+
+def to_adc(value: float) -> int:
+    """Clip an analogue value to a 12-bit sample."""
+    return int(min(ADC_MAX, max(0, round(value))))

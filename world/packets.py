@@ -1,0 +1,45 @@
+"""Device-side encoders of the wire formats firmware decodes.
+
+Copies of the datasheet formats in ``actors/firmware/devices.py`` (the world
+may not import firmware); ``tests/test_world_devices_contract.py`` checks both
+sides agree.
+
+Data Packet A (LIDAR UART, 6 bytes, little-endian)::
+
+    0xA5 | angle u16 [0.01 deg, 0..35999] | distance u16 [cm] | checksum u8 (XOR of the 4 payload bytes)
+
+Int E payload: bit 0 is the tread (0 left, 1 right), bit 1 set when backwards.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+LIDAR_SYNC = 0xA5
+LIDAR_PACKET_SIZE = 6
+TREAD_LEFT = 0
+TREAD_RIGHT = 1
+
+
+def encode_counter(tread: int, forward: bool) -> int:
+    """Int E payload for one counter interrupt of ``tread``."""
+    return (tread & 1) | (0 if forward else 2)
+
+
+def encode_lidar_packets(angles_centideg: np.ndarray, distances_cm: np.ndarray) -> bytes:
+    """Data Packet A frames for a batch of samples, concatenated.
+
+    Args:
+        angles_centideg: angle offsets [0.01 deg], taken modulo 36000.
+        distances_cm: distances [cm], clipped to 0..65535 (0 = no return).
+    """
+    a = (np.asarray(angles_centideg, dtype=np.int64) % 36000).astype(np.uint16)
+    d = np.clip(np.asarray(distances_cm, dtype=np.int64), 0, 65535).astype(np.uint16)
+    out = np.empty((len(a), LIDAR_PACKET_SIZE), dtype=np.uint8)
+    out[:, 0] = LIDAR_SYNC
+    out[:, 1] = a & 0xFF
+    out[:, 2] = a >> 8
+    out[:, 3] = d & 0xFF
+    out[:, 4] = d >> 8
+    out[:, 5] = out[:, 1] ^ out[:, 2] ^ out[:, 3] ^ out[:, 4]
+    return out.tobytes()

@@ -1,0 +1,122 @@
+"""Device parameters of the simulated rovers, with documented defaults.
+
+Every field can be overridden per scenario in its ``[devices]`` table (same
+names). `RoverSpec` mirrors the firmware's ``HardwareSpec`` field for field:
+the world may not import firmware, so it carries its own copy and a test checks
+that the field names agree.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True, slots=True)
+class DeviceParams:
+    """Physical constants of the simulated hardware (defaults in brackets' units)."""
+
+    # -- body and drive ----------------------------------------------------
+    length_cm: float = 20.0
+    """Rover body length [cm]."""
+    width_cm: float = 15.0
+    """Rover body width [cm]."""
+    track_width_cm: float = 13.0
+    """Distance between the treads' contact lines [cm]."""
+    max_speed_cm_s: float = 30.0
+    """Tread speed at full PWM [cm/s]."""
+    motor_tau_s: float = 0.08
+    """First-order lag of the tread motors [s]."""
+    slip_sigma: float = 0.02
+    """Relative tread slip noise: each tick's tread travel is scaled by 1 + N(0, sigma)."""
+    # -- encoders ----------------------------------------------------------
+    ticks_per_cm: float = 8.0
+    """Quadrature encoder ticks per cm of tread travel."""
+    ticks_per_interrupt: int = 4
+    """Encoder ticks per Int E (the motor counter timer's reload)."""
+    # -- LIDAR (mapper) ----------------------------------------------------
+    lidar_rev_s_full_pwm: float = 11.0
+    """Rotation rate at PWM 1.0 [rev/s]; proportional to PWM (0.5 gives 5.5 rev/s)."""
+    lidar_samples_per_rev: int = 360
+    """Range samples per revolution."""
+    lidar_range_cm: float = 4000.0
+    """Maximum range; farther gives distance 0 ("no return") [cm]."""
+    lidar_quantum_cm: float = 2.0
+    """Distance resolution [cm]."""
+    lidar_noise_cm: float = 0.5
+    """Gaussian range noise, standard deviation [cm]."""
+    lidar_baud: int = 460800
+    """LIDAR UART rate [bit/s], 10 bits per byte; excess bytes in a tick are dropped."""
+    # -- IR (seeker) -------------------------------------------------------
+    ir_range_cm: float = 60.0
+    """Range within which the hider reflects (from the seeker's nose) [cm]."""
+    ir_fov_deg: float = 20.0
+    """Half field of view [deg]."""
+    ir_noise: float = 30.0
+    """ADC noise, standard deviation [counts]."""
+    ir_low: float = 200.0
+    """ADC reading with nothing reflective in view [counts]."""
+    ir_high: float = 3800.0
+    """ADC reading with the hider at zero distance [counts]; falls to 2500 at range."""
+    # -- WiFly -------------------------------------------------------------
+    wifly_bytes_s: float = 11520.0
+    """WiFly throughput each way (115200 baud) [bytes/s]."""
+    wifly_latency_s: float = 0.005
+    """One-way latency [s]."""
+    wifly_loss: float = 0.0
+    """Probability that one tick's chunk of bytes is lost [0..1]."""
+    wifly_corrupt: float = 0.0
+    """Probability that a byte is corrupted [0..1]."""
+    wifly_buffer_bytes: int = 8192
+    """Send buffer per direction; bytes written beyond it are dropped [bytes]."""
+
+    def with_overrides(self, overrides: dict[str, Any]) -> DeviceParams:
+        """A copy with some fields replaced.
+
+        Raises:
+            ValueError: a name is not a field, or a value has the wrong type or sign.
+        """
+        fields = {f.name: f for f in dataclasses.fields(self)}
+        clean: dict[str, Any] = {}
+        for name, value in overrides.items():
+            if name not in fields:
+                raise ValueError(f"unknown device parameter {name!r}")
+            default = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{name} must be a number, got {value!r}")
+            if isinstance(default, int) and not isinstance(value, int):
+                raise ValueError(f"{name} must be an integer, got {value!r}")
+            if value < 0:
+                raise ValueError(f"{name} must not be negative, got {value!r}")
+            if name in ("wifly_loss", "wifly_corrupt") and value > 1:
+                raise ValueError(f"{name} must be within 0..1, got {value!r}")
+            clean[name] = type(default)(value)
+        return dataclasses.replace(self, **clean)
+
+    @property
+    def cm_per_interrupt(self) -> float:
+        """Tread travel per Int E [cm] (0.5 by default)."""
+        return self.ticks_per_interrupt / self.ticks_per_cm
+
+
+@dataclass(frozen=True, slots=True)
+class RoverSpec:
+    """Calibration constants handed to firmware; same fields as firmware's ``HardwareSpec``."""
+
+    role: str
+    cm_per_interrupt: float
+    track_width_cm: float
+    length_cm: float = 20.0
+    width_cm: float = 15.0
+    max_speed_cm_s: float = 30.0
+
+    @classmethod
+    def from_params(cls, role: str, p: DeviceParams) -> RoverSpec:
+        """The spec a rover's firmware is built with, from the device parameters."""
+        return cls(role, p.cm_per_interrupt, p.track_width_cm, p.length_cm, p.width_cm,
+                   p.max_speed_cm_s)
+
+
+ROLES = ("mapper", "hider", "seeker")
+"""The three rover roles, in the order the world steps them."""
