@@ -1,0 +1,260 @@
+"""The game state machine of DESIGN.md section 6: a pure class driven by events.
+
+::
+
+    idle --start_mapping--> mapping --map uploaded--> map_ready
+    mapping --stop_mapping--> mapping (stop sent, waiting for the map)
+    map_ready --hide(x, y, heading)--> hiding --arrived--> hidden
+    hiding --invalid_spot(reason)--> map_ready
+    hidden | not_found --seek(x, y[, heading])--> seeking --found--> found
+    seeking --not_found--> not_found
+    any --new_game--> idle
+
+`Game` knows nothing of links or time: operator commands (`command`) and rover
+reports (`on_rover`, `on_map`) return a `Result` saying whether they were
+accepted (with the reason when not) and which frames to send to which role.
+Spots are in the map frame (the mapper's start frame) unless the operator
+gives ``frame="room"``; the rovers' room-frame start poses (configuration)
+turn into the ``origin`` each rover receives.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from .protocol import (
+    DESTINATION,
+    ORIGIN,
+    START,
+    STOP,
+    Frame,
+    MapGrid,
+    Pose2,
+    compose,
+    inverse,
+    make_frame,
+)
+
+__all__ = ["Phase", "Send", "Result", "Game", "COMMANDS"]
+
+
+class Phase(enum.StrEnum):
+    """Where the game is."""
+
+    IDLE = "idle"
+    MAPPING = "mapping"
+    MAP_READY = "map_ready"
+    HIDING = "hiding"
+    HIDDEN = "hidden"
+    SEEKING = "seeking"
+    FOUND = "found"
+    NOT_FOUND = "not_found"
+
+
+COMMANDS = ("start_mapping", "stop_mapping", "hide", "seek", "new_game")
+"""Operator commands accepted by `Game.command`."""
+
+
+@dataclass(frozen=True, slots=True)
+class Send:
+    """A frame the server must send to the rover playing ``role``."""
+
+    role: str
+    frame: Frame
+
+
+@dataclass(frozen=True, slots=True)
+class Result:
+    """What a command or report did: accepted or refused (with the reason), and frames to send."""
+
+    ok: bool
+    reason: str = ""
+    sends: tuple[Send, ...] = ()
+
+    def __bool__(self) -> bool:
+        return self.ok
+
+
+def _refuse(reason: str) -> Result:
+    return Result(False, reason)
+
+
+@dataclass
+class Game:
+    """One game, from idle to found.
+
+    Args:
+        start_poses: each role's start pose in the ROOM frame [cm, deg], from
+            configuration. The mapper's defines the map frame; a missing
+            mapper pose means the map frame is the room frame.
+    """
+
+    start_poses: Mapping[str, Pose2] = field(default_factory=dict)
+    phase: Phase = Phase.IDLE
+    map: MapGrid | None = None
+    """The mapper's last uploaded map, None before the first."""
+    stopping: bool = False
+    """Stop was sent to the mapper; its map upload will end mapping."""
+    hide_spot: Pose2 | None = None
+    """Where the hider was sent (map frame)."""
+    hider_pose: Pose2 | None = None
+    """Where the hider reported arriving (map frame)."""
+    guesses: list[Pose2] = field(default_factory=list)
+    """The seeker's destinations, in order (map frame)."""
+    last_reason: str = ""
+    """Reason of the last invalid_spot or not_found."""
+    _seeker_started: bool = False
+
+    # -- frames ------------------------------------------------------------------
+
+    def mapper_room_pose(self) -> Pose2:
+        """The mapper's start pose in the room frame (identity when not configured)."""
+        return Pose2(*self.start_poses.get("mapper", Pose2(0.0, 0.0, 0.0)))
+
+    def room_to_map(self, p: Pose2) -> Pose2:
+        """A room-frame pose in the map frame."""
+        return compose(inverse(self.mapper_room_pose()), p)
+
+    def map_to_room(self, p: Pose2) -> Pose2:
+        """A map-frame pose in the room frame."""
+        return compose(self.mapper_room_pose(), p)
+
+    def origin_of(self, role: str) -> Pose2 | None:
+        """The start pose of ``role`` in the map frame, None when not configured."""
+        if role == "mapper":
+            return Pose2(0.0, 0.0, 0.0)
+        p = self.start_poses.get(role)
+        return None if p is None else self.room_to_map(Pose2(*p))
+
+    # -- operator ------------------------------------------------------------------
+
+    def command(self, name: str, *, x: float | None = None, y: float | None = None,
+                heading: float | None = None, frame: str = "map") -> Result:
+        """Apply an operator command; illegal ones are refused with a reason."""
+        if name not in COMMANDS:
+            return _refuse(f"unknown command {name!r}; expected one of {', '.join(COMMANDS)}")
+        if frame not in ("map", "room"):
+            return _refuse(f"frame must be 'map' or 'room', got {frame!r}")
+        return getattr(self, f"_cmd_{name}")(x, y, heading, frame)
+
+    def _cmd_start_mapping(self, x, y, heading, frame) -> Result:
+        if self.phase is not Phase.IDLE:
+            return _refuse(f"start_mapping needs phase idle, the game is {self.phase}")
+        self.phase = Phase.MAPPING
+        self.stopping = False
+        return Result(True, sends=(Send("mapper", make_frame(ORIGIN, _pose(Pose2(0, 0, 0)))),
+                                   Send("mapper", make_frame(START))))
+
+    def _cmd_stop_mapping(self, x, y, heading, frame) -> Result:
+        if self.phase is not Phase.MAPPING:
+            return _refuse(f"stop_mapping needs phase mapping, the game is {self.phase}")
+        if self.stopping:
+            return _refuse("stop already sent; waiting for the mapper's map")
+        self.stopping = True
+        return Result(True, "stop sent; waiting for the mapper's map",
+                      (Send("mapper", make_frame(STOP)),))
+
+    def _spot(self, x, y, heading, frame, what: str) -> Pose2 | str:
+        if x is None or y is None:
+            return f"{what} needs x and y [cm]"
+        p = Pose2(float(x), float(y), float(heading or 0.0))
+        if frame == "room":
+            p = self.room_to_map(p)
+        if self.map is not None:
+            (ny, nx), r = self.map.shape, self.map.resolution_cm
+            ox, oy = self.map.origin_cm
+            if not (ox <= p.x < ox + nx * r and oy <= p.y < oy + ny * r):
+                return (f"{what} spot ({p.x:.0f}, {p.y:.0f}) cm (map frame) is outside the map "
+                        f"[{ox:.0f}..{ox + nx * r:.0f}] x [{oy:.0f}..{oy + ny * r:.0f}]")
+        return p
+
+    def _cmd_hide(self, x, y, heading, frame) -> Result:
+        if self.phase is not Phase.MAP_READY:
+            return _refuse(f"hide needs phase map_ready, the game is {self.phase}")
+        origin = self.origin_of("hider")
+        if origin is None:
+            return _refuse("start pose of the hider is not configured (--origin ID=X,Y,HEADING)")
+        spot = self._spot(x, y, heading, frame, "hide")
+        if isinstance(spot, str):
+            return _refuse(spot)
+        self.hide_spot = spot
+        self.phase = Phase.HIDING
+        dest = {"x": spot.x, "y": spot.y, "heading": spot.heading}
+        return Result(True, sends=(Send("hider", make_frame(ORIGIN, _pose(origin))),
+                                   Send("hider", make_frame(START)),
+                                   Send("hider", make_frame(DESTINATION, dest))))
+
+    def _cmd_seek(self, x, y, heading, frame) -> Result:
+        if self.phase not in (Phase.HIDDEN, Phase.NOT_FOUND):
+            return _refuse(f"seek needs phase hidden or not_found, the game is {self.phase}")
+        origin = self.origin_of("seeker")
+        if origin is None:
+            return _refuse("start pose of the seeker is not configured (--origin ID=X,Y,HEADING)")
+        spot = self._spot(x, y, heading, frame, "seek")
+        if isinstance(spot, str):
+            return _refuse(spot)
+        self.guesses.append(spot)
+        self.phase = Phase.SEEKING
+        dest = {"x": spot.x, "y": spot.y, "heading": None if heading is None else spot.heading}
+        sends = []
+        if not self._seeker_started:
+            self._seeker_started = True
+            sends += [Send("seeker", make_frame(ORIGIN, _pose(origin))),
+                      Send("seeker", make_frame(START))]
+        sends.append(Send("seeker", make_frame(DESTINATION, dest)))
+        return Result(True, sends=tuple(sends))
+
+    def _cmd_new_game(self, x, y, heading, frame) -> Result:
+        busy = {Phase.MAPPING: "mapper", Phase.HIDING: "hider", Phase.SEEKING: "seeker"}
+        role = busy.get(self.phase)
+        sends = (Send(role, make_frame(STOP)),) if role else ()
+        keep = self.start_poses
+        self.__init__(start_poses=keep)  # type: ignore[misc]
+        return Result(True, sends=sends)
+
+    # -- rovers ------------------------------------------------------------------------
+
+    def on_map(self, grid: MapGrid) -> Result:
+        """The mapper uploaded a complete map."""
+        if self.phase not in (Phase.MAPPING, Phase.MAP_READY):
+            return _refuse(f"map upload ignored in phase {self.phase}")
+        self.map = grid
+        self.phase = Phase.MAP_READY
+        self.stopping = False
+        return Result(True)
+
+    def on_rover(self, role: str, cmd: str, pose: Pose2 | None = None,
+                 reason: str = "") -> Result:
+        """A rover reported ``arrived``, ``invalid_spot``, ``found`` or ``not_found``."""
+        expect = {"arrived": ("hider", Phase.HIDING), "invalid_spot": ("hider", Phase.HIDING),
+                  "found": ("seeker", Phase.SEEKING), "not_found": ("seeker", Phase.SEEKING)}
+        if cmd not in expect:
+            return _refuse(f"{cmd!r} is not a game report")
+        want_role, want_phase = expect[cmd]
+        if role != want_role:
+            return _refuse(f"{cmd} comes from the {want_role}, not the {role}")
+        if self.phase is not want_phase:
+            return _refuse(f"{cmd} ignored in phase {self.phase}")
+        if cmd == "arrived":
+            self.hider_pose = pose
+            self.phase = Phase.HIDDEN
+        elif cmd == "invalid_spot":
+            self.last_reason = reason
+            self.phase = Phase.MAP_READY
+        elif cmd == "found":
+            self.phase = Phase.FOUND
+        else:
+            self.last_reason = reason
+            self.phase = Phase.NOT_FOUND
+        return Result(True, reason)
+
+    @property
+    def finished(self) -> bool:
+        """True once the hider was found."""
+        return self.phase is Phase.FOUND
+
+
+def _pose(p: Pose2) -> dict:
+    return {"x": p.x, "y": p.y, "heading": p.heading}
