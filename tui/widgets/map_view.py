@@ -1,0 +1,380 @@
+"""The map: the mapper's occupancy grid with rovers, LIDAR, paths and a cursor.
+
+Drawing uses half blocks: each character cell is two square pixels (the upper
+half ``▀`` in the foreground colour, the lower half in the background colour),
+since a terminal cell is about twice as tall as wide. One pixel is ``scale``
+[cm] on a side; when a pixel covers several grid cells it shows the most
+significant of them (occupied over free over unknown), so thin walls survive
+zooming out. Rovers, the frontier target, the hide spot, guesses and the
+cursor are characters drawn over the pixels.
+
+The frame is the map frame of `tui.snapshot` (x right, y up on screen).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from rich.segment import Segment
+from rich.style import Style
+from textual.binding import Binding
+from textual.geometry import Size
+from textual.message import Message
+from textual.reactive import reactive
+from textual.strip import Strip
+from textual.widget import Widget
+
+from tui.snapshot import FREE, OCCUPIED, GridView, Snapshot
+
+__all__ = ["MapView", "ZOOMS_CM", "heading_glyph"]
+
+#: Pixel sizes the zoom steps through [cm per pixel].
+ZOOMS_CM: tuple[float, ...] = (1.25, 2.5, 5.0, 10.0, 20.0, 40.0)
+
+# Pixel classes, drawn in this colour (index = class).
+_UNKNOWN, _FREE, _OCC, _MISSED, _FALSE, _PATH, _LIDAR = range(7)
+_COLOURS = ("#161616", "#4a4a4a", "#e0e0e0", "#8f5fe0", "#e07020", "#c8a000", "#ff4040")
+_ROVER_COLOURS = {"mapper": "#40d0ff", "hider": "#40ff60", "seeker": "#ff60ff"}
+_ARROWS = "→↗↑↖←↙↓↘"
+
+
+def heading_glyph(heading_deg: float) -> str:
+    """An arrow for a heading [deg] (counter-clockwise from +x, screen up is +y)."""
+    return _ARROWS[int(round((heading_deg % 360.0) / 45.0)) % 8]
+
+
+def classify(grid: GridView | None, truth: GridView | None, xs: np.ndarray,
+             ys: np.ndarray) -> np.ndarray:
+    """Pixel classes for sample points (any shape) [cm]: unknown/free/occupied,
+    and with ``truth`` the mapping errors (missed obstacle, false obstacle)."""
+    out = np.full(xs.shape, _UNKNOWN, np.int8)
+    if grid is None:
+        return out
+    map_val = _sample(grid, xs, ys)
+    out[map_val == FREE] = _FREE
+    out[map_val == OCCUPIED] = _OCC
+    if truth is not None:
+        true_val = _sample(truth, xs, ys)
+        out[(true_val == OCCUPIED) & (map_val != OCCUPIED)] = _MISSED
+        out[(true_val == FREE) & (map_val == OCCUPIED)] = _FALSE
+    return out
+
+
+def _sample(grid: GridView, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    ny, nx = grid.cells.shape
+    cols = np.floor((xs - grid.origin_cm[0]) / grid.resolution_cm).astype(np.int64)
+    rows = np.floor((ys - grid.origin_cm[1]) / grid.resolution_cm).astype(np.int64)
+    inside = (cols >= 0) & (cols < nx) & (rows >= 0) & (rows < ny)
+    out = np.full(xs.shape, -1, np.int16)
+    out[inside] = grid.cells[rows[inside], cols[inside]]
+    return out
+
+
+class MapView(Widget, can_focus=True):
+    """The mapper's map with overlays, a cursor, zoom and pan.
+
+    | Key | Action |
+    |---|---|
+    | arrows | move the cursor one character |
+    | shift+arrows | pan a quarter of the view |
+    | + / - | zoom in / out |
+    | 0 | fit the whole map |
+    | r | rotate the cursor's heading by 45 deg (for the hide spot) |
+    """
+
+    BINDINGS = [
+        Binding("up", "cursor(0, 1)", "Cursor", show=False),
+        Binding("down", "cursor(0, -1)", "Cursor", show=False),
+        Binding("left", "cursor(-1, 0)", "Cursor", show=False),
+        Binding("right", "cursor(1, 0)", "Cursor", show=False),
+        Binding("shift+up", "pan(0, 1)", "Pan", show=False),
+        Binding("shift+down", "pan(0, -1)", "Pan", show=False),
+        Binding("shift+left", "pan(-1, 0)", "Pan", show=False),
+        Binding("shift+right", "pan(1, 0)", "Pan", show=False),
+        Binding("plus,equals_sign", "zoom(-1)", "Zoom in", show=False),
+        Binding("minus", "zoom(1)", "Zoom out", show=False),
+        Binding("0", "fit", "Fit", show=False),
+        Binding("r", "rotate", "Rotate", show=False),
+    ]
+
+    DEFAULT_CSS = """
+    MapView {
+        border: round $primary;
+        border-title-color: $text;
+        min-width: 20;
+        min-height: 6;
+    }
+    MapView:focus { border: round $accent; }
+    """
+
+    show_truth: reactive[bool] = reactive(False)
+    """Overlay ground truth: missed obstacles purple, false obstacles orange."""
+    zoom: reactive[int] = reactive(2)
+    """Index into `ZOOMS_CM`."""
+    cursor: reactive[tuple[float, float]] = reactive((0.0, 0.0))
+    """Cursor position (x, y) in the map frame [cm]."""
+    cursor_heading: reactive[float] = reactive(90.0)
+    """Heading [deg] proposed for the hide spot."""
+
+    class Clicked(Message):
+        """The map was clicked; the cursor moved to (x_cm, y_cm)."""
+
+        def __init__(self, x_cm: float, y_cm: float) -> None:
+            super().__init__()
+            self.x_cm = x_cm
+            self.y_cm = y_cm
+
+    def __init__(self, *, name: str | None = None, id: str | None = None,
+                 classes: str | None = None) -> None:
+        super().__init__(name=name, id=id, classes=classes)
+        self.snapshot: Snapshot | None = None
+        self.center: tuple[float, float] = (0.0, 0.0)
+        self._fitted = False
+        self._lines: list[Strip] | None = None
+        self._styles: dict[tuple, Style] = {}
+
+    def validate_zoom(self, value: int) -> int:
+        return max(0, min(len(ZOOMS_CM) - 1, value))
+
+    def watch_show_truth(self) -> None:
+        self._invalidate()
+
+    def watch_zoom(self) -> None:
+        self._invalidate()
+
+    def watch_cursor(self) -> None:
+        self._follow_cursor()
+        self._invalidate()
+
+    def watch_cursor_heading(self) -> None:
+        self._invalidate()
+
+    @property
+    def scale(self) -> float:
+        """Pixel size [cm]."""
+        return ZOOMS_CM[self.zoom]
+
+    def update_snapshot(self, snapshot: Snapshot) -> None:
+        """Show a new snapshot (fits the view to the map the first time)."""
+        self.snapshot = snapshot
+        if not self._fitted and snapshot.map is not None and self.size.width > 0:
+            self._fitted = True
+            self.action_fit()
+        self._invalidate()
+
+    def _invalidate(self) -> None:
+        self._lines = None
+        self._update_titles()
+        self.refresh()
+
+    def _update_titles(self) -> None:
+        x, y = self.cursor
+        what = ""
+        snap = self.snapshot
+        if snap is not None and snap.map is not None:
+            what = {-1: "unknown", 0: "free", 100: "occupied"}.get(
+                snap.map.value_at(x, y), "?")
+        self.border_title = f"Map {self.scale:g} cm/px" + (" · truth" if self.show_truth else "")
+        self.border_subtitle = (f"({x:.0f}, {y:.0f}) cm @ {self.cursor_heading:.0f}° {what}")
+
+    # -- geometry -------------------------------------------------------------
+    def _view_size(self) -> tuple[int, int]:
+        return max(1, self.size.width), max(1, self.size.height)
+
+    def to_screen(self, x_cm: float, y_cm: float) -> tuple[int, int, int]:
+        """(column, row, half) of a map point: the character cell and which half (0 top)."""
+        w, h = self._view_size()
+        s = self.scale
+        px = math.floor((x_cm - self.center[0]) / s + w / 2)
+        py = math.floor(h - (y_cm - self.center[1]) / s)  # pixel row from top, 2h rows
+        return px, py // 2, py % 2
+
+    def to_map(self, col: int, row: int, half: int = 0) -> tuple[float, float]:
+        """The map point [cm] at the centre of a pixel."""
+        w, h = self._view_size()
+        s = self.scale
+        py = 2 * row + half
+        return (self.center[0] + (col + 0.5 - w / 2) * s,
+                self.center[1] + (h - py - 0.5) * s)
+
+    def _follow_cursor(self) -> None:
+        w, h = self._view_size()
+        col, row, _ = self.to_screen(*self.cursor)
+        cx, cy = self.center
+        if not 1 <= col < w - 1:
+            cx = self.cursor[0]
+        if not 0 <= row < h:
+            cy = self.cursor[1]
+        self.center = (cx, cy)
+
+    # -- rendering --------------------------------------------------------------
+    def get_content_width(self, container: Size, viewport: Size) -> int:
+        return container.width
+
+    def get_content_height(self, container: Size, viewport: Size, width: int) -> int:
+        return container.height
+
+    def on_resize(self) -> None:
+        if not self._fitted and self.snapshot is not None and self.snapshot.map is not None:
+            self._fitted = True
+            self.action_fit()
+        self._invalidate()
+
+    def render_line(self, y: int) -> Strip:
+        if self._lines is None:
+            self._lines = self._render_frame()
+        if 0 <= y < len(self._lines):
+            return self._lines[y]
+        return Strip.blank(self.size.width)
+
+    def _style(self, fg: str, bg: str, bold: bool = False, reverse: bool = False) -> Style:
+        key = (fg, bg, bold, reverse)
+        style = self._styles.get(key)
+        if style is None:
+            style = self._styles[key] = Style(color=fg, bgcolor=bg, bold=bold, reverse=reverse)
+        return style
+
+    def pixel_classes(self) -> np.ndarray:
+        """Class of every pixel of the current view, shape (2 * height, width)."""
+        w, h = self._view_size()
+        snap = self.snapshot
+        s = self.scale
+        grid = snap.map if snap is not None else None
+        truth = snap.truth if (snap is not None and self.show_truth) else None
+        res = grid.resolution_cm if grid is not None else s
+        k = int(min(4, max(1, math.ceil(s / res))))
+        offs = (np.arange(k) + 0.5) / k - 0.5
+        cols = np.arange(w)
+        prow = np.arange(2 * h)
+        xs = self.center[0] + (cols + 0.5 - w / 2) * s
+        ys = self.center[1] + (h - prow - 0.5) * s
+        gx = xs[None, :, None, None] + offs[None, None, :, None] * s
+        gy = ys[:, None, None, None] + offs[None, None, None, :] * s
+        gx, gy = np.broadcast_arrays(gx, gy)
+        cls = classify(grid, truth, gx, gy)
+        # significance: occupied/errors over free over unknown
+        rank = np.array([0, 1, 4, 3, 2], np.int8)[cls]
+        best = rank.reshape(2 * h, w, k * k).argmax(axis=2)
+        out = np.take_along_axis(cls.reshape(2 * h, w, k * k), best[..., None], 2)[..., 0]
+        if snap is None:
+            return out
+        for rover in snap.rovers:
+            pts = rover.path
+            for (x0, y0), (x1, y1) in zip(pts, pts[1:], strict=False):
+                n = int(math.hypot(x1 - x0, y1 - y0) / (s / 2)) + 2
+                self._plot(out, np.linspace(x0, x1, n), np.linspace(y0, y1, n), _PATH)
+        if len(snap.lidar_points):
+            self._plot(out, snap.lidar_points[:, 0], snap.lidar_points[:, 1], _LIDAR)
+        return out
+
+    def _plot(self, out: np.ndarray, xs: np.ndarray, ys: np.ndarray, cls: int) -> None:
+        h2, w = out.shape
+        s = self.scale
+        px = np.floor((xs - self.center[0]) / s + w / 2).astype(np.int64)
+        py = np.floor(h2 / 2 - (ys - self.center[1]) / s).astype(np.int64)
+        ok = (px >= 0) & (px < w) & (py >= 0) & (py < h2)
+        out[py[ok], px[ok]] = cls
+
+    def glyphs(self) -> dict[tuple[int, int], tuple[str, str]]:
+        """Characters drawn over the pixels: (col, row) -> (char, colour)."""
+        snap = self.snapshot
+        marks: dict[tuple[int, int], tuple[str, str]] = {}
+        if snap is None:
+            return marks
+
+        def put(x: float, y: float, char: str, colour: str) -> None:
+            col, row, _ = self.to_screen(x, y)
+            marks[(col, row)] = (char, colour)
+
+        for i, (gx, gy) in enumerate(snap.seek_guesses):
+            put(gx, gy, str(i + 1) if i < 9 else "?", "#ffd000")
+        if snap.hide_spot is not None:
+            put(snap.hide_spot.x_cm, snap.hide_spot.y_cm, "H", "#40ff60")
+        for rover in snap.rovers:
+            colour = _ROVER_COLOURS.get(rover.role, "#ffffff")
+            if rover.target is not None:
+                put(*rover.target, "◎", colour)
+            if self.show_truth and rover.true_pose is not None:
+                put(rover.true_pose.x_cm, rover.true_pose.y_cm, "○", colour)
+            if rover.pose is not None:
+                put(rover.pose.x_cm, rover.pose.y_cm, heading_glyph(rover.pose.heading_deg),
+                    colour)
+        return marks
+
+    def _render_frame(self) -> list[Strip]:
+        w, h = self._view_size()
+        cls = self.pixel_classes()
+        marks = self.glyphs()
+        ccol, crow, _ = self.to_screen(*self.cursor)
+        lines = []
+        for row in range(h):
+            top, bottom = cls[2 * row], cls[2 * row + 1]
+            segs: list[Segment] = []
+            run_text, run_style = "", None
+            for col in range(w):
+                bg = _COLOURS[bottom[col]]
+                mark = marks.get((col, row))
+                if (col, row) == (ccol, crow):
+                    char, style = (heading_glyph(self.cursor_heading),
+                                   self._style("#000000", "#ffff00", bold=True))
+                elif mark is not None:
+                    char, style = mark[0], self._style(mark[1], bg, bold=True)
+                else:
+                    char, style = "▀", self._style(_COLOURS[top[col]], bg)
+                if style is run_style:
+                    run_text += char
+                else:
+                    if run_text:
+                        segs.append(Segment(run_text, run_style))
+                    run_text, run_style = char, style
+            if run_text:
+                segs.append(Segment(run_text, run_style))
+            lines.append(Strip(segs, w))
+        return lines
+
+    # -- events and actions -------------------------------------------------------
+    def on_click(self, event) -> None:
+        offset = event.get_content_offset(self)
+        if offset is None:
+            return
+        self.cursor = self.to_map(offset.x, offset.y)
+        self.post_message(self.Clicked(*self.cursor))
+
+    def action_cursor(self, dx: int, dy: int) -> None:
+        s = self.scale
+        self.cursor = (self.cursor[0] + dx * s, self.cursor[1] + dy * 2 * s)
+
+    def action_pan(self, dx: int, dy: int) -> None:
+        w, h = self._view_size()
+        s = self.scale
+        self.center = (self.center[0] + dx * w * s / 4, self.center[1] + dy * h * s / 2)
+        self._invalidate()
+
+    def action_zoom(self, step: int) -> None:
+        self.zoom += step
+        self.center = self.cursor if self.snapshot is not None else self.center
+        self._invalidate()
+
+    def action_fit(self) -> None:
+        """Zoom and centre so the whole map is in view."""
+        snap = self.snapshot
+        if snap is None or snap.map is None:
+            return
+        x0, y0, x1, y1 = snap.map.extent_cm()
+        w, h = self._view_size()
+        for i, s in enumerate(ZOOMS_CM):
+            if (x1 - x0) / s <= w and (y1 - y0) / s <= 2 * h:
+                self.zoom = i
+                break
+        else:
+            self.zoom = len(ZOOMS_CM) - 1
+        self.center = ((x0 + x1) / 2, (y0 + y1) / 2)
+        self._invalidate()
+
+    def action_rotate(self) -> None:
+        self.cursor_heading = (self.cursor_heading + 45.0) % 360.0
+
+    def toggle_truth(self) -> None:
+        """Flip the ground-truth overlay."""
+        self.show_truth = not self.show_truth
