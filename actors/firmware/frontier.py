@@ -1,0 +1,311 @@
+"""Frontier-based exploration: where the known-free space meets the unknown.
+
+Algorithm
+    1. Frontier cells: free cells with at least one 4-neighbour unknown
+       (cells outside the grid do not count as unknown).
+    2. Clusters: 8-connected components of frontier cells, labelled by a
+       breadth-first search; each has a size [cells] and a centroid [cm].
+    3. Reachability: a layered BFS (`actors.firmware.planner.bfs_steps`) over
+       the cells where the rover's centre may be (occupied cells inflated by
+       its radius plus a margin, unknown blocked) gives the step distance from
+       the rover. A frontier cell is approachable from any reachable cell
+       within ``approach_cm`` of it (the LIDAR sees the unknown from there;
+       frontier cells by walls are often inside the inflation themselves).
+       A cluster's distance is that of its nearest approachable cell, and its
+       target is the reachable cell nearest (Euclidean) to that frontier cell.
+    4. Choice: the lowest cost among reachable, useful (big enough), not
+       blacklisted clusters, where
+       ``cost = w_distance * distance_cm - w_size * min(size_cm, size_cap_cm)
+       - w_unknown * unknown_share``: near, long frontiers first, biased toward
+       less explored areas (``unknown_share`` is the share of unknown cells in
+       a square of half-side ``explore_radius_cm`` around the centroid).
+
+    Work is done on the known part of the map only (cropped with a margin),
+    so the cost follows the explored area, not the grid's fixed extent.
+
+Reference
+    Yamauchi, "A Frontier-Based Approach for Autonomous Exploration",
+    IEEE CIRA 1997; the cost trade-off after Gonzalez-Banos and Latombe,
+    "Navigation Strategies for Exploring Indoor Environments", IJRR 21(10), 2002.
+
+Frame and units
+    Positions [cm] in the rover frame; sizes [cells] and [cm] as named;
+    grids as in `actors.firmware.occupancy`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from actors.firmware.occupancy import FREE, UNKNOWN, GridMap
+from actors.firmware.planner import bfs_steps, snap_to_passable, traversable
+
+__all__ = [
+    "Frontier",
+    "FrontierWeights",
+    "frontier_mask",
+    "label_clusters",
+    "find_frontiers",
+    "frontier_cost",
+    "is_blacklisted",
+    "choose_frontier",
+    "no_useful_frontier",
+]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Frontier:
+    """One frontier cluster."""
+
+    size: int
+    """Frontier cells in the cluster [cells]."""
+    centroid_cm: tuple[float, float]
+    """Mean of the cells' centres (x, y) [cm]; it need not lie on the frontier."""
+    cells_cm: np.ndarray
+    """Centres (x, y) of the cluster's cells, float (size, 2) [cm], read-only."""
+    distance_cm: float
+    """Path distance from the rover to the nearest approach point [cm]
+    (8-connected steps times the resolution); ``inf`` when unreachable."""
+    target_cm: tuple[float, float] | None
+    """A reachable point from which the cluster is seen, to plan to; None when unreachable."""
+    unknown_share: float
+    """Share of unknown cells around the centroid, 0..1 (high: little explored)."""
+    resolution_cm: float
+    """Cell side of the map the cluster was found in [cm]."""
+
+    @property
+    def reachable(self) -> bool:
+        """Whether the rover can reach an approach point."""
+        return self.target_cm is not None
+
+    @property
+    def size_cm(self) -> float:
+        """Frontier length, approximately [cm]."""
+        return self.size * self.resolution_cm
+
+
+@dataclass(frozen=True, slots=True)
+class FrontierWeights:
+    """Weights of the frontier cost (see module docstring)."""
+
+    w_distance: float = 1.0
+    """Per cm of travel."""
+    w_size: float = 1.0
+    """Per cm of frontier length (capped at ``size_cap_cm``)."""
+    size_cap_cm: float = 200.0
+    """Frontier length beyond which size stops mattering [cm]."""
+    w_unknown: float = 150.0
+    """For a fully unexplored neighbourhood [cm of travel it is worth]."""
+
+
+def frontier_mask(cells: np.ndarray) -> np.ndarray:
+    """Free cells with a 4-neighbour unknown: bool, the shape of ``cells``."""
+    unknown = np.pad(cells == UNKNOWN, 1, constant_values=False)
+    near = unknown[:-2, 1:-1] | unknown[2:, 1:-1] | unknown[1:-1, :-2] | unknown[1:-1, 2:]
+    return (cells == FREE) & near
+
+
+def label_clusters(mask: np.ndarray) -> tuple[np.ndarray, int]:
+    """8-connected components of ``mask`` by breadth-first search.
+
+    Returns:
+        (labels, count): int32 labels, 0 outside ``mask`` and 1..count inside,
+        numbered in row-major order of each component's first cell.
+    """
+    ny, nx = mask.shape
+    w = nx + 2
+    pad = np.pad(np.asarray(mask, dtype=bool), 1)
+    member = bytearray(pad.ravel().tobytes())
+    labels = np.zeros(pad.size, dtype=np.int32)
+    offsets = (-w - 1, -w, -w + 1, -1, 1, w - 1, w, w + 1)
+    count = 0
+    for seed in np.flatnonzero(pad.ravel()).tolist():
+        if not member[seed]:
+            continue  # already labelled
+        count += 1
+        member[seed] = 0
+        queue = deque([seed])
+        comp = [seed]
+        while queue:
+            u = queue.popleft()
+            for off in offsets:
+                v = u + off
+                if member[v]:
+                    member[v] = 0
+                    queue.append(v)
+                    comp.append(v)
+        labels[comp] = count
+    return labels.reshape(ny + 2, w)[1:-1, 1:-1].copy(), count
+
+
+def _min_filter(values: np.ndarray, k: int) -> np.ndarray:
+    """Minimum over a (2k+1) square window (separable; edges use the part inside)."""
+    out = values.copy()
+    for axis in (0, 1):
+        src = out.copy()
+        n = src.shape[axis]
+        for d in range(1, min(k, n - 1) + 1):
+            lo = [slice(None)] * 2
+            hi = [slice(None)] * 2
+            lo[axis], hi[axis] = slice(0, n - d), slice(d, n)
+            np.minimum(out[tuple(lo)], src[tuple(hi)], out=out[tuple(lo)])
+            np.minimum(out[tuple(hi)], src[tuple(lo)], out=out[tuple(hi)])
+    return out
+
+
+def find_frontiers(
+    grid: GridMap,
+    rover_cm: tuple[float, float],
+    *,
+    robot_radius_cm: float = 12.5,
+    margin_cm: float = 3.0,
+    approach_cm: float = 30.0,
+    explore_radius_cm: float = 100.0,
+    snap_radius_cm: float = 30.0,
+) -> list[Frontier]:
+    """Every frontier cluster of ``grid``, with its distance from the rover.
+
+    Args:
+        grid: the map snapshot.
+        rover_cm: rover position (x, y) [cm].
+        robot_radius_cm: the rover's turning radius [cm] (obstacle inflation).
+        margin_cm: extra clearance from obstacles [cm].
+        approach_cm: how close to a frontier cell the rover must get [cm].
+        explore_radius_cm: half-side of the window for ``unknown_share`` [cm].
+        snap_radius_cm: how far the rover's cell may move to a passable one [cm]
+            (after mapping near a wall the rover may stand inside the inflation).
+
+    Returns:
+        Clusters in label order (see `label_clusters`); empty when there is no
+        frontier. Unreachable clusters are included, with ``target_cm`` None.
+    """
+    res = grid.resolution_cm
+    k_app = max(1, math.ceil(approach_cm / res))
+    sub = grid.crop_known(margin_cells=k_app + 1)
+    cells = sub.cells
+    mask = frontier_mask(cells)
+    labels, count = label_clusters(mask)
+    if count == 0:
+        return []
+
+    passable = traversable(sub, robot_radius_cm, margin_cm, "blocked")
+    start = snap_to_passable(passable, sub.world_to_cell(*rover_cm), snap_radius_cm / res)
+    if start is None:
+        steps = np.full(cells.shape, -1, dtype=np.int32)
+    else:
+        steps = bfs_steps(passable, start)
+    big = np.iinfo(np.int32).max
+    reach_steps = np.where(steps >= 0, steps, big)
+    near_steps = _min_filter(reach_steps, k_app)
+
+    # unknown share: integral image over the crop padded with unknown
+    k_exp = max(1, math.ceil(explore_radius_cm / res))
+    unknown = np.pad(cells == UNKNOWN, k_exp, constant_values=True).astype(np.int32)
+    integral = np.pad(unknown.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    area = (2 * k_exp + 1) ** 2
+
+    rows_all, cols_all = np.nonzero(labels)
+    lab = labels[rows_all, cols_all]
+    order = np.argsort(lab, kind="stable")
+    rows_all, cols_all, lab = rows_all[order], cols_all[order], lab[order]
+    bounds = np.searchsorted(lab, np.arange(1, count + 2))
+    ox, oy = sub.origin_cm
+    ny, nx = cells.shape
+    out: list[Frontier] = []
+    for i in range(count):
+        rows = rows_all[bounds[i]:bounds[i + 1]]
+        cols = cols_all[bounds[i]:bounds[i + 1]]
+        pts = np.column_stack([ox + (cols + 0.5) * res, oy + (rows + 0.5) * res])
+        pts.flags.writeable = False
+        cx, cy = (float(v) for v in pts.mean(axis=0))
+        cr, cc = min(max(int((cy - oy) // res), 0), ny - 1), min(max(int((cx - ox) // res), 0),
+                                                                 nx - 1)
+        r0, c0 = cr, cc  # window [cr - k, cr + k] in the padded integral image
+        total = (integral[r0 + 2 * k_exp + 1, c0 + 2 * k_exp + 1] - integral[r0, c0 + 2 * k_exp + 1]
+                 - integral[r0 + 2 * k_exp + 1, c0] + integral[r0, c0])
+        share = float(total) / area
+
+        near = near_steps[rows, cols]
+        j = int(np.argmin(near))
+        target = None
+        distance = math.inf
+        if near[j] < big:
+            fr, fc = int(rows[j]), int(cols[j])
+            wr0, wr1 = max(0, fr - k_app), min(ny, fr + k_app + 1)
+            wc0, wc1 = max(0, fc - k_app), min(nx, fc + k_app + 1)
+            rr, cc_ = np.nonzero(steps[wr0:wr1, wc0:wc1] >= 0)
+            d2 = (rr + wr0 - fr) ** 2 + (cc_ + wc0 - fc) ** 2
+            b = int(np.argmin(d2))
+            tr, tc = int(rr[b] + wr0), int(cc_[b] + wc0)
+            target = sub.cell_to_world(tr, tc)
+            distance = float(steps[tr, tc]) * res
+        out.append(Frontier(int(rows.size), (cx, cy), pts, distance, target, share, res))
+    return out
+
+
+def frontier_cost(frontier: Frontier, weights: FrontierWeights | None = None) -> float:
+    """Cost of exploring ``frontier`` (lower is better); ``inf`` when unreachable."""
+    w = weights or FrontierWeights()
+    if not frontier.reachable:
+        return math.inf
+    return (w.w_distance * frontier.distance_cm
+            - w.w_size * min(frontier.size_cm, w.size_cap_cm)
+            - w.w_unknown * frontier.unknown_share)
+
+
+def is_blacklisted(
+    frontier: Frontier, blacklist: Iterable[tuple[float, float]], radius_cm: float = 30.0
+) -> bool:
+    """Whether the frontier's target or centroid lies within ``radius_cm`` of a blacklisted point.
+
+    Navigation blacklists a frontier by adding its ``target_cm`` after failing
+    to reach it; points in cm survive map growth, unlike cluster labels.
+    """
+    spots = [frontier.centroid_cm] + ([frontier.target_cm] if frontier.target_cm else [])
+    return any(math.dist(p, q) <= radius_cm for q in blacklist for p in spots)
+
+
+def choose_frontier(
+    frontiers: Sequence[Frontier],
+    *,
+    min_size_cells: int = 4,
+    weights: FrontierWeights | None = None,
+    blacklist: Iterable[tuple[float, float]] = (),
+    blacklist_radius_cm: float = 30.0,
+) -> Frontier | None:
+    """The cheapest reachable, useful, not blacklisted frontier, or None.
+
+    Ties go to the earlier cluster (deterministic).
+    """
+    bl = list(blacklist)
+    best: Frontier | None = None
+    best_cost = math.inf
+    for f in frontiers:
+        if f.size < min_size_cells or not f.reachable or is_blacklisted(f, bl,
+                                                                           blacklist_radius_cm):
+            continue
+        cost = frontier_cost(f, weights)
+        if cost < best_cost:
+            best, best_cost = f, cost
+    return best
+
+
+def no_useful_frontier(
+    frontiers: Sequence[Frontier],
+    *,
+    min_size_cells: int = 4,
+    blacklist: Iterable[tuple[float, float]] = (),
+    blacklist_radius_cm: float = 30.0,
+) -> bool:
+    """True when no reachable frontier of at least ``min_size_cells`` is left.
+
+    One half of "mapping complete"; navigation also needs the map to have
+    stopped changing while scans kept arriving.
+    """
+    return choose_frontier(frontiers, min_size_cells=min_size_cells, blacklist=blacklist,
+                           blacklist_radius_cm=blacklist_radius_cm) is None
