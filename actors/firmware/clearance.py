@@ -1,0 +1,190 @@
+"""Clearance tests on a map: does the rover fit at a spot, and what is ahead of it.
+
+Algorithm
+    `check_spot`: the rover may turn in place at its spot, so the space it
+    needs is the disc swept by its body while turning, of radius
+    ``hypot(length / 2, width / 2) + margin``; that disc covers every heading,
+    which is why the requested heading does not change the answer. The test is
+    exact on the grid: the distance from the spot to the nearest point of each
+    cell's square is compared with the radius (the same test as a shapely disc
+    intersecting the cells' boxes, without polygon approximation). Any
+    occupied cell touched fails the spot; then any unknown cell touched fails it
+    ("unknown ground": nobody has seen that ground). The disc must lie inside the map.
+
+    `obstacle_ahead`: the nearest occupied cell whose centre lies ahead of the
+    rover (forward distance in (0, distance]) inside the cone of
+    ``half_angle_deg`` or the corridor of the rover's half width plus margin,
+    whichever is wider there: the corridor covers the body close in, the cone
+    the sides further out.
+
+Reference
+    Configuration-space obstacles for a disc robot: Lozano-Perez, "Spatial
+    Planning: A Configuration Space Approach", IEEE Trans. Computers C-32(2), 1983.
+
+Frame and units
+    The rover frame [cm], headings [deg] counter-clockwise from +x; grids as in
+    `actors.firmware.occupancy` (row 0 is the lowest y).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+from actors.firmware.occupancy import OCCUPIED, UNKNOWN, GridMap, normalise_cells
+from actors.firmware.odometry import Pose, angle_diff_deg
+
+__all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead"]
+
+
+def turning_radius_cm(length_cm: float = 20.0, width_cm: float = 15.0) -> float:
+    """Half-diagonal of the rover body: the radius it sweeps turning in place [cm]."""
+    return math.hypot(0.5 * length_cm, 0.5 * width_cm)
+
+
+def _square_gaps(x: float, y: float, res: float, ox: float, oy: float,
+                 rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Distance [cm] from (x, y) to the nearest point of each cell (rows, cols)."""
+    cx = ox + (cols + 0.5) * res
+    cy = oy + (rows + 0.5) * res
+    dx = np.maximum(np.abs(x - cx) - 0.5 * res, 0.0)
+    dy = np.maximum(np.abs(y - cy) - 0.5 * res, 0.0)
+    return np.hypot(dx, dy)
+
+
+def check_spot(
+    grid_cells: np.ndarray,
+    resolution_cm: float,
+    origin_cm: tuple[float, float],
+    x: float,
+    y: float,
+    heading_deg: float,
+    length_cm: float = 20.0,
+    width_cm: float = 15.0,
+    margin_cm: float = 5.0,
+) -> tuple[bool, str]:
+    """Whether the rover fits at (x, y) @ heading with ``margin_cm`` all round for turning.
+
+    Args:
+        grid_cells: the map, (ny, nx): -1 unknown, 0..49 free, 50..100 occupied.
+        resolution_cm: cell side [cm].
+        origin_cm: lower-left corner of cell [0, 0] [cm].
+        x: spot [cm].
+        y: spot [cm].
+        heading_deg: heading at the spot [deg] (checked finite; a disc suits all headings).
+        length_cm: rover body length [cm].
+        width_cm: rover body width [cm].
+        margin_cm: clearance kept on all sides [cm].
+
+    Returns:
+        ``(True, "ok")``, or ``(False, reason)`` where the reason starts with
+        ``"bad spot"``, ``"outside the map"``, ``"obstacle"`` or ``"unknown ground"``.
+
+    Raises:
+        ValueError: for a malformed map (cells, resolution or origin) or
+            non-positive rover dimensions or a negative margin.
+    """
+    grid = GridMap(normalise_cells(grid_cells), resolution_cm, origin_cm)
+    if not (length_cm > 0 and width_cm > 0 and margin_cm >= 0):
+        raise ValueError(f"length_cm and width_cm must be > 0 and margin_cm >= 0, got "
+                         f"{length_cm}, {width_cm}, {margin_cm}")
+    for name, v in (("x", x), ("y", y), ("heading", heading_deg)):
+        if not isinstance(v, numbers.Real) or not math.isfinite(v):
+            return False, f"bad spot: {name} must be a finite number, got {v!r}"
+    radius = turning_radius_cm(length_cm, width_cm) + margin_cm
+    res = grid.resolution_cm
+    ox, oy = grid.origin_cm
+    ny, nx = grid.shape
+    x_ok = ox + radius <= x <= ox + nx * res - radius
+    y_ok = oy + radius <= y <= oy + ny * res - radius
+    if not (x_ok and y_ok):
+        return False, (f"outside the map: the rover needs {radius:.1f} cm all round and the map "
+                       f"spans x {ox:g}..{ox + nx * res:g}, y {oy:g}..{oy + ny * res:g} cm")
+    k = math.ceil(radius / res) + 1
+    r, c = grid.world_to_cell(x, y)
+    r0, r1, c0, c1 = max(0, r - k), min(ny, r + k + 1), max(0, c - k), min(nx, c + k + 1)
+    rows, cols = np.mgrid[r0:r1, c0:c1]
+    gaps = _square_gaps(x, y, res, ox, oy, rows, cols)
+    inside = gaps < radius
+    window = grid.cells[r0:r1, c0:c1]
+    occ = inside & (window == OCCUPIED)
+    if occ.any():
+        nearest = float(gaps[occ].min())
+        return False, (f"obstacle {nearest:.1f} cm from the spot; the rover needs {radius:.1f} cm "
+                       f"to turn")
+    unk = inside & (window == UNKNOWN)
+    if unk.any():
+        return False, f"unknown ground: {int(unk.sum())} unmapped cells within {radius:.1f} cm"
+    return True, "ok"
+
+
+@dataclass(frozen=True, slots=True)
+class Obstacle:
+    """The nearest occupied cell ahead."""
+
+    distance_cm: float
+    """From the rover's centre to the cell's centre [cm]."""
+    forward_cm: float
+    """Along the heading [cm]."""
+    bearing_deg: float
+    """Direction relative to the heading, counter-clockwise [deg]."""
+    point_cm: tuple[float, float]
+    """Cell centre (x, y) in the rover frame [cm]."""
+
+
+def obstacle_ahead(
+    grid: GridMap,
+    pose: Pose,
+    distance_cm: float,
+    *,
+    half_angle_deg: float = 30.0,
+    half_width_cm: float = 12.5,
+) -> Obstacle | None:
+    """The nearest occupied cell ahead of ``pose`` within ``distance_cm``, or None.
+
+    Args:
+        grid: the map snapshot.
+        pose: the rover pose.
+        distance_cm: how far ahead to look (forward distance) [cm].
+        half_angle_deg: half-angle of the cone ahead [deg].
+        half_width_cm: half-width of the corridor ahead (body half-width plus a
+            margin) [cm].
+
+    Raises:
+        ValueError: for a non-positive distance, or a half-angle outside [0, 90).
+    """
+    if not (distance_cm > 0 and math.isfinite(distance_cm)):
+        raise ValueError(f"distance_cm must be positive, got {distance_cm!r}")
+    if not 0 <= half_angle_deg < 90:
+        raise ValueError(f"half_angle_deg must be in [0, 90), got {half_angle_deg!r}")
+    res = grid.resolution_cm
+    reach = math.hypot(distance_cm, max(half_width_cm,
+                                        distance_cm * math.tan(math.radians(half_angle_deg))))
+    k = math.ceil(reach / res) + 1
+    r, c = grid.world_to_cell(pose.x, pose.y)
+    ny, nx = grid.shape
+    r0, r1, c0, c1 = max(0, r - k), min(ny, r + k + 1), max(0, c - k), min(nx, c + k + 1)
+    if r0 >= r1 or c0 >= c1:
+        return None
+    rows, cols = np.nonzero(grid.cells[r0:r1, c0:c1] == OCCUPIED)
+    if rows.size == 0:
+        return None
+    ox, oy = grid.origin_cm
+    px = ox + (cols + c0 + 0.5) * res - pose.x
+    py = oy + (rows + r0 + 0.5) * res - pose.y
+    h = pose.heading_rad
+    fwd = px * math.cos(h) + py * math.sin(h)
+    lat = -px * math.sin(h) + py * math.cos(h)
+    width = np.maximum(half_width_cm, fwd * math.tan(math.radians(half_angle_deg)))
+    ahead = (fwd > 0) & (fwd <= distance_cm) & (np.abs(lat) <= width)
+    if not ahead.any():
+        return None
+    dist = np.hypot(px, py)
+    dist[~ahead] = np.inf
+    i = int(np.argmin(dist))
+    bearing = angle_diff_deg(math.degrees(math.atan2(py[i], px[i])), pose.heading_deg)
+    return Obstacle(float(dist[i]), float(fwd[i]), bearing,
+                    (float(px[i] + pose.x), float(py[i] + pose.y)))
