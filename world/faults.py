@@ -140,6 +140,20 @@ class FaultBook:
     def __init__(self) -> None:
         self._active: dict[int, Fault] = {}
         self._next_id = 1
+        self._index: dict[tuple[str, str, str], Fault] = {}
+        """(role, device, kind) -> latest fault; ``motor``/``encoder`` entered for both sides."""
+
+    def __len__(self) -> int:
+        return len(self._active)
+
+    def _reindex(self) -> None:
+        self._index = {}
+        for f in self._active.values():
+            devs = [f.device]
+            if f.device in ("motor", "encoder"):
+                devs = [f.device + "_left", f.device + "_right"]
+            for d in devs:
+                self._index[(f.role, d, f.kind)] = f
 
     def add(self, target: str, kind: str, start_s: float, duration_s: float,
             params: dict[str, float]) -> Fault:
@@ -147,6 +161,7 @@ class FaultBook:
         fault = Fault(self._next_id, target, kind, float(start_s), float(duration_s), params)
         self._next_id += 1
         self._active[fault.id] = fault
+        self._reindex()
         return fault
 
     def remove(self, key: int | str) -> list[Fault]:
@@ -157,6 +172,7 @@ class FaultBook:
             gone = [f for f in self._active.values() if f.target == key]
             for f in gone:
                 del self._active[f.id]
+        self._reindex()
         return gone
 
     def expired(self, now: float) -> list[Fault]:
@@ -164,6 +180,8 @@ class FaultBook:
         gone = [f for f in self._active.values() if f.expired(now)]
         for f in gone:
             del self._active[f.id]
+        if gone:
+            self._reindex()
         return gone
 
     def active(self) -> list[Fault]:
@@ -171,12 +189,5 @@ class FaultBook:
         return list(self._active.values())
 
     def find(self, role: str, device: str, kind: str) -> Fault | None:
-        """The latest active fault of ``kind`` on a device (``motor`` matches both treads)."""
-        found = None
-        for f in self._active.values():
-            if f.kind != kind or f.role != role:
-                continue
-            d = f.device
-            if d == device or (device.startswith(d + "_") and d in ("motor", "encoder")):
-                found = f
-        return found
+        """The latest active fault of ``kind`` on a device (``motor`` covers both treads)."""
+        return self._index.get((role, device, kind))

@@ -17,7 +17,7 @@ import numpy as np
 
 from world.packets import LIDAR_PACKET_SIZE
 from world.params import DeviceParams
-from world.raycast import cast_rays
+from world.raycast import cast_rays, cull_to_wedge
 
 #: at most this many samples in one tick (bounds a silly PWM or tick)
 MAX_SAMPLES_PER_TICK = 4096
@@ -71,15 +71,19 @@ class Lidar:
             noise: standard normal draws, one per sample (scaled here).
         """
         spr = self.p.lidar_samples_per_rev
-        offsets_deg = idx * (360.0 / spr)
+        step = 2.0 * np.pi / spr
         x, y, heading = pose
-        dist = cast_rays((x, y), heading + np.radians(offsets_deg), segments,
-                         self.p.lidar_range_cm)
+        first = int(idx[0])
+        span = ((int(idx[-1]) - first) % spr) * step
+        if span < 0.9 * np.pi and (len(idx) < 2 or int(idx[1]) == (first + 1) % spr
+                                 or span == 0.0):
+            segments = cull_to_wedge((x, y), heading + first * step, span, segments)
+        dist = cast_rays((x, y), heading + idx * step, segments, self.p.lidar_range_cm)
         q = self.p.lidar_quantum_cm
         hit = np.isfinite(dist)
-        noisy = np.where(hit, dist, 0.0) + noise
-        d = np.where(hit, np.maximum(q, np.round(noisy / q) * q), 0.0)
-        return np.round(offsets_deg * 100.0).astype(np.int64), d.astype(np.int64)
+        d = np.where(hit, np.maximum(q, np.round((dist + noise) / q) * q), 0.0)
+        return idx * (36000 // spr) if 36000 % spr == 0 else np.round(
+            idx * (36000.0 / spr)).astype(np.int64), d.astype(np.int64)
 
     def uart(self, frames: bytes, dt: float) -> bytes:
         """Pass a tick's bytes through the UART budget, dropping whole packets beyond it."""

@@ -31,15 +31,17 @@ def encode_lidar_packets(angles_centideg: np.ndarray, distances_cm: np.ndarray) 
 
     Args:
         angles_centideg: angle offsets [0.01 deg], taken modulo 36000.
-        distances_cm: distances [cm], clipped to 0..65535 (0 = no return).
+        distances_cm: distances [cm], >= 0, capped at 65535 (0 = no return).
     """
-    a = (np.asarray(angles_centideg, dtype=np.int64) % 36000).astype(np.uint16)
-    d = np.clip(np.asarray(distances_cm, dtype=np.int64), 0, 65535).astype(np.uint16)
-    out = np.empty((len(a), LIDAR_PACKET_SIZE), dtype=np.uint8)
-    out[:, 0] = LIDAR_SYNC
-    out[:, 1] = a & 0xFF
-    out[:, 2] = a >> 8
-    out[:, 3] = d & 0xFF
-    out[:, 4] = d >> 8
-    out[:, 5] = out[:, 1] ^ out[:, 2] ^ out[:, 3] ^ out[:, 4]
+    a = (np.asarray(angles_centideg, dtype=np.int64) % 36000).astype("<u2")
+    d = np.minimum(np.abs(np.asarray(distances_cm, dtype=np.int64)), 65535).astype("<u2")
+    out = np.empty(len(a), dtype=_PACKET)
+    out["sync"] = LIDAR_SYNC
+    out["angle"] = a
+    out["dist"] = d
+    x = a ^ d
+    out["check"] = (x ^ (x >> 8)) & 0xFF
     return out.tobytes()
+
+
+_PACKET = np.dtype([("sync", "u1"), ("angle", "<u2"), ("dist", "<u2"), ("check", "u1")])

@@ -86,15 +86,17 @@ class Physics:
         return RoverBody(body, control, shape)
 
     def set_tread_speeds(self, role: str, left_cm_s: float, right_cm_s: float) -> None:
-        """Command the control body from the two tread speeds (differential drive) [cm/s]."""
+        """Command the control body from the two tread speeds (differential drive) [cm/s].
+
+        Both joints are anchored at the bodies' centres with no positional bias, so
+        only the control body's velocities matter, not where it is.
+        """
         rb = self.rovers[role]
         v = 0.5 * (left_cm_s + right_cm_s)
         omega = (right_cm_s - left_cm_s) / self.params.track_width_cm
-        b = rb.body
+        a = rb.body.angle
         c = rb.control
-        c.position = b.position
-        c.angle = b.angle
-        c.velocity = (v * math.cos(b.angle), v * math.sin(b.angle))
+        c.velocity = (v * math.cos(a), v * math.sin(a))
         c.angular_velocity = omega
 
     def step(self, dt: float) -> None:

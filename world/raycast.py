@@ -36,13 +36,33 @@ def cast_rays(origin: tuple[float, float], angles_rad: np.ndarray, segments: np.
     sx = segments[:, 2] - segments[:, 0]
     sy = segments[:, 3] - segments[:, 1]
     denom = dx * sy - dy * sx
-    t_num = qx * sy - qy * sx
-    u_num = qx * dy - qy * dx
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / denom
-        t = t_num * inv
-        u = u_num * inv
-    hit = (t > 1e-9) & (u >= 0.0) & (u <= 1.0)
-    t = np.where(hit, t, np.inf).min(axis=1)
+    denom[denom == 0.0] = np.nan  # parallel: nan compares false below, and warns of nothing
+    inv = 1.0 / denom
+    t = (qx * sy - qy * sx) * inv
+    u = (qx * dy - qy * dx) * inv
+    t[~((t > 1e-9) & (u >= 0.0) & (u <= 1.0))] = np.inf
+    t = t.min(axis=1)
     t[t > max_range] = np.inf
     return t
+
+
+def cull_to_wedge(origin: tuple[float, float], start_rad: float, span_rad: float,
+                  segments: np.ndarray) -> np.ndarray:
+    """The segments that rays within a wedge could hit (a conservative subset).
+
+    The wedge runs counter-clockwise from ``start_rad`` over ``span_rad`` (< pi). A
+    segment is dropped only when both its ends lie strictly outside one of the
+    wedge's two bounding half-planes, which no ray in the wedge can then reach.
+    A tick's LIDAR samples span about 40 deg, so most segments go.
+    """
+    if span_rad >= np.pi - 1e-6 or len(segments) == 0:
+        return segments
+    c0, s0 = np.cos(start_rad), np.sin(start_rad)
+    c1, s1 = np.cos(start_rad + span_rad), np.sin(start_rad + span_rad)
+    px = segments[:, 0::2] - origin[0]  # (N, 2): both ends
+    py = segments[:, 1::2] - origin[1]
+    eps = 1e-9
+    left_of_start = c0 * py - s0 * px  # >= 0 inside the start half-plane
+    right_of_end = c1 * py - s1 * px  # <= 0 inside the end half-plane
+    out = ((left_of_start < -eps).all(axis=1)) | ((right_of_end > eps).all(axis=1))
+    return segments[~out]

@@ -1,6 +1,6 @@
 """The simulated world: room, rovers, devices and faults, stepped on a fixed tick.
 
-`World` is a plain object: `World.step` advances one tick (default 20 ms, with
+`World` is a plain object: `World.step` advances one tick (default 50 ms, with
 10 ms physics substeps) and calls the rovers' interrupt handlers synchronously
 with that tick's device events, in a fixed order (per role mapper, hider,
 seeker: Int E, Int A, Int D/Int C, Int B; then bytes reaching the server).
@@ -23,7 +23,7 @@ import trio
 
 from world.drive import Tread, lag_alpha
 from world.faults import Fault, FaultBook, check_fault, is_actor_fault
-from world.geometry import Pose, boundary_segments, footprint_corners, room_segments
+from world.geometry import Pose, boundary_segments, room_segments
 from world.hardware import INT_A, INT_B, INT_C, INT_D, INT_E, SimRoverHardware
 from world.ir import IrSensor, to_adc
 from world.lidar import Lidar
@@ -33,8 +33,8 @@ from world.physics import DEFAULT_SUBSTEP_S, Physics
 from world.scenario import Scenario, ScheduledFault
 from world.wifly import WiflyLink
 
-DEFAULT_TICK_S = 0.02
-"""World tick [s]: device events are batched per tick."""
+DEFAULT_TICK_S = 0.05
+"""World tick [s]: device events are batched per tick (50 ms: the speed/fidelity choice, see docs/scenarios.md)."""
 
 EventCallback = Callable[[str, str, dict], None]
 
@@ -85,6 +85,9 @@ class World:
             for r in ROLES
         }
         self._prev = {r: self.physics.state(r) for r in ROLES}
+        self._now = dict(self._prev)
+        # everything a LIDAR ray can hit: static walls then the hider's and seeker's bodies
+        self._segs = np.vstack([self._static, np.zeros((8, 4))])
 
     # ------------------------------------------------------------------ public API
 
@@ -172,6 +175,7 @@ class World:
         self.physics.step(dt)
         self.ticks += 1
         slip = self.rng.standard_normal(2 * len(ROLES)) * p.slip_sigma
+        self._prev, self._now = self._now, {r: self.physics.state(r) for r in ROLES}
         for i, role in enumerate(ROLES):
             self._encoders(role, 1.0 + slip[2 * i], 1.0 + slip[2 * i + 1])
             if role == "mapper":
@@ -182,25 +186,30 @@ class World:
 
     def _encoders(self, role: str, slip_l: float, slip_r: float) -> None:
         x0, y0, a0 = self._prev[role]
-        x1, y1, a1 = state = self.physics.state(role)
-        self._prev[role] = state
+        x1, y1, a1 = self._now[role]
         da = a1 - a0
         mid = a0 + da / 2
         ds = (x1 - x0) * math.cos(mid) + (y1 - y0) * math.sin(mid)
         half = da * self.params.track_width_cm / 2
         handler = self._hw[role].handlers.get(INT_E)
         p = self.params
-        for tread, travel, dev in ((self.treads[role][0], (ds - half) * slip_l, "encoder_left"),
-                                   (self.treads[role][1], (ds + half) * slip_r, "encoder_right")):
-            if self._faults.find(role, dev, "stuck"):
-                continue
-            f = self._faults.find(role, dev, "slipping")
-            if f:
-                travel *= f.params["ratio"]
-            events = tread.encode(travel, p.ticks_per_cm, p.ticks_per_interrupt)
-            if handler:
-                for e in events:
-                    handler(e)
+        left, right = self.treads[role]
+        travel_l = (ds - half) * slip_l
+        travel_r = (ds + half) * slip_r
+        if self._faults:
+            travel_l = self._encoder_fault(role, "encoder_left", travel_l)
+            travel_r = self._encoder_fault(role, "encoder_right", travel_r)
+        events = (left.encode(travel_l, p.ticks_per_cm, p.ticks_per_interrupt)
+                  + right.encode(travel_r, p.ticks_per_cm, p.ticks_per_interrupt))
+        if handler:
+            for e in events:
+                handler(e)
+
+    def _encoder_fault(self, role: str, device: str, travel: float) -> float:
+        if self._faults.find(role, device, "stuck"):
+            return 0.0
+        f = self._faults.find(role, device, "slipping")
+        return travel * f.params["ratio"] if f else travel
 
     def _lidar_tick(self, dt: float) -> None:
         lidar = self.lidar
@@ -212,11 +221,11 @@ class World:
         if f:
             sigma = math.hypot(sigma, f.params["sigma_cm"])
         noise = self.rng.standard_normal(len(idx)) * sigma
-        segs = [self._static] + [
-            _box_segments(footprint_corners(self.physics.pose(r), self.params.length_cm,
-                                            self.params.width_cm))
-            for r in ("hider", "seeker")]
-        angles, dist = lidar.measure(idx, self.physics.state("mapper"), np.vstack(segs), noise)
+        n = len(self._static)
+        for k, r in enumerate(("hider", "seeker")):
+            self._segs[n + 4 * k:n + 4 * k + 4] = _box_segments(
+                self._now[r], self.params.length_cm, self.params.width_cm)
+        angles, dist = lidar.measure(idx, self._now["mapper"], self._segs, noise)
         frames = encode_lidar_packets(angles, dist)
         if self._faults.find("mapper", "lidar", "garbage"):
             frames = self.rng.integers(0, 256, len(frames), dtype=np.uint8).tobytes()
@@ -252,6 +261,8 @@ class World:
     def _wifly_tick(self, role: str, now: float, dt: float) -> None:
         p = self.params
         link = self.links[role]
+        if not (link.up.buffer or link.up.in_flight or link.down.buffer or link.down.in_flight):
+            return  # idle: nothing to send or deliver (the byte budget is capped anyway)
         loss, corrupt, latency = p.wifly_loss, p.wifly_corrupt, p.wifly_latency_s
         f = self._faults.find(role, "wifly", "loss")
         if f:
@@ -299,6 +310,8 @@ class World:
             link.set_fault_down(self._faults.find(role, "wifly", "down") is not None)
 
     def _strength(self, role: str, device: str) -> float:
+        if not self._faults:
+            return 1.0
         if self._faults.find(role, device, "stalled"):
             return 0.0
         f = self._faults.find(role, device, "weak")
@@ -315,9 +328,15 @@ class World:
         return role
 
 
-def _box_segments(corners: np.ndarray) -> np.ndarray:
-    """The four edges of a body as (4, 4) segments."""
-    return np.hstack([corners, np.roll(corners, -1, axis=0)])
+def _box_segments(state: tuple[float, float, float], length: float,
+                  width: float) -> list[tuple[float, float, float, float]]:
+    """The four edges of a rover body at (x, y [cm], heading [rad]) as segments."""
+    x, y, a = state
+    c, s = math.cos(a), math.sin(a)
+    hl, hw = length / 2, width / 2
+    pts = [(x + c * u - s * v, y + s * u + c * v)
+           for u, v in ((hl, hw), (-hl, hw), (-hl, -hw), (hl, -hw))]
+    return [(*pts[i], *pts[(i + 1) % 4]) for i in range(4)]
 
 
 async def run_world(world: World, stop_at: float | None = None) -> None:
