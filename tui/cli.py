@@ -15,6 +15,7 @@ import sys
 #: subcommand -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("tui.cmd_demo", "a small supervised actor tree under fault, printed as it recovers"),
+    "play": ("tui.cmd_play", "the terminal console: watch, steer and break a game"),
 }
 
 

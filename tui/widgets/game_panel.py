@@ -47,9 +47,9 @@ def render_game(snap: Snapshot | None) -> Table | Text:
             link = Text("DOWN", style="bold red")
         else:
             rtt = "?" if ln.rtt_ms is None else f"{ln.rtt_ms:.0f}ms"
-            link = Text.assemble(("up ", "green"), rtt,
-                                 (f" lost {ln.lost} re {ln.resent} bad {ln.bad_frames}",
-                                  "yellow" if (ln.lost or ln.bad_frames) else "dim"))
+            link = Text.assemble(("up ", "green"), rtt)
+            if ln.lost or ln.resent or ln.bad_frames:
+                link.append(f" lost {ln.lost} re {ln.resent} bad {ln.bad_frames}", "yellow")
         table.add_row(Text(rover.id, style="bold"), pose, link)
     outer = Table.grid(expand=True)
     outer.add_row(head)

@@ -30,7 +30,7 @@ from tui.snapshot import FREE, OCCUPIED, GridView, Snapshot
 __all__ = ["MapView", "ZOOMS_CM", "heading_glyph"]
 
 #: Pixel sizes the zoom steps through [cm per pixel].
-ZOOMS_CM: tuple[float, ...] = (1.25, 2.5, 5.0, 10.0, 20.0, 40.0)
+ZOOMS_CM: tuple[float, ...] = (1.25, 2.5, 4.0, 5.0, 6.0, 7.5, 10.0, 15.0, 20.0, 40.0)
 
 # Pixel classes, drawn in this colour (index = class).
 _UNKNOWN, _FREE, _OCC, _MISSED, _FALSE, _PATH, _LIDAR = range(7)
@@ -110,7 +110,7 @@ class MapView(Widget, can_focus=True):
 
     show_truth: reactive[bool] = reactive(False)
     """Overlay ground truth: missed obstacles purple, false obstacles orange."""
-    zoom: reactive[int] = reactive(2)
+    zoom: reactive[int] = reactive(3)
     """Index into `ZOOMS_CM`."""
     cursor: reactive[tuple[float, float]] = reactive((0.0, 0.0))
     """Cursor position (x, y) in the map frame [cm]."""

@@ -1,0 +1,385 @@
+"""The console app: watch, steer and break a game from a Textual UI.
+
+The app is given a `tui.snapshot.System` and knows nothing else about it. On
+mount it starts the system's Trio side as a guest run on Textual's asyncio
+loop (`tui.guest.TrioGuest`), in one thread. About `REFRESH_HZ` times per wall
+second it asks the system for a snapshot (one request at a time, so a slow
+screen never piles work up) and redraws from it; key bindings call the
+system's `Controller` methods, which only queue the command; results come back
+as `CommandResult` and refusals and errors show as notifications.
+
+Every action is one row of `ACTIONS`: its key binding, footer label, help text
+and command palette entry all come from that row.
+
+Quitting (``q``, ``ctrl+c``, or any other way the app ends) cancels Trio's
+root scope and waits for the guest run to finish before the asyncio loop
+closes, so the process exits with status 0 and no traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import outcome
+import trio
+from textual.app import App, ComposeResult, SystemCommand
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical, VerticalScroll
+from textual.message import Message
+from textual.screen import Screen
+from textual.widgets import Footer, Input, TabbedContent, TabPane
+
+from tui.guest import TrioGuest
+from tui.snapshot import CommandResult, Snapshot, System
+from tui.widgets import (
+    FaultDialog,
+    FaultRequest,
+    GamePanel,
+    HelpScreen,
+    MapView,
+    MessageLog,
+    QueueTable,
+    SupervisionTree,
+    Timeline,
+)
+from tui.widgets.game_panel import speed_text
+
+__all__ = ["ConsoleApp", "ACTIONS", "SPEEDS", "REFRESH_HZ", "UiAction"]
+
+#: Snapshots asked for per wall second.
+REFRESH_HZ = 15.0
+#: Speed steps for faster / slower; None is "as fast as possible".
+SPEEDS: tuple[float | None, ...] = (1.0, 4.0, 16.0, None)
+
+
+@dataclass(frozen=True, slots=True)
+class UiAction:
+    """One thing a person can do: key, action name, footer label, help text."""
+
+    key: str
+    """Textual key name(s), comma separated."""
+    action: str
+    """App action (``action_<name>``)."""
+    label: str
+    """Short footer label."""
+    help: str
+    """Help screen and command palette text."""
+    footer: bool = True
+    """Show in the footer (the help screen and palette list every action)."""
+
+
+ACTIONS: tuple[UiAction, ...] = (
+    UiAction("m", "start_mapping", "Map", "Start mapping"),
+    UiAction("x", "stop_mapping", "Stop map", "Stop mapping early and use the map as it is"),
+    UiAction("enter", "confirm", "Confirm",
+             "Confirm the cursor: hide spot (map ready) or seek guess (hidden / not found)"),
+    UiAction("space", "toggle_pause", "Pause", "Pause / resume simulated time"),
+    UiAction("right_square_bracket", "faster", "Faster",
+             "Speed up: x1, x4, x16, as fast as possible"),
+    UiAction("left_square_bracket", "slower", "Slower", "Slow down", footer=False),
+    UiAction("f", "faults", "Faults", "Inject or clear a fault (target, kind, duration)"),
+    UiAction("g", "toggle_truth", "Truth", "Toggle the ground-truth overlay (simulated rooms)"),
+    UiAction("n", "new_game", "New", "Start a new game", footer=False),
+    UiAction("e", "export_map", "Export", "Save the map (PGM + YAML) to the export directory",
+             footer=False),
+    UiAction("p", "toggle_log_pause", "Log pause", "Pause / resume the message log",
+             footer=False),
+    UiAction("slash", "filter_log", "Filter", "Filter the message log", footer=False),
+    UiAction("1", "tab('queues')", "Queues", "Show queue traffic", footer=False),
+    UiAction("2", "tab('log')", "Log", "Show the message log", footer=False),
+    UiAction("3", "tab('tree')", "Tree", "Show the supervision tree", footer=False),
+    UiAction("4", "tab('events')", "Events", "Show the timeline of events and faults",
+             footer=False),
+    UiAction("question_mark", "help", "Help", "Show every key"),
+    UiAction("q", "quit", "Quit", "Quit (also ctrl+c)"),
+)
+
+#: Keys of the map itself (focused by default), for the help screen.
+MAP_KEYS: tuple[tuple[str, str], ...] = (
+    ("arrows", "move the cursor (or click the map)"),
+    ("shift+arrows", "pan the map"),
+    ("+ / -", "zoom in / out"),
+    ("0", "fit the whole map"),
+    ("r", "rotate the hide heading by 45°"),
+    ("escape", "back to the map from the log filter"),
+    ("ctrl+p", "command palette: every action by name"),
+)
+
+_KEY_NAMES = {"right_square_bracket": "]", "left_square_bracket": "[", "question_mark": "?",
+              "slash": "/"}
+
+
+class ConsoleApp(App[int]):
+    """The hideseek console for one `System`.
+
+    Args:
+        system: the system to run and show (`tui.fake.FakeSystem` or the real one).
+        export_dir: where ``export map`` saves files.
+        refresh_hz: snapshots asked for per wall second.
+    """
+
+    TITLE = "hideseek"
+    CSS = """
+    #main { height: 1fr; }
+    MapView { width: 1fr; }
+    #side { width: 42%; min-width: 38; }
+    TabbedContent { height: 1fr; }
+    TabPane { padding: 0; }
+    #tree-scroll { height: 1fr; }
+    """
+    BINDINGS = [
+        Binding(a.key, a.action, a.label, show=a.footer, key_display=_KEY_NAMES.get(a.key))
+        for a in ACTIONS
+    ] + [
+        Binding("ctrl+c", "quit", "Quit", show=False, priority=True),
+        Binding("escape", "focus_map", "Map", show=False),
+    ]
+
+    class SnapshotArrived(Message):
+        """The system published a snapshot (posted from Trio)."""
+
+        def __init__(self, snapshot: Snapshot) -> None:
+            super().__init__()
+            self.snapshot = snapshot
+
+    class ResultArrived(Message):
+        """The system published a command result (posted from Trio)."""
+
+        def __init__(self, result: CommandResult) -> None:
+            super().__init__()
+            self.result = result
+
+    class SystemEnded(Message):
+        """The system's Trio run ended."""
+
+        def __init__(self, result: outcome.Outcome) -> None:
+            super().__init__()
+            self.result = result
+
+    def __init__(self, system: System, *, export_dir: str = ".",
+                 refresh_hz: float = REFRESH_HZ) -> None:
+        super().__init__()
+        if not refresh_hz > 0:
+            raise ValueError(f"refresh_hz must be > 0, got {refresh_hz!r}")
+        self.system = system
+        self.export_dir = export_dir
+        self.refresh_hz = refresh_hz
+        self.snapshot: Snapshot | None = None
+        """The newest snapshot shown."""
+        self.results: list[CommandResult] = []
+        """Command results received, newest last (bounded)."""
+        self.system_error: BaseException | None = None
+        """Why the system's run failed, if it did."""
+        self.snapshots_shown = 0
+        self._guest = TrioGuest(on_done=lambda r: self.post_message(self.SystemEnded(r)))
+        self._requests: trio.MemorySendChannel[None] | None = None
+        self._awaiting = 0  # ticks since the outstanding request, 0 = none outstanding
+
+    def compose(self) -> ComposeResult:
+        with Horizontal(id="main"):
+            yield MapView(id="map")
+            with Vertical(id="side"):
+                yield GamePanel(id="game")
+                with TabbedContent(id="tabs"):
+                    with TabPane("Queues", id="queues"):
+                        yield QueueTable(id="queue-table")
+                    with TabPane("Log", id="log"):
+                        yield MessageLog(id="message-log")
+                    with TabPane("Tree", id="tree"):
+                        with VerticalScroll(id="tree-scroll"):
+                            yield SupervisionTree(id="tree-view")
+                    with TabPane("Events", id="events"):
+                        yield Timeline(id="timeline")
+        yield Footer()
+
+    # -- Trio side -------------------------------------------------------------
+    def on_mount(self) -> None:
+        self.query_one(MapView).focus()
+        self._guest.start(self._trio_main, clock=self.system.clock)
+        self.set_interval(1.0 / self.refresh_hz, self._tick)
+
+    async def _trio_main(self) -> None:
+        send, receive = trio.open_memory_channel[None](1)
+        self._requests = send
+        async with send, receive:
+            await self.system.run(self._publish, receive)
+
+    def _publish(self, item: Snapshot | CommandResult) -> None:
+        """Given to the system: called from Trio, same thread; never blocks."""
+        if isinstance(item, Snapshot):
+            self.post_message(self.SnapshotArrived(item))
+        elif isinstance(item, CommandResult):
+            self.post_message(self.ResultArrived(item))
+        else:
+            raise TypeError(f"publish takes a Snapshot or a CommandResult, "
+                            f"got {type(item).__name__}")
+
+    def _tick(self) -> None:
+        """Ask for the next snapshot unless one is still on its way."""
+        if self._requests is None or self._guest.finished:
+            return
+        if self._awaiting and self._awaiting < 2 * self.refresh_hz:
+            self._awaiting += 1
+            return
+        try:
+            self._requests.send_nowait(None)
+        except (trio.WouldBlock, trio.ClosedResourceError, trio.BrokenResourceError):
+            pass
+        self._awaiting = 1
+
+    async def on_unmount(self) -> None:
+        await self._guest.stop()
+
+    # -- from the system -----------------------------------------------------
+    def on_console_app_snapshot_arrived(self, message: SnapshotArrived) -> None:
+        self._awaiting = 0
+        self.show(message.snapshot)
+
+    def on_console_app_result_arrived(self, message: ResultArrived) -> None:
+        result = message.result
+        self.results.append(result)
+        del self.results[:-100]
+        title = result.command.replace("_", " ")
+        if result.status == "refused":
+            self.notify(result.reason or "refused", title=f"{title}: refused",
+                        severity="warning")
+        elif result.status == "error":
+            self.notify(result.reason or "failed", title=f"{title}: error", severity="error")
+        elif result.reason:
+            self.notify(result.reason, title=title, timeout=3)
+
+    def on_console_app_system_ended(self, message: SystemEnded) -> None:
+        result = message.result
+        if isinstance(result, outcome.Error):
+            self.system_error = result.error
+            self.notify(f"{type(result.error).__name__}: {result.error}",
+                        title="the system stopped", severity="error", timeout=30)
+
+    def show(self, snap: Snapshot) -> None:
+        """Redraw every panel from a snapshot."""
+        if not self.is_mounted:
+            return
+        self.snapshot = snap
+        self.snapshots_shown += 1
+        self.query_one(MapView).update_snapshot(snap)
+        self.query_one(GamePanel).update_snapshot(snap)
+        self.query_one(QueueTable).update_queues(snap.queues)
+        self.query_one(MessageLog).add_lines(snap.log)
+        self.query_one(SupervisionTree).update_tree(snap.tree, snap.time_s)
+        self.query_one(Timeline).add_events(snap.timeline)
+        self.sub_title = f"{snap.scenario} · {snap.phase.replace('_', ' ')}"
+
+    # -- actions -----------------------------------------------------------------
+    def _call(self, method: str, *args: object) -> None:
+        """Call a controller method; a failure is a notification, never a traceback."""
+        try:
+            getattr(self.system, method)(*args)
+        except Exception as exc:  # the contract says never raise; a bug must not kill the UI
+            self.notify(f"{type(exc).__name__}: {exc}", title=method, severity="error")
+
+    def action_start_mapping(self) -> None:
+        self._call("start_mapping")
+
+    def action_stop_mapping(self) -> None:
+        self._call("stop_mapping")
+
+    def action_new_game(self) -> None:
+        self._call("new_game")
+
+    def action_confirm(self) -> None:
+        """Enter on the map: the hide spot or a seek guess, by phase."""
+        phase = self.snapshot.phase if self.snapshot else "idle"
+        view = self.query_one(MapView)
+        x, y = view.cursor
+        if phase == "map_ready":
+            self._call("hide_at", x, y, view.cursor_heading)
+        elif phase in ("hidden", "not_found"):
+            self._call("seek_at", x, y)
+        else:
+            self.notify(f"nothing to choose in phase {phase.replace('_', ' ')}: the cursor "
+                        "picks the hide spot when the map is ready, and seek guesses once "
+                        "hidden", severity="warning")
+
+    def action_toggle_pause(self) -> None:
+        if self.snapshot is not None and self.snapshot.paused:
+            self._call("resume")
+        else:
+            self._call("pause")
+
+    def _speed_index(self) -> int:
+        speed = self.snapshot.speed if self.snapshot else 1.0
+        if speed is None:
+            return len(SPEEDS) - 1
+        return min(range(len(SPEEDS) - 1), key=lambda i: abs(SPEEDS[i] - speed))  # type: ignore[operator]
+
+    def action_faster(self) -> None:
+        self._set_speed(min(len(SPEEDS) - 1, self._speed_index() + 1))
+
+    def action_slower(self) -> None:
+        self._set_speed(max(0, self._speed_index() - 1))
+
+    def _set_speed(self, index: int) -> None:
+        self._call("set_speed", SPEEDS[index])
+        self.notify(f"speed {speed_text(SPEEDS[index], False)}", timeout=1.5)
+
+    def action_toggle_truth(self) -> None:
+        view = self.query_one(MapView)
+        if self.snapshot is not None and self.snapshot.truth is None:
+            self.notify("no ground truth: this room is real", severity="warning")
+            return
+        view.toggle_truth()
+
+    def action_export_map(self) -> None:
+        self._call("export_map", self.export_dir)
+
+    def action_faults(self) -> None:
+        snap = self.snapshot
+        if snap is None or not snap.catalogue:
+            self.notify("the system offers no faults (yet)", severity="warning")
+            return
+        self.push_screen(FaultDialog(snap.catalogue, snap.faults), self._fault_chosen)
+
+    def _fault_chosen(self, request: FaultRequest | None) -> None:
+        if request is None:
+            return
+        if request.action == "inject":
+            self._call("inject_fault", request.target, request.kind, request.duration_s, {})
+        elif request.target == "*":
+            for fault in self.snapshot.faults if self.snapshot else ():
+                self._call("clear_fault", fault.id)
+        else:
+            self._call("clear_fault", request.target)
+
+    def action_toggle_log_pause(self) -> None:
+        log = self.query_one(MessageLog)
+        log.paused = not log.paused
+        self.notify("log paused" if log.paused else "log resumed", timeout=1.5)
+
+    def action_filter_log(self) -> None:
+        self.query_one(TabbedContent).active = "log"
+        self.query_one("#log-filter", Input).focus()
+
+    def action_tab(self, tab: str) -> None:
+        self.query_one(TabbedContent).active = tab
+
+    def action_focus_map(self) -> None:
+        self.query_one(MapView).focus()
+
+    def action_help(self) -> None:
+        keys = [(_KEY_NAMES.get(a.key, a.key), a.help) for a in ACTIONS] + list(MAP_KEYS)
+        self.push_screen(HelpScreen(keys, intro="[b]hideseek console[/b]: keys\n"))
+
+    async def action_quit(self) -> None:
+        """Stop the system's Trio run, then exit with status 0."""
+        await self._guest.stop()
+        self.exit(0)
+
+    def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
+        yield from super().get_system_commands(screen)
+        for a in ACTIONS:
+            if a.action in ("quit",):
+                continue
+            yield SystemCommand(a.help.split(":")[0], f"key {_KEY_NAMES.get(a.key, a.key)}",
+                                functools.partial(self.run_action, a.action))
