@@ -1,0 +1,151 @@
+"""Log-odds occupancy grid and map snapshots (actors.firmware.occupancy)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap, OccupancyGrid
+from actors.firmware.odometry import Pose
+
+
+def small_grid() -> OccupancyGrid:
+    """2 m x 2 m, 5 cm cells, centred on the start."""
+    return OccupancyGrid(200, 200, 5)
+
+
+def test_default_grid_covers_24_m_square_centred_on_start():
+    """The default extent is 24 m x 24 m of 5 cm cells with (0, 0) in the middle."""
+    g = OccupancyGrid()
+    assert g.shape == (480, 480)
+    assert g.origin_cm == (-1200.0, -1200.0)
+    assert g.world_to_cell(0, 0) == (240, 240)
+    assert g.cell_to_world(240, 240) == (2.5, 2.5)
+    assert (g.cells() == UNKNOWN).all()
+
+
+def test_one_ray_frees_cells_before_the_hit_and_marks_the_hit():
+    """A ray along +x of 50 cm frees cells 0..9 and marks cell 10 occupied."""
+    g = small_grid()
+    changed = g.integrate(Pose(2.5, 2.5, 0), np.array([0.0]), np.array([50.0]))
+    cells = g.cells()
+    r, c = g.world_to_cell(2.5, 2.5)
+    assert (cells[r, c:c + 10] == FREE).all()
+    assert cells[r, c + 10] == OCCUPIED
+    assert cells[r, c + 11] == UNKNOWN
+    assert cells[r + 1, c] == UNKNOWN
+    assert changed == 11
+
+
+def test_angles_are_relative_to_the_heading():
+    """A rover facing +y with a ray at -90 deg looks along +x."""
+    g = small_grid()
+    g.integrate(Pose(2.5, 2.5, 90), np.array([-90.0]), np.array([30.0]))
+    r, c = g.world_to_cell(32.5, 2.5)
+    assert g.cells()[r, c] == OCCUPIED
+
+
+def test_no_return_clears_up_to_max_range_without_a_hit():
+    """Range 0 means nothing within range: free along max_range_cm, nothing occupied."""
+    g = small_grid()
+    g.integrate(Pose(2.5, 2.5, 0), np.array([0.0]), np.array([0.0]))
+    cells = g.cells()
+    assert not (cells == OCCUPIED).any()
+    r, c = g.world_to_cell(2.5, 2.5)
+    assert (cells[r, c:] == FREE).all()  # max range 600 cm runs past the 1 m edge
+
+
+def test_repeated_hits_clamp_and_one_free_pass_cannot_erase_a_confident_wall():
+    """Log-odds are clamped; a confident wall survives one contrary ray but not many."""
+    g = small_grid()
+    pose = Pose(2.5, 2.5, 0)
+    for _ in range(20):
+        g.integrate(pose, np.array([0.0]), np.array([50.0]))
+    assert g.log_odds().max() == pytest.approx(g.model.l_max)
+    r, c = g.world_to_cell(52.5, 2.5)
+    g.integrate(pose, np.array([0.0]), np.array([80.0]))
+    assert g.cells()[r, c] == OCCUPIED
+    for _ in range(10):
+        g.integrate(pose, np.array([0.0]), np.array([80.0]))
+    assert g.cells()[r, c] == FREE
+
+
+def test_a_hit_is_not_cleared_by_another_ray_of_the_same_batch():
+    """A grazing ray through a hit cell does not erase it within one batch."""
+    g = small_grid()
+    # both rays pass through / end in the cell at x in [50, 55)
+    g.integrate(Pose(2.5, 2.5, 0), np.array([0.0, 0.0]), np.array([50.0, 90.0]))
+    r, c = g.world_to_cell(52.5, 2.5)
+    assert g.cells()[r, c] == OCCUPIED
+
+
+def test_change_count_drops_to_zero_for_a_repeated_scan():
+    """Integrating the same revolution again changes no cell's class."""
+    g = small_grid()
+    angles = np.arange(0, 360, 1.0)
+    ranges = np.full(360, 80.0)
+    first = g.integrate(Pose(0, 0, 0), angles, ranges)
+    again = g.integrate(Pose(0, 0, 0), angles, ranges)
+    assert first > 500
+    assert again == 0
+    assert g.changed_total == first
+    assert g.batches == 2 and g.rays == 720
+
+
+def test_rays_leaving_the_grid_are_clipped():
+    """Rays ending outside the grid update only the cells inside it."""
+    g = small_grid()
+    g.integrate(Pose(90, 90, 45), np.array([0.0, 180.0]), np.array([500.0, 10.0]))
+    assert g.cells().shape == (40, 40)
+    assert (g.cells() == OCCUPIED).sum() == 1  # only the short ray's hit is inside
+
+
+@pytest.mark.parametrize(("angles", "ranges", "message"), [
+    ([0.0, 1.0], [10.0], "must be 1-D of one length"),
+    ([0.0], [-1.0], "ranges_cm must be finite and >= 0"),
+    ([float("nan")], [10.0], "angles_deg must be finite"),
+])
+def test_integrate_rejects_bad_batches(angles, ranges, message):
+    """A malformed batch is a ValueError with a clear message."""
+    with pytest.raises(ValueError, match=message):
+        small_grid().integrate(Pose(), np.array(angles), np.array(ranges))
+
+
+def test_cropped_cells_and_from_cells_round_trip():
+    """The cropped upload rebuilds a grid with the same cells at the same places."""
+    g = small_grid()
+    g.integrate(Pose(10, -20, 30), np.arange(0, 360, 2.0), np.full(180, 40.0))
+    cells, origin = g.cropped_cells()
+    r0, r1, c0, c1 = g.bounds()
+    assert cells.shape == (r1 - r0, c1 - c0)
+    assert (cells != UNKNOWN).any(axis=1).all()  # no empty row: tight crop
+    rebuilt = OccupancyGrid.from_cells(cells, g.resolution_cm, origin)
+    np.testing.assert_array_equal(rebuilt.cells(), cells)
+    # a point maps to the same class in both
+    x, y = g.cell_to_world(r0 + 3, c0 + 5)
+    rr, rc = rebuilt.world_to_cell(x, y)
+    gr, gc = g.world_to_cell(x, y)
+    assert rebuilt.cells()[rr, rc] == g.cells()[gr, gc]
+
+
+def test_from_cells_rejects_out_of_range_values():
+    """A received map with a value outside -1..100 is refused with its position."""
+    bad = np.zeros((3, 3), dtype=np.int16)
+    bad[1, 2] = 120
+    with pytest.raises(ValueError, match=r"cells must hold -1..100, got 120 at \[1, 2\]"):
+        OccupancyGrid.from_cells(bad, 5, (0, 0))
+
+
+def test_gridmap_is_read_only_and_normalises_probabilities():
+    """A snapshot's cells cannot be written; 0..49 read free, 50..100 occupied."""
+    m = GridMap(np.array([[-1, 10, 49], [50, 99, 100]]), 5.0, (0, 0))
+    np.testing.assert_array_equal(m.cells, [[-1, 0, 0], [100, 100, 100]])
+    with pytest.raises(ValueError):
+        m.cells[0, 0] = 0
+    assert m.known_bounds() == (0, 2, 0, 3)
+    assert m.crop(1, 2, 1, 3).origin_cm == (5.0, 5.0)
+
+
+def test_bounds_of_empty_grid_is_none():
+    """A grid with nothing known has no bounds."""
+    assert small_grid().bounds() is None
