@@ -95,7 +95,8 @@ def is_actor_fault(kind: str) -> bool:
     return kind in ACTOR_FAULTS
 
 
-def check_fault(target: Any, kind: Any, duration_s: Any, params: dict[str, Any]) -> dict[str, float]:
+def check_fault(target: Any, kind: Any, duration_s: Any,
+                params: dict[str, Any]) -> dict[str, float]:
     """Validate a fault and return its parameters with defaults filled in.
 
     Raises:

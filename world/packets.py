@@ -6,7 +6,9 @@ sides agree.
 
 Data Packet A (LIDAR UART, 6 bytes, little-endian)::
 
-    0xA5 | angle u16 [0.01 deg, 0..35999] | distance u16 [cm] | checksum u8 (XOR of the 4 payload bytes)
+    0xA5 | angle u16 [0.01 deg, 0..35999] | distance u16 [cm] | checksum u8
+
+``checksum`` is the XOR of the four payload bytes.
 
 Int E payload: bit 0 is the tread (0 left, 1 right), bit 1 set when backwards.
 """

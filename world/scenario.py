@@ -190,8 +190,8 @@ class _Parser:
         room = self.table(data["room"], "room", {"size_cm"}, {"size_cm"})
         w, h = self.numbers(room["size_cm"], "room.size_cm", 2)
         if not (MIN_ROOM_CM <= w <= MAX_ROOM_CM and MIN_ROOM_CM <= h <= MAX_ROOM_CM):
-            raise self.fail("room.size_cm",
-                            f"each side must be {MIN_ROOM_CM:g}..{MAX_ROOM_CM:g} cm, got {w:g} x {h:g}")
+            raise self.fail("room.size_cm", f"each side must be {MIN_ROOM_CM:g}..{MAX_ROOM_CM:g} "
+                                            f"cm, got {w:g} x {h:g}")
         floor = room_polygon(w, h)
         obstacles = self.obstacles(data.get("obstacles", []), floor, w, h)
         try:
@@ -233,7 +233,8 @@ class _Parser:
                 geom = circle(cx, cy, r)
             else:
                 if not isinstance(value, list) or len(value) < 3:
-                    raise self.fail(key, f"must be a list of at least 3 [x, y] points, got {value!r}")
+                    raise self.fail(key, "must be a list of at least 3 [x, y] points, "
+                                         f"got {value!r}")
                 pts = [self.numbers(p, f"{key}[{j}]", 2) for j, p in enumerate(value)]
                 geom = shapely.Polygon(pts)
                 if not geom.is_valid or geom.area <= 0:
@@ -258,8 +259,8 @@ class _Parser:
                                      f"room ({w:g} x {h:g} cm)")
             for i, obs in enumerate(obstacles):
                 if body.intersects(obs):
-                    raise self.fail(key, f"start pose ({pose.x:g}, {pose.y:g}) is inside or touches "
-                                         f"obstacles[{i}]")
+                    raise self.fail(key, f"start pose ({pose.x:g}, {pose.y:g}) is inside or "
+                                         f"touches obstacles[{i}]")
             for other, ob in bodies.items():
                 if body.intersects(ob):
                     raise self.fail(key, f"overlaps the {other} rover's start pose")
@@ -273,10 +274,12 @@ class _Parser:
         if "hide_at" in data:
             hide_at = Pose(*self.numbers(data["hide_at"], "game.hide_at", 3))
             if not floor.contains(shapely.Point(hide_at.x, hide_at.y)):
-                raise self.fail("game.hide_at", f"({hide_at.x:g}, {hide_at.y:g}) is outside the room")
+                raise self.fail("game.hide_at",
+                                f"({hide_at.x:g}, {hide_at.y:g}) is outside the room")
         guesses = data.get("seek_at", [])
         if not isinstance(guesses, list) or len(guesses) > MAX_GUESSES:
-            raise self.fail("game.seek_at", f"must be a list of at most {MAX_GUESSES} [x, y] points")
+            raise self.fail("game.seek_at",
+                            f"must be a list of at most {MAX_GUESSES} [x, y] points")
         seek_at = []
         for i, g in enumerate(guesses):
             x, y = self.numbers(g, f"game.seek_at[{i}]", 2)

@@ -34,7 +34,7 @@ from world.scenario import Scenario, ScheduledFault
 from world.wifly import WiflyLink
 
 DEFAULT_TICK_S = 0.05
-"""World tick [s]: device events are batched per tick (50 ms: the speed/fidelity choice, see docs/scenarios.md)."""
+"""World tick [s]: device events are batched per tick (50 ms: see docs/scenarios.md)."""
 
 EventCallback = Callable[[str, str, dict], None]
 
