@@ -252,9 +252,10 @@ def astar(
 def line_of_sight(passable: np.ndarray, a: tuple[float, float], b: tuple[float, float]) -> bool:
     """Whether the segment between cell centres ``a`` and ``b`` crosses only passable cells.
 
-    Conservative: the segment is sampled every 0.1 cell and, at each sample,
-    every cell within 1e-6 of it counts (so passing exactly through a corner
-    needs all cells at that corner passable).
+    Conservative: the segment is sampled at most every 0.1 cell along each axis
+    and, at each sample, every cell within 0.051 cell of it (per axis) counts, so
+    a segment through or near a cell corner needs all cells at that corner
+    passable (the segment is treated as about 0.1 cell wide).
     """
     ny, nx = passable.shape
     (r0, c0), (r1, c1) = a, b
@@ -262,7 +263,7 @@ def line_of_sight(passable: np.ndarray, a: tuple[float, float], b: tuple[float, 
     t = np.linspace(0.0, 1.0, n)
     rr = r0 + 0.5 + (r1 - r0) * t
     cc = c0 + 0.5 + (c1 - c0) * t
-    eps = 1e-6
+    eps = 0.051  # > half the sample spacing per axis: no corner slips between samples
     rl, rh = np.floor(rr - eps).astype(np.int64), np.floor(rr + eps).astype(np.int64)
     cl, ch = np.floor(cc - eps).astype(np.int64), np.floor(cc + eps).astype(np.int64)
     rows = np.concatenate([rl, rl, rh, rh])
