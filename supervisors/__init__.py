@@ -1,1 +1,26 @@
-"""supervisors"""
+"""Supervisors: OTP-style supervision of actors (domain-free) and, in their own
+modules, the supervision trees of the rovers and the whole system.
+
+``supervisor`` depends only on the ``actors`` runtime; only ``system.py`` may
+wire in ``world`` and ``server`` (tests/test_layers.py).
+"""
+
+from .supervisor import (
+    Backoff,
+    ChildInfo,
+    ChildSpec,
+    ChildStartError,
+    ChildType,
+    Restart,
+    Strategy,
+    Supervisor,
+    SupervisorSpec,
+    TreeNode,
+    backoff_delay,
+    intensity_exceeded,
+)
+
+__all__ = [
+    "Backoff", "ChildInfo", "ChildSpec", "ChildStartError", "ChildType", "Restart", "Strategy",
+    "Supervisor", "SupervisorSpec", "TreeNode", "backoff_delay", "intensity_exceeded",
+]

@@ -1,0 +1,378 @@
+"""Actors: the class users subclass, its context, and the loop that runs one incarnation.
+
+An actor handles one message at a time from its bounded mailbox::
+
+    class Echo(Actor):
+        async def handle(self, message):
+            return message          # the reply when the message came by call()
+
+Life of one incarnation (run by its supervisor through `run_actor`):
+
+1. the factory makes the actor, ``ctx`` is attached, ``on_start()`` runs; a
+   failure here is a failed start (the supervisor's start fails);
+2. the loop drains bursts: every waiting message is taken with
+   ``receive_nowait`` and handled in turn, with one checkpoint per burst;
+3. on exit ``on_stop(reason)`` runs (not after ``killed``), the actor's timers
+   are cancelled and monitors get a `Down` notice.
+
+Replies: the value ``handle`` returns is the reply to a ``call``; for other
+messages it is ignored.
+
+Poison messages: the message being handled when the actor crashed or hung is
+dropped and reported (trace ``poison``), not redelivered; messages still
+waiting stay in the mailbox for the next incarnation.
+
+Watchdog: with a deadline [s], handling one message (one burst for
+`Actor.handle_burst` overrides) that takes longer is cancelled and the actor
+exits with reason ``hung``. Trio cancels only at checkpoints: an actor stuck
+in a loop that never awaits cannot be cancelled (and blocks the whole run).
+
+Faults (for tests and the console): a pending ``inject_crash`` makes the next
+handling (or, when idle, the actor at once) raise `InjectedCrash`; a pending
+``inject_hang`` makes it sleep first, at a checkpoint, so the watchdog fires.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import trio
+
+from .call import CallEnvelope, CallFailed
+from .cell import ActorState, Cell, Monitor
+from .exits import HUNG, KILLED, NORMAL, SHUTDOWN, ExitReason
+from .trace import EventKind, Trace
+
+if TYPE_CHECKING:
+    from .system import ActorSystem
+
+__all__ = ["Actor", "ActorContext", "Timer", "InjectedCrash", "run_actor"]
+
+#: the most timers one actor may have running at once
+MAX_TIMERS = 256
+
+
+class InjectedCrash(Exception):
+    """The exception an injected crash fault raises inside an actor."""
+
+
+class Actor:
+    """Base class of actors: override `handle`; the other hooks are optional."""
+
+    ctx: ActorContext
+    """Set by the runtime before `on_start`: name, system, trace, rng, timers."""
+
+    async def on_start(self) -> None:
+        """Called once per incarnation before the first message; raising fails the start."""
+
+    async def handle(self, message: Any) -> Any:
+        """Handle one message; the return value is the reply when it came by ``call``."""
+        raise NotImplementedError(f"{type(self).__name__} must define handle()")
+
+    async def handle_burst(self, messages: list[Any]) -> None:
+        """Handle a drained burst (never contains calls); the default calls `handle` for each.
+
+        Override to process a burst at once (e.g. vectorise LIDAR points). If it
+        raises, the whole burst is the poison and is reported.
+        """
+        for message in messages:
+            await self.handle(message)
+
+    async def on_stop(self, reason: ExitReason) -> None:
+        """Called when the incarnation ends (not when it was killed)."""
+
+
+class Timer:
+    """A running timer (made by `ActorContext.start_timer`); `cancel` stops it."""
+
+    __slots__ = ("_scope",)
+
+    def __init__(self, scope: trio.CancelScope) -> None:
+        self._scope = scope
+
+    def cancel(self) -> None:
+        """Stop the timer (idempotent)."""
+        self._scope.cancel()
+
+    @property
+    def cancelled(self) -> bool:
+        """True once cancelled (or its actor stopped)."""
+        return self._scope.cancel_called
+
+
+class ActorContext:
+    """What an actor can reach: its name, the system, the trace, its rng, timers."""
+
+    def __init__(self, system: ActorSystem, cell: Cell) -> None:
+        self.name: str = cell.name
+        """The registered name, e.g. ``mapper/motor``."""
+        self.system = system
+        """The actor system: registry, send/cast/call by name, monitors, faults."""
+        self.trace: Trace = system.trace
+        """The run's trace hub."""
+        self.rng: np.random.Generator = cell.rng
+        """This actor's generator, derived from the run's seed and the name (kept across
+        restarts)."""
+        self._cell = cell
+        self._timers: trio.Nursery | None = None
+        self._n_timers = 0
+        self._stop = False
+
+    # ---------------------------------------------------------------- messaging
+    async def send(self, name: str, message: Any) -> None:
+        """`ActorSystem.send`."""
+        await self.system.send(name, message)
+
+    def send_nowait(self, name: str, message: Any) -> bool:
+        """`ActorSystem.send_nowait`."""
+        return self.system.send_nowait(name, message)
+
+    async def cast(self, name: str, message: Any) -> bool:
+        """`ActorSystem.cast`."""
+        return await self.system.cast(name, message)
+
+    async def call(self, name: str, request: Any, *, timeout: float) -> Any:
+        """`ActorSystem.call` (an actor calling itself would deadlock until the timeout)."""
+        return await self.system.call(name, request, timeout=timeout)
+
+    def monitor(self, name: str, capacity: int = 16) -> Monitor:
+        """`ActorSystem.monitor`."""
+        return self.system.monitor(name, capacity)
+
+    @property
+    def mailbox_depth(self) -> int:
+        """Messages waiting in this actor's mailbox."""
+        return self._cell.mailbox.depth
+
+    def stop(self) -> None:
+        """Exit with reason ``normal`` after the current message."""
+        self._stop = True
+
+    # ---------------------------------------------------------------- timers
+    def start_timer(self, delay: float, message: Any, *, interval: float | None = None) -> Timer:
+        """Post ``message`` to this actor's own mailbox after ``delay`` [s], then every
+        ``interval`` [s] if given. Timers stop with the incarnation.
+
+        Posting uses ``send_nowait``: a full mailbox drops the tick (counted).
+
+        Raises:
+            ValueError: ``delay`` < 0 or ``interval`` <= 0.
+            RuntimeError: outside a running actor, or more than `MAX_TIMERS` running.
+        """
+        if not delay >= 0:
+            raise ValueError(f"delay must be >= 0 [s], got {delay!r}")
+        if interval is not None and not interval > 0:
+            raise ValueError(f"interval must be > 0 [s], got {interval!r}")
+        if self._timers is None:
+            raise RuntimeError("start_timer needs a running actor (from on_start or handle)")
+        if self._n_timers >= MAX_TIMERS:
+            raise RuntimeError(f"an actor may run at most {MAX_TIMERS} timers")
+        scope = trio.CancelScope()
+        self._n_timers += 1
+        self._timers.start_soon(self._tick, scope, delay, message, interval)
+        return Timer(scope)
+
+    async def _tick(self, scope: trio.CancelScope, delay: float, message: Any,
+                    interval: float | None) -> None:
+        mailbox = self._cell.mailbox
+        try:
+            with scope:
+                await trio.sleep(delay)
+                mailbox.send_nowait(message)
+                while interval is not None:
+                    await trio.sleep(interval)
+                    mailbox.send_nowait(message)
+        finally:
+            self._n_timers -= 1
+
+
+# ---------------------------------------------------------------------- running one incarnation
+async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
+                    task_status: trio.TaskStatus[ExitReason | None] = trio.TASK_STATUS_IGNORED,
+                    ) -> ExitReason:
+    """Run one incarnation of the actor registered as ``cell`` (runtime/supervisor use).
+
+    Reports ``task_status.started(None)`` once ``on_start`` succeeded, or
+    ``started(reason)`` with a ``start_failed``/``killed`` reason when the start
+    failed, so ``await nursery.start(run_actor, ...)`` returns None on success.
+    ``cell.scope`` is the incarnation's kill switch (cancel it: reason ``killed``).
+
+    Returns:
+        The exit reason.
+    """
+    trace = system.trace
+    started = False
+    reason: ExitReason = KILLED
+    cell.state = ActorState.STARTING
+    cell.stop_requested = False
+    try:
+        with trio.CancelScope() as scope:
+            cell.scope = scope
+            async with trio.open_nursery() as timers:
+                try:
+                    actor = factory()
+                    if not isinstance(actor, Actor):
+                        raise TypeError(f"the factory must return an Actor, got {actor!r}")
+                    ctx = ActorContext(system, cell)
+                    ctx._timers = timers
+                    actor.ctx = ctx
+                    cell.actor = actor
+                    await actor.on_start()
+                except Exception as exc:
+                    reason = ExitReason.start_failed(f"{type(exc).__name__}: {exc}")
+                    timers.cancel_scope.cancel()
+                    return reason
+                cell.state = ActorState.RUNNING
+                trace.emit(EventKind.START, cell.name, cell.name, "", cell.mailbox.depth)
+                started = True
+                task_status.started(None)
+                reason = await _serve_safely(cell, actor, ctx, trace, system.max_burst)
+                timers.cancel_scope.cancel()
+            ctx._timers = None
+            try:
+                await actor.on_stop(reason)
+            except Exception as exc:
+                trace.emit(EventKind.CRASH, cell.name, detail=f"in on_stop: {exc!r}")
+        if scope.cancelled_caught:
+            reason = KILLED  # the supervisor traces why it killed
+        return reason
+    finally:
+        cell.scope = None
+        cell.actor = None
+        cell.current = None
+        cell.state = ActorState.STOPPED
+        cell.last_exit = reason
+        if not started:
+            task_status.started(reason)
+        else:
+            trace.emit(EventKind.STOP, cell.name, cell.name, "", cell.mailbox.depth, str(reason))
+            cell.notify_down(reason)
+
+
+async def _serve_safely(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
+                        max_burst: int) -> ExitReason:
+    """The message loop; turns a crash into a reason and reports the poison message."""
+    try:
+        return await _serve(cell, actor, ctx, trace, max_burst)
+    except Exception as exc:
+        reason = ExitReason.crash(exc)
+        trace.emit(EventKind.CRASH, cell.name, cell.name, "", cell.mailbox.depth, reason.detail)
+        _drop_poison(cell, trace, reason)
+        return reason
+
+
+def _drop_poison(cell: Cell, trace: Trace, reason: ExitReason) -> None:
+    poison = cell.current
+    cell.current = None
+    if poison is None:
+        return
+    for item in poison if isinstance(poison, list) else (poison,):
+        if type(item) is CallEnvelope:
+            item.fail(CallFailed(cell.name, reason))
+    trace.emit(EventKind.POISON, cell.name, cell.name, poison, cell.mailbox.depth, str(reason))
+
+
+async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
+                 max_burst: int) -> ExitReason:
+    mailbox = cell.mailbox
+    queue = mailbox._queue  # read-only peeks on the hot path
+    receive = mailbox.receive_nowait
+    handle = actor.handle
+    burst_mode = type(actor).handle_burst is not Actor.handle_burst
+    checkpoint = trio.lowlevel.checkpoint
+    while True:
+        if cell.stop_requested:
+            return SHUTDOWN
+        if ctx._stop:
+            return NORMAL
+        if cell.crash_pending or cell.hang_pending:
+            if not await _slow(cell, actor, trace, None):
+                return _hung(cell, trace)
+            continue
+        if not queue:
+            await mailbox.wait()
+            continue
+        if burst_mode:
+            if not await _burst(cell, actor, trace, max_burst):
+                return _hung(cell, trace)
+        else:
+            n = 0
+            while queue and n < max_burst:
+                item = receive()
+                cell.current = item
+                if (cell.watchdog is not None or type(item) is CallEnvelope
+                        or cell.crash_pending or cell.hang_pending):
+                    if not await _slow(cell, actor, trace, item):
+                        return _hung(cell, trace)
+                else:
+                    await handle(item)
+                n += 1
+                if cell.stop_requested or ctx._stop:
+                    break
+            cell.current = None
+        await checkpoint()
+
+
+def _hung(cell: Cell, trace: Trace) -> ExitReason:
+    trace.emit(EventKind.HUNG, cell.name, cell.name, "", cell.mailbox.depth,
+               f"watchdog {cell.watchdog} s")
+    _drop_poison(cell, trace, HUNG)
+    return HUNG
+
+
+async def _slow(cell: Cell, actor: Actor, trace: Trace, item: Any) -> bool:
+    """Handle one item (or only pending faults when ``item`` is None) under the watchdog.
+
+    Returns:
+        False when the watchdog fired.
+    """
+    if cell.crash_pending:
+        cell.crash_pending = False
+        raise InjectedCrash(f"injected crash in {cell.name}")
+    with trio.CancelScope() as scope:
+        if cell.watchdog is not None:
+            scope.deadline = trio.current_time() + cell.watchdog
+        if cell.hang_pending:
+            seconds, cell.hang_pending = cell.hang_pending, 0.0
+            await trio.sleep(seconds)
+        if item is None:
+            return True
+        if type(item) is CallEnvelope:
+            value = await actor.handle(item.request)
+            if not item.reply(value):
+                trace.emit(EventKind.LATE_REPLY, cell.name, cell.name, item, cell.mailbox.depth)
+        else:
+            await actor.handle(item)
+    return not scope.cancelled_caught
+
+
+async def _burst(cell: Cell, actor: Actor, trace: Trace, max_burst: int) -> bool:
+    """Drain a burst for a `handle_burst` override; calls are handled one by one."""
+    queue = cell.mailbox._queue
+    receive = cell.mailbox.receive_nowait
+    batch: list[Any] = []
+    while queue and len(batch) < max_burst:
+        if type(queue[0]) is CallEnvelope:
+            if batch:
+                break
+            item = receive()
+            cell.current = item
+            ok = await _slow(cell, actor, trace, item)
+            cell.current = None
+            return ok
+        batch.append(receive())
+    cell.current = batch
+    if cell.crash_pending:
+        cell.crash_pending = False
+        raise InjectedCrash(f"injected crash in {cell.name}")
+    with trio.CancelScope() as scope:
+        if cell.watchdog is not None:
+            scope.deadline = trio.current_time() + cell.watchdog
+        if cell.hang_pending:
+            seconds, cell.hang_pending = cell.hang_pending, 0.0
+            await trio.sleep(seconds)
+        await actor.handle_burst(batch)
+    cell.current = None
+    return not scope.cancelled_caught
+

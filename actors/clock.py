@@ -1,0 +1,70 @@
+"""The three clocks of a run, all read through ``trio.current_time()``.
+
+* `real_clock`: Trio's default clock (returns None, Trio's default).
+* `scaled_clock`: real time times a factor (``MockClock(rate=N)``), for the
+  console; `set_rate` changes the factor while running.
+* `virtual_clock`: time jumps ahead whenever every task is idle
+  (``MockClock(autojump_threshold=0)``): headless runs and tests, a whole game
+  in seconds, repeatable for a seed.
+
+Nothing in the project reads the wall clock; a headless run is simply
+``trio.run(main, clock=virtual_clock())``.
+"""
+
+from __future__ import annotations
+
+import trio
+from trio.testing import MockClock
+
+__all__ = ["real_clock", "scaled_clock", "virtual_clock", "set_rate", "set_rate_soon"]
+
+
+def real_clock() -> None:
+    """Trio's default clock: pass the result as ``trio.run(..., clock=real_clock())``."""
+    return None
+
+
+def virtual_clock() -> MockClock:
+    """A clock that jumps to the next deadline as soon as all tasks are blocked."""
+    return MockClock(autojump_threshold=0)
+
+
+def _check_rate(rate: float) -> float:
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)):
+        raise TypeError(f"rate must be a number, got {rate!r}")
+    if not rate > 0 or rate == float("inf"):
+        raise ValueError(f"rate must be a finite number > 0, got {rate!r}")
+    return float(rate)
+
+
+def scaled_clock(rate: float) -> MockClock:
+    """A clock running ``rate`` times faster than real time (``rate`` > 0).
+
+    Raises:
+        ValueError: ``rate`` is not a finite number > 0.
+    """
+    return MockClock(rate=_check_rate(rate))
+
+
+def set_rate(clock: MockClock, rate: float) -> None:
+    """Change a scaled clock's factor; call from inside Trio (a task or ``run_sync_soon``).
+
+    Trio computes its next sleep from the clock each scheduler round, so the
+    change takes effect at once when made from inside the run. Made from
+    outside (another thread, a UI loop), a sleeping Trio would not notice:
+    use `set_rate_soon` there.
+
+    Raises:
+        ValueError: ``rate`` is not a finite number > 0.
+    """
+    clock.rate = _check_rate(rate)
+
+
+def set_rate_soon(token: trio.lowlevel.TrioToken, clock: MockClock, rate: float) -> None:
+    """Change a scaled clock's factor from outside Trio, waking the run to notice.
+
+    Raises:
+        ValueError: ``rate`` is not a finite number > 0 (raised here, not in Trio).
+    """
+    rate = _check_rate(rate)
+    token.run_sync_soon(set_rate, clock, rate)

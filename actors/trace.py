@@ -1,0 +1,240 @@
+"""Trace events of a run: what happened to which actor and queue, and when.
+
+Every send, receive, overflow drop, crash, restart, escalation and fault is a
+`TraceEvent` stamped with Trio's (virtual) time. To keep the hot path cheap,
+per-message events (``send``, ``receive``) are only made when some subscriber
+asked for them (``per_message=True``); lifecycle events are always made.
+Mailbox counters are kept separately and always (``Mailbox.statistics()``).
+
+Subscribers are callbacks (called synchronously; they must not block) or
+bounded channels (`Trace.open_channel`; a full channel drops and counts).
+`JsonLinesRecorder` writes events as JSON lines.
+
+The trace hash (`Trace.hexdigest`) is a BLAKE2b digest of every event made,
+order-independent among events with the same timestamp: Trio may wake tasks
+that became runnable at one instant in any order, so events are grouped by
+timestamp and sorted within a group before hashing. Two runs of one seed on a
+virtual clock give the same hash; `seed_trio_scheduler` additionally makes
+Trio's own batch order follow the seed.
+"""
+
+from __future__ import annotations
+
+import enum
+import hashlib
+import json
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import IO, Any
+
+import trio
+
+__all__ = [
+    "EventKind",
+    "TraceEvent",
+    "Trace",
+    "Subscription",
+    "JsonLinesRecorder",
+    "seed_trio_scheduler",
+]
+
+
+class EventKind(enum.StrEnum):
+    """What a trace event records."""
+
+    SEND = "send"  #: a message entered a mailbox (per-message)
+    RECEIVE = "receive"  #: an actor took a message from its mailbox (per-message)
+    DROP = "drop"  #: send_nowait on a full mailbox: the message was dropped
+    START = "start"  #: an actor or supervisor started
+    STOP = "stop"  #: an actor or supervisor stopped (detail: exit reason)
+    CRASH = "crash"  #: an actor crashed (detail: exception)
+    POISON = "poison"  #: the message an actor was handling when it failed, dropped
+    HUNG = "hung"  #: the watchdog cancelled an actor stuck on one message
+    KILLED = "killed"  #: a child missed its shutdown timeout and was cancelled hard
+    RESTART = "restart"  #: a supervisor restarted a child
+    ESCALATE = "escalate"  #: a supervisor reached its restart intensity and gave up
+    FAULT = "fault"  #: a fault was injected (crash, hang, flood)
+    LATE_REPLY = "late_reply"  #: a reply came after the caller's timeout and was dropped
+
+
+PER_MESSAGE = frozenset((EventKind.SEND, EventKind.RECEIVE))
+
+
+@dataclass(frozen=True, slots=True)
+class TraceEvent:
+    """One event. ``time`` is Trio's clock [s]; ``depth`` the queue depth after it [messages]."""
+
+    time: float
+    kind: EventKind
+    actor: str
+    queue: str = ""
+    message: str = ""
+    depth: int = 0
+    detail: str = ""
+
+    def key(self) -> str:
+        """A stable text form used for hashing."""
+        return (f"{self.time!r}|{self.kind.value}|{self.actor}|{self.queue}|"
+                f"{self.message}|{self.depth}|{self.detail}")
+
+
+class Subscription:
+    """A subscriber's handle; `close` detaches it."""
+
+    __slots__ = ("_trace", "callback", "per_message", "dropped")
+
+    def __init__(self, trace: Trace, callback: Callable[[TraceEvent], Any], per_message: bool):
+        self._trace = trace
+        self.callback = callback
+        self.per_message = per_message
+        self.dropped: _DropCounter | None = None
+        """For channel subscriptions: counts events the full channel dropped."""
+
+    def close(self) -> None:
+        """Stop receiving events (idempotent)."""
+        self._trace._detach(self)
+
+
+class Trace:
+    """The event hub of one actor system.
+
+    Args:
+        per_message: also make ``send``/``receive`` events even with no
+            per-message subscriber (for hashing every message of a run).
+    """
+
+    def __init__(self, *, per_message: bool = False) -> None:
+        self._always_per_message = per_message
+        self.per_message: bool = per_message
+        """True when per-message events are being made (read on the hot path)."""
+        self._subs: list[Subscription] = []
+        self._hash = hashlib.blake2b(digest_size=16)
+        self._bucket_time: float | None = None
+        self._bucket: list[str] = []
+        self.count = 0
+        """Events made so far."""
+
+    # ---------------------------------------------------------------- subscribers
+    def subscribe(self, callback: Callable[[TraceEvent], Any], *,
+                  per_message: bool = False) -> Subscription:
+        """Call ``callback(event)`` for every event from now on.
+
+        The callback runs synchronously where the event happens: it must be
+        quick and must not block. With ``per_message`` it also gets
+        ``send``/``receive`` events (which slows every message down).
+        """
+        sub = Subscription(self, callback, per_message)
+        self._subs.append(sub)
+        self._refresh()
+        return sub
+
+    def open_channel(self, capacity: int = 1024, *,
+                     per_message: bool = False) -> tuple[trio.MemoryReceiveChannel, Subscription]:
+        """A bounded channel of events; when it is full, events are dropped and counted.
+
+        Returns:
+            (receive channel, subscription); ``subscription.dropped.dropped``
+            counts events that did not fit.
+        """
+        if capacity < 1:
+            raise ValueError(f"capacity must be >= 1, got {capacity!r}")
+        send, receive = trio.open_memory_channel[TraceEvent](capacity)
+        counter = _DropCounter(send)
+        sub = self.subscribe(counter, per_message=per_message)
+        sub.dropped = counter
+        return receive, sub
+
+    def _detach(self, sub: Subscription) -> None:
+        if sub in self._subs:
+            self._subs.remove(sub)
+            self._refresh()
+
+    def _refresh(self) -> None:
+        self.per_message = self._always_per_message or any(s.per_message for s in self._subs)
+
+    # ---------------------------------------------------------------- events
+    def emit(self, kind: EventKind, actor: str, queue: str = "", message: Any = "",
+             depth: int = 0, detail: str = "") -> TraceEvent:
+        """Make an event now (Trio's current time) and deliver it."""
+        event = TraceEvent(trio.current_time(), kind, actor, queue,
+                           message if isinstance(message, str) else repr(message), depth, detail)
+        self.count += 1
+        if event.time != self._bucket_time:
+            self._flush()
+            self._bucket_time = event.time
+        self._bucket.append(event.key())
+        per_message = kind in PER_MESSAGE
+        for sub in tuple(self._subs):
+            if per_message and not sub.per_message:
+                continue
+            sub.callback(event)
+        return event
+
+    def _flush(self) -> None:
+        if self._bucket:
+            for key in sorted(self._bucket):
+                self._hash.update(key.encode())
+                self._hash.update(b"\n")
+            self._bucket.clear()
+
+    def hexdigest(self) -> str:
+        """The run's trace hash so far (order-independent within one timestamp)."""
+        h = self._hash.copy()
+        for key in sorted(self._bucket):
+            h.update(key.encode())
+            h.update(b"\n")
+        return h.hexdigest()
+
+
+class _DropCounter:
+    """A callback feeding a bounded channel, counting what did not fit."""
+
+    __slots__ = ("_send", "dropped")
+
+    def __init__(self, send: trio.MemorySendChannel) -> None:
+        self._send = send
+        self.dropped = 0
+
+    def __call__(self, event: TraceEvent) -> None:
+        try:
+            self._send.send_nowait(event)
+        except (trio.WouldBlock, trio.BrokenResourceError, trio.ClosedResourceError):
+            self.dropped += 1
+
+
+class JsonLinesRecorder:
+    """Writes each event as one JSON object per line; subscribe it to a `Trace`.
+
+    Args:
+        stream: a text stream open for writing (the caller closes it).
+        max_events: stop writing after this many lines (counted in ``skipped``).
+    """
+
+    def __init__(self, stream: IO[str], *, max_events: int = 1_000_000) -> None:
+        self._stream = stream
+        self._max = max_events
+        self.written = 0
+        self.skipped = 0
+
+    def __call__(self, event: TraceEvent) -> None:
+        if self.written >= self._max:
+            self.skipped += 1
+            return
+        record = asdict(event)
+        record["kind"] = event.kind.value
+        self._stream.write(json.dumps(record, separators=(",", ":")) + "\n")
+        self.written += 1
+
+
+def seed_trio_scheduler(seed: int) -> None:
+    """Make Trio's batch order follow ``seed`` (call before ``trio.run``).
+
+    Trio shuffles or reverses each batch of runnable tasks with a module-level
+    ``random.Random`` (``trio._core._run._r``) to flush out code that assumes
+    an order. Seeding it makes a run's task order, and so a run's trace,
+    repeatable for a seed. This touches Trio's private state, on purpose, in
+    this one place; it affects every Trio run in the process that follows.
+    """
+    from trio._core import _run
+
+    _run._r.seed(seed)
