@@ -194,11 +194,14 @@ class _Parser:
                                             f"cm, got {w:g} x {h:g}")
         floor = room_polygon(w, h)
         obstacles = self.obstacles(data.get("obstacles", []), floor, w, h)
-        try:
-            params = DeviceParams().with_overrides(self.table(data.get("devices", {}), "devices",
-                                                              set(DeviceParams.__slots__), set()))
-        except ValueError as exc:
-            raise self.fail("devices", str(exc)) from None
+        devices = self.table(data.get("devices", {}), "devices", set(DeviceParams.__slots__),
+                             set())
+        params = DeviceParams()
+        for k, v in devices.items():
+            try:
+                params = params.with_overrides({k: v})
+            except ValueError as exc:
+                raise self.fail(f"devices.{k}", str(exc)) from None
         starts = self.rovers(data["rovers"], floor, obstacles, params, w, h)
         hide_at, seek_at = self.game(data.get("game", {}), floor)
         faults = self.faults(data.get("faults", []))
