@@ -227,7 +227,7 @@ class FakeSystem:
     async def _snapshot_loop(self, requests: trio.abc.ReceiveChannel[None]) -> None:
         async for _ in requests:
             if self._publish is not None:
-                self._publish(self.snapshot())
+                self._publish(self.snapshot(trio.current_time()))
 
     async def _command_loop(self) -> None:
         async for name, args in self._cmd_recv:
@@ -577,8 +577,12 @@ class FakeSystem:
                 ln[4] += 1
 
     # -- the snapshot --------------------------------------------------------
-    def snapshot(self) -> Snapshot:
-        """The current state as an immutable `Snapshot` (arrays are copies)."""
+    def snapshot(self, now_s: float | None = None) -> Snapshot:
+        """The current state as an immutable `Snapshot` (arrays are copies).
+
+        Args:
+            now_s: simulated time to report [s]; default the time of the last step.
+        """
         truth = GridView(self._truth, RES_CM, (-START_CM[0], -START_CM[1]))
         rovers = []
         for r in self._rovers.values():
@@ -589,7 +593,7 @@ class FakeSystem:
             rovers.append(RoverView(r.id, r.role, est, Pose(mx, my, r.heading),  # type: ignore[arg-type]
                                     ((est.x_cm, est.y_cm),) + path if path else (), target))
         return Snapshot(
-            time_s=trio.current_time(),
+            time_s=self._now if now_s is None else now_s,
             speed=self._speed,
             paused=self._paused,
             scenario=self.scenario,
