@@ -1,0 +1,122 @@
+"""Frontier detection, clustering and choice (actors.firmware.frontier)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from actors.firmware.frontier import (
+    Frontier,
+    FrontierWeights,
+    choose_frontier,
+    find_frontiers,
+    frontier_cost,
+    frontier_mask,
+    is_blacklisted,
+    label_clusters,
+    no_useful_frontier,
+)
+from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+
+
+def test_frontier_mask_is_free_cells_next_to_unknown():
+    """Only free cells with an unknown 4-neighbour are frontier; the grid edge is not unknown."""
+    cells = np.array([
+        [0, 0, 0, -1],
+        [0, 0, 0, 100],
+        [0, 0, 0, 0],
+    ], dtype=np.int8)
+    mask = frontier_mask(cells)
+    expected = np.zeros_like(mask)
+    expected[0, 2] = True
+    np.testing.assert_array_equal(mask, expected)
+
+
+def test_label_clusters_uses_eight_connectivity():
+    """Diagonal neighbours join a cluster; separate blobs get separate labels in row order."""
+    mask = np.array([
+        [1, 0, 0, 0, 1],
+        [0, 1, 0, 0, 1],
+        [0, 0, 0, 0, 0],
+        [1, 1, 0, 0, 0],
+    ], dtype=bool)
+    labels, count = label_clusters(mask)
+    assert count == 3
+    assert labels[0, 0] == labels[1, 1] == 1
+    assert labels[0, 4] == labels[1, 4] == 2
+    assert labels[3, 0] == labels[3, 1] == 3
+    assert (labels[~mask] == 0).all()
+
+
+def explored_room() -> GridMap:
+    """A 3 m x 2 m walled room, left part known free, right part unknown."""
+    cells = np.full((40, 60), UNKNOWN, dtype=np.int8)
+    cells[0, :] = cells[-1, :] = cells[:, 0] = cells[:, -1] = OCCUPIED
+    cells[1:-1, 1:30] = FREE
+    return GridMap(cells, 5.0, (0.0, 0.0))
+
+
+def test_find_frontiers_reports_the_boundary_with_distance_and_target():
+    """The known/unknown boundary is one cluster; its target is reachable and near it."""
+    m = explored_room()
+    fs = find_frontiers(m, (50.0, 100.0))
+    assert len(fs) == 1
+    f = fs[0]
+    assert f.size == 38  # rows 1..38 at column 29
+    assert f.centroid_cm == pytest.approx((147.5, 100.0))
+    assert f.reachable
+    tx, ty = f.target_cm
+    assert 147.5 - 30 - 1e-9 <= tx <= 147.5  # within approach_cm of the frontier
+    # 8-connected steps from the rover's cell centre (52.5, 102.5): Chebyshev length
+    assert f.distance_cm == pytest.approx(max(abs(tx - 52.5), abs(ty - 102.5)))
+    assert f.distance_cm <= math.dist((52.5, 102.5), (tx, ty))
+    assert 0.4 < f.unknown_share < 0.7
+
+
+def test_walled_off_frontier_is_unreachable():
+    """A frontier behind a wall has no target and an infinite cost."""
+    cells = explored_room().cells.copy()
+    cells[:, 15] = OCCUPIED
+    fs = find_frontiers(GridMap(cells, 5.0, (0, 0)), (30.0, 100.0))
+    assert len(fs) == 1 and not fs[0].reachable
+    assert frontier_cost(fs[0]) == math.inf
+    assert choose_frontier(fs) is None
+    assert no_useful_frontier(fs)
+
+
+def test_fully_known_room_has_no_frontier():
+    """A closed, fully mapped room has no frontier at all."""
+    cells = explored_room().cells.copy()
+    cells[1:-1, 1:-1] = FREE
+    assert find_frontiers(GridMap(cells, 5.0, (0, 0)), (50.0, 100.0)) == []
+
+
+def make(size: int, distance: float, share: float, at=(0.0, 0.0), target=(0.0, 0.0)) -> Frontier:
+    return Frontier(size, at, np.zeros((size, 2)), distance, target, share, 5.0)
+
+
+def test_cost_trades_distance_against_size_and_unexplored_share():
+    """Near beats far at equal size; a much longer frontier can beat a nearer small one."""
+    near_small = make(4, 100.0, 0.2)
+    far_small = make(4, 300.0, 0.2)
+    far_long = make(60, 250.0, 0.2)
+    assert choose_frontier([far_small, near_small]) is near_small
+    assert choose_frontier([near_small, far_long]) is far_long
+    unexplored = make(4, 150.0, 0.9)
+    assert choose_frontier([near_small, unexplored]) is unexplored
+    w = FrontierWeights(w_unknown=0.0)
+    assert choose_frontier([near_small, unexplored], weights=w) is near_small
+
+
+def test_small_and_blacklisted_frontiers_are_skipped():
+    """Frontiers below the useful size or near a blacklisted point are not chosen."""
+    tiny = make(2, 10.0, 0.5, at=(0, 0), target=(0, 0))
+    bad = make(20, 20.0, 0.5, at=(100, 100), target=(90, 100))
+    good = make(20, 400.0, 0.5, at=(500, 0), target=(480, 0))
+    assert is_blacklisted(bad, [(95.0, 110.0)])
+    assert not is_blacklisted(good, [(95.0, 110.0)])
+    assert choose_frontier([tiny, bad, good], blacklist=[(95.0, 110.0)]) is good
+    assert no_useful_frontier([tiny, bad], blacklist=[(95.0, 110.0)])
+    assert not no_useful_frontier([tiny, bad])
