@@ -337,9 +337,14 @@ class ReliableSession:
         self._highest_seen = seq_base - 1
         self._held.clear()
 
-    def note_bad_frame(self) -> None:
-        """Count a frame the owner rejected after delivery (catalogue check failed)."""
+    def reject(self, exc: FrameError, frame: Frame | None = None) -> None:
+        """Count a bad frame the owner found (catalogue check failed) and answer it."""
         self._c["bad_frames"] += 1
+        self.send_error(exc, frame)
+
+    def note_bytes_in(self, n: int) -> None:
+        """Count bytes received when the owner splits lines itself instead of `feed`."""
+        self._c["bytes_in"] += n
 
     # -- internals ----------------------------------------------------------------
 

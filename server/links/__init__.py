@@ -1,0 +1,13 @@
+"""Byte links between the server and rovers: memory, TCP, serial.
+
+Every link gives the server a Trio byte stream (``receive_some``,
+``send_all``, ``aclose``); `server.Server.serve_stream` speaks the protocol
+over it. Link strings are parsed by `parse_link`.
+"""
+
+from .memory import MemoryLink
+from .serial import SerialLinkError, ThreadSerialStream, open_serial_stream
+from .spec import LinkSpec, is_loopback, parse_link
+
+__all__ = ["MemoryLink", "SerialLinkError", "ThreadSerialStream", "open_serial_stream",
+           "LinkSpec", "is_loopback", "parse_link"]
