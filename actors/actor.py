@@ -301,17 +301,21 @@ async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
             while queue and n < max_burst:
                 item = receive()
                 cell.current = item
-                if (cell.watchdog is not None or type(item) is CallEnvelope
-                        or cell.crash_pending or cell.hang_pending):
+                if cell.watchdog is not None or cell.crash_pending or cell.hang_pending:
                     if not await _slow(cell, actor, trace, item):
                         return _hung(cell, trace)
+                elif type(item) is CallEnvelope:
+                    if not item.reply(await handle(item.request)):
+                        trace.emit(EventKind.LATE_REPLY, cell.name, cell.name, item, len(queue))
                 else:
                     await handle(item)
                 n += 1
                 if cell.stop_requested or ctx._stop:
                     break
             cell.current = None
-        await checkpoint()
+        if queue:
+            # one checkpoint per burst; an empty mailbox parks instead (also a checkpoint)
+            await checkpoint()
 
 
 def _hung(cell: Cell, trace: Trace) -> ExitReason:
