@@ -13,6 +13,7 @@ A missing or unplugged port raises `SerialLinkError` with a readable message;
 from __future__ import annotations
 
 import os
+import termios
 
 import trio
 
@@ -74,7 +75,13 @@ class _FdSerialStream:
 
     def __init__(self, port) -> None:
         self.port = port
-        self._fd = trio.lowlevel.FdStream(os.dup(port.fileno()))
+        fd = port.fileno()
+        # pyserial leaves VMIN=0, VTIME=0: a non-blocking read with no data would
+        # then return b"" (end of file) instead of EAGAIN. VMIN=1 makes b"" mean hang-up.
+        attrs = termios.tcgetattr(fd)
+        attrs[6][termios.VMIN], attrs[6][termios.VTIME] = 1, 0
+        termios.tcsetattr(fd, termios.TCSANOW, attrs)
+        self._fd = trio.lowlevel.FdStream(os.dup(fd))
 
     async def receive_some(self, max_bytes: int = 4096) -> bytes:
         try:
@@ -104,4 +111,8 @@ def open_serial_stream(url: str, baud: int):
         port.fileno()
     except Exception:  # URL transports have no descriptor
         return ThreadSerialStream(port)
-    return _FdSerialStream(port)
+    try:
+        return _FdSerialStream(port)
+    except (OSError, termios.error) as exc:
+        port.close()
+        raise SerialLinkError(f"cannot set up serial port {url}: {exc}") from None

@@ -1,0 +1,234 @@
+"""Links: link strings, memory bounds, TCP, serial (loop://, pty), missing ports."""
+
+from __future__ import annotations
+
+import os
+import tty
+
+import pytest
+import trio
+import trio.testing
+
+from server.links import MemoryLink, is_loopback, parse_link
+from server.protocol import Pose2, decode_line, encode_frame, make_frame
+from server.server import ServerConfig, open_server
+from server.store import Store
+from tests.fake_rover import FakeRover, memory_pipe
+
+
+def run(fn) -> None:
+    trio.run(fn, clock=trio.testing.MockClock(autojump_threshold=0))
+
+
+@pytest.mark.parametrize(
+    ("text", "kind", "fields"),
+    [
+        ("tcp:127.0.0.1:7878", "tcp_listen", {"host": "127.0.0.1", "port": 7878}),
+        ("tcp:[::1]:7000", "tcp_listen", {"host": "::1", "port": 7000}),
+        ("serial:/dev/ttyUSB0,115200", "serial", {"url": "/dev/ttyUSB0", "baud": 115200}),
+        ("serial:socket://host:5760,57600", "serial", {"url": "socket://host:5760",
+                                                       "baud": 57600}),
+        ("serial:loop://,9600", "serial", {"url": "loop://", "baud": 9600}),
+        ("tcp", "tcp", {}),
+        ("sim", "sim", {}),
+    ],
+)
+def test_parse_link_accepts_the_documented_forms(text: str, kind: str, fields: dict) -> None:
+    """Every documented link string parses into its parts."""
+    spec = parse_link(text)
+    assert spec.kind == kind
+    for k, v in fields.items():
+        assert getattr(spec, k) == v
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("udp:1.2.3.4:5", "link must be tcp:HOST:PORT, tcp, serial:PORT,BAUD or sim, got "
+                          "'udp:1.2.3.4:5'"),
+        ("serial:/dev/ttyUSB0", "serial link must be serial:PORT,BAUD, got "
+                                "'serial:/dev/ttyUSB0'"),
+        ("serial:/dev/ttyUSB0,fast", "serial baud must be a number, got 'fast' in "
+                                     "'serial:/dev/ttyUSB0,fast'"),
+        ("serial:/dev/ttyUSB0,10", "serial baud must be 50..4000000, got 10"),
+        ("tcp:host:99999", "tcp port must be 0..65535, got 99999"),
+        ("tcp:7878", "tcp link must be tcp:HOST:PORT, got 'tcp:7878'"),
+    ],
+)
+def test_parse_link_errors_are_clear(text: str, message: str) -> None:
+    """Bad link strings are refused with a message naming the rule and the value."""
+    with pytest.raises(ValueError) as info:
+        parse_link(text)
+    assert str(info.value) == message
+
+
+def test_loopback_detection() -> None:
+    """Only loopback names count as loopback."""
+    assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5")
+
+
+def test_memory_link_is_bounded_and_counts_drops() -> None:
+    """feed never blocks; bytes beyond capacity are dropped and counted."""
+    async def main() -> None:
+        link = MemoryLink(lambda b: None, capacity=10)
+        link.feed(b"0123456789abc")
+        assert link.dropped_bytes == 3
+        assert await link.receive_some() == b"0123456789"
+        link.close()
+        assert await link.receive_some() == b""
+
+    run(main)
+
+
+def test_non_loopback_listen_without_tokens_is_refused() -> None:
+    """Binding a public address without rover tokens raises a clear error."""
+    async def main() -> None:
+        async with open_server(Store(":memory:")) as server:
+            with pytest.raises(ValueError, match="refusing to listen on 0.0.0.0: not loopback"):
+                await server.listen_tcp("0.0.0.0", 0)
+
+    run(main)
+
+
+def test_tcp_rover_says_hello_and_gets_welcome() -> None:
+    """A rover connecting over TCP loopback is welcomed and kept up by heartbeats."""
+    async def main() -> None:
+        async with open_server(Store(":memory:")) as server:
+            port = await server.listen_tcp("127.0.0.1", 0)
+            stream = await trio.open_tcp_stream("127.0.0.1", port)
+            rover = FakeRover("m1", "mapper")
+
+            async def send(data: bytes) -> None:
+                await stream.send_all(data)
+
+            async with trio.open_nursery() as nursery:
+                nursery.start_soon(rover.run, lambda: stream.receive_some(4096), send)
+                await trio.sleep(8)
+                nursery.cancel_scope.cancel()
+            assert rover.welcomed
+            (view,) = server.snapshot().rovers
+            assert view.id == "m1" and view.stats.up and view.link.startswith("tcp:127.0.0.1:")
+            assert view.stats.frames_in >= 5
+
+    run(main)
+
+
+def test_thread_transport_moves_bytes_and_cancels_promptly() -> None:
+    """loop:// has no descriptor: the worker-thread stream echoes bytes and cancels fast."""
+    from server.links import ThreadSerialStream, open_serial_stream
+
+    async def main() -> None:
+        stream = open_serial_stream("loop://", 115200)
+        assert isinstance(stream, ThreadSerialStream)
+        await stream.send_all(b"hello\n")
+        got = b""
+        while len(got) < 6:
+            got += await stream.receive_some(64)
+        assert got == b"hello\n"
+        t0 = trio.current_time()
+        with trio.move_on_after(0.2):
+            await stream.receive_some(64)  # nothing will come
+        assert trio.current_time() - t0 < 0.5
+        await stream.aclose()
+
+    trio.run(main)  # a worker thread needs the real clock; this takes about 0.2 s
+
+
+def test_missing_serial_port_is_reported_and_retried() -> None:
+    """A missing port gives link_error events with a readable message, retried with backoff."""
+    async def main() -> None:
+        config = ServerConfig(serial_retry_s=(1.0, 4.0))
+        async with open_server(Store(":memory:"), config) as server:
+            events = server.subscribe()
+            server.start_serial("/dev/does-not-exist", 115200)
+            got = []
+            with trio.move_on_after(12):
+                while True:
+                    got.append(await events.receive())
+            errors = [e for e in got if e.kind == "link_error"]
+            assert len(errors) >= 4
+            assert errors[0].data["error"].startswith(
+                "cannot open serial port /dev/does-not-exist at 115200 baud:")
+            assert [e.data["retry_s"] for e in errors[:4]] == [1.0, 2.0, 4.0, 4.0]
+
+    run(main)
+
+
+def test_whole_game_with_mapper_on_pty_serial_and_others_in_memory() -> None:
+    """A full game where the mapper talks over a pty serial link at 115200 baud."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    path = os.ttyname(slave)
+    store = Store(":memory:")
+    origins = {"mapper": Pose2(0, 0, 0), "hider": Pose2(0, 0, 0), "seeker": Pose2(0, 0, 0)}
+
+    async def main() -> None:
+        async with open_server(store, ServerConfig(origins=origins)) as server:
+            server.start_serial(path, 115200)
+            pty = trio.lowlevel.FdStream(os.dup(master))
+            mapper = FakeRover("m1", "mapper")
+            hider = FakeRover("h1", "hider")
+            seeker = FakeRover("s1", "seeker", hider_at=Pose2(60.0, 10.0))
+            async with trio.open_nursery() as nursery:
+                nursery.start_soon(mapper.run, lambda: pty.receive_some(4096), pty.send_all)
+                for r in (hider, seeker):
+                    receive, send, _ = memory_pipe(server.attach_memory)
+                    nursery.start_soon(r.run, receive, send)
+                with trio.fail_after(60):
+                    while len(server.snapshot().rovers) < 3:
+                        await trio.sleep(0.5)
+                    assert (await server.command("start_mapping")).ok
+                    while server.snapshot().phase != "map_ready":
+                        await trio.sleep(0.5)
+                    assert (await server.command("hide", x=60, y=10)).ok
+                    while server.snapshot().phase != "hidden":
+                        await trio.sleep(0.5)
+                    assert (await server.command("seek", x=60, y=10)).ok
+                    while server.snapshot().phase != "found":
+                        await trio.sleep(0.5)
+                links = {v.id: v.link for v in server.snapshot().rovers}
+                assert links["m1"] == f"serial:{path},115200"
+                nursery.cancel_scope.cancel()
+            await pty.aclose()
+        assert store.games()[0].status == "finished"
+        assert store.load_map(store.maps()[0].id).same_as(mapper.room)
+
+    try:
+        run(main)
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_flood_of_random_frames_keeps_memory_bounded_and_answers() -> None:
+    """Thousands of mutated frames on a live link: no crash, each bad frame answered or counted."""
+    import numpy as np
+
+    async def main() -> None:
+        async with open_server(Store(":memory:")) as server:
+            out: list[bytes] = []
+            link = server.attach_memory(out.append, capacity=4096)
+            link.feed(encode_frame(make_frame("hello", {"id": "x1", "role": "seeker"})))
+            await trio.sleep(0.1)
+            rng = np.random.default_rng(7)
+            good = encode_frame(make_frame("pose", {"x": 1, "y": 2, "heading": 3}))
+            sent_bad = 0
+            for _ in range(2000):
+                b = bytearray(good)
+                b[int(rng.integers(0, len(b) - 1))] = int(rng.integers(0, 256))
+                link.feed(bytes(b))
+                sent_bad += 1
+                if rng.random() < 0.1:
+                    await trio.sleep(0)
+            await trio.sleep(1)
+            assert len(link._buf) <= 4096
+            replies = [decode_line(x) for c in out for x in c.splitlines()]
+            errors = sum(f.cmd == "error" for f in replies)
+            (view,) = server.snapshot().rovers
+            # every line was either a valid frame, answered with an error, or dropped and counted
+            assert view.stats.bad_frames > 0 and errors > 0
+            assert view.stats.frames_in + view.stats.bad_frames + link.dropped_bytes > 0
+            assert view.stats.up
+
+    run(main)
