@@ -36,7 +36,8 @@ def cast_rays(origin: tuple[float, float], angles_rad: np.ndarray, segments: np.
     sx = segments[:, 2] - segments[:, 0]
     sy = segments[:, 3] - segments[:, 1]
     denom = dx * sy - dy * sx
-    denom[denom == 0.0] = np.nan  # parallel: nan compares false below, and warns of nothing
+    # (near-)parallel: nan compares false below and warns of nothing
+    denom[np.abs(denom) < 1e-12] = np.nan
     inv = 1.0 / denom
     t = (qx * sy - qy * sx) * inv
     u = (qx * dy - qy * dx) * inv
