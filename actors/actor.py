@@ -224,7 +224,7 @@ async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
                     timers.cancel_scope.cancel()
                     return reason
                 cell.state = ActorState.RUNNING
-                trace.emit(EventKind.START, cell.name, cell.name, "", cell.mailbox.depth)
+                trace.emit(EventKind.START, cell.name, cell.name, None, cell.mailbox.depth)
                 started = True
                 task_status.started(None)
                 reason = await _serve_safely(cell, actor, ctx, trace, system.max_burst)
@@ -246,7 +246,7 @@ async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
         if not started:
             task_status.started(reason)
         else:
-            trace.emit(EventKind.STOP, cell.name, cell.name, "", cell.mailbox.depth, str(reason))
+            trace.emit(EventKind.STOP, cell.name, cell.name, None, cell.mailbox.depth, str(reason))
             cell.notify_down(reason)
 
 
@@ -257,7 +257,7 @@ async def _serve_safely(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trac
         return await _serve(cell, actor, ctx, trace, max_burst)
     except Exception as exc:
         reason = ExitReason.crash(exc)
-        trace.emit(EventKind.CRASH, cell.name, cell.name, "", cell.mailbox.depth, reason.detail)
+        trace.emit(EventKind.CRASH, cell.name, cell.name, None, cell.mailbox.depth, reason.detail)
         _drop_poison(cell, trace, reason)
         return reason
 
@@ -319,7 +319,7 @@ async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
 
 
 def _hung(cell: Cell, trace: Trace) -> ExitReason:
-    trace.emit(EventKind.HUNG, cell.name, cell.name, "", cell.mailbox.depth,
+    trace.emit(EventKind.HUNG, cell.name, cell.name, None, cell.mailbox.depth,
                f"watchdog {cell.watchdog} s")
     _drop_poison(cell, trace, HUNG)
     return HUNG

@@ -200,7 +200,7 @@ class ActorSystem:
         """
         cell = self._cell(name)
         cell.crash_pending = True
-        self.trace.emit(EventKind.FAULT, name, name, "", cell.mailbox.depth, "crash")
+        self.trace.emit(EventKind.FAULT, name, name, None, cell.mailbox.depth, "crash")
         cell.mailbox.poke()
 
     def inject_hang(self, name: str, seconds: float) -> None:
@@ -215,7 +215,7 @@ class ActorSystem:
             raise ValueError(f"seconds must be > 0, got {seconds!r}")
         cell = self._cell(name)
         cell.hang_pending = float(seconds)
-        self.trace.emit(EventKind.FAULT, name, name, "", cell.mailbox.depth, f"hang {seconds} s")
+        self.trace.emit(EventKind.FAULT, name, name, None, cell.mailbox.depth, f"hang {seconds} s")
         cell.mailbox.poke()
 
     def flood(self, name: str, n: int, message: Any) -> int:

@@ -153,11 +153,11 @@ class Trace:
         self.per_message = self._always_per_message or any(s.per_message for s in self._subs)
 
     # ---------------------------------------------------------------- events
-    def emit(self, kind: EventKind, actor: str, queue: str = "", message: Any = "",
+    def emit(self, kind: EventKind, actor: str, queue: str = "", message: Any = None,
              depth: int = 0, detail: str = "") -> TraceEvent:
-        """Make an event now (Trio's current time) and deliver it."""
+        """Make an event now (Trio's current time) and deliver it (``message`` as its repr)."""
         event = TraceEvent(trio.current_time(), kind, actor, queue,
-                           message if isinstance(message, str) else repr(message), depth, detail)
+                           "" if message is None else repr(message), depth, detail)
         self.count += 1
         if event.time != self._bucket_time:
             self._flush()

@@ -538,7 +538,7 @@ class Supervisor:
         for c in to_start:
             c.restarting = False
             c.restarts += 1
-            trace.emit(EventKind.RESTART, c.name, c.name, "",
+            trace.emit(EventKind.RESTART, c.name, c.name, None,
                        c.cell.mailbox.depth if c.cell is not None else 0,
                        f"after {reason} of {child.name}" if c is not child else str(reason))
             failure = await self._start_child(c)
