@@ -176,27 +176,35 @@ class ConsoleApp(App[int]):
         self._guest = TrioGuest(on_done=lambda r: self.post_message(self.SystemEnded(r)))
         self._requests: trio.MemorySendChannel[None] | None = None
         self._awaiting = 0  # ticks since the outstanding request, 0 = none outstanding
+        # Held, not queried: App.query_one searches the *current* screen, which is a
+        # dialog while one is open, and snapshots keep arriving then.
+        self.map_view = MapView(id="map")
+        self.game_panel = GamePanel(id="game")
+        self.queue_table = QueueTable(id="queue-table")
+        self.message_log = MessageLog(id="message-log")
+        self.tree_view = SupervisionTree(id="tree-view")
+        self.timeline = Timeline(id="timeline")
 
     def compose(self) -> ComposeResult:
         with Horizontal(id="main"):
-            yield MapView(id="map")
+            yield self.map_view
             with Vertical(id="side"):
-                yield GamePanel(id="game")
+                yield self.game_panel
                 with TabbedContent(id="tabs"):
                     with TabPane("Queues", id="queues"):
-                        yield QueueTable(id="queue-table")
+                        yield self.queue_table
                     with TabPane("Log", id="log"):
-                        yield MessageLog(id="message-log")
+                        yield self.message_log
                     with TabPane("Tree", id="tree"):
                         with VerticalScroll(id="tree-scroll"):
-                            yield SupervisionTree(id="tree-view")
+                            yield self.tree_view
                     with TabPane("Events", id="events"):
-                        yield Timeline(id="timeline")
+                        yield self.timeline
         yield Footer()
 
     # -- Trio side -------------------------------------------------------------
     def on_mount(self) -> None:
-        self.query_one(MapView).focus()
+        self.map_view.focus()
         self._guest.start(self._trio_main, clock=self.system.clock)
         self.set_interval(1.0 / self.refresh_hz, self._tick)
 
@@ -259,16 +267,16 @@ class ConsoleApp(App[int]):
 
     def show(self, snap: Snapshot) -> None:
         """Redraw every panel from a snapshot."""
-        if not self.is_mounted:
-            return
         self.snapshot = snap
+        if not (self.map_view.is_attached and self.message_log.is_mounted):
+            return  # before compose finished, or after the screen went away
         self.snapshots_shown += 1
-        self.query_one(MapView).update_snapshot(snap)
-        self.query_one(GamePanel).update_snapshot(snap)
-        self.query_one(QueueTable).update_queues(snap.queues)
-        self.query_one(MessageLog).add_lines(snap.log)
-        self.query_one(SupervisionTree).update_tree(snap.tree, snap.time_s)
-        self.query_one(Timeline).add_events(snap.timeline)
+        self.map_view.update_snapshot(snap)
+        self.game_panel.update_snapshot(snap)
+        self.queue_table.update_queues(snap.queues)
+        self.message_log.add_lines(snap.log)
+        self.tree_view.update_tree(snap.tree, snap.time_s)
+        self.timeline.add_events(snap.timeline)
         self.sub_title = f"{snap.scenario} · {snap.phase.replace('_', ' ')}"
 
     # -- actions -----------------------------------------------------------------
@@ -291,7 +299,7 @@ class ConsoleApp(App[int]):
     def action_confirm(self) -> None:
         """Enter on the map: the hide spot or a seek guess, by phase."""
         phase = self.snapshot.phase if self.snapshot else "idle"
-        view = self.query_one(MapView)
+        view = self.map_view
         x, y = view.cursor
         if phase == "map_ready":
             self._call("hide_at", x, y, view.cursor_heading)
@@ -325,7 +333,7 @@ class ConsoleApp(App[int]):
         self.notify(f"speed {speed_text(SPEEDS[index], False)}", timeout=1.5)
 
     def action_toggle_truth(self) -> None:
-        view = self.query_one(MapView)
+        view = self.map_view
         if self.snapshot is not None and self.snapshot.truth is None:
             self.notify("no ground truth: this room is real", severity="warning")
             return
@@ -353,19 +361,19 @@ class ConsoleApp(App[int]):
             self._call("clear_fault", request.target)
 
     def action_toggle_log_pause(self) -> None:
-        log = self.query_one(MessageLog)
+        log = self.message_log
         log.paused = not log.paused
         self.notify("log paused" if log.paused else "log resumed", timeout=1.5)
 
     def action_filter_log(self) -> None:
-        self.query_one(TabbedContent).active = "log"
-        self.query_one("#log-filter", Input).focus()
+        self.action_tab("log")
+        self.message_log.query_one("#log-filter", Input).focus()
 
     def action_tab(self, tab: str) -> None:
-        self.query_one(TabbedContent).active = tab
+        self.map_view.screen.query_one(TabbedContent).active = tab
 
     def action_focus_map(self) -> None:
-        self.query_one(MapView).focus()
+        self.map_view.focus()
 
     def action_help(self) -> None:
         keys = [(_KEY_NAMES.get(a.key, a.key), a.help) for a in ACTIONS] + list(MAP_KEYS)
