@@ -1,0 +1,277 @@
+"""Every fault kind has its effect while active and none once cleared."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+
+from actors.firmware.devices import decode_counter
+from world.scenario import parse_scenario
+from world.world import World
+
+ROOM = """
+name = "faults"
+[room]
+size_cm = [600, 300]
+[rovers]
+mapper = [100, 250, 0]
+hider = [200, 150, 0]
+seeker = [150, 150, 0]
+[devices]
+lidar_noise_cm = 0.0
+"""
+
+
+def make(events: list | None = None, extra: str = "") -> World:
+    cb = None if events is None else (lambda k, t, d: events.append((k, t, d)))
+    return World(parse_scenario(ROOM + extra), np.random.default_rng(0), on_event=cb)
+
+
+def run(world: World, seconds: float) -> None:
+    end = world.time + seconds
+    while world.time < end - 1e-9:
+        world.step()
+
+
+def lidar_bytes(world: World, seconds: float) -> bytes:
+    got: list[bytes] = []
+    world.hardware("mapper").attach(0xA, got.append)
+    world.hardware("mapper").set_lidar_pwm(0.5)
+    run(world, seconds)
+    return b"".join(got)
+
+
+def frames(data: bytes) -> list[tuple[int, int]]:
+    out = []
+    for i in range(0, len(data) - 5, 6):
+        s, a, d, c = struct.unpack("<BHHB", data[i:i + 6])
+        if s == 0xA5 and c == data[i + 1] ^ data[i + 2] ^ data[i + 3] ^ data[i + 4]:
+            out.append((a, d))
+    return out
+
+
+def tread_cm(world: World, role: str, left: float, right: float, seconds: float) -> list[float]:
+    got: list[int] = []
+    world.hardware(role).attach(0xE, got.append)
+    world.hardware(role).set_tread_pwm(left, right)
+    run(world, seconds)
+    dist = [0.0, 0.0]
+    for e in got:
+        tread, fwd = decode_counter(e)
+        dist[tread] += 0.5 if fwd else -0.5
+    return dist
+
+
+# ---------------------------------------------------------------- LIDAR
+
+def test_lidar_dead_then_cleared() -> None:
+    events: list = []
+    world = make(events)
+    fid = world.inject_fault("mapper/lidar", "dead")
+    assert lidar_bytes(world, 0.5) == b""
+    assert world.clear_fault(fid) == 1
+    assert len(frames(lidar_bytes(world, 0.5))) > 900
+    assert [e[0] for e in events] == ["fault_injected", "fault_cleared"]
+    assert events[0][1] == "mapper/lidar" and events[0][2]["kind"] == "dead"
+    assert events[1][2] == {"time_s": 0.5, "id": fid, "kind": "dead", "reason": "cleared"}
+
+
+def test_lidar_garbage_bytes_then_cleared() -> None:
+    world = make()
+    world.inject_fault("mapper/lidar", "garbage")
+    data = lidar_bytes(world, 0.5)
+    assert len(data) > 5000 and len(frames(data)) < 20  # bytes flow, hardly a valid frame
+    world.clear_fault("mapper/lidar")
+    assert len(frames(lidar_bytes(world, 0.5))) > 900
+
+
+def test_lidar_stuck_rotation_then_cleared() -> None:
+    world = make()
+    world.inject_fault("mapper/lidar", "stuck")
+    stuck = frames(lidar_bytes(world, 0.5))
+    assert len(stuck) > 900 and len({a for a, _ in stuck}) == 1
+    world.clear_fault("mapper/lidar")
+    assert len({a for a, _ in frames(lidar_bytes(world, 0.5))}) > 300
+
+
+def test_lidar_noisy_then_cleared() -> None:
+    world = make()
+    world.inject_fault("mapper/lidar", "noisy", sigma_cm=10)
+    noisy = [d for a, d in frames(lidar_bytes(world, 2.0)) if a == 18000]
+    world.clear_fault("mapper/lidar")
+    clean = [d for a, d in frames(lidar_bytes(world, 2.0)) if a == 18000]
+    assert np.std(noisy) > 5 and np.std(clean) == 0 and clean[0] == 100
+
+
+# ---------------------------------------------------------------- encoders and motors
+
+def test_encoder_stuck_then_cleared() -> None:
+    world = make()
+    world.inject_fault("hider/encoder_left", "stuck")
+    left, right = tread_cm(world, "hider", 0.5, 0.5, 2.0)
+    assert left == 0 and right > 20
+    world.clear_fault("hider/encoder_left")
+    left, right = tread_cm(world, "hider", 0.5, 0.5, 2.0)
+    assert left == pytest.approx(right, abs=2)
+
+
+def test_encoder_slipping_then_cleared() -> None:
+    world = make()
+    world.inject_fault("hider/encoder_right", "slipping", ratio=0.5)
+    left, right = tread_cm(world, "hider", 0.5, 0.5, 2.0)
+    assert right == pytest.approx(left / 2, abs=2)
+    world.clear_fault("hider/encoder_right")
+    left, right = tread_cm(world, "hider", 0.5, 0.5, 2.0)
+    assert right == pytest.approx(left, abs=2)
+
+
+def test_motor_stalled_then_cleared() -> None:
+    """Both treads stalled: the rover stays put although driven; cleared, it moves."""
+    world = make()
+    world.inject_fault("hider/motor", "stalled")
+    x0 = world.true_pose("hider").x
+    tread_cm(world, "hider", 0.8, 0.8, 1.0)
+    assert world.true_pose("hider").x == pytest.approx(x0, abs=0.1)
+    world.clear_fault("hider/motor")
+    tread_cm(world, "hider", 0.8, 0.8, 1.0)
+    assert world.true_pose("hider").x > x0 + 10
+
+
+def test_motor_weak_tread_curves_then_cleared() -> None:
+    """A weak right tread makes a straight command turn right; cleared, it drives straight."""
+    world = make()
+    world.inject_fault("hider/motor_right", "weak", strength=0.5)
+    tread_cm(world, "hider", 0.5, 0.5, 1.0)
+    heading = world.true_pose("hider").heading_deg
+    assert 180 < heading < 350  # clockwise
+    world.clear_fault("hider/motor_right")
+    before = world.true_pose("hider").heading_deg
+    tread_cm(world, "hider", 0.5, 0.5, 1.0)
+    assert world.true_pose("hider").heading_deg == pytest.approx(before, abs=3)
+
+
+# ---------------------------------------------------------------- IR
+
+@pytest.mark.parametrize(("kind", "value"), [("stuck_high", 4095), ("stuck_low", 0)])
+def test_ir_stuck_then_cleared(kind: str, value: int) -> None:
+    world = make()
+    got: list[int] = []
+    hw = world.hardware("seeker")
+    hw.attach(0xD, lambda _: hw.start_adc())
+    hw.attach(0xC, got.append)
+    hw.set_ir_timer(20)
+    world.inject_fault("seeker/ir", kind)
+    run(world, 0.5)
+    assert set(got) == {value}
+    world.clear_fault("seeker/ir")
+    got.clear()
+    run(world, 0.5)
+    assert value not in got and 2500 < np.mean(got) < 4000  # the hider is 32.5 cm ahead
+
+
+# ---------------------------------------------------------------- WiFly
+
+def send_lines(world: World, role: str, n: int, seconds: float) -> list[tuple[float, bytes]]:
+    link = world.wifly_link(role)
+    got: list[tuple[float, bytes]] = []
+    link.on_server_receive = lambda b: got.append((world.time, b))
+    for _ in range(n):
+        world.hardware(role).wifly_write(b"0123456789" * 5)
+        run(world, seconds / n)
+    run(world, 0.1)  # let the last chunk land
+    return got
+
+
+def test_wifly_down_for_a_while() -> None:
+    """Down for 1 s: nothing gets through and the link reports it; then it recovers alone."""
+    events: list = []
+    world = make(events)
+    world.inject_fault("mapper/wifly", "down", duration_s=1.0)
+    assert not world.wifly_link("mapper").connected
+    assert send_lines(world, "mapper", 10, 0.9) == []
+    run(world, 0.2)
+    assert world.wifly_link("mapper").connected
+    assert len(send_lines(world, "mapper", 10, 1.0)) == 10
+    assert events[-1][0] == "fault_cleared" and events[-1][2]["reason"] == "expired"
+
+
+def test_wifly_packet_loss_then_cleared() -> None:
+    world = make()
+    world.inject_fault("seeker/wifly", "loss", percent=50)
+    lossy = send_lines(world, "seeker", 100, 5.0)
+    assert 25 < len(lossy) < 75
+    world.clear_fault("seeker/wifly")
+    assert len(send_lines(world, "seeker", 100, 5.0)) == 100
+
+
+def test_wifly_corrupted_bytes_then_cleared() -> None:
+    world = make()
+    world.inject_fault("hider/wifly", "corrupt", per_byte=0.05)
+    bad = b"".join(b for _, b in send_lines(world, "hider", 40, 2.0))
+    assert len(bad) == 2000 and bad != b"0123456789" * 200
+    world.clear_fault("hider/wifly")
+    good = b"".join(b for _, b in send_lines(world, "hider", 40, 2.0))
+    assert good == b"0123456789" * 200
+
+
+def test_wifly_added_latency_then_cleared() -> None:
+    world = make()
+    world.inject_fault("hider/wifly", "latency", added_s=0.5)
+    t0 = world.time
+    slow = send_lines(world, "hider", 1, 1.0)
+    assert slow[0][0] - t0 >= 0.5
+    world.clear_fault("hider/wifly")
+    t1 = world.time
+    fast = send_lines(world, "hider", 1, 1.0)
+    assert fast[0][0] - t1 < 0.2
+
+
+# ---------------------------------------------------------------- catalogue rules
+
+@pytest.mark.parametrize(
+    ("target", "kind", "params", "message"),
+    [
+        ("mapper/lidar", "melted", {}, "fault kind 'melted' does not apply to lidar"),
+        ("hider/lidar", "dead", {}, "hider has no lidar"),
+        ("seeker/toaster", "dead", {}, "unknown device 'toaster'"),
+        ("dog/lidar", "dead", {}, "fault target rover must be one of mapper, hider, seeker"),
+        ("mapper-lidar", "dead", {}, "fault target must be 'rover/device'"),
+        ("mapper/lidar", "noisy", {"sigma": 3}, "fault 'noisy' has no parameter 'sigma'"),
+        ("mapper/nav", "crash", {}, "'crash' is an actor fault"),
+    ],
+)
+def test_bad_faults_are_refused(target: str, kind: str, params: dict, message: str) -> None:
+    world = make()
+    with pytest.raises(ValueError, match=message):
+        world.inject_fault(target, kind, **params)
+    assert world.active_faults() == []
+
+
+def test_scheduled_faults_fire_and_expire_and_actor_faults_are_handed_over() -> None:
+    events: list = []
+    world = make(events, """
+[[faults]]
+at_s = 1
+target = "mapper/lidar"
+kind = "dead"
+duration_s = 0.5
+[[faults]]
+at_s = 0.5
+target = "seeker/nav"
+kind = "hang"
+""")
+    assert world.actor_faults_due() == []
+    run(world, 0.55)
+    due = world.actor_faults_due()
+    assert [(f.target, f.kind) for f in due] == [("seeker/nav", "hang")]
+    assert world.actor_faults_due() == []  # each handed over once
+    run(world, 0.5)
+    assert [(f.target, f.kind) for f in world.active_faults()] == [("mapper/lidar", "dead")]
+    run(world, 0.6)
+    assert world.active_faults() == []
+    kinds = [(k, t) for k, t, _ in events]
+    assert kinds == [("actor_fault_due", "seeker/nav"), ("fault_injected", "mapper/lidar"),
+                     ("fault_cleared", "mapper/lidar")]
+    assert events[1][2]["scheduled"] is True and events[1][2]["time_s"] == pytest.approx(1.0)
