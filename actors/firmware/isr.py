@@ -1,0 +1,120 @@
+"""Interrupt service routines: the firmware's side of the ISR boundary.
+
+Each ISR is a small object whose ``__call__`` is attached to one interrupt line
+of `RoverHardware` (see `devices`). The hardware calls it synchronously; it
+unpacks the payload into internal `Message`s and posts them with ``post``, a
+non-blocking send (``send_nowait``) that returns False when the queue is full.
+An ISR never waits: a full queue or a dry buffer pool is an overflow, counted
+here and in the mailbox, exactly as on a microcontroller.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from actors import BufferPool, Message, PoolExhausted
+
+from .commands import Cmd
+from .devices import LIDAR_PACKET_SIZE, LIDAR_SYNC, RoverHardware
+
+__all__ = ["Post", "MotorCounterIsr", "LidarUartIsr", "WiflyUartIsr", "IrTimerIsr", "IrAdcIsr"]
+
+Post = Callable[[Message], bool]
+"""Non-blocking send into a mailbox; False when the message was dropped."""
+
+
+class _Isr:
+    """Counters shared by every ISR (a real one would keep them in a static)."""
+
+    def __init__(self, post: Post) -> None:
+        self._post = post
+        self.posted = 0
+        self.dropped = 0
+
+    def _send(self, message: Message) -> None:
+        if self._post(message):
+            self.posted += 1
+        else:
+            self.dropped += 1
+
+
+class MotorCounterIsr(_Isr):
+    """Int E: one tread went ``cm_per_interrupt``; forward the raw payload to Motor."""
+
+    def __call__(self, payload: int) -> None:
+        self._send(Message.int(Cmd.MOTOR_TICK, int(payload)))
+
+
+class LidarUartIsr(_Isr):
+    """Int A: unpack Data Packet A frames from UART bytes into LIDAR samples.
+
+    Bytes can arrive split anywhere; a partial frame waits in a 6-byte buffer
+    for the rest. A bad checksum or a lost sync byte drops bytes until the next
+    0xA5, so garbage on the line costs samples, never a crash.
+    """
+
+    def __init__(self, post: Post) -> None:
+        super().__init__(post)
+        self._buf = bytearray()
+        self.bad_frames = 0
+
+    def __call__(self, data: bytes) -> None:
+        buf = self._buf
+        buf += data
+        i, n = 0, len(buf)
+        while n - i >= LIDAR_PACKET_SIZE:
+            if buf[i] != LIDAR_SYNC:
+                i += 1
+                continue
+            a0, a1, d0, d1, check = buf[i + 1 : i + LIDAR_PACKET_SIZE]
+            if a0 ^ a1 ^ d0 ^ d1 != check:
+                self.bad_frames += 1
+                i += 1
+                continue
+            angle_cdeg = a0 | (a1 << 8)
+            distance = d0 | (d1 << 8)
+            i += LIDAR_PACKET_SIZE
+            if angle_cdeg >= 36000 or distance > 32767:
+                self.bad_frames += 1
+                continue
+            self._send(Message.pair(Cmd.LIDAR_SAMPLE, angle_cdeg // 10, distance))
+        del buf[:i]
+        if len(buf) > 4 * LIDAR_PACKET_SIZE:  # bound: never hoard a garbage stream
+            del buf[: -LIDAR_PACKET_SIZE]
+
+
+class WiflyUartIsr(_Isr):
+    """Int B: hand the received bytes (Data Packet B) to the WiFly queue by handle."""
+
+    def __init__(self, post: Post, pool: BufferPool) -> None:
+        super().__init__(post)
+        self._pool = pool
+
+    def __call__(self, data: bytes) -> None:
+        try:
+            handle = self._pool.put(bytes(data))
+        except PoolExhausted:
+            self.dropped += 1
+            return
+        if self._post(Message.handle(Cmd.WIFLY_RX, handle)):
+            self.posted += 1
+        else:
+            self._pool.take(handle)  # the queue refused it: free the buffer again
+            self.dropped += 1
+
+
+class IrTimerIsr:
+    """Int D: the IR timer rolled over; start an ADC conversion and return."""
+
+    def __init__(self, hardware: RoverHardware) -> None:
+        self._hardware = hardware
+
+    def __call__(self, _payload: object = None) -> None:
+        self._hardware.start_adc()
+
+
+class IrAdcIsr(_Isr):
+    """Int C: the conversion finished; post the 12-bit sample to the IR queue."""
+
+    def __call__(self, sample: int) -> None:
+        self._send(Message.int(Cmd.IR_SAMPLE, max(0, min(4095, int(sample)))))
