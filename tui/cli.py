@@ -15,6 +15,9 @@ import sys
 #: subcommand -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("tui.cmd_demo", "a small supervised actor tree under fault, printed as it recovers"),
+    "serve": ("tui.cmd_serve", "run the game server for real rovers (TCP, serial), log events"),
+    "maps": ("tui.cmd_maps", "list stored games and maps"),
+    "export-map": ("tui.cmd_maps", "export a game's map as PGM + map_server YAML, or PNG"),
     "play": ("tui.cmd_play", "the terminal console: watch, steer and break a game"),
 }
 
