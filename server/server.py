@@ -97,8 +97,12 @@ class ServerEvent:
     data: dict[str, Any] = field(default_factory=dict)
 
     def __str__(self) -> str:
+        return self.format()
+
+    def format(self, t0: float = 0.0) -> str:
+        """One log line; times relative to ``t0`` [s]."""
         body = " ".join(f"{k}={v}" for k, v in self.data.items())
-        return f"{self.t:9.3f} {self.kind:<10} {self.rover:<10} {body}".rstrip()
+        return f"{self.t - t0:9.3f} {self.kind:<10} {self.rover:<10} {body}".rstrip()
 
 
 @dataclass(frozen=True, slots=True)

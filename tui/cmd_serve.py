@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = ServerConfig(tokens=tokens, origins=origins)
     try:
-        trio.run(_serve, store, config, listen, rovers, strict_exception_groups=False)
+        trio.run(_serve, store, config, listen, rovers)
     except (OSError, ValueError, BaseExceptionGroup) as exc:
         leaf = _first_leaf(exc)
         if not isinstance(leaf, OSError | ValueError):
@@ -151,11 +151,12 @@ async def _serve(store, config, listen, rovers) -> None:
                 print(f"rover {rid}: serial {spec.url} at {spec.baud} baud", flush=True)
         print("commands: start_mapping, stop_mapping, hide X Y [H] [room], seek X Y [H] "
               "[room], new_game, status", flush=True)
+        t0 = trio.current_time()
         async with trio.open_nursery() as nursery:
             nursery.start_soon(_read_commands, server)
             async for event in events:
                 if event.kind != "pose":
-                    print(event, flush=True)
+                    print(event.format(t0), flush=True)
 
 
 async def _read_commands(server) -> None:
