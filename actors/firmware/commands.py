@@ -19,6 +19,9 @@ __all__ = ["Cmd", "name_of"]
 class Cmd(enum.IntEnum):
     """Internal command / event codes, one namespace for all queues."""
 
+    NOOP = 0x0001
+    """Does nothing, on any queue; what a flood fault fills a queue with. Actors ignore it."""
+
     # -- Motor queue ------------------------------------------------------
     MOTOR_MOVE = 0x0100
     """Command A: move straight; value float32 [cm], negative backwards."""
