@@ -72,7 +72,8 @@ class UiAction:
 
 ACTIONS: tuple[UiAction, ...] = (
     UiAction("m", "start_mapping", "Map", "Start mapping"),
-    UiAction("x", "stop_mapping", "Stop map", "Stop mapping early and use the map as it is"),
+    UiAction("x", "stop_mapping", "Stop map", "Stop mapping early and use the map as it is",
+             footer=False),
     UiAction("enter", "confirm", "Confirm",
              "Confirm the cursor: hide spot (map ready) or seek guess (hidden / not found)"),
     UiAction("space", "toggle_pause", "Pause", "Pause / resume simulated time"),
@@ -200,7 +201,7 @@ class ConsoleApp(App[int]):
                             yield self.tree_view
                     with TabPane("Events", id="events"):
                         yield self.timeline
-        yield Footer()
+        yield Footer(compact=True)
 
     # -- Trio side -------------------------------------------------------------
     def on_mount(self) -> None:

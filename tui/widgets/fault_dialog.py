@@ -61,6 +61,7 @@ class FaultDialog(ModalScreen[FaultRequest | None]):
     FaultDialog > Vertical {
         width: 60; max-width: 100%; height: auto; max-height: 100%;
         border: thick $error; background: $surface; padding: 0 1;
+        overflow-y: auto;
     }
     FaultDialog Select, FaultDialog Input { width: 1fr; }
     FaultDialog Horizontal { height: auto; }

@@ -33,8 +33,11 @@ __all__ = ["MapView", "ZOOMS_CM", "heading_glyph"]
 ZOOMS_CM: tuple[float, ...] = (1.25, 2.5, 4.0, 5.0, 6.0, 7.5, 10.0, 15.0, 20.0, 40.0)
 
 # Pixel classes, drawn in this colour (index = class).
-_UNKNOWN, _FREE, _OCC, _MISSED, _FALSE, _PATH, _LIDAR = range(7)
-_COLOURS = ("#161616", "#4a4a4a", "#e0e0e0", "#8f5fe0", "#e07020", "#c8a000", "#ff4040")
+_UNKNOWN, _FREE, _OCC, _MISSED, _FALSE, _PATH, _LIDAR, _TRUTH = range(8)
+_COLOURS = ("#161616", "#4a4a4a", "#e0e0e0", "#d040ff", "#e07020", "#c8a000", "#ff4040",
+            "#283c64")
+#: Which sample wins when a pixel covers several cells (index = class).
+_RANK = np.array([0, 2, 5, 4, 3, 0, 0, 1], np.int8)
 _ROVER_COLOURS = {"mapper": "#40d0ff", "hider": "#40ff60", "seeker": "#ff60ff"}
 _ARROWS = "→↗↑↖←↙↓↘"
 
@@ -46,8 +49,9 @@ def heading_glyph(heading_deg: float) -> str:
 
 def classify(grid: GridView | None, truth: GridView | None, xs: np.ndarray,
              ys: np.ndarray) -> np.ndarray:
-    """Pixel classes for sample points (any shape) [cm]: unknown/free/occupied,
-    and with ``truth`` the mapping errors (missed obstacle, false obstacle)."""
+    """Pixel classes for sample points (any shape) [cm]: unknown/free/occupied, and
+    with ``truth``: obstacles not yet seen (dim blue), mapping errors (an obstacle
+    mapped as free: purple; free ground mapped as occupied: orange)."""
     out = np.full(xs.shape, _UNKNOWN, np.int8)
     if grid is None:
         return out
@@ -56,7 +60,8 @@ def classify(grid: GridView | None, truth: GridView | None, xs: np.ndarray,
     out[map_val == OCCUPIED] = _OCC
     if truth is not None:
         true_val = _sample(truth, xs, ys)
-        out[(true_val == OCCUPIED) & (map_val != OCCUPIED)] = _MISSED
+        out[(true_val == OCCUPIED) & (map_val == -1)] = _TRUTH
+        out[(true_val == OCCUPIED) & (map_val == FREE)] = _MISSED
         out[(true_val == FREE) & (map_val == OCCUPIED)] = _FALSE
     return out
 
@@ -109,7 +114,8 @@ class MapView(Widget, can_focus=True):
     """
 
     show_truth: reactive[bool] = reactive(False)
-    """Overlay ground truth: missed obstacles purple, false obstacles orange."""
+    """Overlay ground truth: unseen obstacles dim blue, obstacles mapped free purple,
+    free ground mapped occupied orange."""
     zoom: reactive[int] = reactive(3)
     """Index into `ZOOMS_CM`."""
     cursor: reactive[tuple[float, float]] = reactive((0.0, 0.0))
@@ -254,7 +260,7 @@ class MapView(Widget, can_focus=True):
         gx, gy = np.broadcast_arrays(gx, gy)
         cls = classify(grid, truth, gx, gy)
         # significance: occupied/errors over free over unknown
-        rank = np.array([0, 1, 4, 3, 2], np.int8)[cls]
+        rank = _RANK[cls]
         best = rank.reshape(2 * h, w, k * k).argmax(axis=2)
         out = np.take_along_axis(cls.reshape(2 * h, w, k * k), best[..., None], 2)[..., 0]
         if snap is None:
