@@ -1,0 +1,216 @@
+"""A whole game without a person: the scenario's choices stand in for the operator.
+
+`play_game` drives a running `SimSystem` through the game flow of DESIGN.md
+section 6 (start mapping, wait for the mapper's own completion, hide at the
+scenario's spot, seek at each guess in turn) and scores it with the metrics of
+section 8. `run_game` opens the system, plays, and returns a `GameReport`;
+it is a plain function of (scenario, seed), so a campaign worker can call it.
+
+Like `supervisors.system`, this is wiring: it reads ground truth, but only to
+score the game (coverage, accuracy, path length), never to steer it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import trio
+
+from actors import Trace
+from server.store import Store
+from world.metrics import accuracy, coverage, path_length, t90, t99
+from world.scenario import Scenario
+from world.truth import truth_raster
+
+from .system import SimSystem, open_sim_system
+
+__all__ = ["Budget", "GameReport", "play_game", "run_game"]
+
+_PROBE_S = 1.0  # how often coverage and the mapper's true pose are sampled [s]
+_HELLO_TIMEOUT_S = 30.0
+
+
+@dataclass(frozen=True, slots=True)
+class Budget:
+    """Simulated-time limits per phase [s]; a phase that overruns fails the game."""
+
+    hello: float = _HELLO_TIMEOUT_S
+    mapping: float = 1200.0
+    hiding: float = 600.0
+    seeking: float = 600.0  #: per guess
+
+
+@dataclass
+class GameReport:
+    """What `hideseek run --json` prints (DESIGN.md section 8 metrics)."""
+
+    scenario: str
+    seed: int
+    outcome: str = "failed"  #: found / not_found / failed
+    reason: str = ""
+    sim_seconds: float = 0.0
+    wall_seconds: float = 0.0
+    real_time_factor: float = 0.0
+    coverage: float | None = None
+    accuracy: float | None = None
+    t90_s: float | None = None
+    t99_s: float | None = None
+    path_cm: float = 0.0
+    phases: dict[str, float] = field(default_factory=dict)
+    guesses: int = 0
+    restarts: int = 0
+    faults: int = 0
+    dropped: int = 0
+    resent: int = 0
+    messages: int = 0
+    trace_hash: str = ""
+    events: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of ``--json`` (events left out: they go to the trace)."""
+        d = asdict(self)
+        d.pop("events")
+        return d
+
+
+class _Phases:
+    """Waits on the server's phase events."""
+
+    def __init__(self, system: SimSystem) -> None:
+        self._events = system.server.subscribe()
+        self.phase = str(system.server.game.phase)
+        self.reason = ""
+        self.log: list[str] = []
+
+    async def until(self, wanted: set[str], timeout: float) -> str | None:
+        """Wait until the phase is one of ``wanted``; None on timeout."""
+        with trio.move_on_after(timeout):
+            while self.phase not in wanted:
+                event = await self._events.receive()
+                if event.kind in ("phase", "report", "refused", "map", "link_down", "link_up"):
+                    self.log.append(event.format())
+                if event.kind == "phase":
+                    self.phase = event.data.get("phase", self.phase)
+                    self.reason = event.data.get("reason", "")
+            return self.phase
+        return None
+
+
+async def _wait_for_rovers(system: SimSystem, timeout: float) -> bool:
+    with trio.move_on_after(timeout):
+        while len(system.server.snapshot().rovers) < 3:
+            await trio.sleep(0.1)
+        return True
+    return False
+
+
+async def _probe(system: SimSystem, series: list[tuple[float, float]],
+                 poses: list[tuple[float, float]], truth: Any) -> None:
+    """Sample coverage of the mapper's working map and its true path (metrics only)."""
+    start = system.scenario.starts["mapper"]
+    t0 = trio.current_time()
+    while True:
+        p = system.world.true_pose("mapper")
+        poses.append((p.x, p.y))
+        grid = system.mapper_grid()
+        if grid is not None:
+            series.append((trio.current_time() - t0,
+                           coverage(grid.cells, grid.resolution_cm, grid.origin_cm, start, truth)))
+        await trio.sleep(_PROBE_S)
+
+
+async def play_game(system: SimSystem, report: GameReport, budget: Budget) -> None:
+    """Play the scenario's game on ``system``, filling ``report``."""
+    scenario = system.scenario
+    phases = _Phases(system)
+    truth = truth_raster(scenario)
+    series: list[tuple[float, float]] = []
+    poses: list[tuple[float, float]] = []
+    t_start = trio.current_time()
+
+    def fail(why: str) -> None:
+        report.outcome, report.reason = "failed", why
+
+    if not await _wait_for_rovers(system, budget.hello):
+        return fail("not every rover said hello")
+    async with trio.open_nursery() as probes:
+        probes.start_soon(_probe, system, series, poses, truth)
+        t = trio.current_time()
+        result = await system.command("start_mapping")
+        if not result.ok:
+            return fail(f"start_mapping refused: {result.reason}")
+        got = await phases.until({"map_ready"}, budget.mapping)
+        report.phases["mapping"] = trio.current_time() - t
+        probes.cancel_scope.cancel()
+    if got is None:
+        return fail(f"mapping did not finish within {budget.mapping:.0f} s")
+    report.path_cm = path_length(poses)
+    report.t90_s, report.t99_s = t90(series), t99(series)
+    grid = system.server.game.map
+    if grid is not None:
+        start = scenario.starts["mapper"]
+        report.coverage = coverage(grid.cells, grid.resolution_cm, grid.origin_cm, start, truth)
+        report.accuracy = accuracy(grid.cells, grid.resolution_cm, grid.origin_cm, start, truth)
+    if scenario.hide_at is None:
+        return fail("the scenario has no [game] hide_at")
+    hide = scenario.hide_at
+    t = trio.current_time()
+    result = await system.command("hide", x=hide.x, y=hide.y, heading=hide.heading_deg,
+                                  frame="room")
+    if not result.ok:
+        return fail(f"hide refused: {result.reason}")
+    got = await phases.until({"hidden", "map_ready"}, budget.hiding)
+    report.phases["hiding"] = trio.current_time() - t
+    if got != "hidden":
+        return fail(f"hider did not hide: {phases.reason or 'timeout'}")
+    t = trio.current_time()
+    report.outcome = "not_found"
+    for x, y in scenario.seek_at:
+        report.guesses += 1
+        result = await system.command("seek", x=x, y=y, frame="room")
+        if not result.ok:
+            return fail(f"seek refused: {result.reason}")
+        got = await phases.until({"found", "not_found"}, budget.seeking)
+        if got is None:
+            report.phases["seeking"] = trio.current_time() - t
+            return fail(f"seeker did not report within {budget.seeking:.0f} s")
+        if got == "found":
+            report.outcome = "found"
+            break
+    report.phases["seeking"] = trio.current_time() - t
+    report.sim_seconds = trio.current_time() - t_start
+    report.events = phases.log
+
+
+def _finish(report: GameReport, system: SimSystem, t_start: float) -> None:
+    report.sim_seconds = trio.current_time() - t_start
+    report.restarts = system.restarts()
+    report.faults = len(system.faults)
+    report.dropped = system.dropped()
+    report.resent = system.resent()
+    report.messages = system.messages()
+    report.trace_hash = system.actors.trace.hexdigest()
+    for key in ("coverage", "accuracy"):
+        v = getattr(report, key)
+        if v is not None and not math.isfinite(v):
+            setattr(report, key, None)
+
+
+async def run_game(scenario: Scenario, seed: int, *, db: str = ":memory:",
+                   budget: Budget | None = None, trace: Trace | None = None) -> GameReport:
+    """Open a simulated system for ``scenario`` and ``seed``, play it, return the report.
+
+    Run it under a virtual clock (`actors.virtual_clock`) to go as fast as the CPU allows.
+    """
+    report = GameReport(scenario.name, seed)
+    budget = budget or Budget()
+    with Store(db) as store:
+        async with open_sim_system(scenario, seed=seed, store=store, trace=trace) as system:
+            t_start = trio.current_time()
+            try:
+                await play_game(system, report, budget)
+            finally:
+                _finish(report, system, t_start)
+    return report

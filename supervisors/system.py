@@ -1,0 +1,224 @@
+"""The whole simulated system: world, server and one supervision tree per rover.
+
+This is the one module outside ``tui/`` that wires the layers together
+(DESIGN.md section 1). It builds, for one scenario and seed:
+
+* the `World` (room, rovers' hardware, WiFly link models), stepped on Trio's clock;
+* the game `Server` with its SQLite store, a memory link per simulated rover,
+  bridged to that rover's WiFly link model (bytes only: the server never sees
+  the world);
+* an actor system with one supervision tree per rover (`supervisors.rover`),
+  whose firmware sees only the hardware interface;
+* a fault router: device faults go to the world, actor faults (crash, hang,
+  flood) to the actor runtime; both are trace events.
+
+Ground truth (true poses, the mapper's grid for metrics) is read here only by
+probes for metrics and the console, never handed to firmware or server.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import trio
+
+from actors import ActorSystem, EventKind, Message, Trace, open_actor_system, seed_trio_scheduler
+from actors.firmware.commands import Cmd
+from server.protocol import Pose2
+from server.server import Server, ServerConfig, open_server
+from server.store import Store
+from world.faults import is_actor_fault
+from world.scenario import Scenario
+from world.world import World, run_world
+
+from .rover import rover_tree
+
+__all__ = ["ROLES", "ACTOR_FAULTS", "SimSystem", "open_sim_system", "FaultError"]
+
+ROLES = ("mapper", "hider", "seeker")
+ACTOR_FAULTS = ("crash", "hang", "flood")
+_FAULT_POLL_S = 0.05  # how often scheduled actor faults are checked [s]
+_FLOOD_DEFAULT = 1000  # messages a flood fault posts when no count is given
+
+
+class FaultError(ValueError):
+    """A fault request the system cannot carry out (bad target, kind or parameter)."""
+
+
+@dataclass
+class SimSystem:
+    """A running simulated system (made by `open_sim_system`)."""
+
+    scenario: Scenario
+    seed: int
+    world: World
+    server: Server
+    actors: ActorSystem
+    trees: dict[str, Any]
+    """Role -> the rover's root supervisor."""
+    faults: list[dict[str, Any]] = field(default_factory=list)
+    """Every fault injected so far (device and actor), in order, for reports."""
+    _actor_fault_ids: int = 0
+
+    # ---------------------------------------------------------------- operator
+    async def command(self, name: str, **kwargs: Any) -> Any:
+        """An operator command to the server (see `Server.command`)."""
+        return await self.server.command(name, **kwargs)
+
+    # ---------------------------------------------------------------- faults
+    def inject_fault(self, target: str, kind: str, duration_s: float = 0.0,
+                     **params: float) -> str:
+        """Inject a fault now; returns its id (``w<n>`` device, ``a<n>`` actor).
+
+        Device faults (``mapper/lidar`` ``dead`` ...) go to the world. Actor faults
+        target a registered actor (``mapper/nav`` ``crash`` | ``hang`` | ``flood``):
+        ``hang`` blocks the actor's next message for ``duration_s`` (or
+        ``params['seconds']``) so its watchdog fires; ``flood`` posts
+        ``params['count']`` no-op messages without waiting.
+
+        Raises:
+            FaultError: unknown target or kind, or a bad parameter.
+        """
+        if is_actor_fault(kind):
+            return self._actor_fault(target, kind, duration_s, params)
+        try:
+            fid = self.world.inject_fault(target, kind, duration_s, **params)
+        except ValueError as exc:
+            raise FaultError(str(exc)) from None
+        return f"w{fid}"  # the world's fault_injected event records it in `faults`
+
+    def clear_fault(self, key: str) -> int:
+        """Clear a device fault by id (``w3``) or every device fault on a target."""
+        if key.startswith("w") and key[1:].isdigit():
+            return self.world.clear_fault(int(key[1:]))
+        return self.world.clear_fault(key)
+
+    def _actor_fault(self, target: str, kind: str, duration_s: float,
+                     params: dict[str, float]) -> str:
+        if self.actors.whereis(target) is None:
+            known = ", ".join(n for n in self.actors.names() if "/" in n)
+            raise FaultError(f"no actor {target!r} to {kind}; actors are: {known}")
+        if kind == "crash":
+            self.actors.inject_crash(target)
+        elif kind == "hang":
+            seconds = float(params.get("seconds", duration_s or 5.0))
+            if not seconds > 0:
+                raise FaultError(f"hang needs seconds > 0, got {seconds!r}")
+            self.actors.inject_hang(target, seconds)
+        elif kind == "flood":
+            count = int(params.get("count", _FLOOD_DEFAULT))
+            if not 1 <= count <= 1_000_000:
+                raise FaultError(f"flood count must be within 1..1000000, got {count!r}")
+            self.actors.flood(target, count, Message.int(Cmd.NOOP, 0))
+        else:
+            raise FaultError(f"unknown actor fault {kind!r}; expected {', '.join(ACTOR_FAULTS)}")
+        self._actor_fault_ids += 1
+        fid = f"a{self._actor_fault_ids}"
+        self.faults.append({"id": fid, "t": trio.current_time(), "target": target,
+                            "kind": kind, "duration_s": duration_s})
+        return fid
+
+    # ---------------------------------------------------------------- introspection
+    def restarts(self) -> int:
+        """Restarts of every firmware actor so far."""
+        return sum(cell.restarts for name in self.actors.names()
+                   if (cell := self.actors.whereis(name)) is not None)
+
+    def dropped(self) -> int:
+        """Messages dropped by full mailboxes so far."""
+        total = 0
+        for name in self.actors.names():
+            total += self.actors.statistics(name).dropped
+        return total
+
+    def messages(self) -> int:
+        """Messages delivered into mailboxes so far."""
+        return sum(self.actors.statistics(name).sent for name in self.actors.names())
+
+    def resent(self) -> int:
+        """Frames resent by the server's reliable sessions so far."""
+        snap = self.server.snapshot()
+        return sum(r.stats.resent for r in snap.rovers)
+
+    def mapper_grid(self) -> Any | None:
+        """The mapper's working map right now (a probe for metrics and the console).
+
+        Reads the Map Management actor's grid the way a debugger would read
+        the rover's RAM; nothing is sent to the rover. None while it restarts.
+        """
+        cell = self.actors.whereis("mapper/map")
+        actor = cell.actor if cell is not None else None
+        grid = getattr(actor, "grid", None)
+        return grid.snapshot() if grid is not None else None
+
+    def tree_snapshots(self) -> list[Any]:
+        """One `TreeNode` per rover, for a console."""
+        return [tree.snapshot() for tree in self.trees.values()]
+
+
+async def _watch_scheduled_actor_faults(system: SimSystem) -> None:
+    """Hand the scenario's scheduled crash/hang/flood faults to the runtime when due."""
+    while True:
+        await trio.sleep(_FAULT_POLL_S)
+        for f in system.world.actor_faults_due():
+            try:
+                system.inject_fault(f.target, f.kind, f.duration_s, **f.params)
+            except FaultError as exc:
+                system.actors.trace.emit(EventKind.FAULT, f.target, detail=f"refused: {exc}")
+
+
+def _world_events(trace: Trace, log: list[dict[str, Any]]) -> Callable[[str, str, dict], None]:
+    """The world's event callback: every fault injection and clearance is a trace event."""
+    def on_event(kind: str, target: str, detail: dict) -> None:
+        trace.emit(EventKind.FAULT, target, detail=f"{kind} {sorted(detail.items())}")
+        if kind == "fault_injected":
+            log.append({"id": f"w{detail.get('id')}", "t": trio.current_time(),
+                        "target": target, "kind": detail.get("kind"),
+                        "duration_s": detail.get("duration_s", 0.0)})
+    return on_event
+
+
+@contextlib.asynccontextmanager
+async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
+                          trace: Trace | None = None,
+                          nav_factory: Callable[..., Any] | None = None,
+                          roles: tuple[str, ...] = ROLES) -> AsyncIterator[SimSystem]:
+    """Run a simulated system for the block; everything stops cleanly on exit.
+
+    Args:
+        scenario: the room, start poses and fault schedule.
+        seed: the run's seed: the world's noise, the actors' generators and
+            Trio's scheduling order all derive from it.
+        store: the server's database.
+        trace: the trace hub (a new one by default).
+        nav_factory: navigation actor factory for the rover trees (the real
+            navigation by default; tests pass stand-ins).
+        roles: which rovers are simulated (others may attach over real links).
+    """
+    seed_trio_scheduler(seed)
+    trace = trace or Trace()
+    fault_log: list[dict[str, Any]] = []
+    world = World(scenario, np.random.default_rng(seed), on_event=_world_events(trace, fault_log))
+    origins = {role: Pose2(p.x, p.y, p.heading_deg) for role, p in scenario.starts.items()}
+    async with open_server(store, ServerConfig(origins=origins)) as server:
+        for role in roles:
+            link = world.wifly_link(role)
+            memory = server.attach_memory(outbound=link.server_write, name=f"sim:{role}")
+            link.on_server_receive = memory.feed
+        async with trio.open_nursery() as nursery, \
+                open_actor_system(seed, trace=trace) as actors:
+            nursery.start_soon(run_world, world)
+            trees = {}
+            for role in roles:
+                spec = rover_tree(role, world.hardware(role), nav_factory=nav_factory)
+                trees[role] = await actors.start_supervisor(spec, role)
+            system = SimSystem(scenario, seed, world, server, actors, trees, fault_log)
+            nursery.start_soon(_watch_scheduled_actor_faults, system)
+            try:
+                yield system
+            finally:
+                nursery.cancel_scope.cancel()

@@ -1,0 +1,95 @@
+"""``hideseek run``: one whole game, headless, in virtual time.
+
+Exit status: 0 the hider was found, 1 it was not (or the game failed), 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import trio
+
+from actors import JsonLinesRecorder, Trace, seed_trio_scheduler, virtual_clock
+from supervisors.headless import Budget, GameReport, run_game
+from world.scenario import ScenarioError, builtin_scenarios, generate_scenario, load_scenario
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
+                        help=f"built-in name ({', '.join(builtin_scenarios())}) or a .toml file "
+                             "(default: furniture)")
+    parser.add_argument("--generated", metavar="SEED:INDEX",
+                        help="a procedurally generated room instead of --scenario")
+    parser.add_argument("--seed", type=int, default=1, help="the run's seed (default 1)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    parser.add_argument("--db", default=":memory:", help="SQLite file for the server's store")
+    parser.add_argument("--trace", metavar="FILE", help="record the trace as JSON lines")
+    parser.add_argument("--budget", type=float, default=1200.0,
+                        help="simulated seconds allowed for mapping (default 1200)")
+
+
+def _scenario(args: argparse.Namespace):
+    if args.generated:
+        try:
+            seed, index = (int(v) for v in args.generated.split(":"))
+        except ValueError:
+            raise ScenarioError(f"--generated must be SEED:INDEX, got {args.generated!r}") from None
+        return generate_scenario(seed, index)
+    return load_scenario(args.scenario)
+
+
+def _print_summary(r: GameReport) -> None:
+    def pct(v: float | None) -> str:
+        return "-" if v is None else f"{100 * v:.1f} %"
+
+    def sec(v: float | None) -> str:
+        return "-" if v is None else f"{v:.1f} s"
+
+    print(f"\n{r.scenario} seed {r.seed}: {r.outcome.upper()}"
+          + (f" ({r.reason})" if r.reason else ""))
+    print(f"  simulated {r.sim_seconds:.1f} s in {r.wall_seconds:.1f} s wall "
+          f"({r.real_time_factor:.0f}x real time)")
+    print(f"  map: coverage {pct(r.coverage)}, accuracy {pct(r.accuracy)}, "
+          f"T90 {sec(r.t90_s)}, T99 {sec(r.t99_s)}, mapper path {r.path_cm / 100:.1f} m")
+    print("  phases: " + ", ".join(f"{k} {v:.1f} s" for k, v in r.phases.items()))
+    print(f"  guesses {r.guesses}, restarts {r.restarts}, faults {r.faults}, "
+          f"dropped {r.dropped}, resent {r.resent}, messages {r.messages}")
+    print(f"  trace hash {r.trace_hash}")
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        scenario = _scenario(args)
+    except (ScenarioError, OSError) as exc:
+        print(f"hideseek run: {exc}", file=sys.stderr)
+        return 2
+    trace = Trace()
+    trace_file = None
+    if args.trace:
+        try:
+            trace_file = open(args.trace, "w")  # noqa: SIM115 (closed below)
+        except OSError as exc:
+            print(f"hideseek run: cannot write trace: {exc}", file=sys.stderr)
+            return 2
+        trace.subscribe(JsonLinesRecorder(trace_file))
+    budget = Budget(mapping=args.budget)
+    if not args.json:
+        print(f"running {scenario.name} (seed {args.seed}) in virtual time ...", flush=True)
+    seed_trio_scheduler(args.seed)
+    wall0 = time.perf_counter()  # wall time is measured for the report only
+    report = trio.run(lambda: run_game(scenario, args.seed, db=args.db, budget=budget,
+                                       trace=trace), clock=virtual_clock())
+    report.wall_seconds = time.perf_counter() - wall0
+    report.real_time_factor = report.sim_seconds / max(report.wall_seconds, 1e-9)
+    if trace_file is not None:
+        trace_file.close()
+    if args.json:
+        print(json.dumps(report.to_json()))
+    else:
+        for line in report.events:
+            print("  " + line)
+        _print_summary(report)
+    return 0 if report.outcome == "found" else 1
