@@ -159,7 +159,8 @@ def test_fault_dialog_injects_a_crash_that_flashes_and_recovers():
         press(app, "3")
         press(app, "f")
         await until(lambda: isinstance(app.screen, FaultDialog)
-                    and app.screen.query("#target"), "fault dialog")
+                    and app.screen.query(Select)
+                    and all(w.is_mounted for w in app.screen.query(Select)), "fault dialog")
         dialog = app.screen
         dialog.query_one("#target", Select).value = "mapper/lidar"
         await until(lambda: len(dialog.query_one("#kind", Select)._options) > 1, "kinds")
@@ -180,7 +181,8 @@ def test_fault_dialog_rejects_a_bad_duration():
     async def test(app, fake):
         press(app, "f")
         await until(lambda: isinstance(app.screen, FaultDialog)
-                    and app.screen.query("#target"), "fault dialog")
+                    and app.screen.query(Select)
+                    and all(w.is_mounted for w in app.screen.query(Select)), "fault dialog")
         dialog = app.screen
         dialog.query_one("#target", Select).value = "mapper.lidar"
         await until(lambda: len(dialog.query_one("#kind", Select)._options) > 1, "kinds")

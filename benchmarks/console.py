@@ -1,0 +1,162 @@
+"""Console cost: simulated-time throughput with the console attached vs headless,
+and key-to-actor latency.
+
+Run as ``python -m benchmarks.console [--quick]``. Both throughput runs use the
+fake system (`tui.fake.FakeSystem`) at "as fast as possible" with the same
+script (map the room, start a new game, map again ...); the headless run is
+the baseline measured in the same process. "Attached" is the console in
+Textual's headless driver at 120x40: it lays out and renders every frame but
+writes to no terminal, so a real terminal adds the cost of output on top.
+
+Key-to-actor latency is the wall time from posting a key event to the app
+until the system's command handler runs inside Trio (``space`` -> ``pause`` /
+``resume``), at speed x1 and at "as fast as possible".
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import statistics
+import sys
+import time
+
+import trio
+from textual import events
+
+from tui.app import ConsoleApp
+from tui.fake import FakeSystem
+
+
+class ScriptedFake(FakeSystem):
+    """The fake plus a driver task that keeps it mapping, and command timestamps."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.handled: list[float] = []
+
+    async def run(self, publish, requests) -> None:
+        async with trio.open_nursery() as nursery:
+            nursery.start_soon(self._script)
+            await super().run(publish, requests)
+
+    async def _script(self) -> None:
+        while True:
+            self.new_game()
+            self.start_mapping()
+            await trio.sleep(40.0)
+
+    def _do_pause(self) -> None:
+        self.handled.append(time.perf_counter())
+        super()._do_pause()
+
+    def _do_resume(self) -> None:
+        self.handled.append(time.perf_counter())
+        super()._do_resume()
+
+
+def headless(wall_s: float) -> float:
+    """Simulated seconds per wall second without the console."""
+    fake = ScriptedFake(speed=None)
+    out = {}
+
+    async def main() -> None:
+        _, receive = trio.open_memory_channel[None](1)
+        async with trio.open_nursery() as nursery:
+            nursery.start_soon(fake.run, lambda item: None, receive)
+            t0, s0 = time.perf_counter(), trio.current_time()
+            while time.perf_counter() - t0 < wall_s:
+                await trio.sleep(1.0)
+            out["rate"] = (trio.current_time() - s0) / (time.perf_counter() - t0)
+            nursery.cancel_scope.cancel()
+
+    trio.run(main, clock=fake.clock)
+    return out["rate"]
+
+
+async def _wait(cond, timeout: float = 10.0) -> None:
+    deadline = time.perf_counter() + timeout
+    while not cond():
+        if time.perf_counter() > deadline:
+            raise TimeoutError("the console did not respond")
+        await asyncio.sleep(0.001)
+
+
+def attached(wall_s: float) -> tuple[float, float]:
+    """Simulated seconds per wall second with the console; and snapshots shown per second."""
+    fake = ScriptedFake(speed=None)
+    app = ConsoleApp(fake)
+    out = {}
+
+    async def main() -> None:
+        async with app.run_test(size=(120, 40)):
+            await _wait(lambda: app.snapshot is not None)
+            s0, n0, t0 = app.snapshot.time_s, app.snapshots_shown, time.perf_counter()
+            await asyncio.sleep(wall_s)
+            wall = time.perf_counter() - t0
+            out["rate"] = (app.snapshot.time_s - s0) / wall
+            out["fps"] = (app.snapshots_shown - n0) / wall
+
+    asyncio.run(main())
+    return out["rate"], out["fps"]
+
+
+def key_latency(speed: float | None, samples: int) -> list[float]:
+    """Wall milliseconds from posting ``space`` to the Trio-side handler, per sample."""
+    fake = ScriptedFake(speed=speed)
+    app = ConsoleApp(fake)
+    lat: list[float] = []
+
+    async def main() -> None:
+        async with app.run_test(size=(120, 40)):
+            await _wait(lambda: app.snapshot is not None)
+            for _ in range(samples):
+                n = len(fake.handled)
+                paused = app.snapshot.paused
+                t0 = time.perf_counter()
+                app.post_message(events.Key("space", " "))
+                await _wait(lambda n=n: len(fake.handled) > n)
+                lat.append((fake.handled[-1] - t0) * 1000.0)
+                await _wait(lambda p=paused: app.snapshot.paused != p)
+
+    asyncio.run(main())
+    return lat
+
+
+def pct(values: list[float], q: float) -> float:
+    values = sorted(values)
+    return values[min(len(values) - 1, int(q * len(values)))]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.console", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
+    args = parser.parse_args(argv)
+    wall_s, samples = (2.0, 20) if args.quick else (8.0, 100)
+
+    base = headless(wall_s)
+    with_ui, fps = attached(wall_s)
+    lat1 = key_latency(1.0, samples)
+    latmax = key_latency(None, samples)
+    figures = {
+        "wall_s_per_run": wall_s,
+        "headless_sim_s_per_wall_s": round(base, 1),
+        "console_sim_s_per_wall_s": round(with_ui, 1),
+        "ratio_console_vs_headless": round(with_ui / base, 3),
+        "console_snapshots_per_s": round(fps, 1),
+        "key_to_actor_ms_p50_x1": round(statistics.median(lat1), 3),
+        "key_to_actor_ms_p95_x1": round(pct(lat1, 0.95), 3),
+        "key_to_actor_ms_p50_max": round(statistics.median(latmax), 3),
+        "key_to_actor_ms_p95_max": round(pct(latmax, 0.95), 3),
+    }
+    print(f"{'measure':<34} {'value':>10}")
+    print("-" * 45)
+    for key, value in figures.items():
+        print(f"{key:<34} {value:>10}")
+    print(json.dumps(figures))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
