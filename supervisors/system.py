@@ -42,7 +42,7 @@ __all__ = ["ROLES", "ACTOR_FAULTS", "SimSystem", "open_sim_system", "FaultError"
 ROLES = ("mapper", "hider", "seeker")
 ACTOR_FAULTS = ("crash", "hang", "flood")
 _FAULT_POLL_S = 0.05  # how often scheduled actor faults are checked [s]
-_FLOOD_DEFAULT = 1000  # messages a flood fault posts when no count is given
+_FLOOD_DEFAULT = 100  # messages a flood fault posts when not given (world.faults.ACTOR_FAULTS)
 
 
 class FaultError(ValueError):
@@ -78,7 +78,7 @@ class SimSystem:
         target a registered actor (``mapper/nav`` ``crash`` | ``hang`` | ``flood``):
         ``hang`` blocks the actor's next message for ``duration_s`` (or
         ``params['seconds']``) so its watchdog fires; ``flood`` posts
-        ``params['count']`` no-op messages without waiting.
+        ``params['messages']`` no-op messages without waiting.
 
         Raises:
             FaultError: unknown target or kind, or a bad parameter.
@@ -110,7 +110,7 @@ class SimSystem:
                 raise FaultError(f"hang needs seconds > 0, got {seconds!r}")
             self.actors.inject_hang(target, seconds)
         elif kind == "flood":
-            count = int(params.get("count", _FLOOD_DEFAULT))
+            count = int(params.get("messages", _FLOOD_DEFAULT))
             if not 1 <= count <= 1_000_000:
                 raise FaultError(f"flood count must be within 1..1000000, got {count!r}")
             self.actors.flood(target, count, Message.int(Cmd.NOOP, 0))

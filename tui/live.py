@@ -1,0 +1,426 @@
+"""The real system behind the console: `tui.snapshot.System` over a `SimSystem`.
+
+`LiveSystem` opens the simulated world, the server and the rover trees
+(`supervisors.system.open_sim_system`) inside the console's Trio guest run,
+turns operator commands into server commands and fault injections, and builds
+a `Snapshot` whenever the console asks for one. It reads the server's view
+(phase, map, rover poses, link statistics), the runtime's (mailboxes, the
+supervision tree, the trace) and, for the overlay and drift only, the world's
+ground truth.
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import re
+from collections import deque
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import trio
+
+from actors import EventKind, TraceEvent
+from actors.firmware.commands import name_of
+from server.export import write_pgm, write_png
+from server.protocol import MapGrid, Pose2, inverse
+from server.protocol import compose as compose_pose
+from server.store import Store
+from supervisors.system import ROLES, FaultError, SimSystem, open_sim_system
+from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_DEVICES
+from world.scenario import Scenario
+from world.truth import truth_raster
+
+from .snapshot import (
+    MAX_LOG_LINES,
+    MAX_TIMELINE,
+    ActiveFault,
+    CommandResult,
+    FaultTarget,
+    GridView,
+    LinkStats,
+    LogLine,
+    Pose,
+    Publish,
+    QueueStats,
+    RoverView,
+    Snapshot,
+    TimelineEvent,
+    TreeNode,
+)
+
+__all__ = ["LiveSystem"]
+
+COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
+_MESSAGE_RE = re.compile(r"command=(\d+).*?value=([^)]+)\)")
+_LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
+              EventKind.FAULT, EventKind.KILLED, EventKind.POISON}
+
+
+def _decode(message: str) -> str:
+    """``Message(command=256, ..., value=12.5)`` -> ``MOTOR_MOVE 12.5``."""
+    m = _MESSAGE_RE.search(message)
+    if m is None:
+        return message[:80]
+    return f"{name_of(int(m.group(1)))} {m.group(2)}"
+
+
+class LiveSystem:
+    """The simulated system, as the console's `System` (see `tui.snapshot`).
+
+    Args:
+        scenario: the room and rovers.
+        seed: the run's seed.
+        speed: initial clock rate, None for as fast as possible.
+        db: the server's SQLite file.
+        log_messages: trace every message for the log pane (slower; the log
+            then shows sends and receives, decoded).
+    """
+
+    def __init__(self, scenario: Scenario, *, seed: int = 1, speed: float | None = 1.0,
+                 db: str = ":memory:", log_messages: bool = True) -> None:
+        self.scenario = scenario
+        self.seed = seed
+        self.clock = trio.testing.MockClock()
+        self._speed = speed
+        self._paused = False
+        self._db = db
+        self._log_messages = log_messages
+        self._cmd_send, self._cmd_recv = trio.open_memory_channel[tuple[str, tuple]](
+            COMMAND_CAPACITY)
+        self._publish: Publish | None = None
+        self._system: SimSystem | None = None
+        self._log: deque[LogLine] = deque(maxlen=MAX_LOG_LINES)
+        self._timeline: deque[TimelineEvent] = deque(maxlen=MAX_TIMELINE)
+        self._log_seq = 0
+        self._event_seq = 0
+        self._rates: dict[str, tuple[float, int, float]] = {}  # name -> (t, received, rate)
+        self._exits: dict[str, float] = {}  # actor -> time of its last exit
+        self._truth: GridView | None = None
+        self._truth_key: tuple | None = None
+        self._mapper_room = Pose2(0, 0, 0)
+        self._apply_clock()
+
+    # -- Controller (synchronous, from Textual handlers) ------------------------------
+    def start_mapping(self) -> None:
+        self._submit("start_mapping")
+
+    def stop_mapping(self) -> None:
+        self._submit("stop_mapping")
+
+    def hide_at(self, x_cm: float, y_cm: float, heading_deg: float) -> None:
+        self._submit("hide_at", float(x_cm), float(y_cm), float(heading_deg))
+
+    def seek_at(self, x_cm: float, y_cm: float) -> None:
+        self._submit("seek_at", float(x_cm), float(y_cm))
+
+    def new_game(self) -> None:
+        self._submit("new_game")
+
+    def pause(self) -> None:
+        self._submit("pause")
+
+    def resume(self) -> None:
+        self._submit("resume")
+
+    def set_speed(self, rate: float | None) -> None:
+        self._submit("set_speed", rate)
+
+    def inject_fault(self, target: str, kind: str, duration_s: float | None,
+                     params: Mapping[str, Any]) -> None:
+        self._submit("inject_fault", target, kind, duration_s, dict(params))
+
+    def clear_fault(self, fault: str) -> None:
+        self._submit("clear_fault", fault)
+
+    def export_map(self, directory: str) -> None:
+        self._submit("export_map", str(directory))
+
+    def _submit(self, name: str, *args: Any) -> None:
+        try:
+            self._cmd_send.send_nowait((name, args))
+        except trio.WouldBlock:
+            self._result(name, "refused", "busy")
+
+    # -- Trio side ----------------------------------------------------------------------
+    async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
+        """Run the simulated system until cancelled (see `tui.snapshot.System.run`)."""
+        self._publish = publish
+        s = self.scenario.starts["mapper"]
+        self._mapper_room = Pose2(s.x, s.y, s.heading_deg)
+        with Store(self._db) as store:
+            async with open_sim_system(self.scenario, seed=self.seed, store=store) as system:
+                self._system = system
+                system.actors.trace.subscribe(self._on_trace, per_message=self._log_messages)
+                events = system.server.subscribe()
+                self._event("game", f"{self.scenario.name}: system started (seed {self.seed})")
+                async with trio.open_nursery() as nursery:
+                    nursery.start_soon(self._command_loop)
+                    nursery.start_soon(self._server_events, events)
+                    async for _ in requests:
+                        publish(self.snapshot())
+
+    async def _command_loop(self) -> None:
+        async for name, args in self._cmd_recv:
+            try:
+                reason = await getattr(self, "_do_" + name)(*args)
+            except (ValueError, TypeError, FaultError) as exc:
+                self._result(name, "refused", str(exc))
+            except OSError as exc:
+                self._result(name, "error", f"{exc.strerror or exc}: {exc.filename or ''}")
+            else:
+                self._result(name, "ok", reason or "")
+
+    def _result(self, name: str, status: str, reason: str) -> None:
+        if self._publish is not None:
+            self._publish(CommandResult(name, status, reason))  # type: ignore[arg-type]
+
+    # -- commands (in Trio); raise ValueError to refuse ----------------------------------
+    async def _server_command(self, name: str, **kwargs: Any) -> str:
+        assert self._system is not None
+        result = await self._system.command(name, **kwargs)
+        if not result.ok:
+            raise ValueError(result.reason)
+        return result.reason
+
+    async def _do_start_mapping(self) -> str:
+        return await self._server_command("start_mapping")
+
+    async def _do_stop_mapping(self) -> str:
+        return await self._server_command("stop_mapping")
+
+    async def _do_hide_at(self, x: float, y: float, heading: float) -> str:
+        return await self._server_command("hide", x=x, y=y, heading=heading)
+
+    async def _do_seek_at(self, x: float, y: float) -> str:
+        return await self._server_command("seek", x=x, y=y)
+
+    async def _do_new_game(self) -> str:
+        return await self._server_command("new_game")
+
+    async def _do_pause(self) -> str:
+        self._paused = True
+        self._apply_clock()
+        self._event("game", "paused")
+        return ""
+
+    async def _do_resume(self) -> str:
+        self._paused = False
+        self._apply_clock()
+        self._event("game", "resumed")
+        return ""
+
+    async def _do_set_speed(self, rate: float | None) -> str:
+        if rate is not None and not (isinstance(rate, int | float) and rate > 0):
+            raise ValueError(f"speed must be > 0 or None, got {rate!r}")
+        self._speed = rate
+        self._apply_clock()
+        text = "as fast as possible" if rate is None else f"x{rate:g}"
+        self._event("game", f"speed {text}")
+        return text
+
+    async def _do_inject_fault(self, target: str, kind: str, duration_s: float | None,
+                               params: dict) -> str:
+        assert self._system is not None
+        fid = self._system.inject_fault(target, kind, duration_s or 0.0, **params)
+        self._event("fault", f"{kind} on {target}"
+                    + (f" for {duration_s:g} s" if duration_s else " until cleared")
+                    + f" ({fid})")
+        return fid
+
+    async def _do_clear_fault(self, fault: str) -> str:
+        assert self._system is not None
+        n = self._system.clear_fault(fault)
+        if n == 0:
+            raise ValueError(f"no active device fault {fault!r}")
+        self._event("clear", f"cleared {n} fault(s): {fault}")
+        return f"{n} cleared"
+
+    async def _do_export_map(self, directory: str) -> str:
+        assert self._system is not None
+        grid = self._system.server.game.map
+        if grid is None:
+            snap = self._system.mapper_grid()
+            if snap is None:
+                raise ValueError("there is no map yet: start mapping first")
+            grid = MapGrid(np.asarray(snap.cells, np.int8), snap.resolution_cm,
+                           tuple(snap.origin_cm))
+        out = pathlib.Path(directory).expanduser()
+        if not out.is_dir():
+            raise ValueError(f"export directory {directory!r} does not exist")
+        name = f"map-{self.scenario.name}-seed{self.seed}-{trio.current_time():.0f}s"
+        pgm, yaml = write_pgm(grid, out, name)
+        png = write_png(grid, out, name)
+        self._event("export", f"map saved: {pgm.name}, {yaml.name}, {png.name}")
+        return f"{pgm}, {yaml}, {png}"
+
+    def _apply_clock(self) -> None:
+        """Pause and speed are the clock's rate and autojump (changed from inside Trio)."""
+        if self._paused:
+            self.clock.autojump_threshold = math.inf
+            self.clock.rate = 0.0
+        elif self._speed is None:
+            self.clock.rate = 0.0
+            self.clock.autojump_threshold = 0.0
+        else:
+            self.clock.autojump_threshold = math.inf
+            self.clock.rate = float(self._speed)
+
+    # -- events -------------------------------------------------------------------------
+    def _event(self, kind: str, text: str) -> None:
+        self._event_seq += 1
+        self._timeline.append(TimelineEvent(self._event_seq, trio.current_time(), kind, text))
+
+    def _on_trace(self, event: TraceEvent) -> None:
+        if event.kind in (EventKind.SEND, EventKind.RECEIVE, EventKind.DROP):
+            if event.kind is EventKind.RECEIVE:
+                return  # one line per message: its send
+            self._log_seq += 1
+            text = _decode(event.message)
+            if event.kind is EventKind.DROP:
+                text = "DROP overflow " + text
+            self._log.append(LogLine(self._log_seq, event.time, event.actor, event.queue, text))
+            return
+        if event.kind in _LIFECYCLE:
+            if event.kind in (EventKind.CRASH, EventKind.HUNG, EventKind.KILLED):
+                self._exits[event.actor] = event.time
+            kind = {EventKind.RESTART: "restart", EventKind.FAULT: "fault"}.get(event.kind, "crash")
+            self._event(kind, f"{event.kind.value} {event.actor} {event.detail}".strip())
+
+    async def _server_events(self, events: trio.MemoryReceiveChannel) -> None:
+        async for e in events:
+            if e.kind == "phase":
+                self._event("phase", f"phase {e.data.get('phase')}"
+                            + (f": {e.data['reason']}" if e.data.get("reason") else ""))
+            elif e.kind in ("link_up", "link_down"):
+                self._event("link", f"{e.rover} {e.kind.replace('_', ' ')}")
+            elif e.kind in ("report", "refused", "map"):
+                body = " ".join(f"{k}={v}" for k, v in e.data.items())
+                self._event("game", f"{e.kind} {e.rover} {body}".strip())
+
+    # -- snapshot -----------------------------------------------------------------------
+    def snapshot(self) -> Snapshot:
+        """A whole picture of the system now."""
+        system = self._system
+        now = trio.current_time()
+        if system is None:
+            return Snapshot(now, self._speed, self._paused, self.scenario.name, self.seed, "idle")
+        server = system.server.snapshot()
+        grid = self._map_view(system)
+        return Snapshot(
+            time_s=now, speed=self._speed, paused=self._paused, scenario=self.scenario.name,
+            seed=self.seed, phase=server.phase, guesses=len(server.guesses), map=grid,
+            truth=self._truth_view(grid), rovers=self._rovers(system, server),
+            hide_spot=_pose(server.hide_spot),
+            seek_guesses=tuple((g.x, g.y) for g in server.guesses),
+            queues=self._queues(system, now), log=tuple(self._log),
+            tree=self._tree(system), links=self._links(server),
+            timeline=tuple(self._timeline), faults=self._faults(system),
+            catalogue=self._catalogue(system))
+
+    def _map_view(self, system: SimSystem) -> GridView | None:
+        snap = system.mapper_grid()
+        if snap is None:
+            grid = system.server.game.map
+            if grid is None:
+                return None
+            return GridView(np.array(grid.cells, np.int8), grid.resolution_cm,
+                            tuple(grid.origin_cm))
+        return GridView(np.array(snap.cells, np.int8), snap.resolution_cm, tuple(snap.origin_cm))
+
+    def _truth_view(self, grid: GridView | None) -> GridView | None:
+        """Ground truth resampled onto the map's raster (same frame and cells)."""
+        if grid is None:
+            return None
+        key = (grid.shape, grid.origin_cm, grid.resolution_cm)
+        if key != self._truth_key:
+            truth = truth_raster(self.scenario, grid.resolution_cm)
+            ny, nx = grid.shape
+            x0, y0 = grid.origin_cm
+            r = grid.resolution_cm
+            xs = x0 + (np.arange(nx) + 0.5) * r
+            ys = y0 + (np.arange(ny) + 0.5) * r
+            mx, my = np.meshgrid(xs, ys)
+            m = self._mapper_room
+            h = math.radians(m.heading)
+            rx = m.x + math.cos(h) * mx - math.sin(h) * my
+            ry = m.y + math.sin(h) * mx + math.cos(h) * my
+            col = np.floor(rx / truth.resolution_cm).astype(int)
+            row = np.floor(ry / truth.resolution_cm).astype(int)
+            th, tw = truth.occupied.shape
+            inside = (row >= 0) & (row < th) & (col >= 0) & (col < tw)
+            cells = np.full((ny, nx), 100, np.int8)
+            occ = truth.occupied[np.clip(row, 0, th - 1), np.clip(col, 0, tw - 1)]
+            cells[inside & ~occ] = 0
+            self._truth = GridView(cells, r, grid.origin_cm)
+            self._truth_key = key
+        return self._truth
+
+    def _rovers(self, system: SimSystem, server: Any) -> tuple[RoverView, ...]:
+        to_map = inverse(self._mapper_room)
+        views = {r.role: r for r in server.rovers}
+        out = []
+        for role in ROLES:
+            t = system.world.true_pose(role)
+            true = compose_pose(to_map, Pose2(t.x, t.y, t.heading_deg))
+            view = views.get(role)
+            out.append(RoverView(role, role, _pose(view.pose if view else None), _pose(true),
+                                 link=view.link if view else "memory"))
+        return tuple(out)
+
+    def _queues(self, system: SimSystem, now: float) -> tuple[QueueStats, ...]:
+        out = []
+        for name in system.actors.names():
+            if "/" not in name:
+                continue
+            s = system.actors.statistics(name)
+            t0, r0, rate = self._rates.get(name, (now, s.received, 0.0))
+            if now - t0 >= 1.0:
+                rate = (s.received - r0) / (now - t0)
+                t0, r0 = now, s.received
+            self._rates[name] = (t0, r0, rate)
+            out.append(QueueStats(name.split("/")[0], name, s.depth, s.capacity, rate,
+                                  s.dropped))
+        return tuple(out)
+
+    def _tree(self, system: SimSystem) -> TreeNode:
+        def convert(node: Any) -> TreeNode:
+            state = str(node.state)
+            state = {"starting": "restarting"}.get(state, state)
+            return TreeNode(node.name, str(node.kind), state, node.restarts,  # type: ignore[arg-type]
+                            None if node.last_exit is None else str(node.last_exit),
+                            self._exits.get(node.name),
+                            tuple(convert(c) for c in node.children))
+        roots = tuple(convert(n) for n in system.tree_snapshots())
+        return TreeNode("system", "supervisor", "running", 0, None, None, roots)
+
+    def _links(self, server: Any) -> tuple[LinkStats, ...]:
+        out = []
+        for r in server.rovers:
+            s = r.stats
+            out.append(LinkStats(r.id, s.up, None if s.rtt_s is None else s.rtt_s * 1000.0,
+                                 s.lost, s.resent, s.bad_frames, s.frames_in, s.frames_out))
+        return tuple(out)
+
+    def _faults(self, system: SimSystem) -> tuple[ActiveFault, ...]:
+        out = []
+        for f in system.world.active_faults():
+            until = f.start_s + f.duration_s if f.duration_s > 0 else None
+            out.append(ActiveFault(f"w{f.id}", f.target, f.kind, f.start_s, until))
+        return tuple(out)
+
+    def _catalogue(self, system: SimSystem) -> tuple[FaultTarget, ...]:
+        out = []
+        for role in ROLES:
+            for device, kinds in DEVICE_FAULTS.items():
+                if role in ROLE_DEVICES.get(device, ROLES):
+                    out.append(FaultTarget(f"{role}/{device}", tuple(kinds)))
+        for name in system.actors.names():
+            if "/" in name:
+                out.append(FaultTarget(name, tuple(ACTOR_FAULTS)))
+        return tuple(out)
+
+
+def _pose(p: Pose2 | None) -> Pose | None:
+    return None if p is None else Pose(p.x, p.y, p.heading)
