@@ -1,0 +1,318 @@
+"""Motor Control: Command A with closed-loop PWM on both treads, and dead reckoning.
+
+The seed's Motor Control thread. Navigation sends Command A (``MOTOR_MOVE``
+[cm], ``MOTOR_TURN`` [deg], ``MOTOR_STOP``); the motor counter ISR (Int E)
+posts ``MOTOR_TICK`` each time a tread went `HardwareSpec.cm_per_interrupt`;
+a self-timer posts ``MOTOR_CONTROL`` every control period.
+
+Control law (per control period, per tread)
+    Each command sets a target travel per tread (move: both ``d``; turn:
+    ``-+ theta * track / 2``). The commanded tread speed follows a braking
+    profile ``min(cruise, sqrt(2 * decel * remaining), gain * remaining)``
+    with a floor so the rover never creeps to a halt short of the target, and a
+    cross-coupling term keeps the two treads' progress equal in magnitude (a
+    straight move stays straight, a turn stays in place). A tread within
+    ``tolerance`` of its target stops; when both are there (or a tread
+    overshot and was pulled back) the command is done. The world's motors lag
+    (first order, ~80 ms), which is why braking starts early.
+
+Dead reckoning
+    This actor owns the pose: every tread increment goes through
+    `odometry.advance` with the track width from the hardware spec. The pose is
+    published (``NAV_POSE_XY`` [mm] + ``NAV_POSE_HEADING`` [deg] to navigation;
+    ``LIDAR_POSE_XY`` [cm] + ``LIDAR_POSE_HEADING`` to the LIDAR on the mapper)
+    when it changed, at most once per control period, and at once on
+    ``MOTOR_GET_POSE``.
+
+Restarts
+    The pose lives in a `PoseMemory` made by the rover tree: the model of a
+    retained RAM section that survives a thread restart but not a rover reset
+    (C firmware keeps statics across a task restart). Only this actor writes
+    it. Encoder ticks waiting in the mailbox survive the restart too, so a
+    restarted motor has lost at most the one message that was being handled
+    when it crashed (reported as poison). A command that was running is not
+    resumed: the treads are stopped and navigation gets ``NAV_MOTION_BLOCKED``
+    with the distance done so far, so its ADP loop decides again from the
+    published pose.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import trio
+
+from actors import Actor, ExitReason, Message
+
+from .commands import Cmd
+from .devices import Interrupt, RoverHardware, decode_counter
+from .isr import MotorCounterIsr
+from .odometry import Pose, advance
+
+__all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
+
+_INT16 = 32767
+
+
+@dataclass(frozen=True, slots=True)
+class MotorTuning:
+    """Control constants, tuned against the simulated world (tests/test_fw_motor.py)."""
+
+    period_s: float = 0.05
+    """Control period [s] (the world's tick)."""
+    cruise_fraction: float = 0.8
+    """Cruise speed as a fraction of the spec's full-PWM speed."""
+    decel_cm_s2: float = 40.0
+    """Braking deceleration of the speed profile [cm/s^2]."""
+    gain_per_s: float = 4.0
+    """Proportional limit near the target: speed <= gain * remaining [1/s]."""
+    min_speed_cm_s: float = 3.0
+    """Speed floor while a tread is outside the tolerance [cm/s]."""
+    coupling_per_s: float = 2.0
+    """Cross-coupling gain on the difference of the treads' progress [1/s]."""
+    tolerance_cm: float = 0.25
+    """A tread this close to its target counts as there [cm]: half an encoder interrupt, so
+    the counted travel stops at the interrupt nearest the target."""
+    blocked_after_s: float = 1.0
+    """Treads commanded but no encoder progress for this long: blocked [s]."""
+    settle_s: float = 0.15
+    """After both treads arrive, wait this long for coasting ticks before reporting [s]."""
+
+
+class PoseMemory:
+    """Retained memory of the motor: the dead-reckoned pose and the running command.
+
+    Made once per rover by the tree builder and handed to every incarnation of
+    `MotorControl`; it models a retained RAM section, not shared state (no
+    other actor reads it).
+    """
+
+    __slots__ = ("pose", "active")
+
+    def __init__(self, pose: Pose | None = None) -> None:
+        self.pose: Pose = pose or Pose()
+        """The dead-reckoned pose in the rover's own frame."""
+        self.active: bool = False
+        """True while a Command A was running (a restart reports it blocked)."""
+
+    def __repr__(self) -> str:
+        p = self.pose
+        return f"<PoseMemory ({p.x:.1f}, {p.y:.1f}) @ {p.heading_deg:.1f} active={self.active}>"
+
+
+class MotorControl(Actor):
+    """The ``<rover>/motor`` actor (see the module docstring).
+
+    Args:
+        hardware: the rover's devices (tread PWM, Int E).
+        memory: retained pose memory (survives restarts).
+        isr: the motor counter ISR object (its counters survive restarts);
+            made here when None.
+        lidar: also publish the pose to the rover's LIDAR actor (mapper).
+        tuning: control constants.
+    """
+
+    def __init__(self, hardware: RoverHardware, memory: PoseMemory, *,
+                 isr: MotorCounterIsr | None = None, lidar: bool = False,
+                 tuning: MotorTuning | None = None) -> None:
+        self.hw = hardware
+        self.memory = memory
+        self.tuning = tuning or MotorTuning()
+        self._isr = isr
+        self._lidar = lidar
+        spec = hardware.spec
+        self._unit = float(spec.cm_per_interrupt)
+        self._track = float(spec.track_width_cm)
+        self._vmax = float(spec.max_speed_cm_s)
+        # the running command (None when idle)
+        self._kind: int | None = None       # Cmd.MOTOR_MOVE or Cmd.MOTOR_TURN
+        self._target = (0.0, 0.0)           # per tread [cm], signed
+        self._progress = [0.0, 0.0]         # per tread since the command began [cm]
+        self._last_progress_t = 0.0         # last time a tick arrived during a command [s]
+        self._arrived_t: float | None = None  # when both treads reached the target [s]
+        self._started_t = 0.0
+        self._deadline = math.inf           # give up (blocked) after this [s]
+        self._pose_dirty = True
+        self._outcome: Message | None = None  # a DONE/BLOCKED report navigation refused
+        self._pending = [0.0, 0.0]  # tread travel not yet integrated into the pose [cm]
+        self.commands = 0
+        """Command A received (this incarnation)."""
+
+    # ------------------------------------------------------------------ lifetime
+    async def on_start(self) -> None:
+        ctx = self.ctx
+        prefix = ctx.name.rpartition("/")[0]
+        self._nav = f"{prefix}/nav" if prefix else "nav"
+        self._lidar_name = (f"{prefix}/lidar" if prefix else "lidar") if self._lidar else None
+        if self._isr is None:
+            self._isr = MotorCounterIsr(self._post)
+        self.hw.attach(Interrupt.INT_E, self._isr)
+        self.hw.set_tread_pwm(0.0, 0.0)
+        if self.memory.active:  # a command was cut short by a crash or hang
+            self.memory.active = False
+            ctx.send_nowait(self._nav, Message.float(Cmd.NAV_MOTION_BLOCKED, 0.0))
+        self._publish()
+        ctx.start_timer(self.tuning.period_s, Message.uint(Cmd.MOTOR_CONTROL, 0),
+                        interval=self.tuning.period_s)
+
+    def _post(self, message: Message) -> bool:
+        return self.ctx.system.send_nowait(self.ctx.name, message)
+
+    async def on_stop(self, reason: ExitReason) -> None:
+        self.hw.set_tread_pwm(0.0, 0.0)  # never leave the treads running unsupervised
+
+    # ------------------------------------------------------------------ messages
+    async def handle(self, message: Message) -> None:
+        cmd = message.command
+        if cmd == Cmd.MOTOR_TICK:
+            self._tick(int(message.value))
+        elif cmd == Cmd.MOTOR_CONTROL:
+            self._control()
+        elif cmd == Cmd.MOTOR_MOVE:
+            self._begin(Cmd.MOTOR_MOVE, float(message.value))
+        elif cmd == Cmd.MOTOR_TURN:
+            self._begin(Cmd.MOTOR_TURN, float(message.value))
+        elif cmd == Cmd.MOTOR_STOP:
+            if self._kind is not None:
+                self._finish(Cmd.NAV_MOTION_DONE)
+            self.hw.set_tread_pwm(0.0, 0.0)
+        elif cmd == Cmd.MOTOR_GET_POSE:
+            self._publish()
+        else:
+            raise ValueError(f"motor got an unknown command 0x{cmd:04x}")
+
+    # ------------------------------------------------------------------ dead reckoning
+    def _tick(self, payload: int) -> None:
+        tread, forward = decode_counter(payload)
+        d = self._unit if forward else -self._unit
+        self._pending[tread] += d
+        if self._kind is not None:
+            self._progress[tread] += d
+            self._last_progress_t = self._now()
+
+    def _integrate(self) -> None:
+        # One odometry step per batch of ticks: integrating each tread's tick
+        # alone would zigzag the heading by a tick's angle and drift sideways.
+        left, right = self._pending
+        if left or right:
+            self._pending = [0.0, 0.0]
+            self.memory.pose = advance(self.memory.pose, left, right, self._track)
+            self._pose_dirty = True
+
+    async def handle_burst(self, messages: list[Message]) -> None:
+        for message in messages:
+            await self.handle(message)
+        self._integrate()
+
+    def _publish(self) -> None:
+        self._integrate()
+        p = self.memory.pose
+        send = self.ctx.send_nowait  # pose is superseded by the next one: drop when full
+        x_mm = max(-_INT16, min(_INT16, round(p.x * 10)))
+        y_mm = max(-_INT16, min(_INT16, round(p.y * 10)))
+        send(self._nav, Message.pair(Cmd.NAV_POSE_XY, x_mm, y_mm))
+        send(self._nav, Message.float(Cmd.NAV_POSE_HEADING, p.heading_deg))
+        if self._lidar_name is not None:
+            xc = max(-_INT16, min(_INT16, round(p.x)))
+            yc = max(-_INT16, min(_INT16, round(p.y)))
+            send(self._lidar_name, Message.pair(Cmd.LIDAR_POSE_XY, xc, yc))
+            send(self._lidar_name, Message.float(Cmd.LIDAR_POSE_HEADING, p.heading_deg))
+        self._pose_dirty = False
+
+    # ------------------------------------------------------------------ Command A
+    def _begin(self, kind: int, amount: float) -> None:
+        if not math.isfinite(amount):
+            raise ValueError(f"Command A amount must be finite, got {amount!r}")
+        self.commands += 1
+        if kind == Cmd.MOTOR_MOVE:
+            self._target = (amount, amount)
+            length = abs(amount)
+        else:
+            # quantise the turn to whole encoder interrupts on the *sum* of both treads
+            # (one tread may go one interrupt further), halving the heading quantum
+            n = round(math.radians(amount) * self._track / self._unit)
+            half = int(math.copysign(abs(n) // 2, n))
+            self._target = (-half * self._unit, (n - half) * self._unit)
+            length = abs(n) * self._unit / 2
+        now = self._now()
+        self._kind = kind
+        self._progress = [0.0, 0.0]
+        self._started_t = self._last_progress_t = now
+        self._arrived_t = None
+        cruise = self._vmax * self.tuning.cruise_fraction
+        self._deadline = now + 3.0 * length / max(cruise, 1e-6) + 3.0
+        self.memory.active = True
+        if length <= self.tuning.tolerance_cm:
+            self._finish(Cmd.NAV_MOTION_DONE)
+            return
+        self._control()
+
+    def _control(self) -> None:
+        self._integrate()
+        now = self._now()
+        if self._outcome is not None and self.ctx.send_nowait(self._nav, self._outcome):
+            self._outcome = None
+        if self._kind is not None:
+            self._drive(now)
+        if self._pose_dirty:
+            self._publish()
+
+    def _drive(self, now: float) -> None:
+        t = self.tuning
+        pl, pr = self._progress
+        tl, tr = self._target
+        rl, rr = tl - pl, tr - pr
+        tol = t.tolerance_cm
+        if abs(rl) <= tol and abs(rr) <= tol:
+            self.hw.set_tread_pwm(0.0, 0.0)
+            if self._arrived_t is None:
+                self._arrived_t = now
+            elif now - self._arrived_t >= t.settle_s:
+                self._finish(Cmd.NAV_MOTION_DONE)
+            return
+        self._arrived_t = None
+        if now >= self._deadline or now - self._last_progress_t >= t.blocked_after_s:
+            self._finish(Cmd.NAV_MOTION_BLOCKED)
+            return
+        cruise = self._vmax * t.cruise_fraction
+        vl = self._speed(rl, cruise)
+        vr = self._speed(rr, cruise)
+        # cross-coupling: equal progress magnitude (move: pl == pr; turn: pl == -pr)
+        skew = (pl - pr) if self._kind == Cmd.MOTOR_MOVE else (pl + pr)
+        corr = t.coupling_per_s * skew
+        if self._kind == Cmd.MOTOR_MOVE:
+            vl, vr = vl - corr, vr + corr
+        else:
+            vl, vr = vl - corr, vr - corr
+        self.hw.set_tread_pwm(self._duty(vl), self._duty(vr))
+
+    def _speed(self, remaining: float, cruise: float) -> float:
+        t = self.tuning
+        r = abs(remaining)
+        if r <= t.tolerance_cm:
+            return 0.0
+        v = min(cruise, math.sqrt(2.0 * t.decel_cm_s2 * r), t.gain_per_s * r)
+        return math.copysign(max(v, t.min_speed_cm_s), remaining)
+
+    def _duty(self, v: float) -> float:
+        return max(-1.0, min(1.0, v / self._vmax))
+
+    def _finish(self, outcome: int) -> None:
+        self.hw.set_tread_pwm(0.0, 0.0)
+        pl, pr = self._progress
+        if self._kind == Cmd.MOTOR_TURN:
+            done = math.degrees((pr - pl) / self._track)
+        else:
+            done = (pl + pr) / 2
+        self._kind = None
+        self.memory.active = False
+        if self._pose_dirty:
+            self._publish()
+        # must not be lost: when navigation's queue is full, retry every control period
+        message = Message.float(outcome, done)
+        self._outcome = None if self.ctx.send_nowait(self._nav, message) else message
+
+    @staticmethod
+    def _now() -> float:
+        return trio.current_time()

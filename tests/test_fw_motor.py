@@ -1,0 +1,223 @@
+"""Motor Control: Command A against the simulated world, dead reckoning, restarts."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import trio
+
+from actors import Actor, Message, open_actor_system
+from actors.firmware.commands import Cmd
+from actors.firmware.devices import HardwareSpec, Interrupt, encode_counter
+from actors.firmware.motor import MotorControl, PoseMemory
+from actors.firmware.odometry import angle_diff_deg
+from supervisors import ChildSpec, SupervisorSpec
+from world import World, load_scenario, run_world
+
+
+class Recorder(Actor):
+    """Stand-in navigation: records every message with its time."""
+
+    def __init__(self, log: list) -> None:
+        self.log = log
+
+    async def handle(self, message):
+        self.log.append((trio.current_time(), message))
+
+
+def motor_tree(hw, memory, log, **kw) -> SupervisorSpec:
+    return SupervisorSpec([
+        ChildSpec("nav", lambda: Recorder(log), mailbox=256),
+        ChildSpec("motor", lambda: MotorControl(hw, memory, **kw), mailbox=256, watchdog=1.0),
+    ])
+
+
+async def wait_for(log, commands, timeout=30.0):
+    """The first logged message with one of ``commands`` (waits in virtual time)."""
+    with trio.fail_after(timeout):
+        while True:
+            for _, m in log:
+                if m.command in commands:
+                    log.remove((_, m))
+                    return m
+            await trio.sleep(0.05)
+
+
+def dead_reckoned(log):
+    """(x [cm], y [cm], heading [deg]) from the last NAV_POSE_* pair in ``log``."""
+    xy = [m for _, m in log if m.command == Cmd.NAV_POSE_XY][-1].as_pair()
+    hd = [m for _, m in log if m.command == Cmd.NAV_POSE_HEADING][-1].value
+    return xy[0] / 10, xy[1] / 10, hd
+
+
+def empty_room(slip_sigma: float | None):
+    scenario = load_scenario("empty")
+    if slip_sigma is None:
+        return scenario
+    return dataclasses.replace(scenario, devices={**scenario.devices, "slip_sigma": slip_sigma})
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize(("slip", "tol", "seed"), [
+    (0.0, 2.0, 1), (0.0, 2.0, 2), (None, 5.0, 1), (None, 5.0, 2)],
+    ids=["noise-free-1", "noise-free-2", "default-slip-1", "default-slip-2"])
+async def test_move_and_turn_land_close_in_the_simulated_world(autojump_clock, slip, tol,
+                                                               seed) -> None:
+    """A 100 cm move and a 90 deg turn land within ``tol`` cm / deg of the true pose
+    (2 in a noise-free room; 5 with the default 2 % encoder slip noise)."""
+    world = World(empty_room(slip), np.random.default_rng(seed))
+    hw = world.hardware("hider")
+    start = world.true_pose("hider")
+    log: list = []
+    async with trio.open_nursery() as nursery, open_actor_system(seed) as system:
+        nursery.start_soon(run_world, world)
+        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
+        await system.send("hider/motor", Message.float(Cmd.MOTOR_MOVE, 100.0))
+        done = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED})
+        assert done.command == Cmd.NAV_MOTION_DONE
+        assert done.value == pytest.approx(100.0, abs=1.0)
+        p = world.true_pose("hider")
+        travelled = math.hypot(p.x - start.x, p.y - start.y)
+        assert travelled == pytest.approx(100.0, abs=tol)
+        assert abs(angle_diff_deg(p.heading_deg, start.heading_deg)) < tol
+
+        await system.send("hider/motor", Message.float(Cmd.MOTOR_TURN, 90.0))
+        done = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED})
+        assert done.command == Cmd.NAV_MOTION_DONE
+        assert done.value == pytest.approx(90.0, abs=3.0)
+        q = world.true_pose("hider")
+        assert angle_diff_deg(q.heading_deg, p.heading_deg) == pytest.approx(90.0, abs=tol)
+        assert math.hypot(q.x - p.x, q.y - p.y) < 2.0  # turned in place
+
+        x, y, hd = dead_reckoned(log)
+        assert x == pytest.approx(100.0, abs=1.0) and abs(y) < 1.0
+        assert hd == pytest.approx(90.0, abs=2.5)
+        nursery.cancel_scope.cancel()
+
+
+@pytest.mark.trio
+async def test_turn_back_and_forth_in_the_world_keeps_dead_reckoning_close(autojump_clock) -> None:
+    """A square path (4 x (50 cm, 90 deg)) ends near the start, in truth and dead reckoning."""
+    world = World(load_scenario("empty"), np.random.default_rng(3))
+    hw = world.hardware("hider")
+    start = world.true_pose("hider")
+    log: list = []
+    async with trio.open_nursery() as nursery, open_actor_system(3) as system:
+        nursery.start_soon(run_world, world)
+        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
+        for _ in range(4):
+            for cmd, v in ((Cmd.MOTOR_MOVE, 50.0), (Cmd.MOTOR_TURN, 90.0)):
+                await system.send("hider/motor", Message.float(cmd, v))
+                m = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED})
+                assert m.command == Cmd.NAV_MOTION_DONE
+        p = world.true_pose("hider")
+        assert math.hypot(p.x - start.x, p.y - start.y) < 10.0
+        x, y, _ = dead_reckoned(log)
+        assert math.hypot(x, y) < 5.0
+        nursery.cancel_scope.cancel()
+
+
+class FakeHardware:
+    """Records device commands; tests fire interrupts by calling the handlers."""
+
+    def __init__(self) -> None:
+        self.spec = HardwareSpec("hider", cm_per_interrupt=0.5, track_width_cm=13.0)
+        self.handlers: dict = {}
+        self.pwm: list[tuple[float, float]] = []
+
+    def attach(self, line, handler) -> None:
+        self.handlers[int(line)] = handler
+
+    def set_tread_pwm(self, left, right) -> None:
+        self.pwm.append((left, right))
+
+    def set_lidar_pwm(self, duty) -> None: ...
+
+    def set_ir_timer(self, rate_hz) -> None: ...
+
+    def start_adc(self) -> None: ...
+
+    def wifly_write(self, data) -> None: ...
+
+
+@pytest.mark.trio
+async def test_no_encoder_progress_reports_blocked(autojump_clock) -> None:
+    """Treads commanded with no Int E for a second: NAV_MOTION_BLOCKED and treads stopped."""
+    hw = FakeHardware()
+    log: list = []
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
+        t0 = trio.current_time()
+        await system.send("hider/motor", Message.float(Cmd.MOTOR_MOVE, 20.0))
+        m = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED})
+        assert m.command == Cmd.NAV_MOTION_BLOCKED and m.value == 0.0
+        assert 0.9 <= trio.current_time() - t0 <= 1.5
+        assert hw.pwm[-1] == (0.0, 0.0)
+        assert max(left for left, _ in hw.pwm) > 0.5  # it did drive forward
+
+
+@pytest.mark.trio
+async def test_ticks_advance_the_pose_and_publish_it(autojump_clock) -> None:
+    """Int E ticks move the pose: 20 left+right forward = 10 cm; 13 right only turns left."""
+    hw = FakeHardware()
+    log: list = []
+    memory = PoseMemory()
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(motor_tree(hw, memory, log), "hider")
+        isr = hw.handlers[Interrupt.INT_E]
+        for _ in range(20):
+            isr(encode_counter(0, True))
+            isr(encode_counter(1, True))
+        await trio.sleep(0.2)
+        assert dead_reckoned(log)[:2] == pytest.approx((10.0, 0.0), abs=0.05)
+        for _ in range(13):  # 6.5 cm of the right tread on a 13 cm track: 0.5 rad left
+            isr(encode_counter(1, True))
+        await trio.sleep(0.2)
+        assert dead_reckoned(log)[2] == pytest.approx(math.degrees(0.5), abs=0.1)
+        assert memory.pose.heading_deg == pytest.approx(math.degrees(0.5), abs=0.01)
+
+
+@pytest.mark.trio
+async def test_restart_keeps_the_pose_and_reports_the_cut_command(autojump_clock) -> None:
+    """A crash mid-move: the new incarnation republishes the same pose and says BLOCKED."""
+    hw = FakeHardware()
+    log: list = []
+    memory = PoseMemory()
+    async with open_actor_system(1) as system:
+        tree = await system.start_supervisor(motor_tree(hw, memory, log), "hider")
+        isr = hw.handlers[Interrupt.INT_E]
+        await system.send("hider/motor", Message.float(Cmd.MOTOR_MOVE, 50.0))
+        for _ in range(10):
+            isr(encode_counter(0, True))
+            isr(encode_counter(1, True))
+        await trio.sleep(0.2)
+        before = memory.pose
+        system.inject_crash("hider/motor")
+        m = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED}, timeout=2.0)
+        assert m.command == Cmd.NAV_MOTION_BLOCKED
+        assert [c.restarts for c in tree.which_children() if c.id == "motor"] == [1]
+        assert memory.pose == before
+        assert dead_reckoned(log)[0] == pytest.approx(5.0, abs=0.01)
+        assert hw.pwm[-1] == (0.0, 0.0)
+
+
+@pytest.mark.trio
+async def test_get_pose_republishes_and_unknown_command_is_a_crash(autojump_clock) -> None:
+    """MOTOR_GET_POSE publishes at once; an unknown command is poison, the motor restarts."""
+    hw = FakeHardware()
+    log: list = []
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
+        await trio.sleep(0.1)
+        log.clear()
+        await system.send("hider/motor", Message.uint(Cmd.MOTOR_GET_POSE, 0))
+        await trio.sleep(0.01)
+        assert [m.command for _, m in log] == [Cmd.NAV_POSE_XY, Cmd.NAV_POSE_HEADING]
+        down = system.monitor("hider/motor")
+        await system.send("hider/motor", Message.uint(0x7777, 0))
+        with trio.fail_after(1):
+            notice = await down.receive()
+        assert "unknown command" in str(notice.reason)
