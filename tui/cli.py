@@ -14,6 +14,7 @@ import sys
 
 #: subcommand -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
+    "run": ("tui.cmd_run", "one whole game, headless, in virtual time (--json for figures)"),
     "demo": ("tui.cmd_demo", "a small supervised actor tree under fault, printed as it recovers"),
     "serve": ("tui.cmd_serve", "run the game server for real rovers (TCP, serial), log events"),
     "maps": ("tui.cmd_maps", "list stored games and maps"),
@@ -31,13 +32,19 @@ def build_parser() -> argparse.ArgumentParser:
     for name, (module_name, help_text) in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(_module=module_name)
-        importlib.import_module(module_name).add_arguments(p)
+        try:
+            importlib.import_module(module_name).add_arguments(p)
+        except ImportError as exc:  # one broken command must not take the others down
+            p.set_defaults(_module=None, _broken=f"{name}: not available ({exc})")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if getattr(args, "_broken", None):
+        print(f"hideseek {args._broken}", file=sys.stderr)
+        return 2
     if not getattr(args, "_module", None):
         parser.print_help()
         return 2
