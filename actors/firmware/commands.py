@@ -63,6 +63,9 @@ class Cmd(enum.IntEnum):
     """Navigation's own periodic tick; value unused."""
     NAV_LINK = 0x020A
     """WiFly link state changed; value int32 (1 up, 0 down)."""
+    NAV_MAP_LOST = 0x020B
+    """Map Management restarted with an empty grid; navigation may answer MAP_RESTORE
+    with the last `GridMap` it received. Value unused."""
 
     # -- LIDAR queue -------------------------------------------------------
     LIDAR_SAMPLE = 0x0300
@@ -83,6 +86,9 @@ class Cmd(enum.IntEnum):
     """A batch of points; value handle of (pose, angles [deg], ranges [cm])."""
     MAP_GET = 0x0401
     """Ask for a full snapshot (after a restart of navigation); value unused."""
+    MAP_RESTORE = 0x0402
+    """Seed the grid after a restart: value handle of a `GridMap` (navigation's last copy).
+    Cells the new grid has not observed yet take the snapshot's class."""
 
     # -- WiFly queue -------------------------------------------------------
     WIFLY_RX = 0x0500
