@@ -1,0 +1,48 @@
+"""`make_nav`: the navigation actor for a rover role, as the rover tree builds it.
+
+::
+
+    ChildSpec("nav", lambda: make_nav("hider", pool=pool, spec=hardware.spec), mailbox=64)
+
+Each call makes a fresh actor (one per incarnation): a restarted navigation
+rebuilds its state from its neighbours and the server (see `nav_common`).
+"""
+
+from __future__ import annotations
+
+from actors import Actor, BufferPool
+from actors.firmware.devices import HardwareSpec
+from actors.firmware.nav_common import NavOptions
+from actors.firmware.nav_hiding import HidingNav
+from actors.firmware.nav_mapping import MappingNav, MappingOptions
+from actors.firmware.nav_seeking import SeekingNav, SeekingOptions
+
+__all__ = ["make_nav", "NAV_ROLES"]
+
+NAV_ROLES = ("mapper", "hider", "seeker")
+"""Roles `make_nav` knows."""
+
+
+def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
+             options: NavOptions | None = None, mapping: MappingOptions | None = None,
+             seeking: SeekingOptions | None = None) -> Actor:
+    """The navigation actor of ``role``.
+
+    Args:
+        role: ``mapper``, ``hider`` or ``seeker``.
+        pool: the rover's buffer pool (frames, maps and scans travel by handle).
+        spec: the rover's calibration constants (body size for clearance).
+        options: common tunables (`NavOptions`).
+        mapping: the mapper's tunables (`MappingOptions`).
+        seeking: the seeker's tunables (`SeekingOptions`).
+
+    Raises:
+        ValueError: ``role`` is not one of `NAV_ROLES`.
+    """
+    if role == "mapper":
+        return MappingNav(pool=pool, spec=spec, options=options, mapping=mapping)
+    if role == "hider":
+        return HidingNav(pool=pool, spec=spec, options=options)
+    if role == "seeker":
+        return SeekingNav(pool=pool, spec=spec, options=options, seeking=seeking)
+    raise ValueError(f"role must be one of {', '.join(NAV_ROLES)}, got {role!r}")

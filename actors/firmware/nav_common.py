@@ -1,0 +1,710 @@
+"""What the three navigation actors share: pose tracking, the ADP loop, the server, frames.
+
+Navigation is the seed's "Navigation thread" of each rover. It never touches
+hardware: it commands Motor Control (Command A), reads the dead-reckoned pose
+Motor Control publishes, and talks to the server only through its WiFly actor.
+
+The ADP loop (seed: "Command A, wait for distance travelled, update position")
+    One small motion at a time: `PathFollower.next_motion` turns the current
+    pose and the remaining waypoints into one `Motion` (a turn toward the next
+    waypoint when off by more than ``align_tol_deg``, else a straight move of at
+    most ``step_cm``); navigation sends it as MOTOR_TURN / MOTOR_MOVE, waits for
+    NAV_MOTION_DONE or NAV_MOTION_BLOCKED, asks Motor Control for the pose
+    (MOTOR_GET_POSE, so the decision uses the pose at rest, not one published
+    mid-motion) and decides again. Every wait is bounded: a motion that reports
+    nothing within its timeout is stopped and counts as blocked.
+
+Frames
+    Each rover's dead reckoning starts at (0, 0) @ 0 [deg] (its own frame). The
+    map frame is the mapper's start frame; the server sends each rover its
+    ``origin`` (start pose in the map frame), so ``map = compose(origin, own)``.
+    Maps, destinations and reports are in the map frame; motions are relative,
+    so they need no conversion.
+
+Restart (why state survives honestly)
+    A new incarnation knows nothing but what it can ask: ``on_start`` stops the
+    motor (a motion commanded by the dead incarnation has nobody waiting for it),
+    asks Motor Control for the pose (MOTOR_GET_POSE), and tells the server with
+    a ``status`` of state ``restarted``, so the server can resend what this
+    rover must still do. Role specifics (the mapper's map) are in the subclasses.
+
+Units: positions [cm], headings [deg] counter-clockwise from +x.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import trio
+
+from actors import Actor, BufferPool, Message, PoolExhausted, ValueType
+from actors.firmware.clearance import turning_radius_cm
+from actors.firmware.commands import Cmd
+from actors.firmware.devices import HardwareSpec
+from actors.firmware.occupancy import OCCUPIED, GridMap
+from actors.firmware.odometry import ORIGIN, Pose, angle_diff_deg, compose
+from actors.firmware.planner import Plan, plan_path, traversable
+from server.protocol import Frame, FrameError, make_frame, read_data
+
+__all__ = [
+    "NavOptions",
+    "Motion",
+    "PathFollower",
+    "NavBase",
+    "plan_route",
+    "route_points",
+    "with_obstacle",
+    "passable_at",
+    "RouteNav",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class NavOptions:
+    """Tunables of navigation; defaults suit the 20 x 15 cm rovers of the game."""
+
+    tick_s: float = 0.25
+    """Period of navigation's own timer (NAV_TIMER) [s]."""
+    pose_period_s: float = 0.75
+    """Period of ``pose`` telemetry to the server [s] (about 1.3 Hz)."""
+    step_cm: float = 20.0
+    """Longest straight move of one ADP step [cm]."""
+    waypoint_tol_cm: float = 5.0
+    """An intermediate waypoint counts as reached this close [cm]."""
+    goal_tol_cm: float = 2.0
+    """The final waypoint counts as reached this close [cm]."""
+    align_tol_deg: float = 3.0
+    """Turn toward the next waypoint first when off by more than this [deg]."""
+    heading_tol_deg: float = 2.0
+    """Final heading counts as reached this close [deg]."""
+    max_corrections: int = 6
+    """Extra ADP steps allowed beyond the plan's length before giving up on a route."""
+    motion_timeout_s: float = 4.0
+    """A motion reporting nothing after this plus its nominal duration is stopped [s]."""
+    pose_wait_s: float = 0.3
+    """How long to wait for the pose at rest after a motion [s]."""
+    send_timeout_s: float = 1.0
+    """Longest wait for room in a neighbour's mailbox [s]."""
+    speed_cm_s: float = 20.0
+    """Assumed travel speed for motion timeouts [cm/s]."""
+    robot_radius_cm: float | None = None
+    """Turning radius for planning [cm]; None: the half-diagonal from the hardware spec."""
+    plan_margin_cm: float = 3.0
+    """Clearance kept from obstacles when planning [cm]."""
+    spot_margin_cm: float = 5.0
+    """Clearance all round a hiding spot, for turning [cm]."""
+    replan_limit: int = 6
+    """Replans after being blocked before a route is given up."""
+    backoff_cm: float = 6.0
+    """Reverse this far after being blocked [cm]."""
+    outbox: int = 16
+    """Reports waiting for room in the pool or WiFly's mailbox, at most."""
+
+
+@dataclass(frozen=True, slots=True)
+class Motion:
+    """One Command A: ``kind`` is ``"turn"`` ([deg], CCW positive) or ``"move"`` ([cm])."""
+
+    kind: str
+    amount: float
+
+
+class PathFollower:
+    """The ADP loop's decision: from a pose to the next `Motion` along waypoints.
+
+    Pure (no I/O, no clock): give it the pose after each motion.
+
+    Args:
+        waypoints: points to pass through (x, y) [cm], the last being the goal.
+        heading_deg: heading to turn to at the goal, or None for any [deg].
+        options: tolerances and step length.
+    """
+
+    def __init__(self, waypoints: list[tuple[float, float]] | tuple[tuple[float, float], ...],
+                 heading_deg: float | None, options: NavOptions) -> None:
+        if not waypoints:
+            raise ValueError("waypoints must not be empty")
+        self.waypoints = [(float(x), float(y)) for x, y in waypoints]
+        self.heading_deg = heading_deg
+        self.o = options
+        self.index = 0
+        """Index of the waypoint being driven to."""
+        self.steps = 0
+        """Motions handed out so far."""
+
+    @property
+    def goal(self) -> tuple[float, float]:
+        """The last waypoint [cm]."""
+        return self.waypoints[-1]
+
+    def remaining_cm(self, pose: Pose) -> float:
+        """Distance along the remaining waypoints from ``pose`` [cm]."""
+        pts = [(pose.x, pose.y), *self.waypoints[self.index:]]
+        return sum(math.dist(p, q) for p, q in zip(pts, pts[1:], strict=False))
+
+    def budget(self, pose: Pose) -> int:
+        """Most motions still reasonable: two per step of the remaining route, plus slack."""
+        return 2 * math.ceil(self.remaining_cm(pose) / self.o.step_cm) + len(self.waypoints) \
+            + self.o.max_corrections
+
+    def next_motion(self, pose: Pose) -> Motion | None:
+        """The next motion from ``pose``, or None when at the goal (and heading)."""
+        last = len(self.waypoints) - 1
+        while self.index <= last:
+            tol = self.o.goal_tol_cm if self.index == last else self.o.waypoint_tol_cm
+            if math.dist((pose.x, pose.y), self.waypoints[self.index]) <= tol:
+                self.index += 1
+            else:
+                break
+        if self.index > last:
+            if self.heading_deg is None:
+                return None
+            err = angle_diff_deg(self.heading_deg, pose.heading_deg)
+            if abs(err) <= self.o.heading_tol_deg:
+                return None
+            self.steps += 1
+            return Motion("turn", err)
+        tx, ty = self.waypoints[self.index]
+        dist = math.hypot(tx - pose.x, ty - pose.y)
+        bearing = math.degrees(math.atan2(ty - pose.y, tx - pose.x))
+        err = angle_diff_deg(bearing, pose.heading_deg)
+        # the tolerance shrinks with distance: at most ~1 cm lateral error per step
+        tol = max(self.o.align_tol_deg,
+                  math.degrees(math.atan2(1.0, max(min(dist, self.o.step_cm), 1e-6))))
+        self.steps += 1
+        if abs(err) > tol:
+            return Motion("turn", err)
+        return Motion("move", min(dist, self.o.step_cm))
+
+
+def plan_route(grid: GridMap, start: tuple[float, float], goal: tuple[float, float], *,
+               radius_cm: float, margin_cm: float, unknown: str = "blocked",
+               snap_radius_cm: float = 30.0) -> Plan | None:
+    """A* from ``start`` to ``goal`` [cm] on the known part of ``grid`` (cropped: cheaper).
+
+    Returns:
+        The plan, or None when there is none (see `planner.plan_path`).
+    """
+    if grid.known_bounds() is None:
+        return None
+    k = math.ceil((radius_cm + margin_cm + snap_radius_cm) / grid.resolution_cm) + 2
+    sub = grid.crop_known(margin_cells=k)
+    return plan_path(sub, start, goal, robot_radius_cm=radius_cm, margin_cm=margin_cm,
+                     unknown=unknown, snap_radius_cm=snap_radius_cm)  # type: ignore[arg-type]
+
+
+def route_points(plan: Plan, start: tuple[float, float]) -> list[tuple[float, float]]:
+    """The waypoints to drive: the plan's, without its first point when that is ``start``.
+
+    (A start snapped out of an inflated obstacle keeps its first point: the
+    rover must drive there first.)
+    """
+    pts = list(plan.waypoints_cm)
+    if len(pts) > 1 and math.dist(pts[0], start) < 1.0:
+        pts = pts[1:]
+    return pts
+
+
+def with_obstacle(grid: GridMap, x: float, y: float, radius_cm: float) -> GridMap:
+    """A copy of ``grid`` with a disc of occupied cells at (x, y) [cm].
+
+    Used after NAV_MOTION_BLOCKED: something the map does not show (another
+    rover) stands ahead, so the next plan must go round it.
+    """
+    cells = np.array(grid.cells, dtype=np.int8)
+    ny, nx = cells.shape
+    rows, cols = np.mgrid[0:ny, 0:nx]
+    ox, oy = grid.origin_cm
+    res = grid.resolution_cm
+    d = np.hypot(ox + (cols + 0.5) * res - x, oy + (rows + 0.5) * res - y)
+    cells[d <= radius_cm] = OCCUPIED
+    return GridMap(cells, res, grid.origin_cm)
+
+
+def passable_at(grid: GridMap, x: float, y: float, radius_cm: float, margin_cm: float) -> bool:
+    """Whether the rover's centre may stand at (x, y) [cm] on ``grid``."""
+    r, c = grid.world_to_cell(x, y)
+    if not grid.contains(r, c):
+        return False
+    k = math.ceil((radius_cm + margin_cm) / grid.resolution_cm) + 2
+    ny, nx = grid.shape
+    r0, r1, c0, c1 = max(0, r - k), min(ny, r + k + 1), max(0, c - k), min(nx, c + k + 1)
+    sub = grid.crop(r0, r1, c0, c1)
+    ok = traversable(sub, radius_cm, margin_cm, "blocked")
+    sr, sc = sub.world_to_cell(x, y)
+    return bool(ok[sr, sc])
+
+
+class NavBase(Actor):
+    """Navigation common to every role: messages in, Command A and frames out.
+
+    Subclasses implement the hooks (``on_start_cmd``, ``on_stop_cmd``,
+    ``after_motion`` ...); this class owns the pose, the motion in flight, the
+    telemetry and the path to the server.
+
+    Args:
+        role: ``mapper``, ``hider`` or ``seeker``.
+        pool: the rover's buffer pool (bulk data by handle).
+        spec: the rover's calibration constants (body size for clearance).
+        options: tunables.
+    """
+
+    role = ""
+
+    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
+                 options: NavOptions | None = None) -> None:
+        self.pool = pool
+        self.spec = spec
+        self.o = options or NavOptions()
+        length = spec.length_cm if spec else 20.0
+        width = spec.width_cm if spec else 15.0
+        self.length_cm, self.width_cm = length, width
+        self.radius_cm = (self.o.robot_radius_cm if self.o.robot_radius_cm is not None
+                          else turning_radius_cm(length, width))
+        self.pose: Pose = ORIGIN
+        """Dead-reckoned pose, own frame (from Motor Control)."""
+        self.pose_known = False
+        """True once Motor Control published a pose to this incarnation."""
+        self.origin: Pose | None = ORIGIN if self.role == "mapper" else None
+        """Own start pose in the map frame (from the server's ``origin``)."""
+        self.started = False
+        """The server said ``start`` (and not ``stop`` since)."""
+        self.state = "idle"
+        """What navigation is doing (also the ``status`` state sent to the server)."""
+        self.counters: dict[str, int] = {"dropped": 0, "bad_frames": 0, "blocked": 0,
+                                         "timeouts": 0, "motions": 0}
+        self._xy_mm: tuple[int, int] | None = None
+        self._motion: Motion | None = None
+        self.last_motion: Motion | None = None
+        """The last motion commanded."""
+        self._motion_deadline = math.inf
+        self._blocked = False
+        self._done = 0.0
+        self._pose_deadline = math.inf  # waiting for the pose at rest until then
+        self._next_pose_report = 0.0
+        self._outbox: deque[tuple[int, Any]] = deque()
+
+    # ------------------------------------------------------------------ names
+    def _names(self) -> None:
+        prefix = self.ctx.name.rsplit("/", 1)[0] if "/" in self.ctx.name else self.role
+        self.prefix = prefix
+        self.motor = f"{prefix}/motor"
+        self.wifly = f"{prefix}/wifly"
+
+    # ------------------------------------------------------------------ lifecycle
+    async def on_start(self) -> None:
+        self._names()
+        self.ctx.start_timer(self.o.tick_s, Message.uint(Cmd.NAV_TIMER, 0),
+                             interval=self.o.tick_s)
+        await self.post(self.motor, Message.uint(Cmd.MOTOR_STOP, 0))
+        await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+        cell = self.ctx.system.whereis(self.ctx.name)
+        self.restarted = cell is not None and cell.last_exit is not None
+        """True when this incarnation replaces one that exited (crash, hang)."""
+        await self.status("restarted" if self.restarted else "idle")
+        await self.on_restart()
+
+    async def on_restart(self) -> None:
+        """Role-specific recovery at every start (ask neighbours for what was lost)."""
+
+    # ------------------------------------------------------------------ dispatch
+    async def handle(self, message: Any) -> Any:
+        if not isinstance(message, Message):
+            return None
+        cmd = message.command
+        if cmd == Cmd.NAV_POSE_XY:
+            self._xy_mm = message.as_pair()
+        elif cmd == Cmd.NAV_POSE_HEADING:
+            await self._on_pose(float(message.value))
+        elif cmd == Cmd.NAV_MOTION_DONE or cmd == Cmd.NAV_MOTION_BLOCKED:
+            await self._on_motion_end(cmd == Cmd.NAV_MOTION_BLOCKED, float(message.value))
+        elif cmd == Cmd.NAV_TIMER:
+            await self._on_tick()
+        elif cmd == Cmd.NAV_NET:
+            frame = self._take(message)
+            if isinstance(frame, Frame):
+                await self._on_frame(frame)
+        elif cmd == Cmd.NAV_MAP_DOWNLOAD:
+            grid = self._take(message)
+            if isinstance(grid, GridMap):
+                await self.on_map_download(grid)
+        elif cmd == Cmd.NAV_MAP_UPDATE:
+            grid = self._take(message)
+            if isinstance(grid, GridMap):
+                await self.on_map_update(grid)
+        elif cmd == Cmd.NAV_SCAN_COUNT:
+            await self.on_scan_count(int(message.value))
+        elif cmd == Cmd.NAV_IR:
+            await self.on_ir(int(message.value) != 0)
+        elif cmd == Cmd.NAV_LINK:
+            await self.on_link(int(message.value) != 0)
+        return None
+
+    def _take(self, message: Message) -> Any:
+        if message.type != ValueType.HANDLE:
+            self.counters["bad_frames"] += 1
+            return None
+        try:
+            return self.pool.take(int(message.value))
+        except KeyError:
+            self.counters["bad_frames"] += 1
+            return None
+
+    # ------------------------------------------------------------------ pose
+    @property
+    def map_pose(self) -> Pose:
+        """The pose in the map frame (own frame while no origin is known)."""
+        return compose(self.origin, self.pose) if self.origin is not None else self.pose
+
+    async def _on_pose(self, heading: float) -> None:
+        if self._xy_mm is not None:
+            x, y = self._xy_mm
+            self.pose = Pose(x / 10.0, y / 10.0, heading)
+        else:
+            self.pose = Pose(self.pose.x, self.pose.y, heading)
+        self._xy_mm = None
+        self.pose_known = True
+        if self._pose_deadline < math.inf and self._motion is None:
+            self._pose_deadline = math.inf
+            await self.after_motion(self._blocked, self._done)
+
+    # ------------------------------------------------------------------ motion
+    @property
+    def moving(self) -> bool:
+        """A motion is in flight, or its pose at rest is awaited."""
+        return self._motion is not None or self._pose_deadline < math.inf
+
+    async def command(self, motion: Motion) -> None:
+        """Send one Command A and wait (by events) for its end; `after_motion` follows."""
+        code = Cmd.MOTOR_TURN if motion.kind == "turn" else Cmd.MOTOR_MOVE
+        self._motion = motion
+        self.last_motion = motion
+        self.counters["motions"] += 1
+        nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \
+            else abs(motion.amount) / 90.0
+        self._motion_deadline = trio.current_time() + self.o.motion_timeout_s + nominal
+        if not await self.post(self.motor, Message.float(code, float(motion.amount))):
+            self._motion_deadline = trio.current_time()  # the tick treats it as blocked
+
+    async def stop_motor(self) -> None:
+        """MOTOR_STOP, and forget the motion in flight (its end is ignored)."""
+        self._motion = None
+        self._motion_deadline = math.inf
+        self._pose_deadline = math.inf
+        await self.post(self.motor, Message.uint(Cmd.MOTOR_STOP, 0))
+
+    async def _on_motion_end(self, blocked: bool, done: float) -> None:
+        if self._motion is None:
+            return  # the end of a motion nobody waits for (stopped, or a dead incarnation's)
+        self._motion = None
+        self._motion_deadline = math.inf
+        self._blocked, self._done = blocked, done
+        if blocked:
+            self.counters["blocked"] += 1
+        self._pose_deadline = trio.current_time() + self.o.pose_wait_s
+        await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+
+    async def after_motion(self, blocked: bool, done: float) -> None:
+        """Hook: the motion ended (``blocked`` when the motor gave up) and the pose is fresh."""
+
+    # ------------------------------------------------------------------ timer
+    async def _on_tick(self) -> None:
+        now = trio.current_time()
+        if self._motion is not None and now >= self._motion_deadline:
+            self.counters["timeouts"] += 1
+            await self.post(self.motor, Message.uint(Cmd.MOTOR_STOP, 0))
+            self._motion = None
+            self._motion_deadline = math.inf
+            self._blocked, self._done = True, 0.0
+            self._pose_deadline = now + self.o.pose_wait_s
+            await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+        elif self._motion is None and now >= self._pose_deadline:
+            self._pose_deadline = math.inf  # no fresh pose: decide with the last one
+            await self.after_motion(self._blocked, self._done)
+        if self._outbox:
+            await self._flush_outbox()
+        if now >= self._next_pose_report and self.pose_known and (
+                self.origin is not None or self.role == "mapper"):
+            self._next_pose_report = now + self.o.pose_period_s
+            p = self.map_pose
+            await self.send_frame(make_frame("pose", {"x": round(p.x, 1), "y": round(p.y, 1),
+                                                      "heading": round(p.heading_deg, 1)}),
+                                  reliable=False)
+        await self.on_tick(now)
+
+    async def on_tick(self, now: float) -> None:
+        """Hook: navigation's periodic tick [s of trio time]."""
+
+    # ------------------------------------------------------------------ server
+    async def _on_frame(self, frame: Frame) -> None:
+        try:
+            data = read_data(frame)
+        except FrameError:
+            self.counters["bad_frames"] += 1
+            return
+        cmd = frame.cmd
+        if cmd == "start":
+            self.started = True
+            await self.on_start_cmd()
+        elif cmd == "stop":
+            self.started = False
+            await self.on_stop_cmd()
+        elif cmd == "origin":
+            self.origin = Pose(data.x, data.y, data.heading)
+        elif cmd == "destination":
+            await self.on_destination(data.x, data.y, data.heading)
+
+    async def on_start_cmd(self) -> None:
+        """Hook: the server said ``start``."""
+
+    async def on_stop_cmd(self) -> None:
+        """Hook: the server said ``stop``; the default stops the motor and goes idle."""
+        await self.stop_motor()
+        await self.set_state("idle", "stopped by the server")
+
+    async def on_destination(self, x: float, y: float, heading: float | None) -> None:
+        """Hook: a ``destination`` in the map frame [cm, deg]."""
+
+    async def on_map_download(self, grid: GridMap) -> None:
+        """Hook: the server's map arrived (map frame)."""
+
+    async def on_map_update(self, grid: GridMap) -> None:
+        """Hook: Map Management published a snapshot (mapper)."""
+
+    async def on_scan_count(self, count: int) -> None:
+        """Hook: Map Management integrated ``count`` scan batches so far (mapper)."""
+
+    async def on_ir(self, in_range: bool) -> None:
+        """Hook: the IR decision (seeker)."""
+
+    async def on_link(self, up: bool) -> None:
+        """Hook: the WiFly link went up or down."""
+
+    async def set_state(self, state: str, detail: str | None = None, **extra: Any) -> None:
+        """Change phase and report it with a ``status`` frame."""
+        self.state = state
+        await self.status(state, detail, **extra)
+
+    async def status(self, state: str, detail: str | None = None, **extra: Any) -> None:
+        """Send a ``status`` frame (unreliable telemetry)."""
+        data: dict[str, Any] = {"state": state[:32]}
+        if detail:
+            data["detail"] = detail[:200]
+        data.update(extra)
+        await self.send_frame(make_frame("status", data), reliable=False)
+
+    async def report(self, cmd: str, data: Any = None) -> None:
+        """Send a reliable frame (a game report or request) through WiFly."""
+        await self.send_frame(make_frame(cmd, data), reliable=True)
+
+    async def send_frame(self, frame: Frame, *, reliable: bool) -> bool:
+        """Hand ``frame`` to WiFly by handle; reliable ones wait in a bounded outbox on failure."""
+        code = Cmd.WIFLY_SEND if reliable else Cmd.WIFLY_SEND_UNRELIABLE
+        if self._outbox and reliable:
+            return self._queue(code, frame)
+        if await self.put_and_post(self.wifly, code, frame):
+            return True
+        return self._queue(code, frame) if reliable else False
+
+    async def send_map(self, grid: GridMap) -> bool:
+        """WIFLY_SEND_MAP: upload ``grid`` in chunks, reliably (queued on failure)."""
+        if self._outbox:
+            return self._queue(Cmd.WIFLY_SEND_MAP, grid)
+        if await self.put_and_post(self.wifly, Cmd.WIFLY_SEND_MAP, grid):
+            return True
+        return self._queue(Cmd.WIFLY_SEND_MAP, grid)
+
+    def _queue(self, code: int, obj: Any) -> bool:
+        if len(self._outbox) >= self.o.outbox:
+            self.counters["dropped"] += 1
+            return False
+        self._outbox.append((code, obj))
+        return True
+
+    async def _flush_outbox(self) -> None:
+        while self._outbox:
+            code, obj = self._outbox[0]
+            if not await self.put_and_post(self.wifly, code, obj):
+                return
+            self._outbox.popleft()
+
+    async def put_and_post(self, name: str, code: int, obj: Any) -> bool:
+        """Put ``obj`` in the pool and post its handle; False (slot freed) on failure."""
+        try:
+            handle = self.pool.put(obj)
+        except PoolExhausted:
+            self.counters["dropped"] += 1
+            return False
+        if await self.post(name, Message.handle(code, handle)):
+            return True
+        self.pool.take(handle)
+        return False
+
+    async def post(self, name: str, message: Message) -> bool:
+        """Send to a neighbour, waiting at most ``send_timeout_s`` for room; False if not sent."""
+        with trio.move_on_after(self.o.send_timeout_s):
+            if await self.ctx.cast(name, message):
+                return True
+        self.counters["dropped"] += 1
+        return False
+
+
+class RouteNav(NavBase):
+    """Navigation on a map downloaded from the server: the hider's and the seeker's base.
+
+    Flow: ``start`` -> ``map_request`` -> NAV_MAP_DOWNLOAD; ``origin`` and
+    ``destination`` frames are kept as they come (the server sends origin,
+    start and destination together, before the map has arrived); once map,
+    origin and a destination are all known, `on_goal` runs. `goto` plans with
+    A* on the map (obstacles inflated by the rover's radius) and follows the
+    route with the ADP loop. When the motor reports blocked, something the map
+    does not show is ahead (another rover): it is added to a working copy of the
+    map, the rover backs off and replans, at most ``replan_limit`` times.
+    """
+
+    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
+                 options: NavOptions | None = None) -> None:
+        super().__init__(pool=pool, spec=spec, options=options)
+        self.map: GridMap | None = None
+        """The server's map (map frame), None until downloaded."""
+        self.work_map: GridMap | None = None
+        """The map plus obstacles learned from blocked motions."""
+        self.pending: tuple[float, float, float | None] | None = None
+        """A destination waiting for the map or the origin."""
+        self.follower: PathFollower | None = None
+        self.goal: tuple[float, float] | None = None
+        self.goal_heading: float | None = None
+        self.replans = 0
+        self._replan = False  # replan after the backoff in flight
+
+    # ------------------------------------------------------------------ server
+    async def on_start_cmd(self) -> None:
+        if self.map is None:
+            await self.report("map_request")
+            await self.set_state("waiting_map", "map requested")
+        await self._proceed()
+
+    async def on_stop_cmd(self) -> None:
+        self.follower = None
+        self.pending = None
+        await super().on_stop_cmd()
+
+    async def on_map_download(self, grid: GridMap) -> None:
+        self.map = self.work_map = grid
+        if self.state == "waiting_map":
+            await self.set_state("ready", "map received")
+        await self._proceed()
+
+    async def on_destination(self, x: float, y: float, heading: float | None) -> None:
+        self.pending = (x, y, heading)
+        await self._proceed()
+
+    async def _proceed(self) -> None:
+        if (self.pending is None or self.map is None or self.origin is None
+                or self.follower is not None or self.moving):
+            return
+        x, y, heading = self.pending
+        self.pending = None
+        await self.on_goal(x, y, heading)
+
+    async def on_goal(self, x: float, y: float, heading: float | None) -> None:
+        """Hook: map, origin and destination are known; act on the destination."""
+
+    # ------------------------------------------------------------------ routes
+    async def goto(self, goal: tuple[float, float], heading: float | None) -> bool:
+        """Plan to ``goal`` (map frame [cm]) and start driving; False when there is no path."""
+        assert self.work_map is not None
+        self.goal, self.goal_heading = goal, heading
+        self.replans = 0
+        if not self._plan():
+            return False
+        await self.set_state("driving", f"to ({goal[0]:.0f}, {goal[1]:.0f})")
+        await self._step()
+        return True
+
+    def _plan(self) -> bool:
+        assert self.work_map is not None and self.goal is not None
+        p = self.map_pose
+        plan = plan_route(self.work_map, (p.x, p.y), self.goal, radius_cm=self.radius_cm,
+                          margin_cm=self.o.plan_margin_cm)
+        if plan is None:
+            self.follower = None
+            return False
+        pts = route_points(plan, (p.x, p.y))
+        if plan.goal_snapped:
+            pts.append(self.goal)  # the goal itself; the spot check vouched for it
+        self.follower = PathFollower(pts, self.goal_heading, self.o)
+        self._budget = self.follower.budget(p)
+        return True
+
+    async def _step(self) -> None:
+        if self.follower is None or self.moving:
+            return
+        if self.follower.steps >= self._budget:
+            await self._blocked_route("no progress")
+            return
+        motion = self.follower.next_motion(self.map_pose)
+        if motion is None:
+            self.follower = None
+            await self.on_arrived()
+            return
+        await self.command(motion)
+
+    async def after_motion(self, blocked: bool, done: float) -> None:
+        if self.follower is None:
+            await self.after_other_motion(blocked, done)
+            return
+        if blocked:
+            await self._blocked_route("blocked")
+            return
+        if self._replan:
+            self._replan = False
+            if not self._plan():
+                await self._give_up("no path after being blocked")
+                return
+        await self._step()
+
+    async def _blocked_route(self, why: str) -> None:
+        self.replans += 1
+        if await self.on_blocked():
+            return
+        if self.replans > self.o.replan_limit:
+            await self._give_up(f"{why} {self.replans} times")
+            return
+        assert self.work_map is not None
+        p = self.map_pose
+        ahead = self.radius_cm + 8.0
+        h = math.radians(p.heading_deg)
+        if why == "blocked":
+            self.work_map = with_obstacle(self.work_map, p.x + ahead * math.cos(h),
+                                          p.y + ahead * math.sin(h), 8.0)
+        self._replan = True
+        await self.command(Motion("move", -self.o.backoff_cm))
+
+    async def _give_up(self, reason: str) -> None:
+        self.follower = None
+        self._replan = False
+        await self.on_route_failed(reason)
+        await self._proceed()
+
+    async def on_blocked(self) -> bool:
+        """Hook: the route is blocked; return True when handled (no replan)."""
+        return False
+
+    async def on_arrived(self) -> None:
+        """Hook: at the goal (and heading)."""
+
+    async def on_route_failed(self, reason: str) -> None:
+        """Hook: the goal could not be reached."""
+
+    async def after_other_motion(self, blocked: bool, done: float) -> None:
+        """Hook: a motion outside a route (e.g. a scan turn) ended."""
+
+    def pose_data(self) -> dict[str, float]:
+        """The map-frame pose as a frame payload."""
+        p = self.map_pose
+        return {"x": round(p.x, 1), "y": round(p.y, 1), "heading": round(p.heading_deg, 1)}

@@ -1,0 +1,363 @@
+"""Mapping navigation: frontier exploration with the ADP loop, and knowing when it is done.
+
+Flow
+    idle --start--> scanning (LIDAR_START, wait for the first scans) -->
+    exploring (frontier -> A* route -> ADP steps; re-choose every few steps as
+    the map grows) --complete | stop | time budget--> uploading (MOTOR_STOP,
+    LIDAR_STOP, MAP_GET, wait for the fresh snapshot) --> mapped (WIFLY_SEND_MAP
+    with the map cropped to its known part).
+
+Choosing where to go
+    `frontier.find_frontiers` + `frontier.choose_frontier` on the latest
+    NAV_MAP_UPDATE (cost trades distance against frontier size and favours less
+    explored areas); `nav_common.plan_route` for the path. A frontier whose
+    target cannot be planned to, which blocks the rover twice, which takes more
+    ADP steps than its route deserves, or which is chosen again after being
+    reached twice, is blacklisted (by its target point [cm], which survives
+    map growth).
+
+Obstacles ahead
+    Before each straight move, `clearance.obstacle_ahead` looks ``move +
+    stop_cm`` ahead on the map: the move is shortened to stop ``stop_cm``
+    (20 cm: inside the seed's 15-30 cm) before the obstacle, and when that
+    leaves nothing to drive the rover turns away from it and chooses again.
+
+Complete when both hold (either alone can lie)
+    * no reachable frontier of useful size remains (a stalled LIDAR would also
+      give "no change"), and
+    * the map has not changed for ``stable_window_s`` while the scan count kept
+      rising (a stalled LIDAR gives no scans, so it never reads as done).
+    Or when the server says ``stop``, or after ``budget_s`` of mapping.
+
+Restart
+    The new incarnation asks Map Management for a snapshot (MAP_GET) and Motor
+    Control for the pose. Only navigation starts the LIDAR, so scans still
+    arriving (NAV_SCAN_COUNT rising within ``probe_s``) prove mapping was under
+    way: it resumes exploring from the current pose and map. The blacklist is
+    lost, which costs at most a few wasted trips.
+
+Frame: the mapper's own frame is the map frame [cm, deg].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import trio
+
+from actors import BufferPool, Message
+from actors.firmware.clearance import obstacle_ahead
+from actors.firmware.commands import Cmd
+from actors.firmware.devices import HardwareSpec
+from actors.firmware.frontier import Frontier, choose_frontier, find_frontiers
+from actors.firmware.nav_common import (
+    Motion,
+    NavBase,
+    NavOptions,
+    PathFollower,
+    plan_route,
+    route_points,
+)
+from actors.firmware.occupancy import UNKNOWN, GridMap
+
+__all__ = ["MappingOptions", "MappingNav"]
+
+
+@dataclass(frozen=True, slots=True)
+class MappingOptions:
+    """Tunables of exploration and of the completion test."""
+
+    lidar_duty: float = 0.5
+    """LIDAR rotation PWM for mapping (Command B)."""
+    first_scans: int = 3
+    """Scan batches to wait for before the first move."""
+    min_frontier_cells: int = 4
+    """Smallest useful frontier [cells]."""
+    approach_cm: float = 30.0
+    """How near a frontier the rover must get [cm]."""
+    reach_cm: float = 10.0
+    """A frontier target counts as reached this close [cm]."""
+    rechoose_steps: int = 3
+    """Re-choose the frontier after this many ADP steps (the map grew meanwhile)."""
+    stop_cm: float = 20.0
+    """Stop this far before an obstacle ahead (centre to cell centre) [cm]."""
+    stable_window_s: float = 10.0
+    """The map must not have changed for this long [s]..."""
+    stable_scans: int = 5
+    """...while at least this many scan batches arrived."""
+    change_cells: int = 3
+    """A snapshot differing from the previous in more cells than this is a change."""
+    budget_s: float = 900.0
+    """Mapping time budget: upload what is known after this [s]."""
+    probe_s: float = 3.0
+    """After a restart, rising scan counts within this mean mapping was under way [s]."""
+    upload_wait_s: float = 1.0
+    """Wait at most this for a fresh snapshot before uploading the last one [s]."""
+    max_choices: int = 8
+    """Frontiers tried per decision before waiting for the map to change."""
+    blacklist: int = 256
+    """Most blacklisted points kept."""
+
+
+@dataclass
+class _Exploration:
+    """Exploration state of one incarnation."""
+
+    follower: PathFollower | None = None
+    target: tuple[float, float] | None = None
+    steps: int = 0  # ADP steps toward the current target
+    budget: int = 0  # most steps it deserves
+    blocks: int = 0  # blocked motions toward the current target
+    blacklist: list[tuple[float, float]] = field(default_factory=list)
+    reached: list[tuple[float, float]] = field(default_factory=list)  # targets arrived at
+    no_frontier: bool = False  # the last decision found nothing useful to explore
+
+
+class MappingNav(NavBase):
+    """The mapper's navigation actor (registered as ``mapper/nav``)."""
+
+    role = "mapper"
+
+    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
+                 options: NavOptions | None = None,
+                 mapping: MappingOptions | None = None) -> None:
+        super().__init__(pool=pool, spec=spec, options=options)
+        self.m = mapping or MappingOptions()
+        self.grid: GridMap | None = None
+        """The latest snapshot from Map Management (kept: what navigation knows)."""
+        self.scans = 0
+        """Scan batches Map Management reported."""
+        self.ex = _Exploration()
+        self._changed_at = 0.0  # trio time of the last map change
+        self._scans_at_change = 0
+        self._scans_at_start = 0
+        self._started_at = 0.0
+        self._probe_until = -math.inf
+        self._probe_scans: int | None = None
+        self._upload_deadline = math.inf
+        self._wait_map = False  # decide at the next map update
+        self._last_wait_decide = -math.inf
+        self._finish_reason = ""
+
+    # ------------------------------------------------------------------ lifecycle
+    async def on_restart(self) -> None:
+        self.map_name = f"{self.prefix}/map"
+        self.lidar = f"{self.prefix}/lidar"
+        await self.post(self.map_name, Message.uint(Cmd.MAP_GET, 0))
+        self._probe_until = trio.current_time() + self.m.probe_s
+
+    async def on_start_cmd(self) -> None:
+        if self.state in ("scanning", "exploring", "uploading"):
+            return  # a repeated start (resent after a reconnect) changes nothing
+        await self._begin(trio.current_time(), resumed=False)
+
+    async def _begin(self, now: float, *, resumed: bool) -> None:
+        self.started = True
+        self._probe_until = -math.inf
+        self._started_at = now
+        self._scans_at_start = self.scans
+        self._changed_at, self._scans_at_change = now, self.scans
+        self.ex = _Exploration()
+        await self.post(self.lidar, Message.float(Cmd.LIDAR_START, self.m.lidar_duty))
+        if resumed:
+            await self.set_state("exploring", "resumed after a restart")
+            self._wait_map = True
+        else:
+            await self.set_state("scanning", "waiting for the first scans")
+
+    async def on_stop_cmd(self) -> None:
+        if self.state in ("scanning", "exploring"):
+            await self._finish("stopped by the server")
+
+    # ------------------------------------------------------------------ map events
+    async def on_map_update(self, grid: GridMap) -> None:
+        prev = self.grid
+        self.grid = grid
+        now = trio.current_time()
+        if prev is None or prev.shape != grid.shape or \
+                int(np.count_nonzero(prev.cells != grid.cells)) > self.m.change_cells:
+            self._changed_at, self._scans_at_change = now, self.scans
+        if self.state == "uploading":
+            await self._upload()
+        elif self.state == "scanning":
+            await self._maybe_explore()
+        elif self.state == "exploring" and self._wait_map and not self.moving:
+            self._wait_map = False
+            await self.decide()
+
+    async def on_scan_count(self, count: int) -> None:
+        if self._probe_scans is None:
+            self._probe_scans = count
+        elif count > self._probe_scans and trio.current_time() <= self._probe_until \
+                and not self.started:
+            # only navigation starts the LIDAR: scans arriving mean mapping was under way
+            self.scans = count
+            await self._begin(trio.current_time(), resumed=True)
+            return
+        self.scans = count
+        if self.state == "scanning":
+            await self._maybe_explore()
+
+    async def _maybe_explore(self) -> None:
+        if self.grid is not None and self.scans - self._scans_at_start >= self.m.first_scans:
+            await self.set_state("exploring", "frontier exploration")
+            await self.decide()
+
+    # ------------------------------------------------------------------ ticks
+    async def on_tick(self, now: float) -> None:
+        if self.state == "uploading" and now >= self._upload_deadline:
+            await self._upload()
+            return
+        if self.state not in ("exploring", "scanning"):
+            return
+        if now - self._started_at >= self.m.budget_s:
+            await self._finish(f"time budget of {self.m.budget_s:.0f} s used")
+            return
+        if self.state == "exploring" and not self.moving:
+            if self.complete(now):
+                await self._finish("no reachable frontier left and the map is stable")
+            elif self.ex.no_frontier or self._wait_map:
+                # waiting for the map to change; look again about once a second
+                if now - self._last_wait_decide >= 1.0:
+                    self._last_wait_decide = now
+                    self._wait_map = False
+                    await self.decide()
+
+    def complete(self, now: float) -> bool:
+        """Both completion conditions: no useful frontier, and a stable map while scanning."""
+        return (self.ex.no_frontier
+                and now - self._changed_at >= self.m.stable_window_s
+                and self.scans - self._scans_at_change >= self.m.stable_scans)
+
+    # ------------------------------------------------------------------ exploring
+    async def after_motion(self, blocked: bool, done: float) -> None:
+        if self.state != "exploring":
+            return
+        if blocked:
+            self.ex.blocks += 1
+            if self.ex.blocks >= 2 and self.ex.target is not None:
+                self._blacklist(self.ex.target)
+            self.ex.follower = None
+            last = self.last_motion
+            if last is not None and last.kind == "move" and last.amount < 0:
+                await self.command(Motion("turn", 90.0))  # cannot back off either: turn
+            else:
+                await self.command(Motion("move", -self.o.backoff_cm))
+            return
+        await self.decide()
+
+    async def decide(self) -> None:
+        """One ADP decision: keep or choose a frontier, then command one motion."""
+        if self.state != "exploring" or self.moving or self.grid is None:
+            return
+        ex = self.ex
+        pose = self.pose
+        if ex.follower is not None and ex.steps >= ex.budget:
+            self._blacklist(ex.target)  # no progress worth the route
+            ex.follower = None
+        if ex.follower is None or ex.steps % self.m.rechoose_steps == 0:
+            if not self._choose(keep=ex.follower is not None):
+                return
+        assert ex.follower is not None
+        motion = ex.follower.next_motion(pose)
+        if motion is None or (ex.target is not None
+                              and math.dist((pose.x, pose.y), ex.target) <= self.m.reach_cm):
+            if ex.target is not None:
+                ex.reached.append(ex.target)
+            ex.follower = None
+            self._wait_map = True  # look again once the map shows what is seen from here
+            return
+        if motion.kind == "move":
+            motion = self._mind_the_obstacle(motion)
+            if motion.kind == "turn":
+                ex.follower = None
+        ex.steps += 1
+        await self.command(motion)
+
+    def _mind_the_obstacle(self, motion: Motion) -> Motion:
+        """Shorten a move to stop ``stop_cm`` before an obstacle, or turn away from it."""
+        assert self.grid is not None
+        look = motion.amount + self.m.stop_cm
+        ob = obstacle_ahead(self.grid, self.pose, look, half_angle_deg=20.0,
+                            half_width_cm=0.5 * self.width_cm + 2.5)
+        if ob is None:
+            return motion
+        room = ob.forward_cm - self.m.stop_cm
+        if room >= 2.0:
+            return Motion("move", min(motion.amount, room))
+        # turn away: to the side opposite the obstacle's bearing
+        return Motion("turn", -90.0 if ob.bearing_deg >= 0 else 90.0)
+
+    def _choose(self, *, keep: bool) -> bool:
+        """Choose a frontier and a route to it; False (and ``no_frontier``) when none."""
+        assert self.grid is not None
+        ex = self.ex
+        pose = self.pose
+        frontiers = find_frontiers(self.grid, (pose.x, pose.y), robot_radius_cm=self.radius_cm,
+                                   margin_cm=self.o.plan_margin_cm, approach_cm=self.m.approach_cm)
+        for _ in range(self.m.max_choices):
+            f = choose_frontier(frontiers, min_size_cells=self.m.min_frontier_cells,
+                                blacklist=ex.blacklist, blacklist_radius_cm=self.m.approach_cm)
+            if f is None:
+                ex.no_frontier = True
+                ex.follower = None
+                return False
+            ex.no_frontier = False
+            assert f.target_cm is not None
+            if keep and ex.target is not None and math.dist(f.target_cm, ex.target) <= 40.0:
+                return True  # still the same frontier: keep the route
+            if sum(math.dist(f.target_cm, r) <= self.m.reach_cm * 2 for r in ex.reached) >= 2:
+                self._blacklist(f.target_cm)  # reached twice and still a frontier: give up
+                continue
+            if self._route_to(f):
+                return True
+            self._blacklist(f.target_cm)
+        ex.follower = None
+        self._wait_map = True
+        return False
+
+    def _route_to(self, f: Frontier) -> bool:
+        assert self.grid is not None and f.target_cm is not None
+        pose = self.pose
+        plan = plan_route(self.grid, (pose.x, pose.y), f.target_cm, radius_cm=self.radius_cm,
+                          margin_cm=self.o.plan_margin_cm)
+        if plan is None:
+            return False
+        ex = self.ex
+        ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
+        ex.target = f.target_cm
+        ex.steps = 0
+        ex.blocks = 0
+        ex.budget = ex.follower.budget(pose)
+        return True
+
+    def _blacklist(self, point: tuple[float, float] | None) -> None:
+        if point is None:
+            return
+        bl = self.ex.blacklist
+        bl.append(point)
+        if len(bl) > self.m.blacklist:
+            del bl[0]
+
+    # ------------------------------------------------------------------ finishing
+    async def _finish(self, reason: str) -> None:
+        await self.stop_motor()
+        await self.post(self.lidar, Message.uint(Cmd.LIDAR_STOP, 0))
+        await self.post(self.map_name, Message.uint(Cmd.MAP_GET, 0))
+        self._finish_reason = reason
+        self._upload_deadline = trio.current_time() + self.m.upload_wait_s
+        await self.set_state("uploading", reason)
+
+    async def _upload(self) -> None:
+        self._upload_deadline = math.inf
+        self.started = False
+        reason = self._finish_reason
+        if self.grid is None or self.grid.known_bounds() is None:
+            await self.set_state("idle", f"{reason}; nothing mapped to upload")
+            return
+        grid = self.grid.crop_known(margin_cells=1)
+        await self.send_map(grid)
+        known = int(np.count_nonzero(grid.cells != UNKNOWN))
+        await self.set_state("mapped", f"{reason}; {known} cells known")

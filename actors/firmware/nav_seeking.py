@@ -1,0 +1,172 @@
+"""Seeking navigation: drive near the place to look, face it, confirm with the IR sensor.
+
+Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
+
+    ready --destination (x, y)--> driving to a standoff point, facing (x, y)
+        --arrived, or blocked within ``near_cm`` of (x, y)--> confirming
+    confirming: at each heading of the scan (facing, +20, +40, -20, -40 [deg]),
+        wait ``settle_s`` and up to ``ir_wait_s`` for NAV_IR in range
+        --in range--> found: ``found {pose}``
+        --scan over--> ``not_found {reason}``, ready for the next guess
+
+Standoff: the hider stands at (x, y), so the seeker cannot drive there; it
+stops ``standoff_cm`` away (centre to centre), on a passable point of the map
+(tried on rings of several radii, nearest to the seeker first), and turns to
+face (x, y): the IR sensor sees about 60 cm from the nose within +-20 deg.
+
+Frame: destination and reports in the map frame [cm, deg].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import trio
+
+from actors import BufferPool
+from actors.firmware.devices import HardwareSpec
+from actors.firmware.nav_common import Motion, NavOptions, RouteNav, passable_at
+from actors.firmware.odometry import angle_diff_deg
+
+__all__ = ["SeekingOptions", "SeekingNav"]
+
+
+@dataclass(frozen=True, slots=True)
+class SeekingOptions:
+    """Tunables of the approach and of the IR confirmation."""
+
+    standoffs_cm: tuple[float, ...] = (35.0, 45.0, 30.0, 55.0)
+    """Standoff radii to try, in order of preference [cm]."""
+    ring_step_deg: float = 15.0
+    """Angular spacing of candidate points on a ring [deg]."""
+    max_plans: int = 8
+    """Candidate points planned to, at most, per destination."""
+    near_cm: float = 70.0
+    """Blocked this close to the place: confirm from here [cm]."""
+    settle_s: float = 0.4
+    """Wait after each turn before trusting the IR decision [s]."""
+    ir_wait_s: float = 1.5
+    """Longest wait for "in range" at one heading [s]."""
+    scan_deg: tuple[float, ...] = (0.0, 20.0, 40.0, -20.0, -40.0)
+    """Headings to check, relative to facing the place [deg]."""
+
+
+class SeekingNav(RouteNav):
+    """The seeker's navigation actor (registered as ``seeker/nav``)."""
+
+    role = "seeker"
+
+    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
+                 options: NavOptions | None = None,
+                 seeking: SeekingOptions | None = None) -> None:
+        super().__init__(pool=pool, spec=spec, options=options)
+        self.s = seeking or SeekingOptions()
+        self.place: tuple[float, float] | None = None
+        """Where to look (map frame [cm])."""
+        self.ir = False
+        """The IR actor's latest decision."""
+        self._ir_at = -math.inf
+        self._scan_index = 0
+        self._check_from = math.inf
+        self._check_until = math.inf
+
+    # ------------------------------------------------------------------ approach
+    async def on_goal(self, x: float, y: float, heading: float | None) -> None:
+        self.place = (x, y)
+        if math.dist((self.map_pose.x, self.map_pose.y), self.place) <= self.s.near_cm:
+            await self._confirm()
+            return
+        for point in self._standoff_points():
+            face = math.degrees(math.atan2(y - point[1], x - point[0]))
+            if await self.goto(point, face):
+                return
+        await self._not_found(f"no reachable point near ({x:.0f}, {y:.0f})")
+
+    def _standoff_points(self) -> list[tuple[float, float]]:
+        """Passable points around the place, nearest the seeker first, per radius."""
+        assert self.work_map is not None and self.place is not None
+        px, py = self.place
+        me = (self.map_pose.x, self.map_pose.y)
+        out: list[tuple[float, float]] = []
+        n = max(4, round(360.0 / self.s.ring_step_deg))
+        for r in self.s.standoffs_cm:
+            ring = [(px + r * math.cos(2 * math.pi * k / n), py + r * math.sin(2 * math.pi * k / n))
+                    for k in range(n)]
+            ring = [p for p in ring if passable_at(self.work_map, p[0], p[1], self.radius_cm,
+                                                   self.o.plan_margin_cm)]
+            ring.sort(key=lambda p: math.dist(p, me))
+            out += ring[:3]
+        return out[:self.s.max_plans]
+
+    async def on_blocked(self) -> bool:
+        if self.place is not None and math.dist((self.map_pose.x, self.map_pose.y),
+                                                self.place) <= self.s.near_cm:
+            self.follower = None  # likely the hider itself: look from here
+            await self._confirm()
+            return True
+        return False
+
+    async def on_arrived(self) -> None:
+        await self._confirm()
+
+    async def on_route_failed(self, reason: str) -> None:
+        await self._not_found(f"cannot get near the place: {reason}")
+
+    # ------------------------------------------------------------------ IR confirmation
+    async def _confirm(self) -> None:
+        await self.set_state("confirming", "looking with the IR sensor")
+        self._scan_index = 0
+        await self._face(0.0)
+
+    async def _face(self, offset: float) -> None:
+        assert self.place is not None
+        p = self.map_pose
+        bearing = math.degrees(math.atan2(self.place[1] - p.y, self.place[0] - p.x))
+        turn = angle_diff_deg(bearing + offset, p.heading_deg)
+        if abs(turn) <= self.o.heading_tol_deg:
+            self._start_check()
+        else:
+            await self.command(Motion("turn", turn))
+
+    async def after_other_motion(self, blocked: bool, done: float) -> None:
+        if self.state == "confirming":
+            self._start_check()
+
+    def _start_check(self) -> None:
+        now = trio.current_time()
+        self._check_from = now + self.s.settle_s
+        self._check_until = now + self.s.settle_s + self.s.ir_wait_s
+
+    async def on_ir(self, in_range: bool) -> None:
+        self.ir = in_range
+        self._ir_at = trio.current_time()
+        await self._check()
+
+    async def on_tick(self, now: float) -> None:
+        if self.state != "confirming" or self.moving:
+            return
+        if await self._check():
+            return
+        if now >= self._check_until:
+            self._check_until = math.inf
+            self._scan_index += 1
+            if self._scan_index >= len(self.s.scan_deg):
+                await self._not_found("the IR sensor saw nothing there")
+            else:
+                await self._face(self.s.scan_deg[self._scan_index])
+
+    async def _check(self) -> bool:
+        now = trio.current_time()
+        if (self.state == "confirming" and not self.moving and self.ir
+                and self._ir_at >= self._check_from and now >= self._check_from):
+            self._check_until = math.inf
+            await self.report("found", self.pose_data())
+            await self.set_state("found", "the hider is in IR range")
+            return True
+        return False
+
+    async def _not_found(self, reason: str) -> None:
+        self._check_until = math.inf
+        await self.report("not_found", {"reason": reason})
+        await self.set_state("ready", reason)
