@@ -134,6 +134,7 @@ class MotorControl(Actor):
         self._started_t = 0.0
         self._deadline = math.inf           # give up (blocked) after this [s]
         self._pose_dirty = True
+        self._lidar_dirty = False
         self._outcome: Message | None = None  # a DONE/BLOCKED report navigation refused
         self._pending = [0.0, 0.0]  # tread travel not yet integrated into the pose [cm]
         self.commands = 0
@@ -198,12 +199,14 @@ class MotorControl(Actor):
         if left or right:
             self._pending = [0.0, 0.0]
             self.memory.pose = advance(self.memory.pose, left, right, self._track)
-            self._pose_dirty = True
+            self._pose_dirty = self._lidar_dirty = True
 
     async def handle_burst(self, messages: list[Message]) -> None:
         for message in messages:
             await self.handle(message)
         self._integrate()
+        if self._lidar_dirty:
+            self._publish_lidar()
 
     def _publish(self) -> None:
         self._integrate()
@@ -213,12 +216,21 @@ class MotorControl(Actor):
         y_mm = max(-_INT16, min(_INT16, round(p.y * 10)))
         send(self._nav, Message.pair(Cmd.NAV_POSE_XY, x_mm, y_mm))
         send(self._nav, Message.float(Cmd.NAV_POSE_HEADING, p.heading_deg))
-        if self._lidar_name is not None:
-            xc = max(-_INT16, min(_INT16, round(p.x)))
-            yc = max(-_INT16, min(_INT16, round(p.y)))
-            send(self._lidar_name, Message.pair(Cmd.LIDAR_POSE_XY, xc, yc))
-            send(self._lidar_name, Message.float(Cmd.LIDAR_POSE_HEADING, p.heading_deg))
         self._pose_dirty = False
+        self._publish_lidar()
+
+    def _publish_lidar(self) -> None:
+        # The LIDAR gets every new pose at once (not once per control period): it
+        # stamps the samples of the same world tick with it (see lidar.py).
+        if self._lidar_name is None:
+            return
+        p = self.memory.pose
+        xc = max(-_INT16, min(_INT16, round(p.x)))
+        yc = max(-_INT16, min(_INT16, round(p.y)))
+        self.ctx.send_nowait(self._lidar_name, Message.pair(Cmd.LIDAR_POSE_XY, xc, yc))
+        self.ctx.send_nowait(self._lidar_name,
+                             Message.float(Cmd.LIDAR_POSE_HEADING, p.heading_deg))
+        self._lidar_dirty = False
 
     # ------------------------------------------------------------------ Command A
     def _begin(self, kind: int, amount: float) -> None:

@@ -1,0 +1,153 @@
+"""LIDAR Control (mapper): Command B, and Data Packet A samples batched into scans.
+
+The seed's LIDAR Control thread. ``LIDAR_START`` / ``LIDAR_RATE`` set the
+rotation PWM, ``LIDAR_STOP`` stops it (Command B). The LIDAR UART ISR (Int A)
+posts one ``LIDAR_SAMPLE`` per Data Packet A (angle [0.1 deg] from the rover's
+heading, distance [cm], 0 = no return). Motor Control posts the dead-reckoned
+pose (``LIDAR_POSE_XY`` [cm], ``LIDAR_POSE_HEADING`` [deg]) after every batch
+of encoder ticks.
+
+Pose association
+    The world delivers a tick's encoder ticks and LIDAR packets together and
+    the packets were measured at the pose reached at the end of that tick;
+    Motor Control publishes that pose after it counted the ticks. So samples
+    wait here until the next pose arrives and are stamped with it; if no pose
+    comes before the next samples (the rover stands still, so the pose did
+    not change) they are stamped with the current pose. Either way a batch is
+    sent as one ``MAP_SCAN``: a handle in the rover's `BufferPool` to a `Scan`.
+    A full Map Management queue or a dry pool drops the batch (counted in
+    `dropped_scans`): scans are a stream and the next revolution covers it.
+
+Restart: the state is the PWM duty and the latest pose. The duty is kept by
+the hardware; the pose is asked again from Motor Control (``MOTOR_GET_POSE``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from actors import Actor, BufferPool, ExitReason, Message, PoolExhausted
+
+from .commands import Cmd
+from .devices import Interrupt, RoverHardware
+from .isr import LidarUartIsr
+from .odometry import Pose
+
+__all__ = ["Scan", "LidarControl"]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Scan:
+    """One batch of LIDAR returns taken at ``pose`` (what ``MAP_SCAN`` points to)."""
+
+    pose: Pose
+    """Rover pose in its own frame when the batch was taken."""
+    angles_deg: np.ndarray
+    """Ray angles from the rover heading, counter-clockwise [deg], float32 (n,)."""
+    ranges_cm: np.ndarray
+    """Ranges [cm], float32 (n,); 0 means no return."""
+
+
+class LidarControl(Actor):
+    """The ``mapper/lidar`` actor (see the module docstring).
+
+    Args:
+        hardware: the rover's devices (LIDAR PWM, Int A).
+        pool: the rover's buffer pool for scans.
+        isr: the LIDAR UART ISR (its counters survive restarts); made here when None.
+        max_pending: samples held at most before a batch is sent regardless.
+    """
+
+    def __init__(self, hardware: RoverHardware, pool: BufferPool, *,
+                 isr: LidarUartIsr | None = None, max_pending: int = 4096) -> None:
+        self.hw = hardware
+        self.pool = pool
+        self._isr = isr
+        self.max_pending = max_pending
+        self._xy = (0.0, 0.0)
+        self._heading = 0.0
+        self._angles: list[int] = []  # [0.1 deg]
+        self._ranges: list[int] = []  # [cm]
+        self.duty = 0.0
+        """The rotation PWM last commanded by this incarnation."""
+        self.scans = 0
+        """Batches sent to Map Management."""
+        self.dropped_scans = 0
+        """Batches dropped: Map Management's queue full or the pool dry."""
+
+    async def on_start(self) -> None:
+        prefix = self.ctx.name.rpartition("/")[0]
+        self._map = f"{prefix}/map" if prefix else "map"
+        motor = f"{prefix}/motor" if prefix else "motor"
+        if self._isr is None:
+            self._isr = LidarUartIsr(self._post)
+        self.hw.attach(Interrupt.INT_A, self._isr)
+        if self.ctx.system.whereis(motor) is not None:
+            self.ctx.send_nowait(motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+
+    def _post(self, message: Message) -> bool:
+        return self.ctx.system.send_nowait(self.ctx.name, message)
+
+    async def on_stop(self, reason: ExitReason) -> None:
+        self._flush()
+
+    async def handle(self, message: Message) -> None:
+        await self.handle_burst([message])
+
+    async def handle_burst(self, messages: list[Message]) -> None:
+        angles, ranges = self._angles, self._ranges
+        had_pending = bool(angles)
+        for m in messages:
+            cmd = m.command
+            if cmd == Cmd.LIDAR_SAMPLE:
+                if had_pending:  # no pose came since the last samples: the rover stood still
+                    self._flush()
+                    angles, ranges = self._angles, self._ranges
+                    had_pending = False
+                a, d = m.as_pair()
+                angles.append(a)
+                ranges.append(d)
+                if len(angles) >= self.max_pending:
+                    self._flush()
+                    angles, ranges = self._angles, self._ranges
+            elif cmd == Cmd.LIDAR_POSE_XY:
+                x, y = m.as_pair()
+                self._xy = (float(x), float(y))
+            elif cmd == Cmd.LIDAR_POSE_HEADING:
+                self._heading = float(m.value)
+                self._flush()  # pending samples were taken at this pose
+                angles, ranges = self._angles, self._ranges
+                had_pending = False
+            elif cmd in (Cmd.LIDAR_START, Cmd.LIDAR_RATE):
+                duty = float(m.value)
+                if not 0.0 < duty <= 1.0:
+                    raise ValueError(f"LIDAR duty must be in (0, 1], got {duty!r}")
+                self.duty = duty
+                self.hw.set_lidar_pwm(duty)
+            elif cmd == Cmd.LIDAR_STOP:
+                self.duty = 0.0
+                self.hw.set_lidar_pwm(0.0)
+                self._flush()
+                angles, ranges = self._angles, self._ranges
+            else:
+                raise ValueError(f"lidar got an unknown command 0x{cmd:04x}")
+
+    def _flush(self) -> None:
+        if not self._angles:
+            return
+        angles = np.asarray(self._angles, dtype=np.float32) * np.float32(0.1)
+        ranges = np.asarray(self._ranges, dtype=np.float32)
+        self._angles, self._ranges = [], []
+        scan = Scan(Pose(self._xy[0], self._xy[1], self._heading), angles, ranges)
+        try:
+            handle = self.pool.put(scan)
+        except PoolExhausted:
+            self.dropped_scans += 1
+            return
+        if self.ctx.send_nowait(self._map, Message.handle(Cmd.MAP_SCAN, handle)):
+            self.scans += 1
+        else:
+            self.pool.take(handle)
+            self.dropped_scans += 1

@@ -1,0 +1,305 @@
+"""WiFly (all rovers): the rover's end of the JSON message layer to the server.
+
+The seed's WiFly thread. Bytes from the WiFly UART ISR (Int B) arrive as
+``WIFLY_RX`` (handle of the bytes); frames to send arrive from navigation as
+``WIFLY_SEND`` (reliable), ``WIFLY_SEND_UNRELIABLE`` (telemetry) and
+``WIFLY_SEND_MAP`` (a `GridMap` to upload in chunks, reliably), each a handle
+in the rover's `BufferPool`. A self-timer (``WIFLY_TIMER``, every ``tick_s``)
+drives heartbeats, resends and reconnects.
+
+Protocol (server.protocol, docs/protocol.md)
+    * **connect**: ``hello`` (id, role, token, ``seq_base``) is sent until the
+      server answers ``welcome``; unanswered hellos back off from ``hello_s``
+      doubling up to ``hello_max_s``. ``NAV_LINK`` 1 goes to navigation on
+      welcome, 0 when the link goes down.
+    * **reliable delivery**: a `ReliableSession` numbers reliable frames,
+      resends them until acknowledged, drops duplicates and keeps order.
+    * **drop and reconnect**: when the server has not been heard for
+      ``down_after_s`` (or resends stalled) the link is down: hello again
+      with backoff. Hello carries our oldest unacknowledged ``seq``, so the
+      server restarts in-order reception there and the frames that were in
+      flight are resent: nothing reliable is lost to a link fault.
+    * **incoming**: frames checked against the catalogue (a bad one is
+      answered with ``error``); ``map`` chunks are assembled here and the
+      whole map goes to navigation as one ``NAV_MAP_DOWNLOAD`` (handle of a
+      `GridMap` in the map frame); every other frame for the rover goes to
+      navigation as ``NAV_NET`` (handle of the `Frame`).
+
+Bounds: the session's window and outbox, a backlog of reliable frames waiting
+for outbox room (``max_backlog``; beyond it frames are dropped and counted),
+and a queue of deliveries waiting for room in navigation's mailbox
+(``max_to_nav``). Navigation's queue being full never blocks this actor.
+
+Restarts: the session (sequence numbers, frames in flight, the backlog) lives
+in a `LinkMemory` made by the rover tree, the model of the UART driver's
+buffers in retained RAM: a restarted WiFly says hello again with its
+``seq_base`` and resends what was not acknowledged. A rover reset (a new
+tree) starts a fresh session, which the server accepts by the same hello.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Any
+
+import numpy as np
+import trio
+
+from actors import Actor, BufferPool, Message, PoolExhausted
+from server.protocol import (
+    ERROR,
+    HELLO,
+    MAP,
+    WELCOME,
+    Fault,
+    Frame,
+    FrameError,
+    MapAssembler,
+    MapError,
+    MapGrid,
+    OutboxFull,
+    ReliableSession,
+    make_frame,
+    map_chunks,
+    read_data,
+)
+
+from .commands import Cmd
+from .devices import Interrupt, RoverHardware
+from .isr import WiflyUartIsr
+from .occupancy import GridMap
+
+__all__ = ["LinkMemory", "Wifly"]
+
+
+class LinkMemory:
+    """Retained memory of the WiFly driver: the reliable session and its backlog.
+
+    Made once per rover by the tree builder; only the WiFly actor touches it.
+
+    Args:
+        session: the session (a new one with default timing when None).
+    """
+
+    __slots__ = ("session", "backlog", "to_nav", "map_id", "dropped")
+
+    def __init__(self, session: ReliableSession | None = None) -> None:
+        self.session = session or ReliableSession(now=trio.current_time())
+        """The reliable session with the server."""
+        self.backlog: deque[Frame] = deque()
+        """Reliable frames waiting for room in the session's outbox, in order."""
+        self.to_nav: deque[tuple[int, Any]] = deque()
+        """Items received for navigation, waiting for room in its mailbox."""
+        self.map_id = 0
+        """The last map id uploaded."""
+        self.dropped = 0
+        """Frames dropped because a bounded queue was full."""
+
+
+class Wifly(Actor):
+    """The ``<rover>/wifly`` actor (see the module docstring).
+
+    Args:
+        hardware: the rover's devices (WiFly UART, Int B).
+        pool: the rover's buffer pool.
+        memory: retained link memory (survives restarts); a new one when None.
+        rover_id: the id said in hello (``[A-Za-z0-9_.-]``, at most 32).
+        role: ``mapper``, ``hider`` or ``seeker``.
+        token: the shared secret, when the server asks for one.
+        isr: the WiFly UART ISR (its counters survive restarts); made here when None.
+        tick_s: timer period [s].
+        hello_s: first hello retry interval [s].
+        hello_max_s: the longest hello retry interval (backoff cap) [s].
+        max_backlog: reliable frames waiting for the outbox at most.
+        max_to_nav: deliveries waiting for navigation's mailbox at most.
+    """
+
+    def __init__(self, hardware: RoverHardware, pool: BufferPool, *, rover_id: str, role: str,
+                 memory: LinkMemory | None = None, token: str | None = None,
+                 isr: WiflyUartIsr | None = None, tick_s: float = 0.1, hello_s: float = 1.0,
+                 hello_max_s: float = 8.0, max_backlog: int = 4096,
+                 max_to_nav: int = 256) -> None:
+        # check the hello once here: a bad id is a configuration error, not a crash loop
+        make_frame(HELLO, {"id": rover_id, "role": role, "token": token})
+        self.hw = hardware
+        self.pool = pool
+        self.memory = memory
+        self.rover_id, self.role, self.token = rover_id, role, token
+        self._isr = isr
+        self.tick_s = tick_s
+        self.hello_s, self.hello_max_s = hello_s, hello_max_s
+        self.max_backlog, self.max_to_nav = max_backlog, max_to_nav
+        self.welcomed = False
+        """True between the server's welcome and the link going down."""
+        self.hellos = 0
+        """Hello frames sent by this incarnation."""
+        self.maps_in = 0
+        """Whole maps downloaded."""
+        self._assembler = MapAssembler()
+        self._next_hello = -math.inf
+        self._hello_wait = hello_s
+
+    # ------------------------------------------------------------------ lifetime
+    async def on_start(self) -> None:
+        prefix = self.ctx.name.rpartition("/")[0]
+        self._nav = f"{prefix}/nav" if prefix else "nav"
+        if self.memory is None:
+            self.memory = LinkMemory()
+        self._to_nav = self.memory.to_nav
+        if self._isr is None:
+            self._isr = WiflyUartIsr(self._post, self.pool)
+        self.hw.attach(Interrupt.INT_B, self._isr)
+        self.ctx.start_timer(0.0, Message.uint(Cmd.WIFLY_TIMER, 0), interval=self.tick_s)
+
+    def _post(self, message: Message) -> bool:
+        return self.ctx.system.send_nowait(self.ctx.name, message)
+
+    @property
+    def session(self) -> ReliableSession:
+        """The reliable session with the server."""
+        assert self.memory is not None
+        return self.memory.session
+
+    def statistics(self) -> dict[str, Any]:
+        """Link counters: the session's plus this actor's."""
+        mem = self.memory
+        assert mem is not None
+        stats = self.session.stats(trio.current_time())
+        return {"up": stats.up, "welcomed": self.welcomed, "resent": stats.resent,
+                "duplicates": stats.duplicates, "lost": stats.lost,
+                "dropped": stats.dropped + mem.dropped, "frames_in": stats.frames_in,
+                "frames_out": stats.frames_out, "hellos": self.hellos, "stalls": stats.stalls,
+                "backlog": len(mem.backlog), "unacked": stats.unacked}
+
+    # ------------------------------------------------------------------ messages
+    async def handle(self, message: Message) -> None:
+        await self.handle_burst([message])
+
+    async def handle_burst(self, messages: list[Message]) -> None:
+        now = trio.current_time()
+        for m in messages:
+            cmd = m.command
+            if cmd == Cmd.WIFLY_RX:
+                self._receive(self.pool.take(int(m.value)), now)
+            elif cmd == Cmd.WIFLY_SEND:
+                self._queue_reliable([self.pool.take(int(m.value))])
+            elif cmd == Cmd.WIFLY_SEND_UNRELIABLE:
+                self.session.send(self.pool.take(int(m.value)), reliable=False)
+            elif cmd == Cmd.WIFLY_SEND_MAP:
+                self._upload(self.pool.take(int(m.value)))
+            elif cmd == Cmd.WIFLY_TIMER:
+                pass  # the work below runs after every burst
+            else:
+                raise ValueError(f"wifly got an unknown command 0x{cmd:04x}")
+        self._service(now)
+
+    # ------------------------------------------------------------------ sending
+    def _queue_reliable(self, frames: list[Frame]) -> None:
+        mem = self.memory
+        assert mem is not None
+        for f in frames:
+            if not isinstance(f, Frame):
+                raise TypeError(f"wifly can send only a Frame, got {type(f).__name__}")
+            if len(mem.backlog) >= self.max_backlog:
+                mem.dropped += 1
+                continue
+            mem.backlog.append(f)
+
+    def _upload(self, grid: GridMap) -> None:
+        mem = self.memory
+        assert mem is not None
+        mem.map_id = (mem.map_id + 1) % (2**31)
+        wire = MapGrid(np.asarray(grid.cells), float(grid.resolution_cm),
+                       (float(grid.origin_cm[0]), float(grid.origin_cm[1])))
+        self._queue_reliable(map_chunks(wire, mem.map_id))
+
+    def _service(self, now: float) -> None:
+        """Liveness, hello, deliveries to navigation, and transmitting what is due."""
+        session = self.session
+        mem = self.memory
+        assert mem is not None
+        if self.welcomed and not session.is_up(now):
+            self._link(False)
+            self._next_hello = now
+        if not self.welcomed and now >= self._next_hello:
+            session.send(make_frame(HELLO, {"id": self.rover_id, "role": self.role,
+                                            "token": self.token,
+                                            "seq_base": session.seq_base}), reliable=False)
+            self.hellos += 1
+            self._next_hello = now + self._hello_wait
+            self._hello_wait = min(self._hello_wait * 2, self.hello_max_s)
+        while mem.backlog and session.outbox_room() > 0:
+            try:
+                session.send(mem.backlog[0], reliable=True)
+            except OutboxFull:
+                break
+            mem.backlog.popleft()
+        self._deliver()
+        data = session.transmit(now)
+        if data:
+            self.hw.wifly_write(data)
+
+    # ------------------------------------------------------------------ receiving
+    def _receive(self, data: bytes, now: float) -> None:
+        session = self.session
+        for frame in session.feed(data, now):
+            try:
+                body = read_data(frame)
+            except FrameError as exc:
+                session.reject(exc, frame)
+                continue
+            if frame.cmd == WELCOME:
+                session.reset_peer(body.seq_base)
+                self._hello_wait = self.hello_s
+                if not self.welcomed:
+                    self._link(True)
+            elif frame.cmd == ERROR:
+                if body.detail == "send hello first":  # the server forgot us: reconnect
+                    if self.welcomed:
+                        self._link(False)
+                    self._next_hello = now
+            elif frame.cmd == MAP:
+                try:
+                    grid = self._assembler.add(body)
+                except MapError as exc:
+                    session.reject(FrameError(Fault.BAD_DATA, str(exc)), frame)
+                    continue
+                if grid is not None:
+                    self.maps_in += 1
+                    self._to_nav_put(Cmd.NAV_MAP_DOWNLOAD,
+                                     GridMap(grid.cells, grid.resolution_cm, grid.origin_cm))
+            else:
+                self._to_nav_put(Cmd.NAV_NET, frame)
+
+    def _link(self, up: bool) -> None:
+        self.welcomed = up
+        self._to_nav_put(Cmd.NAV_LINK, int(up))
+
+    def _to_nav_put(self, cmd: int, obj: Any) -> None:
+        if len(self._to_nav) >= self.max_to_nav:
+            assert self.memory is not None
+            self.memory.dropped += 1
+            return
+        self._to_nav.append((cmd, obj))
+
+    def _deliver(self) -> None:
+        """Hand waiting items to navigation while its mailbox has room (never blocks)."""
+        system = self.ctx.system
+        cell = system.whereis(self._nav)
+        while self._to_nav:
+            if cell is None:
+                return
+            stats = cell.mailbox.statistics()
+            if stats.depth >= stats.capacity:
+                return
+            cmd, obj = self._to_nav[0]
+            if cmd == Cmd.NAV_LINK:
+                message = Message.int(cmd, obj)
+            else:
+                try:
+                    message = Message.handle(cmd, self.pool.put(obj))
+                except PoolExhausted:
+                    return  # try again at the next tick
+            self._to_nav.popleft()
+            system.send_nowait(self._nav, message)

@@ -1,0 +1,208 @@
+"""One supervision tree per rover: the seed's threads as supervised actors.
+
+``rover_tree(role, hardware)`` returns a `SupervisorSpec`; start it under the
+rover's role (``system.start_supervisor(spec, "mapper")``) so its workers
+register as ``mapper/motor``, ``mapper/wifly`` ... (the actors find their
+neighbours from that prefix).
+
+Children, in start order, with queue depths and watchdog deadlines::
+
+    id      actor             roles    mailbox  watchdog  why this depth
+    wifly   Wifly             all       256     1.0 s     Int B chunks per tick + sends
+    motor   MotorControl      all       512     0.5 s     Int E: ~3 per tread per 50 ms tick
+    lidar   LidarControl      mapper   4096     1.0 s     Int A: ~200 samples per tick at
+                                                          full PWM; a 1 s stall fits
+    map     MapManagement     mapper     64     2.0 s     one scan batch per tick
+    ir      IrSensor          seeker    256     0.5 s     50 Hz samples
+    nav     (nav_factory)     all       128     2.0 s     poses, motion, map updates, frames
+
+ISRs (`actors.firmware.isr`) are not actors: they run in the hardware's
+interrupt context and post with ``send_nowait`` into these mailboxes, which
+belong to the supervisor and survive restarts. The ISR objects are made here,
+once, so their counters (posted, dropped) survive restarts; each owning actor
+attaches its ISR when it starts. One `BufferPool` per rover carries bulk data
+(bytes, scans, map snapshots, frames).
+
+Strategy: ``one_for_one``, intensity 10 restarts in 10 s, restart backoff
+0.05..1 s. Why:
+
+* an ISR-side or driver crash (wifly, motor, lidar, map, ir) must not restart
+  navigation: the game state lives there;
+* a navigation crash must not restart the drivers: the LIDAR keeps spinning,
+  the map keeps growing, the link stays up; the new navigation asks for the
+  pose (``MOTOR_GET_POSE``) and the map (``MAP_GET``) and resumes from the
+  last known pose, not from scratch;
+* no actor depends on a sibling's incarnation: each one rebuilds its state
+  from its own retained memory (motor: pose; wifly: the reliable session) or
+  from what it asks its neighbours (lidar: the pose; map: navigation's last
+  snapshot). So restarting siblings with it (``rest_for_one`` /
+  ``one_for_all``) would only lose more state.
+
+Everything is flat under the rover's supervisor because a nested supervisor
+would change the registered names (``mapper/drivers/motor``), and the names
+are the firmware's contract.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from typing import Any
+
+from actors import Actor, BufferPool, Message
+from actors.firmware.commands import Cmd
+from actors.firmware.devices import RoverHardware
+from actors.firmware.ir import IrSensor
+from actors.firmware.isr import IrAdcIsr, LidarUartIsr, MotorCounterIsr, WiflyUartIsr
+from actors.firmware.lidar import LidarControl
+from actors.firmware.mapping import MapManagement
+from actors.firmware.motor import MotorControl, MotorTuning, PoseMemory
+from actors.firmware.wifly import LinkMemory, Wifly
+
+from .supervisor import Backoff, ChildSpec, SupervisorSpec
+
+__all__ = ["ROLES", "MAILBOX", "WATCHDOG_S", "IdleNav", "rover_tree"]
+
+ROLES = ("mapper", "hider", "seeker")
+
+MAILBOX = {"wifly": 256, "motor": 512, "lidar": 4096, "map": 64, "ir": 256, "nav": 128}
+"""Queue depth per child id [messages]."""
+
+WATCHDOG_S = {"wifly": 1.0, "motor": 0.5, "lidar": 1.0, "map": 2.0, "ir": 0.5, "nav": 2.0}
+"""Handling deadline per message (per burst for burst handlers) [s]."""
+
+POOL_SLOTS = 256
+"""Buffer pool slots per rover."""
+
+
+class _MailboxPost:
+    """An ISR's non-blocking post into one mailbox (False when dropped or not yet bound)."""
+
+    __slots__ = ("system", "name")
+
+    def __init__(self) -> None:
+        self.system: Any = None
+        self.name = ""
+
+    def __call__(self, message: Message) -> bool:
+        if self.system is None or self.system.whereis(self.name) is None:
+            return False
+        return self.system.send_nowait(self.name, message)
+
+
+class IdleNav(Actor):
+    """A stand-in navigation that only releases the handles it receives.
+
+    Used when no navigation is available (tests of the drivers, and until the
+    real navigation is importable).
+    """
+
+    def __init__(self, pool: BufferPool) -> None:
+        self.pool = pool
+
+    async def handle(self, message: Any) -> None:
+        if isinstance(message, Message) and message.type == 4 and message.command in (
+                Cmd.NAV_MAP_UPDATE, Cmd.NAV_NET, Cmd.NAV_MAP_DOWNLOAD):
+            self.pool.take(int(message.value))
+
+
+def _default_nav_factory() -> Callable[..., Actor]:
+    """The real navigation (``actors.firmware.nav.make_nav``) when it exists."""
+    try:
+        return importlib.import_module("actors.firmware.nav").make_nav
+    except (ImportError, AttributeError):
+        return lambda role, *, pool, **_: IdleNav(pool)
+
+
+def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = None,
+               nav_factory: Callable[..., Actor] | None = None,
+               nav_options: dict[str, Any] | None = None, token: str | None = None,
+               motor_tuning: MotorTuning | None = None, map_size_cm: tuple[float, float] = (
+                   2400.0, 2400.0), ir_rate_hz: float = 50.0,
+               intensity: int = 10, period: float = 10.0) -> SupervisorSpec:
+    """The supervision tree of one rover (see the module docstring).
+
+    Args:
+        role: ``mapper``, ``hider`` or ``seeker``.
+        hardware: the rover's devices (simulated or a bridge to a real rover).
+        rover_id: the id said in hello (default: the role).
+        nav_factory: makes the navigation actor, called for every incarnation as
+            ``nav_factory(role, pool=pool, spec=hardware.spec, rover_id=rover_id,
+            **nav_options)``; default ``actors.firmware.nav.make_nav`` (or an idle
+            stand-in when it is not importable).
+        nav_options: extra keyword arguments for ``nav_factory``.
+        token: the shared secret for hello, when the server asks for one.
+        motor_tuning: Motor Control constants.
+        map_size_cm: Map Management's grid extent [cm] (mapper).
+        ir_rate_hz: IR timer rate [Hz] (seeker).
+        intensity: restarts allowed within ``period`` before the tree gives up.
+        period: [s].
+
+    Raises:
+        ValueError: unknown role.
+    """
+    if role not in ROLES:
+        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
+    rover_id = rover_id or role
+    pool = BufferPool(POOL_SLOTS, name=f"{role}-pool")
+    factory = nav_factory or _default_nav_factory()
+    options = dict(nav_options or {})
+
+    # retained memory (survives actor restarts; a new tree is a rover reset)
+    pose_memory = PoseMemory()
+    link_memory: list[LinkMemory] = []  # made lazily: LinkMemory reads Trio's clock
+
+    # ISR objects: made once (their counters survive restarts), each posting into
+    # its owner's mailbox; the post learns the system and name when the owner starts
+    posts = {c: _MailboxPost() for c in ("motor", "wifly", "lidar", "ir")}
+    motor_isr = MotorCounterIsr(posts["motor"])
+    wifly_isr = WiflyUartIsr(posts["wifly"], pool)
+    lidar_isr = LidarUartIsr(posts["lidar"]) if role == "mapper" else None
+    ir_isr = IrAdcIsr(posts["ir"]) if role == "seeker" else None
+
+    def bind(actor: Actor) -> Actor:
+        """Point the ISR posts at the running system when the actor starts."""
+        original = actor.on_start
+
+        async def on_start() -> None:
+            prefix = actor.ctx.name.rpartition("/")[0]
+            for child_id, post in posts.items():
+                post.system = actor.ctx.system
+                post.name = f"{prefix}/{child_id}" if prefix else child_id
+            await original()
+        actor.on_start = on_start  # type: ignore[method-assign]
+        return actor
+
+    def make_wifly() -> Actor:
+        if not link_memory:
+            link_memory.append(LinkMemory())
+        return bind(Wifly(hardware, pool, rover_id=rover_id, role=role, token=token,
+                          memory=link_memory[0], isr=wifly_isr))
+
+    map_starts = [0]
+
+    def make_map() -> Actor:
+        map_starts[0] += 1
+        return bind(MapManagement(pool, size_cm=map_size_cm, restarted=map_starts[0] > 1))
+
+    def child(cid: str, start: Callable[[], Actor]) -> ChildSpec:
+        return ChildSpec(cid, start, mailbox=MAILBOX[cid], watchdog=WATCHDOG_S[cid])
+
+    children = [
+        child("wifly", make_wifly),
+        child("motor", lambda: bind(MotorControl(hardware, pose_memory, isr=motor_isr,
+                                                 lidar=role == "mapper",
+                                                 tuning=motor_tuning))),
+    ]
+    if role == "mapper":
+        children += [
+            child("lidar", lambda: bind(LidarControl(hardware, pool, isr=lidar_isr))),
+            child("map", make_map),
+        ]
+    if role == "seeker":
+        children.append(child("ir", lambda: bind(IrSensor(hardware, rate_hz=ir_rate_hz,
+                                                          adc_isr=ir_isr))))
+    children.append(child("nav", lambda: factory(role, pool=pool, spec=hardware.spec,
+                                                 rover_id=rover_id, **options)))
+    return SupervisorSpec(children, intensity=intensity, period=period,
+                          backoff=Backoff(min=0.05, max=1.0, jitter=0.1, reset_after=10.0))
