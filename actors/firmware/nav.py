@@ -2,7 +2,9 @@
 
 ::
 
-    ChildSpec("nav", lambda: make_nav("hider", pool=pool, spec=hardware.spec), mailbox=64)
+    memory = NavMemory()   # once per rover: survives navigation's restarts
+    ChildSpec("nav", lambda: make_nav("hider", pool=pool, spec=hardware.spec, memory=memory),
+              mailbox=64)
 
 Each call makes a fresh actor (one per incarnation): a restarted navigation
 rebuilds its state from its neighbours and the server (see `nav_common`).
@@ -12,19 +14,20 @@ from __future__ import annotations
 
 from actors import Actor, BufferPool
 from actors.firmware.devices import HardwareSpec
-from actors.firmware.nav_common import NavOptions
+from actors.firmware.nav_common import NavMemory, NavOptions
 from actors.firmware.nav_hiding import HidingNav
 from actors.firmware.nav_mapping import MappingNav, MappingOptions
 from actors.firmware.nav_seeking import SeekingNav, SeekingOptions
 
-__all__ = ["make_nav", "NAV_ROLES"]
+__all__ = ["make_nav", "NAV_ROLES", "NavMemory", "NavOptions"]
 
 NAV_ROLES = ("mapper", "hider", "seeker")
 """Roles `make_nav` knows."""
 
 
 def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
-             options: NavOptions | None = None, mapping: MappingOptions | None = None,
+             options: NavOptions | None = None, memory: NavMemory | None = None,
+             mapping: MappingOptions | None = None,
              seeking: SeekingOptions | None = None) -> Actor:
     """The navigation actor of ``role``.
 
@@ -33,6 +36,9 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
         pool: the rover's buffer pool (frames, maps and scans travel by handle).
         spec: the rover's calibration constants (body size for clearance).
         options: common tunables (`NavOptions`).
+        memory: the retained record of the server's instructions, made once by the
+            rover tree and passed to every incarnation (`NavMemory`); None keeps
+            nothing across restarts.
         mapping: the mapper's tunables (`MappingOptions`).
         seeking: the seeker's tunables (`SeekingOptions`).
 
@@ -40,9 +46,9 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
         ValueError: ``role`` is not one of `NAV_ROLES`.
     """
     if role == "mapper":
-        return MappingNav(pool=pool, spec=spec, options=options, mapping=mapping)
+        return MappingNav(pool=pool, spec=spec, options=options, memory=memory, mapping=mapping)
     if role == "hider":
-        return HidingNav(pool=pool, spec=spec, options=options)
+        return HidingNav(pool=pool, spec=spec, options=options, memory=memory)
     if role == "seeker":
-        return SeekingNav(pool=pool, spec=spec, options=options, seeking=seeking)
+        return SeekingNav(pool=pool, spec=spec, options=options, memory=memory, seeking=seeking)
     raise ValueError(f"role must be one of {', '.join(NAV_ROLES)}, got {role!r}")

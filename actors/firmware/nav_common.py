@@ -52,6 +52,7 @@ from server.protocol import Frame, FrameError, make_frame, read_data
 
 __all__ = [
     "NavOptions",
+    "NavMemory",
     "Motion",
     "PathFollower",
     "NavBase",
@@ -103,6 +104,23 @@ class NavOptions:
     """Reverse this far after being blocked [cm]."""
     outbox: int = 16
     """Reports waiting for room in the pool or WiFly's mailbox, at most."""
+
+
+@dataclass(slots=True)
+class NavMemory:
+    """What the server told navigation, in a retained RAM section (made by the rover tree).
+
+    Like Motor Control's `PoseMemory`: C firmware keeps statics across a task
+    restart, not across a rover reset. Only the server's small instructions
+    live here (whether the game started, the origin, the destination being
+    worked on); everything else a restarted navigation asks its neighbours for
+    (pose, map) or the server (the map, again).
+    """
+
+    started: bool = False
+    origin: tuple[float, float, float] | None = None
+    goal: tuple[float, float, float | None] | None = None
+    """The destination not yet answered (arrived / invalid_spot / found / not_found)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -251,13 +269,17 @@ class NavBase(Actor):
         pool: the rover's buffer pool (bulk data by handle).
         spec: the rover's calibration constants (body size for clearance).
         options: tunables.
+        memory: the retained record of the server's instructions; a fresh one
+            (nothing survives a restart) when None.
     """
 
     role = ""
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
-                 options: NavOptions | None = None) -> None:
+                 options: NavOptions | None = None, memory: NavMemory | None = None) -> None:
         self.pool = pool
+        self.memory = memory if memory is not None else NavMemory()
+        """Retained across restarts when the rover tree passes one (see `NavMemory`)."""
         self.spec = spec
         self.o = options or NavOptions()
         length = spec.length_cm if spec else 20.0
@@ -305,6 +327,8 @@ class NavBase(Actor):
         cell = self.ctx.system.whereis(self.ctx.name)
         self.restarted = cell is not None and cell.last_exit is not None
         """True when this incarnation replaces one that exited (crash, hang)."""
+        if self.memory.origin is not None:
+            self.origin = Pose(*self.memory.origin)
         await self.status("restarted" if self.restarted else "idle")
         await self.on_restart()
 
@@ -342,6 +366,8 @@ class NavBase(Actor):
             await self.on_ir(int(message.value) != 0)
         elif cmd == Cmd.NAV_LINK:
             await self.on_link(int(message.value) != 0)
+        elif cmd == Cmd.NAV_MAP_LOST:
+            await self.on_map_lost()
         return None
 
     def _take(self, message: Message) -> Any:
@@ -448,13 +474,15 @@ class NavBase(Actor):
             return
         cmd = frame.cmd
         if cmd == "start":
-            self.started = True
+            self.started = self.memory.started = True
             await self.on_start_cmd()
         elif cmd == "stop":
-            self.started = False
+            self.started = self.memory.started = False
+            self.memory.goal = None
             await self.on_stop_cmd()
         elif cmd == "origin":
             self.origin = Pose(data.x, data.y, data.heading)
+            self.memory.origin = (data.x, data.y, data.heading)
         elif cmd == "destination":
             await self.on_destination(data.x, data.y, data.heading)
 
@@ -483,6 +511,9 @@ class NavBase(Actor):
 
     async def on_link(self, up: bool) -> None:
         """Hook: the WiFly link went up or down."""
+
+    async def on_map_lost(self) -> None:
+        """Hook: Map Management restarted empty (mapper)."""
 
     async def set_state(self, state: str, detail: str | None = None, **extra: Any) -> None:
         """Change phase and report it with a ``status`` frame."""
@@ -567,8 +598,8 @@ class RouteNav(NavBase):
     """
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
-                 options: NavOptions | None = None) -> None:
-        super().__init__(pool=pool, spec=spec, options=options)
+                 options: NavOptions | None = None, memory: NavMemory | None = None) -> None:
+        super().__init__(pool=pool, spec=spec, options=options, memory=memory)
         self.map: GridMap | None = None
         """The server's map (map frame), None until downloaded."""
         self.work_map: GridMap | None = None
@@ -580,6 +611,7 @@ class RouteNav(NavBase):
         self.goal_heading: float | None = None
         self.replans = 0
         self._replan = False  # replan after the backoff in flight
+        self._last_block: tuple[float, float] | None = None
 
     # ------------------------------------------------------------------ server
     async def on_start_cmd(self) -> None:
@@ -600,8 +632,18 @@ class RouteNav(NavBase):
         await self._proceed()
 
     async def on_destination(self, x: float, y: float, heading: float | None) -> None:
-        self.pending = (x, y, heading)
+        self.pending = self.memory.goal = (x, y, heading)
         await self._proceed()
+
+    async def on_restart(self) -> None:
+        if self.memory.started:  # resume: the map is gone with the old incarnation
+            self.started = True
+            self.pending = self.memory.goal
+            await self.on_start_cmd()
+
+    def answered(self) -> None:
+        """The destination got its answer: a restart must not act on it again."""
+        self.memory.goal = None
 
     async def _proceed(self) -> None:
         if (self.pending is None or self.map is None or self.origin is None
@@ -680,8 +722,12 @@ class RouteNav(NavBase):
         ahead = self.radius_cm + 8.0
         h = math.radians(p.heading_deg)
         if why == "blocked":
-            self.work_map = with_obstacle(self.work_map, p.x + ahead * math.cos(h),
-                                          p.y + ahead * math.sin(h), 8.0)
+            # a second block near the first: something the map does not show is there
+            # (one block alone may be a restarted motor cutting its command short)
+            last, self._last_block = self._last_block, (p.x, p.y)
+            if last is not None and math.dist(last, (p.x, p.y)) <= 30.0:
+                self.work_map = with_obstacle(self.work_map, p.x + ahead * math.cos(h),
+                                              p.y + ahead * math.sin(h), 8.0)
         self._replan = True
         await self.command(Motion("move", -self.o.backoff_cm))
 

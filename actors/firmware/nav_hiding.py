@@ -36,19 +36,23 @@ class HidingNav(RouteNav):
                                 x, y, 0.0 if heading is None else heading,
                                 self.length_cm, self.width_cm, self.o.spot_margin_cm)
         if not ok:
+            self.answered()
             await self.report("invalid_spot", {"reason": reason})
             await self.set_state("ready", f"refused ({x:.0f}, {y:.0f}): {reason}")
             return
         if not await self.goto((x, y), heading):
             reason = f"no path from here to ({x:.0f}, {y:.0f})"
+            self.answered()
             await self.report("invalid_spot", {"reason": reason})
             await self.set_state("ready", reason)
 
     async def on_arrived(self) -> None:
+        self.answered()
         await self.report("arrived", self.pose_data())
         await self.set_state("hidden", "at the spot")
 
     async def on_route_failed(self, reason: str) -> None:
         reason = f"cannot reach the spot: {reason}"
+        self.answered()
         await self.report("invalid_spot", {"reason": reason})
         await self.set_state("ready", reason)

@@ -55,6 +55,7 @@ from actors.firmware.frontier import Frontier, choose_frontier, find_frontiers
 from actors.firmware.nav_common import (
     Motion,
     NavBase,
+    NavMemory,
     NavOptions,
     PathFollower,
     plan_route,
@@ -121,9 +122,9 @@ class MappingNav(NavBase):
     role = "mapper"
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
-                 options: NavOptions | None = None,
+                 options: NavOptions | None = None, memory: NavMemory | None = None,
                  mapping: MappingOptions | None = None) -> None:
-        super().__init__(pool=pool, spec=spec, options=options)
+        super().__init__(pool=pool, spec=spec, options=options, memory=memory)
         self.m = mapping or MappingOptions()
         self.grid: GridMap | None = None
         """The latest snapshot from Map Management (kept: what navigation knows)."""
@@ -147,6 +148,15 @@ class MappingNav(NavBase):
         self.lidar = f"{self.prefix}/lidar"
         await self.post(self.map_name, Message.uint(Cmd.MAP_GET, 0))
         self._probe_until = trio.current_time() + self.m.probe_s
+        if self.memory.started:  # the retained record says mapping was under way
+            await self._begin(trio.current_time(), resumed=True)
+
+    async def on_map_lost(self) -> None:
+        # Map Management restarted empty: give it back what we knew; its count restarts at 0
+        self._probe_scans = None
+        self._scans_at_start = self._scans_at_change = self.scans = 0
+        if self.grid is not None:
+            await self.put_and_post(self.map_name, Cmd.MAP_RESTORE, self.grid)
 
     async def on_start_cmd(self) -> None:
         if self.state in ("scanning", "exploring", "uploading"):
@@ -352,7 +362,7 @@ class MappingNav(NavBase):
 
     async def _upload(self) -> None:
         self._upload_deadline = math.inf
-        self.started = False
+        self.started = self.memory.started = False
         reason = self._finish_reason
         if self.grid is None or self.grid.known_bounds() is None:
             await self.set_state("idle", f"{reason}; nothing mapped to upload")

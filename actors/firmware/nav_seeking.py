@@ -26,7 +26,7 @@ import trio
 
 from actors import BufferPool
 from actors.firmware.devices import HardwareSpec
-from actors.firmware.nav_common import Motion, NavOptions, RouteNav, passable_at
+from actors.firmware.nav_common import Motion, NavMemory, NavOptions, RouteNav, passable_at
 from actors.firmware.odometry import angle_diff_deg
 
 __all__ = ["SeekingOptions", "SeekingNav"]
@@ -58,9 +58,9 @@ class SeekingNav(RouteNav):
     role = "seeker"
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
-                 options: NavOptions | None = None,
+                 options: NavOptions | None = None, memory: NavMemory | None = None,
                  seeking: SeekingOptions | None = None) -> None:
-        super().__init__(pool=pool, spec=spec, options=options)
+        super().__init__(pool=pool, spec=spec, options=options, memory=memory)
         self.s = seeking or SeekingOptions()
         self.place: tuple[float, float] | None = None
         """Where to look (map frame [cm])."""
@@ -161,6 +161,7 @@ class SeekingNav(RouteNav):
         if (self.state == "confirming" and not self.moving and self.ir
                 and self._ir_at >= self._check_from and now >= self._check_from):
             self._check_until = math.inf
+            self.answered()
             await self.report("found", self.pose_data())
             await self.set_state("found", "the hider is in IR range")
             return True
@@ -168,5 +169,6 @@ class SeekingNav(RouteNav):
 
     async def _not_found(self, reason: str) -> None:
         self._check_until = math.inf
+        self.answered()
         await self.report("not_found", {"reason": reason})
         await self.set_state("ready", reason)
