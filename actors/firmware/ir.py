@@ -73,6 +73,11 @@ class IrSensor(Actor):
         if reason.kind is ExitKind.SHUTDOWN:
             self.hw.set_ir_timer(0.0)
 
+    def _send(self, name: str, message: Message) -> bool:
+        """``send_nowait`` to a neighbour; False when full or not registered (yet)."""
+        system = self.ctx.system
+        return system.whereis(name) is not None and system.send_nowait(name, message)
+
     async def handle(self, message: Message) -> None:
         await self.handle_burst([message])
 
@@ -100,4 +105,4 @@ class IrSensor(Actor):
         return False
 
     def _report(self) -> None:
-        self.ctx.send_nowait(self._nav, Message.int(Cmd.NAV_IR, int(self.in_range)))
+        self._send(self._nav, Message.int(Cmd.NAV_IR, int(self.in_range)))

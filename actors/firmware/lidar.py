@@ -85,13 +85,18 @@ class LidarControl(Actor):
             self._isr = LidarUartIsr(self._post)
         self.hw.attach(Interrupt.INT_A, self._isr)
         if self.ctx.system.whereis(motor) is not None:
-            self.ctx.send_nowait(motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+            self._send(motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
 
     def _post(self, message: Message) -> bool:
         return self.ctx.system.send_nowait(self.ctx.name, message)
 
     async def on_stop(self, reason: ExitReason) -> None:
         self._flush()
+
+    def _send(self, name: str, message: Message) -> bool:
+        """``send_nowait`` to a neighbour; False when full or not registered (yet)."""
+        system = self.ctx.system
+        return system.whereis(name) is not None and system.send_nowait(name, message)
 
     async def handle(self, message: Message) -> None:
         await self.handle_burst([message])
@@ -146,7 +151,7 @@ class LidarControl(Actor):
         except PoolExhausted:
             self.dropped_scans += 1
             return
-        if self.ctx.send_nowait(self._map, Message.handle(Cmd.MAP_SCAN, handle)):
+        if self._send(self._map, Message.handle(Cmd.MAP_SCAN, handle)):
             self.scans += 1
         else:
             self.pool.take(handle)

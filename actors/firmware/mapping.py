@@ -62,7 +62,12 @@ class MapManagement(Actor):
         prefix = self.ctx.name.rpartition("/")[0]
         self._nav = f"{prefix}/nav" if prefix else "nav"
         if self.restarted:
-            self.ctx.send_nowait(self._nav, Message.uint(Cmd.NAV_MAP_LOST, 0))
+            self._send(self._nav, Message.uint(Cmd.NAV_MAP_LOST, 0))
+
+    def _send(self, name: str, message: Message) -> bool:
+        """``send_nowait`` to a neighbour; False when full or not registered (yet)."""
+        system = self.ctx.system
+        return system.whereis(name) is not None and system.send_nowait(name, message)
 
     async def handle(self, message: Message) -> None:
         cmd = message.command
@@ -101,12 +106,12 @@ class MapManagement(Actor):
         except PoolExhausted:
             self.dropped_updates += 1
             return
-        if self.ctx.send_nowait(self._nav, Message.handle(Cmd.NAV_MAP_UPDATE, handle)):
+        if self._send(self._nav, Message.handle(Cmd.NAV_MAP_UPDATE, handle)):
             self.updates += 1
         else:
             self.pool.take(handle)
             self.dropped_updates += 1
-        self.ctx.send_nowait(self._nav, Message.uint(Cmd.NAV_SCAN_COUNT, self.scans))
+        self._send(self._nav, Message.uint(Cmd.NAV_SCAN_COUNT, self.scans))
 
     def _restore(self, snap: GridMap) -> None:
         """Seed cells this grid has not observed from ``snap`` (same resolution only)."""

@@ -152,7 +152,7 @@ class MotorControl(Actor):
         self.hw.set_tread_pwm(0.0, 0.0)
         if self.memory.active:  # a command was cut short by a crash or hang
             self.memory.active = False
-            ctx.send_nowait(self._nav, Message.float(Cmd.NAV_MOTION_BLOCKED, 0.0))
+            self._send(self._nav, Message.float(Cmd.NAV_MOTION_BLOCKED, 0.0))
         self._publish()
         ctx.start_timer(self.tuning.period_s, Message.uint(Cmd.MOTOR_CONTROL, 0),
                         interval=self.tuning.period_s)
@@ -164,6 +164,11 @@ class MotorControl(Actor):
         self.hw.set_tread_pwm(0.0, 0.0)  # never leave the treads running unsupervised
 
     # ------------------------------------------------------------------ messages
+    def _send(self, name: str, message: Message) -> bool:
+        """``send_nowait`` to a neighbour; False when full or not registered (yet)."""
+        system = self.ctx.system
+        return system.whereis(name) is not None and system.send_nowait(name, message)
+
     async def handle(self, message: Message) -> None:
         cmd = message.command
         if cmd == Cmd.MOTOR_TICK:
@@ -211,7 +216,7 @@ class MotorControl(Actor):
     def _publish(self) -> None:
         self._integrate()
         p = self.memory.pose
-        send = self.ctx.send_nowait  # pose is superseded by the next one: drop when full
+        send = self._send  # pose is superseded by the next one: drop when full
         x_mm = max(-_INT16, min(_INT16, round(p.x * 10)))
         y_mm = max(-_INT16, min(_INT16, round(p.y * 10)))
         send(self._nav, Message.pair(Cmd.NAV_POSE_XY, x_mm, y_mm))
@@ -227,8 +232,8 @@ class MotorControl(Actor):
         p = self.memory.pose
         xc = max(-_INT16, min(_INT16, round(p.x)))
         yc = max(-_INT16, min(_INT16, round(p.y)))
-        self.ctx.send_nowait(self._lidar_name, Message.pair(Cmd.LIDAR_POSE_XY, xc, yc))
-        self.ctx.send_nowait(self._lidar_name,
+        self._send(self._lidar_name, Message.pair(Cmd.LIDAR_POSE_XY, xc, yc))
+        self._send(self._lidar_name,
                              Message.float(Cmd.LIDAR_POSE_HEADING, p.heading_deg))
         self._lidar_dirty = False
 
@@ -263,7 +268,7 @@ class MotorControl(Actor):
     def _control(self) -> None:
         self._integrate()
         now = self._now()
-        if self._outcome is not None and self.ctx.send_nowait(self._nav, self._outcome):
+        if self._outcome is not None and self._send(self._nav, self._outcome):
             self._outcome = None
         if self._kind is not None:
             self._drive(now)
@@ -323,7 +328,7 @@ class MotorControl(Actor):
             self._publish()
         # must not be lost: when navigation's queue is full, retry every control period
         message = Message.float(outcome, done)
-        self._outcome = None if self.ctx.send_nowait(self._nav, message) else message
+        self._outcome = None if self._send(self._nav, message) else message
 
     @staticmethod
     def _now() -> float:
