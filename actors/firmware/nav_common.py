@@ -102,6 +102,9 @@ class NavOptions:
     """Replans after being blocked before a route is given up."""
     backoff_cm: float = 6.0
     """Reverse this far after being blocked [cm]."""
+    settle_s: float = 1.0
+    """After (re)start, no motion is commanded before this [s]: the end of a motion
+    the previous incarnation commanded arrives meanwhile and is ignored."""
     outbox: int = 16
     """Reports waiting for room in the pool or WiFly's mailbox, at most."""
 
@@ -308,6 +311,7 @@ class NavBase(Actor):
         self._done = 0.0
         self._pose_deadline = math.inf  # waiting for the pose at rest until then
         self._next_pose_report = 0.0
+        self._settled_at = math.inf
         self._outbox: deque[tuple[int, Any]] = deque()
 
     # ------------------------------------------------------------------ names
@@ -320,6 +324,7 @@ class NavBase(Actor):
     # ------------------------------------------------------------------ lifecycle
     async def on_start(self) -> None:
         self._names()
+        self._settled_at = trio.current_time() + self.o.settle_s
         self.ctx.start_timer(self.o.tick_s, Message.uint(Cmd.NAV_TIMER, 0),
                              interval=self.o.tick_s)
         await self.post(self.motor, Message.uint(Cmd.MOTOR_STOP, 0))
@@ -331,6 +336,11 @@ class NavBase(Actor):
             self.origin = Pose(*self.memory.origin)
         await self.status("restarted" if self.restarted else "idle")
         await self.on_restart()
+
+    @property
+    def can_move(self) -> bool:
+        """The pose is known and the start has settled (see ``NavOptions.settle_s``)."""
+        return self.pose_known and trio.current_time() >= self._settled_at
 
     async def on_restart(self) -> None:
         """Role-specific recovery at every start (ask neighbours for what was lost)."""
@@ -647,14 +657,17 @@ class RouteNav(NavBase):
 
     async def _proceed(self) -> None:
         if (self.pending is None or self.map is None or self.origin is None
-                or self.follower is not None or self.moving):
-            return
+                or self.follower is not None or self.moving or not self.can_move):
+            return  # retried on every tick
         x, y, heading = self.pending
         self.pending = None
         await self.on_goal(x, y, heading)
 
     async def on_goal(self, x: float, y: float, heading: float | None) -> None:
         """Hook: map, origin and destination are known; act on the destination."""
+
+    async def on_tick(self, now: float) -> None:
+        await self._proceed()
 
     # ------------------------------------------------------------------ routes
     async def goto(self, goal: tuple[float, float], heading: float | None) -> bool:

@@ -262,6 +262,9 @@ class MappingNav(NavBase):
         """One ADP decision: keep or choose a frontier, then command one motion."""
         if self.state != "exploring" or self.moving or self.grid is None:
             return
+        if not self.can_move:
+            self._wait_map = True  # the tick tries again
+            return
         ex = self.ex
         pose = self.pose
         if ex.follower is not None and ex.steps >= ex.budget:

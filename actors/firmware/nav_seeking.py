@@ -144,6 +144,7 @@ class SeekingNav(RouteNav):
         await self._check()
 
     async def on_tick(self, now: float) -> None:
+        await super().on_tick(now)
         if self.state != "confirming" or self.moving:
             return
         if await self._check():

@@ -1,0 +1,103 @@
+"""Hiding navigation: spot check, route round obstacles, arrival within tolerance, restarts."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import trio
+
+from actors import BufferPool, open_actor_system
+from actors.firmware.nav_common import NavMemory
+from actors.firmware.odometry import Pose
+from tests.test_nav_common import Body, Truth, download, net, room_map, rover_spec, wait_for
+
+# the hider starts at (50, 50) @ 0 in the map frame; its own frame starts at (0, 0)
+ORIGIN = {"x": 50.0, "y": 50.0, "heading": 0.0}
+TRUTH_MAP = Truth(0, 0, 300, 200, boxes=((140, 0, 20, 150),))  # map frame
+
+
+def own_truth() -> Truth:
+    """The same room in the hider's own frame (shifted by the origin)."""
+    return Truth(-50, -50, 250, 150, boxes=((90, -50, 20, 150),))
+
+
+async def begin(system, pool, dest) -> None:
+    """What the server sends for ``hide``: origin, start, destination; then the map."""
+    await net(system, pool, "hider", "origin", ORIGIN)
+    await net(system, pool, "hider", "start")
+    await net(system, pool, "hider", "destination", dest)
+    await trio.sleep(0.5)
+    await download(system, pool, "hider", room_map(TRUTH_MAP))
+
+
+@pytest.mark.trio
+async def test_hider_requests_the_map_drives_round_the_wall_and_arrives(autojump_clock) -> None:
+    """start -> map_request; a valid spot behind a wall is reached within 5 cm / 5 deg."""
+    body = Body(truth=own_truth())
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, {"x": 250.0, "y": 50.0, "heading": 90.0})
+        assert len(body.frames("map_request")) == 1
+        assert await wait_for(lambda: body.frames("arrived"), 120.0)
+        arrived = body.frames("arrived")[0].data
+        assert math.dist((arrived["x"], arrived["y"]), (250, 50)) <= 5.0
+        assert abs(arrived["heading"] - 90.0) <= 5.0
+        true = body.pose  # the fake motor is exact: own frame + origin = map frame
+        assert math.dist((true.x + 50, true.y + 50), (250, 50)) <= 5.0
+        assert not any(c == "MOTOR_MOVE" and v > 20.0 for c, v in body.motor_log)
+        assert body.frames("status")[-1].data["state"] == "hidden"
+        assert [c for c, o in body.sent if o.cmd == "arrived"] == ["WIFLY_SEND"]
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize("dest, why", [
+    ({"x": 150.0, "y": 50.0, "heading": 0.0}, "obstacle"),
+    ({"x": 150.0, "y": 185.0, "heading": 0.0}, "obstacle"),
+    ({"x": 900.0, "y": 50.0, "heading": 0.0}, "outside the map"),
+], ids=["inside-wall", "too-tight", "off-map"])
+async def test_invalid_spot_is_refused_with_a_reason_and_no_motion(autojump_clock, dest,
+                                                                   why) -> None:
+    """An invalid spot gets ``invalid_spot`` naming why; the rover does not move."""
+    body = Body(truth=own_truth())
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, dest)
+        assert await wait_for(lambda: body.frames("invalid_spot"), 5.0)
+        assert body.frames("invalid_spot")[0].data["reason"].startswith(why)
+        assert not any(c in ("MOTOR_MOVE", "MOTOR_TURN") for c, _ in body.motor_log)
+        assert body.frames("arrived") == []
+
+
+@pytest.mark.trio
+async def test_hider_replans_after_being_blocked(autojump_clock) -> None:
+    """Blocked twice (a rover in the way): it backs off, replans, and still arrives."""
+    body = Body(truth=own_truth(), blocked_moves=2)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, {"x": 100.0, "y": 100.0, "heading": 0.0})
+        assert await wait_for(lambda: body.frames("arrived"), 120.0)
+        assert any(c == "MOTOR_MOVE" and v < 0 for c, v in body.motor_log)  # backed off
+        nav = system.whereis("hider/nav").actor
+        assert nav.counters["blocked"] == 2
+
+
+@pytest.mark.trio
+async def test_hider_nav_crash_mid_route_resumes_and_arrives(autojump_clock) -> None:
+    """A navigation crash while driving: the new incarnation re-requests the map and arrives."""
+    body = Body(truth=own_truth())
+    pool = BufferPool(64)
+    memory = NavMemory()
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool, memory=memory), "hider")
+        await begin(system, pool, {"x": 250.0, "y": 50.0, "heading": 90.0})
+        assert await wait_for(lambda: body.pose.distance_to(Pose()) > 40.0, 60.0)
+        system.inject_crash("hider/nav")
+        assert await wait_for(lambda: len(body.frames("map_request")) == 2, 5.0)
+        await download(system, pool, "hider", room_map(TRUTH_MAP))
+        assert await wait_for(lambda: body.frames("arrived"), 120.0)
+        arrived = body.frames("arrived")[0].data
+        assert math.dist((arrived["x"], arrived["y"]), (250, 50)) <= 5.0
