@@ -1,0 +1,77 @@
+"""Seeking navigation: standoff approach, IR confirmation with a scan, found / not_found."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import trio
+
+from actors import BufferPool, open_actor_system
+from actors.firmware.odometry import Pose, angle_diff_deg
+from tests.test_nav_common import Body, Truth, download, net, room_map, rover_spec, wait_for
+
+ORIGIN = {"x": 50.0, "y": 50.0, "heading": 0.0}
+TRUTH_MAP = Truth(0, 0, 300, 200)
+HIDER = (250.0, 150.0)  # map frame
+
+
+def ir_sees_hider(pose: Pose) -> bool:
+    """IR model: hider within 60 cm of the nose and +-20 deg of the heading (own frame)."""
+    hx, hy = HIDER[0] - 50.0, HIDER[1] - 50.0
+    nose = (pose.x + 10 * math.cos(pose.heading_rad), pose.y + 10 * math.sin(pose.heading_rad))
+    bearing = math.degrees(math.atan2(hy - nose[1], hx - nose[0]))
+    return math.dist(nose, (hx, hy)) <= 60.0 and abs(angle_diff_deg(bearing,
+                                                                     pose.heading_deg)) <= 20
+
+
+async def begin(system, pool, dest) -> None:
+    await net(system, pool, "seeker", "origin", ORIGIN)
+    await net(system, pool, "seeker", "start")
+    await net(system, pool, "seeker", "destination", dest)
+    await trio.sleep(0.5)
+    await download(system, pool, "seeker", room_map(TRUTH_MAP))
+
+
+@pytest.mark.trio
+async def test_seeker_stops_at_a_standoff_facing_the_place_and_finds(autojump_clock) -> None:
+    """A guess at the hider: it stops 30-55 cm away, facing it, and reports ``found``."""
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=ir_sees_hider)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
+        await begin(system, pool, {"x": HIDER[0], "y": HIDER[1], "heading": None})
+        assert await wait_for(lambda: body.frames("found"), 120.0)
+        f = body.frames("found")[0].data
+        assert 28.0 <= math.dist((f["x"], f["y"]), HIDER) <= 57.0
+        bearing = math.degrees(math.atan2(HIDER[1] - f["y"], HIDER[0] - f["x"]))
+        assert abs(angle_diff_deg(bearing, f["heading"])) <= 20.0
+        assert body.frames("not_found") == []
+
+
+@pytest.mark.trio
+async def test_seeker_scans_then_reports_not_found_and_takes_the_next_guess(autojump_clock) -> None:
+    """A wrong guess: scan turns, ``not_found``; the next guess at the hider is ``found``."""
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=ir_sees_hider)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
+        await begin(system, pool, {"x": 120.0, "y": 60.0, "heading": None})
+        assert await wait_for(lambda: body.frames("not_found"), 120.0)
+        turns_at_end = [c for c, _ in body.motor_log[-12:] if c == "MOTOR_TURN"]
+        assert len(turns_at_end) >= 4  # the scan
+        assert "IR" in body.frames("not_found")[0].data["reason"]
+        await net(system, pool, "seeker", "destination", {"x": HIDER[0], "y": HIDER[1]})
+        assert await wait_for(lambda: body.frames("found"), 120.0)
+
+
+@pytest.mark.trio
+async def test_seeker_without_ir_reports_not_found(autojump_clock) -> None:
+    """No IR reading ever in range (stuck low): ``not_found``, never ``found``."""
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=lambda pose: False)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
+        await begin(system, pool, {"x": HIDER[0], "y": HIDER[1]})
+        assert await wait_for(lambda: body.frames("not_found"), 120.0)
+        assert body.frames("found") == []
