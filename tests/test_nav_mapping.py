@@ -1,0 +1,84 @@
+"""Mapping navigation: explores to completion by itself, stops, uploads; stop and stall cases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trio
+
+from actors import BufferPool, open_actor_system
+from actors.firmware.occupancy import UNKNOWN, GridMap
+from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
+
+# own frame = map frame; the rover starts at (0, 0) in a 4.5 x 2.5 m room split by a wall
+# (x 150..165) with a 60 cm doorway at the top, and a box in the far half
+ROOM = dict(x0=-50, y0=-50, x1=400, y1=200, boxes=((150, -50, 15, 190), (260, 20, 40, 40)))
+
+
+def coverage(grid: GridMap, truth: Truth) -> float:
+    """Share of free truth cells (more than 15 cm from any wall) the map knows."""
+    ny, nx = truth.solid.shape
+    rows, cols = np.nonzero(~truth.solid)
+    xs = truth.origin[0] + (cols + 0.5) * truth.res
+    ys = truth.origin[1] + (rows + 0.5) * truth.res
+    keep = np.array([truth.clear(x, y, 15.0) for x, y in zip(xs, ys, strict=True)])
+    known = 0
+    for x, y in zip(xs[keep], ys[keep], strict=True):
+        r, c = grid.world_to_cell(x, y)
+        known += grid.contains(r, c) and grid.cells[r, c] != UNKNOWN
+    return known / int(keep.sum())
+
+
+@pytest.mark.trio
+async def test_mapper_explores_detects_completion_and_uploads(autojump_clock) -> None:
+    """Start -> LIDAR on -> exploring -> complete by itself -> motor and LIDAR stop -> map."""
+    truth = Truth(**ROOM)
+    body = Body(truth=truth)
+    pool = BufferPool(256)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("mapper", body, pool), "mapper")
+        await net(system, pool, "mapper", "origin", {"x": 0.0, "y": 0.0, "heading": 0.0})
+        await net(system, pool, "mapper", "start")
+        assert await wait_for(lambda: any(c == "WIFLY_SEND_MAP" for c, _ in body.sent), 600.0)
+        t_done = trio.current_time()
+        grid = next(o for c, o in body.sent if c == "WIFLY_SEND_MAP")
+        assert body.lidar_log[0] == "LIDAR_START" and body.lidar_log[-1] == "LIDAR_STOP"
+        assert body.motor_log[-1][0] == "MOTOR_STOP"
+        assert coverage(grid, truth) >= 0.95
+        assert body.pose.x > 165.0  # it went through the doorway to see the far half
+        states = [f.data["state"] for f in body.frames("status")]
+        assert states[-3:] == ["exploring", "uploading", "mapped"]
+        assert "map is stable" in body.frames("status")[-1].data["detail"]
+        assert t_done < 600.0
+
+
+@pytest.mark.trio
+async def test_stalled_lidar_never_reads_as_complete(autojump_clock) -> None:
+    """No scans arriving (LIDAR dead): no upload even though the map does not change."""
+    truth = Truth(**ROOM)
+    body = Body(truth=truth)
+    pool = BufferPool(256)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("mapper", body, pool), "mapper")
+        await net(system, pool, "mapper", "start")
+        assert await wait_for(lambda: body.frames("status")
+                              and body.frames("status")[-1].data["state"] == "exploring", 30.0)
+        body.lidar_on = False  # the LIDAR stalls: no more scans
+        await trio.sleep(60.0)
+        assert not any(c == "WIFLY_SEND_MAP" for c, _ in body.sent)
+        assert body.frames("status")[-1].data["state"] == "exploring"
+
+
+@pytest.mark.trio
+async def test_server_stop_uploads_what_is_known(autojump_clock) -> None:
+    """``stop`` mid-exploration: motor and LIDAR stop and the partial map is uploaded."""
+    body = Body(truth=Truth(**ROOM))
+    pool = BufferPool(256)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("mapper", body, pool), "mapper")
+        await net(system, pool, "mapper", "start")
+        await trio.sleep(5.0)
+        await net(system, pool, "mapper", "stop")
+        assert await wait_for(lambda: any(c == "WIFLY_SEND_MAP" for c, _ in body.sent), 5.0)
+        assert body.lidar_log[-1] == "LIDAR_STOP"
+        assert "stopped by the server" in body.frames("status")[-1].data["detail"]
