@@ -3,11 +3,12 @@
 The seed's Map Management thread. ``MAP_SCAN`` brings a `lidar.Scan` by
 handle (taking it releases the pool slot); it is fused into a log-odds
 `OccupancyGrid` (5 cm cells by default: free along each ray, occupied at the
-hit). Updates go to navigation, rate-limited: at most one ``NAV_MAP_UPDATE``
-(handle of an immutable `GridMap` snapshot) per ``publish_s`` of sim time and
-only when a cell changed class, each followed by ``NAV_SCAN_COUNT`` (scan
-batches integrated so far, so navigation can tell "map unchanged while scans
-keep arriving" from "LIDAR stalled"). ``MAP_GET`` publishes at once.
+hit). Updates go to navigation, rate-limited to one per ``publish_s`` of sim
+time: ``NAV_MAP_UPDATE`` (handle of an immutable `GridMap` snapshot) when a
+cell changed class, and ``NAV_SCAN_COUNT`` (scan batches integrated so far)
+whenever scans arrived, changed or not, so navigation can tell "map unchanged
+while scans keep arriving" from "LIDAR stalled". ``MAP_GET`` publishes both
+at once.
 
 Restart: the grid is lost with the incarnation (it is the thread's working
 memory). The new incarnation starts empty, integrates scans from then on and
@@ -55,6 +56,7 @@ class MapManagement(Actor):
         self.dropped_updates = 0
         """Snapshots navigation's queue or the pool refused (the next one supersedes)."""
         self._changed = True  # a cell changed class since the last update
+        self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
         self._timer_armed = False
 
@@ -77,9 +79,12 @@ class MapManagement(Actor):
                 self._changed = True
             self.scans += 1
             self._maybe_publish()
-        elif cmd == Cmd.MAP_GET:  # from navigation, or our own deferred-publish timer
-            self._timer_armed = False
-            self._publish()
+        elif cmd == Cmd.MAP_GET:  # from navigation (value 0), or our deferred timer (1)
+            if message.value == 1:
+                self._timer_armed = False
+                self._publish(force=False)
+            else:
+                self._publish()
         elif cmd == Cmd.MAP_RESTORE:
             self._restore(self.pool.take(int(message.value)))
             self._publish()
@@ -87,18 +92,25 @@ class MapManagement(Actor):
             raise ValueError(f"map management got an unknown command 0x{cmd:04x}")
 
     def _maybe_publish(self) -> None:
-        if not self._changed:
+        if not self._changed and self.scans == self._counted:
             return
         now = trio.current_time()
         wait = self._last_publish + self.publish_s - now
         if wait <= 0:
-            self._publish()
+            self._publish(force=False)
         elif not self._timer_armed:  # publish the last change even if no scan follows
             self._timer_armed = True
-            self.ctx.start_timer(wait, Message.uint(Cmd.MAP_GET, 0))
+            self.ctx.start_timer(wait, Message.uint(Cmd.MAP_GET, 1))
 
-    def _publish(self) -> None:
+    def _publish(self, force: bool = True) -> None:
+        """Send a snapshot (when something changed, or ``force``) and the scan count."""
         self._last_publish = trio.current_time()
+        self._counted = self.scans
+        if self._changed or force:
+            self._send_snapshot()
+        self._send(self._nav, Message.uint(Cmd.NAV_SCAN_COUNT, self.scans))
+
+    def _send_snapshot(self) -> None:
         self._changed = False
         snap = self.grid.snapshot()
         try:
@@ -111,7 +123,6 @@ class MapManagement(Actor):
         else:
             self.pool.take(handle)
             self.dropped_updates += 1
-        self._send(self._nav, Message.uint(Cmd.NAV_SCAN_COUNT, self.scans))
 
     def _restore(self, snap: GridMap) -> None:
         """Seed cells this grid has not observed from ``snap`` (same resolution only)."""

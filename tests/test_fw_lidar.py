@@ -1,0 +1,54 @@
+"""LIDAR Control in isolation: fake samples and poses in, scans out."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trio
+
+from actors import Actor, BufferPool, Message, open_actor_system
+from actors.firmware.commands import Cmd
+from actors.firmware.lidar import LidarControl, Scan
+from supervisors import ChildSpec, SupervisorSpec
+
+from .test_fw_motor import FakeHardware
+
+
+class Recorder(Actor):
+    def __init__(self, log: list, pool: BufferPool) -> None:
+        self.log, self.pool = log, pool
+
+    async def handle(self, m):
+        payload = self.pool.take(int(m.value)) if m.type == 4 else m.value
+        self.log.append((m.command, payload))
+
+
+@pytest.mark.trio
+async def test_samples_are_stamped_with_the_pose_that_follows_them(autojump_clock) -> None:
+    """Samples then a pose in one burst become one scan at that pose; duty goes to hardware."""
+    hw, pool, log = FakeHardware(), BufferPool(16), []
+    hw.duty = None
+    hw.set_lidar_pwm = lambda d: setattr(hw, "duty", d)
+    spec = SupervisorSpec([ChildSpec("map", lambda: Recorder(log, pool)),
+                           ChildSpec("lidar", lambda: LidarControl(hw, pool), mailbox=1024)])
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        await system.send("mapper/lidar", Message.float(Cmd.LIDAR_START, 0.5))
+        await trio.sleep(0.01)
+        assert hw.duty == 0.5
+        for a in range(10):
+            system.send_nowait("mapper/lidar", Message.pair(Cmd.LIDAR_SAMPLE, a * 10, 100 + a))
+        system.send_nowait("mapper/lidar", Message.pair(Cmd.LIDAR_POSE_XY, 30, -4))
+        system.send_nowait("mapper/lidar", Message.float(Cmd.LIDAR_POSE_HEADING, 45.0))
+        await trio.sleep(0.01)
+        (cmd, scan), = log
+        assert cmd == Cmd.MAP_SCAN and isinstance(scan, Scan)
+        assert (scan.pose.x, scan.pose.y, scan.pose.heading_deg) == (30.0, -4.0, 45.0)
+        assert scan.angles_deg == pytest.approx(np.arange(10, dtype=np.float32))
+        assert list(scan.ranges_cm) == [100 + a for a in range(10)]
+        with pytest.raises(Exception):  # noqa: B017 - a bad duty is a crash of the message
+            await system.call("mapper/lidar", Message.float(Cmd.LIDAR_RATE, 2.0), timeout=1)
+        await system.send("mapper/lidar", Message.uint(Cmd.LIDAR_STOP, 0))
+        await trio.sleep(0.01)
+        assert hw.duty == 0.0
+        assert pool.statistics().in_use == 0

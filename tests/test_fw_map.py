@@ -1,0 +1,77 @@
+"""Map Management in isolation: scans in, rate-limited snapshots and scan counts out."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trio
+
+from actors import BufferPool, Message, open_actor_system
+from actors.firmware.commands import Cmd
+from actors.firmware.lidar import Scan
+from actors.firmware.mapping import MapManagement
+from actors.firmware.occupancy import GridMap
+from supervisors import ChildSpec, SupervisorSpec
+
+from .test_fw_lidar import Recorder
+
+
+def ring_scan(n: int = 360, r: float = 100.0) -> Scan:
+    from actors.firmware.odometry import Pose
+    return Scan(Pose(), np.arange(n, dtype=np.float32) * (360 / n),
+                np.full(n, r, dtype=np.float32))
+
+
+@pytest.mark.trio
+async def test_map_management_rate_limits_updates_and_counts_scans(autojump_clock) -> None:
+    """Ten identical scans in a burst: one snapshot and count at once; later only the count
+    (the map did not change, the scans kept arriving)."""
+    pool, log = BufferPool(64), []
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(400, 400),
+                                                                  publish_s=0.25))])
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(10):
+            system.send_nowait("mapper/map", Message.handle(Cmd.MAP_SCAN, pool.put(ring_scan())))
+        await trio.sleep(0.01)
+        assert [c for c, _ in log] == [Cmd.NAV_MAP_UPDATE, Cmd.NAV_SCAN_COUNT]
+        await trio.sleep(0.3)
+        updates = [p for c, p in log if c == Cmd.NAV_MAP_UPDATE]
+        counts = [p for c, p in log if c == Cmd.NAV_SCAN_COUNT]
+        assert len(updates) == 1 and counts == [1, 10]
+        snap = updates[-1]
+        assert isinstance(snap, GridMap)
+        r, c = snap.world_to_cell(101.0, 0.0)
+        assert snap.cells[r, c] == 100
+        assert snap.cells[snap.world_to_cell(50.0, 0.0)] == 0
+        log.clear()
+        await system.send("mapper/map", Message.uint(Cmd.MAP_GET, 0))
+        await trio.sleep(0.01)
+        assert [c for c, _ in log] == [Cmd.NAV_MAP_UPDATE, Cmd.NAV_SCAN_COUNT]
+
+
+@pytest.mark.trio
+async def test_restarted_map_says_lost_and_restores_from_a_snapshot(autojump_clock) -> None:
+    """After a crash the new grid is empty, NAV_MAP_LOST goes out, MAP_RESTORE seeds it."""
+    pool, log = BufferPool(64), []
+    starts = [0]
+
+    def make_map():
+        starts[0] += 1
+        return MapManagement(pool, size_cm=(400, 400), restarted=starts[0] > 1)
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("map", make_map)])
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        await system.send("mapper/map", Message.handle(Cmd.MAP_SCAN, pool.put(ring_scan())))
+        await trio.sleep(0.01)
+        before = [p for c, p in log if c == Cmd.NAV_MAP_UPDATE][-1]
+        system.inject_crash("mapper/map")
+        await trio.sleep(0.5)
+        assert (Cmd.NAV_MAP_LOST, 0) in log
+        log.clear()
+        await system.send("mapper/map", Message.handle(Cmd.MAP_RESTORE, pool.put(before)))
+        await trio.sleep(0.01)
+        after = [p for c, p in log if c == Cmd.NAV_MAP_UPDATE][-1]
+        assert np.array_equal(after.cells, before.cells)
