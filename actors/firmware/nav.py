@@ -26,7 +26,8 @@ NAV_ROLES = ("mapper", "hider", "seeker")
 
 
 def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
-             options: NavOptions | None = None, memory: NavMemory | None = None,
+             rover_id: str | None = None, options: NavOptions | None = None,
+             memory: NavMemory | None = None,
              mapping: MappingOptions | None = None,
              seeking: SeekingOptions | None = None) -> Actor:
     """The navigation actor of ``role``.
@@ -35,6 +36,8 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
         role: ``mapper``, ``hider`` or ``seeker``.
         pool: the rover's buffer pool (frames, maps and scans travel by handle).
         spec: the rover's calibration constants (body size for clearance).
+        rover_id: the rover's id (accepted for the rover tree's calling convention;
+            navigation addresses its neighbours by its own registered name).
         options: common tunables (`NavOptions`).
         memory: the retained record of the server's instructions, made once by the
             rover tree and passed to every incarnation (`NavMemory`); None keeps
