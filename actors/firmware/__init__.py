@@ -1,1 +1,33 @@
-"""actors/firmware"""
+"""The rovers' firmware as actors: the seed's threads, ISRs and queues.
+
+Layering inside the package (each module imports only those above it)::
+
+    commands, devices                 the internal command codes; the ISR boundary
+    odometry                          poses and dead reckoning (pure)
+    occupancy, planner, frontier,     pure algorithms on grids
+    clearance
+    isr                               the five ISRs (Int A-E) posting Messages
+    motor, lidar, mapping, ir, wifly  the driver actors (wifly also uses server.protocol)
+    nav_*                             navigation actors (mapping, hiding, seeking)
+
+The package never imports ``world``, and of ``server`` only ``server.protocol``
+(tests/test_layers.py). The supervision trees live in ``supervisors.rover``.
+"""
+
+from .commands import Cmd, name_of
+from .devices import HardwareSpec, Interrupt, RoverHardware
+from .ir import IrSensor
+from .isr import IrAdcIsr, IrTimerIsr, LidarUartIsr, MotorCounterIsr, WiflyUartIsr
+from .lidar import LidarControl, Scan
+from .mapping import MapManagement
+from .motor import MotorControl, MotorTuning, PoseMemory
+from .occupancy import GridMap, OccupancyGrid
+from .odometry import Pose
+from .wifly import LinkMemory, Wifly
+
+__all__ = [
+    "Cmd", "GridMap", "HardwareSpec", "Interrupt", "IrAdcIsr", "IrSensor", "IrTimerIsr",
+    "LidarControl", "LidarUartIsr", "LinkMemory", "MapManagement", "MotorControl",
+    "MotorCounterIsr", "MotorTuning", "OccupancyGrid", "Pose", "PoseMemory", "RoverHardware",
+    "Scan", "Wifly", "WiflyUartIsr", "name_of",
+]
