@@ -1,0 +1,150 @@
+"""WiFly in isolation against a fake server end (a ReliableSession speaking the protocol)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trio
+
+from actors import BufferPool, Message, open_actor_system
+from actors.firmware.commands import Cmd
+from actors.firmware.devices import Interrupt
+from actors.firmware.occupancy import GridMap
+from actors.firmware.wifly import Wifly
+from server.protocol import (
+    MapAssembler,
+    MapGrid,
+    ReliableSession,
+    make_frame,
+    map_chunks,
+    read_data,
+)
+from supervisors import ChildSpec, SupervisorSpec
+
+from .test_fw_lidar import Recorder
+from .test_fw_motor import FakeHardware
+
+
+class FakeServer:
+    """The server's end: welcomes hello, records delivered frames, can go deaf."""
+
+    def __init__(self, hw: FakeHardware) -> None:
+        self.session = ReliableSession(now=trio.current_time())
+        self.got: list = []
+        self.deaf = False
+        self.hw = hw
+        hw.wifly_write = self.from_rover
+
+    def from_rover(self, data: bytes) -> None:
+        if self.deaf:
+            return
+        for f in self.session.feed(data, trio.current_time()):
+            self.got.append(f)
+            if f.cmd == "hello":
+                self.session.reset_peer(read_data(f).seq_base)
+                self.session.send(make_frame("welcome", {
+                    "server": "fake/1", "heartbeat_s": 1.0, "down_after_s": 5.0,
+                    "seq_base": self.session.seq_base}))
+
+    async def run(self) -> None:
+        while True:
+            data = self.session.transmit(trio.current_time())
+            isr = self.hw.handlers.get(Interrupt.INT_B)
+            if data and isr is not None and not self.deaf:
+                isr(data)
+            await trio.sleep(0.05)
+
+
+def wifly_tree(hw, pool, log):
+    return SupervisorSpec([
+        ChildSpec("nav", lambda: Recorder(log, pool)),
+        ChildSpec("wifly", lambda: Wifly(hw, pool, rover_id="hider-1", role="hider"),
+                  mailbox=256)])
+
+
+@pytest.mark.trio
+async def test_hello_welcome_frames_and_map_download(autojump_clock) -> None:
+    """Hello until welcome (NAV_LINK 1); frames go to nav; map chunks arrive as one map."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
+        server = FakeServer(hw)
+        nursery.start_soon(server.run)
+        await system.start_supervisor(wifly_tree(hw, pool, log), "hider")
+        await trio.sleep(1.0)
+        assert (Cmd.NAV_LINK, 1) in log
+        assert server.got[0].cmd == "hello" and read_data(server.got[0]).id == "hider-1"
+        server.session.send(make_frame("start"))
+        cells = np.zeros((40, 60), dtype=np.int8)
+        cells[0, :] = 100
+        cells[5:9, 5:9] = -1
+        for f in map_chunks(MapGrid(cells, 5.0, (-10.0, -20.0)), map_id=7):
+            server.session.send(f, reliable=True)
+        await trio.sleep(3.0)
+        frames = [p for c, p in log if c == Cmd.NAV_NET]
+        assert [f.cmd for f in frames] == ["start"]
+        (grid,) = [p for c, p in log if c == Cmd.NAV_MAP_DOWNLOAD]
+        assert isinstance(grid, GridMap) and np.array_equal(grid.cells, cells)
+        assert grid.origin_cm == (-10.0, -20.0)
+        nursery.cancel_scope.cancel()
+
+
+@pytest.mark.trio
+async def test_deaf_server_then_reconnect_loses_and_duplicates_nothing(autojump_clock) -> None:
+    """Reliable frames and a map sent while the server is deaf arrive once, in order."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
+        server = FakeServer(hw)
+        nursery.start_soon(server.run)
+        await system.start_supervisor(wifly_tree(hw, pool, log), "hider")
+        await trio.sleep(1.0)
+        server.deaf = True
+        for k in range(3):
+            frame = make_frame("invalid_spot", {"reason": f"r{k}"})
+            await system.send("hider/wifly", Message.handle(Cmd.WIFLY_SEND, pool.put(frame)))
+        snap = GridMap(np.zeros((30, 30), dtype=np.int8), 5.0, (0.0, 0.0))
+        await system.send("hider/wifly", Message.handle(Cmd.WIFLY_SEND_MAP, pool.put(snap)))
+        await trio.sleep(8.0)
+        assert (Cmd.NAV_LINK, 0) in log
+        server.deaf = False
+        await trio.sleep(20.0)
+        assert [p for c, p in log if c == Cmd.NAV_LINK] == [1, 0, 1]
+        reports = [read_data(f).reason for f in server.got if f.cmd == "invalid_spot"]
+        assert reports == ["r0", "r1", "r2"]
+        assembler = MapAssembler()
+        maps = [m for f in server.got if f.cmd == "map"
+                if (m := assembler.add(read_data(f))) is not None]
+        assert len(maps) == 1 and maps[0].cells.shape == (30, 30)
+        assert system.whereis("hider/wifly").actor.statistics()["unacked"] == 0
+        nursery.cancel_scope.cancel()
+
+
+@pytest.mark.trio
+async def test_restart_keeps_unacknowledged_frames(autojump_clock) -> None:
+    """A WiFly crash while frames are unacknowledged: the new incarnation resends them."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    from actors.firmware.wifly import LinkMemory
+    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
+        server = FakeServer(hw)
+        nursery.start_soon(server.run)
+        memory = LinkMemory()
+        spec = SupervisorSpec([
+            ChildSpec("nav", lambda: Recorder(log, pool)),
+            ChildSpec("wifly", lambda: Wifly(hw, pool, rover_id="h", role="hider",
+                                             memory=memory))])
+        await system.start_supervisor(spec, "hider")
+        await trio.sleep(1.0)
+        server.deaf = True
+        await system.send("hider/wifly", Message.handle(
+            Cmd.WIFLY_SEND, pool.put(make_frame("arrived", {"x": 1, "y": 2, "heading": 3}))))
+        await trio.sleep(0.5)
+        system.inject_crash("hider/wifly")
+        await trio.sleep(0.5)
+        server.deaf = False
+        await trio.sleep(15.0)
+        assert [f.cmd for f in server.got].count("arrived") == 1
+        nursery.cancel_scope.cancel()
+
+
+def test_bad_rover_id_is_refused_at_construction() -> None:
+    with pytest.raises(ValueError, match="does not fit its schema"):
+        Wifly(FakeHardware(), BufferPool(4), rover_id="bad id!", role="hider")
