@@ -20,6 +20,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "maps": ("tui.cmd_maps", "list stored games and maps"),
     "export-map": ("tui.cmd_maps", "export a game's map as PGM + map_server YAML, or PNG"),
     "play": ("tui.cmd_play", "the terminal console: watch, steer and break a game"),
+    "campaign": ("tui.cmd_campaign", "many seeded games under random faults, invariants checked"),
 }
 
 

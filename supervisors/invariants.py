@@ -1,0 +1,362 @@
+"""Invariants every campaign game must keep, and the probes that observe them.
+
+A fault campaign (`supervisors.campaign`) plays many seeded games under
+faults and checks, in each, what must hold whatever went wrong:
+
+* **liveness**: the game ended (found, or not found after its guesses)
+  within its simulated-time budget; no firmware actor is left dead; no
+  supervisor gave up (escalated) because of a single fault;
+* **no loss**: every reliable frame (one with ``seq``) a rover put on the
+  air reached the server's game logic exactly once; the map the server
+  stored equals the map the mapper uploaded;
+* **honesty**: no firmware or server object holds a reference into the
+  world other than the rover's own hardware interface (the import rules of
+  tests/test_layers.py, asserted on the live objects);
+* **determinism**: the same game played twice gives the same trace hash.
+
+Each broken invariant is a `Violation` whose ``name`` says which
+(``liveness.ended``, ``no_loss.lost`` ...), so a failure list reads as a
+diagnosis. The checks are pure functions of what the probes recorded, so
+they are tested without running a game.
+
+The probes are taps, like a logic analyser on the rover's UART: they see
+copies of bytes and calls and change nothing (they never await, so a
+tapped run keeps its trace hash). `DeliveryProbe` decodes the bytes each
+rover writes to its WiFly link and wraps the server's frame handler; the
+latter is a private method of `server.Server` (``_on_frame``) and the one
+place this module relies on server internals.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import types
+from collections import Counter
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from actors import ActorState, EventKind, Trace, TraceEvent
+from server.protocol import TOO_LONG, Frame, FrameError, LineBuffer, decode_line
+
+__all__ = [
+    "Violation", "Delivery", "DeliveryProbe", "TraceCounts", "check_ended", "check_actors_alive",
+    "check_no_escalation", "check_exactly_once", "check_maps_equal", "check_honesty",
+    "check_module_honesty", "check_determinism", "UNRELIABLE_CMDS",
+]
+
+#: frames that are re-sent by design on every (re)connection: not subject to no-loss
+UNRELIABLE_CMDS = frozenset({"hello", "ack", "heartbeat"})
+#: at most this many keys are listed in a violation's detail
+_LIST_MAX = 5
+#: objects visited at most by the honesty walk, per root
+_WALK_MAX = 20_000
+
+
+@dataclass(frozen=True, slots=True)
+class Violation:
+    """One broken invariant: ``name`` says which (``liveness.ended`` ...), ``detail`` how."""
+
+    name: str
+    detail: str
+
+    def __str__(self) -> str:
+        return f"{self.name}: {self.detail}"
+
+
+# ---------------------------------------------------------------------------- probes
+
+def _frame_key(frame: Frame) -> str:
+    """Identity of a reliable frame: sender's seq plus content (a rebooted rover reuses seqs)."""
+    data = json.dumps(frame.data, sort_keys=True, separators=(",", ":"), default=repr)
+    return f"{frame.seq}|{frame.cmd}|{data}"
+
+
+@dataclass(frozen=True, slots=True)
+class Delivery:
+    """What one rover sent reliably and what the server delivered, by frame key."""
+
+    due: set[str]
+    """Keys first sent early enough that they must have been delivered by now."""
+    sent: set[str]
+    """Every key the rover sent (late ones included)."""
+    delivered: Counter
+    """Key -> times the server's game logic got it."""
+
+
+@dataclass
+class _RoleTap:
+    lines: LineBuffer = field(default_factory=LineBuffer)
+    first_sent: dict[str, float] = field(default_factory=dict)
+    """key -> simulated time the rover first wrote it [s]."""
+    delivered: Counter = field(default_factory=Counter)
+    """key -> times the server's game logic got it."""
+
+
+class DeliveryProbe:
+    """Records reliable frames each rover sends and each the server delivers.
+
+    Install with `DeliveryProbe.install(system, clock)` right after the
+    system opened; ``clock`` is ``trio.current_time``.
+    """
+
+    def __init__(self, clock: Callable[[], float]) -> None:
+        self._clock = clock
+        self.taps: dict[str, _RoleTap] = {}
+        self.unknown_rover_frames = 0
+        """Frames delivered for a rover id whose role the probe could not tell."""
+
+    @classmethod
+    def install(cls, system: Any, clock: Callable[[], float],
+                roles: Iterable[str] = ("mapper", "hider", "seeker")) -> DeliveryProbe:
+        """Tap every rover's uplink and the server's frame handler of ``system`` (a SimSystem)."""
+        probe = cls(clock)
+        for role in roles:
+            link = system.world.wifly_link(role)
+            tap = probe.taps.setdefault(role, _RoleTap())
+            link.rover_write = probe._uplink(tap, link.rover_write)
+        server = system.server
+        server._on_frame = probe._server_side(server._on_frame)
+        return probe
+
+    def _uplink(self, tap: _RoleTap, write: Callable[[bytes], None]) -> Callable[[bytes], None]:
+        def rover_write(data: bytes) -> None:
+            self.note_sent(tap, bytes(data))
+            write(data)
+        return rover_write
+
+    def _server_side(self, on_frame: Callable[..., None]) -> Callable[..., None]:
+        def tapped(rover: Any, frame: Frame, now: float) -> None:
+            self.note_delivered(getattr(rover, "role", ""), frame)
+            on_frame(rover, frame, now)
+        return tapped
+
+    def note_sent(self, tap: _RoleTap, data: bytes) -> None:
+        """Decode bytes a rover wrote; remember each reliable frame's first sending."""
+        for line in tap.lines.feed(data):
+            if line is TOO_LONG:
+                continue  # the server rejects it too; the rover's resend is what counts
+            try:
+                frame = decode_line(line)
+            except FrameError:
+                continue
+            if frame.seq is None or frame.cmd in UNRELIABLE_CMDS:
+                continue
+            tap.first_sent.setdefault(_frame_key(frame), self._clock())
+
+    def note_delivered(self, role: str, frame: Frame) -> None:
+        """Count a frame the server's game logic received from ``role``."""
+        if frame.seq is None or frame.cmd in UNRELIABLE_CMDS:
+            return
+        tap = self.taps.get(role)
+        if tap is None:
+            self.unknown_rover_frames += 1
+            return
+        tap.delivered[_frame_key(frame)] += 1
+
+    def pending(self, before: float) -> int:
+        """Reliable frames first sent before ``before`` [s] that have not been delivered yet."""
+        return sum(1 for tap in self.taps.values() for k, t in tap.first_sent.items()
+                   if t < before and tap.delivered[k] == 0)
+
+    def sent_and_delivered(self, before: float) -> dict[str, Delivery]:
+        """Per role: what was sent (before ``before`` [s], and at all) and delivered."""
+        return {role: Delivery({k for k, t in tap.first_sent.items() if t < before},
+                               set(tap.first_sent), Counter(tap.delivered))
+                for role, tap in self.taps.items()}
+
+
+class TraceCounts:
+    """Counts lifecycle events of a run (restarts, crashes, hangs, escalations).
+
+    A trace subscriber: it only counts, so the run's trace hash is unchanged.
+    """
+
+    def __init__(self, trace: Trace) -> None:
+        self.counts: Counter = Counter()
+        self.escalations: list[str] = []
+        """Supervisors that gave up, in order (bounded)."""
+        self.refused_faults: list[str] = []
+        self._sub = trace.subscribe(self._on_event)
+
+    def _on_event(self, event: TraceEvent) -> None:
+        self.counts[event.kind.value] += 1
+        if event.kind == EventKind.ESCALATE and len(self.escalations) < 100:
+            self.escalations.append(f"{event.actor} at {event.time:.1f} s")
+        elif (event.kind == EventKind.FAULT and event.detail.startswith("refused")
+              and len(self.refused_faults) < 100):
+            self.refused_faults.append(f"{event.actor}: {event.detail}")
+
+    def close(self) -> None:
+        """Stop counting."""
+        self._sub.close()
+
+
+# ---------------------------------------------------------------------------- checks
+
+def check_ended(outcome: str, reason: str) -> list[Violation]:
+    """Liveness: the game ended as found or not found (not failed, e.g. by a phase timeout)."""
+    if outcome in ("found", "not_found"):
+        return []
+    return [Violation("liveness.ended", reason or f"outcome {outcome!r}")]
+
+
+def check_actors_alive(states: dict[str, str]) -> list[Violation]:
+    """Liveness: every firmware actor (name ``role/actor``) is running at the end."""
+    dead = sorted(f"{n} {s}" for n, s in states.items()
+                  if "/" in n and s != ActorState.RUNNING.value)
+    if not dead:
+        return []
+    return [Violation("liveness.actor_dead", ", ".join(dead[:_LIST_MAX])
+                      + (f" (+{len(dead) - _LIST_MAX} more)" if len(dead) > _LIST_MAX else ""))]
+
+
+def check_no_escalation(escalations: list[str], faults_fired: int) -> list[Violation]:
+    """Liveness: no supervisor gave up when at most one fault was injected.
+
+    With several overlapping faults a supervisor reaching its restart
+    intensity is the designed behaviour, so it is not a violation then.
+    """
+    if not escalations or faults_fired > 1:
+        return []
+    return [Violation("liveness.gave_up", "; ".join(escalations[:_LIST_MAX]))]
+
+
+def check_exactly_once(per_role: dict[str, Delivery]) -> list[Violation]:
+    """No loss: each reliable frame a rover sent was delivered exactly once, none invented.
+
+    Only frames in ``due`` must have arrived; frames sent in the last moments
+    (after the cut) may still be in flight, but none may arrive twice and
+    none may arrive that the rover never sent.
+    """
+    out: list[Violation] = []
+    for role, d in sorted(per_role.items()):
+        lost = sorted(k for k in d.due if d.delivered[k] == 0)
+        dup = sorted(k for k, n in d.delivered.items() if n > 1)
+        phantom = sorted(k for k, n in d.delivered.items() if n and k not in d.sent)
+        if lost:
+            out.append(Violation("no_loss.lost", f"{role}: {len(lost)} of {len(d.due)} reliable "
+                                 f"frames never delivered, e.g. {_short(lost)}"))
+        if dup:
+            out.append(Violation("no_loss.duplicate",
+                                 f"{role}: {len(dup)} frames delivered more than once, "
+                                 f"e.g. {_short(dup)}"))
+        if phantom:
+            out.append(Violation("no_loss.phantom",
+                                 f"{role}: {len(phantom)} frames delivered that the rover never "
+                                 f"sent (corrupted yet valid?), e.g. {_short(phantom)}"))
+    return out
+
+
+def _short(keys: list[str]) -> str:
+    return ", ".join(k[:60] for k in keys[:2])
+
+
+def check_maps_equal(stored: Any, uploaded: Any) -> list[Violation]:
+    """No loss: the map the server stored equals the one the mapper uploaded.
+
+    Both are `MapGrid`-like (``cells``, ``resolution_cm``, ``origin_cm``);
+    None means there was none (no map is fine only when neither has one).
+    """
+    if stored is None and uploaded is None:
+        return []
+    if stored is None or uploaded is None:
+        which = "the server stored no map" if stored is None else "the mapper uploaded none"
+        return [Violation("no_loss.map", which)]
+    if (stored.cells.shape != uploaded.cells.shape
+            or not np.array_equal(stored.cells, uploaded.cells)):
+        diff = (int((stored.cells != uploaded.cells).sum())
+                if stored.cells.shape == uploaded.cells.shape
+                else f"shape {stored.cells.shape} vs {uploaded.cells.shape}")
+        return [Violation("no_loss.map", f"stored map differs from the uploaded one: {diff} cells")]
+    if (float(stored.resolution_cm) != float(uploaded.resolution_cm)
+            or tuple(map(float, stored.origin_cm)) != tuple(map(float, uploaded.origin_cm))):
+        return [Violation("no_loss.map", "stored map placement (resolution/origin) differs")]
+    return []
+
+
+def _world_object(obj: Any) -> bool:
+    module = getattr(type(obj), "__module__", "") or ""
+    return module == "world" or module.startswith("world.")
+
+
+def _children(obj: Any) -> Iterable[Any]:
+    if isinstance(obj, dict):
+        yield from obj.keys()
+        yield from obj.values()
+    elif isinstance(obj, (list, tuple, set, frozenset)) or type(obj).__name__ == "deque":
+        yield from obj
+    else:
+        d = getattr(obj, "__dict__", None)
+        if isinstance(d, dict):
+            yield from d.values()
+        for cls in type(obj).__mro__:
+            for slot in getattr(cls, "__slots__", ()):
+                if isinstance(slot, str) and slot not in ("__dict__", "__weakref__"):
+                    try:
+                        yield getattr(obj, slot)
+                    except AttributeError:
+                        pass
+
+
+_LEAVES = (str, bytes, bytearray, int, float, bool, type(None), np.ndarray, np.generic,
+           types.FunctionType, types.MethodType, types.BuiltinFunctionType, type,
+           types.ModuleType)
+
+
+def check_honesty(roots: dict[str, Any], allowed: dict[str, Any]) -> list[Violation]:
+    """Honesty: nothing reachable from a root (firmware actor, server) is a world object,
+    except the one hardware interface allowed for that root.
+
+    The walk follows containers and instance attributes (not functions, bound
+    methods or modules: the simulated link hands the server a bound write
+    method, bytes only) and stops at ``_WALK_MAX`` objects per root.
+
+    Args:
+        roots: name -> object to walk from.
+        allowed: name -> the world object that root may hold (its rover's
+            hardware) or None.
+    """
+    out: list[Violation] = []
+    for name, root in roots.items():
+        ok = allowed.get(name)
+        seen: set[int] = set()
+        stack = [(root, name)]
+        while stack and len(seen) < _WALK_MAX:
+            obj, path = stack.pop()
+            if id(obj) in seen or isinstance(obj, _LEAVES):
+                continue
+            seen.add(id(obj))
+            if obj is ok:
+                continue
+            if _world_object(obj):
+                out.append(Violation("honesty", f"{path} holds a world object "
+                                     f"{type(obj).__module__}.{type(obj).__name__}"))
+                break
+            stack.extend((child, f"{path}.{type(child).__name__}") for child in _children(obj))
+    return out
+
+
+def check_module_honesty(prefixes: tuple[str, ...] = ("actors.firmware", "server")
+                         ) -> list[Violation]:
+    """Honesty: no loaded firmware or server module has a world name in its globals."""
+    out = []
+    for name, module in list(sys.modules.items()):
+        if module is None or not any(name == p or name.startswith(p + ".") for p in prefixes):
+            continue
+        for attr, value in list(vars(module).items()):
+            where = (value.__name__ if isinstance(value, types.ModuleType)
+                     else getattr(value, "__module__", "") or "")
+            if where == "world" or where.startswith("world."):
+                out.append(Violation("honesty", f"module {name} holds {attr} from {where}"))
+    return out
+
+
+def check_determinism(first: str, second: str | None) -> list[Violation]:
+    """Determinism: a replay of the game gave the same trace hash (None: not replayed)."""
+    if second is None or first == second:
+        return []
+    return [Violation("determinism", f"trace hash {first[:12]} then {second[:12]}")]

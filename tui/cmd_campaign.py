@@ -1,0 +1,198 @@
+"""``hideseek campaign``: many seeded games under random faults, invariants checked.
+
+Game i of campaign S is fully determined by (S, i) and the options; every
+failure is printed with the command that plays it again alone
+(``hideseek run --campaign S:i[,...]``), with the same trace hash.
+
+Exit status: 0 every game found the hider with every invariant kept, 1 some
+game failed, 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from typing import Any, TextIO
+
+from supervisors.campaign import (
+    MAX_GAMES,
+    MODES,
+    CampaignConfig,
+    CampaignError,
+    CampaignStore,
+    default_workers,
+    play_campaign_game,
+    run_campaign,
+    select_kinds,
+    summarize,
+)
+from world.scenario import builtin_scenarios
+
+_BAR = 30  # progress bar width [characters]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("-n", "--games", type=int, default=None, metavar="N",
+                        help="games to play (default 200, or 6 with --quick)")
+    parser.add_argument("--seed", type=int, default=1, help="the campaign's seed S (default 1)")
+    parser.add_argument("--workers", type=int, default=None, metavar="W",
+                        help=f"worker processes (default one per core: {default_workers()}; "
+                             "0 plays in this process)")
+    rooms = parser.add_mutually_exclusive_group()
+    rooms.add_argument("--scenarios", metavar="NAMES",
+                       help=f"built-in rooms, comma separated, round-robin (default all: "
+                            f"{', '.join(builtin_scenarios())})")
+    rooms.add_argument("--generated", action="store_true",
+                       help="procedurally generated rooms (room i of seed S)")
+    parser.add_argument("--faults", metavar="KINDS", default=None,
+                        help="fault kinds to draw from, comma separated: a label such as "
+                             "wifly:loss, a device (lidar, wifly, motor ...), 'actor', or a "
+                             "kind (crash, stuck ...); default all")
+    parser.add_argument("--mode", choices=MODES, default="single",
+                        help="faults per game: single (exactly one, default), overlapping "
+                             "(0 to 3), none")
+    parser.add_argument("--window", default=None, metavar="A-B",
+                        help="simulated seconds in which faults start (default 5-240)")
+    parser.add_argument("--budget", type=float, default=1200.0,
+                        help="simulated seconds allowed for mapping (default 1200)")
+    parser.add_argument("--replay-every", type=int, default=10, metavar="K",
+                        help="replay every K-th game to check determinism (0: never; default 10)")
+    parser.add_argument("--timeout", type=float, default=600.0,
+                        help="wall-clock guard per game [s] (default 600)")
+    parser.add_argument("--quick", action="store_true",
+                        help="a handful of games (6) with no replays beyond the first")
+    parser.add_argument("--json", action="store_true",
+                        help="print one JSON summary on stdout (progress stays on stderr)")
+    parser.add_argument("--out", default="hideseek-campaign.sqlite", metavar="FILE",
+                        help="SQLite file for the results (default hideseek-campaign.sqlite; "
+                             "':memory:' to keep none)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+
+def config_from_args(args: argparse.Namespace) -> CampaignConfig:
+    """The campaign configuration the options describe.
+
+    Raises:
+        CampaignError: an option is wrong; the message says which.
+    """
+    kw: dict[str, Any] = {"seed": args.seed, "mode": args.mode,
+                          "kinds": select_kinds(args.faults),
+                          "mapping_budget_s": args.budget, "generated": args.generated}
+    if args.scenarios:
+        kw["rooms"] = tuple(s.strip() for s in args.scenarios.split(",") if s.strip())
+    if args.window:
+        try:
+            lo, hi = (float(v) for v in args.window.split("-"))
+        except ValueError:
+            raise CampaignError(f"--window must be A-B in seconds, got {args.window!r}") from None
+        kw["window_s"] = (lo, hi)
+    return CampaignConfig(**kw)
+
+
+class Progress:
+    """A one-line progress bar on a stream (a line per tenth when it is not a terminal)."""
+
+    def __init__(self, total: int, stream: TextIO, *, enabled: bool = True) -> None:
+        self.total, self.stream, self.enabled = total, stream, enabled
+        self.done = self.failed = 0
+        self._tty = stream.isatty()
+        self._last_tenth = -1
+        self._t0 = time.perf_counter()  # wall time: display only
+
+    def update(self, failed: bool) -> None:
+        self.done += 1
+        self.failed += failed
+        if not self.enabled:
+            return
+        filled = _BAR * self.done // self.total
+        rate = 60.0 * self.done / max(time.perf_counter() - self._t0, 1e-9)
+        line = (f"[{'#' * filled}{'.' * (_BAR - filled)}] {self.done}/{self.total} games, "
+                f"{self.failed} failed, {rate:.1f} games/min")
+        if self._tty:
+            self.stream.write("\r" + line)
+            if self.done == self.total:
+                self.stream.write("\n")
+        elif (tenth := 10 * self.done // self.total) != self._last_tenth:
+            self._last_tenth = tenth
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+
+def _print_table(s: dict[str, Any]) -> None:
+    print(f"\ncampaign seed {s['campaign']['seed']} ({s['campaign']['mode']} faults): "
+          f"{s['games']} games in {s['wall_s']:.1f} s wall with {s['workers']} workers "
+          f"({s['games_per_wall_minute']} games/min)")
+    print(f"  found {s['found']}, not found {s['not_found']}, failed {s['failed']}; "
+          f"games with broken invariants {s['games_with_violations']}; "
+          f"success rate {100 * s['success_rate']:.1f} %")
+    print(f"  restarts {s['restarts']}, resent {s['resent']}, dropped {s['dropped']}; "
+          f"determinism: {s['determinism']['replayed']} replayed, "
+          f"{s['determinism']['mismatched']} mismatched")
+    if s["fault_kinds"]:
+        print(f"\n  {'fault kind':<18}{'injected':>9}{'recovered':>10}{'failed':>8}"
+              f"{'not reached':>13}")
+        for kind, c in s["fault_kinds"].items():
+            print(f"  {kind:<18}{c['injected']:>9}{c['recovered']:>10}{c['failed']:>8}"
+                  f"{c['not_reached']:>13}")
+    if s["violations"]:
+        print("\n  broken invariants: " + ", ".join(f"{k} x{v}"
+                                                  for k, v in s["violations"].items()))
+    for f in s["failures"]:
+        print(f"\n  FAILED game {f['index']} ({f['room']}): {f['outcome']}"
+              + (f" ({f['reason']})" if f["reason"] else ""))
+        for fault in f["faults"]:
+            print(f"    fault: {fault}")
+        for v in f["violations"]:
+            print(f"    broken: {v}")
+        print(f"    reproduce: {f['reproduce']}")
+
+
+def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
+    """Run the campaign the options describe; ``worker`` is for tests."""
+    try:
+        config = config_from_args(args)
+        games = args.games if args.games is not None else (6 if args.quick else 200)
+        if not 1 <= games <= MAX_GAMES:
+            raise CampaignError(f"-n must be within 1..{MAX_GAMES}, got {games}")
+        workers = default_workers() if args.workers is None else args.workers
+        if not 0 <= workers <= 256:
+            raise CampaignError(f"--workers must be within 0..256, got {workers}")
+        if args.replay_every < 0:
+            raise CampaignError(f"--replay-every must be >= 0, got {args.replay_every}")
+        if not args.timeout > 0:
+            raise CampaignError(f"--timeout must be > 0, got {args.timeout}")
+        store = CampaignStore(args.out)
+    except CampaignError as exc:
+        print(f"hideseek campaign: {exc}", file=sys.stderr)
+        return 2
+    replay_every = games if args.quick else args.replay_every
+    progress = Progress(games, sys.stderr, enabled=not args.no_progress)
+    if not args.json:
+        print(f"campaign seed {config.seed}: {games} games, {config.mode} faults, "
+              f"{workers} workers ...", flush=True)
+    results = []
+    wall0 = time.perf_counter()  # wall time is measured for the report only
+    with store:
+        cid = store.new_campaign(config, time.time())
+        try:
+            for r in run_campaign(config, games, workers=workers, worker=worker,
+                                  determinism_every=replay_every,
+                                  wall_timeout_s=args.timeout):
+                results.append(r)
+                store.add_game(cid, r)
+                progress.update(r["outcome"] != "found" or bool(r["violations"]))
+        except KeyboardInterrupt:
+            print(f"\nhideseek campaign: interrupted after {len(results)} games",
+                  file=sys.stderr)
+        summary = summarize(config, results, wall_s=time.perf_counter() - wall0,
+                            workers=workers)
+        store.finish(cid, summary)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        _print_table(summary)
+    if len(results) < games:
+        return 130
+    return 1 if summary["failures"] else 0
