@@ -46,6 +46,7 @@ are the firmware's contract.
 from __future__ import annotations
 
 import importlib
+import inspect
 from collections.abc import Callable
 from typing import Any
 
@@ -114,6 +115,14 @@ def _default_nav_factory() -> Callable[..., Actor]:
         return lambda role, *, pool, **_: IdleNav(pool)
 
 
+def _accepts(factory: Callable[..., Any], keyword: str) -> bool:
+    try:
+        params = inspect.signature(factory).parameters
+    except (TypeError, ValueError):
+        return False
+    return keyword in params
+
+
 def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = None,
                nav_factory: Callable[..., Actor] | None = None,
                nav_options: dict[str, Any] | None = None, token: str | None = None,
@@ -129,7 +138,9 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
         nav_factory: makes the navigation actor, called for every incarnation as
             ``nav_factory(role, pool=pool, spec=hardware.spec, rover_id=rover_id,
             **nav_options)``; default ``actors.firmware.nav.make_nav`` (or an idle
-            stand-in when it is not importable).
+            stand-in when it is not importable). A factory with a ``memory``
+            parameter gets one ``NavMemory`` per tree (kept across restarts)
+            unless ``nav_options`` brings one.
         nav_options: extra keyword arguments for ``nav_factory``.
         token: the shared secret for hello, when the server asks for one.
         motor_tuning: Motor Control constants.
@@ -147,6 +158,11 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
     pool = BufferPool(POOL_SLOTS, name=f"{role}-pool")
     factory = nav_factory or _default_nav_factory()
     options = dict(nav_options or {})
+    if "memory" not in options and _accepts(factory, "memory"):
+        try:  # navigation's retained memory, made once per tree like PoseMemory
+            options["memory"] = importlib.import_module("actors.firmware.nav_common").NavMemory()
+        except (ImportError, AttributeError):
+            pass
 
     # retained memory (survives actor restarts; a new tree is a rover reset)
     pose_memory = PoseMemory()
