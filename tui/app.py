@@ -128,7 +128,7 @@ class ConsoleApp(App[int]):
     #side { width: 42%; min-width: 38; }
     TabbedContent { height: 1fr; }
     TabPane { padding: 0; }
-    #tree-scroll { height: 1fr; }
+    #tree-scroll, #queue-scroll { height: 1fr; }
     """
     BINDINGS = [
         Binding(a.key, a.action, a.label, show=a.footer, key_display=_KEY_NAMES.get(a.key))
@@ -185,15 +185,17 @@ class ConsoleApp(App[int]):
         self.message_log = MessageLog(id="message-log")
         self.tree_view = SupervisionTree(id="tree-view")
         self.timeline = Timeline(id="timeline")
+        self.tabs = TabbedContent(id="tabs")
 
     def compose(self) -> ComposeResult:
         with Horizontal(id="main"):
             yield self.map_view
             with Vertical(id="side"):
                 yield self.game_panel
-                with TabbedContent(id="tabs"):
+                with self.tabs:
                     with TabPane("Queues", id="queues"):
-                        yield self.queue_table
+                        with VerticalScroll(id="queue-scroll"):
+                            yield self.queue_table
                     with TabPane("Log", id="log"):
                         yield self.message_log
                     with TabPane("Tree", id="tree"):
@@ -274,11 +276,23 @@ class ConsoleApp(App[int]):
         self.snapshots_shown += 1
         self.map_view.update_snapshot(snap)
         self.game_panel.update_snapshot(snap)
-        self.queue_table.update_queues(snap.queues)
         self.message_log.add_lines(snap.log)
-        self.tree_view.update_tree(snap.tree, snap.time_s)
         self.timeline.add_events(snap.timeline)
         self.sub_title = f"{snap.scenario} · {snap.phase.replace('_', ' ')}"
+        self._show_tab(snap)
+
+    def _show_tab(self, snap: Snapshot) -> None:
+        """Redraw the panels that are only drawn while their tab is shown (they cost)."""
+        tab = self.tabs.active
+        self.message_log.live = tab == "log"
+        if tab == "queues":
+            self.queue_table.update_queues(snap.queues)
+        elif tab == "tree":
+            self.tree_view.update_tree(snap.tree, snap.time_s)
+
+    def on_tabbed_content_tab_activated(self, event: TabbedContent.TabActivated) -> None:
+        if self.snapshot is not None and self.map_view.is_attached:
+            self._show_tab(self.snapshot)
 
     # -- actions -----------------------------------------------------------------
     def _call(self, method: str, *args: object) -> None:
@@ -371,7 +385,7 @@ class ConsoleApp(App[int]):
         self.message_log.query_one("#log-filter", Input).focus()
 
     def action_tab(self, tab: str) -> None:
-        self.map_view.screen.query_one(TabbedContent).active = tab
+        self.tabs.active = tab
 
     def action_focus_map(self) -> None:
         self.map_view.focus()

@@ -67,4 +67,8 @@ class GamePanel(Static):
 
     def update_snapshot(self, snap: Snapshot) -> None:
         """Show a snapshot."""
-        self.update(render_game(snap))
+        # A new layout costs a lot at 15 Hz: only when the height may have changed.
+        shape = (len(snap.rovers), snap.phase, snap.paused, snap.speed, bool(snap.faults),
+                 self.size.width)
+        self.update(render_game(snap), layout=shape != getattr(self, "_shape", None))
+        self._shape = shape

@@ -309,33 +309,36 @@ class MapView(Widget, can_focus=True):
         return marks
 
     def _render_frame(self) -> list[Strip]:
+        """Strips for the whole view, one segment per run of equal cells (few segments
+        per line keeps Textual's per-segment work small)."""
         w, h = self._view_size()
-        cls = self.pixel_classes()
-        marks = self.glyphs()
+        cls = self.pixel_classes().astype(np.int32)
+        codes = cls[0::2] * 16 + cls[1::2]  # (h, w): top and bottom class of each cell
+        overlays: list[tuple[str, Style]] = []
+        for (col, row), (char, colour) in self.glyphs().items():
+            if 0 <= col < w and 0 <= row < h:
+                bg = _COLOURS[cls[2 * row + 1, col]]
+                overlays.append((char, self._style(colour, bg, bold=True)))
+                codes[row, col] = 256 + len(overlays) - 1
         ccol, crow, _ = self.to_screen(*self.cursor)
+        if 0 <= ccol < w and 0 <= crow < h:
+            overlays.append((heading_glyph(self.cursor_heading),
+                             self._style("#000000", "#ffff00", bold=True)))
+            codes[crow, ccol] = 256 + len(overlays) - 1
         lines = []
         for row in range(h):
-            top, bottom = cls[2 * row], cls[2 * row + 1]
-            segs: list[Segment] = []
-            run_text, run_style = "", None
-            for col in range(w):
-                bg = _COLOURS[bottom[col]]
-                mark = marks.get((col, row))
-                if (col, row) == (ccol, crow):
-                    char, style = (heading_glyph(self.cursor_heading),
-                                   self._style("#000000", "#ffff00", bold=True))
-                elif mark is not None:
-                    char, style = mark[0], self._style(mark[1], bg, bold=True)
+            line = codes[row]
+            starts = np.concatenate(([0], np.flatnonzero(np.diff(line)) + 1))
+            ends = np.append(starts[1:], w)
+            segs = []
+            for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+                code = int(line[a])
+                if code >= 256:
+                    char, style = overlays[code - 256]
+                    segs.append(Segment(char * (b - a), style))
                 else:
-                    char, style = "▀", self._style(_COLOURS[top[col]], bg)
-                if style is run_style:
-                    run_text += char
-                else:
-                    if run_text:
-                        segs.append(Segment(run_text, run_style))
-                    run_text, run_style = char, style
-            if run_text:
-                segs.append(Segment(run_text, run_style))
+                    style = self._style(_COLOURS[code >> 4], _COLOURS[code & 15])
+                    segs.append(Segment("▀" * (b - a), style))
             lines.append(Strip(segs, w))
         return lines
 

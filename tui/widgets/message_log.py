@@ -42,6 +42,8 @@ class MessageLog(Vertical):
 
     paused: reactive[bool] = reactive(False)
     """While paused the view does not change; lines are still collected."""
+    live: reactive[bool] = reactive(True)
+    """Whether the log is on screen; when not, lines are collected but not drawn."""
     filter_text: reactive[str] = reactive("")
     """Show only lines whose actor or text contains this (case-insensitive)."""
 
@@ -63,6 +65,10 @@ class MessageLog(Vertical):
             self.border_title = "paused" if paused else ""
             if not paused:
                 self._show_new()
+
+    def watch_live(self, live: bool) -> None:
+        if live and self.is_mounted and not self.paused:
+            self._show_new()
 
     def watch_filter_text(self) -> None:
         if self.is_mounted:
@@ -86,7 +92,7 @@ class MessageLog(Vertical):
             self.skipped += new[0].seq - self.last_seq - 1
         self.history.extend(new)
         self.last_seq = new[-1].seq
-        if not self.paused:
+        if self.live and not self.paused:
             self._show_new()
 
     def _show_new(self) -> None:

@@ -1,13 +1,18 @@
-"""Mailbox traffic: depth against capacity, rate and overflow drops, per rover."""
+"""Mailbox traffic: depth against capacity, rate and overflow drops, per rover.
+
+Drawn as one block of text rather than a `DataTable`: a DataTable re-renders
+every cell through Textual's style machinery and, refreshed 15 times a second,
+cost more than the whole simulation at full speed (see ``benchmarks/console``).
+"""
 
 from __future__ import annotations
 
 from rich.text import Text
-from textual.widgets import DataTable
+from textual.widgets import Static
 
 from tui.snapshot import QueueStats
 
-__all__ = ["QueueTable", "depth_bar"]
+__all__ = ["QueueTable", "depth_bar", "short_name", "render_queues"]
 
 
 def depth_bar(depth: int, capacity: int, width: int = 8) -> Text:
@@ -24,41 +29,33 @@ def short_name(name: str) -> str:
     return {"navigation": "nav"}.get(base, base)
 
 
-class QueueTable(DataTable):
-    """A header row per rover, then one row per mailbox, updated in place."""
+def render_queues(queues: tuple[QueueStats, ...]) -> Text:
+    """A header line, then per rover its name and one line per mailbox:
+    name, fill bar, depth/capacity, rate [msg/s], drops."""
+    out = Text.assemble(("mailbox  depth       msg/s   drop", "bold underline"))
+    rover = None
+    for q in queues:
+        if q.rover != rover:
+            rover = q.rover
+            out.append(f"\n{rover}", style="bold")
+        out.append(f"\n {short_name(q.name)[:7]:<7} ")
+        out.append_text(depth_bar(q.depth, q.capacity, width=4))
+        out.append(f" {q.depth:>3}/{q.capacity:<4} {q.rate_hz:>5.0f} ")
+        out.append(f"{q.drops:>6}", style="bold red" if q.drops else "")
+    return out
 
-    DEFAULT_CSS = """
-    QueueTable { height: 1fr; }
-    """
+
+class QueueTable(Static):
+    """Redrawn from each snapshot (put it in a scrolling container)."""
 
     def __init__(self, *, name: str | None = None, id: str | None = None,
                  classes: str | None = None) -> None:
-        super().__init__(name=name, id=id, classes=classes, cursor_type="row", zebra_stripes=True)
-        self._keys: set[str] = set()
-
-    def on_mount(self) -> None:
-        self.add_column("mailbox", key="name")
-        self.add_column("depth", key="bar")
-        self.add_column("msg/s", key="rate")
-        self.add_column("drop", key="drops")
+        super().__init__(name=name, id=id, classes=classes)
+        self._lines = 0
 
     def update_queues(self, queues: tuple[QueueStats, ...]) -> None:
-        """Show these mailboxes (rows are added, updated or removed by name)."""
-        seen = set()
-        for q in queues:
-            if q.rover not in seen:
-                seen.add(q.rover)
-                if q.rover not in self._keys:
-                    self.add_row(Text(q.rover, style="bold"), "", "", "", key=q.rover)
-            seen.add(q.name)
-            bar = depth_bar(q.depth, q.capacity, width=4) + Text(f"{q.depth:>3}/{q.capacity}")
-            rate = Text(f"{q.rate_hz:.0f}", justify="right")
-            drops = Text(str(q.drops), style="bold red" if q.drops else "", justify="right")
-            if q.name in self._keys:
-                for col, value in (("bar", bar), ("rate", rate), ("drops", drops)):
-                    self.update_cell(q.name, col, value)
-            else:
-                self.add_row(Text(" " + short_name(q.name)), bar, rate, drops, key=q.name)
-        for gone in self._keys - seen:
-            self.remove_row(gone)
-        self._keys = seen
+        """Show these mailboxes (a new layout only when the number of lines changes)."""
+        text = render_queues(queues)
+        lines = len(queues) + len({q.rover for q in queues}) + 1
+        self.update(text, layout=lines != self._lines)
+        self._lines = lines

@@ -46,4 +46,7 @@ class SupervisionTree(Static):
 
     def update_tree(self, root: TreeNode | None, now_s: float) -> None:
         """Redraw from a snapshot's tree at simulated time ``now_s`` [s]."""
-        self.update(render_tree(root, now_s))
+        text = render_tree(root, now_s)
+        lines = text.plain.count("\n")
+        self.update(text, layout=lines != getattr(self, "_lines", None))
+        self._lines = lines
