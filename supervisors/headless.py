@@ -76,24 +76,32 @@ class GameReport:
 
 
 class _Phases:
-    """Waits on the server's phase events."""
+    """Waits for the server's game to reach a phase, logging what happens meanwhile."""
 
     def __init__(self, system: SimSystem) -> None:
+        self._game = system.server.game
         self._events = system.server.subscribe()
-        self.phase = str(system.server.game.phase)
-        self.reason = ""
         self.log: list[str] = []
 
+    @property
+    def phase(self) -> str:
+        return str(self._game.phase)
+
+    @property
+    def reason(self) -> str:
+        return self._game.last_reason
+
     async def until(self, wanted: set[str], timeout: float) -> str | None:
-        """Wait until the phase is one of ``wanted``; None on timeout."""
+        """Wait until the game's phase is one of ``wanted``; None on timeout.
+
+        The game object is the truth (read after every server event), so a
+        phase reached before this call is seen at once.
+        """
         with trio.move_on_after(timeout):
             while self.phase not in wanted:
                 event = await self._events.receive()
                 if event.kind in ("phase", "report", "refused", "map", "link_down", "link_up"):
                     self.log.append(event.format())
-                if event.kind == "phase":
-                    self.phase = event.data.get("phase", self.phase)
-                    self.reason = event.data.get("reason", "")
             return self.phase
         return None
 
