@@ -13,7 +13,7 @@ Choosing where to go
     explored areas); `nav_common.plan_route` for the path. A frontier whose
     target cannot be planned to, which blocks the rover twice, which takes more
     ADP steps than its route deserves, or which is chosen again after being
-    reached twice, is blacklisted (by its target point [cm], which survives
+    reached, is blacklisted (by its target point [cm], which survives
     map growth).
 
 Obstacles ahead
@@ -74,7 +74,7 @@ class MappingOptions:
     """LIDAR rotation PWM for mapping (Command B)."""
     first_scans: int = 3
     """Scan batches to wait for before the first move."""
-    min_frontier_cells: int = 4
+    min_frontier_cells: int = 6
     """Smallest useful frontier [cells]."""
     approach_cm: float = 30.0
     """How near a frontier the rover must get [cm]."""
@@ -89,7 +89,10 @@ class MappingOptions:
     stable_scans: int = 5
     """...while at least this many scan batches arrived."""
     change_cells: int = 3
-    """A snapshot differing from the previous in more cells than this is a change."""
+    """A snapshot with more cells than this (or ``change_share`` of the known ones) gone
+    from unknown to known, or back, is a change; free/occupied flicker at edges is not."""
+    change_share: float = 0.002
+    """Relative part of the change threshold (of the known cells)."""
     budget_s: float = 900.0
     """Mapping time budget: upload what is known after this [s]."""
     probe_s: float = 3.0
@@ -186,9 +189,13 @@ class MappingNav(NavBase):
         prev = self.grid
         self.grid = grid
         now = trio.current_time()
-        if prev is None or prev.shape != grid.shape or \
-                int(np.count_nonzero(prev.cells != grid.cells)) > self.m.change_cells:
+        if prev is None or prev.shape != grid.shape:
             self._changed_at, self._scans_at_change = now, self.scans
+        else:
+            known = grid.cells != UNKNOWN
+            news = int(np.count_nonzero(known != (prev.cells != UNKNOWN)))
+            if news > max(self.m.change_cells, self.m.change_share * int(known.sum())):
+                self._changed_at, self._scans_at_change = now, self.scans
         if self.state == "uploading":
             await self._upload()
         elif self.state == "scanning":
@@ -321,8 +328,8 @@ class MappingNav(NavBase):
             assert f.target_cm is not None
             if keep and ex.target is not None and math.dist(f.target_cm, ex.target) <= 40.0:
                 return True  # still the same frontier: keep the route
-            if sum(math.dist(f.target_cm, r) <= self.m.reach_cm * 2 for r in ex.reached) >= 2:
-                self._blacklist(f.target_cm)  # reached twice and still a frontier: give up
+            if any(math.dist(f.target_cm, r) <= self.m.reach_cm * 2 for r in ex.reached):
+                self._blacklist(f.target_cm)  # reached and still a frontier: cannot be seen
                 continue
             if self._route_to(f):
                 return True
