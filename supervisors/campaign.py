@@ -52,11 +52,12 @@ import numpy as np
 import trio
 
 from actors import Trace, seed_trio_scheduler, virtual_clock
-from server.store import Store
+from server.store import Store, StoreError
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_DEVICES
 from world.params import ROLES
 from world.scenario import (
     Scenario,
+    ScenarioError,
     ScheduledFault,
     builtin_scenarios,
     generate_scenario,
@@ -69,8 +70,8 @@ from .system import open_sim_system
 
 __all__ = [
     "FAULT_LABELS", "MODES", "CampaignError", "CampaignConfig", "GameSpec", "plan_game",
-    "parse_game_ref", "select_kinds", "play_campaign_game", "run_campaign", "summarize",
-    "CampaignStore", "ACTORS_BY_ROLE",
+    "parse_game_ref", "game_from_ref", "select_kinds", "play_campaign_game", "run_campaign",
+    "summarize", "CampaignStore", "ACTORS_BY_ROLE", "default_workers", "MAX_GAMES",
 ]
 
 MODES = ("single", "overlapping", "none")
@@ -107,8 +108,11 @@ _DRAIN_POLL_S = 0.5
 MAX_GAMES = 1_000_000       # games per campaign at most
 
 
-class CampaignError(ValueError):
-    """Bad campaign options or game reference; the message is fit to show a user."""
+class CampaignError(ScenarioError):
+    """Bad campaign options or game reference; the message is fit to show a user.
+
+    A `ScenarioError` (so a `ValueError`): a game reference names a scenario.
+    """
 
 
 # ---------------------------------------------------------------------------- options
@@ -332,6 +336,18 @@ def plan_game(config: CampaignConfig, index: int) -> GameSpec:
     return GameSpec(config, index, run_seed, room, faults, labels)
 
 
+def game_from_ref(ref: str) -> tuple[Scenario, int, float]:
+    """What ``hideseek run --campaign REF`` plays: (scenario with faults, run seed, budget [s]).
+
+    Raises:
+        CampaignError: a bad reference (a `ScenarioError`, so ``hideseek run``
+            reports it like any bad scenario).
+    """
+    config, index = parse_game_ref(ref)
+    spec = plan_game(config, index)
+    return spec.scenario(), spec.run_seed, config.mapping_budget_s
+
+
 # ---------------------------------------------------------------------------- playing
 
 def _actor_states(system: Any) -> dict[str, str]:
@@ -424,7 +440,7 @@ def _capture_uploads(system: Any, uploaded: list[Any]) -> None:
 def _stored_map(system: Any, store: Store) -> Any:
     try:
         return store.latest_map_of_game(system.server.game_id)
-    except (LookupError, ValueError):
+    except StoreError:
         return None
 
 
@@ -501,13 +517,21 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
             out["replay_hash"] = again.trace_hash
             out["violations"] += [str(v) for v in inv.check_determinism(
                 report.trace_hash, again.trace_hash)]
-    except Exception as exc:  # noqa: BLE001 - a broken game is a result, not a crash
+    except Exception as group:  # noqa: BLE001 - a broken game is a result, not a crash
+        exc = _leaf(group)
         last = traceback.extract_tb(exc.__traceback__)[-1:]
         where = f" at {last[0].filename.rsplit('/', 2)[-1]}:{last[0].lineno}" if last else ""
         out["violations"] = [f"harness.exception: {type(exc).__name__}: {exc}{where}"]
         out["reason"] = out["reason"] or f"{type(exc).__name__}: {exc}"
     out["wall_s"] = time.perf_counter() - wall0
     return out
+
+
+def _leaf(exc: BaseException) -> BaseException:
+    """The first real exception inside nested exception groups (what a user needs to see)."""
+    while isinstance(exc, BaseExceptionGroup) and exc.exceptions:
+        exc = exc.exceptions[0]
+    return exc
 
 
 # ---------------------------------------------------------------------------- running

@@ -278,9 +278,24 @@ def check_maps_equal(stored: Any, uploaded: Any) -> list[Violation]:
     return []
 
 
+def _module_of(obj: Any) -> str:
+    return getattr(type(obj), "__module__", "") or ""
+
+
 def _world_object(obj: Any) -> bool:
-    module = getattr(type(obj), "__module__", "") or ""
-    return module == "world" or module.startswith("world.")
+    """A world object that is more than a frozen value record (like the hardware's spec)."""
+    module = _module_of(obj)
+    if not (module == "world" or module.startswith("world.")):
+        return False
+    params = getattr(type(obj), "__dataclass_params__", None)
+    return not (params is not None and params.frozen)
+
+
+def _not_walked(obj: Any) -> bool:
+    """The actor runtime and Trio: domain-free, they hold every actor; not the firmware's reach."""
+    module = _module_of(obj)
+    return (module.startswith(("trio", "actors.", "_contextvars"))
+            and not module.startswith("actors.firmware"))
 
 
 def _children(obj: Any) -> Iterable[Any]:
@@ -313,7 +328,9 @@ def check_honesty(roots: dict[str, Any], allowed: dict[str, Any]) -> list[Violat
 
     The walk follows containers and instance attributes (not functions, bound
     methods or modules: the simulated link hands the server a bound write
-    method, bytes only) and stops at ``_WALK_MAX`` objects per root.
+    method, bytes only), does not enter the actor runtime or Trio (they are
+    domain-free and hold every actor), accepts frozen value records (the
+    hardware's spec) and stops at ``_WALK_MAX`` objects per root.
 
     Args:
         roots: name -> object to walk from.
@@ -330,7 +347,7 @@ def check_honesty(roots: dict[str, Any], allowed: dict[str, Any]) -> list[Violat
             if id(obj) in seen or isinstance(obj, _LEAVES):
                 continue
             seen.add(id(obj))
-            if obj is ok:
+            if obj is ok or (obj is not root and _not_walked(obj)):
                 continue
             if _world_object(obj):
                 out.append(Violation("honesty", f"{path} holds a world object "

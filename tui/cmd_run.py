@@ -24,6 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--generated", metavar="SEED:INDEX",
                         help="a procedurally generated room instead of --scenario")
     parser.add_argument("--seed", type=int, default=1, help="the run's seed (default 1)")
+    parser.add_argument("--campaign", metavar="S:I[,...]",
+                        help="game I of fault campaign S, as `hideseek campaign` printed it "
+                             "(room, faults, seed and budget all come from it)")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     parser.add_argument("--db", default=":memory:", help="SQLite file for the server's store")
     parser.add_argument("--trace", metavar="FILE", help="record the trace as JSON lines")
@@ -62,7 +65,11 @@ def _print_summary(r: GameReport) -> None:
 
 def run(args: argparse.Namespace) -> int:
     try:
-        scenario = _scenario(args)
+        if args.campaign:
+            from supervisors.campaign import game_from_ref  # noqa: PLC0415 - only when asked
+            scenario, args.seed, args.budget = game_from_ref(args.campaign)
+        else:
+            scenario = _scenario(args)
     except (ScenarioError, OSError) as exc:
         print(f"hideseek run: {exc}", file=sys.stderr)
         return 2
