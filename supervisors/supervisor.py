@@ -258,13 +258,13 @@ def intensity_exceeded(restarts: Sequence[float], now: float, period: float,
     Args:
         restarts: times [s] of earlier restarts (any order).
         now: the time of this restart [s].
-        period: MaxT [s]; restarts older than this no longer count.
+        period: MaxT [s]; restarts more than this long ago no longer count.
         max_restarts: MaxR.
 
     Returns:
         (exceeded, restart times still inside the window including ``now``).
     """
-    window = [t for t in restarts if now - t < period] + [now]
+    window = [t for t in restarts if now - t <= period] + [now]  # inclusive, as OTP
     return len(window) > max_restarts, window
 
 
