@@ -401,8 +401,6 @@ async def play_checked(spec: GameSpec, *, trace: Trace | None = None,
                                    trace=trace) as system:
             probe = inv.DeliveryProbe.install(system, trio.current_time)
             counts = inv.TraceCounts(system.actors.trace)
-            uploaded: list[Any] = []
-            _capture_uploads(system, uploaded)
             t_start = trio.current_time()
             try:
                 await play_game(system, report, budget)
@@ -416,25 +414,13 @@ async def play_checked(spec: GameSpec, *, trace: Trace | None = None,
                 + inv.check_actors_alive(_actor_states(system))
                 + inv.check_no_escalation(counts.escalations, fired)
                 + inv.check_exactly_once(probe.sent_and_delivered(cut))
-                + inv.check_maps_equal(_stored_map(system, store),
-                                       uploaded[-1] if uploaded else None)
+                + inv.check_maps_equal(_stored_map(system, store), probe.uploaded_map())
                 + _honesty(system)
                 + [inv.Violation("harness.fault_refused", r) for r in counts.refused_faults])
             counts.close()
     checks = {"violations": [str(v) for v in violations], "faults_fired": fired,
               "events": dict(counts.counts), "escalations": list(counts.escalations)}
     return report, checks
-
-
-def _capture_uploads(system: Any, uploaded: list[Any]) -> None:
-    """Keep each map the server assembled from the mapper's chunks (what was uploaded)."""
-    game = system.server.game
-    on_map = game.on_map
-
-    def tapped(grid: Any) -> Any:
-        uploaded.append(grid)
-        return on_map(grid)
-    game.on_map = tapped
 
 
 def _stored_map(system: Any, store: Store) -> Any:

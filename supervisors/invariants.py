@@ -8,7 +8,8 @@ faults and checks, in each, what must hold whatever went wrong:
   supervisor gave up (escalated) because of a single fault;
 * **no loss**: every reliable frame (one with ``seq``) a rover put on the
   air reached the server's game logic exactly once; the map the server
-  stored equals the map the mapper uploaded;
+  stored equals the last map the mapper put on the air (assembled from the
+  chunks as they left the rover, before any link fault);
 * **honesty**: no firmware or server object holds a reference into the
   world other than the rover's own hardware interface (the import rules of
   tests/test_layers.py, asserted on the live objects);
@@ -40,7 +41,17 @@ from typing import Any
 import numpy as np
 
 from actors import ActorState, EventKind, Trace, TraceEvent
-from server.protocol import TOO_LONG, Frame, FrameError, LineBuffer, decode_line
+from server.protocol import (
+    MAP,
+    TOO_LONG,
+    Frame,
+    FrameError,
+    LineBuffer,
+    MapAssembler,
+    MapError,
+    decode_line,
+    read_data,
+)
 
 __all__ = [
     "Violation", "Delivery", "DeliveryProbe", "TraceCounts", "check_ended", "check_actors_alive",
@@ -94,6 +105,9 @@ class _RoleTap:
     """key -> simulated time the rover first wrote it [s]."""
     delivered: Counter = field(default_factory=Counter)
     """key -> times the server's game logic got it."""
+    assembler: MapAssembler = field(default_factory=MapAssembler)
+    maps: list[Any] = field(default_factory=list)
+    """Maps as the rover put them on the air (assembled from first sendings), bounded."""
 
 
 class DeliveryProbe:
@@ -145,7 +159,26 @@ class DeliveryProbe:
                 continue
             if frame.seq is None or frame.cmd in UNRELIABLE_CMDS:
                 continue
-            tap.first_sent.setdefault(_frame_key(frame), self._clock())
+            key = _frame_key(frame)
+            if key in tap.first_sent:
+                continue  # a resend
+            tap.first_sent[key] = self._clock()
+            if frame.cmd == MAP:
+                self._map_chunk(tap, frame)
+
+    @staticmethod
+    def _map_chunk(tap: _RoleTap, frame: Frame) -> None:
+        try:
+            grid = tap.assembler.add(read_data(frame))
+        except (FrameError, MapError):
+            return  # the server refuses such a map as well
+        if grid is not None:
+            tap.maps = [*tap.maps[-3:], grid]
+
+    def uploaded_map(self, role: str = "mapper") -> Any | None:
+        """The last whole map ``role`` sent, as it left the rover (None if none)."""
+        tap = self.taps.get(role)
+        return tap.maps[-1] if tap is not None and tap.maps else None
 
     def note_delivered(self, role: str, frame: Frame) -> None:
         """Count a frame the server's game logic received from ``role``."""
