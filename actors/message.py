@@ -46,6 +46,9 @@ _SIGNED = frozenset((ValueType.INT32,))
 _FLOATS = frozenset((ValueType.FLOAT32,))
 
 
+_set = object.__setattr__  # builds a frozen Message whose fields were already checked
+
+
 def _to_float32(value: float) -> float:
     return _F32.unpack(_F32.pack(value))[0]
 
@@ -121,6 +124,15 @@ class Message:
         Raises:
             ValueError: ``a`` or ``b`` outside -32768..32767.
         """
+        if (type(a) is int and type(b) is int and isinstance(command, int)
+                and type(command) is not bool and 0 <= command <= _UINT32_MAX
+                and _INT16_MIN <= a <= _INT16_MAX and _INT16_MIN <= b <= _INT16_MAX):
+            # every field is known valid: skip __post_init__ (ISRs make these by the thousand)
+            m = object.__new__(cls)
+            _set(m, "command", command)
+            _set(m, "type", ValueType.INT16X2)
+            _set(m, "value", (a & 0xFFFF) | ((b & 0xFFFF) << 16))
+            return m
         for field, v in (("a", a), ("b", b)):
             if isinstance(v, bool) or not isinstance(v, int):
                 raise TypeError(f"{field} must be an int, got {v!r}")

@@ -12,6 +12,7 @@ score the game (coverage, accuracy, path length), never to steer it.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -133,10 +134,10 @@ async def play_game(system: SimSystem, report: GameReport, budget: Budget) -> No
     """Play the scenario's game on ``system``, filling ``report``."""
     scenario = system.scenario
     phases = _Phases(system)
+    report.events = phases.log
     truth = truth_raster(scenario)
     series: list[tuple[float, float]] = []
     poses: list[tuple[float, float]] = []
-    t_start = trio.current_time()
 
     def fail(why: str) -> None:
         report.outcome, report.reason = "failed", why
@@ -188,8 +189,18 @@ async def play_game(system: SimSystem, report: GameReport, budget: Budget) -> No
             report.outcome = "found"
             break
     report.phases["seeking"] = trio.current_time() - t
-    report.sim_seconds = trio.current_time() - t_start
-    report.events = phases.log
+
+
+def _game_hash(runtime_hash: str, report: GameReport) -> str:
+    """The run's fingerprint: the runtime trace (lifecycle, faults, drops) plus the
+    game's event log with its virtual timestamps and the message counters, so two
+    runs of one seed match only if they played the same game, event for event."""
+    h = hashlib.blake2b(runtime_hash.encode(), digest_size=16)
+    for line in report.events:
+        h.update(line.encode() + b"\n")
+    h.update(f"{report.messages}|{report.dropped}|{report.restarts}|{report.resent}".encode())
+    h.update(f"|{report.sim_seconds!r}|{report.coverage!r}|{report.accuracy!r}".encode())
+    return h.hexdigest()
 
 
 def _finish(report: GameReport, system: SimSystem, t_start: float) -> None:
@@ -199,11 +210,11 @@ def _finish(report: GameReport, system: SimSystem, t_start: float) -> None:
     report.dropped = system.dropped()
     report.resent = system.resent()
     report.messages = system.messages()
-    report.trace_hash = system.actors.trace.hexdigest()
     for key in ("coverage", "accuracy"):
         v = getattr(report, key)
         if v is not None and not math.isfinite(v):
             setattr(report, key, None)
+    report.trace_hash = _game_hash(system.actors.trace.hexdigest(), report)
 
 
 async def run_game(scenario: Scenario, seed: int, *, db: str = ":memory:",
