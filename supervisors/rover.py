@@ -86,9 +86,10 @@ class _MailboxPost:
         self.name = ""
 
     def __call__(self, message: Message) -> bool:
-        if self.system is None or self.system.whereis(self.name) is None:
+        if self.system is None:
             return False
-        return self.system.send_nowait(self.name, message)
+        cell = self.system.whereis(self.name)
+        return cell is not None and cell.mailbox.send_nowait(message)
 
 
 class IdleNav(Actor):

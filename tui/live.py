@@ -53,13 +53,13 @@ from .snapshot import (
 __all__ = ["LiveSystem"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
-_MESSAGE_RE = re.compile(r"command=(\d+).*?value=([^)]+)\)")
+_MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?,.*?value=([^)]+)\)")
 _LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
               EventKind.FAULT, EventKind.KILLED, EventKind.POISON}
 
 
 def _decode(message: str) -> str:
-    """``Message(command=256, ..., value=12.5)`` -> ``MOTOR_MOVE 12.5``."""
+    """``Message(command=<Cmd.MOTOR_MOVE: 256>, ..., value=12.5)`` -> ``MOTOR_MOVE 12.5``."""
     m = _MESSAGE_RE.search(message)
     if m is None:
         return message[:80]
