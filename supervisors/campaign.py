@@ -538,7 +538,7 @@ def default_workers() -> int:
 def run_campaign(config: CampaignConfig, games: int, *, workers: int | None = None,
                  worker: Callable[..., dict[str, Any]] = play_campaign_game,
                  determinism_every: int = 10, wall_timeout_s: float | None = 600.0,
-                 start: int = 0) -> Iterator[dict[str, Any]]:
+                 start: int = 0, pool: Any = None) -> Iterator[dict[str, Any]]:
     """Play games ``start .. start+games-1`` of a campaign; yield results as they finish.
 
     Args:
@@ -552,6 +552,8 @@ def run_campaign(config: CampaignConfig, games: int, *, workers: int | None = No
             (0: never).
         wall_timeout_s: wall-clock guard per game [s].
         start: index of the first game.
+        pool: an already started ``multiprocessing`` pool to use (``workers``
+            is then ignored); benchmarks pass a warmed-up one.
 
     Raises:
         CampaignError: a bad count.
@@ -565,6 +567,9 @@ def run_campaign(config: CampaignConfig, games: int, *, workers: int | None = No
     jobs = [(worker, config.game_ref(i),
              bool(determinism_every) and i % determinism_every == 0, wall_timeout_s)
             for i in range(start, start + games)]
+    if pool is not None:
+        yield from pool.imap_unordered(_call, jobs, chunksize=1)
+        return
     n = default_workers() if workers is None else workers
     if n == 0:
         for job in jobs:

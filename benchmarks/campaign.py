@@ -1,0 +1,77 @@
+"""Campaign throughput: games per wall minute with 1 and with 2 worker processes.
+
+Run as ``python -m benchmarks.campaign [--quick] [--games N] [--budget S]``.
+The same games (campaign seed 1, single faults, built-in rooms round-robin)
+are played once by a pool of one ``spawn`` worker (the baseline) and once by
+a pool of two; the figure is the ratio of games per wall minute (target
+>= 1.8 on two otherwise idle cores). The ratio
+measures how well games spread over workers: each pool is started and
+warmed up (imports done) before its clock starts.
+
+``--quick`` plays 4 short games per run with a small mapping budget (games
+then end early as failed: the figure is still throughput, not outcome).
+
+The last line printed is one JSON object with every figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import os
+import time
+
+from supervisors.campaign import CampaignConfig, run_campaign
+
+
+def _warm(_: int) -> int:
+    """Import what a game needs, so process start-up stays out of the timing."""
+    import supervisors.campaign  # noqa: F401, PLC0415
+
+    time.sleep(0.2)  # keep this worker busy so the pool hands the next warm-up to another
+    return os.getpid()
+
+
+def _measure(config: CampaignConfig, games: int, workers: int) -> dict[str, float]:
+    with multiprocessing.get_context("spawn").Pool(workers) as pool:
+        pids = set(pool.map(_warm, range(workers), chunksize=1))
+        wall0 = time.perf_counter()
+        results = list(run_campaign(config, games, determinism_every=0, wall_timeout_s=None,
+                                    pool=pool))
+        wall = time.perf_counter() - wall0
+    if len(pids) != workers:
+        print(f"note: warm-up reached {len(pids)} of {workers} workers")
+    return {"games": len(results), "wall_s": wall, "games_per_min": 60.0 * len(results) / wall,
+            "sim_s": sum(r["sim_s"] for r in results),
+            "found": sum(r["outcome"] == "found" for r in results)}
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.campaign")
+    parser.add_argument("--quick", action="store_true", help="4 short games per run")
+    parser.add_argument("--games", type=int, default=None, help="games per run (default 8)")
+    parser.add_argument("--budget", type=float, default=None,
+                        help="mapping budget [simulated s] (default 1200, 30 with --quick)")
+    args = parser.parse_args(argv)
+    games = args.games or (4 if args.quick else 8)
+    budget = args.budget or (30.0 if args.quick else 1200.0)
+    config = CampaignConfig(1, mode="single", mapping_budget_s=budget)
+    one = _measure(config, games, 1)
+    two = _measure(config, games, 2)
+    ratio = two["games_per_min"] / one["games_per_min"]
+    print(f"campaign throughput, {games} games per run, mapping budget {budget:g} s")
+    print(f"{'workers':>8}{'wall [s]':>10}{'games/min':>11}{'sim s/wall s':>14}{'found':>7}")
+    for n, m in ((1, one), (2, two)):
+        print(f"{n:>8}{m['wall_s']:>10.1f}{m['games_per_min']:>11.2f}"
+              f"{m['sim_s'] / m['wall_s']:>14.1f}{m['found']:>7}")
+    print(f"ratio 2 workers / 1 worker: {ratio:.2f} (target >= 1.8)")
+    print(json.dumps({"games": games, "budget_s": budget,
+                      "games_per_min_1": round(one["games_per_min"], 3),
+                      "games_per_min_2": round(two["games_per_min"], 3),
+                      "ratio_2_over_1": round(ratio, 3),
+                      "wall_s_1": round(one["wall_s"], 2), "wall_s_2": round(two["wall_s"], 2)}))
+
+
+if __name__ == "__main__":
+    main()
