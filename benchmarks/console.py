@@ -8,6 +8,10 @@ the baseline measured in the same process. "Attached" is the console in
 Textual's headless driver at 120x40: it lays out and renders every frame but
 writes to no terminal, so a real terminal adds the cost of output on top.
 
+Other processes on a shared machine take wall time from both runs unequally,
+so the ratio is also given per CPU second of this process (``process_time``),
+which such load does not skew.
+
 Key-to-actor latency is the wall time from posting a key event to the app
 until the system's command handler runs inside Trio (``space`` -> ``pause`` /
 ``resume``), at speed x1 and at "as fast as possible".
@@ -18,6 +22,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import random
 import statistics
 import sys
 import time
@@ -56,8 +61,8 @@ class ScriptedFake(FakeSystem):
         super()._do_resume()
 
 
-def headless(wall_s: float) -> float:
-    """Simulated seconds per wall second without the console."""
+def headless(wall_s: float) -> tuple[float, float]:
+    """Simulated seconds per wall second and per CPU second, without the console."""
     fake = ScriptedFake(speed=None)
     out = {}
 
@@ -65,10 +70,11 @@ def headless(wall_s: float) -> float:
         _, receive = trio.open_memory_channel[None](1)
         async with trio.open_nursery() as nursery:
             nursery.start_soon(fake.run, lambda item: None, receive)
-            t0, s0 = time.perf_counter(), trio.current_time()
+            t0, c0, s0 = time.perf_counter(), time.process_time(), trio.current_time()
             while time.perf_counter() - t0 < wall_s:
                 await trio.sleep(1.0)
-            out["rate"] = (trio.current_time() - s0) / (time.perf_counter() - t0)
+            sim = trio.current_time() - s0
+            out["rate"] = sim / (time.perf_counter() - t0), sim / (time.process_time() - c0)
             nursery.cancel_scope.cancel()
 
     trio.run(main, clock=fake.clock)
@@ -83,8 +89,9 @@ async def _wait(cond, timeout: float = 10.0) -> None:
         await asyncio.sleep(0.001)
 
 
-def attached(wall_s: float) -> tuple[float, float]:
-    """Simulated seconds per wall second with the console; and snapshots shown per second."""
+def attached(wall_s: float) -> tuple[float, float, float]:
+    """Simulated seconds per wall second and per CPU second with the console, and
+    snapshots shown per wall second."""
     fake = ScriptedFake(speed=None)
     app = ConsoleApp(fake)
     out = {}
@@ -92,14 +99,16 @@ def attached(wall_s: float) -> tuple[float, float]:
     async def main() -> None:
         async with app.run_test(size=(120, 40)):
             await _wait(lambda: app.snapshot is not None)
-            s0, n0, t0 = app.snapshot.time_s, app.snapshots_shown, time.perf_counter()
+            s0, n0 = app.snapshot.time_s, app.snapshots_shown
+            t0, c0 = time.perf_counter(), time.process_time()
             await asyncio.sleep(wall_s)
-            wall = time.perf_counter() - t0
-            out["rate"] = (app.snapshot.time_s - s0) / wall
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            sim = app.snapshot.time_s - s0
+            out["rate"] = (sim / wall, sim / cpu)
             out["fps"] = (app.snapshots_shown - n0) / wall
 
     asyncio.run(main())
-    return out["rate"], out["fps"]
+    return (*out["rate"], out["fps"])
 
 
 def key_latency(speed: float | None, samples: int) -> list[float]:
@@ -107,11 +116,14 @@ def key_latency(speed: float | None, samples: int) -> list[float]:
     fake = ScriptedFake(speed=speed)
     app = ConsoleApp(fake)
     lat: list[float] = []
+    phase = random.Random(0)
 
     async def main() -> None:
         async with app.run_test(size=(120, 40)):
             await _wait(lambda: app.snapshot is not None)
             for _ in range(samples):
+                # a random moment within a frame, not just after a snapshot arrived
+                await asyncio.sleep(phase.uniform(0.0, 1.0 / 15))
                 n = len(fake.handled)
                 paused = app.snapshot.paused
                 t0 = time.perf_counter()
@@ -133,18 +145,28 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.console", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
     args = parser.parse_args(argv)
-    wall_s, samples = (2.0, 20) if args.quick else (8.0, 100)
+    wall_s, rounds, samples = (1.5, 3, 20) if args.quick else (3.0, 5, 100)
 
-    base = headless(wall_s)
-    with_ui, fps = attached(wall_s)
+    # Alternate baseline and console runs and take medians, so a change in the
+    # machine's load during the benchmark hits both sides alike.
+    runs = []
+    for _ in range(rounds):
+        base, base_cpu = headless(wall_s)
+        with_ui, with_ui_cpu, fps = attached(wall_s)
+        runs.append((base, base_cpu, with_ui, with_ui_cpu, fps))
+    med = [statistics.median(r[i] for r in runs) for i in range(5)]
     lat1 = key_latency(1.0, samples)
     latmax = key_latency(None, samples)
     figures = {
         "wall_s_per_run": wall_s,
-        "headless_sim_s_per_wall_s": round(base, 1),
-        "console_sim_s_per_wall_s": round(with_ui, 1),
-        "ratio_console_vs_headless": round(with_ui / base, 3),
-        "console_snapshots_per_s": round(fps, 1),
+        "rounds": rounds,
+        "headless_sim_s_per_wall_s": round(med[0], 1),
+        "console_sim_s_per_wall_s": round(med[2], 1),
+        "ratio_console_vs_headless": round(statistics.median(r[2] / r[0] for r in runs), 3),
+        "headless_sim_s_per_cpu_s": round(med[1], 1),
+        "console_sim_s_per_cpu_s": round(med[3], 1),
+        "ratio_per_cpu_s": round(statistics.median(r[3] / r[1] for r in runs), 3),
+        "console_snapshots_per_s": round(med[4], 1),
         "key_to_actor_ms_p50_x1": round(statistics.median(lat1), 3),
         "key_to_actor_ms_p95_x1": round(pct(lat1, 0.95), 3),
         "key_to_actor_ms_p50_max": round(statistics.median(latmax), 3),

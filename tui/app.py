@@ -50,6 +50,8 @@ __all__ = ["ConsoleApp", "ACTIONS", "SPEEDS", "REFRESH_HZ", "UiAction"]
 
 #: Snapshots asked for per wall second.
 REFRESH_HZ = 15.0
+#: The queue table and the tree are redrawn on every this many snapshots.
+TABLE_EVERY = 3
 #: Speed steps for faster / slower; None is "as fast as possible".
 SPEEDS: tuple[float | None, ...] = (1.0, 4.0, 16.0, None)
 
@@ -281,10 +283,16 @@ class ConsoleApp(App[int]):
         self.sub_title = f"{snap.scenario} · {snap.phase.replace('_', ' ')}"
         self._show_tab(snap)
 
-    def _show_tab(self, snap: Snapshot) -> None:
+    def _show_tab(self, snap: Snapshot, force: bool = False) -> None:
         """Redraw the panels that are only drawn while their tab is shown (they cost)."""
         tab = self.tabs.active
         self.message_log.live = tab == "log"
+        self.timeline.live = tab == "events"
+        if self.timeline.live:
+            self.timeline.flush()
+        # Tables change little between frames and cost a lot to draw: a third of the rate.
+        if self.snapshots_shown % TABLE_EVERY and not force:
+            return
         if tab == "queues":
             self.queue_table.update_queues(snap.queues)
         elif tab == "tree":
@@ -292,7 +300,7 @@ class ConsoleApp(App[int]):
 
     def on_tabbed_content_tab_activated(self, event: TabbedContent.TabActivated) -> None:
         if self.snapshot is not None and self.map_view.is_attached:
-            self._show_tab(self.snapshot)
+            self._show_tab(self.snapshot, force=True)
 
     # -- actions -----------------------------------------------------------------
     def _call(self, method: str, *args: object) -> None:

@@ -1,8 +1,12 @@
-"""Game and links: phase, simulated time and speed, rover poses, link statistics."""
+"""Game and links: phase, simulated time and speed, rover poses, link statistics.
+
+Drawn as fixed lines that never wrap (long lines end in an ellipsis), so the
+panel's height depends only on the number of rovers and a new snapshot never
+needs a new layout: a layout of the whole screen costs tens of milliseconds.
+"""
 
 from __future__ import annotations
 
-from rich.table import Table
 from rich.text import Text
 from textual.widgets import Static
 
@@ -14,48 +18,47 @@ _PHASE_STYLE = {"found": "bold green", "not_found": "bold red", "mapping": "bold
 
 
 def speed_text(speed: float | None, paused: bool) -> str:
-    """``x4``, ``max`` or ``paused (x4)``."""
+    """``x4``, ``max`` or ``paused x4``."""
     text = "max" if speed is None else f"x{speed:g}"
-    return f"paused ({text})" if paused else text
+    return f"paused {text}" if paused else text
 
 
-def render_game(snap: Snapshot | None) -> Table | Text:
-    """The panel's content for a snapshot."""
+def render_game(snap: Snapshot | None) -> Text:
+    """The panel's lines for a snapshot: phase and time; speed, guesses, faults;
+    scenario and seed; one line per rover with pose [cm, deg] and link."""
     if snap is None:
         return Text("waiting for the system…", style="dim")
-    head = Text.assemble(
-        ("phase ", "dim"), (snap.phase.replace("_", " "), _PHASE_STYLE.get(snap.phase, "bold")),
-        ("  t ", "dim"), f"{snap.time_s:.1f} s",
-        ("  speed ", "dim"), (speed_text(snap.speed, snap.paused),
-                              "bold yellow" if snap.paused else ""),
-        ("  guesses ", "dim"), str(snap.guesses),
-    )
+    lines = [
+        Text.assemble(("phase ", "dim"),
+                      (snap.phase.replace("_", " "), _PHASE_STYLE.get(snap.phase, "bold")),
+                      ("  t ", "dim"), f"{snap.time_s:.1f} s"),
+        Text.assemble(("speed ", "dim"),
+                      (speed_text(snap.speed, snap.paused), "bold yellow" if snap.paused else ""),
+                      ("  guesses ", "dim"), str(snap.guesses)),
+        Text(f"{snap.scenario} · seed {snap.seed}", style="dim"),
+    ]
     if snap.faults:
-        head.append(f"  faults {len(snap.faults)}", style="bold red")
-    table = Table.grid(padding=(0, 1), expand=True)
-    table.add_column("rover")
-    table.add_column("pose", justify="right")
-    table.add_column("link")
+        lines[1].append(f"  faults {len(snap.faults)}", style="bold red")
     links = {ln.rover: ln for ln in snap.links}
     for rover in snap.rovers:
         p = rover.pose
         pose = "—" if p is None else f"{p.x_cm:5.0f},{p.y_cm:5.0f} {p.heading_deg % 360:3.0f}°"
+        line = Text.assemble((f"{rover.id:<7}", "bold"), f"{pose:>17} ")
         ln = links.get(rover.id)
         if ln is None:
-            link = Text("no link", style="dim")
+            line.append("no link", style="dim")
         elif not ln.up:
-            link = Text("DOWN", style="bold red")
+            line.append("DOWN", style="bold red")
         else:
-            rtt = "?" if ln.rtt_ms is None else f"{ln.rtt_ms:.0f}ms"
-            link = Text.assemble(("up ", "green"), rtt)
+            line.append("up ", style="green")
+            line.append("?" if ln.rtt_ms is None else f"{ln.rtt_ms:.0f}ms")
             if ln.lost or ln.resent or ln.bad_frames:
-                link.append(f" lost {ln.lost} re {ln.resent} bad {ln.bad_frames}", "yellow")
-        table.add_row(Text(rover.id, style="bold"), pose, link)
-    outer = Table.grid(expand=True)
-    outer.add_row(head)
-    outer.add_row(Text(f"{snap.scenario} · seed {snap.seed}", style="dim"))
-    outer.add_row(table)
-    return outer
+                line.append(f" lost {ln.lost} re {ln.resent} bad {ln.bad_frames}", "yellow")
+        lines.append(line)
+    out = Text("\n").join(lines)
+    out.no_wrap = True
+    out.overflow = "ellipsis"
+    return out
 
 
 class GamePanel(Static):
@@ -66,9 +69,7 @@ class GamePanel(Static):
     """
 
     def update_snapshot(self, snap: Snapshot) -> None:
-        """Show a snapshot."""
-        # A new layout costs a lot at 15 Hz: only when the height may have changed.
-        shape = (len(snap.rovers), snap.phase, snap.paused, snap.speed, bool(snap.faults),
-                 self.size.width)
-        self.update(render_game(snap), layout=shape != getattr(self, "_shape", None))
-        self._shape = shape
+        """Show a snapshot (a new layout only when the number of rovers changes)."""
+        rovers = len(snap.rovers)
+        self.update(render_game(snap), layout=rovers != getattr(self, "_rovers", None))
+        self._rovers = rovers

@@ -19,7 +19,7 @@ import numpy as np
 from rich.segment import Segment
 from rich.style import Style
 from textual.binding import Binding
-from textual.geometry import Size
+from textual.geometry import Region, Size
 from textual.message import Message
 from textual.reactive import reactive
 from textual.strip import Strip
@@ -138,6 +138,7 @@ class MapView(Widget, can_focus=True):
         self.center: tuple[float, float] = (0.0, 0.0)
         self._fitted = False
         self._lines: list[Strip] | None = None
+        self._row_keys: list[tuple] = []  # what each drawn row showed, to refresh only changes
         self._styles: dict[tuple, Style] = {}
 
     def validate_zoom(self, value: int) -> int:
@@ -167,9 +168,22 @@ class MapView(Widget, can_focus=True):
         if not self._fitted and snapshot.map is not None and self.size.width > 0:
             self._fitted = True
             self.action_fit()
-        self._invalidate()
+            return
+        self._update_titles()
+        if self._lines is None or len(self._lines) != self._view_size()[1]:
+            self._invalidate()
+            return
+        # Same view, new data: redraw now and repaint only the rows that changed
+        # (Textual's per-line cost dominates the console's CPU use).
+        old = self._row_keys
+        self._lines = self._render_frame()
+        changed = [y for y, key in enumerate(self._row_keys) if y >= len(old) or old[y] != key]
+        width = self.size.width
+        if changed:
+            self.refresh(*(Region(0, y, width, 1) for y in changed))
 
     def _invalidate(self) -> None:
+        """The view changed (zoom, pan, cursor, overlay, size): redraw every row."""
         self._lines = None
         self._update_titles()
         self.refresh()
@@ -181,8 +195,13 @@ class MapView(Widget, can_focus=True):
         if snap is not None and snap.map is not None:
             what = {-1: "unknown", 0: "free", 100: "occupied"}.get(
                 snap.map.value_at(x, y), "?")
-        self.border_title = f"Map {self.scale:g} cm/px" + (" · truth" if self.show_truth else "")
-        self.border_subtitle = (f"({x:.0f}, {y:.0f}) cm @ {self.cursor_heading:.0f}° {what}")
+        title = f"Map {self.scale:g} cm/px" + (" · truth" if self.show_truth else "")
+        subtitle = f"({x:.0f}, {y:.0f}) cm @ {self.cursor_heading:.0f}° {what}"
+        # Setting a border title repaints the whole widget, even to the same text.
+        if title != self.border_title:
+            self.border_title = title
+        if subtitle != self.border_subtitle:
+            self.border_subtitle = subtitle
 
     # -- geometry -------------------------------------------------------------
     def _view_size(self) -> tuple[int, int]:
@@ -326,8 +345,10 @@ class MapView(Widget, can_focus=True):
                              self._style("#000000", "#ffff00", bold=True)))
             codes[crow, ccol] = 256 + len(overlays) - 1
         lines = []
+        keys = []
         for row in range(h):
             line = codes[row]
+            keys.append((line.tobytes(), tuple(overlays[c - 256] for c in line[line >= 256])))
             starts = np.concatenate(([0], np.flatnonzero(np.diff(line)) + 1))
             ends = np.append(starts[1:], w)
             segs = []
@@ -340,6 +361,7 @@ class MapView(Widget, can_focus=True):
                     style = self._style(_COLOURS[code >> 4], _COLOURS[code & 15])
                     segs.append(Segment("▀" * (b - a), style))
             lines.append(Strip(segs, w))
+        self._row_keys = keys
         return lines
 
     # -- events and actions -------------------------------------------------------
