@@ -535,6 +535,10 @@ class Supervisor:
             if c.cell is not None:
                 c.cell.state = ActorState.RESTARTING
         await self._backoff(now)
+        if self._stop_requested:  # stopped during the backoff: nothing to restart
+            for c in to_start:
+                c.restarting = False
+            return True
         for c in to_start:
             c.restarting = False
             c.restarts += 1

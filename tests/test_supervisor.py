@@ -295,6 +295,22 @@ async def test_backoff_delays_restarts_and_resets_after_quiet(autojump_clock) ->
 
 
 @pytest.mark.trio
+async def test_stop_during_backoff_restarts_nothing(autojump_clock) -> None:
+    """Rule 7: a supervisor stopped while waiting out a backoff does not restart the child."""
+    log: list = []
+    spec = SupervisorSpec([worker(log, "a")], backoff=Backoff(min=10.0, max=10.0, jitter=0.0))
+    async with open_actor_system() as system:
+        sup = await system.start_supervisor(spec)
+        system.send_nowait("a", "boom")
+        await trio.sleep(1)
+        assert sup.which_children()[0].state is ActorState.RESTARTING
+        sup.stop()
+        await sup.wait_stopped()
+        assert trio.current_time() == 1.0
+    assert starts(log) == ["a"]
+
+
+@pytest.mark.trio
 async def test_backoff_jitter_comes_from_the_seed(autojump_clock) -> None:
     """Rule 7: the same seed gives the same jittered delays, another seed different ones."""
     async def delays(seed: int) -> list[float]:
