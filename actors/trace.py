@@ -81,14 +81,18 @@ class TraceEvent:
 class Subscription:
     """A subscriber's handle; `close` detaches it."""
 
-    __slots__ = ("_trace", "callback", "per_message", "dropped")
+    __slots__ = ("_trace", "callback", "per_message", "_counter")
 
     def __init__(self, trace: Trace, callback: Callable[[TraceEvent], Any], per_message: bool):
         self._trace = trace
         self.callback = callback
         self.per_message = per_message
-        self.dropped: _DropCounter | None = None
-        """For channel subscriptions: counts events the full channel dropped."""
+        self._counter: _DropCounter | None = None  # channel subscriptions only
+
+    @property
+    def dropped(self) -> int:
+        """Events a channel subscription dropped because its channel was full (else 0)."""
+        return self._counter.dropped if self._counter is not None else 0
 
     def close(self) -> None:
         """Stop receiving events (idempotent)."""
@@ -133,15 +137,15 @@ class Trace:
         """A bounded channel of events; when it is full, events are dropped and counted.
 
         Returns:
-            (receive channel, subscription); ``subscription.dropped.dropped``
-            counts events that did not fit.
+            (receive channel, subscription); ``subscription.dropped`` counts
+            events that did not fit.
         """
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity!r}")
         send, receive = trio.open_memory_channel[TraceEvent](capacity)
         counter = _DropCounter(send)
         sub = self.subscribe(counter, per_message=per_message)
-        sub.dropped = counter
+        sub._counter = counter
         return receive, sub
 
     def _detach(self, sub: Subscription) -> None:

@@ -119,6 +119,6 @@ def test_channel_subscriber_is_bounded() -> None:
         trace.emit(EventKind.FAULT, "after-close")
         with pytest.raises(trio.WouldBlock):
             receive.receive_nowait()
-        return sub.dropped.dropped, trace.count
+        return sub.dropped, trace.count
 
     assert run(main) == (2, 6)
