@@ -195,6 +195,8 @@ class ActorSystem:
     def inject_crash(self, name: str) -> None:
         """Make ``name`` crash: at its next message, or at once when idle.
 
+        A crash injected while the actor is restarting hits its next incarnation.
+
         Raises:
             UnknownActor: ``name`` is not registered.
         """
