@@ -124,9 +124,10 @@ class SimSystem:
 
     # ---------------------------------------------------------------- introspection
     def restarts(self) -> int:
-        """Restarts of every firmware actor so far."""
-        return sum(cell.restarts for name in self.actors.names()
-                   if (cell := self.actors.whereis(name)) is not None)
+        """Restarts of every firmware actor (and nested supervisor) so far."""
+        def count(node: Any) -> int:
+            return sum(c.restarts + count(c) for c in node.children)
+        return sum(count(tree.snapshot()) for tree in self.trees.values())
 
     def dropped(self) -> int:
         """Messages dropped by full mailboxes so far."""

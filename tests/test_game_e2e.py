@@ -1,0 +1,72 @@
+"""Whole games: simulated rovers, firmware actors, server, in virtual time."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import trio
+
+from actors import seed_trio_scheduler, virtual_clock
+from supervisors.headless import GameReport, run_game
+from tui.cli import main
+from world.scenario import ScheduledFault, load_scenario
+
+
+def play(scenario, seed: int = 1) -> GameReport:
+    seed_trio_scheduler(seed)
+    return trio.run(lambda: run_game(scenario, seed), clock=virtual_clock())
+
+
+def test_whole_game_on_the_empty_room_finds_the_hider() -> None:
+    """The mapper completes its map by itself, the hider hides, the seeker finds it."""
+    report = play(load_scenario("empty"))
+    assert report.outcome == "found", report.reason
+    assert report.coverage is not None and report.coverage > 0.95
+    assert report.accuracy is not None and report.accuracy > 0.85
+    assert set(report.phases) == {"mapping", "hiding", "seeking"}
+    assert report.guesses >= 1
+    assert report.messages > 10_000
+
+
+def test_same_seed_gives_the_same_game_event_for_event() -> None:
+    """Determinism: two runs of one scenario and seed have the same trace hash."""
+    scenario = load_scenario("empty")
+    a, b = play(scenario, 3), play(scenario, 3)
+    assert a.trace_hash == b.trace_hash
+    assert a.events == b.events
+    assert a.messages == b.messages
+
+
+def test_actor_crash_and_hang_mid_game_are_recovered() -> None:
+    """A navigation crash while mapping and a motor hang while hiding: restarted, still found."""
+    base = load_scenario("empty")
+    faults = (
+        ScheduledFault(at_s=30.0, target="mapper/nav", kind="crash"),
+        ScheduledFault(at_s=40.0, target="mapper/lidar", kind="crash"),
+        ScheduledFault(at_s=115.0, target="hider/motor", kind="hang", duration_s=3.0),
+    )
+    report = play(dataclasses.replace(base, faults=faults))
+    assert report.outcome == "found", report.reason
+    assert report.restarts >= 3
+    assert report.faults == 3
+
+
+def test_run_command_prints_json_and_exits_by_outcome(capsys) -> None:
+    """``hideseek run --json``: one JSON object with the documented keys; 0 when found."""
+    status = main(["run", "--scenario", "empty", "--seed", "1", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert status == (0 if out["outcome"] == "found" else 1)
+    for key in ("scenario", "seed", "outcome", "sim_seconds", "wall_seconds", "real_time_factor",
+                "coverage", "accuracy", "t90_s", "t99_s", "path_cm", "phases", "guesses",
+                "restarts", "faults", "dropped", "resent", "messages", "trace_hash"):
+        assert key in out
+
+
+def test_run_command_refuses_a_bad_scenario_with_status_2(tmp_path, capsys) -> None:
+    """A bad scenario file is a clear message and exit status 2, not a traceback."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "x"\n[room]\nsize_cm = [100]\n')
+    assert main(["run", "--scenario", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and "size_cm" in err
