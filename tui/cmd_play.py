@@ -1,4 +1,4 @@
-"""``hideseek play``: open the console on a system (for now the fake one).
+"""``hideseek play``: open the console on the simulated system (or the fake one with --fake).
 
 Textual is imported only when the command runs, so ``hideseek --help`` stays fast.
 """
@@ -24,9 +24,11 @@ def rover_link(text: str) -> tuple[str, str]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--scenario", default="fake-room", metavar="NAME|FILE",
-                        help="scenario name or TOML file (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the run (default: 0)")
+    parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
+                        help="built-in scenario name or TOML file (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the run (default: 1)")
+    parser.add_argument("--db", default=":memory:", metavar="FILE",
+                        help="SQLite file for the server's games and maps (default: in memory)")
     parser.add_argument("--rover", type=rover_link, action="append", default=[],
                         metavar="ID=LINK",
                         help="attach a rover over a link, e.g. seeker=serial:/dev/pts/4 "
@@ -41,14 +43,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from tui.app import ConsoleApp
-    from tui.fake import FakeSystem
 
     if args.rover:
-        print("hideseek play: --rover needs the real system; the fake system has only "
-              "simulated rovers, ignoring: " + ", ".join(f"{r}={ln}" for r, ln in args.rover),
-              file=sys.stderr)
-    system = FakeSystem(seed=args.seed, scenario=args.scenario,
-                        speed=SPEED_CHOICES[args.speed])
+        print("hideseek play: --rover (real rovers in the console) is not available yet; "
+              "use `hideseek serve --rover ID=LINK` for real rovers. Ignoring: "
+              + ", ".join(f"{r}={ln}" for r, ln in args.rover), file=sys.stderr)
+    if args.fake:
+        from tui.fake import FakeSystem
+
+        system = FakeSystem(seed=args.seed, scenario=args.scenario,
+                            speed=SPEED_CHOICES[args.speed])
+    else:
+        from tui.live import LiveSystem
+        from world.scenario import ScenarioError, load_scenario
+
+        try:
+            scenario = load_scenario(args.scenario)
+        except (ScenarioError, OSError) as exc:
+            print(f"hideseek play: {exc}", file=sys.stderr)
+            return 2
+        system = LiveSystem(scenario, seed=args.seed, speed=SPEED_CHOICES[args.speed],
+                            db=args.db)
     app = ConsoleApp(system, export_dir=args.export_dir)
     app.run()
     if app.system_error is not None:

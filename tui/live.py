@@ -53,6 +53,7 @@ from .snapshot import (
 __all__ = ["LiveSystem"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
+_MAP_MARGIN_CELLS = 20  # unknown border shown around the known map [cells]
 _MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?,.*?value=([^)]+)\)")
 _LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
               EventKind.FAULT, EventKind.KILLED, EventKind.POISON}
@@ -98,6 +99,7 @@ class LiveSystem:
         self._rates: dict[str, tuple[float, int, float]] = {}  # name -> (t, received, rate)
         self._exits: dict[str, float] = {}  # actor -> time of its last exit
         self._truth: GridView | None = None
+        self._truth_raster: Any = None
         self._truth_key: tuple | None = None
         self._mapper_room = Pose2(0, 0, 0)
         self._apply_clock()
@@ -327,6 +329,7 @@ class LiveSystem:
                 return None
             return GridView(np.array(grid.cells, np.int8), grid.resolution_cm,
                             tuple(grid.origin_cm))
+        snap = snap.crop_known(margin_cells=_MAP_MARGIN_CELLS)  # the room, not 24 m of nothing
         return GridView(np.array(snap.cells, np.int8), snap.resolution_cm, tuple(snap.origin_cm))
 
     def _truth_view(self, grid: GridView | None) -> GridView | None:
@@ -335,7 +338,9 @@ class LiveSystem:
             return None
         key = (grid.shape, grid.origin_cm, grid.resolution_cm)
         if key != self._truth_key:
-            truth = truth_raster(self.scenario, grid.resolution_cm)
+            if self._truth_raster is None:
+                self._truth_raster = truth_raster(self.scenario, grid.resolution_cm)
+            truth = self._truth_raster
             ny, nx = grid.shape
             x0, y0 = grid.origin_cm
             r = grid.resolution_cm
