@@ -50,6 +50,8 @@ __all__ = ["ConsoleApp", "ACTIONS", "SPEEDS", "REFRESH_HZ", "UiAction"]
 
 #: Snapshots asked for per wall second.
 REFRESH_HZ = 15.0
+#: ... and at "as fast as possible", where every frame drawn is simulation not run.
+REFRESH_HZ_MAX_SPEED = 10.0
 #: The queue table and the tree are redrawn on every this many snapshots.
 TABLE_EVERY = 3
 #: Speed steps for faster / slower; None is "as fast as possible".
@@ -179,6 +181,7 @@ class ConsoleApp(App[int]):
         self._guest = TrioGuest(on_done=lambda r: self.post_message(self.SystemEnded(r)))
         self._requests: trio.MemorySendChannel[None] | None = None
         self._awaiting = 0  # ticks since the outstanding request, 0 = none outstanding
+        self._credit = 0.0  # frames owed at a reduced refresh rate
         # Held, not queried: App.query_one searches the *current* screen, which is a
         # dialog while one is open, and snapshots keep arriving then.
         self.map_view = MapView(id="map")
@@ -236,6 +239,13 @@ class ConsoleApp(App[int]):
         if self._awaiting and self._awaiting < 2 * self.refresh_hz:
             self._awaiting += 1
             return
+        snap = self.snapshot
+        if snap is not None and snap.speed is None and not snap.paused:
+            # as fast as possible: fewer frames, more simulation (credit per tick)
+            self._credit += min(1.0, REFRESH_HZ_MAX_SPEED / self.refresh_hz)
+            if self._credit < 1.0:
+                return
+            self._credit -= 1.0
         try:
             self._requests.send_nowait(None)
         except (trio.WouldBlock, trio.ClosedResourceError, trio.BrokenResourceError):
@@ -280,7 +290,6 @@ class ConsoleApp(App[int]):
         self.game_panel.update_snapshot(snap)
         self.message_log.add_lines(snap.log)
         self.timeline.add_events(snap.timeline)
-        self.sub_title = f"{snap.scenario} · {snap.phase.replace('_', ' ')}"
         self._show_tab(snap)
 
     def _show_tab(self, snap: Snapshot, force: bool = False) -> None:

@@ -52,14 +52,19 @@ def classify(grid: GridView | None, truth: GridView | None, xs: np.ndarray,
     """Pixel classes for sample points (any shape) [cm]: unknown/free/occupied, and
     with ``truth``: obstacles not yet seen (dim blue), mapping errors (an obstacle
     mapped as free: purple; free ground mapped as occupied: orange)."""
-    out = np.full(xs.shape, _UNKNOWN, np.int8)
-    if grid is None:
+    return classify_values(None if grid is None else _sample(grid, xs, ys),
+                           None if truth is None else _sample(truth, xs, ys), xs.shape)
+
+
+def classify_values(map_val: np.ndarray | None, true_val: np.ndarray | None,
+                    shape: tuple[int, ...]) -> np.ndarray:
+    """`classify` from cell values already sampled (-1 outside a grid)."""
+    out = np.full(shape, _UNKNOWN, np.int8)
+    if map_val is None:
         return out
-    map_val = _sample(grid, xs, ys)
     out[map_val == FREE] = _FREE
     out[map_val == OCCUPIED] = _OCC
-    if truth is not None:
-        true_val = _sample(truth, xs, ys)
+    if true_val is not None:
         out[(true_val == OCCUPIED) & (map_val == -1)] = _TRUTH
         out[(true_val == OCCUPIED) & (map_val == FREE)] = _MISSED
         out[(true_val == FREE) & (map_val == OCCUPIED)] = _FALSE
@@ -67,12 +72,23 @@ def classify(grid: GridView | None, truth: GridView | None, xs: np.ndarray,
 
 
 def _sample(grid: GridView, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    return _gather(grid, _indexer(grid, xs, ys))
+
+
+def _indexer(grid: GridView, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """Flat cell index of each sample point, -1 outside the grid."""
     ny, nx = grid.cells.shape
     cols = np.floor((xs - grid.origin_cm[0]) / grid.resolution_cm).astype(np.int64)
     rows = np.floor((ys - grid.origin_cm[1]) / grid.resolution_cm).astype(np.int64)
     inside = (cols >= 0) & (cols < nx) & (rows >= 0) & (rows < ny)
-    out = np.full(xs.shape, -1, np.int16)
-    out[inside] = grid.cells[rows[inside], cols[inside]]
+    return np.where(inside, rows * nx + cols, -1)
+
+
+def _gather(grid: GridView, index: np.ndarray) -> np.ndarray:
+    """Cell values at flat indexes (from `_indexer`), -1 where the index is -1."""
+    flat = grid.cells.reshape(-1)
+    out = flat[np.maximum(index, 0)].astype(np.int16)
+    out[index < 0] = -1
     return out
 
 
@@ -139,6 +155,7 @@ class MapView(Widget, can_focus=True):
         self._fitted = False
         self._lines: list[Strip] | None = None
         self._row_keys: list[tuple] = []  # what each drawn row showed, to refresh only changes
+        self._samples: tuple | None = None  # (view key, xs, ys, {grid geometry: indexes})
         self._styles: dict[tuple, Style] = {}
 
     def validate_zoom(self, value: int) -> int:
@@ -185,6 +202,7 @@ class MapView(Widget, can_focus=True):
     def _invalidate(self) -> None:
         """The view changed (zoom, pan, cursor, overlay, size): redraw every row."""
         self._lines = None
+        self._row_keys = []
         self._update_titles()
         self.refresh()
 
@@ -269,15 +287,26 @@ class MapView(Widget, can_focus=True):
         truth = snap.truth if (snap is not None and self.show_truth) else None
         res = grid.resolution_cm if grid is not None else s
         k = int(min(4, max(1, math.ceil(s / res))))
-        offs = (np.arange(k) + 0.5) / k - 0.5
-        cols = np.arange(w)
-        prow = np.arange(2 * h)
-        xs = self.center[0] + (cols + 0.5 - w / 2) * s
-        ys = self.center[1] + (h - prow - 0.5) * s
-        gx = xs[None, :, None, None] + offs[None, None, :, None] * s
-        gy = ys[:, None, None, None] + offs[None, None, None, :] * s
-        gx, gy = np.broadcast_arrays(gx, gy)
-        cls = classify(grid, truth, gx, gy)
+        key = (w, h, s, k, self.center)
+        if self._samples is None or self._samples[0] != key:
+            offs = (np.arange(k) + 0.5) / k - 0.5
+            xs = self.center[0] + (np.arange(w) + 0.5 - w / 2) * s
+            ys = self.center[1] + (h - np.arange(2 * h) - 0.5) * s
+            gx = xs[None, :, None, None] + offs[None, None, :, None] * s
+            gy = ys[:, None, None, None] + offs[None, None, None, :] * s
+            self._samples = (key, *np.broadcast_arrays(gx, gy), {})
+        _, gx, gy, indexers = self._samples
+
+        def values(g: GridView | None) -> np.ndarray | None:
+            # sample positions depend only on the view and the grid's geometry: cached
+            if g is None:
+                return None
+            gkey = (g.cells.shape, g.origin_cm, g.resolution_cm)
+            if gkey not in indexers:
+                indexers[gkey] = _indexer(g, gx, gy)
+            return _gather(g, indexers[gkey])
+
+        cls = classify_values(values(grid), values(truth), gx.shape)
         # significance: occupied/errors over free over unknown
         rank = _RANK[cls]
         best = rank.reshape(2 * h, w, k * k).argmax(axis=2)
@@ -344,11 +373,17 @@ class MapView(Widget, can_focus=True):
             overlays.append((heading_glyph(self.cursor_heading),
                              self._style("#000000", "#ffff00", bold=True)))
             codes[crow, ccol] = 256 + len(overlays) - 1
+        # Rows that show exactly what they showed last frame keep their strip.
+        old_keys, old_lines = self._row_keys, self._lines or []
         lines = []
         keys = []
         for row in range(h):
             line = codes[row]
-            keys.append((line.tobytes(), tuple(overlays[c - 256] for c in line[line >= 256])))
+            key = (line.tobytes(), tuple(overlays[c - 256] for c in line[line >= 256]))
+            keys.append(key)
+            if row < len(old_lines) and row < len(old_keys) and old_keys[row] == key:
+                lines.append(old_lines[row])
+                continue
             starts = np.concatenate(([0], np.flatnonzero(np.diff(line)) + 1))
             ends = np.append(starts[1:], w)
             segs = []
