@@ -182,6 +182,7 @@ class ConsoleApp(App[int]):
         self._requests: trio.MemorySendChannel[None] | None = None
         self._awaiting = 0  # ticks since the outstanding request, 0 = none outstanding
         self._credit = 0.0  # frames owed at a reduced refresh rate
+        self._panel_phase = ""  # phase the game panel shows
         # Held, not queried: App.query_one searches the *current* screen, which is a
         # dialog while one is open, and snapshots keep arriving then.
         self.map_view = MapView(id="map")
@@ -287,7 +288,11 @@ class ConsoleApp(App[int]):
             return  # before compose finished, or after the screen went away
         self.snapshots_shown += 1
         self.map_view.update_snapshot(snap)
-        self.game_panel.update_snapshot(snap)
+        # The panel beside the map widens every repaint to the whole screen width:
+        # redraw it on every other frame (and at once when the phase changes).
+        if self.snapshots_shown % 2 == 0 or snap.phase != self._panel_phase:
+            self.game_panel.update_snapshot(snap)
+            self._panel_phase = snap.phase
         self.message_log.add_lines(snap.log)
         self.timeline.add_events(snap.timeline)
         self._show_tab(snap)

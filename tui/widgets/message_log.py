@@ -26,6 +26,8 @@ HISTORY = 2000
 
 def format_line(line: LogLine) -> Text:
     """One log line: time [s], actor, decoded text."""
+    if not line.actor:  # a marker from the console itself, e.g. skipped lines
+        return Text(line.text, style="dim italic")
     style = "bold red" if line.text.startswith(("DROP", "CRASH")) else ""
     return Text.assemble((f"{line.time_s:9.2f} ", "dim"), (f"{line.actor:<19} ", "cyan"),
                          (line.text, style))
@@ -79,17 +81,21 @@ class MessageLog(Vertical):
         self.filter_text = event.value
 
     def matches(self, line: LogLine) -> bool:
-        """Whether a line passes the filter."""
+        """Whether a line passes the filter (the console's own markers always do)."""
         f = self.filter_text.lower()
-        return not f or f in line.actor.lower() or f in line.text.lower()
+        return not f or not line.actor or f in line.actor.lower() or f in line.text.lower()
 
     def add_lines(self, lines: tuple[LogLine, ...]) -> None:
         """Take the lines of a snapshot; only unseen ones (by seq) are added."""
         new = [ln for ln in lines if ln.seq > self.last_seq]
         if not new:
             return
-        if new[0].seq > self.last_seq + 1 and self.last_seq:
-            self.skipped += new[0].seq - self.last_seq - 1
+        gap = new[0].seq - self.last_seq - 1
+        if gap > 0 and self.last_seq:
+            # more lines flowed than a snapshot carries: say so rather than stay silent
+            self.skipped += gap
+            self.history.append(LogLine(new[0].seq - 1, new[0].time_s, "", "",
+                                        f"… {gap} lines skipped (more than a snapshot holds)"))
         self.history.extend(new)
         self.last_seq = new[-1].seq
         if self.live and not self.paused:

@@ -1,0 +1,85 @@
+"""The message log on its own: seq-based appends, gaps, filter, pause."""
+
+from __future__ import annotations
+
+import asyncio
+
+from textual.app import App, ComposeResult
+
+from tui.snapshot import LogLine
+from tui.widgets import MessageLog
+
+
+class LogApp(App[None]):
+    def compose(self) -> ComposeResult:
+        yield MessageLog()
+
+
+def lines(*seqs: int, actor: str = "mapper/motor") -> tuple[LogLine, ...]:
+    return tuple(LogLine(s, s / 10, actor, actor, f"MOTOR_MOVE {s}") for s in seqs)
+
+
+def run(test) -> None:
+    async def main():
+        app = LogApp()
+        async with app.run_test() as pilot:
+            await test(app.query_one(MessageLog), pilot)
+
+    asyncio.run(main())
+
+
+def test_lines_already_seen_are_not_repeated():
+    """Overlapping snapshot tails add each line once, in order."""
+
+    async def test(log, pilot):
+        log.add_lines(lines(1, 2, 3))
+        log.add_lines(lines(2, 3, 4))
+        await pilot.pause()
+        assert [t.split()[-1] for t in log.shown_text()] == ["1", "2", "3", "4"]
+
+    run(test)
+
+
+def test_a_gap_is_shown_as_skipped_lines():
+    """When lines were lost between snapshots, a marker says how many."""
+
+    async def test(log, pilot):
+        log.add_lines(lines(1, 2))
+        log.add_lines(lines(10, 11))
+        await pilot.pause()
+        shown = log.shown_text()
+        assert log.skipped == 7
+        assert shown[2] == "… 7 lines skipped (more than a snapshot holds)"
+        assert shown[3].endswith("MOTOR_MOVE 10")
+
+    run(test)
+
+
+def test_filter_keeps_matching_lines_and_markers():
+    """A filter applies to past lines too; skip markers always show."""
+
+    async def test(log, pilot):
+        log.add_lines(lines(1) + lines(2, actor="mapper/lidar"))
+        log.add_lines(lines(5, actor="mapper/lidar"))
+        log.filter_text = "lidar"
+        await pilot.pause()
+        shown = log.shown_text()
+        assert len(shown) == 3 and "mapper/lidar" in shown[0] and "skipped" in shown[1]
+
+    run(test)
+
+
+def test_paused_log_collects_but_does_not_show_until_resumed():
+    """While paused nothing new is drawn; on resume the collected lines appear."""
+
+    async def test(log, pilot):
+        log.add_lines(lines(1))
+        log.paused = True
+        log.add_lines(lines(2, 3))
+        await pilot.pause()
+        assert len(log.shown_text()) == 1 and log.last_seq == 3
+        log.paused = False
+        await pilot.pause()
+        assert len(log.shown_text()) == 3
+
+    run(test)
