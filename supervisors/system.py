@@ -210,8 +210,10 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
             link = world.wifly_link(role)
             memory = server.attach_memory(outbound=link.server_write, name=f"sim:{role}")
             link.on_server_receive = memory.feed
-        async with trio.open_nursery() as nursery, \
-                open_actor_system(seed, trace=trace) as actors:
+        # the world and the fault watcher stop first (cancelled); the rover trees
+        # then stop gracefully, in reverse order, as open_actor_system closes
+        async with open_actor_system(seed, trace=trace) as actors, \
+                trio.open_nursery() as nursery:
             nursery.start_soon(run_world, world)
             trees = {}
             for role in roles:
