@@ -92,6 +92,32 @@ def _gather(grid: GridView, index: np.ndarray) -> np.ndarray:
     return out
 
 
+def known_extent(grid: GridView) -> tuple[float, float, float, float] | None:
+    """(x_min, y_min, x_max, y_max) [cm] of the cells the map knows, one cell of
+    margin; None when it knows none (a fresh grid is mostly unknown space)."""
+    known = grid.cells != -1
+    rows = np.flatnonzero(known.any(axis=1))
+    if len(rows) == 0:
+        return None
+    cols = np.flatnonzero(known.any(axis=0))
+    r, (ox, oy) = grid.resolution_cm, grid.origin_cm
+    return (ox + (cols[0] - 1) * r, oy + (rows[0] - 1) * r,
+            ox + (cols[-1] + 2) * r, oy + (rows[-1] + 2) * r)
+
+
+def fit_view(extent: tuple[float, float, float, float], width: int,
+             height: int) -> tuple[int, tuple[float, float]]:
+    """The finest zoom index showing ``extent`` [cm] in ``width`` x ``height``
+    characters (two pixels per character vertically), and the centre [cm]."""
+    x0, y0, x1, y1 = extent
+    zoom = len(ZOOMS_CM) - 1
+    for i, s in enumerate(ZOOMS_CM):
+        if (x1 - x0) / s <= width and (y1 - y0) / s <= 2 * height:
+            zoom = i
+            break
+    return zoom, ((x0 + x1) / 2, (y0 + y1) / 2)
+
+
 class MapView(Widget, can_focus=True):
     """The mapper's map with overlays, a cursor, zoom and pan.
 
@@ -100,7 +126,7 @@ class MapView(Widget, can_focus=True):
     | arrows | move the cursor one character |
     | shift+arrows | pan a quarter of the view |
     | + / - | zoom in / out |
-    | 0 | fit the whole map |
+    | 0 | fit the known map (and follow it as it grows) |
     | r | rotate the cursor's heading by 45 deg (for the hide spot) |
     """
 
@@ -153,6 +179,9 @@ class MapView(Widget, can_focus=True):
         self.snapshot: Snapshot | None = None
         self.center: tuple[float, float] = (0.0, 0.0)
         self._fitted = False
+        self.auto_fit = True
+        """Keep the known part of the map in view as it grows, until the person
+        zooms or pans (``0`` turns it back on)."""
         self._lines: list[Strip] | None = None
         self._row_keys: list[tuple] = []  # what each drawn row showed, to refresh only changes
         self._samples: tuple | None = None  # (view key, xs, ys, {grid geometry: indexes})
@@ -182,9 +211,10 @@ class MapView(Widget, can_focus=True):
     def update_snapshot(self, snapshot: Snapshot) -> None:
         """Show a new snapshot (fits the view to the map the first time)."""
         self.snapshot = snapshot
-        if not self._fitted and snapshot.map is not None and self.size.width > 0:
+        if snapshot.map is not None and self.size.width > 0 and (
+                not self._fitted or (self.auto_fit and self._needs_fit())):
             self._fitted = True
-            self.action_fit()
+            self._fit()
             return
         self._update_titles()
         if self._lines is None or len(self._lines) != self._view_size()[1]:
@@ -412,30 +442,48 @@ class MapView(Widget, can_focus=True):
         self.cursor = (self.cursor[0] + dx * s, self.cursor[1] + dy * 2 * s)
 
     def action_pan(self, dx: int, dy: int) -> None:
+        self.auto_fit = False
         w, h = self._view_size()
         s = self.scale
         self.center = (self.center[0] + dx * w * s / 4, self.center[1] + dy * h * s / 2)
         self._invalidate()
 
     def action_zoom(self, step: int) -> None:
+        self.auto_fit = False
         self.zoom += step
         self.center = self.cursor if self.snapshot is not None else self.center
         self._invalidate()
 
     def action_fit(self) -> None:
-        """Zoom and centre so the whole map is in view."""
+        """Zoom and centre on the known map, and keep doing so as it grows."""
+        self.auto_fit = True
+        self._fit()
+
+    def _target_extent(self) -> tuple[float, float, float, float] | None:
         snap = self.snapshot
         if snap is None or snap.map is None:
-            return
-        x0, y0, x1, y1 = snap.map.extent_cm()
+            return None
+        return known_extent(snap.map) or snap.map.extent_cm()
+
+    def _needs_fit(self) -> bool:
+        """The known map left the view, or would fit two zoom steps finer."""
+        extent = self._target_extent()
+        if extent is None:
+            return False
         w, h = self._view_size()
-        for i, s in enumerate(ZOOMS_CM):
-            if (x1 - x0) / s <= w and (y1 - y0) / s <= 2 * h:
-                self.zoom = i
-                break
-        else:
-            self.zoom = len(ZOOMS_CM) - 1
-        self.center = ((x0 + x1) / 2, (y0 + y1) / 2)
+        zoom, _ = fit_view(extent, w, h)
+        s = self.scale
+        cx, cy = self.center
+        inside = (extent[0] >= cx - w * s / 2 and extent[2] <= cx + w * s / 2
+                  and extent[1] >= cy - h * s and extent[3] <= cy + h * s)
+        return not inside or zoom <= self.zoom - 2
+
+    def _fit(self) -> None:
+        extent = self._target_extent()
+        if extent is None:
+            return
+        zoom, self.center = fit_view(extent, *self._view_size())
+        self.set_reactive(MapView.zoom, zoom)
         self._invalidate()
 
     def action_rotate(self) -> None:
