@@ -1,9 +1,10 @@
 """Console cost: simulated-time throughput with the console attached vs headless,
 and key-to-actor latency.
 
-Run as ``python -m benchmarks.console [--quick]``. Both throughput runs use the
-fake system (`tui.fake.FakeSystem`) at "as fast as possible" with the same
-script (map the room, start a new game, map again ...); the headless run is
+Run as ``python -m benchmarks.console [--quick] [--live SCENARIO]``. Both
+throughput runs use the fake system (`tui.fake.FakeSystem`), or with ``--live``
+the simulated system (`tui.live.LiveSystem`), at "as fast as possible" with the
+same script (map the room, start a new game, map again ...); the headless run is
 the baseline measured in the same process. "Attached" is the console in
 Textual's headless driver at 120x40: it lays out and renders every frame but
 writes to no terminal, so a real terminal adds the cost of output on top.
@@ -61,9 +62,47 @@ class ScriptedFake(FakeSystem):
         super()._do_resume()
 
 
-def headless(wall_s: float) -> tuple[float, float]:
+class Scripted:
+    """Any console `System` plus a driver task: new game and start mapping every
+    ``period_s`` simulated seconds (a refused command is simply ignored)."""
+
+    def __init__(self, inner, period_s: float) -> None:
+        self.inner = inner
+        self.clock = inner.clock
+        self.period_s = period_s
+
+    def __getattr__(self, name: str):
+        return getattr(self.inner, name)
+
+    async def run(self, publish, requests) -> None:
+        async with trio.open_nursery() as nursery:
+            nursery.start_soon(self._script)
+            await self.inner.run(publish, requests)
+
+    async def _script(self) -> None:
+        while True:
+            self.inner.new_game()
+            self.inner.start_mapping()
+            await trio.sleep(self.period_s)
+
+
+def fake_system():
+    """The default system under test."""
+    return ScriptedFake(speed=None)
+
+
+def live_system(scenario: str):
+    """A factory for the simulated system on a scenario (imported only when asked)."""
+    from tui.live import LiveSystem
+    from world.scenario import load_scenario
+
+    loaded = load_scenario(scenario)
+    return lambda: Scripted(LiveSystem(loaded, seed=1, speed=None, db=":memory:"), 300.0)
+
+
+def headless(wall_s: float, make=fake_system) -> tuple[float, float]:
     """Simulated seconds per wall second and per CPU second, without the console."""
-    fake = ScriptedFake(speed=None)
+    fake = make()
     out = {}
 
     async def main() -> None:
@@ -89,10 +128,10 @@ async def _wait(cond, timeout: float = 10.0) -> None:
         await asyncio.sleep(0.001)
 
 
-def attached(wall_s: float) -> tuple[float, float, float]:
+def attached(wall_s: float, make=fake_system) -> tuple[float, float, float]:
     """Simulated seconds per wall second and per CPU second with the console, and
     snapshots shown per wall second."""
-    fake = ScriptedFake(speed=None)
+    fake = make()
     app = ConsoleApp(fake)
     out = {}
 
@@ -144,20 +183,24 @@ def pct(values: list[float], q: float) -> float:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.console", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
+    parser.add_argument("--live", metavar="SCENARIO",
+                        help="measure throughput on the simulated system with this scenario")
     args = parser.parse_args(argv)
+    make = live_system(args.live) if args.live else fake_system
     wall_s, rounds, samples = (1.5, 3, 20) if args.quick else (3.0, 5, 100)
 
     # Alternate baseline and console runs and take medians, so a change in the
     # machine's load during the benchmark hits both sides alike.
     runs = []
     for _ in range(rounds):
-        base, base_cpu = headless(wall_s)
-        with_ui, with_ui_cpu, fps = attached(wall_s)
+        base, base_cpu = headless(wall_s, make)
+        with_ui, with_ui_cpu, fps = attached(wall_s, make)
         runs.append((base, base_cpu, with_ui, with_ui_cpu, fps))
     med = [statistics.median(r[i] for r in runs) for i in range(5)]
     lat1 = key_latency(1.0, samples)
     latmax = key_latency(None, samples)
     figures = {
+        "system": f"live:{args.live}" if args.live else "fake",
         "wall_s_per_run": wall_s,
         "rounds": rounds,
         "headless_sim_s_per_wall_s": round(med[0], 1),
