@@ -72,6 +72,7 @@ __all__ = [
     "FAULT_LABELS", "MODES", "CampaignError", "CampaignConfig", "GameSpec", "plan_game",
     "parse_game_ref", "game_from_ref", "select_kinds", "play_campaign_game", "run_campaign",
     "summarize", "CampaignStore", "ACTORS_BY_ROLE", "default_workers", "MAX_GAMES",
+    "seed_game_scheduler",
 ]
 
 MODES = ("single", "overlapping", "none")
@@ -430,9 +431,27 @@ def _stored_map(system: Any, store: Store) -> Any:
         return None
 
 
+def seed_game_scheduler(seed: int) -> None:
+    """Make Trio's task order a function of ``seed`` alone (call before ``trio.run``).
+
+    `actors.seed_trio_scheduler` seeds the shuffle of each batch of runnable
+    tasks, but Trio builds the batch in an order that depends on object ids
+    (deadline ties are broken by ``id()``), so a second game in the same
+    process (a pool worker) plays differently. Trio's own switch for
+    Hypothesis, ``_ALLOW_DETERMINISTIC_SCHEDULING``, sorts each batch by task
+    creation order before the seeded shuffle: measured, three runs of one
+    seed in one process then give one trace hash (without it, three).
+    Campaign games and ``hideseek run --campaign`` both use this.
+    """
+    from trio._core import _run  # noqa: PLC0415 - Trio's private switch, on purpose, here only
+
+    _run._ALLOW_DETERMINISTIC_SCHEDULING = True
+    seed_trio_scheduler(seed)
+
+
 def _run_one(spec: GameSpec, wall_timeout_s: float | None) -> tuple[GameReport, dict]:
     """Play a game in a fresh Trio run on a virtual clock, cancelled after a wall-time guard."""
-    seed_trio_scheduler(spec.run_seed)
+    seed_game_scheduler(spec.run_seed)
     guard: list[threading.Timer] = []
 
     async def main() -> tuple[GameReport, dict]:
@@ -501,8 +520,10 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         if determinism:
             again, _ = _run_one(spec, wall_timeout_s)
             out["replay_hash"] = again.trace_hash
-            out["violations"] += [str(v) for v in inv.check_determinism(
-                report.trace_hash, again.trace_hash)]
+            out["violations"] += [
+                f"{v} (replay: {again.outcome} after {again.sim_seconds:.1f} s, "
+                f"first: {report.outcome} after {report.sim_seconds:.1f} s)"
+                for v in inv.check_determinism(report.trace_hash, again.trace_hash)]
     except Exception as group:  # noqa: BLE001 - a broken game is a result, not a crash
         exc = _leaf(group)
         last = traceback.extract_tb(exc.__traceback__)[-1:]

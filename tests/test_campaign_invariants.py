@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections import Counter
 from types import SimpleNamespace
 
@@ -11,10 +12,10 @@ import numpy as np
 import pytest
 import trio
 
-from actors import EventKind, Trace, seed_trio_scheduler, virtual_clock
+from actors import EventKind, Trace, virtual_clock
 from server.protocol import MapGrid, Reason, encode_frame, make_frame, map_chunks
 from supervisors import invariants as inv
-from supervisors.campaign import CampaignConfig, plan_game, play_checked
+from supervisors.campaign import CampaignConfig, plan_game, play_checked, seed_game_scheduler
 from supervisors.headless import Budget, run_game
 
 # ---------------------------------------------------------------------------- pure checks
@@ -182,9 +183,9 @@ def test_a_tapped_campaign_game_keeps_the_trace_hash_of_hideseek_run(mode):
     config = CampaignConfig(3, mode=mode, rooms=("empty",), kinds=("actor:crash",),
                             window_s=(1.0, 4.0), mapping_budget_s=8.0)
     spec = plan_game(config, 0)
-    seed_trio_scheduler(spec.run_seed)
+    seed_game_scheduler(spec.run_seed)
     report, checks = trio.run(lambda: play_checked(spec, drain_s=2.0), clock=virtual_clock())
-    seed_trio_scheduler(spec.run_seed)
+    seed_game_scheduler(spec.run_seed)
     plain = trio.run(lambda: run_game(spec.scenario(), spec.run_seed,
                                       budget=Budget(mapping=8.0)), clock=virtual_clock())
     assert report.trace_hash == plain.trace_hash != ""
@@ -193,3 +194,17 @@ def test_a_tapped_campaign_game_keeps_the_trace_hash_of_hideseek_run(mode):
     assert checks["faults_fired"] == (1 if mode == "single" else 0)
     if mode == "single":
         assert checks["events"].get("crash", 0) >= 1
+
+
+def test_a_campaign_game_replays_in_process_and_reproduces_through_hideseek_run(capsys):
+    """Determinism: the worker's replay and `hideseek run --campaign REF` give its trace hash."""
+    from supervisors.campaign import play_campaign_game  # noqa: PLC0415
+    from tui.cli import main  # noqa: PLC0415
+
+    ref = "4:2,rooms=empty,faults=actor:hang,window=1-3,budget=6"
+    result = play_campaign_game(ref, determinism=True)
+    assert result["faults_fired"] == 1
+    assert result["replay_hash"] == result["trace_hash"] != ""
+    assert not [v for v in result["violations"] if v.startswith("determinism")]
+    assert main(["run", "--campaign", ref, "--json"]) == 1  # 6 s cannot map a room
+    assert json.loads(capsys.readouterr().out)["trace_hash"] == result["trace_hash"]

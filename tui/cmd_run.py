@@ -66,8 +66,12 @@ def _print_summary(r: GameReport) -> None:
 def run(args: argparse.Namespace) -> int:
     try:
         if args.campaign:
-            from supervisors.campaign import game_from_ref  # noqa: PLC0415 - only when asked
+            from supervisors.campaign import (  # noqa: PLC0415 - only when asked
+                game_from_ref,
+                seed_game_scheduler,
+            )
             scenario, args.seed, args.budget = game_from_ref(args.campaign)
+            seed_game_scheduler(args.seed)  # the campaign's scheduling, so the same trace hash
         else:
             scenario = _scenario(args)
     except (ScenarioError, OSError) as exc:
