@@ -106,7 +106,7 @@ MAP_KEYS: tuple[tuple[str, str], ...] = (
     ("arrows", "move the cursor (or click the map)"),
     ("shift+arrows", "pan the map"),
     ("+ / -", "zoom in / out"),
-    ("0", "fit the whole map"),
+    ("0", "fit the known map, and follow it as it grows"),
     ("r", "rotate the hide heading by 45°"),
     ("escape", "back to the map from the log filter"),
     ("ctrl+p", "command palette: every action by name"),

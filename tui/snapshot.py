@@ -8,9 +8,10 @@ things, and this module is the whole of that contract:
    picture of the system at one simulated instant: time and speed, game phase,
    the mapper's map, rovers, queues, a tail of recent messages, the supervision
    tree, links, a timeline, faults. The console asks for one about 15 times per
-   *wall* second by putting ``None`` into the ``requests`` channel it hands to
-   `System.run`; the system answers each request by building a snapshot from its
-   current state and calling ``publish(snapshot)``. This pull makes the refresh
+   *wall* second (10 at "as fast as possible") by putting ``None`` into the
+   ``requests`` channel it hands to `System.run`, never more than one at a time;
+   the system answers each request by building a snapshot from its current
+   state and calling ``publish(snapshot)``. This pull makes the refresh
    rate independent of the simulation speed and of how many messages flow: at
    "as fast as possible" the system builds 15 snapshots per wall second, not one
    per simulated tick.
