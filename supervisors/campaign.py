@@ -473,7 +473,8 @@ def _run_one(spec: GameSpec, wall_timeout_s: float | None) -> tuple[GameReport, 
 
 
 def play_campaign_game(ref: str, *, determinism: bool = False,
-                       wall_timeout_s: float | None = None) -> dict[str, Any]:
+                       wall_timeout_s: float | None = None,
+                       baseline: bool = True) -> dict[str, Any]:
     """The worker entry point: play game ``ref`` and return its result as a JSON-able dict.
 
     Plain and pickleable (module-level, strings and numbers in, a dict of
@@ -487,13 +488,16 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         determinism: play the game a second time and compare trace hashes.
         wall_timeout_s: wall-clock guard per play [s] (an operational limit,
             not part of the simulation); None for none.
+        baseline: when the game fails and had faults, play it again without
+            them, so the failure list tells fault-caused failures from others.
 
     Returns:
         ``index``, ``ref``, ``reproduce``, ``room``, ``run_seed``, ``faults``
         (target/kind/at_s/duration_s/label each), ``outcome``, ``reason``,
         ``violations`` (``name: detail`` strings), ``faults_fired``,
         ``restarts``, ``resent``, ``dropped``, ``sim_s``, ``wall_s``,
-        ``trace_hash``, ``replay_hash`` (None unless replayed), ``events``.
+        ``trace_hash``, ``replay_hash`` (None unless replayed), ``events``,
+        ``baseline`` (outcome without the faults, or None when not played).
 
     Raises:
         CampaignError: ``ref`` is not a valid game reference.
@@ -508,7 +512,7 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
                    for lab, f in zip(spec.labels, spec.faults, strict=True)],
         "outcome": "failed", "reason": "", "violations": [], "faults_fired": 0,
         "restarts": 0, "resent": 0, "dropped": 0, "sim_s": 0.0, "wall_s": 0.0,
-        "trace_hash": "", "replay_hash": None, "events": {},
+        "trace_hash": "", "replay_hash": None, "events": {}, "baseline": None,
     }
     wall0 = time.perf_counter()  # wall time is measured for the report only
     try:
@@ -524,6 +528,9 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
                 f"{v} (replay: {again.outcome} after {again.sim_seconds:.1f} s, "
                 f"first: {report.outcome} after {report.sim_seconds:.1f} s)"
                 for v in inv.check_determinism(report.trace_hash, again.trace_hash)]
+        if baseline and spec.faults and (out["violations"] or out["outcome"] != "found"):
+            calm, _ = _run_one(dataclasses.replace(spec, faults=(), labels=()), wall_timeout_s)
+            out["baseline"] = calm.outcome
     except Exception as group:  # noqa: BLE001 - a broken game is a result, not a crash
         exc = _leaf(group)
         last = traceback.extract_tb(exc.__traceback__)[-1:]
@@ -645,6 +652,8 @@ def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
                             "failed": c["failed"], "not_reached": c["not_reached"]}
                         for k, c in sorted(per_kind.items())},
         "violations": dict(sorted(violated.items())),
+        "failures_also_without_faults": sum(
+            1 for r in results if _failed(r) and r.get("baseline") not in (None, "found")),
         "restarts": sum(r["restarts"] for r in results),
         "resent": sum(r["resent"] for r in results),
         "dropped": sum(r["dropped"] for r in results),
@@ -659,6 +668,7 @@ def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
                       "reason": r["reason"], "violations": r["violations"],
                       "faults": [f"{f['target']} {f['kind']} at {f['at_s']:g} s for "
                                  f"{f['duration_s']:g} s" for f in r["faults"]],
+                      "without_faults": r.get("baseline"),
                       "reproduce": r["reproduce"]}
                      for r in results if _failed(r)],
     }

@@ -126,7 +126,8 @@ def _print_table(s: dict[str, Any]) -> None:
           f"({s['games_per_wall_minute']} games/min)")
     print(f"  found {s['found']}, not found {s['not_found']}, failed {s['failed']}; "
           f"games with broken invariants {s['games_with_violations']}; "
-          f"success rate {100 * s['success_rate']:.1f} %")
+          f"success rate {100 * s['success_rate']:.1f} %; failures that fail without "
+          f"their faults too {s['failures_also_without_faults']}")
     print(f"  restarts {s['restarts']}, resent {s['resent']}, dropped {s['dropped']}; "
           f"determinism: {s['determinism']['replayed']} replayed, "
           f"{s['determinism']['mismatched']} mismatched")
@@ -146,6 +147,8 @@ def _print_table(s: dict[str, Any]) -> None:
             print(f"    fault: {fault}")
         for v in f["violations"]:
             print(f"    broken: {v}")
+        if f.get("without_faults"):
+            print(f"    without its faults: {f['without_faults']}")
         print(f"    reproduce: {f['reproduce']}")
 
 
