@@ -30,7 +30,8 @@ from tui.snapshot import FREE, OCCUPIED, GridView, Snapshot
 __all__ = ["MapView", "ZOOMS_CM", "heading_glyph"]
 
 #: Pixel sizes the zoom steps through [cm per pixel].
-ZOOMS_CM: tuple[float, ...] = (1.25, 2.5, 4.0, 5.0, 6.0, 7.5, 10.0, 15.0, 20.0, 40.0)
+ZOOMS_CM: tuple[float, ...] = (1.25, 2.5, 4.0, 5.0, 6.0, 7.5, 10.0, 15.0, 20.0, 25.0, 30.0,
+                                40.0, 60.0)
 
 # Pixel classes, drawn in this colour (index = class).
 _UNKNOWN, _FREE, _OCC, _MISSED, _FALSE, _PATH, _LIDAR, _TRUTH = range(8)

@@ -29,7 +29,7 @@ def format_line(line: LogLine) -> Text:
     if not line.actor:  # a marker from the console itself, e.g. skipped lines
         return Text(line.text, style="dim italic")
     style = "bold red" if line.text.startswith(("DROP", "CRASH")) else ""
-    return Text.assemble((f"{line.time_s:9.2f} ", "dim"), (f"{line.actor:<19} ", "cyan"),
+    return Text.assemble((f"{line.time_s:7.1f} ", "dim"), (f"{line.actor:<13} ", "cyan"),
                          (line.text, style))
 
 
@@ -59,7 +59,7 @@ class MessageLog(Vertical):
 
     def compose(self) -> ComposeResult:
         yield Input(placeholder="filter (actor or message)…", id="log-filter")
-        yield RichLog(max_lines=HISTORY, wrap=False, id="log-lines")
+        yield RichLog(max_lines=HISTORY, wrap=True, id="log-lines")
 
     def watch_paused(self, paused: bool) -> None:
         if self.is_mounted:
