@@ -59,7 +59,7 @@ class MessageLog(Vertical):
 
     def compose(self) -> ComposeResult:
         yield Input(placeholder="filter (actor or message)…", id="log-filter")
-        yield RichLog(max_lines=HISTORY, wrap=True, id="log-lines")
+        yield RichLog(max_lines=HISTORY, wrap=True, min_width=20, id="log-lines")
 
     def watch_paused(self, paused: bool) -> None:
         if self.is_mounted:

@@ -33,7 +33,8 @@ class Timeline(RichLog):
 
     def __init__(self, *, name: str | None = None, id: str | None = None,
                  classes: str | None = None) -> None:
-        super().__init__(max_lines=PENDING, wrap=True, name=name, id=id, classes=classes)
+        super().__init__(max_lines=PENDING, wrap=True, min_width=20, name=name, id=id,
+                         classes=classes)
         self.last_seq = 0
         self.live = True
         self._pending: deque[TimelineEvent] = deque(maxlen=PENDING)
