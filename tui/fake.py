@@ -21,14 +21,13 @@ from __future__ import annotations
 import math
 import pathlib
 from collections import deque
-from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 import trio
 import trio.testing
 
+from tui.controller import QueuedController
 from tui.snapshot import (
     FREE,
     MAX_LOG_LINES,
@@ -36,7 +35,6 @@ from tui.snapshot import (
     OCCUPIED,
     UNKNOWN,
     ActiveFault,
-    CommandResult,
     FaultTarget,
     GridView,
     LinkStats,
@@ -124,7 +122,7 @@ class _Node:
     hung: bool = False
 
 
-class FakeSystem:
+class FakeSystem(QueuedController):
     """A `tui.snapshot.System` with a fake room and fake rovers.
 
     Args:
@@ -140,19 +138,10 @@ class FakeSystem:
 
     def __init__(self, *, seed: int = 0, scenario: str = "fake-room",
                  speed: float | None = 1.0, paused: bool = False) -> None:
-        if speed is not None and not speed > 0:
-            raise ValueError(f"speed must be > 0 or None, got {speed!r}")
+        super().__init__(speed=speed, paused=paused, capacity=COMMAND_CAPACITY)
         self.seed = seed
         self.scenario = scenario
-        self.clock = trio.testing.MockClock()
-        self.calls: deque[tuple[str, tuple]] = deque(maxlen=1000)
-        self._speed = speed
-        self._paused = paused
-        self._apply_clock()
         self._rng = np.random.default_rng(seed)
-        self._cmd_send, self._cmd_recv = trio.open_memory_channel[tuple[str, tuple]](
-            COMMAND_CAPACITY)
-        self._publish: Publish | None = None
         self._truth = room_grid()
         self._log: deque[LogLine] = deque(maxlen=MAX_LOG_LINES)
         self._timeline: deque[TimelineEvent] = deque(maxlen=MAX_TIMELINE)
@@ -166,48 +155,6 @@ class FakeSystem:
         self._catalogue = self._make_catalogue()
         self._now = 0.0
         self._reset_game()
-
-    # -- Controller (synchronous, called from the console) -----------------
-    def start_mapping(self) -> None:
-        self._submit("start_mapping")
-
-    def stop_mapping(self) -> None:
-        self._submit("stop_mapping")
-
-    def hide_at(self, x_cm: float, y_cm: float, heading_deg: float) -> None:
-        self._submit("hide_at", float(x_cm), float(y_cm), float(heading_deg))
-
-    def seek_at(self, x_cm: float, y_cm: float) -> None:
-        self._submit("seek_at", float(x_cm), float(y_cm))
-
-    def new_game(self) -> None:
-        self._submit("new_game")
-
-    def pause(self) -> None:
-        self._submit("pause")
-
-    def resume(self) -> None:
-        self._submit("resume")
-
-    def set_speed(self, rate: float | None) -> None:
-        self._submit("set_speed", rate)
-
-    def inject_fault(self, target: str, kind: str, duration_s: float | None,
-                     params: Mapping[str, Any]) -> None:
-        self._submit("inject_fault", target, kind, duration_s, dict(params))
-
-    def clear_fault(self, fault: str) -> None:
-        self._submit("clear_fault", fault)
-
-    def export_map(self, directory: str) -> None:
-        self._submit("export_map", str(directory))
-
-    def _submit(self, name: str, *args: Any) -> None:
-        self.calls.append((name, args))
-        try:
-            self._cmd_send.send_nowait((name, args))
-        except trio.WouldBlock:
-            self._result(name, "refused", "busy")
 
     # -- Trio side ----------------------------------------------------------
     async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
@@ -229,21 +176,8 @@ class FakeSystem:
             if self._publish is not None:
                 self._publish(self.snapshot(trio.current_time()))
 
-    async def _command_loop(self) -> None:
-        async for name, args in self._cmd_recv:
-            self._now = trio.current_time()
-            try:
-                reason = getattr(self, "_do_" + name)(*args)
-            except (ValueError, TypeError) as exc:
-                self._result(name, "refused", str(exc))
-            except OSError as exc:
-                self._result(name, "error", f"{exc.strerror or exc}: {exc.filename or ''}")
-            else:
-                self._result(name, "ok", reason or "")
-
-    def _result(self, name: str, status: str, reason: str) -> None:
-        if self._publish is not None:
-            self._publish(CommandResult(name, status, reason))  # type: ignore[arg-type]
+    def _before_command(self) -> None:
+        self._now = trio.current_time()
 
     # -- commands (run in Trio); raise ValueError to refuse ------------------
     def _need_phase(self, command: str, *phases: str) -> None:
@@ -282,25 +216,6 @@ class FakeSystem:
     def _do_new_game(self) -> None:
         self._reset_game()
         self._event("game", "new game")
-
-    def _do_pause(self) -> None:
-        self._paused = True
-        self._apply_clock()
-        self._event("game", "paused")
-
-    def _do_resume(self) -> None:
-        self._paused = False
-        self._apply_clock()
-        self._event("game", "resumed")
-
-    def _do_set_speed(self, rate: float | None) -> str:
-        if rate is not None and not (isinstance(rate, int | float) and rate > 0):
-            raise ValueError(f"speed must be > 0 or None, got {rate!r}")
-        self._speed = rate
-        self._apply_clock()
-        text = "as fast as possible" if rate is None else f"x{rate:g}"
-        self._event("game", f"speed {text}")
-        return text
 
     def _do_inject_fault(self, target: str, kind: str, duration_s: float | None,
                          params: dict) -> str:
@@ -630,14 +545,3 @@ class FakeSystem:
         return node("system", "supervisor",
                     (node("server", "worker"), node("world", "worker")) + rovers)
 
-    def _apply_clock(self) -> None:
-        """Pause and speed are the clock's rate and autojump (call inside Trio once running)."""
-        if self._paused:
-            self.clock.autojump_threshold = math.inf
-            self.clock.rate = 0.0
-        elif self._speed is None:
-            self.clock.rate = 0.0
-            self.clock.autojump_threshold = 0.0
-        else:
-            self.clock.autojump_threshold = math.inf
-            self.clock.rate = float(self._speed)

@@ -15,7 +15,6 @@ import math
 import pathlib
 import re
 from collections import deque
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -27,16 +26,16 @@ from server.export import write_pgm, write_png
 from server.protocol import MapGrid, Pose2, inverse
 from server.protocol import compose as compose_pose
 from server.store import Store
-from supervisors.system import ROLES, FaultError, SimSystem, open_sim_system
+from supervisors.system import ROLES, SimSystem, open_sim_system
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_DEVICES
 from world.scenario import Scenario
 from world.truth import truth_raster
 
+from .controller import QueuedController
 from .snapshot import (
     MAX_LOG_LINES,
     MAX_TIMELINE,
     ActiveFault,
-    CommandResult,
     FaultTarget,
     GridView,
     LinkStats,
@@ -67,7 +66,7 @@ def _decode(message: str) -> str:
     return f"{name_of(int(m.group(1)))} {m.group(2)}"
 
 
-class LiveSystem:
+class LiveSystem(QueuedController):
     """The simulated system, as the console's `System` (see `tui.snapshot`).
 
     Args:
@@ -81,16 +80,11 @@ class LiveSystem:
 
     def __init__(self, scenario: Scenario, *, seed: int = 1, speed: float | None = 1.0,
                  db: str = ":memory:", log_messages: bool = True) -> None:
+        super().__init__(speed=speed, capacity=COMMAND_CAPACITY)
         self.scenario = scenario
         self.seed = seed
-        self.clock = trio.testing.MockClock()
-        self._speed = speed
-        self._paused = False
         self._db = db
         self._log_messages = log_messages
-        self._cmd_send, self._cmd_recv = trio.open_memory_channel[tuple[str, tuple]](
-            COMMAND_CAPACITY)
-        self._publish: Publish | None = None
         self._system: SimSystem | None = None
         self._log: deque[LogLine] = deque(maxlen=MAX_LOG_LINES)
         self._timeline: deque[TimelineEvent] = deque(maxlen=MAX_TIMELINE)
@@ -102,48 +96,6 @@ class LiveSystem:
         self._truth_raster: Any = None
         self._truth_key: tuple | None = None
         self._mapper_room = Pose2(0, 0, 0)
-        self._apply_clock()
-
-    # -- Controller (synchronous, from Textual handlers) ------------------------------
-    def start_mapping(self) -> None:
-        self._submit("start_mapping")
-
-    def stop_mapping(self) -> None:
-        self._submit("stop_mapping")
-
-    def hide_at(self, x_cm: float, y_cm: float, heading_deg: float) -> None:
-        self._submit("hide_at", float(x_cm), float(y_cm), float(heading_deg))
-
-    def seek_at(self, x_cm: float, y_cm: float) -> None:
-        self._submit("seek_at", float(x_cm), float(y_cm))
-
-    def new_game(self) -> None:
-        self._submit("new_game")
-
-    def pause(self) -> None:
-        self._submit("pause")
-
-    def resume(self) -> None:
-        self._submit("resume")
-
-    def set_speed(self, rate: float | None) -> None:
-        self._submit("set_speed", rate)
-
-    def inject_fault(self, target: str, kind: str, duration_s: float | None,
-                     params: Mapping[str, Any]) -> None:
-        self._submit("inject_fault", target, kind, duration_s, dict(params))
-
-    def clear_fault(self, fault: str) -> None:
-        self._submit("clear_fault", fault)
-
-    def export_map(self, directory: str) -> None:
-        self._submit("export_map", str(directory))
-
-    def _submit(self, name: str, *args: Any) -> None:
-        try:
-            self._cmd_send.send_nowait((name, args))
-        except trio.WouldBlock:
-            self._result(name, "refused", "busy")
 
     # -- Trio side ----------------------------------------------------------------------
     async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
@@ -162,21 +114,6 @@ class LiveSystem:
                     nursery.start_soon(self._server_events, events)
                     async for _ in requests:
                         publish(self.snapshot())
-
-    async def _command_loop(self) -> None:
-        async for name, args in self._cmd_recv:
-            try:
-                reason = await getattr(self, "_do_" + name)(*args)
-            except (ValueError, TypeError, FaultError) as exc:
-                self._result(name, "refused", str(exc))
-            except OSError as exc:
-                self._result(name, "error", f"{exc.strerror or exc}: {exc.filename or ''}")
-            else:
-                self._result(name, "ok", reason or "")
-
-    def _result(self, name: str, status: str, reason: str) -> None:
-        if self._publish is not None:
-            self._publish(CommandResult(name, status, reason))  # type: ignore[arg-type]
 
     # -- commands (in Trio); raise ValueError to refuse ----------------------------------
     async def _server_command(self, name: str, **kwargs: Any) -> str:
@@ -200,27 +137,6 @@ class LiveSystem:
 
     async def _do_new_game(self) -> str:
         return await self._server_command("new_game")
-
-    async def _do_pause(self) -> str:
-        self._paused = True
-        self._apply_clock()
-        self._event("game", "paused")
-        return ""
-
-    async def _do_resume(self) -> str:
-        self._paused = False
-        self._apply_clock()
-        self._event("game", "resumed")
-        return ""
-
-    async def _do_set_speed(self, rate: float | None) -> str:
-        if rate is not None and not (isinstance(rate, int | float) and rate > 0):
-            raise ValueError(f"speed must be > 0 or None, got {rate!r}")
-        self._speed = rate
-        self._apply_clock()
-        text = "as fast as possible" if rate is None else f"x{rate:g}"
-        self._event("game", f"speed {text}")
-        return text
 
     async def _do_inject_fault(self, target: str, kind: str, duration_s: float | None,
                                params: dict) -> str:
@@ -256,18 +172,6 @@ class LiveSystem:
         png = write_png(grid, out, name)
         self._event("export", f"map saved: {pgm.name}, {yaml.name}, {png.name}")
         return f"{pgm}, {yaml}, {png}"
-
-    def _apply_clock(self) -> None:
-        """Pause and speed are the clock's rate and autojump (changed from inside Trio)."""
-        if self._paused:
-            self.clock.autojump_threshold = math.inf
-            self.clock.rate = 0.0
-        elif self._speed is None:
-            self.clock.rate = 0.0
-            self.clock.autojump_threshold = 0.0
-        else:
-            self.clock.autojump_threshold = math.inf
-            self.clock.rate = float(self._speed)
 
     # -- events -------------------------------------------------------------------------
     def _event(self, kind: str, text: str) -> None:
