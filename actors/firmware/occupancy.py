@@ -62,6 +62,20 @@ OCCUPIED = 100
 """Cell value: observed occupied."""
 
 
+def world_to_cell(origin_cm: tuple[float, float], resolution_cm: float,
+                  x: float, y: float) -> tuple[int, int]:
+    """(row, col) of the cell holding point (x, y) [cm] of a grid placed at ``origin_cm``."""
+    ox, oy = origin_cm
+    return math.floor((y - oy) / resolution_cm), math.floor((x - ox) / resolution_cm)
+
+
+def cell_to_world(origin_cm: tuple[float, float], resolution_cm: float,
+                  row: float, col: float) -> tuple[float, float]:
+    """Centre (x, y) [cm] of cell (row, col) of a grid placed at ``origin_cm``."""
+    ox, oy = origin_cm
+    return ox + (col + 0.5) * resolution_cm, oy + (row + 0.5) * resolution_cm
+
+
 @dataclass(frozen=True, slots=True)
 class LogOddsModel:
     """Inverse sensor model and classification thresholds (all in log-odds)."""
@@ -173,14 +187,11 @@ class GridMap:
 
     def world_to_cell(self, x: float, y: float) -> tuple[int, int]:
         """(row, col) of the cell holding point (x, y) [cm]; may lie outside the grid."""
-        ox, oy = self.origin_cm
-        return (math.floor((y - oy) / self.resolution_cm),
-                math.floor((x - ox) / self.resolution_cm))
+        return world_to_cell(self.origin_cm, self.resolution_cm, x, y)
 
     def cell_to_world(self, row: float, col: float) -> tuple[float, float]:
         """Centre (x, y) [cm] of cell (row, col)."""
-        ox, oy = self.origin_cm
-        return (ox + (col + 0.5) * self.resolution_cm, oy + (row + 0.5) * self.resolution_cm)
+        return cell_to_world(self.origin_cm, self.resolution_cm, row, col)
 
     def contains(self, row: int, col: int) -> bool:
         """Whether (row, col) is a cell of this grid."""
@@ -309,15 +320,12 @@ class OccupancyGrid:
         return self._log_odds.shape  # type: ignore[return-value]
 
     def world_to_cell(self, x: float, y: float) -> tuple[int, int]:
-        """(row, col) of the cell holding (x, y) [cm]; may lie outside the grid."""
-        ox, oy = self.origin_cm
-        return (math.floor((y - oy) / self.resolution_cm),
-                math.floor((x - ox) / self.resolution_cm))
+        """(row, col) of the cell holding point (x, y) [cm]; may lie outside the grid."""
+        return world_to_cell(self.origin_cm, self.resolution_cm, x, y)
 
     def cell_to_world(self, row: float, col: float) -> tuple[float, float]:
         """Centre (x, y) [cm] of cell (row, col)."""
-        ox, oy = self.origin_cm
-        return (ox + (col + 0.5) * self.resolution_cm, oy + (row + 0.5) * self.resolution_cm)
+        return cell_to_world(self.origin_cm, self.resolution_cm, row, col)
 
     # -- update ---------------------------------------------------------------
 
