@@ -171,6 +171,7 @@ class Server:
         self.game = Game(start_poses=self._start_poses)
         self.game_id = store.new_game(trio.current_time())
         self._subscribers: list[trio.MemorySendChannel[ServerEvent]] = []
+        self._frame_observers: list[Callable[[str, str, Frame], None]] = []
         self.dropped_events = 0
         self._kick = trio.Event()
         self._map_id = 0
@@ -209,6 +210,15 @@ class Server:
         send, recv = trio.open_memory_channel[ServerEvent](capacity)
         self._subscribers.append(send)
         return recv
+
+    def observe_frames(self, observer: Callable[[str, str, Frame], None]) -> None:
+        """Call ``observer(rover_id, role, frame)`` for every frame the reliable layer
+        delivers to the game logic, in order, exactly as often as it is delivered.
+
+        For test harnesses that check end-to-end delivery (each ``seq`` exactly
+        once); the observer runs inline, so it must be quick and must not raise.
+        """
+        self._frame_observers.append(observer)
 
     def snapshot(self) -> ServerSnapshot:
         """The state a console draws (cheap; call it at the UI's frame rate)."""
@@ -338,6 +348,8 @@ class Server:
                 continue
             rover = conn.rover
             for f in rover.session.receive(frame, now):
+                for observer in self._frame_observers:
+                    observer(rover.id, rover.role, f)
                 self._on_frame(rover, f, now)
         self._flush_conn(conn)
 

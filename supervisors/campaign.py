@@ -65,7 +65,7 @@ from world.scenario import (
 )
 
 from . import invariants as inv
-from .headless import Budget, GameReport, _finish, play_game
+from .headless import Budget, GameReport, finish_report, play_game
 from .system import open_sim_system
 
 __all__ = [
@@ -406,7 +406,7 @@ async def play_checked(spec: GameSpec, *, trace: Trace | None = None,
             try:
                 await play_game(system, report, budget)
             finally:
-                _finish(report, system, t_start)
+                finish_report(report, system, t_start)
             cut = trio.current_time()
             await _drain(system, probe, cut, drain_s)
             fired = len(system.faults)

@@ -27,7 +27,7 @@ from world.truth import truth_raster
 
 from .system import SimSystem, open_sim_system
 
-__all__ = ["Budget", "GameReport", "play_game", "run_game"]
+__all__ = ["Budget", "GameReport", "finish_report", "play_game", "run_game"]
 
 _PROBE_S = 1.0  # how often coverage and the mapper's true pose are sampled [s]
 _HELLO_TIMEOUT_S = 30.0
@@ -203,7 +203,9 @@ def _game_hash(runtime_hash: str, report: GameReport) -> str:
     return h.hexdigest()
 
 
-def _finish(report: GameReport, system: SimSystem, t_start: float) -> None:
+def finish_report(report: GameReport, system: SimSystem, t_start: float) -> None:
+    """Fill the report's counters from ``system`` at the end of a game (also used by
+    campaign workers, which play the game with their probes installed)."""
     report.sim_seconds = trio.current_time() - t_start
     report.restarts = system.restarts()
     report.faults = len(system.faults)
@@ -231,5 +233,5 @@ async def run_game(scenario: Scenario, seed: int, *, db: str = ":memory:",
             try:
                 await play_game(system, report, budget)
             finally:
-                _finish(report, system, t_start)
+                finish_report(report, system, t_start)
     return report

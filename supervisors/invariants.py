@@ -23,9 +23,8 @@ they are tested without running a game.
 The probes are taps, like a logic analyser on the rover's UART: they see
 copies of bytes and calls and change nothing (they never await, so a
 tapped run keeps its trace hash). `DeliveryProbe` decodes the bytes each
-rover writes to its WiFly link and wraps the server's frame handler; the
-latter is a private method of `server.Server` (``_on_frame``) and the one
-place this module relies on server internals.
+rover writes to its WiFly link and observes what the server delivers to its
+game logic through `server.Server.observe_frames`.
 """
 
 from __future__ import annotations
@@ -132,8 +131,7 @@ class DeliveryProbe:
             link = system.world.wifly_link(role)
             tap = probe.taps.setdefault(role, _RoleTap())
             link.rover_write = probe._uplink(tap, link.rover_write)
-        server = system.server
-        server._on_frame = probe._server_side(server._on_frame)
+        system.server.observe_frames(probe._delivered)
         return probe
 
     def _uplink(self, tap: _RoleTap, write: Callable[[bytes], None]) -> Callable[[bytes], None]:
@@ -142,11 +140,8 @@ class DeliveryProbe:
             write(data)
         return rover_write
 
-    def _server_side(self, on_frame: Callable[..., None]) -> Callable[..., None]:
-        def tapped(rover: Any, frame: Frame, now: float) -> None:
-            self.note_delivered(getattr(rover, "role", ""), frame)
-            on_frame(rover, frame, now)
-        return tapped
+    def _delivered(self, rover_id: str, role: str, frame: Frame) -> None:
+        self.note_delivered(role, frame)
 
     def note_sent(self, tap: _RoleTap, data: bytes) -> None:
         """Decode bytes a rover wrote; remember each reliable frame's first sending."""
