@@ -87,9 +87,13 @@ class Monitor:
 
 
 class Cell:
-    """Runtime record of one registered actor (made by `ActorSystem.ensure_cell`)."""
+    """Runtime record of one registered actor (made by `ActorSystem.ensure_cell`).
 
-    __slots__ = ("name", "mailbox", "state", "restarts", "last_exit", "monitors", "rng",
+    Restart counts are not kept here: the supervisor that restarts a child
+    counts them (`supervisors.supervisor.Supervisor.which_children`).
+    """
+
+    __slots__ = ("name", "mailbox", "state", "last_exit", "monitors", "rng",
                  "actor", "crash_pending", "hang_pending", "stop_requested", "watchdog",
                  "current", "supervisor", "scope")
 
@@ -97,7 +101,6 @@ class Cell:
         self.name = name
         self.mailbox = mailbox
         self.state = ActorState.STOPPED
-        self.restarts = 0
         self.last_exit: ExitReason | None = None
         self.monitors: list[Monitor] = []
         self.rng = rng
@@ -117,5 +120,5 @@ class Cell:
             monitor._notify(down)
 
     def __repr__(self) -> str:
-        return (f"<Cell {self.name!r} {self.state.value} restarts={self.restarts} "
+        return (f"<Cell {self.name!r} {self.state.value} "
                 f"last_exit={self.last_exit}>")
