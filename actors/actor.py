@@ -19,8 +19,9 @@ Replies: the value ``handle`` returns is the reply to a ``call``; for other
 messages it is ignored.
 
 Poison messages: the message being handled when the actor crashed or hung is
-dropped and reported (trace ``poison``), not redelivered; messages still
-waiting stay in the mailbox for the next incarnation.
+dropped and reported (trace ``poison``), not redelivered, after the dying
+incarnation's ``discard`` hook saw it (to release a pool buffer it refers
+to); messages still waiting stay in the mailbox for the next incarnation.
 
 Watchdog: with a deadline [s], handling one message (one burst for
 `Actor.handle_burst` overrides) that takes longer is cancelled and the actor
@@ -34,6 +35,7 @@ handling (or, when idle, the actor at once) raise `InjectedCrash`; a pending
 
 from __future__ import annotations
 
+from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -81,6 +83,15 @@ class Actor:
 
     async def on_stop(self, reason: ExitReason) -> None:
         """Called when the incarnation ends (not when it was killed)."""
+
+    def discard(self, message: Any) -> None:
+        """Called for each message the runtime drops unhandled: the poison of a crash or hang.
+
+        Override to release what the message refers to (a `BufferPool` slot
+        behind a handle), which would otherwise leak. It runs synchronously
+        on the dying incarnation and must not raise (a raise is traced and
+        ignored); the handler may already have released the resource.
+        """
 
 
 class Timer:
@@ -258,11 +269,11 @@ async def _serve_safely(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trac
     except Exception as exc:
         reason = ExitReason.crash(exc)
         trace.emit(EventKind.CRASH, cell.name, cell.name, None, cell.mailbox.depth, reason.detail)
-        _drop_poison(cell, trace, reason)
+        _drop_poison(cell, actor, trace, reason)
         return reason
 
 
-def _drop_poison(cell: Cell, trace: Trace, reason: ExitReason) -> None:
+def _drop_poison(cell: Cell, actor: Actor, trace: Trace, reason: ExitReason) -> None:
     poison = cell.current
     cell.current = None
     if poison is None:
@@ -270,6 +281,12 @@ def _drop_poison(cell: Cell, trace: Trace, reason: ExitReason) -> None:
     for item in poison if isinstance(poison, list) else (poison,):
         if type(item) is CallEnvelope:
             item.fail(CallFailed(cell.name, reason))
+            item = item.request
+        try:
+            actor.discard(item)
+        except Exception as exc:  # a broken hook must not hide the crash being reported
+            trace.emit(EventKind.POISON, cell.name, cell.name, item, cell.mailbox.depth,
+                       f"discard raised {exc!r}")
     trace.emit(EventKind.POISON, cell.name, cell.name, poison, cell.mailbox.depth, str(reason))
 
 
@@ -288,14 +305,14 @@ async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
             return NORMAL
         if cell.crash_pending or cell.hang_pending:
             if not await _slow(cell, actor, trace, None):
-                return _hung(cell, trace)
+                return _hung(cell, actor, trace)
             continue
         if not queue:
             await mailbox.wait()
             continue
         if burst_mode:
             if not await _burst(cell, actor, trace, max_burst):
-                return _hung(cell, trace)
+                return _hung(cell, actor, trace)
         else:
             n = 0
             while queue and n < max_burst:
@@ -303,7 +320,7 @@ async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
                 cell.current = item
                 if cell.watchdog is not None or cell.crash_pending or cell.hang_pending:
                     if not await _slow(cell, actor, trace, item):
-                        return _hung(cell, trace)
+                        return _hung(cell, actor, trace)
                 elif type(item) is CallEnvelope:
                     if not item.reply(await handle(item.request)):
                         trace.emit(EventKind.LATE_REPLY, cell.name, cell.name, item, len(queue))
@@ -318,10 +335,10 @@ async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
             await checkpoint()
 
 
-def _hung(cell: Cell, trace: Trace) -> ExitReason:
+def _hung(cell: Cell, actor: Actor, trace: Trace) -> ExitReason:
     trace.emit(EventKind.HUNG, cell.name, cell.name, None, cell.mailbox.depth,
                f"watchdog {cell.watchdog} s")
-    _drop_poison(cell, trace, HUNG)
+    _drop_poison(cell, actor, trace, HUNG)
     return HUNG
 
 
@@ -331,24 +348,36 @@ async def _slow(cell: Cell, actor: Actor, trace: Trace, item: Any) -> bool:
     Returns:
         False when the watchdog fired.
     """
+    if type(item) is CallEnvelope:
+        ok, value = await _guarded(cell, actor.handle, item.request)
+        if ok and not item.reply(value):
+            trace.emit(EventKind.LATE_REPLY, cell.name, cell.name, item, cell.mailbox.depth)
+        return ok
+    ok, _ = await _guarded(cell, None if item is None else actor.handle, item)
+    return ok
+
+
+async def _guarded(cell: Cell, work: Callable[[Any], Awaitable[Any]] | None,
+                   arg: Any) -> tuple[bool, Any]:
+    """Run ``work(arg)`` after the cell's pending injected faults, under its watchdog.
+
+    The one place injected crashes and hangs take effect, for single messages
+    and bursts alike. Returns (False, None) when the watchdog fired, else
+    (True, the work's value).
+    """
     if cell.crash_pending:
         cell.crash_pending = False
         raise InjectedCrash(f"injected crash in {cell.name}")
+    value = None
     with trio.CancelScope() as scope:
         if cell.watchdog is not None:
             scope.deadline = trio.current_time() + cell.watchdog
         if cell.hang_pending:
             seconds, cell.hang_pending = cell.hang_pending, 0.0
             await trio.sleep(seconds)
-        if item is None:
-            return True
-        if type(item) is CallEnvelope:
-            value = await actor.handle(item.request)
-            if not item.reply(value):
-                trace.emit(EventKind.LATE_REPLY, cell.name, cell.name, item, cell.mailbox.depth)
-        else:
-            await actor.handle(item)
-    return not scope.cancelled_caught
+        if work is not None:
+            value = await work(arg)
+    return not scope.cancelled_caught, value
 
 
 async def _burst(cell: Cell, actor: Actor, trace: Trace, max_burst: int) -> bool:
@@ -367,16 +396,7 @@ async def _burst(cell: Cell, actor: Actor, trace: Trace, max_burst: int) -> bool
             return ok
         batch.append(receive())
     cell.current = batch
-    if cell.crash_pending:
-        cell.crash_pending = False
-        raise InjectedCrash(f"injected crash in {cell.name}")
-    with trio.CancelScope() as scope:
-        if cell.watchdog is not None:
-            scope.deadline = trio.current_time() + cell.watchdog
-        if cell.hang_pending:
-            seconds, cell.hang_pending = cell.hang_pending, 0.0
-            await trio.sleep(seconds)
-        await actor.handle_burst(batch)
+    ok, _ = await _guarded(cell, actor.handle_burst, batch)
     cell.current = None
-    return not scope.cancelled_caught
+    return ok
 

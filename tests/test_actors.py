@@ -129,6 +129,58 @@ async def test_poison_message_is_dropped_and_the_rest_delivered(autojump_clock) 
                    ("r", 2), ("r", 3), ("r", "stop", "shutdown")]
 
 
+class PoolReader(Actor):
+    """Takes the buffer behind each handle, but crashes on some handles and hangs on others."""
+
+    def __init__(self, pool: actors.BufferPool, crash_on: set, hang_on: set) -> None:
+        self.pool = pool
+        self.crash_on = crash_on
+        self.hang_on = hang_on
+
+    async def handle(self, handle):
+        if handle in self.crash_on:
+            raise ValueError("boom")
+        if handle in self.hang_on:
+            await trio.sleep(10)
+        self.pool.take(handle)
+
+    def discard(self, handle) -> None:
+        self.pool.take(handle)
+
+
+@pytest.mark.trio
+async def test_dropped_poison_and_hung_messages_release_their_pool_buffers(autojump_clock):
+    """discard() sees the poison of a crash and of a hang, so no pool slot leaks."""
+    pool = actors.BufferPool(8)
+    handles = [pool.put(("scan", i)) for i in range(4)]
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(
+            one(lambda: PoolReader(pool, {handles[1]}, {handles[2]}), watchdog=1.0))
+        for h in handles:
+            system.send_nowait("a", h)
+        await trio.sleep(5)
+        assert pool.statistics().in_use == 0
+        assert pool.statistics().takes == 4
+
+
+@pytest.mark.trio
+async def test_a_raising_discard_is_traced_and_the_actor_still_restarts(autojump_clock):
+    """A broken discard hook cannot hide the crash or stop the restart."""
+
+    class Broken(Recorder):
+        def discard(self, message) -> None:
+            raise KeyError("gone")
+
+    async with open_actor_system(seed=1) as system:
+        poison = []
+        system.trace.subscribe(lambda e: poison.append(e.message) if e.kind == EventKind.POISON
+                               else 0)
+        await system.start_supervisor(one(lambda: Broken([])))
+        system.send_nowait("a", "boom")
+        assert await system.call("a", "alive", timeout=1) == ("reply", "alive")
+    assert poison == ["'boom'", "'boom'"]
+
+
 @pytest.mark.trio
 async def test_mailbox_outlives_the_actor(autojump_clock) -> None:
     """Messages sent while the actor restarts (with backoff) land and are handled."""
