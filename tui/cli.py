@@ -19,6 +19,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "serve": ("tui.cmd_serve", "run the game server for real rovers (TCP, serial), log events"),
     "maps": ("tui.cmd_maps", "list stored games and maps"),
     "export-map": ("tui.cmd_maps", "export a game's map as PGM + map_server YAML, or PNG"),
+    "rover": ("tui.cmd_rover", "one simulated rover as its own process, over TCP or serial"),
     "play": ("tui.cmd_play", "the terminal console: watch, steer and break a game"),
     "campaign": ("tui.cmd_campaign", "many seeded games under random faults, invariants checked"),
 }

@@ -6,8 +6,9 @@ over it. Link strings are parsed by `parse_link`.
 """
 
 from .memory import MemoryLink
+from .pty import PtyCable, open_pty_cable
 from .serial import SerialLinkError, ThreadSerialStream, open_serial_stream
 from .spec import LinkSpec, is_loopback, parse_link
 
 __all__ = ["MemoryLink", "SerialLinkError", "ThreadSerialStream", "open_serial_stream",
-           "LinkSpec", "is_loopback", "parse_link"]
+           "LinkSpec", "is_loopback", "parse_link", "PtyCable", "open_pty_cable"]

@@ -1,4 +1,4 @@
-"""Link strings, parsed in one place: ``tcp:HOST:PORT``, ``tcp``, ``serial:PORT,BAUD``, ``sim``.
+"""Link strings, ``tcp:HOST:PORT``, ``tcp``, ``serial:PORT,BAUD``, ``sim``, ``pty``.
 
 =============================  ================================================
 string                         meaning
@@ -8,7 +8,12 @@ string                         meaning
 ``serial:/dev/ttyUSB0,115200`` a serial port and baud rate (MAVProxy style)
 ``serial:loop://,115200``      any pyserial URL: ``loop://``, ``socket://h:p``
 ``sim``                        a simulated rover in the same process
+``pty``                        (``hideseek rover``) a new pty pair: the rover
+                               holds one end, the server opens the other
 =============================  ================================================
+
+For a rover (``hideseek rover --link``), ``tcp:HOST:PORT`` is where it
+connects, as a WiFly module would.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ from dataclasses import dataclass
 
 __all__ = ["LinkSpec", "parse_link", "is_loopback"]
 
-_KINDS = "tcp:HOST:PORT, tcp, serial:PORT,BAUD or sim"
+_KINDS = "tcp:HOST:PORT, tcp, serial:PORT,BAUD, sim or pty"
 
 
 @dataclass(frozen=True, slots=True)
@@ -26,7 +31,7 @@ class LinkSpec:
     """A parsed link string."""
 
     kind: str
-    """``tcp_listen``, ``tcp``, ``serial`` or ``sim``."""
+    """``tcp_listen``, ``tcp``, ``serial``, ``sim`` or ``pty``."""
     text: str
     """The string as given."""
     host: str = ""
@@ -43,7 +48,7 @@ def parse_link(text: str) -> LinkSpec:
         ValueError: naming what is wrong, with the accepted forms.
     """
     t = text.strip()
-    if t in ("tcp", "sim"):
+    if t in ("tcp", "sim", "pty"):
         return LinkSpec(t, text)
     if t.startswith("tcp:"):
         host, sep, port_s = t[4:].rpartition(":")

@@ -1,0 +1,288 @@
+"""One simulated rover as its own process, speaking to a server over TCP or serial.
+
+This is wiring (DESIGN.md section 1): it builds a `World` for the scenario's
+room, starts ONE rover's supervision tree (`supervisors.rover.rover_tree`)
+on that world's hardware, and carries the bytes of the rover's WiFly link
+over a real byte stream instead of the in-memory link:
+
+* ``tcp:HOST:PORT``: connect as a TCP client, as a WiFly module does;
+* ``serial:PORT,BAUD``: any pyserial port or URL (a pty stands in for a cable);
+* ``pty``: make a pseudo-terminal pair, hold one end, report the other's path
+  for the server (``hideseek serve --rover ID=serial:PATH,115200``).
+
+Bytes flow: firmware -> WiFly link model of the world (UART speed, latency,
+faults) -> `Uplink` (bounded) -> stream -> server; and back from the stream
+into the link model's server side. An unreachable server or a missing port is
+reported through ``report`` and retried with doubling backoff; a dropped
+connection likewise. The firmware notices the silence by itself (heartbeats)
+and says hello again, so a reconnect resumes the rover's reliable session.
+
+What it is not: the rover's world is its own. The other two rovers stand at
+their start poses in it and do not move, and this rover's body does not move
+in the server's world. The mapper is faithful this way (the others do not
+move while it maps); a remote hider is invisible to a seeker simulated
+elsewhere, so its seeker reports not found. Scheduled actor faults of the
+scenario are not injected here (device faults are, by the world).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import trio
+
+from actors import ActorSystem, open_actor_system
+from server.links import LinkSpec, open_pty_cable, open_serial_stream
+from world.scenario import Scenario
+from world.wifly import WiflyLink
+from world.world import World, run_world
+
+from .rover import ROLES, rover_tree
+
+__all__ = ["UPLINK_BYTES", "RETRY_S", "Uplink", "RemoteRover", "open_remote_rover",
+           "run_remote_rover"]
+
+UPLINK_BYTES = 16384
+"""Bytes from the rover waiting for the stream at most [bytes] (beyond: dropped, counted)."""
+RETRY_S = (1.0, 30.0)
+"""Backoff between connection attempts: first, most [s]."""
+_READ_SIZE = 4096  # [bytes]
+
+Report = Callable[[str], None]
+
+
+class Uplink:
+    """Bytes from the rover's link model waiting for the stream: bounded, never blocks.
+
+    `put` is called by the world's tick (synchronously); overflow is dropped
+    and counted, like a WiFly module's full buffer.
+    """
+
+    def __init__(self, capacity: int = UPLINK_BYTES) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity must be >= 1 byte, got {capacity!r}")
+        self.capacity = capacity
+        self.dropped = 0
+        """Bytes dropped (buffer full, or no connection) so far."""
+        self.connected = False
+        """False drops every byte put (no server to send to)."""
+        self._buf = bytearray()
+        self._ready = trio.Event()
+
+    def put(self, data: bytes) -> None:
+        """Queue bytes for the server; drops what does not fit."""
+        if not self.connected:
+            self.dropped += len(data)
+            return
+        room = self.capacity - len(self._buf)
+        if len(data) > room:
+            self.dropped += len(data) - room
+            data = data[:room]
+        if data:
+            self._buf += data
+            self._ready.set()
+
+    async def get(self) -> bytes:
+        """Wait for bytes and take them all."""
+        while not self._buf:
+            await self._ready.wait()
+            self._ready = trio.Event()
+        data = bytes(self._buf)
+        self._buf.clear()
+        return data
+
+    def clear(self) -> None:
+        """Drop what is waiting (the connection went away)."""
+        self.dropped += len(self._buf)
+        self._buf.clear()
+
+
+@dataclass
+class RemoteRover:
+    """A running remote rover (made by `open_remote_rover`)."""
+
+    role: str
+    link: LinkSpec
+    world: World
+    actors: ActorSystem
+    tree: Any
+    """The rover's root supervisor."""
+    uplink: Uplink
+    connects: int = 0
+    """Connections made so far."""
+    failures: int = 0
+    """Failed connection attempts so far."""
+    bytes_in: int = 0
+    bytes_out: int = 0
+    last_error: str = ""
+    pty_path: str = ""
+    """With ``--link pty``: the path the server must open."""
+
+    @property
+    def connected(self) -> bool:
+        return self.uplink.connected
+
+
+async def _open_stream(spec: LinkSpec) -> Any:
+    """The byte stream of one connection attempt.
+
+    Raises:
+        OSError: the server is unreachable or the port is missing.
+    """
+    if spec.kind in ("tcp_listen", "tcp"):
+        if not spec.host:
+            raise OSError("a rover's tcp link needs HOST:PORT, as tcp:127.0.0.1:7878")
+        return await trio.open_tcp_stream(spec.host, spec.port)
+    if spec.kind == "serial":
+        return open_serial_stream(spec.url, spec.baud)
+    raise OSError(f"a rover's link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, "
+                  f"got {spec.text!r}")
+
+
+async def _pump(stream: Any, link: WiflyLink, rover: RemoteRover) -> str:
+    """Move bytes both ways until the stream ends; returns why it ended."""
+    why = "closed by the other end"
+
+    async def writer() -> None:
+        while True:
+            data = await rover.uplink.get()
+            await stream.send_all(data)
+            rover.bytes_out += len(data)
+
+    async with trio.open_nursery() as nursery:
+        nursery.start_soon(writer)
+        try:
+            while True:
+                data = await stream.receive_some(_READ_SIZE)
+                if not data:
+                    break
+                rover.bytes_in += len(data)
+                link.server_write(data)
+        finally:
+            nursery.cancel_scope.cancel()
+    return why
+
+
+def _reason(exc: BaseException) -> str:
+    leaf = exc
+    while isinstance(leaf, BaseExceptionGroup):
+        leaf = leaf.exceptions[0]
+    text = getattr(leaf, "strerror", None) or str(leaf) or type(leaf).__name__
+    return text.splitlines()[0]
+
+
+async def _keep_connected(rover: RemoteRover, link: WiflyLink, report: Report,
+                          retry_s: tuple[float, float], stream: Any = None) -> None:
+    """Connect, pump, and on any failure report and retry with doubling backoff."""
+    first, most = retry_s
+    delay = first
+    spec = rover.link
+    while True:
+        if stream is None:
+            try:
+                stream = await _open_stream(spec)
+            except (OSError, trio.BrokenResourceError) as exc:
+                rover.failures += 1
+                rover.last_error = _reason(exc)
+                report(f"cannot connect over {spec.text}: {rover.last_error}; "
+                       f"retrying in {delay:g} s")
+                await trio.sleep(delay)
+                delay = min(delay * 2, most)
+                continue
+        rover.connects += 1
+        rover.uplink.connected = True
+        report(f"connected to {rover.pty_path or spec.text}")
+        try:
+            why = await _pump(stream, link, rover)
+        except (OSError, trio.BrokenResourceError, trio.ClosedResourceError,
+                BaseExceptionGroup) as exc:
+            if isinstance(exc, BaseExceptionGroup) and not exc.subgroup(
+                    (OSError, trio.BrokenResourceError, trio.ClosedResourceError)):
+                raise
+            why = _reason(exc)
+        finally:
+            rover.uplink.connected = False
+            rover.uplink.clear()
+            if not rover.pty_path:
+                with trio.CancelScope(shield=True), contextlib.suppress(Exception), \
+                        trio.move_on_after(1):
+                    await stream.aclose()
+        rover.last_error = why
+        if rover.pty_path:
+            report(f"pty {rover.pty_path}: {why}; waiting for the server")
+            await trio.sleep(delay)
+            continue  # the cable stays: same stream, wait for the other end again
+        stream = None
+        report(f"lost the server at {spec.text}: {why}; reconnecting in {delay:g} s")
+        await trio.sleep(delay)
+        delay = min(delay * 2, most)
+
+
+@contextlib.asynccontextmanager
+async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, seed: int = 1,
+                            rover_id: str | None = None, token: str | None = None,
+                            report: Report | None = None,
+                            retry_s: tuple[float, float] = RETRY_S,
+                            nav_factory: Callable[..., Any] | None = None,
+                            ) -> AsyncIterator[RemoteRover]:
+    """Run one simulated rover connected over ``link`` for the block.
+
+    Args:
+        scenario: the room and the rover's start pose.
+        role: ``mapper``, ``hider`` or ``seeker``.
+        link: where the server is (``tcp:HOST:PORT``, ``serial:PORT,BAUD``) or ``pty``.
+        seed: the world's noise and the actors' generators derive from it.
+        rover_id: the id said in hello (default: the role).
+        token: the hello token, when the server asks for one.
+        report: called with one line of text for each connection event.
+        retry_s: backoff between attempts: first, most [s].
+        nav_factory: navigation factory for the tree (tests pass stand-ins).
+
+    Raises:
+        ValueError: unknown role, or a link kind a rover cannot use.
+        OSError: ``pty`` and the system has no free pseudo-terminals.
+    """
+    if role not in ROLES:
+        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
+    if link.kind not in ("tcp_listen", "serial", "pty"):
+        raise ValueError(f"a rover's link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, "
+                         f"got {link.text!r}")
+    first, most = retry_s
+    if not 0 < first <= most:
+        raise ValueError(f"retry_s must be (first, most) with 0 < first <= most, got {retry_s!r}")
+    report = report or (lambda _text: None)
+    cable = open_pty_cable() if link.kind == "pty" else None
+    world = World(scenario, np.random.default_rng(seed))
+    wifly = world.wifly_link(role)
+    uplink = Uplink()
+    wifly.on_server_receive = uplink.put
+    try:
+        async with open_actor_system(seed) as actors, trio.open_nursery() as nursery:
+            nursery.start_soon(run_world, world)
+            spec = rover_tree(role, world.hardware(role), rover_id=rover_id, token=token,
+                              nav_factory=nav_factory)
+            tree = await actors.start_supervisor(spec, role)
+            rover = RemoteRover(role, link, world, actors, tree, uplink,
+                                pty_path=cable.path if cable else "")
+            if cable is not None:
+                report(f"pty ready: give the server serial:{cable.path},115200")
+            nursery.start_soon(_keep_connected, rover, wifly, report, retry_s, cable)
+            try:
+                yield rover
+            finally:
+                nursery.cancel_scope.cancel()
+    finally:
+        if cable is not None:
+            with trio.CancelScope(shield=True):
+                await cable.aclose()
+
+
+async def run_remote_rover(scenario: Scenario, role: str, link: LinkSpec, **kwargs: Any
+                           ) -> None:
+    """`open_remote_rover` until cancelled (the ``hideseek rover`` command)."""
+    async with open_remote_rover(scenario, role, link, **kwargs):
+        await trio.sleep_forever()
