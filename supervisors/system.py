@@ -37,7 +37,8 @@ from world.world import World, run_world
 
 from .rover import rover_tree
 
-__all__ = ["ROLES", "ACTOR_FAULTS", "SimSystem", "open_sim_system", "FaultError"]
+__all__ = ["ROLES", "ACTOR_FAULTS", "SimSystem", "open_sim_system", "scenario_origins",
+           "FaultError"]
 
 ROLES = ("mapper", "hider", "seeker")
 ACTOR_FAULTS = ("crash", "hang", "flood")
@@ -172,6 +173,11 @@ async def _watch_scheduled_actor_faults(system: SimSystem) -> None:
                 system.actors.trace.emit(EventKind.FAULT, f.target, detail=f"refused: {exc}")
 
 
+def scenario_origins(scenario: Scenario) -> dict[str, Pose2]:
+    """Each role's start pose in the room frame [cm, deg]: the server's ``origins``."""
+    return {role: Pose2(p.x, p.y, p.heading_deg) for role, p in scenario.starts.items()}
+
+
 def _world_events(trace: Trace, log: list[dict[str, Any]]) -> Callable[[str, str, dict], None]:
     """The world's event callback: every fault injection and clearance is a trace event."""
     def on_event(kind: str, target: str, detail: dict) -> None:
@@ -187,7 +193,8 @@ def _world_events(trace: Trace, log: list[dict[str, Any]]) -> Callable[[str, str
 async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
                           trace: Trace | None = None,
                           nav_factory: Callable[..., Any] | None = None,
-                          roles: tuple[str, ...] = ROLES) -> AsyncIterator[SimSystem]:
+                          roles: tuple[str, ...] = ROLES,
+                          server: Server | None = None) -> AsyncIterator[SimSystem]:
     """Run a simulated system for the block; everything stops cleanly on exit.
 
     Args:
@@ -199,17 +206,31 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
         nav_factory: navigation actor factory for the rover trees (the real
             navigation by default; tests pass stand-ins).
         roles: which rovers are simulated (others may attach over real links).
+        server: a running server to attach the simulated rovers to (``hideseek
+            serve --rover ID=sim``); by default one is opened on ``store`` with
+            the scenario's start poses as origins, and closed on exit.
+
+    Raises:
+        ValueError: a role that is not mapper, hider or seeker.
     """
+    bad = [r for r in roles if r not in ROLES]
+    if bad:
+        raise ValueError(f"roles must be among {', '.join(ROLES)}, got {bad[0]!r}")
     seed_trio_scheduler(seed)
     trace = trace or Trace()
     fault_log: list[dict[str, Any]] = []
     world = World(scenario, np.random.default_rng(seed), on_event=_world_events(trace, fault_log))
-    origins = {role: Pose2(p.x, p.y, p.heading_deg) for role, p in scenario.starts.items()}
-    async with open_server(store, ServerConfig(origins=origins)) as server:
+    async with contextlib.AsyncExitStack() as stack:
+        if server is None:
+            server = await stack.enter_async_context(
+                open_server(store, ServerConfig(origins=scenario_origins(scenario))))
+        memories = []
         for role in roles:
             link = world.wifly_link(role)
             memory = server.attach_memory(outbound=link.server_write, name=f"sim:{role}")
             link.on_server_receive = memory.feed
+            memories.append(memory)
+        stack.callback(lambda: [m.close() for m in memories])  # a server given outlives us
         # the world and the fault watcher stop first (cancelled); the rover trees
         # then stop gracefully, in reverse order, as open_actor_system closes
         async with open_actor_system(seed, trace=trace) as actors, \

@@ -1,5 +1,9 @@
 """``hideseek serve``: run the game server for real rovers, log events as plain text.
 
+Rovers attach over TCP (``--rover ID=tcp``: they connect to ``--listen``),
+serial (``--rover ID=serial:PORT,BAUD``) or are simulated in this process
+(``--rover ROLE=sim``: the ``--scenario`` room, in real time, in-memory link).
+
 Operator commands are read from standard input, one per line::
 
     start_mapping | stop_mapping | new_game | status
@@ -10,10 +14,13 @@ Operator commands are read from standard input, one per line::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 
 __all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_command_line"]
+
+SIM_ROLES = ("mapper", "hider", "seeker")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,6 +36,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(repeatable). Required to listen on a non-loopback address")
     parser.add_argument("--origin", action="append", default=[], metavar="ID=X,Y,HEADING",
                         help="a rover's start pose in the room frame [cm, cm, deg] (repeatable)")
+    parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
+                        help="the room of simulated rovers (--rover ROLE=sim) and the start "
+                             "poses used as their origins (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=1,
+                        help="seed of the simulated rovers' world (default 1)")
 
 
 def parse_assignment(text: str, what: str) -> tuple[str, str]:
@@ -99,25 +111,45 @@ def run(args: argparse.Namespace) -> int:
         if listen is not None and not is_loopback(listen.host) and not tokens:
             raise ValueError(f"refusing to listen on {listen.host}: not loopback and no rover "
                              "tokens (give --token)")
+        sim_roles: list[str] = []
         for rid, spec in rovers:
             if spec.kind == "sim":
-                raise ValueError(f"--rover {rid}=sim: simulated rovers are not available in "
-                                 "'serve' yet; use the console or a headless run")
-            if spec.kind == "tcp_listen":
-                raise ValueError(f"--rover {rid}: a rover's link is serial:PORT,BAUD or tcp")
+                if rid not in SIM_ROLES:
+                    raise ValueError(f"--rover {rid}=sim: a simulated rover's ID is its role, "
+                                     f"one of {', '.join(SIM_ROLES)}")
+                if rid in sim_roles:
+                    raise ValueError(f"--rover {rid}=sim given twice")
+                sim_roles.append(rid)
+            elif spec.kind not in ("serial", "tcp"):
+                raise ValueError(f"--rover {rid}: a rover's link is serial:PORT,BAUD, tcp or sim")
         if any(spec.kind == "tcp" for _, spec in rovers) and listen is None:
             raise ValueError("a rover on tcp needs --listen")
+        scenario = None
+        if sim_roles:
+            from supervisors.system import scenario_origins
+            from world.scenario import ScenarioError, load_scenario
+
+            try:
+                scenario = load_scenario(args.scenario)
+            except ScenarioError as exc:
+                raise ValueError(str(exc)) from None
+            origins = {**scenario_origins(scenario), **origins}
         store = Store(args.db)
-    except (ValueError, StoreError) as exc:
+    except (ValueError, StoreError, OSError) as exc:
         print(f"hideseek serve: {exc}", file=sys.stderr)
         return 2
     import trio
 
     config = ServerConfig(tokens=tokens, origins=origins)
+    sim = (scenario, args.seed, tuple(sim_roles)) if sim_roles else None
     try:
-        trio.run(_serve, store, config, listen, rovers)
+        trio.run(_serve, store, config, listen, rovers, sim)
+    except KeyboardInterrupt:
+        return 0
     except (OSError, ValueError, BaseExceptionGroup) as exc:
         leaf = _first_leaf(exc)
+        if isinstance(leaf, KeyboardInterrupt):
+            return 0
         if not isinstance(leaf, OSError | ValueError):
             raise
         print(f"hideseek serve: {getattr(leaf, 'strerror', None) or leaf}", file=sys.stderr)
@@ -133,14 +165,22 @@ def _first_leaf(exc: BaseException) -> BaseException:
     return exc
 
 
-async def _serve(store, config, listen, rovers) -> None:
+async def _serve(store, config, listen, rovers, sim=None) -> None:
     import trio
 
     from server.server import open_server
 
     if store.interrupted:
         print(f"games interrupted by an earlier crash: {store.interrupted}", flush=True)
-    async with open_server(store, config) as server:
+    async with open_server(store, config) as server, contextlib.AsyncExitStack() as stack:
+        if sim is not None:
+            from supervisors.system import open_sim_system
+
+            scenario, seed, roles = sim
+            await stack.enter_async_context(open_sim_system(
+                scenario, seed=seed, store=store, roles=roles, server=server))
+            print(f"simulated in this process ({scenario.name}, seed {seed}): "
+                  f"{', '.join(roles)}", flush=True)
         events = server.subscribe()
         if listen is not None:
             port = await server.listen_tcp(listen.host, listen.port)
