@@ -378,17 +378,28 @@ def _honesty(system: Any) -> list[inv.Violation]:
         cell = system.actors.whereis(name)
         if cell is not None and cell.actor is not None and "/" in name:
             roots[name] = cell.actor
-            allowed[name] = system.world.hardware(name.split("/")[0])
+            hardware = system.world.hardware(name.split("/")[0])
+            allowed[name] = (hardware, hardware.spec)
     return inv.check_honesty(roots, allowed) + inv.check_module_honesty()
 
 
 async def play_checked(spec: GameSpec, *, trace: Trace | None = None,
-                       drain_s: float = _DRAIN_S) -> tuple[GameReport, dict[str, Any]]:
+                       drain_s: float = _DRAIN_S,
+                       nav_factory: Callable[..., Any] | None = None
+                       ) -> tuple[GameReport, dict[str, Any]]:
     """Play one campaign game with its probes; return the report and the checks.
 
     The game runs as `supervisors.headless.run_game` runs it (same system,
     same driver, same report), so its trace hash is the one ``hideseek run``
     gives; the probes only copy bytes and count events.
+
+    Args:
+        spec: the game.
+        trace: the trace hub (a new one by default).
+        drain_s: simulated time allowed after the game for in-flight frames
+            and restarting actors [s].
+        nav_factory: tests only: a stand-in navigation for every rover (see
+            `supervisors.rover.rover_tree`), e.g. one that breaks an invariant.
 
     Returns:
         (report, checks) where checks has ``violations`` (list of str),
@@ -399,7 +410,7 @@ async def play_checked(spec: GameSpec, *, trace: Trace | None = None,
     budget = spec.config.budget()
     with Store(":memory:") as store:
         async with open_sim_system(scenario, seed=spec.run_seed, store=store,
-                                   trace=trace) as system:
+                                   trace=trace, nav_factory=nav_factory) as system:
             probe = inv.DeliveryProbe.install(system, trio.current_time)
             counts = inv.TraceCounts(system.actors.trace)
             t_start = trio.current_time()
@@ -449,7 +460,8 @@ def seed_game_scheduler(seed: int) -> None:
     seed_trio_scheduler(seed)
 
 
-def _run_one(spec: GameSpec, wall_timeout_s: float | None) -> tuple[GameReport, dict]:
+def _run_one(spec: GameSpec, wall_timeout_s: float | None,
+             nav_factory: Callable[..., Any] | None = None) -> tuple[GameReport, dict]:
     """Play a game in a fresh Trio run on a virtual clock, cancelled after a wall-time guard."""
     seed_game_scheduler(spec.run_seed)
     guard: list[threading.Timer] = []
@@ -462,7 +474,7 @@ def _run_one(spec: GameSpec, wall_timeout_s: float | None) -> tuple[GameReport, 
                 timer.daemon = True
                 timer.start()
                 guard.append(timer)
-            return await play_checked(spec)
+            return await play_checked(spec, nav_factory=nav_factory)
         raise TimeoutError(f"game exceeded the wall-time guard of {wall_timeout_s:g} s")
 
     try:
@@ -474,7 +486,8 @@ def _run_one(spec: GameSpec, wall_timeout_s: float | None) -> tuple[GameReport, 
 
 def play_campaign_game(ref: str, *, determinism: bool = False,
                        wall_timeout_s: float | None = None,
-                       baseline: bool = True) -> dict[str, Any]:
+                       baseline: bool = True,
+                       nav_factory: Callable[..., Any] | None = None) -> dict[str, Any]:
     """The worker entry point: play game ``ref`` and return its result as a JSON-able dict.
 
     Plain and pickleable (module-level, strings and numbers in, a dict of
@@ -490,6 +503,8 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
             not part of the simulation); None for none.
         baseline: when the game fails and had faults, play it again without
             them, so the failure list tells fault-caused failures from others.
+        nav_factory: tests only (in-process): a stand-in navigation, e.g. a
+            nondeterministic one that the determinism check must catch.
 
     Returns:
         ``index``, ``ref``, ``reproduce``, ``room``, ``run_seed``, ``faults``
@@ -516,20 +531,21 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
     }
     wall0 = time.perf_counter()  # wall time is measured for the report only
     try:
-        report, checks = _run_one(spec, wall_timeout_s)
+        report, checks = _run_one(spec, wall_timeout_s, nav_factory)
         out.update(outcome=report.outcome, reason=report.reason, restarts=report.restarts,
                    resent=report.resent, dropped=report.dropped, sim_s=report.sim_seconds,
                    trace_hash=report.trace_hash, violations=checks["violations"],
                    faults_fired=checks["faults_fired"], events=checks["events"])
         if determinism:
-            again, _ = _run_one(spec, wall_timeout_s)
+            again, _ = _run_one(spec, wall_timeout_s, nav_factory)
             out["replay_hash"] = again.trace_hash
             out["violations"] += [
                 f"{v} (replay: {again.outcome} after {again.sim_seconds:.1f} s, "
                 f"first: {report.outcome} after {report.sim_seconds:.1f} s)"
                 for v in inv.check_determinism(report.trace_hash, again.trace_hash)]
         if baseline and spec.faults and (out["violations"] or out["outcome"] != "found"):
-            calm, _ = _run_one(dataclasses.replace(spec, faults=(), labels=()), wall_timeout_s)
+            calm, _ = _run_one(dataclasses.replace(spec, faults=(), labels=()), wall_timeout_s,
+                               nav_factory)
             out["baseline"] = calm.outcome
     except Exception as group:  # noqa: BLE001 - a broken game is a result, not a crash
         exc = _leaf(group)

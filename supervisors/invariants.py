@@ -311,12 +311,14 @@ def _module_of(obj: Any) -> str:
 
 
 def _world_object(obj: Any) -> bool:
-    """A world object that is more than a frozen value record (like the hardware's spec)."""
+    """An object whose class lives in the world package (state or value record)."""
     module = _module_of(obj)
-    if not (module == "world" or module.startswith("world.")):
-        return False
+    return module == "world" or module.startswith("world.")
+
+
+def _frozen(obj: Any) -> bool:
     params = getattr(type(obj), "__dataclass_params__", None)
-    return not (params is not None and params.frozen)
+    return params is not None and bool(params.frozen)
 
 
 def _not_walked(obj: Any) -> bool:
@@ -352,22 +354,28 @@ _LEAVES = (str, bytes, bytearray, int, float, bool, type(None), np.ndarray, np.g
 
 def check_honesty(roots: dict[str, Any], allowed: dict[str, Any]) -> list[Violation]:
     """Honesty: nothing reachable from a root (firmware actor, server) is a world object,
-    except the one hardware interface allowed for that root.
+    except what is allowed for that root: its rover's hardware interface and the
+    calibration record it is built with.
 
-    The walk follows containers and instance attributes (not functions, bound
-    methods or modules: the simulated link hands the server a bound write
-    method, bytes only), does not enter the actor runtime or Trio (they are
-    domain-free and hold every actor), accepts frozen value records (the
-    hardware's spec) and stops at ``_WALK_MAX`` objects per root.
+    A frozen world record is accepted only when its type is the type of an
+    allowed frozen record (a copy of the hardware's ``RoverSpec`` is fine; the
+    frozen `Scenario`, which is the room's ground truth, is not). The walk
+    follows containers and instance attributes (not functions, bound methods
+    or modules: the simulated link hands the server a bound write method,
+    bytes only), does not enter the actor runtime or Trio (they are
+    domain-free and hold every actor) and stops at ``_WALK_MAX`` objects per
+    root.
 
     Args:
         roots: name -> object to walk from.
         allowed: name -> the world object that root may hold (its rover's
-            hardware) or None.
+            hardware), a tuple of such objects (hardware and its spec), or None.
     """
     out: list[Violation] = []
     for name, root in roots.items():
         ok = allowed.get(name)
+        oks = tuple(o for o in (ok if isinstance(ok, tuple) else (ok,)) if o is not None)
+        value_types = {type(o) for o in oks if _frozen(o)}
         seen: set[int] = set()
         stack = [(root, name)]
         while stack and len(seen) < _WALK_MAX:
@@ -375,9 +383,9 @@ def check_honesty(roots: dict[str, Any], allowed: dict[str, Any]) -> list[Violat
             if id(obj) in seen or isinstance(obj, _LEAVES):
                 continue
             seen.add(id(obj))
-            if obj is ok or (obj is not root and _not_walked(obj)):
+            if any(obj is o for o in oks) or (obj is not root and _not_walked(obj)):
                 continue
-            if _world_object(obj):
+            if _world_object(obj) and not (_frozen(obj) and type(obj) in value_types):
                 out.append(Violation("honesty", f"{path} holds a world object "
                                      f"{type(obj).__module__}.{type(obj).__name__}"))
                 break

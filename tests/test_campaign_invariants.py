@@ -104,14 +104,34 @@ class _Spec:
 _Spec.__module__ = "world.fake"
 
 
+@dataclasses.dataclass(frozen=True)
+class _Room:
+    """A frozen world record that is not the hardware's (like the scenario: ground truth)."""
+
+    walls: tuple = ((0, 0, 400, 0),)
+
+
+_Room.__module__ = "world.fake"
+
+
 def test_honesty_flags_a_world_object_other_than_the_own_hardware():
     hardware, other = _Live(), _Live()
     actor = SimpleNamespace(hw=hardware, spec=_Spec(), cache={"peer": [SimpleNamespace(h=other)]})
-    got = inv.check_honesty({"hider/nav": actor}, {"hider/nav": hardware})
+    got = inv.check_honesty({"hider/nav": actor}, {"hider/nav": (hardware, _Spec())})
     assert len(got) == 1 and got[0].name == "honesty"
     assert "world.fake._Live" in got[0].detail
     clean = SimpleNamespace(hw=hardware, spec=_Spec(), log=[1, 2])
-    assert inv.check_honesty({"hider/nav": clean}, {"hider/nav": hardware}) == []
+    assert inv.check_honesty({"hider/nav": clean}, {"hider/nav": (hardware, _Spec())}) == []
+
+
+def test_honesty_accepts_only_frozen_records_of_the_allowed_kinds():
+    """A copy of the spec is a value the firmware was built with; the frozen room is not."""
+    hardware = _Live()
+    peeking = SimpleNamespace(hw=hardware, spec=_Spec(), room=_Room())
+    got = inv.check_honesty({"hider/nav": peeking}, {"hider/nav": (hardware, _Spec())})
+    assert [v.detail for v in got] == ["hider/nav._Room holds a world object world.fake._Room"]
+    bare = SimpleNamespace(spec=_Spec())  # no spec allowed: even the spec is flagged
+    assert inv.check_honesty({"server": bare}, {"server": None})[0].name == "honesty"
 
 
 def test_module_honesty_holds_for_the_firmware_and_server_as_loaded():
@@ -206,5 +226,7 @@ def test_a_campaign_game_replays_in_process_and_reproduces_through_hideseek_run(
     assert result["faults_fired"] == 1
     assert result["replay_hash"] == result["trace_hash"] != ""
     assert not [v for v in result["violations"] if v.startswith("determinism")]
-    assert main(["run", "--campaign", ref, "--json"]) == 1  # 6 s cannot map a room
+    command = result["reproduce"].split()
+    assert command[:2] == ["hideseek", "run"]  # the failure list prints this command
+    assert main([*command[1:], "--json"]) == 1  # 6 s cannot map a room
     assert json.loads(capsys.readouterr().out)["trace_hash"] == result["trace_hash"]
