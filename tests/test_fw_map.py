@@ -75,3 +75,61 @@ async def test_restarted_map_says_lost_and_restores_from_a_snapshot(autojump_clo
         await trio.sleep(0.01)
         after = [p for c, p in log if c == Cmd.NAV_MAP_UPDATE][-1]
         assert np.array_equal(after.cells, before.cells)
+
+
+@pytest.mark.trio
+async def test_flood_of_noops_costs_dropped_messages_not_restarts(autojump_clock) -> None:
+    """Regression (campaign): flooding ``mapper/map`` with NOOPs while the LIDAR streams scans
+    made every NOOP a crash, and the restart storm made the supervisor give up. Now the
+    flood only fills the queue: the LIDAR drops (and frees) the scans that do not fit, the
+    map is never restarted, no pool slot leaks, and scans integrate again afterwards."""
+    from actors.firmware.lidar import LidarControl
+
+    from .test_fw_motor import FakeHardware
+
+    hw, pool, log = FakeHardware(), BufferPool(8), []
+    hw.set_lidar_pwm = lambda d: None
+    starts = [0]
+
+    def make_map():
+        starts[0] += 1
+        return MapManagement(pool, size_cm=(400, 400), restarted=starts[0] > 1)
+    lidar_holder = []
+
+    def make_lidar():
+        lidar_holder.append(LidarControl(hw, pool))
+        return lidar_holder[-1]
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool), mailbox=4096),
+                           ChildSpec("map", make_map, mailbox=64),
+                           ChildSpec("lidar", make_lidar, mailbox=4096)],
+                          intensity=3, period=10.0)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+
+        def tick(k: int) -> None:
+            for a in range(0, 3600, 100):
+                system.send_nowait("mapper/lidar", Message.pair(Cmd.LIDAR_SAMPLE, a, 150))
+            system.send_nowait("mapper/lidar", Message.pair(Cmd.LIDAR_POSE_XY, k % 3, 0))
+            system.send_nowait("mapper/lidar", Message.float(Cmd.LIDAR_POSE_HEADING, 0.0))
+
+        for k in range(5):
+            tick(k)
+            await trio.sleep(0.05)
+        system.inject_hang("mapper/map", 0.3)  # busy: the flood cannot drain meanwhile
+        await trio.sleep(0.01)
+        accepted = system.flood("mapper/map", 500, Message.int(Cmd.NOOP, 0))
+        assert 0 < accepted < 500  # the queue filled: the rest of the flood was dropped
+        for k in range(5):  # scans keep coming while the queue is full
+            tick(k)
+            await trio.sleep(0.05)
+        await trio.sleep(0.5)
+        for k in range(5):
+            tick(k)
+            await trio.sleep(0.05)
+        await trio.sleep(0.5)
+        live_map = system.whereis("mapper/map").actor
+        assert starts[0] == 1  # never restarted
+        assert live_map.noops == accepted
+        assert lidar_holder[-1].dropped_scans >= 1  # what did not fit was dropped...
+        assert live_map.scans >= 9  # ...and scanning resumed after the flood
+        assert pool.statistics().in_use == 0  # every dropped scan gave its slot back

@@ -136,6 +136,8 @@ class LidarControl(Actor):
                 self.hw.set_lidar_pwm(0.0)
                 self._flush()
                 angles, ranges = self._angles, self._ranges
+            elif cmd == Cmd.NOOP:
+                pass  # a flood fault: costs a queue slot, never a restart
             else:
                 raise ValueError(f"lidar got an unknown command 0x{cmd:04x}")
 

@@ -55,6 +55,8 @@ class MapManagement(Actor):
         """Snapshots sent to navigation."""
         self.dropped_updates = 0
         """Snapshots navigation's queue or the pool refused (the next one supersedes)."""
+        self.noops = 0
+        """NOOP messages ignored (what a flood fault posts)."""
         self._changed = True  # a cell changed class since the last update
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
@@ -88,6 +90,8 @@ class MapManagement(Actor):
         elif cmd == Cmd.MAP_RESTORE:
             self._restore(self.pool.take(int(message.value)))
             self._publish()
+        elif cmd == Cmd.NOOP:
+            self.noops += 1  # a flood fault: costs a queue slot, never a restart
         else:
             raise ValueError(f"map management got an unknown command 0x{cmd:04x}")
 

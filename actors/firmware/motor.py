@@ -185,6 +185,8 @@ class MotorControl(Actor):
             self.hw.set_tread_pwm(0.0, 0.0)
         elif cmd == Cmd.MOTOR_GET_POSE:
             self._publish()
+        elif cmd == Cmd.NOOP:
+            pass  # a flood fault: costs a queue slot, never a restart
         else:
             raise ValueError(f"motor got an unknown command 0x{cmd:04x}")
 
