@@ -23,8 +23,14 @@ def _args(module, prog: str, argv: list[str]) -> argparse.Namespace:
     [
         (["--listen", "tcp:0.0.0.0:7878"],
          "refusing to listen on 0.0.0.0: not loopback and no rover tokens (give --token)"),
-        (["--rover", "m1=sim"], "--rover m1=sim: simulated rovers are not available in 'serve' "
-                                "yet; use the console or a headless run"),
+        (["--rover", "m1=sim"], "--rover m1=sim: a simulated rover's ID is its role, one of "
+                                "mapper, hider, seeker"),
+        (["--rover", "hider=sim", "--rover", "hider=sim"], "--rover hider=sim given twice"),
+        (["--rover", "hider=sim", "--scenario", "nowhere"],
+         "nowhere: no such scenario file or built-in name (built-ins: empty, furniture, "
+         "l_shaped, corridor, cluttered, hall, round, gap)"),
+        (["--rover", "m1=tcp:1.2.3.4:5"], "--rover m1: a rover's link is serial:PORT,BAUD, "
+                                          "tcp or sim"),
         (["--rover", "m1"], "--rover must be ID=VALUE, got 'm1'"),
         (["--rover", "m1=serial:/dev/ttyUSB0"],
          "serial link must be serial:PORT,BAUD, got 'serial:/dev/ttyUSB0'"),

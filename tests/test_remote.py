@@ -1,0 +1,204 @@
+"""One rover as its own process: `supervisors.remote` and ``hideseek rover``.
+
+The whole-game test runs the mapper's own world and tree in the same Trio
+run as the server, but its bytes cross two real pseudo-terminals, through
+pyserial on both ends (the server's ``start_serial`` and the rover's
+``serial:PORT,BAUD``), joined by a relay that plays the cable. The clock is
+virtual but only jumps after 0.5 ms of real time with nothing runnable and no
+byte arriving, so the pty traffic is never outrun by the clock.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import socket
+import tty
+
+import pytest
+import trio
+import trio.testing
+
+from server.links import parse_link
+from server.server import ServerConfig, open_server
+from server.store import Store
+from supervisors.headless import Budget, GameReport, play_game
+from supervisors.remote import Uplink, open_remote_rover
+from supervisors.rover import IdleNav
+from supervisors.system import open_sim_system
+from tui import cmd_rover
+from world.scenario import load_scenario
+
+PTY_CLOCK_THRESHOLD_S = 0.0005  # real time with nothing to do before the clock jumps [s]
+
+
+def _idle_nav(role, *, pool, **_):
+    return IdleNav(pool)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _pty_pair() -> tuple[trio.lowlevel.FdStream, str, int]:
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    return trio.lowlevel.FdStream(master), os.ttyname(slave), slave
+
+
+async def _relay(a, b) -> None:
+    while data := await a.receive_some(4096):
+        await b.send_all(data)
+
+
+def test_uplink_is_bounded_and_drops_while_disconnected() -> None:
+    """Bytes beyond capacity, and any byte while not connected, are dropped and counted."""
+    up = Uplink(capacity=10)
+    up.put(b"abc")
+    assert up.dropped == 3
+    up.connected = True
+    up.put(b"0123456789xyz")
+    assert up.dropped == 6
+
+    async def take() -> bytes:
+        return await up.get()
+    assert trio.run(take) == b"0123456789"
+    up.put(b"late")
+    up.clear()
+    assert up.dropped == 10
+
+
+def test_unreachable_server_is_reported_and_retried_with_backoff() -> None:
+    """No server on the port: one readable line per attempt, the waits doubling to the cap."""
+    lines: list[str] = []
+    port = _free_port()
+
+    async def main() -> None:
+        scenario = load_scenario("empty")
+        link = parse_link(f"tcp:127.0.0.1:{port}")
+        async with open_remote_rover(scenario, "hider", link, report=lines.append,
+                                     retry_s=(1.0, 4.0), nav_factory=_idle_nav) as rover:
+            await trio.sleep(12.5)
+            assert rover.failures == 5 and rover.connects == 0 and not rover.connected
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
+    assert [ln.rsplit("retrying in ", 1)[1] for ln in lines] == ["1 s", "2 s", "4 s", "4 s",
+                                                                 "4 s"]
+    assert lines[0].startswith(f"cannot connect over tcp:127.0.0.1:{port}: ")
+
+
+def test_rover_reconnects_after_the_server_restarts() -> None:
+    """The server goes away and comes back on the same port: the rover says hello again."""
+    port = _free_port()
+    lines: list[str] = []
+
+    async def serve_until_hello(store: Store) -> None:
+        async with open_server(store, ServerConfig()) as server:
+            events = server.subscribe()
+            await server.listen_tcp("127.0.0.1", port)
+            async for e in events:
+                if e.kind == "hello":
+                    return
+
+    async def main() -> None:
+        scenario = load_scenario("empty")
+        with Store(":memory:") as store:
+            async with open_remote_rover(scenario, "seeker", parse_link(f"tcp:127.0.0.1:{port}"),
+                                         report=lines.append, retry_s=(0.5, 2.0),
+                                         nav_factory=_idle_nav) as rover:
+                with trio.fail_after(30):
+                    await serve_until_hello(store)
+                    await serve_until_hello(store)
+                assert rover.connects == 2
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
+    assert any(ln.startswith(f"lost the server at tcp:127.0.0.1:{port}: ") for ln in lines)
+
+
+def test_pty_link_gives_a_path_the_server_opens_as_a_serial_port() -> None:
+    """``--link pty``: the rover reports a device path; the server's serial link reaches it."""
+    lines: list[str] = []
+
+    async def main() -> None:
+        scenario = load_scenario("empty")
+        with Store(":memory:") as store:
+            async with open_server(store, ServerConfig()) as server, \
+                    open_remote_rover(scenario, "hider", parse_link("pty"), report=lines.append,
+                                      nav_factory=_idle_nav) as rover:
+                assert rover.pty_path.startswith("/dev/")
+                events = server.subscribe()
+                server.start_serial(rover.pty_path, 115200)
+                with trio.fail_after(20):
+                    async for e in events:
+                        if e.kind == "hello":
+                            assert e.rover == "hider"
+                            assert e.data["link"] == f"serial:{rover.pty_path},115200"
+                            break
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=PTY_CLOCK_THRESHOLD_S))
+    assert lines[0].startswith("pty ready: give the server serial:/dev/")
+
+
+def test_whole_game_with_the_mapper_on_a_pty_serial_link() -> None:
+    """Mapper over two ptys (pyserial on both ends), hider and seeker in memory: found."""
+    scenario = load_scenario("empty")
+    report = GameReport(scenario.name, 1)
+    seen: dict = {}
+
+    async def main() -> None:
+        server_end, server_path, s1 = _pty_pair()
+        rover_end, rover_path, s2 = _pty_pair()
+        try:
+            async with trio.open_nursery() as cable:
+                cable.start_soon(_relay, server_end, rover_end)
+                cable.start_soon(_relay, rover_end, server_end)
+                with Store(":memory:") as store:
+                    async with open_sim_system(scenario, seed=1, store=store,
+                                               roles=("hider", "seeker")) as system:
+                        system.server.start_serial(server_path, 115200)
+                        async with open_remote_rover(scenario, "mapper",
+                                                     parse_link(f"serial:{rover_path},115200"),
+                                                     seed=1) as rover:
+                            await play_game(system, report, Budget(hello=30, mapping=400,
+                                                                   hiding=200, seeking=200))
+                            seen["rovers"] = {r.id: r for r in system.server.snapshot().rovers}
+                            seen["bytes"] = (rover.bytes_in, rover.bytes_out)
+                cable.cancel_scope.cancel()
+        finally:
+            os.close(s1)
+            os.close(s2)
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=PTY_CLOCK_THRESHOLD_S))
+    assert report.outcome == "found", (report.reason, report.events)
+    mapper = seen["rovers"]["mapper"]
+    assert mapper.link == f"serial:{mapper.link[7:]}" and mapper.link.endswith(",115200")
+    assert mapper.stats.up and mapper.stats.bad_frames == 0
+    assert seen["rovers"]["hider"].link == "sim:hider"
+    assert report.coverage is not None and report.coverage > 0.9
+    assert min(seen["bytes"]) > 1000
+
+
+def _rover_args(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="hideseek rover")
+    cmd_rover.add_arguments(parser)
+    return parser.parse_args(argv)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--link", "tcp"], "--link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, got 'tcp'"),
+        (["--link", "sim"], "--link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, got 'sim'"),
+        (["--link", "serial:/dev/x"], "serial link must be serial:PORT,BAUD, got 'serial:/dev/x'"),
+        (["--link", "pty", "--speed", "0"], "--speed must be within 0..1000, got 0"),
+        (["--link", "pty", "--scenario", "nowhere"],
+         "nowhere: no such scenario file or built-in name (built-ins: empty, furniture, "
+         "l_shaped, corridor, cluttered, hall, round, gap)"),
+    ],
+)
+def test_rover_command_refuses_bad_options_with_a_message(argv, message, capsys) -> None:
+    """Bad options: exit status 2 and one readable line, no traceback."""
+    assert cmd_rover.run(_rover_args(["--role", "mapper", *argv])) == 2
+    assert capsys.readouterr().err == f"hideseek rover: {message}\n"
