@@ -295,3 +295,42 @@ def test_cli_bad_input_exits_2_with_a_message(argv, message, capsys):
     status = cmd_campaign.run(_args(*argv, "--out", ":memory:"), worker=fake_worker)
     assert status == 2
     assert capsys.readouterr().err.startswith(f"hideseek campaign: {message}")
+
+
+def test_cli_quick_campaign_with_real_games_in_a_spawn_pool(tmp_path, capsys):
+    """The CI-sized campaign: real games (short budget) in two worker processes.
+
+    6 s cannot map a room, so every game fails with liveness.ended; what is
+    checked is the plumbing: every game played and stored, the first replayed
+    with the same hash, each failure with the command that reproduces it.
+    """
+    out = str(tmp_path / "c.sqlite")
+    status = cmd_campaign.run(_args("--quick", "-n", "3", "--seed", "4", "--scenarios", "empty",
+                                    "--faults", "actor:crash", "--window", "1-4",
+                                    "--budget", "6", "--workers", "2", "--json",
+                                    "--out", out, "--no-progress"))
+    summary = json.loads(capsys.readouterr().out)
+    assert status == 1
+    assert (summary["games"], summary["failed"], summary["workers"]) == (3, 3, 2)
+    assert summary["determinism"] == {"replayed": 1, "mismatched": 0}
+    assert summary["fault_kinds"]["actor:crash"]["injected"] == 3
+    assert [f["reproduce"] for f in summary["failures"]] == [
+        f"hideseek run --campaign 4:{i},rooms=empty,faults=actor:crash,window=1-4,budget=6"
+        for i in range(3)]
+    assert all(f["violations"][0].startswith("liveness.ended: mapping did not finish")
+               and f["without_faults"] == "failed" for f in summary["failures"])
+    rows = sqlite3.connect(out).execute("SELECT idx, trace_hash FROM campaign_games").fetchall()
+    assert sorted(i for i, _ in rows) == [0, 1, 2] and all(h for _, h in rows)
+
+
+def test_cli_table_prints_each_failure_with_its_reproduce_command(capsys):
+    status = cmd_campaign.run(_args("-n", "12", "--seed", "5", "--workers", "0",
+                                    "--faults", "actor:crash,wifly:loss", "--out", ":memory:",
+                                    "--no-progress"), worker=fake_worker)
+    out = capsys.readouterr().out
+    failed = [line for line in out.splitlines() if line.startswith("  FAILED game ")]
+    commands = [line.strip() for line in out.splitlines() if "reproduce:" in line]
+    assert status == 1 and failed and len(commands) == len(failed)
+    index = int(failed[0].split()[2])
+    assert commands[0] == (f"reproduce: hideseek run --campaign 5:{index},"
+                           "faults=wifly:loss+actor:crash")
