@@ -44,7 +44,6 @@ from tui.widgets import (
     SupervisionTree,
     Timeline,
 )
-from tui.widgets.game_panel import speed_text
 
 __all__ = ["ConsoleApp", "ACTIONS", "SPEEDS", "REFRESH_HZ", "UiAction"]
 
@@ -366,8 +365,7 @@ class ConsoleApp(App[int]):
         self._set_speed(max(0, self._speed_index() - 1))
 
     def _set_speed(self, index: int) -> None:
-        self._call("set_speed", SPEEDS[index])
-        self.notify(f"speed {speed_text(SPEEDS[index], False)}", timeout=1.5)
+        self._call("set_speed", SPEEDS[index])  # the result (or refusal) is the notification
 
     def action_toggle_truth(self) -> None:
         view = self.map_view

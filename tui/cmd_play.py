@@ -1,5 +1,9 @@
 """``hideseek play``: open the console on the simulated system (or the fake one with --fake).
 
+With ``--rover ROLE=LINK`` that rover is not simulated here but attached over a
+serial port or TCP (a real rover, or ``hideseek rover`` in another process);
+simulated time then runs at real time only.
+
 Textual is imported only when the command runs, so ``hideseek --help`` stays fast.
 """
 
@@ -31,8 +35,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="SQLite file for the server's games and maps (default: in memory)")
     parser.add_argument("--rover", type=rover_link, action="append", default=[],
                         metavar="ID=LINK",
-                        help="attach a rover over a link, e.g. seeker=serial:/dev/pts/4 "
-                             "(repeatable)")
+                        help="attach a rover over a link instead of simulating it here: "
+                             "ROLE=serial:PORT,BAUD or ROLE=tcp (it connects to --listen); "
+                             "then time runs at x1 only (repeatable)")
+    parser.add_argument("--listen", default="tcp:127.0.0.1:7878", metavar="tcp:HOST:PORT",
+                        help="where rovers on tcp connect (default %(default)s; loopback only)")
     parser.add_argument("--fake", action="store_true",
                         help="run the built-in fake system (the console's demo and test double)")
     parser.add_argument("--speed", choices=list(SPEED_CHOICES), default="1",
@@ -41,13 +48,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="where the export key saves maps (default: current directory)")
 
 
+def _links(args: argparse.Namespace):
+    """``--rover`` and ``--listen`` -> (role -> LinkSpec, listen LinkSpec or None).
+
+    Raises:
+        ValueError: a bad link string, a rover given twice, or a non-loopback listen.
+    """
+    from server.links import is_loopback, parse_link
+
+    remote = {}
+    for role, text in args.rover:
+        if role in remote:
+            raise ValueError(f"--rover {role} given twice")
+        remote[role] = parse_link(text)
+    listen = None
+    if any(spec.kind == "tcp" for spec in remote.values()):
+        listen = parse_link(args.listen)
+        if listen.kind != "tcp_listen":
+            raise ValueError(f"--listen must be tcp:HOST:PORT, got {args.listen!r}")
+        if not is_loopback(listen.host):
+            raise ValueError(f"refusing to listen on {listen.host}: the console has no rover "
+                             "tokens; use a loopback address or hideseek serve --token")
+    return remote, listen
+
+
 def run(args: argparse.Namespace) -> int:
     from tui.app import ConsoleApp
 
-    if args.rover:
-        print("hideseek play: --rover (real rovers in the console) is not available yet; "
-              "use `hideseek serve --rover ID=LINK` for real rovers. Ignoring: "
-              + ", ".join(f"{r}={ln}" for r, ln in args.rover), file=sys.stderr)
+    if args.rover and args.fake:
+        print("hideseek play: --rover needs the real system, not --fake", file=sys.stderr)
+        return 2
     if args.fake:
         from tui.fake import FakeSystem
 
@@ -58,12 +88,13 @@ def run(args: argparse.Namespace) -> int:
         from world.scenario import ScenarioError, load_scenario
 
         try:
+            remote, listen = _links(args)
             scenario = load_scenario(args.scenario)
-        except (ScenarioError, OSError) as exc:
+            system = LiveSystem(scenario, seed=args.seed, speed=SPEED_CHOICES[args.speed],
+                                db=args.db, remote=remote, listen=listen)
+        except (ScenarioError, OSError, ValueError) as exc:
             print(f"hideseek play: {exc}", file=sys.stderr)
             return 2
-        system = LiveSystem(scenario, seed=args.seed, speed=SPEED_CHOICES[args.speed],
-                            db=args.db)
     app = ConsoleApp(system, export_dir=args.export_dir)
     app.run()
     if app.system_error is not None:

@@ -23,6 +23,7 @@ import trio
 from actors import EventKind, TraceEvent
 from actors.firmware.commands import name_of
 from server.export import write_pgm, write_png
+from server.links import LinkSpec
 from server.protocol import MapGrid, Pose2, inverse
 from server.protocol import compose as compose_pose
 from server.store import Store
@@ -76,11 +77,39 @@ class LiveSystem(QueuedController):
         db: the server's SQLite file.
         log_messages: trace every message for the log pane (slower; the log
             then shows sends and receives, decoded).
+        remote: rovers attached over real links instead of simulated here,
+            ``role -> LinkSpec`` (``serial:PORT,BAUD``, or ``tcp``: the rover
+            connects to ``listen``). With any, simulated time runs at real
+            time only: a real rover cannot be paused or sped up, so speed and
+            pause are refused.
+        listen: where rovers on ``tcp`` connect.
+
+    Raises:
+        ValueError: a remote role that is not mapper, hider or seeker, a link
+            kind a rover cannot use, or ``tcp`` without ``listen``.
     """
 
     def __init__(self, scenario: Scenario, *, seed: int = 1, speed: float | None = 1.0,
-                 db: str = ":memory:", log_messages: bool = True) -> None:
+                 db: str = ":memory:", log_messages: bool = True,
+                 remote: dict[str, LinkSpec] | None = None,
+                 listen: LinkSpec | None = None) -> None:
+        remote = dict(remote or {})
+        for role, spec in remote.items():
+            if role not in ROLES:
+                raise ValueError(f"--rover {role}: the ID of an attached rover is its role, "
+                                 f"one of {', '.join(ROLES)}")
+            if spec.kind not in ("serial", "tcp"):
+                raise ValueError(f"--rover {role}: a rover's link is serial:PORT,BAUD or tcp, "
+                                 f"got {spec.text!r}")
+        if any(spec.kind == "tcp" for spec in remote.values()) and (
+                listen is None or listen.kind != "tcp_listen"):
+            raise ValueError("a rover on tcp needs --listen tcp:HOST:PORT")
+        if remote:
+            speed = 1.0  # a real rover lives in real time
         super().__init__(speed=speed, capacity=COMMAND_CAPACITY)
+        self.remote = remote
+        """Role -> link of the rovers not simulated here."""
+        self.listen = listen
         self.scenario = scenario
         self.seed = seed
         self._db = db
@@ -103,19 +132,52 @@ class LiveSystem(QueuedController):
         self._publish = publish
         s = self.scenario.starts["mapper"]
         self._mapper_room = Pose2(s.x, s.y, s.heading_deg)
+        roles = tuple(r for r in ROLES if r not in self.remote)
         with Store(self._db) as store:
-            async with open_sim_system(self.scenario, seed=self.seed, store=store) as system:
+            async with open_sim_system(self.scenario, seed=self.seed, store=store,
+                                       roles=roles) as system:
                 self._system = system
                 system.actors.trace.subscribe(self._on_trace, per_message=self._log_messages)
                 events = system.server.subscribe()
                 self._event("game", f"{self.scenario.name}: system started (seed {self.seed})")
+                await self._attach_remote(system)
                 async with trio.open_nursery() as nursery:
                     nursery.start_soon(self._command_loop)
                     nursery.start_soon(self._server_events, events)
                     async for _ in requests:
                         publish(self.snapshot())
 
+    async def _attach_remote(self, system: SimSystem) -> None:
+        """Serve the attached rovers' links (a failure to listen ends the system)."""
+        if any(spec.kind == "tcp" for spec in self.remote.values()):
+            assert self.listen is not None
+            port = await system.server.listen_tcp(self.listen.host, self.listen.port)
+            self._event("link", f"listening for rovers on tcp:{self.listen.host}:{port}")
+        for role, spec in self.remote.items():
+            if spec.kind == "serial":
+                system.server.start_serial(spec.url, spec.baud)
+            self._event("link", f"{role}: waiting for the rover on {spec.text}")
+        if self.remote:
+            self._event("game", "a real rover is attached: real time only (x1)")
+
     # -- commands (in Trio); raise ValueError to refuse ----------------------------------
+    def _real_time_only(self) -> None:
+        if self.remote:
+            raise ValueError(f"{', '.join(self.remote)} attached over a link: simulated time "
+                             "runs at real time only (x1), no pause")
+
+    def _do_pause(self) -> None:
+        self._real_time_only()
+        super()._do_pause()
+
+    def _do_resume(self) -> None:
+        self._real_time_only()
+        super()._do_resume()
+
+    def _do_set_speed(self, rate: float | None) -> str:
+        self._real_time_only()
+        return super()._do_set_speed(rate)
+
     async def _server_command(self, name: str, **kwargs: Any) -> str:
         assert self._system is not None
         result = await self._system.command(name, **kwargs)
@@ -141,6 +203,10 @@ class LiveSystem(QueuedController):
     async def _do_inject_fault(self, target: str, kind: str, duration_s: float | None,
                                params: dict) -> str:
         assert self._system is not None
+        role = target.split("/")[0].split(".")[0]
+        if role in self.remote:
+            raise ValueError(f"{role} is attached over {self.remote[role].text}: its devices "
+                             "and actors are not simulated here")
         fid = self._system.inject_fault(target, kind, duration_s or 0.0, **params)
         self._event("fault", f"{kind} on {target}"
                     + (f" for {duration_s:g} s" if duration_s else " until cleared")
@@ -271,9 +337,13 @@ class LiveSystem(QueuedController):
         views = {r.role: r for r in server.rovers}
         out = []
         for role in ROLES:
+            view = views.get(role)
+            if role in self.remote:  # its true pose is in another world
+                out.append(RoverView(role, role, _pose(view.pose if view else None), None,
+                                     link=view.link if view else self.remote[role].text))
+                continue
             t = system.world.true_pose(role)
             true = compose_pose(to_map, Pose2(t.x, t.y, t.heading_deg))
-            view = views.get(role)
             out.append(RoverView(role, role, _pose(view.pose if view else None), _pose(true),
                                  link=view.link if view else "memory"))
         return tuple(out)
@@ -322,6 +392,8 @@ class LiveSystem(QueuedController):
     def _catalogue(self, system: SimSystem) -> tuple[FaultTarget, ...]:
         out = []
         for role in ROLES:
+            if role in self.remote:
+                continue
             for device, kinds in DEVICE_FAULTS.items():
                 if role in ROLE_DEVICES.get(device, ROLES):
                     out.append(FaultTarget(f"{role}/{device}", tuple(kinds)))
