@@ -45,7 +45,7 @@ import time
 import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -161,6 +161,8 @@ class CampaignConfig:
     """Simulated time range in which faults start [s]."""
     mapping_budget_s: float = 1200.0
     """Simulated time allowed for mapping [s] (as ``hideseek run --budget``)."""
+    _builtins: tuple[str, ...] = field(default=(), init=False, repr=False, compare=False)
+    """Every built-in room, read once here (reading them parses each file)."""
 
     def __post_init__(self) -> None:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
@@ -171,7 +173,8 @@ class CampaignConfig:
         if bad or not self.kinds:
             raise CampaignError(f"fault kinds must be among {', '.join(FAULT_LABELS)}, "
                                 f"got {', '.join(bad) or 'none'}")
-        known = builtin_scenarios()
+        known = tuple(builtin_scenarios())
+        object.__setattr__(self, "_builtins", known)  # frozen: set once, at construction
         for name in self.rooms:
             if name not in known:
                 raise CampaignError(f"unknown built-in room {name!r}; rooms are "
@@ -185,7 +188,7 @@ class CampaignConfig:
 
     def room_names(self) -> tuple[str, ...]:
         """The built-in rooms used, in round-robin order."""
-        return self.rooms or tuple(builtin_scenarios())
+        return self.rooms or self._builtins
 
     def budget(self) -> Budget:
         """Simulated-time budget of each game."""
@@ -735,7 +738,8 @@ class CampaignStore:
 
     def new_campaign(self, config: CampaignConfig, started: float) -> int:
         """A campaign row; ``started`` is the wall time it began [s since the epoch]."""
-        cfg = json.dumps(dataclasses.asdict(config))
+        cfg = json.dumps({k: v for k, v in dataclasses.asdict(config).items()
+                          if not k.startswith("_")})
         cur = self._db.execute("INSERT INTO campaigns (seed, config, started) VALUES (?, ?, ?)",
                                (config.seed, cfg, started))
         self._db.commit()
