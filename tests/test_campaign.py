@@ -334,3 +334,16 @@ def test_cli_table_prints_each_failure_with_its_reproduce_command(capsys):
     index = int(failed[0].split()[2])
     assert commands[0] == (f"reproduce: hideseek run --campaign 5:{index},"
                            "faults=wifly:loss+actor:crash")
+
+
+@pytest.mark.parametrize("ref, message", [
+    ("1:x", "game reference must start with SEED:INDEX, got '1:x'"),
+    ("1:2,faults=melted", "unknown fault kind 'melted'"),
+])
+def test_run_refuses_a_bad_campaign_reference_with_exit_2(ref, message, capsys):
+    from tui.cli import main  # noqa: PLC0415
+
+    assert main(["run", "--campaign", ref]) == 2
+    captured = capsys.readouterr()
+    assert captured.err.startswith(f"hideseek run: {message}")
+    assert "Traceback" not in captured.err
