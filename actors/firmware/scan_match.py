@@ -1,0 +1,273 @@
+"""Scan-to-map matching: correct a dead-reckoned pose from the LIDAR returns themselves.
+
+Why
+    Dead reckoning on the treads drifts (slip), and its heading is quantised:
+    one Int E of one tread turns the estimate by ``cm_per_interrupt /
+    track_width`` (0.5 / 13 rad, about 2.2 [deg]), so during a move the
+    heading flickers by that much from tick to tick. At 3 m a 2 [deg] error
+    puts a wall 10 cm (two cells) off: the map smears. Matching each scan
+    against the map built so far puts it where it fits, which is what the
+    firmware can do with its own sensors only.
+
+Algorithm
+    Gauss-Newton scan-to-map registration as in Hector SLAM (Kohlbrecher et
+    al., "A Flexible and Scalable SLAM System with Full 3D Motion Estimation",
+    SSRR 2011): minimise ``sum_i (1 - M(S_i(pose)))**2`` over the pose, where
+    ``S_i`` puts hit ``i`` (rover frame) into the map frame and ``M`` is a
+    smoothed occupancy field, read with bilinear interpolation so it has a
+    gradient. Two passes: a wide blur first (a basin of about three cells),
+    then a narrow one (precision). Levenberg damping keeps a direction the
+    scan does not constrain (one straight wall) at the guess. The result is
+    refused (the guess kept) when too few hits, when it moved further than
+    ``max_shift_cm`` / ``max_turn_deg``, or when it fits the map worse than
+    the guess.
+
+Frame and units
+    Map frame [cm], poses as `odometry.Pose` (heading [deg]); fields are crops
+    of the grid, cell ``[row, col]`` as in `occupancy`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from actors.firmware.odometry import Pose
+
+__all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",
+           "match_scan"]
+
+
+@dataclass(frozen=True, slots=True)
+class MatchOptions:
+    """Tunables of `match_scan`."""
+
+    iterations: int = 4
+    """Gauss-Newton iterations per blur level."""
+    blur_wide: int = 4
+    """Passes of the [1, 2, 1] blur for the first (wide basin) level."""
+    blur_narrow: int = 1
+    """Passes of the [1, 2, 1] blur for the final level."""
+    max_shift_cm: float = 12.0
+    """Largest accepted correction of the position [cm]."""
+    max_turn_deg: float = 6.0
+    """Largest accepted correction of the heading [deg]."""
+    min_points: int = 12
+    """Fewest hits a scan needs to be matched."""
+    min_support: float = 0.35
+    """Share of the hits that must land on mapped obstacles (narrow field > 0.25) at the
+    guess or at the result: a scan of a part of the room never seen is not matched."""
+    min_range_cm: float = 12.0
+    """Hits nearer than this are ignored [cm] (too close to tell direction well)."""
+    max_range_cm: float = 600.0
+    """Hits farther than this are ignored [cm] (as in the occupancy model)."""
+    damping: float = 0.05
+    """Levenberg damping, relative to the diagonal of the normal matrix."""
+    prior_per_point: float = 2e-4
+    """Pull toward the guess per hit [1/cm^2] (heading: times the hits' mean square range):
+    a direction the scan does not constrain (along one straight wall) stays where dead
+    reckoning put it instead of sliding on noise."""
+
+    def __post_init__(self) -> None:
+        if self.iterations < 1 or self.blur_wide < 0 or self.blur_narrow < 0:
+            raise ValueError(f"iterations must be >= 1 and blurs >= 0, got {self.iterations}, "
+                             f"{self.blur_wide}, {self.blur_narrow}")
+        if not (self.max_shift_cm > 0 and self.max_turn_deg > 0 and self.min_points >= 3):
+            raise ValueError("max_shift_cm and max_turn_deg must be > 0 and min_points >= 3")
+
+
+@dataclass(frozen=True, slots=True)
+class MatchResult:
+    """What `match_scan` found."""
+
+    pose: Pose
+    """The pose to use: the match, or the guess when the match was refused."""
+    accepted: bool
+    """Whether ``pose`` is the match (False: it is the guess)."""
+    score_guess: float
+    """Mean narrow-field value at the hits from the guess, 0..1."""
+    score: float
+    """Mean narrow-field value at the hits from ``pose``, 0..1."""
+    reason: str = ""
+    """Why the match was refused (empty when accepted)."""
+
+
+def _binomial(passes: int) -> np.ndarray:
+    """The 1-D kernel of ``passes`` [1, 2, 1] / 4 blurs (binomial, sums to 1)."""
+    k = np.array([1.0])
+    for _ in range(passes):
+        k = np.convolve(k, [0.25, 0.5, 0.25])
+    return k
+
+
+def _blur(field: np.ndarray, passes: int) -> np.ndarray:
+    """Separable binomial blur equal to ``passes`` [1, 2, 1] / 4 blurs (zeros outside)."""
+    if passes == 0:
+        return field.copy()
+    k = _binomial(passes)
+    n = passes
+    ny, nx = field.shape
+    p = np.pad(field, n)
+    rows = np.zeros((ny, nx + 2 * n))
+    for i, w in enumerate(k):
+        rows += w * p[i:i + ny, :]
+    out = np.zeros((ny, nx))
+    for i, w in enumerate(k):
+        out += w * rows[:, i:i + nx]
+    return out
+
+
+class OccupancyField:
+    """A smoothed occupancy field over a crop of a grid, scaled so a wall's ridge is 1.
+
+    Args:
+        occupied: bool (ny, nx) crop: True where the map says occupied.
+        origin_cm: lower-left corner of the crop's cell [0, 0] [cm].
+        resolution_cm: cell side [cm].
+        passes: [1, 2, 1] blur passes (wider basin, less precision).
+    """
+
+    def __init__(self, occupied: np.ndarray, origin_cm: tuple[float, float],
+                 resolution_cm: float, passes: int) -> None:
+        peak = float(_binomial(passes).max())  # what a one-cell line keeps across it
+        f = np.minimum(_blur(occupied.astype(np.float64), passes) / peak, 1.0)
+        # a border of zeros: points outside read 0 with no gradient
+        self.values = np.pad(f, 1)
+        """Field values (ny + 2, nx + 2), 0..1, with a zero border."""
+        self._flat = self.values.ravel()
+        self.origin_cm = (origin_cm[0] - resolution_cm, origin_cm[1] - resolution_cm)
+        """Lower-left corner of ``values``' cell [0, 0] [cm] (the border included)."""
+        self.resolution_cm = resolution_cm
+
+    def sample(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bilinear value and gradient [1/cm] at points (x, y) [cm]; 0 outside the crop."""
+        inv = 1.0 / self.resolution_cm
+        ny, nx = self.values.shape
+        # cell centres are the interpolation nodes
+        gx = np.clip((x - self.origin_cm[0]) * inv - 0.5, 0.0, nx - 1.000001)
+        gy = np.clip((y - self.origin_cm[1]) * inv - 0.5, 0.0, ny - 1.000001)
+        c0 = gx.astype(np.int64)
+        r0 = gy.astype(np.int64)
+        fx, fy = gx - c0, gy - r0
+        i = r0 * nx + c0
+        f = self._flat
+        v00, v01, v10, v11 = f[i], f[i + 1], f[i + nx], f[i + nx + 1]
+        a = v01 - v00
+        b = v11 - v10
+        top = v00 + a * fx
+        bottom = v10 + b * fx
+        val = top + (bottom - top) * fy
+        dx = (a + (b - a) * fy) * inv
+        dy = (bottom - top) * inv
+        return val, dx, dy
+
+
+def hits_to_local(angles_deg: np.ndarray, ranges_cm: np.ndarray, options: MatchOptions
+                  ) -> np.ndarray:
+    """Hits usable for matching as points (n, 2) in the rover frame [cm]."""
+    r = np.asarray(ranges_cm, dtype=np.float64)
+    a = np.radians(np.asarray(angles_deg, dtype=np.float64))
+    keep = (r >= options.min_range_cm) & (r <= options.max_range_cm)
+    r, a = r[keep], a[keep]
+    return np.column_stack([r * np.cos(a), r * np.sin(a)])
+
+
+def _to_map(pts: np.ndarray, x: float, y: float, theta: float
+            ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    c, s = math.cos(theta), math.sin(theta)
+    px, py = pts[:, 0], pts[:, 1]
+    return x + c * px - s * py, y + s * px + c * py, c, s
+
+
+def _gauss_newton(field: OccupancyField, pts: np.ndarray, pose: np.ndarray, guess: np.ndarray,
+                  iterations: int, damping: float, prior: np.ndarray) -> np.ndarray:
+    """Damped Gauss-Newton with a quadratic pull ``prior`` (diagonal) toward ``guess``."""
+    x, y, th = (float(v) for v in pose)
+    px, py = pts[:, 0], pts[:, 1]
+    for _ in range(iterations):
+        wx, wy, c, s = _to_map(pts, x, y, th)
+        m, mx, my = field.sample(wx, wy)
+        dth = mx * (-s * px - c * py) + my * (c * px - s * py)
+        j = np.column_stack([mx, my, dth])
+        h = j.T @ j
+        g = j.T @ (1.0 - m) - prior * (np.array([x, y, th]) - guess)
+        h[np.diag_indices(3)] += damping * np.diag(h) + prior + 1e-9
+        try:
+            step = np.linalg.solve(h, g)
+        except np.linalg.LinAlgError:
+            break
+        if not np.all(np.isfinite(step)):
+            break
+        x, y, th = x + step[0], y + step[1], th + step[2]
+        if abs(step[0]) + abs(step[1]) < 0.05 and abs(step[2]) < 1e-4:
+            break
+    return np.array([x, y, th])
+
+
+class MatchFields:
+    """The wide and narrow fields of one map, built once and matched against many scans.
+
+    Args:
+        occupied: bool (ny, nx): the map's occupied cells (a crop is fine).
+        origin_cm: lower-left corner of ``occupied``'s cell [0, 0] [cm].
+        resolution_cm: cell side [cm].
+        options: blur widths.
+    """
+
+    def __init__(self, occupied: np.ndarray, origin_cm: tuple[float, float],
+                 resolution_cm: float, options: MatchOptions | None = None) -> None:
+        o = options or MatchOptions()
+        occ = np.asarray(occupied, dtype=bool)
+        self.empty = not occ.any()
+        """True when the map has no obstacle to match against."""
+        self.wide = OccupancyField(occ, origin_cm, resolution_cm, o.blur_wide)
+        self.narrow = OccupancyField(occ, origin_cm, resolution_cm, o.blur_narrow)
+
+
+def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
+               options: MatchOptions | None = None) -> MatchResult:
+    """Register scan hits against the map, starting from ``guess``.
+
+    Args:
+        fields: the map's fields (see `MatchFields`).
+        points: hits in the rover frame, (n, 2) [cm] (see `hits_to_local`).
+        guess: where dead reckoning says the rover was (map frame).
+        options: tunables.
+
+    Returns:
+        The match, or the guess with the reason it was refused.
+    """
+    o = options or MatchOptions()
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(pts) < o.min_points:
+        return MatchResult(guess, False, 0.0, 0.0, f"{len(pts)} hits, need {o.min_points}")
+    if fields.empty:
+        return MatchResult(guess, False, 0.0, 0.0, "no mapped obstacle to match against")
+    theta0 = guess.heading_rad
+    wx, wy, _, _ = _to_map(pts, guess.x, guess.y, theta0)
+    m0, _, _ = fields.narrow.sample(wx, wy)
+    score0 = float(m0.mean())
+    support0 = float(np.count_nonzero(m0 > 0.25)) / len(pts)
+    start = np.array([guess.x, guess.y, theta0])
+    a = o.prior_per_point * len(pts)
+    prior = np.array([a, a, a * float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2))])
+    est = _gauss_newton(fields.wide, pts, start, start, o.iterations, o.damping, prior)
+    est = _gauss_newton(fields.narrow, pts, est, start, o.iterations, o.damping, prior)
+    wx1, wy1, _, _ = _to_map(pts, est[0], est[1], est[2])
+    m1, _, _ = fields.narrow.sample(wx1, wy1)
+    score1 = float(m1.mean())
+    support1 = float(np.count_nonzero(m1 > 0.25)) / len(pts)
+    shift = math.hypot(est[0] - guess.x, est[1] - guess.y)
+    turn = abs(math.degrees(est[2] - theta0))
+    if max(support0, support1) < o.min_support:
+        return MatchResult(guess, False, score0, score0,
+                           f"only {max(support0, support1):.0%} of the hits on mapped obstacles")
+    if shift > o.max_shift_cm or turn > o.max_turn_deg:
+        return MatchResult(guess, False, score0, score0,
+                           f"correction too large ({shift:.1f} cm, {turn:.1f} deg)")
+    if score1 < score0:
+        return MatchResult(guess, False, score0, score0, "the match fits worse than the guess")
+    return MatchResult(Pose(float(est[0]), float(est[1]), math.degrees(est[2])), True,
+                       score0, score1)
