@@ -50,6 +50,16 @@ def test_unknown_ground_under_the_rover_is_refused():
     assert not ok and reason.startswith("unknown ground")
 
 
+def test_unknown_cells_only_in_the_margin_band_are_accepted():
+    """Unmapped cells 12.5..17.5 cm from the spot (margin, not body) do not refuse it."""
+    cells = room()
+    cells[20, 23] = UNKNOWN  # nearest point 15 cm from (100, 100): in the 5 cm margin band
+    assert check_spot(cells, RES, (0, 0), 100, 100, 0) == (True, "ok")
+    cells[20, 22] = UNKNOWN  # 10 cm: under the turning body
+    ok, reason = check_spot(cells, RES, (0, 0), 100, 100, 0)
+    assert not ok and reason == "unknown ground: 1 unmapped cells within 12.5 cm"
+
+
 def test_obstacle_beats_unknown_in_the_reason():
     """When both are present the obstacle is reported."""
     cells = room()

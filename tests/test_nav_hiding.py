@@ -101,3 +101,28 @@ async def test_hider_nav_crash_mid_route_resumes_and_arrives(autojump_clock) -> 
         assert await wait_for(lambda: body.frames("arrived"), 120.0)
         arrived = body.frames("arrived")[0].data
         assert math.dist((arrived["x"], arrived["y"]), (250, 50)) <= 5.0
+
+
+@pytest.mark.trio
+async def test_hider_passes_a_gap_barely_wider_than_its_turning_disc(autojump_clock) -> None:
+    """A 30 cm gap: too tight for radius plus margin, passable at the turning radius alone."""
+    boxes = ((190, 0, 15, 150), (190, 180, 15, 130))  # map frame: gap y 150..180
+    truth_map = Truth(0, 0, 400, 300, boxes=boxes)
+    own = Truth(-50, -50, 350, 250, boxes=tuple((x - 50, y - 50, w, h) for x, y, w, h in boxes))
+    body = Body(truth=own)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await net(system, pool, "hider", "origin", ORIGIN)
+        await net(system, pool, "hider", "start")
+        await net(system, pool, "hider", "destination", {"x": 300.0, "y": 60.0, "heading": 270.0})
+        await trio.sleep(0.5)
+        await download(system, pool, "hider", room_map(truth_map))
+        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
+                              180.0)
+        assert body.frames("invalid_spot") == []
+        nav = system.whereis("hider/nav").actor
+        assert nav.tier == (nav.radius_cm, 0.0)  # the first tier found no path
+        true = body.pose
+        assert math.dist((true.x + 50, true.y + 50), (300, 60)) <= 5.0
+        assert nav.counters["blocked"] == 0

@@ -8,8 +8,13 @@ Algorithm
     exact on the grid: the distance from the spot to the nearest point of each
     cell's square is compared with the radius (the same test as a shapely disc
     intersecting the cells' boxes, without polygon approximation). Any
-    occupied cell touched fails the spot; then any unknown cell touched fails it
-    ("unknown ground": nobody has seen that ground). The disc must lie inside the map.
+    occupied cell touched fails the spot; then any unknown cell within the
+    body's own turning disc (without the margin) fails it ("unknown ground":
+    nobody has seen the ground the rover would stand and turn on). Unknown
+    cells only in the margin band are accepted: the margin guards against
+    mapping error at known obstacles, and the few cells a LIDAR leaves unseen
+    next to a free spot (shadows behind furniture legs) are no reason to
+    refuse it. The disc with its margin must lie inside the map.
 
     `obstacle_ahead`: the nearest occupied cell whose centre lies ahead of the
     rover (forward distance in (0, distance]) inside the cone of
@@ -115,9 +120,10 @@ def check_spot(
         nearest = float(gaps[occ].min())
         return False, (f"obstacle {nearest:.1f} cm from the spot; the rover needs {radius:.1f} cm "
                        f"to turn")
-    unk = inside & (window == UNKNOWN)
+    body = radius - margin_cm
+    unk = (gaps < body) & (window == UNKNOWN)
     if unk.any():
-        return False, f"unknown ground: {int(unk.sum())} unmapped cells within {radius:.1f} cm"
+        return False, f"unknown ground: {int(unk.sum())} unmapped cells within {body:.1f} cm"
     return True, "ok"
 
 

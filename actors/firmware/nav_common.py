@@ -98,6 +98,8 @@ class NavOptions:
     """Clearance kept from obstacles when planning [cm]."""
     spot_margin_cm: float = 5.0
     """Clearance all round a hiding spot, for turning [cm]."""
+    narrow_margin_cm: float = 2.0
+    """Clearance beyond half the body width in the last planning tier (narrow passages) [cm]."""
     replan_limit: int = 6
     """Replans after being blocked before a route is given up."""
     backoff_cm: float = 6.0
@@ -620,6 +622,8 @@ class RouteNav(NavBase):
         self.goal: tuple[float, float] | None = None
         self.goal_heading: float | None = None
         self.replans = 0
+        self.tier: tuple[float, float] | None = None
+        """(radius, margin) [cm] of the planning tier the current route used (`plan_tiers`)."""
         self._replan = False  # replan after the backoff in flight
         self._last_block: tuple[float, float] | None = None
 
@@ -681,11 +685,37 @@ class RouteNav(NavBase):
         await self._step()
         return True
 
+    def plan_tiers(self) -> tuple[tuple[float, float], ...]:
+        """(radius, margin) pairs to plan with, most cautious first [cm].
+
+        1. The turning radius plus ``plan_margin_cm``: room to turn anywhere on
+           the route, with a margin for map error.
+        2. The turning radius alone: a doorway or gap that is only a few cm
+           wider than the turning disc (a 35 cm gap leaves 17.5 cm each side of
+           its middle; radius plus margin needs 15.5 cm from the noisy edges
+           of a 5 cm grid, often not there).
+        3. Half the body width plus ``narrow_margin_cm``: a passage the rover
+           fits through driving straight. The route's turns may then touch an
+           edge; the motor reports blocked and the route is replanned.
+        """
+        r, m = self.radius_cm, self.o.plan_margin_cm
+        tiers = [(r, m), (r, 0.0), (0.5 * self.width_cm, self.o.narrow_margin_cm)]
+        out: list[tuple[float, float]] = []
+        for t in tiers:
+            if t not in out and t[0] + t[1] <= r + m:
+                out.append(t)
+        return tuple(out)
+
     def _plan(self) -> bool:
         assert self.work_map is not None and self.goal is not None
         p = self.map_pose
-        plan = plan_route(self.work_map, (p.x, p.y), self.goal, radius_cm=self.radius_cm,
-                          margin_cm=self.o.plan_margin_cm)
+        plan = None
+        for radius, margin in self.plan_tiers():
+            plan = plan_route(self.work_map, (p.x, p.y), self.goal, radius_cm=radius,
+                              margin_cm=margin)
+            if plan is not None:
+                self.tier = (radius, margin)
+                break
         if plan is None:
             self.follower = None
             return False
