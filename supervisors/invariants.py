@@ -11,8 +11,10 @@ faults and checks, in each, what must hold whatever went wrong:
   stored equals the last map the mapper put on the air (assembled from the
   chunks as they left the rover, before any link fault);
 * **honesty**: no firmware or server object holds a reference into the
-  world other than the rover's own hardware interface (the import rules of
-  tests/test_layers.py, asserted on the live objects);
+  world other than the rover's own hardware interface and the calibration
+  record it was built with (the import rules of tests/test_layers.py,
+  asserted on the live objects; a firmware actor keeping the frozen
+  `Scenario`, the room's ground truth, is caught);
 * **determinism**: the same game played twice gives the same trace hash.
 
 Each broken invariant is a `Violation` whose ``name`` says which
