@@ -1,0 +1,106 @@
+"""The console's live system: the truth overlay's registration, attached rovers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import trio
+
+from server.links import parse_link
+from server.protocol import Pose2, inverse
+from server.protocol import compose as compose_pose
+from tui.live import LiveSystem
+from tui.snapshot import FREE, OCCUPIED, GridView
+from tui.widgets.map_view import classify
+from world.scenario import load_scenario
+
+_MISSED, _FALSE = 6, 7  # map_view classes: obstacle mapped free, free mapped occupied
+
+
+def _one_cell_room(tmp_path, heading: float):
+    """A room whose only obstacle is exactly one 5 cm truth cell: x 200..205, y 150..155."""
+    path = tmp_path / "cell.toml"
+    path.write_text(f"""
+name = "cell"
+[room]
+size_cm = [400, 300]
+[[obstacles]]
+box = [200, 150, 5, 5]
+[rovers]
+mapper = [100, 50, {heading}]
+hider = [50, 250, 0]
+seeker = [350, 250, 0]
+""")
+    return load_scenario(str(path))
+
+
+@pytest.mark.parametrize("heading", [0, 90, 180, 270])
+def test_truth_overlay_puts_an_obstacle_on_the_mappers_cell_for_it(tmp_path, heading) -> None:
+    """The mapper's occupied cell for a one-cell obstacle and the truth's cell coincide:
+    same grid cell, and on screen no pixel reads "obstacle mapped free" or "free mapped
+    occupied" (a one-cell offset would show both)."""
+    scenario = _one_cell_room(tmp_path, heading)
+    live = LiveSystem(scenario)
+    s = scenario.starts["mapper"]
+    live._mapper_room = Pose2(s.x, s.y, s.heading_deg)
+    res, origin = 5.0, (-400.0, -400.0)
+    cells = np.full((160, 160), FREE, np.int8)
+    centre = compose_pose(inverse(live._mapper_room), Pose2(202.5, 152.5, 0.0))  # map frame
+    row = math.floor((centre.y - origin[1]) / res)
+    col = math.floor((centre.x - origin[0]) / res)
+    cells[row, col] = OCCUPIED
+    grid = GridView(cells, res, origin)
+
+    truth = live._truth_view(grid)
+
+    assert truth is not None and truth.shape == grid.shape and truth.origin_cm == origin
+    near = np.zeros(grid.shape, bool)  # 7 x 7 cells around it, all inside the room
+    near[row - 3:row + 4, col - 3:col + 4] = True
+    assert np.argwhere((truth.cells == OCCUPIED) & near).tolist() == [[row, col]]
+    # the screen: sample 4 points per cell around the obstacle, as the map view does
+    xs, ys = np.meshgrid(origin[0] + (np.arange(col - 5, col + 6 + 0.01, 0.25)) * res,
+                         origin[1] + (np.arange(row - 5, row + 6 + 0.01, 0.25)) * res)
+    cls = classify(grid, truth, xs + 0.01, ys + 0.01)
+    assert not np.isin(cls, [_MISSED, _FALSE]).any()
+
+
+def test_attached_rover_links_are_checked() -> None:
+    """A remote rover's ID is its role; tcp needs a listen address; only serial or tcp."""
+    scenario = load_scenario("empty")
+    with pytest.raises(ValueError, match="--rover m1: the ID of an attached rover is its role"):
+        LiveSystem(scenario, remote={"m1": parse_link("tcp")})
+    with pytest.raises(ValueError, match="a rover on tcp needs --listen tcp:HOST:PORT"):
+        LiveSystem(scenario, remote={"mapper": parse_link("tcp")})
+    with pytest.raises(ValueError, match="a rover's link is serial:PORT,BAUD or tcp, got 'sim'"):
+        LiveSystem(scenario, remote={"mapper": parse_link("sim")})
+
+
+def test_with_an_attached_rover_time_is_real_and_speed_is_refused() -> None:
+    """Speed, pause and faults on the attached rover are refused with a reason; x1 stays."""
+    scenario = load_scenario("empty")
+    live = LiveSystem(scenario, speed=16.0, remote={"mapper": parse_link("serial:/dev/x,9600")})
+    assert live.clock.rate == 1.0
+    results = []
+    live._publish = results.append
+    live._event = lambda kind, text: None
+
+    async def main() -> None:
+        async with trio.open_nursery() as nursery:
+            nursery.start_soon(live._command_loop)
+            live.set_speed(4.0)
+            live.pause()
+            live.inject_fault("mapper/lidar", "dead", None, {})
+            await trio.testing.wait_all_tasks_blocked()
+            nursery.cancel_scope.cancel()
+
+    live._system = object()  # the fault check refuses before touching the system
+    trio.run(main)
+    assert [(r.command, r.status) for r in results] == [
+        ("set_speed", "refused"), ("pause", "refused"), ("inject_fault", "refused")]
+    assert results[0].reason == ("mapper attached over a link: simulated time runs at real "
+                                 "time only (x1), no pause")
+    assert results[2].reason == ("mapper is attached over serial:/dev/x,9600: its devices and "
+                                 "actors are not simulated here")
+    assert live.clock.rate == 1.0
