@@ -25,6 +25,7 @@ from actors.firmware.nav_common import (
     NavOptions,
     PathFollower,
     plan_route,
+    shorten,
     with_obstacle,
 )
 from actors.firmware.occupancy import FREE, OCCUPIED, GridMap, OccupancyGrid
@@ -372,3 +373,11 @@ async def test_restart_reports_restarted_and_keeps_the_origin_in_memory(autojump
         await trio.sleep(2.0)
         assert [f.data["state"] for f in body.frames("status")][-1] == "restarted"
         assert body.frames("pose")[-1].data["x"] == 40.0
+
+
+def test_shorten_cuts_the_route_back_along_its_legs() -> None:
+    """A 100 + 50 cm route cut by 70 cm ends 20 cm before the corner, on the first leg."""
+    assert shorten([(100.0, 0.0), (100.0, 50.0)], (0.0, 0.0), 70.0) == [(80.0, 0.0)]
+    assert shorten([(100.0, 0.0), (100.0, 50.0)], (0.0, 0.0), 20.0) == [(100.0, 0.0),
+                                                                         (100.0, 30.0)]
+    assert shorten([(100.0, 0.0)], (0.0, 0.0), 150.0) == []

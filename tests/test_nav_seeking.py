@@ -75,3 +75,24 @@ async def test_seeker_without_ir_reports_not_found(autojump_clock) -> None:
         await begin(system, pool, {"x": HIDER[0], "y": HIDER[1]})
         assert await wait_for(lambda: body.frames("not_found"), 120.0)
         assert body.frames("found") == []
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize("guess", [(200.0, 120.0), (195.0, 150.0), (250.0, 95.0)],
+                         ids=["behind-diagonal", "behind-left", "below"])
+async def test_seeker_finds_a_hider_anywhere_within_ir_range_of_the_guess(autojump_clock,
+                                                                           guess) -> None:
+    """The hider 50-60 cm from the guess, on the far side from the seeker: the standoff
+    scan misses it, the all-round scan from the guess itself finds it."""
+    assert 50.0 <= math.dist(guess, HIDER) <= 60.0
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=ir_sees_hider)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
+        await begin(system, pool, {"x": guess[0], "y": guess[1]})
+        assert await wait_for(lambda: body.frames("found") or body.frames("not_found"), 240.0)
+        assert body.frames("not_found") == []
+        f = body.frames("found")[0].data
+        assert math.dist((f["x"], f["y"]), guess) <= 10.0  # found from the guess itself
+        statuses = [fr.data.get("detail", "") for fr in body.frames("status")]
+        assert "looking with the IR sensor all round" in statuses

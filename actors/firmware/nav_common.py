@@ -58,6 +58,7 @@ __all__ = [
     "NavBase",
     "plan_route",
     "route_points",
+    "shorten",
     "with_obstacle",
     "passable_at",
     "RouteNav",
@@ -230,6 +231,30 @@ def route_points(plan: Plan, start: tuple[float, float]) -> list[tuple[float, fl
     if len(pts) > 1 and math.dist(pts[0], start) < 1.0:
         pts = pts[1:]
     return pts
+
+
+def shorten(points: list[tuple[float, float]], start: tuple[float, float],
+            cut_cm: float) -> list[tuple[float, float]]:
+    """The polyline ``start`` -> ``points`` ending ``cut_cm`` before its end, along it [cm].
+
+    Returns:
+        The waypoints after ``start`` (the last one moved back along its leg);
+        empty when the whole polyline is shorter than ``cut_cm``.
+    """
+    pts = [start, *points]
+    remaining = sum(math.dist(a, b) for a, b in zip(pts, pts[1:], strict=False)) - cut_cm
+    if remaining <= 0:
+        return []
+    out: list[tuple[float, float]] = []
+    for a, b in zip(pts, pts[1:], strict=False):
+        leg = math.dist(a, b)
+        if leg >= remaining:
+            t = remaining / leg if leg > 0 else 0.0
+            out.append((a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])))
+            return out
+        out.append(b)
+        remaining -= leg
+    return out
 
 
 def with_obstacle(grid: GridMap, x: float, y: float, radius_cm: float) -> GridMap:
@@ -622,6 +647,8 @@ class RouteNav(NavBase):
         self.goal: tuple[float, float] | None = None
         self.goal_heading: float | None = None
         self.replans = 0
+        self.stop_short_cm = 0.0
+        """The current route ends this far before its goal [cm] (see `goto`)."""
         self.tier: tuple[float, float] | None = None
         """(radius, margin) [cm] of the planning tier the current route used (`plan_tiers`)."""
         self._replan = False  # replan after the backoff in flight
@@ -674,10 +701,16 @@ class RouteNav(NavBase):
         await self._proceed()
 
     # ------------------------------------------------------------------ routes
-    async def goto(self, goal: tuple[float, float], heading: float | None) -> bool:
-        """Plan to ``goal`` (map frame [cm]) and start driving; False when there is no path."""
+    async def goto(self, goal: tuple[float, float], heading: float | None, *,
+                   stop_short_cm: float = 0.0) -> bool:
+        """Plan to ``goal`` (map frame [cm]) and start driving; False when there is no path.
+
+        ``stop_short_cm`` ends the route that far before the goal, along the path
+        (the seeker's approach to a place where the hider may stand) [cm].
+        """
         assert self.work_map is not None
         self.goal, self.goal_heading = goal, heading
+        self.stop_short_cm = stop_short_cm
         self.replans = 0
         if not self._plan():
             return False
@@ -722,6 +755,8 @@ class RouteNav(NavBase):
         pts = route_points(plan, (p.x, p.y))
         if plan.goal_snapped:
             pts.append(self.goal)  # the goal itself; the spot check vouched for it
+        if self.stop_short_cm > 0:
+            pts = shorten(pts, (p.x, p.y), self.stop_short_cm) or [(p.x, p.y)]
         self.follower = PathFollower(pts, self.goal_heading, self.o)
         self._budget = self.follower.budget(p)
         return True

@@ -1,18 +1,31 @@
-"""Seeking navigation: drive near the place to look, face it, confirm with the IR sensor.
+"""Seeking navigation: look from near the place, then from the place itself, with the IR sensor.
 
 Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
 
     ready --destination (x, y)--> driving to a standoff point, facing (x, y)
-        --arrived, or blocked within ``near_cm`` of (x, y)--> confirming
-    confirming: at each heading of the scan (facing, +20, +40, -20, -40 [deg]),
-        wait ``settle_s`` and up to ``ir_wait_s`` for NAV_IR in range
+        --arrived, or blocked within ``near_cm`` of (x, y)--> confirming (standoff scan)
+    standoff scan: at each heading (facing, +20, -20, +40, -40 [deg]) wait
+        ``settle_s`` and up to ``ir_wait_s`` for NAV_IR in range
         --in range--> found: ``found {pose}``
-        --scan over--> ``not_found {reason}``, ready for the next guess
+        --scan over--> approaching the place itself (stopping ``close_cm`` short)
+            --arrived, or blocked within ``near_cm`` (the hider, most likely)-->
+            confirming (all-round scan: facing, +-20, +-40, then on round
+            in ``all_round_step_deg`` steps)
+                --in range--> found
+                --scan over--> ``not_found {reason}``, ready for the next guess
 
-Standoff: the hider stands at (x, y), so the seeker cannot drive there; it
-stops ``standoff_cm`` away (centre to centre), on a passable point of the map
+Standoff: the hider may stand at (x, y), so the seeker first stops
+``standoff_cm`` away (centre to centre), on a passable point of the map
 (tried on rings of several radii, nearest to the seeker first), and turns to
 face (x, y): the IR sensor sees about 60 cm from the nose within +-20 deg.
+
+Why the second stage: a guess is "within IR range" of the hider when the
+hider stands anywhere within that range of (x, y), on any side. From a
+standoff point on the near side the far side is out of range; from (x, y)
+itself, turning in place, every such spot is seen (the nose is then at most
+the range minus half the body length from the hider's centre). Steps of
+20 [deg] keep a hider close by inside the +-20 [deg] field of view as seen
+from the nose, not just from the centre.
 
 Frame: destination and reports in the map frame [cm, deg].
 """
@@ -48,8 +61,24 @@ class SeekingOptions:
     """Wait after each turn before trusting the IR decision [s]."""
     ir_wait_s: float = 1.5
     """Longest wait for "in range" at one heading [s]."""
-    scan_deg: tuple[float, ...] = (0.0, 20.0, 40.0, -20.0, -40.0)
-    """Headings to check, relative to facing the place [deg]."""
+    scan_deg: tuple[float, ...] = (0.0, 20.0, -20.0, 40.0, -40.0)
+    """Headings to check from the standoff, relative to facing the place [deg]."""
+    close_cm: float = 5.0
+    """The approach to the place itself stops this short of it [cm]."""
+    all_round_step_deg: float = 20.0
+    """Step of the all-round scan from the place [deg]."""
+
+    def all_round_deg(self) -> tuple[float, ...]:
+        """The all-round scan's headings relative to facing the place [deg]: the
+        standoff scan's first, then on round in one direction (short turns)."""
+        first = list(self.scan_deg)
+        out = list(first)
+        step = self.all_round_step_deg
+        a = max(first, default=0.0) + step
+        while a < 360.0 + min(first, default=0.0) - step / 2:
+            out.append(a)
+            a += step
+        return tuple(out)
 
 
 class SeekingNav(RouteNav):
@@ -66,7 +95,10 @@ class SeekingNav(RouteNav):
         """Where to look (map frame [cm])."""
         self.ir = False
         """The IR actor's latest decision."""
+        self.stage = "standoff"
+        """``standoff`` (looking from near the place) or ``close`` (from the place itself)."""
         self._ir_at = -math.inf
+        self._scan: tuple[float, ...] = ()  # headings of the scan in progress [deg], map frame
         self._scan_index = 0
         self._check_from = math.inf
         self._check_until = math.inf
@@ -74,13 +106,31 @@ class SeekingNav(RouteNav):
     # ------------------------------------------------------------------ approach
     async def on_goal(self, x: float, y: float, heading: float | None) -> None:
         self.place = (x, y)
-        if math.dist((self.map_pose.x, self.map_pose.y), self.place) <= self.s.near_cm:
+        self.stage = "standoff"
+        if self._distance() <= self.s.near_cm:
             await self._confirm()
             return
         for point in self._standoff_points():
             face = math.degrees(math.atan2(y - point[1], x - point[0]))
             if await self.goto(point, face):
                 return
+        await self._approach()
+
+    def _distance(self) -> float:
+        assert self.place is not None
+        return math.dist((self.map_pose.x, self.map_pose.y), self.place)
+
+    async def _approach(self) -> None:
+        """Second stage: drive to the place itself, then scan all round."""
+        assert self.place is not None
+        self.stage = "close"
+        if self._distance() <= self.s.close_cm + self.o.goal_tol_cm:
+            await self._confirm()
+            return
+        if await self.goto(self.place, None, stop_short_cm=self.s.close_cm):
+            await self.set_state("approaching", "to the place itself")
+            return
+        x, y = self.place
         await self._not_found(f"no reachable point near ({x:.0f}, {y:.0f})")
 
     def _standoff_points(self) -> list[tuple[float, float]]:
@@ -100,8 +150,7 @@ class SeekingNav(RouteNav):
         return out[:self.s.max_plans]
 
     async def on_blocked(self) -> bool:
-        if self.place is not None and math.dist((self.map_pose.x, self.map_pose.y),
-                                                self.place) <= self.s.near_cm:
+        if self.place is not None and self._distance() <= self.s.near_cm:
             self.follower = None  # likely the hider itself: look from here
             await self._confirm()
             return True
@@ -111,19 +160,29 @@ class SeekingNav(RouteNav):
         await self._confirm()
 
     async def on_route_failed(self, reason: str) -> None:
-        await self._not_found(f"cannot get near the place: {reason}")
+        if self.stage == "standoff":
+            await self._approach()
+        else:
+            await self._not_found(f"cannot get near the place: {reason}")
 
     # ------------------------------------------------------------------ IR confirmation
     async def _confirm(self) -> None:
-        await self.set_state("confirming", "looking with the IR sensor")
-        self._scan_index = 0
-        await self._face(0.0)
-
-    async def _face(self, offset: float) -> None:
         assert self.place is not None
+        await self.set_state("confirming", "looking with the IR sensor"
+                             + (" all round" if self.stage == "close" else ""))
         p = self.map_pose
-        bearing = math.degrees(math.atan2(self.place[1] - p.y, self.place[0] - p.x))
-        turn = angle_diff_deg(bearing + offset, p.heading_deg)
+        if self._distance() > 2.0 * self.o.goal_tol_cm:
+            base = math.degrees(math.atan2(self.place[1] - p.y, self.place[0] - p.x))
+        else:
+            base = p.heading_deg  # standing on the place: no bearing to it
+        offsets = self.s.all_round_deg() if self.stage == "close" else self.s.scan_deg
+        self._scan = tuple(base + o for o in offsets)
+        self._scan_index = 0
+        await self._face(self._scan[0])
+
+    async def _face(self, heading: float) -> None:
+        p = self.map_pose
+        turn = angle_diff_deg(heading, p.heading_deg)
         if abs(turn) <= self.o.heading_tol_deg:
             self._start_check()
         else:
@@ -152,10 +211,12 @@ class SeekingNav(RouteNav):
         if now >= self._check_until:
             self._check_until = math.inf
             self._scan_index += 1
-            if self._scan_index >= len(self.s.scan_deg):
-                await self._not_found("the IR sensor saw nothing there")
+            if self._scan_index < len(self._scan):
+                await self._face(self._scan[self._scan_index])
+            elif self.stage == "standoff":
+                await self._approach()
             else:
-                await self._face(self.s.scan_deg[self._scan_index])
+                await self._not_found("the IR sensor saw nothing there")
 
     async def _check(self) -> bool:
         now = trio.current_time()
