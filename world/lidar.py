@@ -3,9 +3,11 @@
 Rotation: ``rev_s = pwm * lidar_rev_s_full_pwm``; ``lidar_samples_per_rev``
 samples per revolution at whole multiples of 360/N degrees (1 deg by default),
 angles counted counter-clockwise from the rover's heading. The samples of one
-tick are cast together, from the rover's pose at the end of the tick, against
-the walls, obstacles and the other rovers' bodies. Range noise is gaussian,
-then the distance is quantised (2 cm); beyond range is 0 ("no return").
+tick are cast together as one fan (`world.raycast.FanCaster`), from the
+rover's pose at the end of the tick, against the walls, obstacles and the other
+rovers' bodies, and framed from precomputed tables (`world.packets.LidarFramer`).
+Range noise is gaussian, then the distance is quantised (2 cm); beyond range is
+0 ("no return").
 
 UART: ``lidar_baud / 10`` bytes/s; packets that do not fit in a tick's budget
 are dropped whole and counted in ``dropped_bytes``.
@@ -15,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from world.packets import LIDAR_PACKET_SIZE
+from world.packets import LIDAR_PACKET_SIZE, LidarFramer
 from world.params import DeviceParams
-from world.raycast import cast_rays, cull_to_wedge
+from world.raycast import TWO_PI, FanCaster
 
 #: at most this many samples in one tick (bounds a silly PWM or tick)
 MAX_SAMPLES_PER_TICK = 4096
@@ -37,11 +39,13 @@ class Lidar:
         """Bytes the UART could not carry (cumulative)."""
         self.samples = 0
         """Samples taken (cumulative)."""
+        self._framer = LidarFramer(params.lidar_samples_per_rev, MAX_SAMPLES_PER_TICK)
 
-    def due(self, dt: float, stuck: bool) -> np.ndarray:
-        """Angle indices sampled during the next ``dt`` [s]; advances the rotation.
+    def due(self, dt: float, stuck: bool) -> tuple[int, int]:
+        """The samples taken during the next ``dt`` [s]: (first angle index, count).
 
-        A stuck rotor keeps sampling at the commanded rate, all at one angle.
+        Advances the rotation; consecutive samples are one index apart. A stuck
+        rotor keeps sampling at the commanded rate, all at index ``first``.
         """
         rate = self.pwm * self.p.lidar_rev_s_full_pwm * self.p.lidar_samples_per_rev
         self._sample_acc += rate * dt
@@ -49,41 +53,39 @@ class Lidar:
         self._sample_acc -= n
         if self._sample_acc > MAX_SAMPLES_PER_TICK:
             self._sample_acc = 0.0
-        if n == 0:
-            return np.zeros(0, dtype=np.int64)
-        spr = self.p.lidar_samples_per_rev
-        if stuck:
-            idx = np.full(n, self.index % spr, dtype=np.int64)
-        else:
-            idx = (self.index + np.arange(n)) % spr
-            self.index = (self.index + n) % spr
+        first = self.index
+        if n and not stuck:
+            self.index = (self.index + n) % self.p.lidar_samples_per_rev
         self.samples += n
-        return idx
+        return first, n
 
-    def measure(self, idx: np.ndarray, pose: tuple[float, float, float], segments: np.ndarray,
-                noise: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Cast the samples: (angles [0.01 deg], distances [cm], 0 = no return).
+    def measure(self, first: int, n: int, stuck: bool, pose: tuple[float, float, float],
+                caster: FanCaster, noise: np.ndarray) -> np.ndarray:
+        """Cast ``n`` samples from angle index ``first``: distances [cm], 0 = no return.
 
         Args:
-            idx: angle indices from `due`.
+            first: angle index of the first sample (from `due`).
+            n: number of samples.
+            stuck: all samples are at ``first`` (one ray is cast).
             pose: x, y [cm], heading [rad] of the rover.
-            segments: everything a ray can hit, (N, 4) [cm].
+            caster: the room's geometry with the other rovers' bodies placed.
             noise: standard normal draws, one per sample (scaled here).
         """
-        spr = self.p.lidar_samples_per_rev
-        step = 2.0 * np.pi / spr
+        step = TWO_PI / self.p.lidar_samples_per_rev
         x, y, heading = pose
-        first = int(idx[0])
-        span = ((int(idx[-1]) - first) % spr) * step
-        if span < 0.9 * np.pi and (len(idx) < 2 or int(idx[1]) == (first + 1) % spr
-                                 or span == 0.0):
-            segments = cull_to_wedge((x, y), heading + first * step, span, segments)
-        dist = cast_rays((x, y), heading + idx * step, segments, self.p.lidar_range_cm)
+        start = heading + first * step
+        if stuck:
+            dist = np.repeat(caster.cast_fan((x, y), start, step, 1, self.p.lidar_range_cm), n)
+        else:
+            dist = caster.cast_fan((x, y), start, step, n, self.p.lidar_range_cm)
         q = self.p.lidar_quantum_cm
         hit = np.isfinite(dist)
         d = np.where(hit, np.maximum(q, np.round((dist + noise) / q) * q), 0.0)
-        return idx * (36000 // spr) if 36000 % spr == 0 else np.round(
-            idx * (36000.0 / spr)).astype(np.int64), d.astype(np.int64)
+        return d.astype(np.int64)
+
+    def frames(self, first: int, distances_cm: np.ndarray, stuck: bool) -> bytes:
+        """Data Packet A bytes of the samples `measure` returned."""
+        return self._framer.frames(first, distances_cm, same_angle=stuck)
 
     def uart(self, frames: bytes, dt: float) -> bytes:
         """Pass a tick's bytes through the UART budget, dropping whole packets beyond it."""

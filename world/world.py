@@ -27,9 +27,9 @@ from world.geometry import Pose, boundary_segments, room_segments
 from world.hardware import INT_A, INT_B, INT_C, INT_D, INT_E, SimRoverHardware
 from world.ir import IrSensor, to_adc
 from world.lidar import Lidar
-from world.packets import encode_lidar_packets
 from world.params import ROLES, RoverSpec
 from world.physics import DEFAULT_SUBSTEP_S, Physics
+from world.raycast import FanCaster
 from world.scenario import Scenario, ScheduledFault
 from world.wifly import WiflyLink
 
@@ -87,7 +87,7 @@ class World:
         self._prev = {r: self.physics.state(r) for r in ROLES}
         self._now = dict(self._prev)
         # everything a LIDAR ray can hit: static walls then the hider's and seeker's bodies
-        self._segs = np.vstack([self._static, np.zeros((8, 4))])
+        self._caster = FanCaster(self._static, boxes=2)
 
     # ------------------------------------------------------------------ public API
 
@@ -213,21 +213,21 @@ class World:
 
     def _lidar_tick(self, dt: float) -> None:
         lidar = self.lidar
-        idx = lidar.due(dt, stuck=self._faults.find("mapper", "lidar", "stuck") is not None)
-        if len(idx) == 0 or self._faults.find("mapper", "lidar", "dead"):
+        faults = self._faults
+        stuck = bool(faults) and faults.find("mapper", "lidar", "stuck") is not None
+        first, n = lidar.due(dt, stuck)
+        if n == 0 or (faults and faults.find("mapper", "lidar", "dead")):
             return
         sigma = self.params.lidar_noise_cm
-        f = self._faults.find("mapper", "lidar", "noisy")
+        f = faults.find("mapper", "lidar", "noisy") if faults else None
         if f:
             sigma = math.hypot(sigma, f.params["sigma_cm"])
-        noise = self.rng.standard_normal(len(idx)) * sigma
-        n = len(self._static)
-        for k, r in enumerate(("hider", "seeker")):
-            self._segs[n + 4 * k:n + 4 * k + 4] = _box_segments(
-                self._now[r], self.params.length_cm, self.params.width_cm)
-        angles, dist = lidar.measure(idx, self._now["mapper"], self._segs, noise)
-        frames = encode_lidar_packets(angles, dist)
-        if self._faults.find("mapper", "lidar", "garbage"):
+        noise = self.rng.standard_normal(n) * sigma
+        p = self.params
+        self._caster.set_boxes((self._now["hider"], self._now["seeker"]), p.length_cm, p.width_cm)
+        dist = lidar.measure(first, n, stuck, self._now["mapper"], self._caster, noise)
+        frames = lidar.frames(first, dist, stuck)
+        if faults and faults.find("mapper", "lidar", "garbage"):
             frames = self.rng.integers(0, 256, len(frames), dtype=np.uint8).tobytes()
         frames = lidar.uart(frames, dt)
         handler = self._hw["mapper"].handlers.get(INT_A)
@@ -326,17 +326,6 @@ class World:
         if role not in ROLES:
             raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
         return role
-
-
-def _box_segments(state: tuple[float, float, float], length: float,
-                  width: float) -> list[tuple[float, float, float, float]]:
-    """The four edges of a rover body at (x, y [cm], heading [rad]) as segments."""
-    x, y, a = state
-    c, s = math.cos(a), math.sin(a)
-    hl, hw = length / 2, width / 2
-    pts = [(x + c * u - s * v, y + s * u + c * v)
-           for u, v in ((hl, hw), (-hl, hw), (-hl, -hw), (hl, -hw))]
-    return [(*pts[i], *pts[(i + 1) % 4]) for i in range(4)]
 
 
 async def run_world(world: World, stop_at: float | None = None) -> None:
