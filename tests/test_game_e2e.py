@@ -8,7 +8,9 @@ import json
 import trio
 
 from actors import seed_trio_scheduler, virtual_clock
-from supervisors.headless import GameReport, run_game
+from server.store import Store
+from supervisors.headless import Budget, GameReport, finish_report, play_game, run_game
+from supervisors.system import open_sim_system
 from tui.cli import main
 from world.scenario import ScheduledFault, load_scenario
 
@@ -50,6 +52,53 @@ def test_actor_crash_and_hang_mid_game_are_recovered() -> None:
     assert report.outcome == "found", report.reason
     assert report.restarts >= 3
     assert report.faults == 3
+
+
+def test_crash_and_hang_injected_in_each_phase_are_recovered_and_the_hider_found() -> None:
+    """Faults timed by the game's phase, not the clock: a mapper/nav crash while mapping,
+    a hider/motor hang while the hider drives, a seeker/nav crash while seeking. Each
+    restarts its actor (watchdog for the hang), and the game still ends found."""
+    scenario = load_scenario("empty")
+    plan = {"mapping": [(20.0, "mapper/nav", "crash", 0.0)],
+            "hiding": [(3.0, "hider/motor", "hang", 3.0)],
+            "seeking": [(4.0, "seeker/nav", "crash", 0.0)]}
+    injected: list[tuple[str, str, str]] = []
+    exits: dict[str, str] = {}  # how each target's last incarnation exited
+
+    async def inject_by_phase(system) -> None:
+        done: set[str] = set()
+        while True:
+            phase = str(system.server.game.phase)
+            if phase in plan and phase not in done:
+                done.add(phase)
+                for delay, target, kind, seconds in plan[phase]:
+                    await trio.sleep(delay)
+                    system.inject_fault(target, kind, seconds)
+                    injected.append((str(system.server.game.phase), target, kind))
+            await trio.sleep(0.2)
+
+    async def main() -> GameReport:
+        report = GameReport(scenario.name, 1)
+        with Store(":memory:") as store:
+            async with open_sim_system(scenario, seed=1, store=store) as system:
+                t0 = trio.current_time()
+                async with trio.open_nursery() as nursery:
+                    nursery.start_soon(inject_by_phase, system)
+                    await play_game(system, report, Budget())
+                    nursery.cancel_scope.cancel()
+                finish_report(report, system, t0)
+                for name in ("mapper/nav", "hider/motor", "seeker/nav"):
+                    exits[name] = str(system.actors.whereis(name).last_exit.kind)
+        return report
+
+    seed_trio_scheduler(1)
+    report = trio.run(main, clock=virtual_clock())
+    assert injected == [("mapping", "mapper/nav", "crash"), ("hiding", "hider/motor", "hang"),
+                        ("seeking", "seeker/nav", "crash")]
+    assert report.outcome == "found", report.reason
+    assert report.restarts >= 3
+    assert report.faults == 3
+    assert exits == {"mapper/nav": "crash", "hider/motor": "hung", "seeker/nav": "crash"}
 
 
 def test_run_command_prints_json_and_exits_by_outcome(capsys) -> None:
