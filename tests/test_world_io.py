@@ -2,9 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from world.geometry import Pose, footprint
+from world.ir import IR_EDGE, IrSensor
+from world.params import DeviceParams
 from world.scenario import parse_scenario
 from world.world import World
 
@@ -50,6 +58,28 @@ def test_ir_is_high_with_the_hider_in_front_and_low_otherwise() -> None:
     _, away = ir_samples(world, 50, 1.0)
     assert np.mean(away) < 400
     assert all(0 <= s <= 4095 for s in samples + away)
+
+
+@settings(max_examples=150, deadline=None)
+@given(dx=st.floats(-90, 90), dy=st.floats(-90, 90), seeker_deg=st.floats(-360, 360),
+       hider_deg=st.floats(-360, 360))
+def test_ir_level_follows_the_distance_from_the_nose_to_the_hiders_body(
+        dx: float, dy: float, seeker_deg: float, hider_deg: float) -> None:
+    """The level is the documented function of the shapely distance nose -> body, within the FOV."""
+    p = DeviceParams()
+    seeker = (100.0, 100.0, math.radians(seeker_deg))
+    hider = (100.0 + dx, 100.0 + dy, math.radians(hider_deg))
+    got = IrSensor(p).reading(seeker, hider, 0.0)
+    nose = (100.0 + math.cos(seeker[2]) * 10.0, 100.0 + math.sin(seeker[2]) * 10.0)
+    body = footprint(Pose(hider[0], hider[1], hider_deg), p.length_cm, p.width_cm)
+    d = shapely.distance(shapely.Point(nose), body)
+    bearing = math.degrees(math.atan2(hider[1] - nose[1], hider[0] - nose[0])) - seeker_deg
+    in_view = abs((bearing + 180.0) % 360.0 - 180.0) <= p.ir_fov_deg
+    if in_view and d <= p.ir_range_cm:
+        assert got == pytest.approx(p.ir_high - (p.ir_high - IR_EDGE) * d / p.ir_range_cm,
+                                    abs=1e-6)
+    elif not in_view or d > p.ir_range_cm + 1e-9:
+        assert got == p.ir_low
 
 
 def test_ir_is_low_beyond_range() -> None:

@@ -12,9 +12,6 @@ from __future__ import annotations
 
 import math
 
-import shapely
-
-from world.geometry import Pose, footprint
 from world.params import DeviceParams
 
 ADC_MAX = 4095
@@ -53,17 +50,30 @@ class IrSensor:
         self._phase -= int(self._phase)
         return n
 
-    def reading(self, seeker: Pose, hider: Pose, noise: float) -> float:
-        """Noise-free-plus-``noise`` analogue value before clipping [counts]."""
+    def reading(self, seeker: tuple[float, float, float], hider: tuple[float, float, float],
+                noise: float) -> float:
+        """Noise-free-plus-``noise`` analogue value before clipping [counts].
+
+        Args:
+            seeker: the seeker's x, y [cm] and heading [rad].
+            hider: the hider's x, y [cm] and heading [rad].
+            noise: added to the level [counts].
+        """
         p = self.p
-        h = math.radians(seeker.heading_deg)
-        nose = (seeker.x + math.cos(h) * p.length_cm / 2, seeker.y + math.sin(h) * p.length_cm / 2)
-        bearing = math.degrees(math.atan2(hider.y - nose[1], hider.x - nose[0]) - h)
+        sx, sy, sa = seeker
+        hx, hy, ha = hider
+        nose_x = sx + math.cos(sa) * p.length_cm / 2
+        nose_y = sy + math.sin(sa) * p.length_cm / 2
+        dx, dy = hx - nose_x, hy - nose_y
+        bearing = math.degrees(math.atan2(dy, dx) - sa)
         bearing = (bearing + 180.0) % 360.0 - 180.0
         level = p.ir_low
         if abs(bearing) <= p.ir_fov_deg:
-            body = footprint(hider, p.length_cm, p.width_cm)
-            d = shapely.distance(shapely.Point(nose), body)
+            # distance from the nose to the hider's body: the nose in the body's frame
+            c, s = math.cos(ha), math.sin(ha)
+            along = abs(-dx * c - dy * s) - p.length_cm / 2
+            across = abs(dx * s - dy * c) - p.width_cm / 2
+            d = math.hypot(max(along, 0.0), max(across, 0.0))
             if d <= p.ir_range_cm:
                 level = p.ir_high - (p.ir_high - IR_EDGE) * d / max(p.ir_range_cm, 1e-9)
         return level + noise

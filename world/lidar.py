@@ -79,8 +79,12 @@ class Lidar:
         else:
             dist = caster.cast_fan((x, y), start, step, n, self.p.lidar_range_cm)
         q = self.p.lidar_quantum_cm
-        hit = np.isfinite(dist)
-        d = np.where(hit, np.maximum(q, np.round((dist + noise) / q) * q), 0.0)
+        d = dist + noise
+        d *= 1.0 / q
+        np.rint(d, out=d)
+        np.maximum(d, 1.0, out=d)  # a hit never reads 0 ("no return")
+        d *= q
+        d[np.isinf(dist)] = 0.0
         return d.astype(np.int64)
 
     def frames(self, first: int, distances_cm: np.ndarray, stuck: bool) -> bytes:

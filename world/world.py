@@ -249,7 +249,7 @@ class World:
             return
         ir.adc_pending = False
         noise = self.rng.standard_normal() * self.params.ir_noise
-        value = ir.reading(self.physics.pose("seeker"), self.physics.pose("hider"), noise)
+        value = ir.reading(self._now["seeker"], self._now["hider"], noise)
         if self._faults.find("seeker", "ir", "stuck_high"):
             value = 4095
         elif self._faults.find("seeker", "ir", "stuck_low"):
