@@ -35,7 +35,14 @@ class Cmd(enum.IntEnum):
     """Motor control loop period elapsed (self-timer); value unused."""
 
     MOTOR_GET_POSE = 0x0105
-    """Publish the current dead-reckoned pose to the pose subscribers now (after a restart)."""
+    """Publish the current dead-reckoned pose to the pose subscribers now (after a restart);
+    on the mapper also the map-frame correction to Map Management (MAP_CORRECTION_*)."""
+    MOTOR_CORRECT_XY = 0x0106
+    """Map Management's odometry -> map frame correction (scan matching), translation;
+    value int16 pair (x, y) [mm]. Always followed by MOTOR_CORRECT_HEADING."""
+    MOTOR_CORRECT_HEADING = 0x0107
+    """The correction's rotation; value float32 [deg]. Navigation's pose is the
+    correction composed with the dead-reckoned pose from then on."""
 
     # -- Navigation queue --------------------------------------------------
     NAV_POSE_XY = 0x0200
@@ -89,6 +96,11 @@ class Cmd(enum.IntEnum):
     MAP_RESTORE = 0x0402
     """Seed the grid after a restart: value handle of a `GridMap` (navigation's last copy).
     Cells the new grid has not observed yet take the snapshot's class."""
+    MAP_CORRECTION_XY = 0x0403
+    """Motor Control's copy of the map-frame correction (after Map Management restarted),
+    translation; value int16 pair (x, y) [mm]. Always followed by MAP_CORRECTION_HEADING."""
+    MAP_CORRECTION_HEADING = 0x0404
+    """The correction's rotation; value float32 [deg]."""
 
     # -- WiFly queue -------------------------------------------------------
     WIFLY_RX = 0x0500
