@@ -29,7 +29,8 @@ async def test_map_management_rate_limits_updates_and_counts_scans(autojump_cloc
     pool, log = BufferPool(64), []
     spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
                            ChildSpec("map", lambda: MapManagement(pool, size_cm=(400, 400),
-                                                                  publish_s=0.25))])
+                                                                  publish_s=0.25,
+                                                                  matching=None))])
     async with open_actor_system(1) as system:
         await system.start_supervisor(spec, "mapper")
         for _ in range(10):
@@ -133,3 +134,108 @@ async def test_flood_of_noops_costs_dropped_messages_not_restarts(autojump_clock
         assert lidar_holder[-1].dropped_scans >= 1  # what did not fit was dropped...
         assert live_map.scans >= 9  # ...and scanning resumed after the flood
         assert pool.statistics().in_use == 0  # every dropped scan gave its slot back
+
+
+def _stray_walls(before: np.ndarray, after: np.ndarray) -> int:
+    """Occupied cells of ``after`` more than one cell from every occupied cell of ``before``."""
+    occ = np.pad(before == 100, 1)
+    near = np.zeros_like(before, dtype=bool)
+    ny, nx = before.shape
+    for dr in (0, 1, 2):
+        for dc in (0, 1, 2):
+            near |= occ[dr:dr + ny, dc:dc + nx]
+    return int(np.count_nonzero((after == 100) & ~near))
+
+
+def _room_scans(pose_true, n: int = 120):
+    """A box-room scan taken at ``pose_true`` (ranges from the true pose)."""
+    from .test_scan_match import ray_scan, room_map
+    return ray_scan(room_map(), pose_true, n)
+
+
+@pytest.mark.trio
+async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_clock) -> None:
+    """Odometry says 4 deg more than the truth: the scan is registered onto the walls the
+    reference scans drew, the correction (about -4 deg) goes to Motor Control, and the wall
+    stays one band thick instead of being drawn twice."""
+    from actors.firmware.odometry import Pose
+
+    pool, log, motor_log = BufferPool(64), [], []
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
+                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
+                                                                  warmup_scans=3))])
+    truth = Pose(120.0, 80.0, 0.0)
+    a, r = _room_scans(truth)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):  # the reference, at the true pose
+            system.send_nowait("mapper/map", Message.handle(
+                Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
+        await trio.sleep(0.6)
+        mm = system.whereis("mapper/map").actor
+        before = mm.grid.cells()
+        odom = Pose(truth.x, truth.y, truth.heading_deg + 4.0)
+        for _ in range(3):
+            system.send_nowait("mapper/map", Message.handle(
+                Cmd.MAP_SCAN, pool.put(Scan(odom, a.astype(np.float32), r.astype(np.float32)))))
+            await trio.sleep(0.3)
+        assert mm.matched >= 1
+        assert mm.correction.heading_deg == pytest.approx(-4.0, abs=0.7)
+        after = mm.grid.cells()
+        assert _stray_walls(before, after) == 0  # no second wall
+        xy = [p for c, p in motor_log if c == Cmd.MOTOR_CORRECT_XY]
+        heading = [p for c, p in motor_log if c == Cmd.MOTOR_CORRECT_HEADING]
+        assert xy and heading[-1] == pytest.approx(mm.correction.heading_deg, abs=1e-3)
+
+
+@pytest.mark.trio
+async def test_without_matching_a_heading_error_draws_a_second_wall(autojump_clock) -> None:
+    """The same scans with matching off: the map grows a rotated copy of the walls (the
+    failure the matching prevents)."""
+    from actors.firmware.odometry import Pose
+
+    pool, log = BufferPool(64), []
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
+                                                                  matching=None))])
+    truth = Pose(120.0, 80.0, 0.0)
+    a, r = _room_scans(truth)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for pose in [truth] * 3 + [Pose(truth.x, truth.y, 4.0)] * 3:
+            system.send_nowait("mapper/map", Message.handle(
+                Cmd.MAP_SCAN, pool.put(Scan(pose, a.astype(np.float32), r.astype(np.float32)))))
+            await trio.sleep(0.3)
+            if pose is truth:
+                before = system.whereis("mapper/map").actor.grid.cells()
+        after = system.whereis("mapper/map").actor.grid.cells()
+        assert _stray_walls(before, after) > 10
+
+
+@pytest.mark.trio
+async def test_restarted_map_takes_the_correction_back_from_motor(autojump_clock) -> None:
+    """A restarted Map Management asks Motor Control (MOTOR_GET_POSE), drops scans until
+    MAP_CORRECTION_* arrives, then uses that correction."""
+    from actors.firmware.odometry import Pose
+
+    pool, log, motor_log = BufferPool(64), [], []
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
+                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(400, 400),
+                                                                  restarted=True))])
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        await trio.sleep(0.01)
+        assert (Cmd.MOTOR_GET_POSE, 0) in motor_log
+        system.send_nowait("mapper/map", Message.handle(Cmd.MAP_SCAN, pool.put(ring_scan())))
+        await trio.sleep(0.01)
+        mm = system.whereis("mapper/map").actor
+        assert mm.held_scans == 1 and mm.scans == 0
+        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_CORRECTION_XY, 125, -40))
+        system.send_nowait("mapper/map", Message.float(Cmd.MAP_CORRECTION_HEADING, 2.5))
+        system.send_nowait("mapper/map", Message.handle(Cmd.MAP_SCAN, pool.put(ring_scan())))
+        await trio.sleep(0.01)
+        assert mm.correction == Pose(12.5, -4.0, 2.5)
+        assert mm.scans == 1
+        assert pool.statistics().in_use == 0

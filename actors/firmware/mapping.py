@@ -10,12 +10,28 @@ whenever scans arrived, changed or not, so navigation can tell "map unchanged
 while scans keep arriving" from "LIDAR stalled". ``MAP_GET`` publishes both
 at once.
 
+Scan matching (why: see `scan_match`)
+    Scans come stamped with the raw odometry pose. Each batch is placed at
+    ``correction (+) odometry`` and, once the first ``warmup_scans`` batches
+    made a reference, registered against the obstacle surfaces of the map
+    built so far; an accepted match updates the correction (odometry -> map
+    frame). The matching fields are rebuilt from the grid at most every
+    ``fields_s``. The correction goes to Motor Control (``MOTOR_CORRECT_XY`` +
+    ``MOTOR_CORRECT_HEADING``) with the published updates, so navigation's
+    pose is in the map frame.
+
 Restart: the grid is lost with the incarnation (it is the thread's working
 memory). The new incarnation starts empty, integrates scans from then on and
 tells navigation ``NAV_MAP_LOST``; navigation may answer ``MAP_RESTORE`` with
 the last snapshot it received, whose known cells seed the cells the new grid
 has not observed yet (what was seen since the restart wins). The scan count
-starts again from 0 (``NAV_MAP_LOST`` tells navigation so).
+starts again from 0 (``NAV_MAP_LOST`` tells navigation so). The correction
+is asked back from Motor Control (``MOTOR_GET_POSE`` answers with
+``MAP_CORRECTION_XY`` + ``MAP_CORRECTION_HEADING``); scans arriving before it
+(at most ``_CORRECTION_WAIT_S``) are dropped, not placed in the wrong frame.
+
+Flood: ``NOOP`` is ignored (counted in `noops`), so a flood fault costs
+queue slots and dropped scans, never a restart.
 """
 
 from __future__ import annotations
@@ -26,9 +42,15 @@ import trio
 from actors import Actor, BufferPool, Message, PoolExhausted
 
 from .commands import Cmd
+from .lidar import Scan
 from .occupancy import FREE, OCCUPIED, UNKNOWN, GridMap, OccupancyGrid
+from .odometry import Pose, compose, inverse
+from .scan_match import MatchFields, MatchOptions, hits_to_local, match_scan
 
 __all__ = ["MapManagement"]
+
+_MATCH = MatchOptions()  # immutable default
+_CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for Motor's copy of the correction
 
 
 class MapManagement(Actor):
@@ -40,11 +62,15 @@ class MapManagement(Actor):
         resolution_cm: cell side [cm].
         publish_s: at most one map update per this much sim time [s].
         restarted: True for an incarnation after the first (sends NAV_MAP_LOST).
+        matching: scan-to-map matching options; None turns matching off.
+        fields_s: rebuild the matching fields from the grid at most this often [s].
+        warmup_scans: integrate this many batches unmatched first (the reference).
     """
 
     def __init__(self, pool: BufferPool, *, size_cm: tuple[float, float] = (2400.0, 2400.0),
                  resolution_cm: float = 5.0, publish_s: float = 0.25,
-                 restarted: bool = False) -> None:
+                 restarted: bool = False, matching: MatchOptions | None = _MATCH,
+                 fields_s: float = 0.5, warmup_scans: int = 8) -> None:
         self.pool = pool
         self.grid = OccupancyGrid(size_cm[0], size_cm[1], resolution_cm)
         self.publish_s = publish_s
@@ -57,6 +83,23 @@ class MapManagement(Actor):
         """Snapshots navigation's queue or the pool refused (the next one supersedes)."""
         self.noops = 0
         """NOOP messages ignored (what a flood fault posts)."""
+        self.matching = matching
+        self.fields_s = fields_s
+        self.warmup_scans = warmup_scans
+        self.correction = Pose()
+        """Odometry frame -> map frame, from scan matching (identity until a match)."""
+        self.matched = 0
+        """Scan batches placed by a match (the others at the corrected odometry pose)."""
+        self._fields: MatchFields | None = None
+        self._fields_at = -float("inf")
+        self._fields_stale = True  # the grid changed since the fields were built
+        self._last_odom: Pose | None = None  # odometry pose of the last matched batch
+        self._sent_correction = Pose()  # the correction Motor Control has (as far as we know)
+        self._correction_xy: tuple[float, float] | None = None  # half of MAP_CORRECTION_*
+        # a restarted incarnation waits (a bounded time) for the correction Motor kept
+        self._await_correction_until = -float("inf")
+        self.held_scans = 0
+        """Batches dropped while waiting for the correction after a restart."""
         self._changed = True  # a cell changed class since the last update
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
@@ -65,8 +108,11 @@ class MapManagement(Actor):
     async def on_start(self) -> None:
         prefix = self.ctx.name.rpartition("/")[0]
         self._nav = f"{prefix}/nav" if prefix else "nav"
+        self._motor = f"{prefix}/motor" if prefix else "motor"
         if self.restarted:
             self._send(self._nav, Message.uint(Cmd.NAV_MAP_LOST, 0))
+            if self._send(self._motor, Message.uint(Cmd.MOTOR_GET_POSE, 0)):
+                self._await_correction_until = trio.current_time() + _CORRECTION_WAIT_S
 
     def _send(self, name: str, message: Message) -> bool:
         """``send_nowait`` to a neighbour; False when full or not registered (yet)."""
@@ -77,8 +123,12 @@ class MapManagement(Actor):
         cmd = message.command
         if cmd == Cmd.MAP_SCAN:
             scan = self.pool.take(int(message.value))
-            if self.grid.integrate(scan.pose, scan.angles_deg, scan.ranges_cm):
-                self._changed = True
+            if trio.current_time() < self._await_correction_until:
+                self.held_scans += 1  # placed in the wrong frame, it would smear the map
+                return
+            pose = self._place(scan)
+            if self.grid.integrate(pose, scan.angles_deg, scan.ranges_cm):
+                self._changed = self._fields_stale = True
             self.scans += 1
             self._maybe_publish()
         elif cmd == Cmd.MAP_GET:  # from navigation (value 0), or our deferred timer (1)
@@ -90,10 +140,72 @@ class MapManagement(Actor):
         elif cmd == Cmd.MAP_RESTORE:
             self._restore(self.pool.take(int(message.value)))
             self._publish()
+        elif cmd == Cmd.MAP_CORRECTION_XY:
+            x_mm, y_mm = message.as_pair()
+            self._correction_xy = (x_mm / 10.0, y_mm / 10.0)
+        elif cmd == Cmd.MAP_CORRECTION_HEADING:
+            if self._correction_xy is not None:
+                self.correction = self._sent_correction = Pose(*self._correction_xy,
+                                                               float(message.value))
+                self._correction_xy = None
+            self._await_correction_until = -float("inf")
         elif cmd == Cmd.NOOP:
             self.noops += 1  # a flood fault: costs a queue slot, never a restart
         else:
             raise ValueError(f"map management got an unknown command 0x{cmd:04x}")
+
+    def _place(self, scan: Scan) -> Pose:
+        """The map-frame pose of a batch: corrected odometry, refined by scan matching.
+
+        A batch from where the last matched one was (the rover stands still) keeps the
+        correction; so does one that cannot be matched (too few hits, unmapped view).
+        """
+        odom = scan.pose
+        guess = compose(self.correction, odom)
+        opts = self.matching
+        if opts is None or self.scans < self.warmup_scans or odom == self._last_odom:
+            return guess
+        now = trio.current_time()
+        if self._fields is None or (self._fields_stale and now - self._fields_at >= self.fields_s):
+            self._build_fields(opts, now)
+        assert self._fields is not None
+        pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
+        result = match_scan(self._fields, pts, guess, opts)
+        if not result.accepted:
+            return guess
+        self.matched += 1
+        self._last_odom = odom
+        self.correction = compose(result.pose, inverse(odom))
+        return result.pose
+
+    def _build_fields(self, opts: MatchOptions, now: float) -> None:
+        """Matching fields of the grid's obstacle surfaces (known part only).
+
+        Only the occupied cells next to free space: that is where returns land. A wall
+        also grows on its far side (returns a little beyond the surface are never cleared
+        by rays from behind), and matching against the whole band would pull every scan
+        half a cell toward the walls it sees.
+        """
+        grid = self.grid
+        lo = grid.log_odds()
+        m = grid.model
+        occupied = lo > m.occ_threshold
+        rows = np.flatnonzero(occupied.any(axis=1))
+        res = grid.resolution_cm
+        if rows.size == 0:
+            self._fields = MatchFields(occupied[:1, :1], grid.origin_cm, res, opts)
+        else:
+            cols = np.flatnonzero(occupied.any(axis=0))
+            k = opts.blur_wide + 2
+            r0, r1 = max(0, int(rows[0]) - k), int(rows[-1]) + k + 1
+            c0, c1 = max(0, int(cols[0]) - k), int(cols[-1]) + k + 1
+            occ = occupied[r0:r1, c0:c1]
+            free = np.pad(lo[r0:r1, c0:c1] < m.free_threshold, 1)
+            near_free = free[:-2, 1:-1] | free[2:, 1:-1] | free[1:-1, :-2] | free[1:-1, 2:]
+            origin = (grid.origin_cm[0] + c0 * res, grid.origin_cm[1] + r0 * res)
+            self._fields = MatchFields(occ & near_free, origin, res, opts)
+        self._fields_at = now
+        self._fields_stale = False
 
     def _maybe_publish(self) -> None:
         if not self._changed and self.scans == self._counted:
@@ -113,6 +225,21 @@ class MapManagement(Actor):
         if self._changed or force:
             self._send_snapshot()
         self._send(self._nav, Message.uint(Cmd.NAV_SCAN_COUNT, self.scans))
+        self._send_correction()
+
+    def _send_correction(self) -> None:
+        """Tell Motor Control the correction when it moved by more than a few mm / a tenth
+        of a degree (navigation's pose is in the map frame through it)."""
+        c, old = self.correction, self._sent_correction
+        if abs(c.x - old.x) < 0.3 and abs(c.y - old.y) < 0.3 and abs(
+                c.heading_deg - old.heading_deg) < 0.1:
+            return
+        x_mm = max(-32767, min(32767, round(c.x * 10)))
+        y_mm = max(-32767, min(32767, round(c.y * 10)))
+        if self._send(self._motor, Message.pair(Cmd.MOTOR_CORRECT_XY, x_mm, y_mm)) and \
+                self._send(self._motor, Message.float(Cmd.MOTOR_CORRECT_HEADING,
+                                                      c.heading_deg)):
+            self._sent_correction = c
 
     def _send_snapshot(self) -> None:
         self._changed = False

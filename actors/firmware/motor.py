@@ -24,6 +24,15 @@ Dead reckoning
     when it changed, at most once per control period, and at once on
     ``MOTOR_GET_POSE``.
 
+Map frame (mapper)
+    Map Management corrects the odometry by scan matching and sends the
+    correction (``MOTOR_CORRECT_XY`` + ``MOTOR_CORRECT_HEADING``: the odometry
+    -> map frame transform). Navigation gets the corrected pose (it plans on
+    the map); the LIDAR keeps getting the raw odometry pose, so every scan is
+    stamped in one frame whatever correction was current, and Map Management
+    applies its own latest correction. The correction is retained like the
+    pose, and handed back to a restarted Map Management on ``MOTOR_GET_POSE``.
+
 Restarts
     The pose lives in a `PoseMemory` made by the rover tree: the model of a
     retained RAM section that survives a thread restart but not a rover reset
@@ -48,7 +57,7 @@ from actors import Actor, ExitReason, Message
 from .commands import Cmd
 from .devices import Interrupt, RoverHardware, decode_counter
 from .isr import MotorCounterIsr
-from .odometry import Pose, advance
+from .odometry import Pose, advance, compose
 
 __all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
 
@@ -88,13 +97,16 @@ class PoseMemory:
     other actor reads it).
     """
 
-    __slots__ = ("pose", "active")
+    __slots__ = ("pose", "active", "correction")
 
     def __init__(self, pose: Pose | None = None) -> None:
         self.pose: Pose = pose or Pose()
-        """The dead-reckoned pose in the rover's own frame."""
+        """The dead-reckoned pose in the rover's own (odometry) frame."""
         self.active: bool = False
         """True while a Command A was running (a restart reports it blocked)."""
+        self.correction: Pose = Pose()
+        """Odometry frame -> map frame, from Map Management's scan matching (mapper);
+        the identity on rovers without a map of their own."""
 
     def __repr__(self) -> str:
         p = self.pose
@@ -137,6 +149,7 @@ class MotorControl(Actor):
         self._lidar_dirty = False
         self._outcome: Message | None = None  # a DONE/BLOCKED report navigation refused
         self._pending = [0.0, 0.0]  # tread travel not yet integrated into the pose [cm]
+        self._correct_xy: tuple[float, float] | None = None  # first half of a correction
         self.commands = 0
         """Command A received (this incarnation)."""
 
@@ -146,6 +159,7 @@ class MotorControl(Actor):
         prefix = ctx.name.rpartition("/")[0]
         self._nav = f"{prefix}/nav" if prefix else "nav"
         self._lidar_name = (f"{prefix}/lidar" if prefix else "lidar") if self._lidar else None
+        self._map_name = (f"{prefix}/map" if prefix else "map") if self._lidar else None
         if self._isr is None:
             self._isr = MotorCounterIsr(self._post)
         self.hw.attach(Interrupt.INT_E, self._isr)
@@ -185,6 +199,18 @@ class MotorControl(Actor):
             self.hw.set_tread_pwm(0.0, 0.0)
         elif cmd == Cmd.MOTOR_GET_POSE:
             self._publish()
+            self._publish_correction()
+        elif cmd == Cmd.MOTOR_CORRECT_XY:
+            x_mm, y_mm = message.as_pair()
+            self._correct_xy = (x_mm / 10.0, y_mm / 10.0)
+        elif cmd == Cmd.MOTOR_CORRECT_HEADING:
+            heading = float(message.value)
+            if self._correct_xy is None or not math.isfinite(heading):
+                raise ValueError("MOTOR_CORRECT_HEADING must follow MOTOR_CORRECT_XY and be "
+                                 f"finite, got {heading!r}")
+            self.memory.correction = Pose(*self._correct_xy, heading)
+            self._correct_xy = None
+            self._pose_dirty = True
         elif cmd == Cmd.NOOP:
             pass  # a flood fault: costs a queue slot, never a restart
         else:
@@ -217,7 +243,7 @@ class MotorControl(Actor):
 
     def _publish(self) -> None:
         self._integrate()
-        p = self.memory.pose
+        p = compose(self.memory.correction, self.memory.pose)  # navigation works in the map frame
         send = self._send  # pose is superseded by the next one: drop when full
         x_mm = max(-_INT16, min(_INT16, round(p.x * 10)))
         y_mm = max(-_INT16, min(_INT16, round(p.y * 10)))
@@ -238,6 +264,16 @@ class MotorControl(Actor):
         self._send(self._lidar_name,
                              Message.float(Cmd.LIDAR_POSE_HEADING, p.heading_deg))
         self._lidar_dirty = False
+
+    def _publish_correction(self) -> None:
+        """Give a restarted Map Management the correction it had (mapper only)."""
+        if self._map_name is None:
+            return
+        c = self.memory.correction
+        x_mm = max(-_INT16, min(_INT16, round(c.x * 10)))
+        y_mm = max(-_INT16, min(_INT16, round(c.y * 10)))
+        self._send(self._map_name, Message.pair(Cmd.MAP_CORRECTION_XY, x_mm, y_mm))
+        self._send(self._map_name, Message.float(Cmd.MAP_CORRECTION_HEADING, c.heading_deg))
 
     # ------------------------------------------------------------------ Command A
     def _begin(self, kind: int, amount: float) -> None:
