@@ -36,6 +36,8 @@ class RoverBody:
     body: pymunk.Body
     control: pymunk.Body
     shape: pymunk.Poly
+    commanded: tuple[float, float, float] | None = None
+    """Speed [cm/s], turn rate [rad/s] and body heading [rad] last given to ``control``."""
 
 
 class Physics:
@@ -95,6 +97,9 @@ class Physics:
         v = 0.5 * (left_cm_s + right_cm_s)
         omega = (right_cm_s - left_cm_s) / self.params.track_width_cm
         a = rb.body.angle
+        if rb.commanded == (v, omega, a):
+            return  # the control body already carries this (a rover at rest, mostly)
+        rb.commanded = (v, omega, a)
         c = rb.control
         c.velocity = (v * math.cos(a), v * math.sin(a))
         c.angular_velocity = omega

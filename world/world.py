@@ -88,6 +88,8 @@ class World:
         self._now = dict(self._prev)
         # everything a LIDAR ray can hit: static walls then the hider's and seeker's bodies
         self._caster = FanCaster(self._static, boxes=2)
+        self._boxes_at: tuple = ()
+        """The hider's and seeker's states the caster's boxes were placed at."""
 
     # ------------------------------------------------------------------ public API
 
@@ -185,6 +187,8 @@ class World:
             self._wifly_tick(role, now, dt)
 
     def _encoders(self, role: str, slip_l: float, slip_r: float) -> None:
+        if self._prev[role] == self._now[role]:
+            return  # no travel, no ticks (the slip draws were taken all the same)
         x0, y0, a0 = self._prev[role]
         x1, y1, a1 = self._now[role]
         da = a1 - a0
@@ -223,8 +227,10 @@ class World:
         if f:
             sigma = math.hypot(sigma, f.params["sigma_cm"])
         noise = self.rng.standard_normal(n) * sigma
-        p = self.params
-        self._caster.set_boxes((self._now["hider"], self._now["seeker"]), p.length_cm, p.width_cm)
+        bodies = (self._now["hider"], self._now["seeker"])
+        if bodies != self._boxes_at:
+            self._caster.set_boxes(bodies, self.params.length_cm, self.params.width_cm)
+            self._boxes_at = bodies
         dist = lidar.measure(first, n, stuck, self._now["mapper"], self._caster, noise)
         frames = lidar.frames(first, dist, stuck)
         if faults and faults.find("mapper", "lidar", "garbage"):
