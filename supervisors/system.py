@@ -63,7 +63,19 @@ class SimSystem:
     """Role -> the rover's root supervisor."""
     faults: list[dict[str, Any]] = field(default_factory=list)
     """Every fault injected so far (device and actor), in order, for reports."""
+    _world_origin: list[float] = field(default_factory=lambda: [0.0])
+    """[Trio time at which the world's time was 0 [s]], set as the world starts stepping."""
     _actor_fault_ids: int = 0
+
+    def world_lag(self) -> float:
+        """How far the world's stepping is behind Trio's clock [s] (about 0 when it keeps up).
+
+        Under a scaled clock a slow machine cannot step the world as fast as the
+        clock runs; the firmware's and the server's timers (heartbeats, link
+        down after 5 s of silence) run on the clock, the bytes between them move
+        only as the world steps. A console uses this to slow the clock down.
+        """
+        return trio.current_time() - (self._world_origin[0] + self.world.time)
 
     # ---------------------------------------------------------------- operator
     async def command(self, name: str, **kwargs: Any) -> Any:
@@ -173,6 +185,12 @@ async def _watch_scheduled_actor_faults(system: SimSystem) -> None:
                 system.actors.trace.emit(EventKind.FAULT, f.target, detail=f"refused: {exc}")
 
 
+async def _run_world(world: World, origin: list[float]) -> None:
+    """`run_world`, noting the Trio time it aligns world time 0 to (in ``origin[0]``)."""
+    origin[0] = trio.current_time() - world.time  # as run_world computes it, same instant
+    await run_world(world)
+
+
 def scenario_origins(scenario: Scenario) -> dict[str, Pose2]:
     """Each role's start pose in the room frame [cm, deg]: the server's ``origins``."""
     return {role: Pose2(p.x, p.y, p.heading_deg) for role, p in scenario.starts.items()}
@@ -235,12 +253,14 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
         # then stop gracefully, in reverse order, as open_actor_system closes
         async with open_actor_system(seed, trace=trace) as actors, \
                 trio.open_nursery() as nursery:
-            nursery.start_soon(run_world, world)
+            origin = [trio.current_time()]
+            nursery.start_soon(_run_world, world, origin)
             trees = {}
             for role in roles:
                 spec = rover_tree(role, world.hardware(role), nav_factory=nav_factory)
                 trees[role] = await actors.start_supervisor(spec, role)
-            system = SimSystem(scenario, seed, world, server, actors, trees, fault_log)
+            system = SimSystem(scenario, seed, world, server, actors, trees, fault_log,
+                               origin)
             nursery.start_soon(_watch_scheduled_actor_faults, system)
             try:
                 yield system

@@ -44,7 +44,7 @@ def test_parse_link_accepts_the_documented_forms(text: str, kind: str, fields: d
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("udp:1.2.3.4:5", "link must be tcp:HOST:PORT, tcp, serial:PORT,BAUD or sim, got "
+        ("udp:1.2.3.4:5", "link must be tcp:HOST:PORT, tcp, serial:PORT,BAUD, sim or pty, got "
                           "'udp:1.2.3.4:5'"),
         ("serial:/dev/ttyUSB0", "serial link must be serial:PORT,BAUD, got "
                                 "'serial:/dev/ttyUSB0'"),

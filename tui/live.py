@@ -53,6 +53,8 @@ from .snapshot import (
 __all__ = ["LiveSystem"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
+LAG_MAX_S = 0.5  # the world this far behind the clock: hold the clock [s]
+LAG_RESUME_S = 0.1  # ... until it is at most this far behind [s]
 _MAP_MARGIN_CELLS = 20  # unknown border shown around the known map [cells]
 _MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?,.*?value=([^)]+)\)")
 _LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
@@ -125,6 +127,7 @@ class LiveSystem(QueuedController):
         self._truth_raster: Any = None
         self._truth_key: tuple | None = None
         self._mapper_room = Pose2(0, 0, 0)
+        self._warned_behind = False
 
     # -- Trio side ----------------------------------------------------------------------
     async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
@@ -144,7 +147,8 @@ class LiveSystem(QueuedController):
                 async with trio.open_nursery() as nursery:
                     nursery.start_soon(self._command_loop)
                     nursery.start_soon(self._server_events, events)
-                    async for _ in requests:
+                    async for _ in requests:  # the console's refresh: wall-clock paced
+                        self._keep_up(system)
                         publish(self.snapshot())
 
     async def _attach_remote(self, system: SimSystem) -> None:
@@ -159,6 +163,36 @@ class LiveSystem(QueuedController):
             self._event("link", f"{role}: waiting for the rover on {spec.text}")
         if self.remote:
             self._event("game", "a real rover is attached: real time only (x1)")
+
+    def _keep_up(self, system: SimSystem) -> None:
+        """Hold the clock while the world is behind it (a governor; see `SimSystem.world_lag`).
+
+        At x16 a slow machine steps the world slower than the clock runs: the
+        firmware and the server keep time by the clock, the bytes between them
+        move only as the world steps, so heartbeats went missing and links were
+        shown down. Freezing the clock (rate 0) while the world is more than
+        `LAG_MAX_S` behind lets it catch up; the rate comes back at the next
+        refresh once it has. Simulated time then runs as fast as the machine
+        allows, below the chosen speed, and the panel says "behind".
+        """
+        if self._paused or self._speed is None:
+            self._behind = False
+            return
+        lag = system.world_lag()
+        if not self._behind and lag > LAG_MAX_S:
+            self._behind = True
+            self.clock.rate = 0.0
+            if not self._warned_behind:
+                self._warned_behind = True
+                self._event("game", f"the machine cannot keep up with x{self._speed:g}: "
+                                    "simulated time runs slower")
+        elif self._behind and lag <= LAG_RESUME_S:
+            self._behind = False
+            self.clock.rate = float(self._speed)
+
+    def _apply_clock(self) -> None:
+        self._behind = False
+        super()._apply_clock()
 
     # -- commands (in Trio); raise ValueError to refuse ----------------------------------
     def _real_time_only(self) -> None:
