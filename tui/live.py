@@ -163,6 +163,9 @@ class LiveSystem(QueuedController):
             self._event("link", f"{role}: waiting for the rover on {spec.text}")
         if self.remote:
             self._event("game", "a real rover is attached: real time only (x1)")
+        if "mapper" in self.remote:
+            self._event("game", "the map shows once the mapper uploads it (its working map "
+                                "is on the rover)")
 
     def _keep_up(self, system: SimSystem) -> None:
         """Hold the clock while the world is behind it (a governor; see `SimSystem.world_lag`).
