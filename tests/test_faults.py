@@ -8,7 +8,10 @@ import numpy as np
 import pytest
 
 from actors.firmware.devices import decode_counter
-from world.scenario import parse_scenario
+from supervisors.rover import rover_tree
+from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_ACTORS, check_fault
+from world.params import ROLES
+from world.scenario import ScenarioError, parse_scenario
 from world.world import World
 
 ROOM = """
@@ -240,6 +243,7 @@ def test_wifly_added_latency_then_cleared() -> None:
         ("mapper-lidar", "dead", {}, "fault target must be 'rover/device'"),
         ("mapper/lidar", "noisy", {"sigma": 3}, "fault 'noisy' has no parameter 'sigma'"),
         ("mapper/nav", "crash", {}, "'crash' is an actor fault"),
+        ("hider/motor", "crash", {}, "'crash' is an actor fault"),
     ],
 )
 def test_bad_faults_are_refused(target: str, kind: str, params: dict, message: str) -> None:
@@ -275,3 +279,84 @@ kind = "hang"
     assert kinds == [("actor_fault_due", "seeker/nav"), ("fault_injected", "mapper/lidar"),
                      ("fault_cleared", "mapper/lidar")]
     assert events[1][2]["scheduled"] is True and events[1][2]["time_s"] == pytest.approx(1.0)
+
+
+# ---------------------------------------------------------------- device or actor: the kind decides
+
+def schedule(*faults: tuple[str, str]) -> str:
+    return "".join(f'\n[[faults]]\nat_s = 1\ntarget = "{t}"\nkind = "{k}"\n' for t, k in faults)
+
+
+@pytest.mark.parametrize("target", ["hider/motor", "mapper/lidar", "seeker/ir", "mapper/wifly",
+                                    "hider/wifly", "seeker/motor", "mapper/map", "hider/nav"])
+@pytest.mark.parametrize("kind", list(ACTOR_FAULTS))
+def test_actor_faults_on_actors_named_like_devices_are_accepted(target: str, kind: str) -> None:
+    """crash/hang/flood on hider/motor, mapper/lidar, seeker/ir ... go to the runtime."""
+    world = make(extra=schedule((target, kind)))
+    assert [(f.target, f.kind) for f in world.scenario.actor_faults] == [(target, kind)]
+    run(world, 1.0)
+    assert [(f.target, f.kind) for f in world.actor_faults_due()] == [(target, kind)]
+    assert world.active_faults() == []  # nothing happened to the device
+
+
+def test_device_and_actor_faults_on_one_name_each_go_their_way() -> None:
+    """hider/motor stalled stops the treads in the world; hider/motor crash is the runtime's."""
+    world = make(extra=schedule(("hider/motor", "stalled"), ("hider/motor", "crash")))
+    run(world, 1.05)  # the tick starting at 1 s fires the schedule
+    assert [(f.target, f.kind) for f in world.active_faults()] == [("hider/motor", "stalled")]
+    assert [(f.target, f.kind) for f in world.actor_faults_due()] == [("hider/motor", "crash")]
+    x0 = world.true_pose("hider").x
+    tread_cm(world, "hider", 0.8, 0.8, 1.0)
+    assert world.true_pose("hider").x == pytest.approx(x0, abs=0.1)
+
+
+def test_flood_takes_its_message_count_and_nothing_else() -> None:
+    assert check_fault("seeker/ir", "flood", 0, {"messages": 5}) == {"messages": 5.0}
+    assert check_fault("seeker/ir", "flood", 0, {}) == {"messages": 100.0}
+    with pytest.raises(ValueError, match=r"fault 'hang' has no parameter 'seconds' "
+                                         r"\(parameters: none\)"):
+        check_fault("mapper/lidar", "hang", 2, {"seconds": 2})
+
+
+@pytest.mark.parametrize(
+    ("target", "kind", "message"),
+    [
+        ("mapper/encoder_left", "crash",
+         "faults[0]: 'crash' is an actor fault but 'mapper/encoder_left' is not an actor; "
+         "mapper's actors are wifly, motor, lidar, map, nav; "
+         "device faults on encoder_left are stuck, slipping"),
+        ("hider/lidar", "hang",
+         "faults[0]: 'hang' is an actor fault but 'hider/lidar' is not an actor; "
+         "hider's actors are wifly, motor, nav"),
+        ("seeker/toaster", "flood",
+         "faults[0]: 'flood' is an actor fault but 'seeker/toaster' is not an actor; "
+         "seeker's actors are wifly, motor, ir, nav"),
+        ("mapper/nav", "dead",
+         "faults[0]: 'mapper/nav' is an actor and 'dead' is no actor fault; "
+         "actor faults are crash, hang, flood"),
+        ("mapper/map", "stalled",
+         "faults[0]: 'mapper/map' is an actor and 'stalled' is no actor fault"),
+        ("hider/motor", "dead",
+         "faults[0]: fault kind 'dead' does not apply to motor; kinds are stalled, weak "
+         "(actor faults: crash, hang, flood)"),
+        ("seeker/encoder", "crash",
+         "faults[0]: 'crash' is an actor fault but 'seeker/encoder' is not an actor"),
+    ],
+)
+def test_a_kind_that_does_not_fit_the_target_is_refused_clearly(target: str, kind: str,
+                                                                message: str) -> None:
+    with pytest.raises(ScenarioError) as err:
+        parse_scenario(ROOM + schedule((target, kind)), source="f.toml")
+    assert str(err.value).startswith("f.toml: " + message)
+
+
+@pytest.mark.parametrize("role", ROLES)
+def test_the_actor_catalogue_matches_the_rover_trees(role: str) -> None:
+    """ROLE_ACTORS names exactly the workers supervisors/rover.py starts for each role."""
+    world = make()
+    spec = rover_tree(role, world.hardware(role))
+    assert tuple(c.id for c in spec.children) == ROLE_ACTORS[role]
+
+
+def test_every_device_in_the_catalogue_has_kinds() -> None:
+    assert all(DEVICE_FAULTS[d] for d in DEVICE_FAULTS)

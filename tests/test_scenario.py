@@ -126,7 +126,7 @@ def _with(old: str, new: str) -> str:
         (_with('target = "mapper/lidar"', 'target = "hider/lidar"'),
          "bad.toml: faults[0]: hider has no lidar"),
         (_with('kind = "crash"', 'kind = "explode"'),
-         "bad.toml: faults[1]: unknown device 'nav'"),
+         "bad.toml: faults[1]: 'mapper/nav' is an actor and 'explode' is no actor fault"),
         ("name = 'x'\n[room\n", "bad.toml: not valid TOML"),
         (_with("[rovers]\nmapper = [50, 50, 0]\n", "[rovers]\n"),
          "bad.toml: rovers.mapper: missing"),

@@ -1,13 +1,19 @@
 """Fault catalogue and the book of active faults.
 
-A fault has a target ``rover/device`` (``mapper/lidar``, ``hider/motor_left``),
-a kind, a start [s], a duration [s] (0 = until cleared) and parameters. Device
-faults act inside the world; actor faults (``crash``, ``hang``, ``flood`` on a
-firmware actor such as ``mapper/nav``) are only validated and passed on to the
-runtime, which owns the actors.
+A fault has a target, a kind, a start [s], a duration [s] (0 = until cleared)
+and parameters. The kind decides what the target names:
 
-The catalogue is data: device -> kind -> default parameters. ``encoder`` and
-``motor`` without a side mean both treads.
+* device faults (``dead``, ``stuck``, ``loss`` ...) target ``rover/device``
+  (``mapper/lidar``, ``hider/motor_left``) and act inside the world;
+* actor faults (``crash``, ``hang``, ``flood``) target ``rover/actor``, a
+  firmware actor (``mapper/nav``, ``hider/motor``, ``seeker/ir``); the world
+  only validates them and hands them to the runtime, which owns the actors.
+
+Some names are both a device and an actor (``motor``, ``lidar``, ``ir``,
+``wifly``): ``hider/motor stalled`` stalls the treads, ``hider/motor crash``
+crashes the motor-control actor. The catalogue is data: device -> kind ->
+default parameters, actor kind -> default parameters, role -> actors.
+``encoder`` and ``motor`` without a side mean both treads.
 """
 
 from __future__ import annotations
@@ -42,10 +48,19 @@ DEVICE_FAULTS: dict[str, dict[str, dict[str, float]]] = {
 ROLE_DEVICES = {"lidar": ("mapper",), "ir": ("seeker",)}
 
 #: kinds the actor runtime performs on firmware actors, with their parameters
+#: (a hang lasts ``duration_s``)
 ACTOR_FAULTS: dict[str, dict[str, float]] = {
     "crash": {},
     "hang": {},
     "flood": {"messages": 100.0},
+}
+
+#: the firmware actors of each rover, as ``supervisors/rover.py`` starts them (the
+#: world may not import it; ``tests/test_faults.py`` checks that the two agree)
+ROLE_ACTORS: dict[str, tuple[str, ...]] = {
+    "mapper": ("wifly", "motor", "lidar", "map", "nav"),
+    "hider": ("wifly", "motor", "nav"),
+    "seeker": ("wifly", "motor", "ir", "nav"),
 }
 
 
@@ -99,37 +114,62 @@ def check_fault(target: Any, kind: Any, duration_s: Any,
                 params: dict[str, Any]) -> dict[str, float]:
     """Validate a fault and return its parameters with defaults filled in.
 
+    The kind decides the target's meaning: ``crash``/``hang``/``flood`` need a
+    firmware actor (`ROLE_ACTORS`), every other kind a device (`DEVICE_FAULTS`).
+
     Raises:
-        ValueError: the target, kind, duration or a parameter is wrong; the message says which.
+        ValueError: the target, kind, duration or a parameter is wrong, or the kind
+            does not fit the target; the message says which and lists what fits.
     """
-    role, device = split_target(target)
+    role, name = split_target(target)
     if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or duration_s < 0:
         raise ValueError(f"fault duration_s must be a number >= 0, got {duration_s!r}")
     if not isinstance(kind, str):
         raise ValueError(f"fault kind must be a string, got {kind!r}")
-    if kind in ACTOR_FAULTS and device not in DEVICE_FAULTS:
-        defaults = ACTOR_FAULTS[kind]
+    if kind in ACTOR_FAULTS:
+        defaults = _actor_kind(role, name, kind, target)
     else:
-        if device not in DEVICE_FAULTS:
-            raise ValueError(
-                f"unknown device {device!r} in fault target {target!r}; devices are "
-                f"{', '.join(DEVICE_FAULTS)} (actor faults: {', '.join(ACTOR_FAULTS)})")
-        if role not in ROLE_DEVICES.get(device, ROLES):
-            raise ValueError(f"{role} has no {device} (fault target {target!r})")
-        kinds = DEVICE_FAULTS[device]
-        if kind not in kinds:
-            raise ValueError(f"fault kind {kind!r} does not apply to {device}; "
-                             f"kinds are {', '.join(kinds)}")
-        defaults = kinds[kind]
+        defaults = _device_kind(role, name, kind, target)
     out = dict(defaults)
-    for name, value in params.items():
-        if name not in defaults:
+    for pname, value in params.items():
+        if pname not in defaults:
             allowed = ", ".join(defaults) or "none"
-            raise ValueError(f"fault {kind!r} has no parameter {name!r} (parameters: {allowed})")
+            raise ValueError(f"fault {kind!r} has no parameter {pname!r} (parameters: {allowed})")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
-            raise ValueError(f"fault parameter {name} must be a number >= 0, got {value!r}")
-        out[name] = float(value)
+            raise ValueError(f"fault parameter {pname} must be a number >= 0, got {value!r}")
+        out[pname] = float(value)
     return out
+
+
+def _actor_kind(role: str, actor: str, kind: str, target: str) -> dict[str, float]:
+    """Defaults of an actor fault on ``role/actor``, or why it does not fit."""
+    actors = ROLE_ACTORS[role]
+    if actor in actors:
+        return ACTOR_FAULTS[kind]
+    hint = ""
+    if actor in DEVICE_FAULTS and role in ROLE_DEVICES.get(actor, ROLES):
+        hint = f"; device faults on {actor} are {', '.join(DEVICE_FAULTS[actor])}"
+    raise ValueError(f"{kind!r} is an actor fault but {target!r} is not an actor; "
+                     f"{role}'s actors are {', '.join(actors)}{hint}")
+
+
+def _device_kind(role: str, device: str, kind: str, target: str) -> dict[str, float]:
+    """Defaults of a device fault on ``role/device``, or why it does not fit."""
+    if device not in DEVICE_FAULTS:
+        if device in ROLE_ACTORS[role]:
+            raise ValueError(f"{target!r} is an actor and {kind!r} is no actor fault; "
+                             f"actor faults are {', '.join(ACTOR_FAULTS)}")
+        raise ValueError(
+            f"unknown device {device!r} in fault target {target!r}; devices are "
+            f"{', '.join(DEVICE_FAULTS)} (actor faults: {', '.join(ACTOR_FAULTS)})")
+    if role not in ROLE_DEVICES.get(device, ROLES):
+        raise ValueError(f"{role} has no {device} (fault target {target!r})")
+    kinds = DEVICE_FAULTS[device]
+    if kind not in kinds:
+        also = f" (actor faults: {', '.join(ACTOR_FAULTS)})" if device in ROLE_ACTORS[role] else ""
+        raise ValueError(f"fault kind {kind!r} does not apply to {device}; "
+                         f"kinds are {', '.join(kinds)}{also}")
+    return kinds[kind]
 
 
 class FaultBook:
