@@ -5,8 +5,10 @@ rovers driving (seeded random PWM, changed every second), the LIDAR spinning
 at PWM 0.5 (5.5 rev/s, 1980 samples/s) and the IR sampling at 20 Hz, with no
 firmware attached (handlers only count). The baseline measured in the same run
 is the same world with the LIDAR and IR off (physics, motors, encoders only).
-The ray caster is timed for whole 360-ray revolutions against the room's
-segments, with pymunk segment queries as its baseline.
+The ray casters are timed for whole 360-ray revolutions against the room's
+segments: the fan caster the LIDAR uses (`world.raycast.FanCaster`), the
+all-pairs `cast_rays`, and pymunk segment queries as the baseline; and for one
+50 ms tick's fan (99 rays at 5.5 rev/s), where per-call overhead dominates.
 Prints a table, then one line of JSON with the figures.
 """
 
@@ -21,7 +23,7 @@ import numpy as np
 import pymunk
 
 from world.geometry import boundary_segments, room_segments
-from world.raycast import cast_rays
+from world.raycast import FanCaster, cast_rays
 from world.scenario import load_scenario
 from world.world import World
 
@@ -56,16 +58,26 @@ def run_world(name: str, tick_s: float, seconds: float, sensors: bool) -> float:
     return world.time / (time.perf_counter() - start)
 
 
-def lidar_revs(name: str, revs: int) -> tuple[float, float, int]:
-    """Revolutions/s of the numpy caster and of pymunk segment queries; segment count."""
+def lidar_revs(name: str, revs: int) -> dict[str, float]:
+    """Revolutions/s of the fan caster, of all-pairs casting and of pymunk; segment count."""
     s = load_scenario(name)
     segs = np.vstack([room_segments(*s.room_size), boundary_segments(list(s.obstacles))])
     origin = (s.starts["mapper"].x + 100.0, s.starts["mapper"].y + 100.0)
-    angles = np.radians(np.arange(360.0))
+    step = math.radians(1.0)
+    angles = np.arange(360) * step
+    fan = FanCaster(segs)
     t = time.perf_counter()
-    for _ in range(revs):
-        cast_rays(origin, angles, segs, 4000.0)
-    ours = revs / (time.perf_counter() - t)
+    for i in range(revs):
+        fan.cast_fan(origin, i * 0.01, step, 360, 4000.0)
+    out = {"fan": revs / (time.perf_counter() - t)}
+    t = time.perf_counter()
+    for i in range(revs):
+        fan.cast_fan(origin, i * 0.01, step, 99, 4000.0)
+    out["fan_tick_us"] = (time.perf_counter() - t) / revs * 1e6
+    t = time.perf_counter()
+    for i in range(revs):
+        cast_rays(origin, angles + i * 0.01, segs, 4000.0)
+    out["pairs"] = revs / (time.perf_counter() - t)
     space = pymunk.Space()
     space.add(*[pymunk.Segment(space.static_body, (a, b), (c, d), 0.0) for a, b, c, d in segs])
     flt = pymunk.ShapeFilter()
@@ -75,8 +87,9 @@ def lidar_revs(name: str, revs: int) -> tuple[float, float, int]:
     for _ in range(n):
         for end in ends:
             space.segment_query_first(origin, end, 0.0, flt)
-    theirs = n / (time.perf_counter() - t)
-    return ours, theirs, len(segs)
+    out["pymunk"] = n / (time.perf_counter() - t)
+    out["segments"] = len(segs)
+    return out
 
 
 def main() -> None:
@@ -98,14 +111,18 @@ def main() -> None:
             figures[f"ratio_{key}"] = round(full / base, 3)
             print(f"{name:<10} {tick * 1000:>7.0f} {full:>8.0f} {base:>13.0f} {full / base:>6.2f}")
     print()
-    print("LIDAR ray casting, 360 rays per revolution")
-    print(f"{'scenario':<10} {'segments':>8} {'numpy rev/s':>12} {'pymunk rev/s':>13} {'ratio':>6}")
+    print("LIDAR ray casting, 360 rays per revolution (revolutions/s), and one 99-ray tick")
+    print(f"{'scenario':<10} {'segments':>8} {'fan':>7} {'all-pairs':>9} {'pymunk':>7} "
+          f"{'fan/pymunk':>10} {'tick us':>8}")
     for name in SCENARIOS:
-        ours, theirs, nseg = lidar_revs(name, revs)
-        figures[f"lidar_rev_s_{name}"] = round(ours, 1)
-        figures[f"lidar_rev_s_pymunk_{name}"] = round(theirs, 1)
-        figures[f"lidar_ratio_{name}"] = round(ours / theirs, 2)
-        print(f"{name:<10} {nseg:>8} {ours:>12.0f} {theirs:>13.0f} {ours / theirs:>6.2f}")
+        r = lidar_revs(name, revs)
+        figures[f"lidar_rev_s_{name}"] = round(r["fan"], 1)
+        figures[f"lidar_rev_s_pairs_{name}"] = round(r["pairs"], 1)
+        figures[f"lidar_rev_s_pymunk_{name}"] = round(r["pymunk"], 1)
+        figures[f"lidar_ratio_{name}"] = round(r["fan"] / r["pymunk"], 2)
+        figures[f"lidar_tick_us_{name}"] = round(r["fan_tick_us"], 1)
+        print(f"{name:<10} {r['segments']:>8} {r['fan']:>7.0f} {r['pairs']:>9.0f} "
+              f"{r['pymunk']:>7.0f} {r['fan'] / r['pymunk']:>10.2f} {r['fan_tick_us']:>8.1f}")
     print(json.dumps(figures))
 
 

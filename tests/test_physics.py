@@ -132,3 +132,56 @@ def test_bad_pwm_is_refused() -> None:
         world.hardware("mapper").set_tread_pwm(float("nan"), 0)
     world.hardware("mapper").set_tread_pwm(5, -5)  # clipped, not refused
     assert world.treads["mapper"][0].pwm == 1.0 and world.treads["mapper"][1].pwm == -1.0
+
+
+def dead_reckon(events: list[int], cm: float, track: float, pose: tuple[float, float, float]
+                ) -> tuple[float, float, float]:
+    """Integrate Int E payloads into a pose (x, y [cm], heading [rad]) as firmware would."""
+    x, y, a = pose
+    for e in events:
+        tread, forward = decode_counter(e)
+        d = cm if forward else -cm
+        dl, dr = (d, 0.0) if tread == 0 else (0.0, d)
+        a_mid = a + (dr - dl) / (2 * track)
+        x += (dl + dr) / 2 * math.cos(a_mid)
+        y += (dl + dr) / 2 * math.sin(a_mid)
+        a += (dr - dl) / track
+    return x, y, a
+
+
+def test_arc_drive_dead_reckons_to_the_true_pose() -> None:
+    """Driving an arc, the pose integrated from encoder ticks ends where the rover really is."""
+    world = World(parse_scenario(ROOM), np.random.default_rng(6))
+    start = world.true_pose("hider")
+    events = drive(world, "hider", 0.3, 0.5, 4.0)
+    end = world.true_pose("hider")
+    spec = world.hardware("hider").spec
+    x, y, a = dead_reckon(events, spec.cm_per_interrupt, spec.track_width_cm,
+                          (start.x, start.y, math.radians(start.heading_deg)))
+    turned = (end.heading_deg - start.heading_deg) % 360
+    assert 30 < turned < 120  # a real arc, to the left
+    assert math.hypot(x - end.x, y - end.y) < 3.0
+    assert math.degrees(a) % 360 == pytest.approx(end.heading_deg, abs=4.0)
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.1])
+def test_encoder_error_stays_within_the_slip_noise(sigma: float) -> None:
+    """Per-tick slip N(0, sigma): without slip ticks match truth to one interrupt; with slip
+    the error is about sigma * sqrt(sum of squared per-tick travel), never wildly more."""
+    text = ROOM + f"[devices]\nslip_sigma = {sigma}\n"
+    errors = []
+    for seed in range(6):
+        world = World(parse_scenario(text), np.random.default_rng(seed))
+        start = world.true_pose("mapper")
+        events = drive(world, "mapper", 0.8, 0.8, 4.0)
+        end = world.true_pose("mapper")
+        travelled = math.hypot(end.x - start.x, end.y - start.y)
+        left, _ = tread_cm(events, world.hardware("mapper").spec.cm_per_interrupt)
+        errors.append(left - travelled)
+    per_tick = 0.8 * 30 * 0.05  # cm per 50 ms tick at speed
+    sd = sigma * per_tick * math.sqrt(4.0 / 0.05)  # [cm] over 80 ticks
+    if sigma == 0:
+        assert max(abs(e) for e in errors) <= 0.5 + 1e-6
+    else:
+        assert max(abs(e) for e in errors) <= 4 * sd + 0.5
+        assert np.std(errors) > 0.25 * sd  # the noise is really there
