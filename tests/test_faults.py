@@ -120,6 +120,16 @@ def test_encoder_stuck_then_cleared() -> None:
     assert left == pytest.approx(right, abs=2)
 
 
+def test_encoder_on_both_treads_stuck_then_cleared() -> None:
+    """``encoder`` without a side covers both treads; clearing the target restores both."""
+    world = make()
+    world.inject_fault("seeker/encoder", "stuck")
+    assert tread_cm(world, "seeker", 0.5, 0.5, 1.0) == [0.0, 0.0]
+    assert world.clear_fault("seeker/encoder") == 1
+    left, right = tread_cm(world, "seeker", 0.5, 0.5, 1.0)
+    assert left > 10 and right > 10
+
+
 def test_encoder_slipping_then_cleared() -> None:
     world = make()
     world.inject_fault("hider/encoder_right", "slipping", ratio=0.5)
@@ -232,6 +242,43 @@ def test_wifly_added_latency_then_cleared() -> None:
 
 
 # ---------------------------------------------------------------- catalogue rules
+
+#: (device family, kind) -> the test above showing its effect and its clearance
+EFFECT_TESTS = {
+    ("lidar", "dead"): test_lidar_dead_then_cleared,
+    ("lidar", "garbage"): test_lidar_garbage_bytes_then_cleared,
+    ("lidar", "stuck"): test_lidar_stuck_rotation_then_cleared,
+    ("lidar", "noisy"): test_lidar_noisy_then_cleared,
+    ("encoder", "stuck"): test_encoder_stuck_then_cleared,
+    ("encoder", "slipping"): test_encoder_slipping_then_cleared,
+    ("motor", "stalled"): test_motor_stalled_then_cleared,
+    ("motor", "weak"): test_motor_weak_tread_curves_then_cleared,
+    ("ir", "stuck_high"): test_ir_stuck_then_cleared,
+    ("ir", "stuck_low"): test_ir_stuck_then_cleared,
+    ("wifly", "down"): test_wifly_down_for_a_while,
+    ("wifly", "loss"): test_wifly_packet_loss_then_cleared,
+    ("wifly", "corrupt"): test_wifly_corrupted_bytes_then_cleared,
+    ("wifly", "latency"): test_wifly_added_latency_then_cleared,
+}
+
+
+def test_every_fault_kind_in_the_catalogue_has_an_effect_test() -> None:
+    """A kind added to DEVICE_FAULTS without a test of its effect and clearance fails here."""
+    catalogue = {(d.split("_")[0], k) for d, kinds in DEVICE_FAULTS.items() for k in kinds}
+    assert catalogue == set(EFFECT_TESTS)
+
+
+def test_wifly_down_cleared_by_hand_reconnects_at_once() -> None:
+    events: list = []
+    world = make(events)
+    fid = world.inject_fault("hider/wifly", "down")
+    run(world, 0.5)
+    assert not world.wifly_link("hider").connected
+    world.clear_fault(fid)
+    assert world.wifly_link("hider").connected
+    assert len(send_lines(world, "hider", 5, 0.5)) == 5
+    assert [(k, d["kind"]) for k, _, d in events] == [("fault_injected", "down"),
+                                                      ("fault_cleared", "down")]
 
 @pytest.mark.parametrize(
     ("target", "kind", "params", "message"),
