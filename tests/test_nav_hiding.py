@@ -126,3 +126,32 @@ async def test_hider_passes_a_gap_barely_wider_than_its_turning_disc(autojump_cl
         true = body.pose
         assert math.dist((true.x + 50, true.y + 50), (300, 60)) <= 5.0
         assert nav.counters["blocked"] == 0
+
+
+@pytest.mark.trio
+async def test_hider_finds_a_gap_its_dead_reckoning_misses_by_nudging_sideways(autojump_clock
+                                                                               ) -> None:
+    """The map shows the gap 10 cm off where it is (dead-reckoning drift): the rover hits
+    the wall's end, the learned obstacle closes the only way, so it tries the route
+    shifted sideways (+6, then -6 cm ...) and gets through."""
+    map_boxes = ((190, 0, 15, 150), (190, 185, 15, 125))  # the map: gap y 150..185
+    true_boxes = ((190, 0, 15, 140), (190, 175, 15, 135))  # the room: gap y 140..175
+    own = Truth(-50, -50, 350, 250,
+                boxes=tuple((x - 50, y - 50, w, h) for x, y, w, h in true_boxes))
+    body = Body(truth=own)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await net(system, pool, "hider", "origin", ORIGIN)
+        await net(system, pool, "hider", "start")
+        await net(system, pool, "hider", "destination", {"x": 300.0, "y": 60.0, "heading": 270.0})
+        await trio.sleep(0.5)
+        await download(system, pool, "hider", room_map(Truth(0, 0, 400, 300, boxes=map_boxes)))
+        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
+                              300.0)
+        assert body.frames("invalid_spot") == []
+        nav = system.whereis("hider/nav").actor
+        assert nav.counters["blocked"] >= 2
+        assert nav.counters["nudges"] >= 2  # +6 cm still hits the wall's end; -6 cm passes
+        true = body.pose
+        assert math.dist((true.x + 50, true.y + 50), (300, 60)) <= 5.0

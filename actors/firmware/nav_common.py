@@ -101,8 +101,12 @@ class NavOptions:
     """Clearance all round a hiding spot, for turning [cm]."""
     narrow_margin_cm: float = 2.0
     """Clearance beyond half the body width in the last planning tier (narrow passages) [cm]."""
-    replan_limit: int = 6
+    replan_limit: int = 8
     """Replans after being blocked before a route is given up."""
+    nudge_step_cm: float = 6.0
+    """Lateral step of the search for a narrow passage missed by dead reckoning [cm]."""
+    nudge_reach_cm: float = 50.0
+    """Waypoints this close to the block point are shifted by a nudge [cm]."""
     backoff_cm: float = 6.0
     """Reverse this far after being blocked [cm]."""
     settle_s: float = 1.0
@@ -328,7 +332,7 @@ class NavBase(Actor):
         self.state = "idle"
         """What navigation is doing (also the ``status`` state sent to the server)."""
         self.counters: dict[str, int] = {"dropped": 0, "bad_frames": 0, "blocked": 0,
-                                         "timeouts": 0, "motions": 0}
+                                         "timeouts": 0, "motions": 0, "nudges": 0}
         self._xy_mm: tuple[int, int] | None = None
         self._motion: Motion | None = None
         self.last_motion: Motion | None = None
@@ -652,7 +656,9 @@ class RouteNav(NavBase):
         self.tier: tuple[float, float] | None = None
         """(radius, margin) [cm] of the planning tier the current route used (`plan_tiers`)."""
         self._replan = False  # replan after the backoff in flight
-        self._last_block: tuple[float, float] | None = None
+        self._last_block: tuple[float, float, float] | None = None  # (x, y, heading) of a block
+        self._nudge: tuple[float, float, float, float] | None = None  # (dx, dy, cx, cy) [cm]
+        self._nudges = 0  # nudges tried on this route
 
     # ------------------------------------------------------------------ server
     async def on_start_cmd(self) -> None:
@@ -712,6 +718,7 @@ class RouteNav(NavBase):
         self.goal, self.goal_heading = goal, heading
         self.stop_short_cm = stop_short_cm
         self.replans = 0
+        self._last_block, self._nudge, self._nudges = None, None, 0
         if not self._plan():
             return False
         await self.set_state("driving", f"to ({goal[0]:.0f}, {goal[1]:.0f})")
@@ -755,6 +762,11 @@ class RouteNav(NavBase):
         pts = route_points(plan, (p.x, p.y))
         if plan.goal_snapped:
             pts.append(self.goal)  # the goal itself; the spot check vouched for it
+        if self._nudge is not None:
+            dx, dy, cx, cy = self._nudge
+            reach = self.o.nudge_reach_cm
+            pts = [(x + dx, y + dy) if i < len(pts) - 1 and math.dist((x, y), (cx, cy)) <= reach
+                   else (x, y) for i, (x, y) in enumerate(pts)]
         if self.stop_short_cm > 0:
             pts = shorten(pts, (p.x, p.y), self.stop_short_cm) or [(p.x, p.y)]
         self.follower = PathFollower(pts, self.goal_heading, self.o)
@@ -783,10 +795,34 @@ class RouteNav(NavBase):
             return
         if self._replan:
             self._replan = False
-            if not self._plan():
+            if not self._plan() and not self._nudged_plan():
                 await self._give_up("no path after being blocked")
                 return
         await self._step()
+
+    def _nudged_plan(self) -> bool:
+        """Plan again on the server's map, the route shifted sideways near the block.
+
+        Called when the obstacles learned from blocks cut every route: the
+        block was then most likely the rover's own dead-reckoning error
+        making it miss a narrow passage (a gap only ~20 cm wider than the body
+        is missed by a heading drift of a few degrees over a few metres), not
+        an obstacle the map does not show. The search tries lateral offsets
+        of the waypoints near the block point, alternating sides and growing
+        by ``nudge_step_cm`` (+6, -6, +12, -12 ... [cm]), one per block,
+        bounded by ``replan_limit``.
+        """
+        if self.map is None or self._last_block is None:
+            return False
+        k = self._nudges
+        self._nudges += 1
+        self.counters["nudges"] += 1
+        off = self.o.nudge_step_cm * (k // 2 + 1) * (1.0 if k % 2 == 0 else -1.0)
+        bx, by, bh = self._last_block
+        h = math.radians(bh)
+        self._nudge = (-math.sin(h) * off, math.cos(h) * off, bx, by)
+        self.work_map = self.map
+        return self._plan()
 
     async def _blocked_route(self, why: str) -> None:
         self.replans += 1
@@ -802,8 +838,8 @@ class RouteNav(NavBase):
         if why == "blocked":
             # a second block near the first: something the map does not show is there
             # (one block alone may be a restarted motor cutting its command short)
-            last, self._last_block = self._last_block, (p.x, p.y)
-            if last is not None and math.dist(last, (p.x, p.y)) <= 30.0:
+            last, self._last_block = self._last_block, (p.x, p.y, p.heading_deg)
+            if last is not None and math.dist(last[:2], (p.x, p.y)) <= 30.0:
                 self.work_map = with_obstacle(self.work_map, p.x + ahead * math.cos(h),
                                               p.y + ahead * math.sin(h), 8.0)
         self._replan = True
