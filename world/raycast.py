@@ -98,7 +98,6 @@ class FanCaster:
         g[5] = g[3] - g[1]
         g[6] = np.arctan2(g[5], g[4])
         g[7] = np.hypot(g[4], g[5])
-        self._ids = np.arange(self._n)
 
     @property
     def segments(self) -> np.ndarray:
@@ -168,43 +167,49 @@ class FanCaster:
         if n == 0 or self._n == 0:
             return out
         g = self._geo
-        q = g[0:4] - np.array((origin[0], origin[1], origin[0], origin[1]))[:, None]
-        a0 = np.arctan2(q[1], q[0])
-        a1 = np.arctan2(q[3], q[2])
-        h = q[0] * g[5] - q[1] * g[4]  # (p0 - o) x s: > 0 when p0 -> p1 turns counter-clockwise
+        ox, oy = origin
+        q = g[0:4] - np.array((ox, oy, ox, oy))[:, None]
+        a0, a1 = np.arctan2(q[1::2], q[0::2])  # directions to both ends [rad]
+        h = q[0] * g[5]
+        h -= q[1] * g[4]  # (p0 - o) x s: > 0 when p0 -> p1 turns counter-clockwise
         ccw = h > 0
-        # the extent runs counter-clockwise from `lo` over `w` (< pi) [rad]
+        # the extent runs counter-clockwise over `w` (< pi) and ends at `end` [rad]
         d = a1 - a0
         d %= TWO_PI
-        lo = np.where(ccw, a0, a1)
         w = np.where(ccw, d, TWO_PI - d)
-        # place the extent relative to the fan so that it ends at or after the first ray:
-        # with the part narrower than pi it then meets the part in at most one run
-        lo -= start
-        lo += w
-        lo %= TWO_PI
-        lo -= w
+        end = np.where(ccw, a1, a0)
+        # the end relative to the first ray, in [0, 2 pi): with the part narrower than
+        # pi the extent then meets the part in at most one run of rays
+        end -= start
+        end %= TWO_PI
         inv = 1.0 / step
-        first = np.ceil(lo * inv - EXTENT_EPS)
-        lo += w
-        last = np.floor(lo * inv + EXTENT_EPS)
+        end *= inv
+        w *= inv
+        last = np.floor(end + EXTENT_EPS)
+        end -= w
+        end -= EXTENT_EPS
+        first = np.ceil(end, out=end)
         np.maximum(first, 0.0, out=first)
         np.minimum(last, n - 1, out=last)
         last -= first
-        last += 1.0
-        last[h == 0.0] = 0.0  # edge-on: in line with the origin
+        last[h == 0.0] = -1.0  # edge-on: in line with the origin
         count = last.astype(np.int64)
+        count += 1
         np.maximum(count, 0, out=count)
-        total = int(count.sum())
+        csum = np.cumsum(count)
+        total = int(csum[-1])
         if total == 0:
             return out
-        seg = np.repeat(self._ids, count)
-        ray = np.arange(total) + np.repeat(first.astype(np.int64) + count - np.cumsum(count),
-                                           count)
+        first_ray = first.astype(np.int64)
+        first_ray -= csum
+        first_ray += count
+        ray = np.repeat(first_ray, count)
+        ray += np.arange(total)
         h /= g[7]
-        ang = (g[6] - start)[seg]
+        ang = np.repeat(g[6] - start, count)
         ang -= ray * step
-        t = h[seg] / np.sin(ang)
+        t = np.repeat(h, count)
+        t /= np.sin(ang)
         np.minimum.at(out, ray, t)
         out[(out > max_range) | (out <= 1e-9)] = np.inf
         return out
