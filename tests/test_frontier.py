@@ -61,7 +61,7 @@ def explored_room() -> GridMap:
 def test_find_frontiers_reports_the_boundary_with_distance_and_target():
     """The known/unknown boundary is one cluster; its target is reachable and near it."""
     m = explored_room()
-    fs = find_frontiers(m, (50.0, 100.0))
+    fs = find_frontiers(m, (50.0, 100.0), split_cm=None)
     assert len(fs) == 1
     f = fs[0]
     assert f.size == 38  # rows 1..38 at column 29
@@ -79,11 +79,26 @@ def test_walled_off_frontier_is_unreachable():
     """A frontier behind a wall has no target and an infinite cost."""
     cells = explored_room().cells.copy()
     cells[:, 15] = OCCUPIED
-    fs = find_frontiers(GridMap(cells, 5.0, (0, 0)), (30.0, 100.0))
+    fs = find_frontiers(GridMap(cells, 5.0, (0, 0)), (30.0, 100.0), split_cm=None)
     assert len(fs) == 1 and not fs[0].reachable
     assert frontier_cost(fs[0]) == math.inf
     assert choose_frontier(fs) is None
     assert no_useful_frontier(fs)
+
+
+def test_a_long_frontier_is_split_into_pieces_with_their_own_targets():
+    """The 190 cm boundary, cut by a 100 cm grid: pieces that together hold every frontier
+    cell, each with a target near its own part (not all at the point nearest the rover)."""
+    m = explored_room()
+    whole = find_frontiers(m, (50.0, 100.0), split_cm=None)[0]
+    fs = find_frontiers(m, (50.0, 100.0), split_cm=100.0)
+    assert len(fs) >= 2
+    assert sum(f.size for f in fs) == whole.size
+    assert all(f.reachable for f in fs)
+    ys = sorted(f.target_cm[1] for f in fs)
+    assert ys[-1] - ys[0] >= 50.0  # the targets are spread along the boundary
+    for f in fs:
+        assert min(abs(f.target_cm[1] - y) for y in f.cells_cm[:, 1]) <= 30.0
 
 
 def test_fully_known_room_has_no_frontier():

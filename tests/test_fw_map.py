@@ -24,7 +24,8 @@ def ring_scan(n: int = 360, r: float = 100.0) -> Scan:
 
 @pytest.mark.trio
 async def test_map_management_rate_limits_updates_and_counts_scans(autojump_clock) -> None:
-    """Ten identical scans in a burst: one snapshot and count at once; later only the count
+    """Ten identical scans in a burst: one snapshot and count at once (the hits), one more
+    when the timer fires (the second scan confirmed the free space), then only counts
     (the map did not change, the scans kept arriving)."""
     pool, log = BufferPool(64), []
     spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
@@ -40,7 +41,7 @@ async def test_map_management_rate_limits_updates_and_counts_scans(autojump_cloc
         await trio.sleep(0.3)
         updates = [p for c, p in log if c == Cmd.NAV_MAP_UPDATE]
         counts = [p for c, p in log if c == Cmd.NAV_SCAN_COUNT]
-        assert len(updates) == 1 and counts == [1, 10]
+        assert len(updates) == 2 and counts == [1, 10]
         snap = updates[-1]
         assert isinstance(snap, GridMap)
         r, c = snap.world_to_cell(101.0, 0.0)
@@ -94,7 +95,7 @@ async def test_flood_of_noops_costs_dropped_messages_not_restarts(autojump_clock
 
     def make_map():
         starts[0] += 1
-        return MapManagement(pool, size_cm=(400, 400), restarted=starts[0] > 1)
+        return MapManagement(pool, size_cm=(400, 400), restarted=starts[0] > 1, matching=None)
     lidar_holder = []
 
     def make_lidar():

@@ -24,17 +24,23 @@ def test_default_grid_covers_24_m_square_centred_on_start():
     assert (g.cells() == UNKNOWN).all()
 
 
-def test_one_ray_frees_cells_before_the_hit_and_marks_the_hit():
-    """A ray along +x of 50 cm frees cells 0..9 and marks cell 10 occupied."""
+def test_one_ray_marks_the_hit_and_two_rays_free_the_cells_before_it():
+    """A ray along +x of 50 cm marks cell 10 occupied at once; cells 0..9 turn free only
+    when a second batch confirms them (one stray ray cannot open a wall)."""
     g = small_grid()
     changed = g.integrate(Pose(2.5, 2.5, 0), np.array([0.0]), np.array([50.0]))
     cells = g.cells()
     r, c = g.world_to_cell(2.5, 2.5)
+    assert (cells[r, c:c + 10] == UNKNOWN).all()
+    assert cells[r, c + 10] == OCCUPIED
+    assert changed == 1
+    changed = g.integrate(Pose(2.5, 2.5, 0), np.array([0.0]), np.array([50.0]))
+    cells = g.cells()
     assert (cells[r, c:c + 10] == FREE).all()
     assert cells[r, c + 10] == OCCUPIED
     assert cells[r, c + 11] == UNKNOWN
     assert cells[r + 1, c] == UNKNOWN
-    assert changed == 11
+    assert changed == 10
 
 
 def test_angles_are_relative_to_the_heading():
@@ -48,7 +54,8 @@ def test_angles_are_relative_to_the_heading():
 def test_no_return_clears_up_to_max_range_without_a_hit():
     """Range 0 means nothing within range: free along max_range_cm, nothing occupied."""
     g = small_grid()
-    g.integrate(Pose(2.5, 2.5, 0), np.array([0.0]), np.array([0.0]))
+    for _ in range(2):
+        g.integrate(Pose(2.5, 2.5, 0), np.array([0.0]), np.array([0.0]))
     cells = g.cells()
     assert not (cells == OCCUPIED).any()
     r, c = g.world_to_cell(2.5, 2.5)
@@ -65,7 +72,7 @@ def test_repeated_hits_clamp_and_one_free_pass_cannot_erase_a_confident_wall():
     r, c = g.world_to_cell(52.5, 2.5)
     g.integrate(pose, np.array([0.0]), np.array([80.0]))
     assert g.cells()[r, c] == OCCUPIED
-    for _ in range(10):
+    for _ in range(20):
         g.integrate(pose, np.array([0.0]), np.array([80.0]))
     assert g.cells()[r, c] == FREE
 
@@ -84,12 +91,13 @@ def test_change_count_drops_to_zero_for_a_repeated_scan():
     g = small_grid()
     angles = np.arange(0, 360, 1.0)
     ranges = np.full(360, 80.0)
-    first = g.integrate(Pose(0, 0, 0), angles, ranges)
+    first = g.integrate(Pose(0, 0, 0), angles, ranges)  # the hits
+    second = g.integrate(Pose(0, 0, 0), angles, ranges)  # the free space, confirmed
     again = g.integrate(Pose(0, 0, 0), angles, ranges)
-    assert first > 500
+    assert first > 50 and second > 500
     assert again == 0
-    assert g.changed_total == first
-    assert g.batches == 2 and g.rays == 720
+    assert g.changed_total == first + second
+    assert g.batches == 3 and g.rays == 1080
 
 
 def test_rays_leaving_the_grid_are_clipped():

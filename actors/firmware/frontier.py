@@ -158,6 +158,22 @@ def _min_filter(values: np.ndarray, k: int) -> np.ndarray:
     return out
 
 
+def _split_clusters(labels: np.ndarray, side: int) -> tuple[np.ndarray, int]:
+    """Relabel so each (cluster, ``side`` x ``side`` block) pair is its own cluster,
+    numbered in row-major order of each piece's first cell."""
+    rows, cols = np.nonzero(labels)
+    if rows.size == 0:
+        return labels, 0
+    nbx = labels.shape[1] // side + 1
+    key = labels[rows, cols].astype(np.int64) * (nbx * (labels.shape[0] // side + 1)) \
+        + (rows // side) * nbx + cols // side
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    order = np.argsort(np.argsort(first, kind="stable"), kind="stable")  # by first cell
+    out = np.zeros_like(labels)
+    out[rows, cols] = order[inverse] + 1
+    return out, int(first.size)
+
+
 def find_frontiers(
     grid: GridMap,
     rover_cm: tuple[float, float],
@@ -167,6 +183,7 @@ def find_frontiers(
     approach_cm: float = 30.0,
     explore_radius_cm: float = 100.0,
     snap_radius_cm: float = 30.0,
+    split_cm: float | None = 100.0,
 ) -> list[Frontier]:
     """Every frontier cluster of ``grid``, with its distance from the rover.
 
@@ -179,6 +196,11 @@ def find_frontiers(
         explore_radius_cm: half-side of the window for ``unknown_share`` [cm].
         snap_radius_cm: how far the rover's cell may move to a passable one [cm]
             (after mapping near a wall the rover may stand inside the inflation).
+        split_cm: clusters are cut into pieces by a square grid of this side [cm]
+            (None: whole clusters). A long frontier (a wall's ragged edge running
+            from the rover into the next room) would otherwise have one target, the
+            approach point nearest the rover, and be given up as a whole once that
+            point was reached without seeing anything new.
 
     Returns:
         Clusters in label order (see `label_clusters`); empty when there is no
@@ -192,6 +214,8 @@ def find_frontiers(
     labels, count = label_clusters(mask)
     if count == 0:
         return []
+    if split_cm is not None and split_cm > 0:
+        labels, count = _split_clusters(labels, max(1, round(split_cm / res)))
 
     passable = traversable(sub, robot_radius_cm, margin_cm, "blocked")
     start = snap_to_passable(passable, sub.world_to_cell(*rover_cm), snap_radius_cm / res)

@@ -98,6 +98,8 @@ class MapManagement(Actor):
         self._correction_xy: tuple[float, float] | None = None  # half of MAP_CORRECTION_*
         # a restarted incarnation waits (a bounded time) for the correction Motor kept
         self._await_correction_until = -float("inf")
+        self.unplaced = 0
+        """Batches dropped because they see the map but match nowhere near dead reckoning."""
         self.held_scans = 0
         """Batches dropped while waiting for the correction after a restart."""
         self._changed = True  # a cell changed class since the last update
@@ -127,6 +129,9 @@ class MapManagement(Actor):
                 self.held_scans += 1  # placed in the wrong frame, it would smear the map
                 return
             pose = self._place(scan)
+            if pose is None:
+                self.unplaced += 1  # it sees mapped walls but fits nowhere: a bad pose
+                return
             if self.grid.integrate(pose, scan.angles_deg, scan.ranges_cm):
                 self._changed = self._fields_stale = True
             self.scans += 1
@@ -154,11 +159,14 @@ class MapManagement(Actor):
         else:
             raise ValueError(f"map management got an unknown command 0x{cmd:04x}")
 
-    def _place(self, scan: Scan) -> Pose:
+    def _place(self, scan: Scan) -> Pose | None:
         """The map-frame pose of a batch: corrected odometry, refined by scan matching.
 
         A batch from where the last matched one was (the rover stands still) keeps the
         correction; so does one that cannot be matched (too few hits, unmapped view).
+        None for a batch that sees mapped obstacles but whose match was refused: its
+        pose is in doubt, and one badly placed batch clears free space through walls
+        (outside the room, where no later ray can repair it).
         """
         odom = scan.pose
         guess = compose(self.correction, odom)
@@ -172,7 +180,7 @@ class MapManagement(Actor):
         pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
         result = match_scan(self._fields, pts, guess, opts)
         if not result.accepted:
-            return guess
+            return None if result.supported else guess
         self.matched += 1
         self._last_odom = odom
         self.correction = compose(result.pose, inverse(odom))

@@ -103,6 +103,12 @@ class MappingOptions:
     """Frontiers tried per decision before waiting for the map to change."""
     blacklist: int = 256
     """Most blacklisted points kept."""
+    futile_trips: int = 4
+    """After this many trips in a row that each revealed fewer than ``min_gain_cells``,
+    the frontiers left are not worth visiting (pockets behind furniture, noise at edges):
+    exploration treats them as not useful, and completion may follow."""
+    min_gain_cells: int = 30
+    """A trip that made fewer cells known than this was futile [cells]."""
 
 
 @dataclass
@@ -117,6 +123,8 @@ class _Exploration:
     blacklist: list[tuple[float, float]] = field(default_factory=list)
     reached: list[tuple[float, float]] = field(default_factory=list)  # targets arrived at
     no_frontier: bool = False  # the last decision found nothing useful to explore
+    trip_known: int | None = None  # known cells when the current trip began
+    gains: list[int] = field(default_factory=list)  # cells each recent trip made known
 
 
 class MappingNav(NavBase):
@@ -315,8 +323,15 @@ class MappingNav(NavBase):
         assert self.grid is not None
         ex = self.ex
         pose = self.pose
-        frontiers = find_frontiers(self.grid, (pose.x, pose.y), robot_radius_cm=self.radius_cm,
-                                   margin_cm=self.o.plan_margin_cm, approach_cm=self.m.approach_cm)
+        if self._futile():
+            ex.no_frontier = True
+            ex.follower = None
+            return False
+        # reachability with the narrowest tier the rover can drive (a corridor barely wider
+        # than the body); the route itself tries the roomier tiers first
+        radius, margin = self._tiers()[-1]
+        frontiers = find_frontiers(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
+                                   margin_cm=margin, approach_cm=self.m.approach_cm)
         for _ in range(self.m.max_choices):
             f = choose_frontier(frontiers, min_size_cells=self.m.min_frontier_cells,
                                 blacklist=ex.blacklist, blacklist_radius_cm=self.m.approach_cm)
@@ -338,14 +353,48 @@ class MappingNav(NavBase):
         self._wait_map = True
         return False
 
+    def _tiers(self) -> list[tuple[float, float]]:
+        """(radius, margin) to plan with, roomiest first [cm]: turning radius plus margin,
+        turning radius alone, half the body width plus the narrow margin (a corridor the
+        rover fits through driving straight; the tiers of hiding and seeking), and half
+        the body width alone: on a 5 cm grid a 30 cm corridor whose walls lie on cell
+        edges maps 25 cm wide, and only this tier still finds the way through it (a
+        scrape on the way is a blocked motion, and the route is replanned)."""
+        r, m = self.radius_cm, self.o.plan_margin_cm
+        half = 0.5 * self.width_cm
+        out: list[tuple[float, float]] = []
+        for t in ((r, m), (r, 0.0), (half, self.o.narrow_margin_cm), (half, 0.0)):
+            if t not in out and t[0] + t[1] <= r + m:
+                out.append(t)
+        return out
+
+    def _futile(self) -> bool:
+        """Whether the last ``futile_trips`` trips each revealed too little to go on."""
+        g = self.ex.gains
+        return len(g) >= self.m.futile_trips and all(
+            v < self.m.min_gain_cells for v in g[-self.m.futile_trips:])
+
+    def _known(self) -> int:
+        assert self.grid is not None
+        return int(np.count_nonzero(self.grid.cells != UNKNOWN))
+
     def _route_to(self, f: Frontier) -> bool:
         assert self.grid is not None and f.target_cm is not None
         pose = self.pose
-        plan = plan_route(self.grid, (pose.x, pose.y), f.target_cm, radius_cm=self.radius_cm,
-                          margin_cm=self.o.plan_margin_cm)
+        plan = None
+        for radius, margin in self._tiers():
+            plan = plan_route(self.grid, (pose.x, pose.y), f.target_cm, radius_cm=radius,
+                              margin_cm=margin)
+            if plan is not None:
+                break
         if plan is None:
             return False
         ex = self.ex
+        known = self._known()
+        if ex.trip_known is not None:  # the previous trip ends here: what did it reveal?
+            ex.gains.append(known - ex.trip_known)
+            del ex.gains[:-self.m.futile_trips]
+        ex.trip_known = known
         ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
         ex.target = f.target_cm
         ex.steps = 0

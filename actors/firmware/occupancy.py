@@ -32,8 +32,10 @@ Cell values of a snapshot (`GridMap.cells`, int8)
     ``-1`` unknown, ``0`` free, ``100`` occupied. A cell is free when its
     log-odds are below ``free_threshold`` and occupied above
     ``occ_threshold`` (defaults -0.4 and +0.4, i.e. p < 0.40 and p > 0.60);
-    in between it is unknown. With the default increments one observation is
-    enough to make a cell free (-0.7) or occupied (+0.9).
+    in between it is unknown. With the default increments one hit makes a cell
+    occupied (+0.9) but it takes two rays through a cell to make it free (-0.35
+    each): free space beyond a wall, cleared by one badly placed scan, is where
+    the map can never be corrected (no ray comes from outside).
 """
 
 from __future__ import annotations
@@ -80,8 +82,9 @@ def cell_to_world(origin_cm: tuple[float, float], resolution_cm: float,
 class LogOddsModel:
     """Inverse sensor model and classification thresholds (all in log-odds)."""
 
-    l_free: float = -0.7
-    """Added to a cell a ray passes through."""
+    l_free: float = -0.35
+    """Added to a cell a ray passes through: two passes make a cell free, so one stray
+    ray (a scan placed a little wrong) cannot open a hole through a wall."""
     l_occ: float = 0.9
     """Added to the cell holding a hit."""
     l_min: float = -2.0

@@ -92,6 +92,9 @@ class MatchResult:
     """Mean narrow-field value at the hits from ``pose``, 0..1."""
     reason: str = ""
     """Why the match was refused (empty when accepted)."""
+    supported: bool = False
+    """Whether enough hits fell on mapped obstacles to judge the scan: a supported scan
+    that was refused (too large a correction, a worse fit) is suspect, its pose unknown."""
 
 
 def _binomial(passes: int) -> np.ndarray:
@@ -266,8 +269,9 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
                            f"only {max(support0, support1):.0%} of the hits on mapped obstacles")
     if shift > o.max_shift_cm or turn > o.max_turn_deg:
         return MatchResult(guess, False, score0, score0,
-                           f"correction too large ({shift:.1f} cm, {turn:.1f} deg)")
+                           f"correction too large ({shift:.1f} cm, {turn:.1f} deg)", True)
     if score1 < score0:
-        return MatchResult(guess, False, score0, score0, "the match fits worse than the guess")
+        return MatchResult(guess, False, score0, score0, "the match fits worse than the guess",
+                           True)
     return MatchResult(Pose(float(est[0]), float(est[1]), math.degrees(est[2])), True,
-                       score0, score1)
+                       score0, score1, "", True)
