@@ -4,15 +4,21 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 
+import numpy as np
 import trio
 
 from actors import seed_trio_scheduler, virtual_clock
+from actors.firmware.nav import make_nav
+from actors.firmware.nav_common import NavBase
+from actors.firmware.occupancy import FREE, OCCUPIED, GridMap
 from server.store import Store
 from supervisors.headless import Budget, GameReport, finish_report, play_game, run_game
 from supervisors.system import open_sim_system
 from tui.cli import main
 from world.scenario import ScheduledFault, load_scenario
+from world.truth import truth_raster
 
 
 def play(scenario, seed: int = 1) -> GameReport:
@@ -99,6 +105,83 @@ def test_crash_and_hang_injected_in_each_phase_are_recovered_and_the_hider_found
     assert report.restarts >= 3
     assert report.faults == 3
     assert exits == {"mapper/nav": "crash", "hider/motor": "hung", "seeker/nav": "crash"}
+
+
+class TruthMapperNav(NavBase):
+    """Stand-in mapping navigation: on ``start`` it uploads the room's ground truth
+    as the map (map frame = the mapper's start frame, heading 0), so the hide and
+    seek part of a game is tested apart from the mapper's own map quality."""
+
+    role = "mapper"
+
+    def __init__(self, *, pool, grid: GridMap, **kw) -> None:
+        super().__init__(pool=pool, **kw)
+        self.grid = grid
+
+    async def on_start_cmd(self) -> None:
+        await self.send_map(self.grid)
+        await self.set_state("mapped", "ground truth")
+
+
+def truth_map(scenario) -> GridMap:
+    """The room's obstacles and walls (one cell each side) in the mapper's start frame."""
+    truth = truth_raster(scenario)
+    cells = np.pad(np.where(truth.occupied, OCCUPIED, FREE).astype(np.int8), 1,
+                   constant_values=OCCUPIED)
+    start = scenario.starts["mapper"]
+    assert start.heading_deg == 0.0
+    res = truth.resolution_cm
+    return GridMap(cells, res, (-start.x - res, -start.y - res))
+
+
+def play_on_truth(scenario, seed: int = 1) -> tuple[GameReport, dict]:
+    """A whole game whose map is the ground truth; also the hider's true pose on arrival."""
+    grid = truth_map(scenario)
+    seen: dict = {}
+
+    def nav_factory(role, *, pool, spec=None, rover_id=None, memory=None, **kw):
+        if role == "mapper":
+            return TruthMapperNav(pool=pool, grid=grid, spec=spec, memory=memory)
+        return make_nav(role, pool=pool, spec=spec, memory=memory, **kw)
+
+    async def watch_hider(system) -> None:
+        while system.server.game.hider_pose is None:
+            await trio.sleep(0.25)
+        seen["true"] = system.world.true_pose("hider")
+        seen["reported"] = system.server.game.hider_pose
+
+    async def main() -> GameReport:
+        report = GameReport(scenario.name, seed)
+        with Store(":memory:") as store:
+            async with open_sim_system(scenario, seed=seed, store=store,
+                                       nav_factory=nav_factory) as system:
+                t0 = trio.current_time()
+                async with trio.open_nursery() as nursery:
+                    nursery.start_soon(watch_hider, system)
+                    await play_game(system, report, Budget(mapping=60.0))
+                    nursery.cancel_scope.cancel()
+                finish_report(report, system, t0)
+        return report
+
+    seed_trio_scheduler(seed)
+    return trio.run(main, clock=virtual_clock()), seen
+
+
+def test_hider_through_the_gap_and_seeker_find_it_on_a_true_map() -> None:
+    """Gap room with a perfect map: the hider drives through the 35 cm gap into the
+    alcove and reports the spot within 5 cm / 5 deg (dead reckoning); the seeker's
+    second guess (the spot) finds it."""
+    scenario = load_scenario("gap")
+    report, seen = play_on_truth(scenario)
+    assert report.outcome == "found", report.reason
+    spot = scenario.hide_at
+    reported = seen["reported"]  # map frame = room frame shifted by the mapper's start
+    start = scenario.starts["mapper"]
+    assert math.dist((reported.x + start.x, reported.y + start.y), (spot.x, spot.y)) <= 5.0
+    assert abs((reported.heading - spot.heading_deg + 180) % 360 - 180) <= 5.0
+    true = seen["true"]
+    assert true.x > 415.0  # really behind the wall, in the alcove
+    assert math.dist((true.x, true.y), (spot.x, spot.y)) <= 40.0  # dead-reckoning drift
 
 
 def test_run_command_prints_json_and_exits_by_outcome(capsys) -> None:
