@@ -25,6 +25,10 @@ seconds per wall second of the whole game (``trio.run`` included); with
 the cores are busy: the table shows the load average before and after.
 
 ``--quick`` plays seed 1 of three small scenarios with a short mapping budget.
+``--truth-map`` skips mapping: a stand-in mapping navigation uploads the
+room's ground truth as the map, so the hider's and the seeker's figures are
+measured apart from the mapper's map quality (coverage and accuracy are then
+those of the truth, 1.0 by construction, and are not targets).
 The last line printed is one JSON object with every figure.
 """
 
@@ -85,8 +89,54 @@ def _guess_in_range(scenario: Any, hider: tuple[float, float]) -> bool:
     return any(math.dist(g, hider) <= IR_RANGE_CM for g in scenario.seek_at)
 
 
-def play_one(job: tuple[str, int, float]) -> dict[str, Any]:
-    """Play one game (a module-level function for the ``spawn`` pool) and return its figures."""
+def truth_map(scenario: Any) -> Any:
+    """The room's ground truth as a firmware map: obstacles and walls (one cell each
+    side), in the mapper's start frame (start heading 0 only) [5 cm cells]."""
+    import numpy as np  # noqa: PLC0415
+
+    from actors.firmware.occupancy import FREE, OCCUPIED, GridMap  # noqa: PLC0415
+    from world.truth import truth_raster  # noqa: PLC0415
+
+    start = scenario.starts["mapper"]
+    if start.heading_deg != 0.0:
+        raise ValueError(f"truth_map needs the mapper to start at heading 0, got "
+                         f"{start.heading_deg}")
+    truth = truth_raster(scenario)
+    cells = np.pad(np.where(truth.occupied, OCCUPIED, FREE).astype(np.int8), 1,
+                   constant_values=OCCUPIED)
+    res = truth.resolution_cm
+    return GridMap(cells, res, (-start.x - res, -start.y - res))
+
+
+def truth_nav_factory(grid: Any) -> Any:
+    """A rover tree ``nav_factory``: the real hider and seeker navigation, and a stand-in
+    mapping navigation that uploads ``grid`` when the server says ``start``."""
+    from actors.firmware.nav import make_nav  # noqa: PLC0415
+    from actors.firmware.nav_common import NavBase  # noqa: PLC0415
+
+    class TruthMapperNav(NavBase):
+        """Mapping navigation stand-in: the map is ``grid``, uploaded at once."""
+
+        role = "mapper"
+
+        async def on_start_cmd(self) -> None:
+            await self.send_map(grid)
+            await self.set_state("mapped", "ground truth")
+
+    def factory(role: str, *, pool: Any, spec: Any = None, rover_id: str | None = None,
+                memory: Any = None, **kw: Any) -> Any:
+        if role == "mapper":
+            return TruthMapperNav(pool=pool, spec=spec, memory=memory)
+        return make_nav(role, pool=pool, spec=spec, rover_id=rover_id, memory=memory, **kw)
+
+    return factory
+
+
+def play_one(job: tuple[str, int, float, bool]) -> dict[str, Any]:
+    """Play one game (a module-level function for the ``spawn`` pool) and return its figures.
+
+    ``job`` is (scenario name, seed, mapping budget [s], play on the truth map).
+    """
     import trio  # noqa: PLC0415 - imported in the worker
 
     from actors import seed_trio_scheduler, virtual_clock  # noqa: PLC0415
@@ -95,8 +145,9 @@ def play_one(job: tuple[str, int, float]) -> dict[str, Any]:
     from supervisors.system import open_sim_system  # noqa: PLC0415
     from world.scenario import load_scenario  # noqa: PLC0415
 
-    name, seed, mapping_budget = job
+    name, seed, mapping_budget, on_truth = job
     scenario = load_scenario(name)
+    nav_factory = truth_nav_factory(truth_map(scenario)) if on_truth else None
     report = GameReport(scenario.name, seed)
     probe: dict[str, Any] = {}
 
@@ -113,7 +164,8 @@ def play_one(job: tuple[str, int, float]) -> dict[str, Any]:
 
     async def main() -> None:
         with Store(":memory:") as store:
-            async with open_sim_system(scenario, seed=seed, store=store) as system:
+            async with open_sim_system(scenario, seed=seed, store=store,
+                                       nav_factory=nav_factory) as system:
                 t_start = trio.current_time()
                 try:
                     async with trio.open_nursery() as nursery:
@@ -257,6 +309,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", default=None, help="seeds, e.g. 1-5 or 1,3 (default 1-5)")
     ap.add_argument("--workers", type=int, default=1,
                     help="worker processes (default 1: the real-time factor of one core)")
+    ap.add_argument("--truth-map", action="store_true",
+                    help="skip mapping: hide and seek on the room's ground-truth map")
     ap.add_argument("--budget", type=float, default=None,
                     help="simulated seconds allowed for mapping (default 1200, quick 600)")
     args = ap.parse_args(argv)
@@ -272,8 +326,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"benchmarks.game: {exc}", file=sys.stderr)
         return 2
     budget = args.budget if args.budget is not None else (600.0 if args.quick else 1200.0)
-    jobs = [(n, s, budget) for n in names for s in seeds]
-    print(f"{len(jobs)} games ({', '.join(names)}; seeds {seeds}), {args.workers} worker(s), "
+    jobs = [(n, s, budget, args.truth_map) for n in names for s in seeds]
+    where = " on the truth map" if args.truth_map else ""
+    print(f"{len(jobs)} games{where} ({', '.join(names)}; seeds {seeds}), "
+          f"{args.workers} worker(s), "
           f"mapping budget {budget:.0f} s, cpus {len(os.sched_getaffinity(0))}, "
           f"load {_load():.2f}", flush=True)
     print(HEADER)
@@ -309,7 +365,8 @@ def main(argv: list[str] | None = None) -> int:
           f"{TARGETS['hider_cm']:g} cm / {TARGETS['hider_deg']:g} deg, found whenever a guess "
           f"is in IR range, RTF >= {TARGETS['rtf']:g}x ('!' marks a miss)")
     figures = {
-        "benchmark": "game", "quick": args.quick, "workers": args.workers, "budget_s": budget,
+        "benchmark": "game", "quick": args.quick, "truth_map": args.truth_map,
+        "workers": args.workers, "budget_s": budget,
         "load_before": load0, "load_after": load1, "wall_s": wall, "targets": TARGETS,
         "overall": total, "scenarios": per,
         "rtf_vs_target": total["rtf"] / TARGETS["rtf"],

@@ -6,19 +6,15 @@ import dataclasses
 import json
 import math
 
-import numpy as np
 import trio
 
 from actors import seed_trio_scheduler, virtual_clock
-from actors.firmware.nav import make_nav
-from actors.firmware.nav_common import NavBase
-from actors.firmware.occupancy import FREE, OCCUPIED, GridMap
+from benchmarks.game import truth_map, truth_nav_factory
 from server.store import Store
 from supervisors.headless import Budget, GameReport, finish_report, play_game, run_game
 from supervisors.system import open_sim_system
 from tui.cli import main
 from world.scenario import ScheduledFault, load_scenario
-from world.truth import truth_raster
 
 
 def play(scenario, seed: int = 1) -> GameReport:
@@ -107,42 +103,10 @@ def test_crash_and_hang_injected_in_each_phase_are_recovered_and_the_hider_found
     assert exits == {"mapper/nav": "crash", "hider/motor": "hung", "seeker/nav": "crash"}
 
 
-class TruthMapperNav(NavBase):
-    """Stand-in mapping navigation: on ``start`` it uploads the room's ground truth
-    as the map (map frame = the mapper's start frame, heading 0), so the hide and
-    seek part of a game is tested apart from the mapper's own map quality."""
-
-    role = "mapper"
-
-    def __init__(self, *, pool, grid: GridMap, **kw) -> None:
-        super().__init__(pool=pool, **kw)
-        self.grid = grid
-
-    async def on_start_cmd(self) -> None:
-        await self.send_map(self.grid)
-        await self.set_state("mapped", "ground truth")
-
-
-def truth_map(scenario) -> GridMap:
-    """The room's obstacles and walls (one cell each side) in the mapper's start frame."""
-    truth = truth_raster(scenario)
-    cells = np.pad(np.where(truth.occupied, OCCUPIED, FREE).astype(np.int8), 1,
-                   constant_values=OCCUPIED)
-    start = scenario.starts["mapper"]
-    assert start.heading_deg == 0.0
-    res = truth.resolution_cm
-    return GridMap(cells, res, (-start.x - res, -start.y - res))
-
-
 def play_on_truth(scenario, seed: int = 1) -> tuple[GameReport, dict]:
     """A whole game whose map is the ground truth; also the hider's true pose on arrival."""
-    grid = truth_map(scenario)
+    nav_factory = truth_nav_factory(truth_map(scenario))
     seen: dict = {}
-
-    def nav_factory(role, *, pool, spec=None, rover_id=None, memory=None, **kw):
-        if role == "mapper":
-            return TruthMapperNav(pool=pool, grid=grid, spec=spec, memory=memory)
-        return make_nav(role, pool=pool, spec=spec, memory=memory, **kw)
 
     async def watch_hider(system) -> None:
         while system.server.game.hider_pose is None:
