@@ -1,4 +1,4 @@
-"""Link strings, ``tcp:HOST:PORT``, ``tcp``, ``serial:PORT,BAUD``, ``sim``, ``pty``.
+"""Link strings: ``tcp:HOST:PORT``, ``tcp``, ``serial:PORT,BAUD``, ``sim``, ``pty``.
 
 =============================  ================================================
 string                         meaning
