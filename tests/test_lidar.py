@@ -121,6 +121,12 @@ def test_framer_writes_the_bytes_of_the_reference_encoder(first: int, dists: lis
     idx = np.full(len(d), first) if stuck else first + np.arange(len(d))
     want = encode_lidar_packets((idx % 360) * 100, d)
     assert framer.frames(first, d, same_angle=stuck) == want
+    assert framer.frames(first, d + 0.75, same_angle=stuck) == want  # fractions are dropped
+
+
+def test_framer_refuses_more_samples_than_it_was_made_for() -> None:
+    with pytest.raises(ValueError, match="at most 10 samples per call, got 11"):
+        LidarFramer(360, 10).frames(0, np.zeros(11))
 
 
 def test_packets_match_geometry_within_quantisation() -> None:

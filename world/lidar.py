@@ -63,6 +63,8 @@ class Lidar:
                 caster: FanCaster, noise: np.ndarray) -> np.ndarray:
         """Cast ``n`` samples from angle index ``first``: distances [cm], 0 = no return.
 
+        The distances are whole multiples of the quantum (float, as the framer takes them).
+
         Args:
             first: angle index of the first sample (from `due`).
             n: number of samples.
@@ -85,7 +87,7 @@ class Lidar:
         np.maximum(d, 1.0, out=d)  # a hit never reads 0 ("no return")
         d *= q
         d[np.isinf(dist)] = 0.0
-        return d.astype(np.int64)
+        return d
 
     def frames(self, first: int, distances_cm: np.ndarray, stuck: bool) -> bytes:
         """Data Packet A bytes of the samples `measure` returned."""

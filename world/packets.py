@@ -66,35 +66,46 @@ class LidarFramer:
             idx * (36000.0 / spr)).astype(np.int64)
         self.centideg = centideg % 36000
         """Angle offset of each index [0.01 deg]."""
-        # repeated so that any run of up to max_samples consecutive indices is one slice
+        # one frame per index with the distance still 0: sync, angle, the angle's share of
+        # the checksum; repeated so that any run of up to max_samples indices is one slice
         reps = -(-(max_samples + spr) // spr)
         angle = np.tile(self.centideg, reps).astype("<u2")
-        self._angle_bytes = angle.view(np.uint8).reshape(-1, 2)
-        self._angle_check = ((angle ^ (angle >> 8)) & 0xFF).astype(np.uint8)
+        rows = np.zeros((len(angle), LIDAR_PACKET_SIZE), dtype=np.uint8)
+        rows[:, 0] = LIDAR_SYNC
+        rows[:, 1:3] = angle.view(np.uint8).reshape(-1, 2)
+        rows[:, 5] = (angle ^ (angle >> 8)) & 0xFF
+        self._rows = rows
         self._spr = spr
-        self._buf = np.empty((max_samples, LIDAR_PACKET_SIZE), dtype=np.uint8)
-        self._buf[:, 0] = LIDAR_SYNC
+        self._max = max_samples
+        words = np.arange(65536)
+        self._word_check = ((words ^ (words >> 8)) & 0xFF).astype(np.uint8)
+        """The checksum's share of each 16-bit distance (its two bytes XORed)."""
 
     def frames(self, first: int, distances_cm: np.ndarray, same_angle: bool = False) -> bytes:
         """Frames for samples at indices ``first, first + 1, ...`` (or all at ``first``).
 
         Args:
             first: angle index of the first sample.
-            distances_cm: one distance per sample [cm], integers >= 0 (capped at 65535).
+            distances_cm: one distance per sample [cm], >= 0 (capped at 65535; a
+                fractional part is dropped).
             same_angle: every sample is at ``first`` (a stuck rotor).
+
+        Raises:
+            ValueError: more than ``max_samples`` distances.
         """
         n = len(distances_cm)
         if n == 0:
             return b""
+        if n > self._max:
+            raise ValueError(f"at most {self._max} samples per call, got {n}")
         first %= self._spr
-        buf = self._buf[:n]
-        at = first if same_angle else slice(first, first + n)
+        if same_angle:
+            buf = np.repeat(self._rows[first:first + 1], n, axis=0)
+        else:
+            buf = self._rows[first:first + n].copy()
         d = np.minimum(distances_cm, 65535).astype("<u2")
-        buf[:, 1:3] = self._angle_bytes[at]
         buf[:, 3:5] = d.view(np.uint8).reshape(n, 2)
-        check = buf[:, 5]
-        np.bitwise_xor(d, d >> 8, out=check, casting="unsafe")
-        check ^= self._angle_check[at]
+        buf[:, 5] ^= self._word_check[d]
         return buf.tobytes()
 
 

@@ -121,19 +121,24 @@ class FanCaster:
     def _box_columns(poses: Sequence[tuple[float, float, float]], length: float,
                      width: float) -> np.ndarray:
         """The eight geometry rows of the four edges of each box (plain Python: few boxes)."""
-        cols = []
         hl, hw = length / 2.0, width / 2.0
+        rows: list[list[float]] = [[], [], [], [], [], [], [], []]
+        x0s, y0s, x1s, y1s, sxs, sys_, phis, sizes = rows
         for x, y, a in poses:
             c, s = math.cos(a), math.sin(a)
             ax, ay, bx, by = c * hl, s * hl, -s * hw, c * hw
-            pts = ((x + ax + bx, y + ay + by), (x - ax + bx, y - ay + by),
-                   (x - ax - bx, y - ay - by), (x + ax - bx, y + ay - by))
-            # edges counter-clockwise: -x, -y, +x, +y of the body frame
-            for k, (phi, size) in enumerate(((a + math.pi, length), (a - math.pi / 2, width),
-                                             (a, length), (a + math.pi / 2, width))):
-                (x0, y0), (x1, y1) = pts[k], pts[(k + 1) % 4]
-                cols.append((x0, y0, x1, y1, x1 - x0, y1 - y0, phi, size))
-        return np.array(cols).T
+            # corners counter-clockwise from front-left; edges -x, -y, +x, +y of the body
+            xs = (x + ax + bx, x - ax + bx, x - ax - bx, x + ax - bx)
+            ys = (y + ay + by, y - ay + by, y - ay - by, y + ay - by)
+            x0s += xs
+            y0s += ys
+            x1s += (xs[1], xs[2], xs[3], xs[0])
+            y1s += (ys[1], ys[2], ys[3], ys[0])
+            sxs += (-2 * ax, -2 * bx, 2 * ax, 2 * bx)
+            sys_ += (-2 * ay, -2 * by, 2 * ay, 2 * by)
+            phis += (a + math.pi, a - math.pi / 2, a, a + math.pi / 2)
+            sizes += (length, width, length, width)
+        return np.array(rows)
 
     def cast_fan(self, origin: tuple[float, float], start_rad: float, step_rad: float, n: int,
                  max_range: float) -> np.ndarray:
