@@ -52,3 +52,29 @@ async def test_samples_are_stamped_with_the_pose_that_follows_them(autojump_cloc
         await trio.sleep(0.01)
         assert hw.duty == 0.0
         assert pool.statistics().in_use == 0
+
+
+@pytest.mark.trio
+async def test_sample_batches_by_handle_become_one_scan_at_the_next_pose(autojump_clock) -> None:
+    """LIDAR_SAMPLES handles (from the ISR's pool mode) join singles into one scan."""
+    from actors.firmware.isr import LidarSamples
+
+    hw, pool, log = FakeHardware(), BufferPool(16), []
+    hw.set_lidar_pwm = lambda d: None
+    spec = SupervisorSpec([ChildSpec("map", lambda: Recorder(log, pool)),
+                           ChildSpec("lidar", lambda: LidarControl(hw, pool), mailbox=1024)])
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        batch = LidarSamples(np.array([0, 100, 200], dtype=np.int32),
+                             np.array([50, 60, 0], dtype=np.int32))
+        system.send_nowait("mapper/lidar", Message.handle(Cmd.LIDAR_SAMPLES, pool.put(batch)))
+        system.send_nowait("mapper/lidar", Message.pair(Cmd.LIDAR_SAMPLE, 300, 70))
+        system.send_nowait("mapper/lidar", Message.pair(Cmd.LIDAR_POSE_XY, 5, 6))
+        system.send_nowait("mapper/lidar", Message.float(Cmd.LIDAR_POSE_HEADING, 10.0))
+        await trio.sleep(0.01)
+        (cmd, scan), = log
+        assert cmd == Cmd.MAP_SCAN
+        assert (scan.pose.x, scan.pose.y, scan.pose.heading_deg) == (5.0, 6.0, 10.0)
+        assert scan.angles_deg == pytest.approx([0.0, 10.0, 20.0, 30.0])
+        assert list(scan.ranges_cm) == [50, 60, 0, 70]
+        assert pool.statistics().in_use == 0

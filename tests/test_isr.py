@@ -79,3 +79,46 @@ def test_ir_timer_starts_the_adc_and_adc_isr_clamps() -> None:
     adc(5000)
     adc(-3)
     assert [m.value for m in sink.got] == [4095, 0]
+
+
+def test_lidar_isr_with_a_pool_posts_a_clean_run_as_one_handle() -> None:
+    """DMA-style: a whole interrupt of clean frames is one LIDAR_SAMPLES handle."""
+    import numpy as np
+
+    from actors.firmware.isr import LidarSamples
+
+    pool = BufferPool(4)
+    sink = Sink()
+    isr = LidarUartIsr(sink, pool)
+    isr(packet(9000, 150) + packet(9100, 0) + packet(35990, 4000))
+    (m,) = sink.got
+    assert m.command == Cmd.LIDAR_SAMPLES
+    batch = pool.take(int(m.value))
+    assert isinstance(batch, LidarSamples)
+    assert np.array_equal(batch.angles, [900, 910, 3599])
+    assert np.array_equal(batch.distances, [150, 0, 4000])
+    assert isr.posted == 3 and isr.dropped == 0
+
+
+def test_lidar_isr_with_a_pool_falls_back_to_single_samples_on_garbage() -> None:
+    """Garbage or a split frame: the byte-by-byte path, one LIDAR_SAMPLE per good frame."""
+    pool = BufferPool(4)
+    sink = Sink()
+    isr = LidarUartIsr(sink, pool)
+    isr(b"\x00" + packet(100, 20) + packet(200, 30)[:5])  # garbage byte, then a split frame
+    isr(packet(200, 30)[5:])
+    assert [m.command for m in sink.got] == [Cmd.LIDAR_SAMPLE, Cmd.LIDAR_SAMPLE]
+    assert [m.as_pair() for m in sink.got] == [(10, 20), (20, 30)]
+    assert pool.statistics().in_use == 0
+
+
+def test_lidar_isr_batch_drops_are_counted_and_free_the_slot() -> None:
+    """A refused post frees the pool slot; a dry pool drops the run; both count samples."""
+    pool = BufferPool(1)
+    sink = Sink(room=0)
+    isr = LidarUartIsr(sink, pool)
+    isr(packet(0, 10) + packet(10, 20))
+    assert isr.dropped == 2 and pool.statistics().in_use == 0
+    pool.put("busy")
+    isr(packet(0, 10))
+    assert isr.dropped == 3

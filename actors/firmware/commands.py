@@ -87,6 +87,9 @@ class Cmd(enum.IntEnum):
     """Current rover position; value int16 pair (x, y) [cm]."""
     LIDAR_POSE_HEADING = 0x0305
     """Current rover heading; value float32 [deg]."""
+    LIDAR_SAMPLES = 0x0306
+    """A whole interrupt's Data Packet A frames, decoded by the ISR (the DMA-buffer way);
+    value handle of a `isr.LidarSamples` (angles [0.1 deg], distances [cm])."""
 
     # -- Map Management queue ----------------------------------------------
     MAP_SCAN = 0x0400

@@ -11,13 +11,17 @@ here and in the mailbox, exactly as on a microcontroller.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
 
 from actors import BufferPool, Message, PoolExhausted
 
 from .commands import Cmd
 from .devices import LIDAR_PACKET_SIZE, LIDAR_SYNC, RoverHardware
 
-__all__ = ["Post", "MotorCounterIsr", "LidarUartIsr", "WiflyUartIsr", "IrTimerIsr", "IrAdcIsr"]
+__all__ = ["Post", "MotorCounterIsr", "LidarSamples", "LidarUartIsr", "WiflyUartIsr",
+           "IrTimerIsr", "IrAdcIsr"]
 
 Post = Callable[[Message], bool]
 """Non-blocking send into a mailbox; False when the message was dropped."""
@@ -45,20 +49,46 @@ class MotorCounterIsr(_Isr):
         self._send(Message.int(Cmd.MOTOR_TICK, int(payload)))
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class LidarSamples:
+    """The samples of one Int A, decoded (what ``LIDAR_SAMPLES`` points to)."""
+
+    angles: np.ndarray
+    """Angles from the rover heading [0.1 deg], int32 (n,)."""
+    distances: np.ndarray
+    """Distances [cm], int32 (n,); 0 = no return."""
+
+
+_FRAME = np.dtype([("sync", "u1"), ("a", "<u2"), ("d", "<u2"), ("check", "u1")])
+
+
 class LidarUartIsr(_Isr):
     """Int A: unpack Data Packet A frames from UART bytes into LIDAR samples.
 
     Bytes can arrive split anywhere; a partial frame waits in a 6-byte buffer
     for the rest. A bad checksum or a lost sync byte drops bytes until the next
     0xA5, so garbage on the line costs samples, never a crash.
+
+    With a buffer pool (`use_pool`) the ISR works like a DMA receive: the
+    interrupt's whole run of clean frames is decoded at once and posted as one
+    ``LIDAR_SAMPLES`` handle (a pool that runs dry drops the run, counted in
+    ``dropped`` per sample). Without one, or when the bytes are not a clean run
+    of frames (garbage, a split frame), every sample is its own ``LIDAR_SAMPLE``.
     """
 
-    def __init__(self, post: Post) -> None:
+    def __init__(self, post: Post, pool: BufferPool | None = None) -> None:
         super().__init__(post)
         self._buf = bytearray()
+        self._pool = pool
         self.bad_frames = 0
 
+    def use_pool(self, pool: BufferPool) -> None:
+        """Post whole runs of frames by handle from now on (see the class docstring)."""
+        self._pool = pool
+
     def __call__(self, data: bytes) -> None:
+        if self._pool is not None and not self._buf and self._batch(data):
+            return
         buf = self._buf
         buf += data
         i, n = 0, len(buf)
@@ -81,6 +111,33 @@ class LidarUartIsr(_Isr):
         del buf[:i]
         if len(buf) > 4 * LIDAR_PACKET_SIZE:  # bound: never hoard a garbage stream
             del buf[: -LIDAR_PACKET_SIZE]
+
+
+    def _batch(self, data: bytes) -> bool:
+        """Decode ``data`` as one clean run of frames and post it; False when it is not."""
+        n = len(data)
+        if n == 0 or n % LIDAR_PACKET_SIZE:
+            return False
+        f = np.frombuffer(data, dtype=_FRAME)
+        raw = np.frombuffer(data, dtype=np.uint8).reshape(-1, LIDAR_PACKET_SIZE)
+        check = raw[:, 1] ^ raw[:, 2] ^ raw[:, 3] ^ raw[:, 4]
+        angles = f["a"].astype(np.int32)
+        distances = f["d"].astype(np.int32)
+        if not (np.all(f["sync"] == LIDAR_SYNC) and np.array_equal(check, f["check"])
+                and np.all(angles < 36000) and np.all(distances <= 32767)):
+            return False
+        count = len(f)
+        try:
+            handle = self._pool.put(LidarSamples(angles // 10, distances))  # type: ignore[union-attr]
+        except PoolExhausted:
+            self.dropped += count
+            return True
+        if self._post(Message.handle(Cmd.LIDAR_SAMPLES, handle)):
+            self.posted += count
+        else:
+            self._pool.take(handle)  # type: ignore[union-attr]
+            self.dropped += count
+        return True
 
 
 class WiflyUartIsr(_Isr):

@@ -2,8 +2,12 @@
 
 The seed's LIDAR Control thread. ``LIDAR_START`` / ``LIDAR_RATE`` set the
 rotation PWM, ``LIDAR_STOP`` stops it (Command B). The LIDAR UART ISR (Int A)
-posts one ``LIDAR_SAMPLE`` per Data Packet A (angle [0.1 deg] from the rover's
-heading, distance [cm], 0 = no return). Motor Control posts the dead-reckoned
+posts each interrupt's run of Data Packet A frames as one ``LIDAR_SAMPLES``
+pool handle (angles [0.1 deg] from the rover's heading, distances [cm], 0 =
+no return), like a DMA receive buffer handed over by pointer: one message per
+world tick instead of one per sample. Bytes that are not a clean run of frames
+(garbage on the line, a frame split across interrupts) come as one
+``LIDAR_SAMPLE`` per frame instead. Motor Control posts the dead-reckoned
 pose (``LIDAR_POSE_XY`` [cm], ``LIDAR_POSE_HEADING`` [deg]) after every batch
 of encoder ticks.
 
@@ -32,7 +36,7 @@ from actors import Actor, BufferPool, ExitReason, Message, PoolExhausted
 
 from .commands import Cmd
 from .devices import Interrupt, RoverHardware
-from .isr import LidarUartIsr
+from .isr import LidarSamples, LidarUartIsr
 from .odometry import Pose
 
 __all__ = ["Scan", "LidarControl"]
@@ -68,8 +72,10 @@ class LidarControl(Actor):
         self.max_pending = max_pending
         self._xy = (0.0, 0.0)
         self._heading = 0.0
-        self._angles: list[int] = []  # [0.1 deg]
+        self._angles: list[int] = []  # single samples [0.1 deg]
         self._ranges: list[int] = []  # [cm]
+        self._chunks: list[LidarSamples] = []  # whole interrupts' samples (LIDAR_SAMPLES)
+        self._pending = 0  # samples waiting (singles and chunks)
         self.duty = 0.0
         """The rotation PWM last commanded by this incarnation."""
         self.scans = 0
@@ -83,6 +89,7 @@ class LidarControl(Actor):
         motor = f"{prefix}/motor" if prefix else "motor"
         if self._isr is None:
             self._isr = LidarUartIsr(self._post)
+        self._isr.use_pool(self.pool)  # whole interrupts by handle: one message, not ~100
         self.hw.attach(Interrupt.INT_A, self._isr)
         if self.ctx.system.whereis(motor) is not None:
             self._send(motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
@@ -102,28 +109,30 @@ class LidarControl(Actor):
         await self.handle_burst([message])
 
     async def handle_burst(self, messages: list[Message]) -> None:
-        angles, ranges = self._angles, self._ranges
-        had_pending = bool(angles)
+        had_pending = self._pending > 0
         for m in messages:
             cmd = m.command
-            if cmd == Cmd.LIDAR_SAMPLE:
+            if cmd == Cmd.LIDAR_SAMPLES or cmd == Cmd.LIDAR_SAMPLE:
                 if had_pending:  # no pose came since the last samples: the rover stood still
                     self._flush()
-                    angles, ranges = self._angles, self._ranges
                     had_pending = False
-                a, d = m.as_pair()
-                angles.append(a)
-                ranges.append(d)
-                if len(angles) >= self.max_pending:
+                if cmd == Cmd.LIDAR_SAMPLES:
+                    chunk = self.pool.take(int(m.value))
+                    self._chunks.append(chunk)
+                    self._pending += len(chunk.angles)
+                else:
+                    a, d = m.as_pair()
+                    self._angles.append(a)
+                    self._ranges.append(d)
+                    self._pending += 1
+                if self._pending >= self.max_pending:
                     self._flush()
-                    angles, ranges = self._angles, self._ranges
             elif cmd == Cmd.LIDAR_POSE_XY:
                 x, y = m.as_pair()
                 self._xy = (float(x), float(y))
             elif cmd == Cmd.LIDAR_POSE_HEADING:
                 self._heading = float(m.value)
                 self._flush()  # pending samples were taken at this pose
-                angles, ranges = self._angles, self._ranges
                 had_pending = False
             elif cmd in (Cmd.LIDAR_START, Cmd.LIDAR_RATE):
                 duty = float(m.value)
@@ -135,18 +144,22 @@ class LidarControl(Actor):
                 self.duty = 0.0
                 self.hw.set_lidar_pwm(0.0)
                 self._flush()
-                angles, ranges = self._angles, self._ranges
             elif cmd == Cmd.NOOP:
                 pass  # a flood fault: costs a queue slot, never a restart
             else:
                 raise ValueError(f"lidar got an unknown command 0x{cmd:04x}")
 
     def _flush(self) -> None:
-        if not self._angles:
+        if not self._pending:
             return
-        angles = np.asarray(self._angles, dtype=np.float32) * np.float32(0.1)
-        ranges = np.asarray(self._ranges, dtype=np.float32)
-        self._angles, self._ranges = [], []
+        parts_a = [c.angles for c in self._chunks]
+        parts_d = [c.distances for c in self._chunks]
+        if self._angles:
+            parts_a.append(np.asarray(self._angles, dtype=np.int32))
+            parts_d.append(np.asarray(self._ranges, dtype=np.int32))
+        angles = np.concatenate(parts_a).astype(np.float32) * np.float32(0.1)
+        ranges = np.concatenate(parts_d).astype(np.float32)
+        self._angles, self._ranges, self._chunks, self._pending = [], [], [], 0
         scan = Scan(Pose(self._xy[0], self._xy[1], self._heading), angles, ranges)
         try:
             handle = self.pool.put(scan)

@@ -53,6 +53,12 @@ _MATCH = MatchOptions()  # immutable default
 _CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for Motor's copy of the correction
 
 
+def _near(mask: np.ndarray) -> np.ndarray:
+    """Cells with a 4-neighbour in ``mask``."""
+    p = np.pad(mask, 1)
+    return p[:-2, 1:-1] | p[2:, 1:-1] | p[1:-1, :-2] | p[1:-1, 2:]
+
+
 class MapManagement(Actor):
     """The ``mapper/map`` actor (see the module docstring).
 
@@ -189,10 +195,12 @@ class MapManagement(Actor):
     def _build_fields(self, opts: MatchOptions, now: float) -> None:
         """Matching fields of the grid's obstacle surfaces (known part only).
 
-        Only the occupied cells next to free space: that is where returns land. A wall
-        also grows on its far side (returns a little beyond the surface are never cleared
-        by rays from behind), and matching against the whole band would pull every scan
-        half a cell toward the walls it sees.
+        The occupied cells next to free space (weight 1), where returns land, and the
+        occupied layer just behind them (weight 1/2). A wall grows on its far side
+        (returns a little beyond the surface are never cleared by rays from behind), so
+        the whole band would pull every scan toward the walls it sees; the surface layer
+        alone would pull half a cell the other way when the wall's face lies on a cell
+        edge (its returns fill the cells on both sides of the edge).
         """
         grid = self.grid
         lo = grid.log_odds()
@@ -208,10 +216,10 @@ class MapManagement(Actor):
             r0, r1 = max(0, int(rows[0]) - k), int(rows[-1]) + k + 1
             c0, c1 = max(0, int(cols[0]) - k), int(cols[-1]) + k + 1
             occ = occupied[r0:r1, c0:c1]
-            free = np.pad(lo[r0:r1, c0:c1] < m.free_threshold, 1)
-            near_free = free[:-2, 1:-1] | free[2:, 1:-1] | free[1:-1, :-2] | free[1:-1, 2:]
+            surface = occ & _near(lo[r0:r1, c0:c1] < m.free_threshold)
+            behind = occ & ~surface & _near(surface)
             origin = (grid.origin_cm[0] + c0 * res, grid.origin_cm[1] + r0 * res)
-            self._fields = MatchFields(occ & near_free, origin, res, opts)
+            self._fields = MatchFields(surface + 0.5 * behind, origin, res, opts)
         self._fields_at = now
         self._fields_stale = False
 
@@ -236,11 +244,11 @@ class MapManagement(Actor):
         self._send_correction()
 
     def _send_correction(self) -> None:
-        """Tell Motor Control the correction when it moved by more than a few mm / a tenth
-        of a degree (navigation's pose is in the map frame through it)."""
+        """Tell Motor Control the correction when it moved by a cm or half a degree
+        (navigation's pose is in the map frame through it; less is below what it steers by)."""
         c, old = self.correction, self._sent_correction
-        if abs(c.x - old.x) < 0.3 and abs(c.y - old.y) < 0.3 and abs(
-                c.heading_deg - old.heading_deg) < 0.1:
+        if abs(c.x - old.x) < 1.0 and abs(c.y - old.y) < 1.0 and abs(
+                c.heading_deg - old.heading_deg) < 0.5:
             return
         x_mm = max(-32767, min(32767, round(c.x * 10)))
         y_mm = max(-32767, min(32767, round(c.y * 10)))

@@ -126,7 +126,7 @@ class OccupancyField:
     """A smoothed occupancy field over a crop of a grid, scaled so a wall's ridge is 1.
 
     Args:
-        occupied: bool (ny, nx) crop: True where the map says occupied.
+        occupied: (ny, nx) crop: True (or a weight 0..1) where returns are expected.
         origin_cm: lower-left corner of the crop's cell [0, 0] [cm].
         resolution_cm: cell side [cm].
         passes: [1, 2, 1] blur passes (wider basin, less precision).
@@ -135,7 +135,7 @@ class OccupancyField:
     def __init__(self, occupied: np.ndarray, origin_cm: tuple[float, float],
                  resolution_cm: float, passes: int) -> None:
         peak = float(_binomial(passes).max())  # what a one-cell line keeps across it
-        f = np.minimum(_blur(occupied.astype(np.float64), passes) / peak, 1.0)
+        f = np.minimum(_blur(np.asarray(occupied, dtype=np.float64), passes) / peak, 1.0)
         # a border of zeros: points outside read 0 with no gradient
         self.values = np.pad(f, 1)
         """Field values (ny + 2, nx + 2), 0..1, with a zero border."""
@@ -213,7 +213,8 @@ class MatchFields:
     """The wide and narrow fields of one map, built once and matched against many scans.
 
     Args:
-        occupied: bool (ny, nx): the map's occupied cells (a crop is fine).
+        occupied: (ny, nx): the map's occupied cells, bool or weights 0..1 (a crop is
+            fine).
         origin_cm: lower-left corner of ``occupied``'s cell [0, 0] [cm].
         resolution_cm: cell side [cm].
         options: blur widths.
@@ -222,7 +223,7 @@ class MatchFields:
     def __init__(self, occupied: np.ndarray, origin_cm: tuple[float, float],
                  resolution_cm: float, options: MatchOptions | None = None) -> None:
         o = options or MatchOptions()
-        occ = np.asarray(occupied, dtype=bool)
+        occ = np.asarray(occupied, dtype=np.float64)
         self.empty = not occ.any()
         """True when the map has no obstacle to match against."""
         self.wide = OccupancyField(occ, origin_cm, resolution_cm, o.blur_wide)
