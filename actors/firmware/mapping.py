@@ -76,7 +76,7 @@ class MapManagement(Actor):
     def __init__(self, pool: BufferPool, *, size_cm: tuple[float, float] = (2400.0, 2400.0),
                  resolution_cm: float = 5.0, publish_s: float = 0.25,
                  restarted: bool = False, matching: MatchOptions | None = _MATCH,
-                 fields_s: float = 0.5, warmup_scans: int = 8) -> None:
+                 fields_s: float = 0.5, warmup_scans: int = 20) -> None:
         self.pool = pool
         self.grid = OccupancyGrid(size_cm[0], size_cm[1], resolution_cm)
         self.publish_s = publish_s
@@ -155,7 +155,9 @@ class MapManagement(Actor):
             x_mm, y_mm = message.as_pair()
             self._correction_xy = (x_mm / 10.0, y_mm / 10.0)
         elif cmd == Cmd.MAP_CORRECTION_HEADING:
-            if self._correction_xy is not None:
+            # only a restarted incarnation waits for Motor's copy; any other is stale
+            if self._correction_xy is not None and \
+                    trio.current_time() < self._await_correction_until:
                 self.correction = self._sent_correction = Pose(*self._correction_xy,
                                                                float(message.value))
                 self._correction_xy = None
@@ -168,8 +170,9 @@ class MapManagement(Actor):
     def _place(self, scan: Scan) -> Pose | None:
         """The map-frame pose of a batch: corrected odometry, refined by scan matching.
 
-        A batch from where the last matched one was (the rover stands still) keeps the
-        correction; so does one that cannot be matched (too few hits, unmapped view).
+        A batch from where the last matched one was (the rover stands still: within
+        5 mm and 0.3 deg) keeps the correction; so does one that cannot be matched
+        (too few hits, unmapped view).
         None for a batch that sees mapped obstacles but whose match was refused: its
         pose is in doubt, and one badly placed batch clears free space through walls
         (outside the room, where no later ray can repair it).
@@ -177,8 +180,11 @@ class MapManagement(Actor):
         odom = scan.pose
         guess = compose(self.correction, odom)
         opts = self.matching
-        if opts is None or self.scans < self.warmup_scans or odom == self._last_odom:
-            return guess
+        last = self._last_odom
+        if opts is None or self.scans < self.warmup_scans or (
+                last is not None and abs(odom.x - last.x) < 0.5 and abs(odom.y - last.y) < 0.5
+                and abs(odom.heading_deg - last.heading_deg) < 0.3):
+            return guess  # standing still: matching again would only add its own jitter
         now = trio.current_time()
         if self._fields is None or (self._fields_stale and now - self._fields_at >= self.fields_s):
             self._build_fields(opts, now)

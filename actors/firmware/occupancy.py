@@ -100,6 +100,12 @@ class LogOddsModel:
     free space up to here and mark no hit."""
     ray_step: float = 0.5
     """Sampling step along a ray [cells]."""
+    grazing_margin_cells: float = 0.5
+    """Free space along a ray with a hit ends this far [cells], measured across the
+    surface, before the hit: ``margin / sin(incidence)`` along the ray, so a ray that
+    grazes a wall (incidence from the neighbouring returns) stops clearing well before
+    the wall line, where a fraction of a degree of pose error would carry it through
+    the wall (to the outside, where no later ray can repair the map). 0 turns it off."""
 
     def __post_init__(self) -> None:
         if not (self.l_min < self.free_threshold < 0 < self.occ_threshold < self.l_max):
@@ -233,6 +239,33 @@ class GridMap:
         r0, r1, c0, c1 = box
         m = max(0, int(margin_cells))
         return self.crop(r0 - m, r1 + m, c0 - m, c1 + m)
+
+
+def _grazing_shortening(angles_deg: np.ndarray, ranges_cm: np.ndarray, has_hit: np.ndarray,
+                        resolution_cm: float, margin_cells: float) -> np.ndarray:
+    """How much to pull back each ray's free end [cells] (0 for rays without a hit).
+
+    The incidence of a return on its surface comes from the neighbouring return (the
+    nearer in angle, within 3 [deg], on the more grazing side): for a flat surface
+    ``sin(incidence) = r dtheta / hypot(dr, r dtheta)``. A depth jump to the neighbour
+    reads as grazing too, which only makes that ray more careful.
+    """
+    order = np.argsort(angles_deg, kind="stable")
+    a = np.radians(angles_deg[order])
+    r = ranges_cm[order]
+    hit = has_hit[order]
+    da = np.diff(a)
+    dr = np.abs(np.diff(r))
+    ok = (da > 0) & (da <= np.radians(3.0)) & hit[:-1] & hit[1:]
+    arc = np.maximum(r[:-1], r[1:]) * da
+    sin_pair = np.where(ok, arc / np.maximum(np.hypot(dr, arc), 1e-9), 1.0)
+    sin_inc = np.ones(r.size)
+    sin_inc[:-1] = sin_pair
+    sin_inc[1:] = np.minimum(sin_inc[1:], sin_pair)
+    pull = np.where(hit, margin_cells / np.maximum(sin_inc, 0.05), 0.0)
+    out = np.empty_like(pull)
+    out[order] = np.minimum(pull, r / resolution_cm)
+    return out
 
 
 class OccupancyGrid:
@@ -374,8 +407,13 @@ class OccupancyGrid:
         length_c = length / res
         step = m.ray_step
 
-        # free samples: t = 0, step, 2 step, ... strictly before the ray's end
-        n_samples = np.ceil(length_c / step).astype(np.int64)
+        # free samples: t = 0, step, 2 step, ... strictly before the ray's end, which is
+        # pulled back on rays that graze their surface (see `_grazing_shortening`)
+        free_c = length_c
+        if m.grazing_margin_cells > 0 and angles.size > 1:
+            free_c = length_c - _grazing_shortening(angles, ranges, has_hit, res,
+                                                    m.grazing_margin_cells)
+        n_samples = np.ceil(np.maximum(free_c, 0.0) / step).astype(np.int64)
         total = int(n_samples.sum())
         ray_of = np.repeat(np.arange(n_samples.size), n_samples)
         first = np.cumsum(n_samples) - n_samples
