@@ -1,0 +1,64 @@
+"""Scheduled actor faults on actors named like devices reach the actor runtime."""
+
+from __future__ import annotations
+
+from importlib import resources
+
+import trio
+
+from actors import seed_trio_scheduler, virtual_clock
+from server.store import Store
+from supervisors.system import open_sim_system
+from world.scenario import parse_scenario
+
+SCHEDULE = """
+[[faults]]
+at_s = 1
+target = "hider/motor"
+kind = "crash"
+[[faults]]
+at_s = 1.5
+target = "mapper/lidar"
+kind = "hang"
+duration_s = 2
+[[faults]]
+at_s = 2
+target = "seeker/ir"
+kind = "flood"
+params = { messages = 20 }
+[[faults]]
+at_s = 2.5
+target = "seeker/wifly"
+kind = "crash"
+[[faults]]
+at_s = 3
+target = "hider/motor"
+kind = "weak"
+duration_s = 1
+"""
+
+
+def test_scheduled_crash_hang_flood_on_device_named_actors_are_performed() -> None:
+    """hider/motor crash, mapper/lidar hang, seeker/ir flood and seeker/wifly crash reach the
+    actors; hider/motor weak, a device fault on the same name, reaches the world."""
+    text = resources.files("world.scenarios").joinpath("empty.toml").read_text(encoding="utf-8")
+    scenario = parse_scenario(text + SCHEDULE, "empty+faults")
+    seen: dict = {}
+
+    async def main() -> None:
+        with Store(":memory:") as store:
+            async with open_sim_system(scenario, seed=1, store=store) as system:
+                await trio.sleep(3.2)
+                seen["device"] = [(f.target, f.kind) for f in system.world.active_faults()]
+                await trio.sleep(2.0)
+                seen["faults"] = [(f["target"], f["kind"]) for f in system.faults]
+                seen["exits"] = {name: str(system.actors.whereis(name).last_exit.kind)
+                                 for name in ("hider/motor", "mapper/lidar", "seeker/wifly")}
+
+    seed_trio_scheduler(1)
+    trio.run(main, clock=virtual_clock())
+    assert seen["faults"][:4] == [("hider/motor", "crash"), ("mapper/lidar", "hang"),
+                                  ("seeker/ir", "flood"), ("seeker/wifly", "crash")]
+    assert seen["exits"] == {"hider/motor": "crash", "mapper/lidar": "hung",
+                             "seeker/wifly": "crash"}
+    assert seen["device"] == [("hider/motor", "weak")]
