@@ -176,8 +176,8 @@ async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_cloc
         await trio.sleep(0.6)
         mm = system.whereis("mapper/map").actor
         before = mm.grid.cells()
-        odom = Pose(truth.x, truth.y, truth.heading_deg + 4.0)
-        for _ in range(3):
+        for k in range(4):  # odometry creeps a little between batches, as when driving
+            odom = Pose(truth.x + 0.6 * k, truth.y, truth.heading_deg + 4.0)
             system.send_nowait("mapper/map", Message.handle(
                 Cmd.MAP_SCAN, pool.put(Scan(odom, a.astype(np.float32), r.astype(np.float32)))))
             await trio.sleep(0.3)

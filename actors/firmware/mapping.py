@@ -53,10 +53,11 @@ _MATCH = MatchOptions()  # immutable default
 _CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for Motor's copy of the correction
 
 
-def _near(mask: np.ndarray) -> np.ndarray:
-    """Cells with a 4-neighbour in ``mask``."""
-    p = np.pad(mask, 1)
-    return p[:-2, 1:-1] | p[2:, 1:-1] | p[1:-1, :-2] | p[1:-1, 2:]
+def _max3(values: np.ndarray) -> np.ndarray:
+    """Maximum over each cell's 3 x 3 neighbourhood."""
+    p = np.pad(values, 1)
+    rows = np.maximum(np.maximum(p[:-2], p[1:-1]), p[2:])
+    return np.maximum(np.maximum(rows[:, :-2], rows[:, 1:-1]), rows[:, 2:])
 
 
 class MapManagement(Actor):
@@ -201,12 +202,12 @@ class MapManagement(Actor):
     def _build_fields(self, opts: MatchOptions, now: float) -> None:
         """Matching fields of the grid's obstacle surfaces (known part only).
 
-        The occupied cells next to free space (weight 1), where returns land, and the
-        occupied layer just behind them (weight 1/2). A wall grows on its far side
-        (returns a little beyond the surface are never cleared by rays from behind), so
-        the whole band would pull every scan toward the walls it sees; the surface layer
-        alone would pull half a cell the other way when the wall's face lies on a cell
-        edge (its returns fill the cells on both sides of the edge).
+        The returns splatted on the cell centres (`OccupancyGrid.hit_counts`) near
+        occupied cells, relative to the most hit centre around (3 x 3): where the
+        returns fell, not which cells are occupied, says where a wall's face is. A face
+        on a cell edge weighs on both sides equally, so the ridge lies on the edge; the
+        band a wall grows behind its face (returns a little beyond it are never cleared
+        by rays from behind) holds few returns, so it barely pulls.
         """
         grid = self.grid
         lo = grid.log_odds()
@@ -221,11 +222,11 @@ class MapManagement(Actor):
             k = opts.blur_wide + 2
             r0, r1 = max(0, int(rows[0]) - k), int(rows[-1]) + k + 1
             c0, c1 = max(0, int(cols[0]) - k), int(cols[-1]) + k + 1
-            occ = occupied[r0:r1, c0:c1]
-            surface = occ & _near(lo[r0:r1, c0:c1] < m.free_threshold)
-            behind = occ & ~surface & _near(surface)
+            near_occ = _max3(occupied[r0:r1, c0:c1].astype(np.float32)) > 0
+            hits = np.where(near_occ, grid.hit_counts()[r0:r1, c0:c1], 0.0)
+            weights = hits / np.maximum(_max3(hits), 1.0)
             origin = (grid.origin_cm[0] + c0 * res, grid.origin_cm[1] + r0 * res)
-            self._fields = MatchFields(surface + 0.5 * behind, origin, res, opts)
+            self._fields = MatchFields(weights, origin, res, opts)
         self._fields_at = now
         self._fields_stale = False
 

@@ -313,6 +313,7 @@ class OccupancyGrid:
         self.model = model or LogOddsModel()
         """Sensor model and thresholds."""
         self._log_odds = np.zeros((ny, nx), dtype=np.float32)
+        self._hits = np.zeros((ny, nx), dtype=np.float32)
         self.batches = 0
         """Batches integrated so far (one per `integrate` call with at least one ray)."""
         self.rays = 0
@@ -440,11 +441,29 @@ class OccupancyGrid:
         flat[hit_idx] += m.l_occ
         flat[idx] = np.clip(flat[idx], m.l_min, m.l_max)
         changed = int(np.count_nonzero(self._classify(flat[idx]) != before))
+        self._splat_hits(px + cos[has_hit] * length_c[has_hit],
+                         py + sin[has_hit] * length_c[has_hit])
 
         self.batches += 1
         self.rays += int(angles.size)
         self.changed_total += changed
         return changed
+
+    def _splat_hits(self, hx: np.ndarray, hy: np.ndarray) -> None:
+        """Add each hit [cells] to the four nearest cell centres, bilinearly: the counts
+        then keep where inside the cells the returns fell (a face on a cell edge
+        splits its weight evenly between the cells on both sides)."""
+        ny, nx = self._hits.shape
+        gx, gy = hx - 0.5, hy - 0.5
+        c0 = np.floor(gx).astype(np.int64)
+        r0 = np.floor(gy).astype(np.int64)
+        fx, fy = gx - c0, gy - r0
+        flat = self._hits.reshape(-1)
+        for dr, dc, w in ((0, 0, (1 - fx) * (1 - fy)), (0, 1, fx * (1 - fy)),
+                          (1, 0, (1 - fx) * fy), (1, 1, fx * fy)):
+            r, c = r0 + dr, c0 + dc
+            ok = (r >= 0) & (r < ny) & (c >= 0) & (c < nx)
+            np.add.at(flat, r[ok] * nx + c[ok], w[ok])
 
     def _classify(self, log_odds: np.ndarray) -> np.ndarray:
         m = self.model
@@ -458,6 +477,16 @@ class OccupancyGrid:
     def log_odds(self) -> np.ndarray:
         """A read-only view of the log-odds (ny, nx); it changes as the grid is updated."""
         view = self._log_odds.view()
+        view.flags.writeable = False
+        return view
+
+    def hit_counts(self) -> np.ndarray:
+        """A read-only view of the returns splatted on the cell centres (ny, nx).
+
+        Each return adds 1, shared bilinearly among the four nearest cell centres:
+        where the returns fall says where a wall's face is, finer than the cells'
+        classes do (scan matching reads it)."""
+        view = self._hits.view()
         view.flags.writeable = False
         return view
 
