@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from world.geometry import Pose, boundary_segments, circle, footprint, room_segments
 from world.packets import LidarFramer, encode_lidar_packets
-from world.raycast import FanCaster, cast_rays
+from world.raycast import FanCaster, cast_rays, fan_may_hit_disc
 from world.scenario import load_scenario, parse_scenario
 from world.world import World
 
@@ -90,6 +90,36 @@ def test_fan_caster_gives_the_ranges_of_casting_every_ray(
     for a in angles[~same]:
         off = np.abs(np.cos(a) * ends[:, 1] - np.sin(a) * ends[:, 0])  # distance to the ray's line
         assert off.min() < 1e-6, (a, got[angles == a], want[angles == a])
+
+
+def test_a_box_edge_nearly_in_line_with_the_origin_hides_nothing() -> None:
+    """Regression: an edge 1e-15 cm off the origin's line got a full-turn extent and a
+    rounding-sized range that masked the wall behind every ray."""
+    caster = FanCaster(SEGMENTS, boxes=1)
+    caster.set_boxes([(30.0, 30.0, 2.220446049250313e-16)], 20, 15)  # left edge on x = 20
+    d = caster.cast_fan((20.0, 20.0), 0.0, math.radians(0.5), 1, 4000.0)
+    assert d[0] == pytest.approx(380.0)  # the right wall
+
+
+@settings(max_examples=200, deadline=None)
+@given(x=st.floats(20, 380), y=st.floats(20, 280), start=st.floats(-7, 7),
+       n=st.integers(1, 120), box=st.tuples(st.floats(30, 370), st.floats(30, 270),
+                                             st.floats(-4, 4)))
+def test_a_body_the_fan_check_rules_out_is_never_hit(
+        x: float, y: float, start: float, n: int, box: tuple[float, float, float]) -> None:
+    """fan_may_hit_disc is safe: when it says no, casting with the body present or parked
+    gives the same ranges; it says yes to a body ahead and no to one behind."""
+    step = math.radians(1.0)
+    radius = math.hypot(20, 15) / 2
+    present = FanCaster(SEGMENTS, boxes=1)
+    present.set_box(0, box, 20, 15)
+    parked = FanCaster(SEGMENTS, boxes=1)
+    with_body = present.cast_fan((x, y), start, step, n, 4000.0)
+    without = parked.cast_fan((x, y), start, step, n, 4000.0)
+    if not fan_may_hit_disc((x, y), start, (n - 1) * step, box[:2], radius):
+        np.testing.assert_array_equal(with_body, without)
+    assert fan_may_hit_disc((0.0, 0.0), 0.0, 0.1, (100.0, 5.0), radius)
+    assert not fan_may_hit_disc((0.0, 0.0), 0.0, 0.1, (-100.0, 5.0), radius)
 
 
 def test_fan_caster_at_corners_edge_on_and_out_of_range() -> None:

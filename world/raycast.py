@@ -21,6 +21,8 @@ import numpy as np
 TWO_PI = 2.0 * math.pi
 #: slack when deciding whether a ray lies inside a segment's extent [ray steps]
 EXTENT_EPS = 1e-9
+#: where parked boxes wait: out of any range [cm]
+PARKED = (-1e9, -1e9, 0.0)
 
 
 def cast_rays(origin: tuple[float, float], angles_rad: np.ndarray, segments: np.ndarray,
@@ -73,7 +75,8 @@ class FanCaster:
 
     Fans wider than pi are cast in parts, so a segment's extent meets a part
     in at most one run of rays. A ray passing exactly through a segment's end
-    counts as a hit (as in `cast_rays`); a segment seen edge-on is never hit.
+    counts as a hit (as in `cast_rays`); a segment seen edge-on is never hit,
+    and one nearly edge-on never hides what lies behind it.
 
     Args:
         static: (N, 4) segments x0, y0, x1, y1 that never move [cm];
@@ -89,10 +92,10 @@ class FanCaster:
         # rows: x0, y0, x1, y1, sx, sy, phi [rad], length; one column per segment
         self._geo = np.zeros((8, self._n))
         self._geo[0:4, :self._n_static] = static.T
-        # boxes start as unit squares far away (never hit before `set_boxes`)
-        if boxes:
-            self._geo[:, self._n_static:] = self._box_columns(((-1e9, -1e9, 0.0),) * boxes,
-                                                              1.0, 1.0)
+        # boxes start parked: unit squares far away, never hit
+        self._parked = self._box_columns([PARKED], 1.0, 1.0)
+        for i in range(boxes):
+            self.set_box(i, None, 1.0, 1.0)
         g = self._geo[:, :self._n_static]
         g[4] = g[2] - g[0]
         g[5] = g[3] - g[1]
@@ -116,6 +119,22 @@ class FanCaster:
                              f"got {len(poses)}")
         if poses:
             self._geo[:, self._n_static:] = self._box_columns(poses, length, width)
+
+    def set_box(self, index: int, pose: tuple[float, float, float] | None, length: float,
+                width: float) -> None:
+        """Place one rectangle at ``(x, y [cm], heading [rad])``, or park it (``None``).
+
+        A parked box is far out of range: no ray hits it. Parking a box that no ray of
+        the next fans can reach (see `fan_may_hit_disc`) saves placing it every tick.
+
+        Raises:
+            IndexError: no such box.
+        """
+        if not 0 <= index < (self._n - self._n_static) // 4:
+            raise IndexError(f"box index {index} out of range")
+        k = self._n_static + 4 * index
+        self._geo[:, k:k + 4] = (self._parked if pose is None
+                                 else self._box_columns([pose], length, width))
 
     @staticmethod
     def _box_columns(poses: Sequence[tuple[float, float, float]], length: float,
@@ -175,12 +194,12 @@ class FanCaster:
         ox, oy = origin
         q = g[0:4] - np.array((ox, oy, ox, oy))[:, None]
         a0, a1 = np.arctan2(q[1::2], q[0::2])  # directions to both ends [rad]
-        h = q[0] * g[5]
-        h -= q[1] * g[4]  # (p0 - o) x s: > 0 when p0 -> p1 turns counter-clockwise
-        ccw = h > 0
-        # the extent runs counter-clockwise over `w` (< pi) and ends at `end` [rad]
+        # the extent runs counter-clockwise over `w` (<= pi) and ends at `end` [rad]; it is
+        # decided from the angles alone, so a segment nearly in line with the origin gets a
+        # tiny extent, never a full turn
         d = a1 - a0
         d %= TWO_PI
+        ccw = d < math.pi  # p0 -> p1 turns counter-clockwise
         w = np.where(ccw, d, TWO_PI - d)
         end = np.where(ccw, a1, a0)
         # the end relative to the first ray, in [0, 2 pi): with the part narrower than
@@ -197,7 +216,6 @@ class FanCaster:
         np.maximum(first, 0.0, out=first)
         np.minimum(last, n - 1, out=last)
         last -= first
-        last[h == 0.0] = -1.0  # edge-on: in line with the origin
         count = last.astype(np.int64)
         count += 1
         np.maximum(count, 0, out=count)
@@ -210,11 +228,32 @@ class FanCaster:
         first_ray += count
         ray = np.repeat(first_ray, count)
         ray += np.arange(total)
-        h /= g[7]
+        h = q[0] * g[5]
+        h -= q[1] * g[4]
+        h /= g[7]  # the origin's signed distance from each segment's line [cm]
         ang = np.repeat(g[6] - start, count)
         ang -= ray * step
         t = np.repeat(h, count)
         t /= np.sin(ang)
+        # a segment in line with the origin gives 0/0 or a rounding-sized range: no hit
+        t[~(t > 1e-9)] = np.inf
         np.minimum.at(out, ray, t)
-        out[(out > max_range) | (out <= 1e-9)] = np.inf
+        out[out > max_range] = np.inf
         return out
+
+
+def fan_may_hit_disc(origin: tuple[float, float], start_rad: float, span_rad: float,
+                     centre: tuple[float, float], radius: float) -> bool:
+    """Whether any ray from ``start_rad`` counter-clockwise over ``span_rad`` can meet a disc.
+
+    Conservative (a True may still miss; a False never hides a hit): the disc of
+    ``radius`` [cm] around ``centre`` seen from ``origin`` covers the directions
+    within ``asin(radius / distance)`` of its centre's, plus a little slack.
+    """
+    dx, dy = centre[0] - origin[0], centre[1] - origin[1]
+    d = math.hypot(dx, dy)
+    if d <= radius * 1.001 or span_rad >= TWO_PI:
+        return True
+    half = math.asin(radius / d) + 1e-6
+    rel = (math.atan2(dy, dx) - start_rad) % TWO_PI
+    return rel <= span_rad + half or rel >= TWO_PI - half

@@ -29,7 +29,7 @@ from world.ir import IrSensor, to_adc
 from world.lidar import Lidar
 from world.params import ROLES, RoverSpec
 from world.physics import DEFAULT_SUBSTEP_S, Physics
-from world.raycast import FanCaster
+from world.raycast import FanCaster, fan_may_hit_disc
 from world.scenario import Scenario, ScheduledFault
 from world.wifly import WiflyLink
 
@@ -88,8 +88,9 @@ class World:
         self._now = dict(self._prev)
         # everything a LIDAR ray can hit: static walls then the hider's and seeker's bodies
         self._caster = FanCaster(self._static, boxes=2)
-        self._boxes_at: tuple = ()
-        """The hider's and seeker's states the caster's boxes were placed at."""
+        self._boxes_at: list[tuple[float, float, float] | None] = [None, None]
+        """The hider's and seeker's states the caster's boxes were placed at (None: parked)."""
+        self._body_radius = math.hypot(p.length_cm, p.width_cm) / 2
 
     # ------------------------------------------------------------------ public API
 
@@ -227,10 +228,7 @@ class World:
         if f:
             sigma = math.hypot(sigma, f.params["sigma_cm"])
         noise = self.rng.standard_normal(n) * sigma
-        bodies = (self._now["hider"], self._now["seeker"])
-        if bodies != self._boxes_at:
-            self._caster.set_boxes(bodies, self.params.length_cm, self.params.width_cm)
-            self._boxes_at = bodies
+        self._place_bodies(first, n, stuck)
         dist = lidar.measure(first, n, stuck, self._now["mapper"], self._caster, noise)
         frames = lidar.frames(first, dist, stuck)
         if faults and faults.find("mapper", "lidar", "garbage"):
@@ -239,6 +237,22 @@ class World:
         handler = self._hw["mapper"].handlers.get(INT_A)
         if frames and handler:
             handler(frames)
+
+    def _place_bodies(self, first: int, n: int, stuck: bool) -> None:
+        """Put the hider's and seeker's bodies in the caster where this tick's fan may see
+        them, and park them where it cannot (placing a body costs more than the check)."""
+        p = self.params
+        x, y, heading = self._now["mapper"]
+        step = 2.0 * math.pi / p.lidar_samples_per_rev
+        span = 0.0 if stuck else (n - 1) * step
+        for i, role in enumerate(("hider", "seeker")):
+            state = self._now[role]
+            if not fan_may_hit_disc((x, y), heading + first * step, span, state[:2],
+                                    self._body_radius):
+                state = None
+            if state != self._boxes_at[i]:
+                self._caster.set_box(i, state, p.length_cm, p.width_cm)
+                self._boxes_at[i] = state
 
     def _ir_tick(self, dt: float) -> None:
         hw = self._hw["seeker"]
