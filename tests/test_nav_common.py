@@ -381,3 +381,31 @@ def test_shorten_cuts_the_route_back_along_its_legs() -> None:
     assert shorten([(100.0, 0.0), (100.0, 50.0)], (0.0, 0.0), 20.0) == [(100.0, 0.0),
                                                                          (100.0, 30.0)]
     assert shorten([(100.0, 0.0)], (0.0, 0.0), 150.0) == []
+
+
+def nudging_nav(block: tuple[float, float, float], off: float) -> Any:
+    """A hider navigation (not started) that was blocked at ``block`` and nudges by ``off``."""
+    nav = make_nav("hider", pool=BufferPool(4))
+    corridor = Truth(0, 0, 600, 300, boxes=((100, 0, 300, 135), (100, 165, 300, 135)))
+    nav.map = room_map(corridor)
+    nav._last_block = block
+    h = math.radians(block[2])
+    nav._nudge = (-math.sin(h) * off, math.cos(h) * off, block[0], block[1])
+    return nav
+
+
+def test_nudge_shifts_only_waypoints_near_the_block_and_never_the_goal() -> None:
+    """Blocked heading +x at (200, 150): the waypoint 30 cm on moves 6 cm sideways (+y)."""
+    nav = nudging_nav((200.0, 150.0, 0.0), 6.0)
+    pts = [(230.0, 150.0), (420.0, 150.0), (500.0, 60.0)]
+    assert nav._nudged(pts) == [(230.0, 156.0), (420.0, 150.0), (500.0, 60.0)]
+    assert nav._nudged([(240.0, 150.0)]) == [(240.0, 150.0)]  # the goal itself stays
+
+
+def test_nudge_in_a_long_corridor_inserts_a_shifted_point_ahead() -> None:
+    """No waypoint near the block (mid-corridor): a point 50 cm ahead, shifted, comes first;
+    a shift that leaves the 30 cm corridor (12 cm off its axis) inserts nothing."""
+    pts = [(420.0, 150.0), (500.0, 60.0)]
+    assert nudging_nav((250.0, 150.0, 0.0), -6.0)._nudged(pts) == [(300.0, 144.0), *pts]
+    assert nudging_nav((250.0, 150.0, 0.0), 12.0)._nudged(pts) == pts
+    assert nudging_nav((250.0, 150.0, 180.0), 6.0)._nudged(pts) == pts  # ahead is backwards

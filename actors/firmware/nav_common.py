@@ -763,10 +763,7 @@ class RouteNav(NavBase):
         if plan.goal_snapped:
             pts.append(self.goal)  # the goal itself; the spot check vouched for it
         if self._nudge is not None:
-            dx, dy, cx, cy = self._nudge
-            reach = self.o.nudge_reach_cm
-            pts = [(x + dx, y + dy) if i < len(pts) - 1 and math.dist((x, y), (cx, cy)) <= reach
-                   else (x, y) for i, (x, y) in enumerate(pts)]
+            pts = self._nudged(pts)
         if self.stop_short_cm > 0:
             pts = shorten(pts, (p.x, p.y), self.stop_short_cm) or [(p.x, p.y)]
         self.follower = PathFollower(pts, self.goal_heading, self.o)
@@ -799,6 +796,26 @@ class RouteNav(NavBase):
                 await self._give_up("no path after being blocked")
                 return
         await self._step()
+
+    def _nudged(self, pts: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        """``pts`` with the nudge applied: waypoints near the block point shifted sideways;
+        when none is near (a long corridor), a shifted waypoint ``nudge_reach_cm`` ahead of
+        the block point is driven to first."""
+        assert self._nudge is not None and self._last_block is not None
+        dx, dy, cx, cy = self._nudge
+        reach = self.o.nudge_reach_cm
+        near = [i < len(pts) - 1 and math.dist(q, (cx, cy)) <= reach for i, q in enumerate(pts)]
+        if any(near):
+            return [(x + dx, y + dy) if n else (x, y) for (x, y), n in zip(pts, near, strict=True)]
+        h = math.radians(self._last_block[2])
+        ahead = (cx + reach * math.cos(h) + dx, cy + reach * math.sin(h) + dy)
+        to_goal = math.dist((cx, cy), pts[-1])
+        if to_goal <= reach or math.dist(ahead, pts[-1]) >= to_goal:
+            return pts  # the goal is near, or ahead of the block leads away from it
+        if self.map is not None and not passable_at(self.map, *ahead,
+                                                    0.5 * self.width_cm, 0.0):
+            return pts  # the search has gone wider than the passage
+        return [ahead, *pts]
 
     def _nudged_plan(self) -> bool:
         """Plan again on the server's map, the route shifted sideways near the block.
