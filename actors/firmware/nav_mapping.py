@@ -10,7 +10,10 @@ Flow
 Choosing where to go
     `frontier.find_frontiers` + `frontier.choose_frontier` on the latest
     NAV_MAP_UPDATE (cost trades distance against frontier size and favours less
-    explored areas); `nav_common.plan_route` for the path. A frontier whose
+    explored areas; long frontiers come cut into 1 m pieces); `nav_common.plan_route`
+    for the path, trying tiers of clearance from the turning radius plus a margin
+    down to half the body width (a 30 cm corridor maps 25 cm wide on a 5 cm grid);
+    reachability uses the narrowest tier. A frontier whose
     target cannot be planned to, which blocks the rover twice, which takes more
     ADP steps than its route deserves, or which is chosen again after being
     reached, is blacklisted (by its target point [cm], which survives
@@ -24,7 +27,9 @@ Obstacles ahead
 
 Complete when both hold (either alone can lie)
     * no reachable frontier of useful size remains (a stalled LIDAR would also
-      give "no change"), and
+      give "no change"); after ``futile_trips`` trips in a row that each made
+      fewer than ``min_gain_cells`` cells known, the frontiers left count as not
+      useful (pockets nobody can see into, ragged edges), and
     * the map has not changed for ``stable_window_s`` while the scan count kept
       rising (a stalled LIDAR gives no scans, so it never reads as done).
     Or when the server says ``stop``, or after ``budget_s`` of mapping.
