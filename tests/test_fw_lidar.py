@@ -78,3 +78,23 @@ async def test_sample_batches_by_handle_become_one_scan_at_the_next_pose(autojum
         assert scan.angles_deg == pytest.approx([0.0, 10.0, 20.0, 30.0])
         assert list(scan.ranges_cm) == [50, 60, 0, 70]
         assert pool.statistics().in_use == 0
+
+
+@pytest.mark.trio
+async def test_a_noop_flood_is_ignored_not_a_crash(autojump_clock) -> None:
+    """NOOP (a flood fault) costs queue slots only: no restart, samples still batch."""
+    hw, pool, log = FakeHardware(), BufferPool(16), []
+    hw.set_lidar_pwm = lambda d: None
+    spec = SupervisorSpec([ChildSpec("map", lambda: Recorder(log, pool)),
+                           ChildSpec("lidar", lambda: LidarControl(hw, pool), mailbox=64)])
+    async with open_actor_system(1) as system:
+        tree = await system.start_supervisor(spec, "mapper")
+        accepted = system.flood("mapper/lidar", 200, Message.int(Cmd.NOOP, 0))
+        assert accepted == 64
+        await trio.sleep(0.1)
+        system.send_nowait("mapper/lidar", Message.pair(Cmd.LIDAR_SAMPLE, 10, 100))
+        system.send_nowait("mapper/lidar", Message.pair(Cmd.LIDAR_POSE_XY, 0, 0))
+        system.send_nowait("mapper/lidar", Message.float(Cmd.LIDAR_POSE_HEADING, 0.0))
+        await trio.sleep(0.01)
+        assert [c for c, _ in log] == [Cmd.MAP_SCAN]
+        assert [c.restarts for c in tree.which_children() if c.id == "lidar"] == [0]
