@@ -122,6 +122,13 @@ def test_a_body_the_fan_check_rules_out_is_never_hit(
     assert not fan_may_hit_disc((0.0, 0.0), 0.0, 0.1, (-100.0, 5.0), radius)
 
 
+def test_a_ray_along_a_box_edge_hits_its_corner_without_warnings() -> None:
+    """The edge the ray runs along is 0/0 (no hit, no RuntimeWarning); the corner is hit."""
+    caster = FanCaster(SEGMENTS, boxes=1)
+    caster.set_box(0, (30.0, 30.0, 0.0), 20, 15)  # bottom edge on y = 22.5 from x = 20
+    assert caster.cast_fan((10.0, 22.5), 0.0, math.radians(1.0), 1, 4000.0)[0] == 10.0
+
+
 def test_fan_caster_at_corners_edge_on_and_out_of_range() -> None:
     """A ray through a corner hits it; a wall seen edge-on is not hit; far walls read inf."""
     caster = FanCaster(room_segments(400, 300))

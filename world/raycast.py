@@ -233,9 +233,10 @@ class FanCaster:
         h /= g[7]  # the origin's signed distance from each segment's line [cm]
         ang = np.repeat(g[6] - start, count)
         ang -= ray * step
-        t = np.repeat(h, count)
-        t /= np.sin(ang)
-        # a segment in line with the origin gives 0/0 or a rounding-sized range: no hit
+        sin = np.sin(ang)
+        t = np.full(total, np.inf)
+        np.divide(np.repeat(h, count), sin, out=t, where=sin != 0.0)  # parallel: no hit
+        # a segment in line with the origin gives a zero or rounding-sized range: no hit
         t[~(t > 1e-9)] = np.inf
         np.minimum.at(out, ray, t)
         out[out > max_range] = np.inf
