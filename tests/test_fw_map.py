@@ -240,3 +240,30 @@ async def test_restarted_map_takes_the_correction_back_from_motor(autojump_clock
         assert mm.correction == Pose(12.5, -4.0, 2.5)
         assert mm.scans == 1
         assert pool.statistics().in_use == 0
+
+
+@pytest.mark.trio
+async def test_flooding_the_map_mid_game_costs_drops_and_mapping_still_completes(
+        autojump_clock) -> None:
+    """The campaign's case end to end: mapping the empty room, ``mapper/map`` flooded with
+    NOOPs twice; no actor restarts, the flood shows as drops, the mapper finishes and
+    uploads its map by itself."""
+    from server.store import Store
+    from supervisors.system import open_sim_system
+    from world import load_scenario
+
+    with Store(":memory:") as store:
+        async with open_sim_system(load_scenario("empty"), seed=1, store=store) as system:
+            with trio.fail_after(30):
+                while len(system.server.snapshot().rovers) < 3:
+                    await trio.sleep(0.1)
+            assert (await system.command("start_mapping")).ok
+            for _ in range(2):
+                await trio.sleep(3.0)
+                system.inject_fault("mapper/map", "flood", messages=500)
+            with trio.fail_after(300):
+                while system.server.snapshot().map is None:
+                    await trio.sleep(1.0)
+            assert system.restarts() == 0
+            assert system.actors.statistics("mapper/map").dropped > 0
+            assert system.actors.whereis("mapper/map").actor.noops >= 2 * 64 - 10
