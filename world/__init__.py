@@ -11,7 +11,7 @@ The world never imports firmware, server or supervisors: firmware reaches it
 only through `SimRoverHardware` (device commands and interrupts).
 """
 
-from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, Fault
+from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_ACTORS, Fault, check_fault
 from world.geometry import Pose
 from world.hardware import SimRoverHardware
 from world.metrics import accuracy, coverage, path_length, t90, t99, time_to_coverage
@@ -30,9 +30,9 @@ from world.wifly import WiflyLink
 from world.world import DEFAULT_TICK_S, World, run_world
 
 __all__ = [
-    "ACTOR_FAULTS", "DEVICE_FAULTS", "DEFAULT_TICK_S", "ROLES", "DeviceParams", "Fault", "Pose",
-    "RoverSpec", "Scenario", "ScenarioError", "ScheduledFault", "SimRoverHardware", "TruthGrid",
-    "WiflyLink", "World", "accuracy", "builtin_scenarios", "coverage", "generate_scenario",
+    "ACTOR_FAULTS", "DEVICE_FAULTS", "DEFAULT_TICK_S", "ROLES", "ROLE_ACTORS", "DeviceParams",
+    "Fault", "Pose", "RoverSpec", "Scenario", "ScenarioError", "ScheduledFault", "SimRoverHardware", "TruthGrid",
+    "WiflyLink", "World", "accuracy", "builtin_scenarios", "check_fault", "coverage", "generate_scenario",
     "load_scenario", "parse_scenario", "path_length", "run_world", "t90", "t99",
     "time_to_coverage", "truth_raster",
 ]
