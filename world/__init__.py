@@ -31,8 +31,8 @@ from world.world import DEFAULT_TICK_S, World, run_world
 
 __all__ = [
     "ACTOR_FAULTS", "DEVICE_FAULTS", "DEFAULT_TICK_S", "ROLES", "ROLE_ACTORS", "DeviceParams",
-    "Fault", "Pose", "RoverSpec", "Scenario", "ScenarioError", "ScheduledFault", "SimRoverHardware", "TruthGrid",
-    "WiflyLink", "World", "accuracy", "builtin_scenarios", "check_fault", "coverage", "generate_scenario",
-    "load_scenario", "parse_scenario", "path_length", "run_world", "t90", "t99",
-    "time_to_coverage", "truth_raster",
+    "Fault", "Pose", "RoverSpec", "Scenario", "ScenarioError", "ScheduledFault",
+    "SimRoverHardware", "TruthGrid", "WiflyLink", "World", "accuracy", "builtin_scenarios",
+    "check_fault", "coverage", "generate_scenario", "load_scenario", "parse_scenario",
+    "path_length", "run_world", "t90", "t99", "time_to_coverage", "truth_raster",
 ]
