@@ -388,7 +388,7 @@ def nudging_nav(block: tuple[float, float, float], off: float) -> Any:
     nav = make_nav("hider", pool=BufferPool(4))
     corridor = Truth(0, 0, 600, 300, boxes=((100, 0, 300, 135), (100, 165, 300, 135)))
     nav.map = room_map(corridor)
-    nav._last_block = block
+    nav._last_block = nav._anchor = block
     h = math.radians(block[2])
     nav._nudge = (-math.sin(h) * off, math.cos(h) * off, block[0], block[1])
     return nav
@@ -404,8 +404,29 @@ def test_nudge_shifts_only_waypoints_near_the_block_and_never_the_goal() -> None
 
 def test_nudge_in_a_long_corridor_inserts_a_shifted_point_ahead() -> None:
     """No waypoint near the block (mid-corridor): a point 50 cm ahead, shifted, comes first;
-    a shift that leaves the 30 cm corridor (12 cm off its axis) inserts nothing."""
+    a shift into the corridor's wall (20 cm off its axis) is refused (None)."""
     pts = [(420.0, 150.0), (500.0, 60.0)]
     assert nudging_nav((250.0, 150.0, 0.0), -6.0)._nudged(pts) == [(300.0, 144.0), *pts]
-    assert nudging_nav((250.0, 150.0, 0.0), 12.0)._nudged(pts) == pts
+    assert nudging_nav((250.0, 150.0, 0.0), 20.0)._nudged(pts) is None
     assert nudging_nav((250.0, 150.0, 180.0), 6.0)._nudged(pts) == pts  # ahead is backwards
+
+
+def test_follower_does_not_repeat_a_turn_the_motor_could_not_resolve() -> None:
+    """A motor that ignores turns under 4 deg: the follower drives on instead of asking
+    the same small turn forever, and accepts the final heading it cannot refine."""
+    f = PathFollower([(100.0, 5.0)], 3.5, OPT)
+    pose = Pose(0.0, 0.0, 0.0)
+    for _ in range(40):
+        m = f.next_motion(pose)
+        if m is None:
+            break
+        if m.kind == "turn" and abs(m.amount) >= 4.0:
+            pose = Pose(pose.x, pose.y, pose.heading_deg + m.amount)
+        elif m.kind == "move":
+            h = pose.heading_rad
+            pose = Pose(pose.x + m.amount * math.cos(h), pose.y + m.amount * math.sin(h),
+                        pose.heading_deg)
+    else:
+        raise AssertionError("the follower kept asking")
+    assert math.dist((pose.x, pose.y), (100.0, 5.0)) <= OPT.goal_tol_cm
+    assert f.steps < 20

@@ -103,12 +103,16 @@ class NavOptions:
     """Clearance beyond half the body width in the last planning tier (narrow passages) [cm]."""
     replan_limit: int = 8
     """Replans after being blocked before a route is given up."""
-    nudge_step_cm: float = 6.0
+    nudge_step_cm: float = 4.0
     """Lateral step of the search for a narrow passage missed by dead reckoning [cm]."""
+    max_nudges: int = 6
+    """Sideways offsets tried per route, at most."""
     nudge_reach_cm: float = 50.0
     """Waypoints this close to the block point are shifted by a nudge [cm]."""
     backoff_cm: float = 6.0
     """Reverse this far after being blocked [cm]."""
+    backoff_repeat_cm: float = 20.0
+    """Reverse this far after a second block at one place: room to come back sideways [cm]."""
     settle_s: float = 1.0
     """After (re)start, no motion is commanded before this [s]: the end of a motion
     the previous incarnation commanded arrives meanwhile and is ignored."""
@@ -163,6 +167,7 @@ class PathFollower:
         """Index of the waypoint being driven to."""
         self.steps = 0
         """Motions handed out so far."""
+        self._turned_from: float | None = None  # heading when the last motion, a turn, began
 
     @property
     def goal(self) -> tuple[float, float]:
@@ -180,7 +185,15 @@ class PathFollower:
             + self.o.max_corrections
 
     def next_motion(self, pose: Pose) -> Motion | None:
-        """The next motion from ``pose``, or None when at the goal (and heading)."""
+        """The next motion from ``pose``, or None when at the goal (and heading).
+
+        A turn that changed nothing (smaller than Motor Control can resolve: one
+        Int E is 0.5 cm of tread, about 2 [deg] on a 13 cm track) is not asked
+        again: the leg is driven as it is, or the final heading accepted.
+        """
+        futile = self._turned_from is not None and abs(
+            angle_diff_deg(pose.heading_deg, self._turned_from)) < 0.5
+        self._turned_from = None
         last = len(self.waypoints) - 1
         while self.index <= last:
             tol = self.o.goal_tol_cm if self.index == last else self.o.waypoint_tol_cm
@@ -192,9 +205,10 @@ class PathFollower:
             if self.heading_deg is None:
                 return None
             err = angle_diff_deg(self.heading_deg, pose.heading_deg)
-            if abs(err) <= self.o.heading_tol_deg:
+            if abs(err) <= self.o.heading_tol_deg or futile:
                 return None
             self.steps += 1
+            self._turned_from = pose.heading_deg
             return Motion("turn", err)
         tx, ty = self.waypoints[self.index]
         dist = math.hypot(tx - pose.x, ty - pose.y)
@@ -204,7 +218,8 @@ class PathFollower:
         tol = max(self.o.align_tol_deg,
                   math.degrees(math.atan2(1.0, max(min(dist, self.o.step_cm), 1e-6))))
         self.steps += 1
-        if abs(err) > tol:
+        if abs(err) > tol and not futile:
+            self._turned_from = pose.heading_deg
             return Motion("turn", err)
         return Motion("move", min(dist, self.o.step_cm))
 
@@ -658,6 +673,7 @@ class RouteNav(NavBase):
         self._replan = False  # replan after the backoff in flight
         self._last_block: tuple[float, float, float] | None = None  # (x, y, heading) of a block
         self._nudge: tuple[float, float, float, float] | None = None  # (dx, dy, cx, cy) [cm]
+        self._anchor: tuple[float, float, float] | None = None  # the block nudges start from
         self._nudges = 0  # nudges tried on this route
 
     # ------------------------------------------------------------------ server
@@ -718,7 +734,7 @@ class RouteNav(NavBase):
         self.goal, self.goal_heading = goal, heading
         self.stop_short_cm = stop_short_cm
         self.replans = 0
-        self._last_block, self._nudge, self._nudges = None, None, 0
+        self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
         if not self._plan():
             return False
         await self.set_state("driving", f"to ({goal[0]:.0f}, {goal[1]:.0f})")
@@ -763,7 +779,11 @@ class RouteNav(NavBase):
         if plan.goal_snapped:
             pts.append(self.goal)  # the goal itself; the spot check vouched for it
         if self._nudge is not None:
-            pts = self._nudged(pts)
+            nudged = self._nudged(pts)
+            if nudged is None:
+                self.follower = None
+                return False
+            pts = nudged
         if self.stop_short_cm > 0:
             pts = shorten(pts, (p.x, p.y), self.stop_short_cm) or [(p.x, p.y)]
         self.follower = PathFollower(pts, self.goal_heading, self.o)
@@ -797,25 +817,31 @@ class RouteNav(NavBase):
                 return
         await self._step()
 
-    def _nudged(self, pts: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    def _nudged(self, pts: list[tuple[float, float]]) -> list[tuple[float, float]] | None:
         """``pts`` with the nudge applied: waypoints near the block point shifted sideways;
         when none is near (a long corridor), a shifted waypoint ``nudge_reach_cm`` ahead of
-        the block point is driven to first."""
-        assert self._nudge is not None and self._last_block is not None
+        the block point is driven to first. None when a shifted point is not on free
+        ground of the server's map: the search went wider than the passage."""
+        assert self._nudge is not None and self._anchor is not None
         dx, dy, cx, cy = self._nudge
         reach = self.o.nudge_reach_cm
         near = [i < len(pts) - 1 and math.dist(q, (cx, cy)) <= reach for i, q in enumerate(pts)]
         if any(near):
-            return [(x + dx, y + dy) if n else (x, y) for (x, y), n in zip(pts, near, strict=True)]
-        h = math.radians(self._last_block[2])
+            out = [(x + dx, y + dy) if n else (x, y) for (x, y), n in zip(pts, near, strict=True)]
+            ok = all(self._fits(*q) for q, n in zip(out, near, strict=True) if n)
+            return out if ok else None
+        h = math.radians(self._anchor[2])
         ahead = (cx + reach * math.cos(h) + dx, cy + reach * math.sin(h) + dy)
         to_goal = math.dist((cx, cy), pts[-1])
         if to_goal <= reach or math.dist(ahead, pts[-1]) >= to_goal:
             return pts  # the goal is near, or ahead of the block leads away from it
-        if self.map is not None and not passable_at(self.map, *ahead,
-                                                    0.5 * self.width_cm, 0.0):
-            return pts  # the search has gone wider than the passage
-        return [ahead, *pts]
+        return [ahead, *pts] if self._fits(*ahead) else None
+
+    def _fits(self, x: float, y: float) -> bool:
+        """(x, y) [cm] is on free ground of the server's map. Not more: the offset must
+        also make up for a heading error the rover cannot see, so the point may lie
+        closer to a wall than the body could stand."""
+        return self.map is not None and passable_at(self.map, x, y, 0.0, 0.0)
 
     def _nudged_plan(self) -> bool:
         """Plan again on the server's map, the route shifted sideways near the block.
@@ -826,20 +852,27 @@ class RouteNav(NavBase):
         is missed by a heading drift of a few degrees over a few metres), not
         an obstacle the map does not show. The search tries lateral offsets
         of the waypoints near the block point, alternating sides and growing
-        by ``nudge_step_cm`` (+6, -6, +12, -12 ... [cm]), one per block,
-        bounded by ``replan_limit``.
+        by ``nudge_step_cm`` (+4, -4, +8, -8 ... [cm]), one per block
+        (offsets whose points do not fit are skipped), at most ``max_nudges``
+        per route and bounded by ``replan_limit`` blocks.
         """
         if self.map is None or self._last_block is None:
             return False
-        k = self._nudges
-        self._nudges += 1
-        self.counters["nudges"] += 1
-        off = self.o.nudge_step_cm * (k // 2 + 1) * (1.0 if k % 2 == 0 else -1.0)
-        bx, by, bh = self._last_block
+        if self._anchor is None:  # the first block of the series: later ones come from nudges
+            self._anchor = self._last_block
+        bx, by, bh = self._anchor
         h = math.radians(bh)
-        self._nudge = (-math.sin(h) * off, math.cos(h) * off, bx, by)
         self.work_map = self.map
-        return self._plan()
+        while self._nudges < self.o.max_nudges:
+            k = self._nudges
+            self._nudges += 1
+            off = self.o.nudge_step_cm * (k // 2 + 1) * (1.0 if k % 2 == 0 else -1.0)
+            self._nudge = (-math.sin(h) * off, math.cos(h) * off, bx, by)
+            if self._plan():
+                self.counters["nudges"] += 1
+                return True
+        self._nudge = None
+        return False
 
     async def _blocked_route(self, why: str) -> None:
         self.replans += 1
@@ -852,6 +885,7 @@ class RouteNav(NavBase):
         p = self.map_pose
         ahead = self.radius_cm + 8.0
         h = math.radians(p.heading_deg)
+        back = self.o.backoff_cm
         if why == "blocked":
             # a second block near the first: something the map does not show is there
             # (one block alone may be a restarted motor cutting its command short)
@@ -859,8 +893,9 @@ class RouteNav(NavBase):
             if last is not None and math.dist(last[:2], (p.x, p.y)) <= 30.0:
                 self.work_map = with_obstacle(self.work_map, p.x + ahead * math.cos(h),
                                               p.y + ahead * math.sin(h), 8.0)
+                back = self.o.backoff_repeat_cm
         self._replan = True
-        await self.command(Motion("move", -self.o.backoff_cm))
+        await self.command(Motion("move", -back))
 
     async def _give_up(self, reason: str) -> None:
         self.follower = None
