@@ -290,6 +290,7 @@ def test_cli_table_and_progress(tmp_path, capsys):
     (["-n", "0"], "-n must be within 1..1000000, got 0"),
     (["--window", "soon"], "--window must be A-B in seconds, got 'soon'"),
     (["--seed", "-3"], "seed must be an integer >= 0, got -3"),
+    (["--max-wall", "0"], "--max-wall must be within (0, 1e6] minutes, got 0.0"),
 ])
 def test_cli_bad_input_exits_2_with_a_message(argv, message, capsys):
     status = cmd_campaign.run(_args(*argv, "--out", ":memory:"), worker=fake_worker)
@@ -347,3 +348,24 @@ def test_run_refuses_a_bad_campaign_reference_with_exit_2(ref, message, capsys):
     captured = capsys.readouterr()
     assert captured.err.startswith(f"hideseek run: {message}")
     assert "Traceback" not in captured.err
+
+
+def test_cli_max_wall_stops_and_summarises_the_games_done(capsys):
+    """Out of wall time after the first game: the summary covers it and says why, exit 130."""
+    status = cmd_campaign.run(_args("-n", "5", "--workers", "0", "--faults", "wifly:loss",
+                                    "--max-wall", "1e-9", "--json", "--out", ":memory:",
+                                    "--no-progress"), worker=fake_worker)
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)
+    assert status == 130
+    assert (summary["games"], summary["games_requested"]) == (1, 5)
+    assert summary["stopped_early"] == "out of wall time (1e-09 min)"
+    assert "out of wall time (1e-09 min) after 1 of 5 games" in captured.err
+
+
+def test_cli_without_max_wall_plays_every_game(capsys):
+    status = cmd_campaign.run(_args("-n", "3", "--workers", "0", "--faults", "wifly:loss",
+                                    "--json", "--out", ":memory:", "--no-progress"),
+                              worker=fake_worker)
+    summary = json.loads(capsys.readouterr().out)
+    assert status == 0 and summary["games"] == 3 and summary["stopped_early"] is None

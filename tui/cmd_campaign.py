@@ -4,8 +4,13 @@ Game i of campaign S is fully determined by (S, i) and the options; every
 failure is printed with the command that plays it again alone
 (``hideseek run --campaign S:i[,...]``), with the same trace hash.
 
+``--max-wall MINUTES`` stops starting games once that much wall time has
+passed (checked as each game finishes; games still in flight are abandoned)
+and summarises the games done: "as many games as fit in N minutes", for CI
+and for a shared machine. Ctrl-C does the same at once.
+
 Exit status: 0 every game found the hider with every invariant kept, 1 some
-game failed, 2 bad input.
+game failed, 2 bad input, 130 stopped early (interrupted or out of wall time).
 """
 
 from __future__ import annotations
@@ -61,6 +66,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="replay every K-th game to check determinism (0: never; default 10)")
     parser.add_argument("--timeout", type=float, default=600.0,
                         help="wall-clock guard per game [s] (default 600)")
+    parser.add_argument("--max-wall", type=float, default=None, metavar="MINUTES",
+                        help="stop after this much wall time and summarise the games done")
     parser.add_argument("--quick", action="store_true",
                         help="a handful of games (6) with no replays beyond the first")
     parser.add_argument("--json", action="store_true",
@@ -124,6 +131,9 @@ def _print_table(s: dict[str, Any]) -> None:
     print(f"\ncampaign seed {s['campaign']['seed']} ({s['campaign']['mode']} faults): "
           f"{s['games']} games in {s['wall_s']:.1f} s wall with {s['workers']} workers "
           f"({s['games_per_wall_minute']} games/min)")
+    if s.get("stopped_early"):
+        print(f"  stopped early ({s['stopped_early']}): {s['games']} of "
+              f"{s['games_requested']} games played")
     print(f"  found {s['found']}, not found {s['not_found']}, failed {s['failed']}; "
           f"games with broken invariants {s['games_with_violations']}; "
           f"success rate {100 * s['success_rate']:.1f} %; failures that fail without "
@@ -166,6 +176,9 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
             raise CampaignError(f"--replay-every must be >= 0, got {args.replay_every}")
         if not args.timeout > 0:
             raise CampaignError(f"--timeout must be > 0, got {args.timeout}")
+        if args.max_wall is not None and not 0 < args.max_wall <= 1e6:
+            raise CampaignError(f"--max-wall must be within (0, 1e6] minutes, "
+                                f"got {args.max_wall}")
         store = CampaignStore(args.out)
     except CampaignError as exc:
         print(f"hideseek campaign: {exc}", file=sys.stderr)
@@ -176,21 +189,32 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
         print(f"campaign seed {config.seed}: {games} games, {config.mode} faults, "
               f"{workers} workers ...", flush=True)
     results = []
-    wall0 = time.perf_counter()  # wall time is measured for the report only
+    stopped = None
+    wall0 = time.perf_counter()  # wall time is measured for the report and --max-wall only
     with store:
         cid = store.new_campaign(config, time.time())
+        playing = run_campaign(config, games, workers=workers, worker=worker,
+                               determinism_every=replay_every, wall_timeout_s=args.timeout)
         try:
-            for r in run_campaign(config, games, workers=workers, worker=worker,
-                                  determinism_every=replay_every,
-                                  wall_timeout_s=args.timeout):
+            for r in playing:
                 results.append(r)
                 store.add_game(cid, r)
                 progress.update(r["outcome"] != "found" or bool(r["violations"]))
+                if (args.max_wall is not None and len(results) < games
+                        and time.perf_counter() - wall0 >= 60.0 * args.max_wall):
+                    stopped = f"out of wall time ({args.max_wall:g} min)"
+                    break
         except KeyboardInterrupt:
-            print(f"\nhideseek campaign: interrupted after {len(results)} games",
+            stopped = "interrupted"
+        finally:
+            playing.close()  # stops the worker pool: games in flight are abandoned
+        if stopped:
+            print(f"\nhideseek campaign: {stopped} after {len(results)} of {games} games",
                   file=sys.stderr)
         summary = summarize(config, results, wall_s=time.perf_counter() - wall0,
                             workers=workers)
+        summary["games_requested"] = games
+        summary["stopped_early"] = stopped
         store.finish(cid, summary)
     if args.json:
         print(json.dumps(summary))
