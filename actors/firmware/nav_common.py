@@ -101,7 +101,7 @@ class NavOptions:
     """Clearance all round a hiding spot, for turning [cm]."""
     narrow_margin_cm: float = 2.0
     """Clearance beyond half the body width in the last planning tier (narrow passages) [cm]."""
-    replan_limit: int = 8
+    replan_limit: int = 10
     """Replans after being blocked before a route is given up."""
     nudge_step_cm: float = 4.0
     """Lateral step of the search for a narrow passage missed by dead reckoning [cm]."""
@@ -778,6 +778,9 @@ class RouteNav(NavBase):
         pts = route_points(plan, (p.x, p.y))
         if plan.goal_snapped:
             pts.append(self.goal)  # the goal itself; the spot check vouched for it
+        if self._anchor is not None and math.dist(self._anchor[:2], (p.x, p.y)) > \
+                2.0 * self.o.nudge_reach_cm:
+            self._nudge, self._anchor, self._nudges = None, None, 0  # past the tight spot
         if self._nudge is not None:
             nudged = self._nudged(pts)
             if nudged is None:
