@@ -187,7 +187,10 @@ class FanCaster:
 
     def _cast_part(self, origin: tuple[float, float], start: float, step: float, n: int,
                    max_range: float) -> np.ndarray:
-        out = np.full(n, np.inf)
+        # ndarray methods and ufuncs, not np.full/np.repeat/np.cumsum: their dispatch
+        # costs more than the work on these small arrays
+        out = np.empty(n)
+        out.fill(np.inf)
         if n == 0 or self._n == 0:
             return out
         g = self._geo
@@ -219,23 +222,24 @@ class FanCaster:
         count = last.astype(np.int64)
         count += 1
         np.maximum(count, 0, out=count)
-        csum = np.cumsum(count)
+        csum = np.add.accumulate(count)
         total = int(csum[-1])
         if total == 0:
             return out
         first_ray = first.astype(np.int64)
         first_ray -= csum
         first_ray += count
-        ray = np.repeat(first_ray, count)
+        ray = first_ray.repeat(count)
         ray += np.arange(total)
         h = q[0] * g[5]
         h -= q[1] * g[4]
         h /= g[7]  # the origin's signed distance from each segment's line [cm]
-        ang = np.repeat(g[6] - start, count)
+        ang = (g[6] - start).repeat(count)
         ang -= ray * step
         sin = np.sin(ang)
-        t = np.full(total, np.inf)
-        np.divide(np.repeat(h, count), sin, out=t, where=sin != 0.0)  # parallel: no hit
+        t = np.empty(total)
+        t.fill(np.inf)
+        np.divide(h.repeat(count), sin, out=t, where=sin != 0.0)  # parallel: no hit
         # a segment in line with the origin gives a zero or rounding-sized range: no hit
         t[~(t > 1e-9)] = np.inf
         np.minimum.at(out, ray, t)
