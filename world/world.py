@@ -177,7 +177,7 @@ class World:
             self.physics.set_tread_speeds(role, vl, vr)
         self.physics.step(dt)
         self.ticks += 1
-        slip = self.rng.standard_normal(2 * len(ROLES)) * p.slip_sigma
+        slip = (self.rng.standard_normal(2 * len(ROLES)) * p.slip_sigma).tolist()
         self._prev, self._now = self._now, {r: self.physics.state(r) for r in ROLES}
         for i, role in enumerate(ROLES):
             self._encoders(role, 1.0 + slip[2 * i], 1.0 + slip[2 * i + 1])
