@@ -121,6 +121,13 @@ def _with(old: str, new: str) -> str:
          "bad.toml: game.seek_at[0]: (300, 900) is outside the room"),
         (_with("lidar_noise_cm = 1.0", "lidar_noise = 1.0"),
          "bad.toml: devices.lidar_noise: unknown key"),
+        (_with("lidar_noise_cm = 1.0", "lidar_quantum_cm = 0"),
+         "bad.toml: devices.lidar_quantum_cm: lidar_quantum_cm must be > 0, got 0"),
+        (_with("lidar_noise_cm = 1.0", "lidar_samples_per_rev = 100000"),
+         "bad.toml: devices.lidar_samples_per_rev: lidar_samples_per_rev must be at most "
+         "36000, got 100000"),
+        (_with("lidar_noise_cm = 1.0", "wifly_loss = 1.5"),
+         "bad.toml: devices.wifly_loss: wifly_loss must be at most 1, got 1.5"),
         (_with('kind = "dead"', 'kind = "sleepy"'),
          "bad.toml: faults[0]: fault kind 'sleepy' does not apply to lidar"),
         (_with('target = "mapper/lidar"', 'target = "hider/lidar"'),
@@ -133,6 +140,7 @@ def _with(old: str, new: str) -> str:
     ],
     ids=["unknown-key", "wrong-type", "outside-room", "negative-radius", "start-in-obstacle",
          "overlapping-rovers", "rover-outside", "guess-outside", "unknown-device-param",
+         "zero-quantum", "too-many-samples", "loss-above-one",
          "bad-fault-kind", "device-not-on-rover", "bad-actor-kind", "not-toml",
          "missing-rover"],
 )

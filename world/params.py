@@ -12,6 +12,14 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
+#: parameters that divide or size something: 0 is refused
+POSITIVE = frozenset({
+    "length_cm", "width_cm", "track_width_cm", "ticks_per_cm", "ticks_per_interrupt",
+    "lidar_samples_per_rev", "lidar_quantum_cm", "lidar_range_cm",
+})
+#: upper bounds: a LIDAR angle is sent in 0.01 deg, probabilities are at most 1
+LIMITS = {"lidar_samples_per_rev": 36000, "wifly_loss": 1.0, "wifly_corrupt": 1.0}
+
 
 @dataclass(frozen=True, slots=True)
 class DeviceParams:
@@ -89,8 +97,10 @@ class DeviceParams:
                 raise ValueError(f"{name} must be an integer, got {value!r}")
             if value < 0:
                 raise ValueError(f"{name} must not be negative, got {value!r}")
-            if name in ("wifly_loss", "wifly_corrupt") and value > 1:
-                raise ValueError(f"{name} must be within 0..1, got {value!r}")
+            if name in POSITIVE and value == 0:
+                raise ValueError(f"{name} must be > 0, got {value!r}")
+            if name in LIMITS and value > LIMITS[name]:
+                raise ValueError(f"{name} must be at most {LIMITS[name]:g}, got {value!r}")
             clean[name] = type(default)(value)
         return dataclasses.replace(self, **clean)
 
