@@ -430,3 +430,19 @@ def test_follower_does_not_repeat_a_turn_the_motor_could_not_resolve() -> None:
         raise AssertionError("the follower kept asking")
     assert math.dist((pose.x, pose.y), (100.0, 5.0)) <= OPT.goal_tol_cm
     assert f.steps < 20
+
+
+def test_plan_tiers_go_from_room_to_turn_to_the_body_width() -> None:
+    """Turning radius + margin, radius, half width + 2 cm, half width: most cautious first."""
+    nav = make_nav("hider", pool=BufferPool(4))
+    assert nav.plan_tiers() == ((12.5, 3.0), (12.5, 0.0), (7.5, 2.0), (7.5, 0.0))
+
+
+def test_a_corridor_mapped_20_cm_wide_is_planned_at_the_body_width() -> None:
+    """A 30 cm corridor whose walls map a cell thick on each side leaves 20 cm of free
+    cells: only the last tier (half the body width, no margin) finds the way through."""
+    m = room_map(Truth(0, 0, 600, 300, boxes=((200, 0, 200, 140), (200, 160, 200, 140))))
+    tiers = make_nav("hider", pool=BufferPool(4)).plan_tiers()
+    found = [plan_route(m, (100, 150), (500, 150), radius_cm=r, margin_cm=g) is not None
+             for r, g in tiers]
+    assert found == [False, False, False, True]

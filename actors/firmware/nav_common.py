@@ -742,7 +742,8 @@ class RouteNav(NavBase):
         return True
 
     def plan_tiers(self) -> tuple[tuple[float, float], ...]:
-        """(radius, margin) pairs to plan with, most cautious first [cm].
+        """(radius, margin) pairs to plan with, most cautious first [cm] (the first that
+        gives a path is used).
 
         1. The turning radius plus ``plan_margin_cm``: room to turn anywhere on
            the route, with a margin for map error.
@@ -753,9 +754,13 @@ class RouteNav(NavBase):
         3. Half the body width plus ``narrow_margin_cm``: a passage the rover
            fits through driving straight. The route's turns may then touch an
            edge; the motor reports blocked and the route is replanned.
+        4. Half the body width alone: the map's walls are up to a cell thicker
+           than the walls (a LIDAR hit on a wall's face lands in the cell on the
+           free side), so a 30 cm corridor can map as 20-25 cm of free cells.
         """
         r, m = self.radius_cm, self.o.plan_margin_cm
-        tiers = [(r, m), (r, 0.0), (0.5 * self.width_cm, self.o.narrow_margin_cm)]
+        half = 0.5 * self.width_cm
+        tiers = [(r, m), (r, 0.0), (half, self.o.narrow_margin_cm), (half, 0.0)]
         out: list[tuple[float, float]] = []
         for t in tiers:
             if t not in out and t[0] + t[1] <= r + m:
