@@ -89,18 +89,21 @@ class FanCaster:
         static = static[(static[:, 0] != static[:, 2]) | (static[:, 1] != static[:, 3])]
         self._n_static = len(static)
         self._n = len(static) + 4 * boxes
-        # rows: x0, y0, x1, y1, sx, sy, phi [rad], length; one column per segment
-        self._geo = np.zeros((8, self._n))
+        # rows: x0, y0, x1, y1, then the unit direction ux, uy and its angle phi [rad];
+        # one column per segment
+        self._geo = np.zeros((7, self._n))
         self._geo[0:4, :self._n_static] = static.T
         # boxes start parked: unit squares far away, never hit
         self._parked = self._box_columns([PARKED], 1.0, 1.0)
         for i in range(boxes):
             self.set_box(i, None, 1.0, 1.0)
         g = self._geo[:, :self._n_static]
-        g[4] = g[2] - g[0]
-        g[5] = g[3] - g[1]
+        length = np.hypot(g[2] - g[0], g[3] - g[1])
+        g[4] = (g[2] - g[0]) / length
+        g[5] = (g[3] - g[1]) / length
         g[6] = np.arctan2(g[5], g[4])
-        g[7] = np.hypot(g[4], g[5])
+        self._origin = np.zeros((4, 1))
+        """The ray origin, x, y, x, y [cm], written in place each cast."""
 
     @property
     def segments(self) -> np.ndarray:
@@ -139,10 +142,10 @@ class FanCaster:
     @staticmethod
     def _box_columns(poses: Sequence[tuple[float, float, float]], length: float,
                      width: float) -> np.ndarray:
-        """The eight geometry rows of the four edges of each box (plain Python: few boxes)."""
+        """The geometry rows of the four edges of each box (plain Python: few boxes)."""
         hl, hw = length / 2.0, width / 2.0
-        rows: list[list[float]] = [[], [], [], [], [], [], [], []]
-        x0s, y0s, x1s, y1s, sxs, sys_, phis, sizes = rows
+        rows: list[list[float]] = [[], [], [], [], [], [], []]
+        x0s, y0s, x1s, y1s, uxs, uys, phis = rows
         for x, y, a in poses:
             c, s = math.cos(a), math.sin(a)
             ax, ay, bx, by = c * hl, s * hl, -s * hw, c * hw
@@ -153,10 +156,9 @@ class FanCaster:
             y0s += ys
             x1s += (xs[1], xs[2], xs[3], xs[0])
             y1s += (ys[1], ys[2], ys[3], ys[0])
-            sxs += (-2 * ax, -2 * bx, 2 * ax, 2 * bx)
-            sys_ += (-2 * ay, -2 * by, 2 * ay, 2 * by)
+            uxs += (-c, s, c, -s)
+            uys += (-s, -c, s, c)
             phis += (a + math.pi, a - math.pi / 2, a, a + math.pi / 2)
-            sizes += (length, width, length, width)
         return np.array(rows)
 
     def cast_fan(self, origin: tuple[float, float], start_rad: float, step_rad: float, n: int,
@@ -195,7 +197,10 @@ class FanCaster:
             return out
         g = self._geo
         ox, oy = origin
-        q = g[0:4] - np.array((ox, oy, ox, oy))[:, None]
+        o = self._origin
+        o[0, 0] = o[2, 0] = ox
+        o[1, 0] = o[3, 0] = oy
+        q = g[0:4] - o
         a0, a1 = np.arctan2(q[1::2], q[0::2])  # directions to both ends [rad]
         # the extent runs counter-clockwise over `w` (<= pi) and ends at `end` [rad]; it is
         # decided from the angles alone, so a segment nearly in line with the origin gets a
@@ -232,15 +237,14 @@ class FanCaster:
         ray = first_ray.repeat(count)
         ray += np.arange(total)
         h = q[0] * g[5]
-        h -= q[1] * g[4]
-        h /= g[7]  # the origin's signed distance from each segment's line [cm]
+        h -= q[1] * g[4]  # the origin's signed distance from each segment's line [cm]
         ang = (g[6] - start).repeat(count)
         ang -= ray * step
         sin = np.sin(ang)
-        t = np.empty(total)
-        t.fill(np.inf)
-        np.divide(h.repeat(count), sin, out=t, where=sin != 0.0)  # parallel: no hit
-        # a segment in line with the origin gives a zero or rounding-sized range: no hit
+        sin[sin == 0.0] = np.nan  # parallel: no hit (and no division by zero)
+        t = h.repeat(count)
+        t /= sin
+        # a segment in line with the origin gives a zero, rounding-sized or nan range: no hit
         t[~(t > 1e-9)] = np.inf
         np.minimum.at(out, ray, t)
         out[out > max_range] = np.inf
