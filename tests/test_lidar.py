@@ -144,6 +144,9 @@ def test_fan_caster_refuses_a_bad_step_and_box_count() -> None:
     caster = FanCaster(room_segments(400, 300), boxes=2)
     with pytest.raises(ValueError, match=r"step_rad must be within \(0, pi\], got 0.0"):
         caster.cast_fan((1.0, 1.0), 0.0, 0.0, 3, 100.0)
+    with pytest.raises(ValueError, match="n must be >= 0, got -1"):
+        caster.cast_fan((1.0, 1.0), 0.0, 0.1, -1, 100.0)
+    assert caster.cast_fan((1.0, 1.0), 0.0, 0.1, 0, 100.0).shape == (0,)
     with pytest.raises(ValueError, match="expected 2 box poses, got 1"):
         caster.set_boxes([(1.0, 1.0, 0.0)], 20, 15)
 

@@ -176,10 +176,12 @@ class FanCaster:
             (n,) distances [cm]; ``inf`` for no hit within ``max_range``.
 
         Raises:
-            ValueError: ``step_rad`` is not within (0, pi].
+            ValueError: ``step_rad`` is not within (0, pi], or ``n`` is negative.
         """
         if not 0.0 < step_rad <= math.pi:
             raise ValueError(f"step_rad must be within (0, pi], got {step_rad!r}")
+        if n < 0:
+            raise ValueError(f"n must be >= 0, got {n!r}")
         part = max(1, int(math.pi / step_rad))  # rays per part: spans less than pi
         if n <= part:
             return self._cast_part(origin, start_rad, step_rad, n, max_range)
