@@ -109,9 +109,10 @@ class MappingOptions:
     blacklist: int = 256
     """Most blacklisted points kept."""
     futile_trips: int = 4
-    """After this many trips in a row that each revealed fewer than ``min_gain_cells``,
-    the frontiers left are not worth visiting (pockets behind furniture, noise at edges):
-    exploration treats them as not useful, and completion may follow."""
+    """After this many trips in a row (each until its target was reached or given up)
+    that each revealed fewer than ``min_gain_cells``, the frontiers left are not worth
+    visiting (pockets behind furniture, noise at edges): exploration treats them as not
+    useful, and completion may follow."""
     min_gain_cells: int = 30
     """A trip that made fewer cells known than this was futile [cells]."""
 
@@ -299,6 +300,7 @@ class MappingNav(NavBase):
                               and math.dist((pose.x, pose.y), ex.target) <= self.m.reach_cm):
             if ex.target is not None:
                 ex.reached.append(ex.target)
+                self._end_trip()
             ex.follower = None
             self._wait_map = True  # look again once the map shows what is seen from here
             return
@@ -395,11 +397,8 @@ class MappingNav(NavBase):
         if plan is None:
             return False
         ex = self.ex
-        known = self._known()
-        if ex.trip_known is not None:  # the previous trip ends here: what did it reveal?
-            ex.gains.append(known - ex.trip_known)
-            del ex.gains[:-self.m.futile_trips]
-        ex.trip_known = known
+        if ex.trip_known is None:  # a trip runs until a target is reached or given up
+            ex.trip_known = self._known()
         ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
         ex.target = f.target_cm
         ex.steps = 0
@@ -407,9 +406,22 @@ class MappingNav(NavBase):
         ex.budget = ex.follower.budget(pose)
         return True
 
+    def _end_trip(self) -> None:
+        """A target was reached or given up: record what the trip made known.
+
+        Switching to another frontier on the way (the map grew) does not end a trip,
+        so a trip's gain is that of a whole visit, not of a few steps."""
+        ex = self.ex
+        if ex.trip_known is not None and self.grid is not None:
+            ex.gains.append(self._known() - ex.trip_known)
+            del ex.gains[:-self.m.futile_trips]
+        ex.trip_known = None
+
     def _blacklist(self, point: tuple[float, float] | None) -> None:
         if point is None:
             return
+        if point == self.ex.target:
+            self._end_trip()
         bl = self.ex.blacklist
         bl.append(point)
         if len(bl) > self.m.blacklist:
