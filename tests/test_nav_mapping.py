@@ -82,3 +82,38 @@ async def test_server_stop_uploads_what_is_known(autojump_clock) -> None:
         assert await wait_for(lambda: any(c == "WIFLY_SEND_MAP" for c, _ in body.sent), 5.0)
         assert body.lidar_log[-1] == "LIDAR_STOP"
         assert "stopped by the server" in body.frames("status")[-1].data["detail"]
+
+
+def test_futile_trips_count_whole_visits_and_end_exploration() -> None:
+    """A trip runs until its target is reached or given up, whatever the frontiers chosen on
+    the way; after ``futile_trips`` visits that each made fewer than ``min_gain_cells``
+    cells known, exploration counts the frontiers left as not useful."""
+    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+
+    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=3,
+                                                                min_gain_cells=30))
+    cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
+    known = [0]
+
+    def show(n: int) -> None:  # the map now knows n cells
+        c = cells.copy()
+        c.reshape(-1)[:n] = 0
+        nav.grid = GridMap(c, 5.0, (0.0, 0.0))
+        known[0] = n
+
+    show(100)
+    for gain in (500, 10, 20):
+        nav.ex.trip_known = known[0]
+        show(known[0] + gain // 2)
+        show(known[0] + gain - gain // 2)  # the map grows while the rover drives...
+        nav.ex.target = (1.0, 2.0)
+        nav._blacklist((1.0, 2.0))  # ...and the visit ends (given up)
+    assert nav.ex.gains == [500, 10, 20]
+    assert not nav._futile()  # the 500-cell visit is still in the window
+    nav.ex.trip_known = known[0]
+    show(known[0] + 5)
+    nav.ex.target = (3.0, 4.0)
+    nav._blacklist((9.0, 9.0))  # another point: the visit goes on
+    assert nav.ex.gains == [500, 10, 20]
+    nav._blacklist((3.0, 4.0))
+    assert nav.ex.gains == [10, 20, 5] and nav._futile()
