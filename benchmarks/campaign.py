@@ -62,7 +62,8 @@ def _measure(config: CampaignConfig, games: int, workers: int) -> dict[str, Any]
         print(f"note: warm-up reached {len(pids)} of {workers} workers")
     return {"games": len(results), "wall_s": wall, "games_per_min": 60.0 * len(results) / wall,
             "sim_s": sum(r["sim_s"] for r in results),
-            "cpu_s": sum(r["wall_s"] for r in results),
+            "game_wall_s": sum(r["wall_s"] for r in results),
+            "cpu_s": sum(r.get("cpu_s", 0.0) for r in results),
             "found": sum(r["outcome"] == "found" for r in results),
             "load_before": load0, "load_after": load1,
             "hashes": {r["index"]: r["trace_hash"] for r in results}}
@@ -90,13 +91,16 @@ def main(argv: list[str] | None = None) -> None:
     print(f"campaign throughput, {games} games per run, mapping budget {budget:g} s, "
           f"{cpus} CPUs usable")
     print(f"{'workers':>8}{'wall [s]':>10}{'games/min':>11}{'sim s/wall s':>14}"
-          f"{'game s/wall s':>15}{'found':>7}{'load before':>13}{'load after':>12}")
+          f"{'game s/wall s':>15}{'CPU s/game':>12}{'CPU s/wall s':>14}{'found':>7}"
+          f"{'load before':>13}{'load after':>12}")
     for n, m in ((1, one), (2, two)):
         print(f"{n:>8}{m['wall_s']:>10.1f}{m['games_per_min']:>11.2f}"
-              f"{m['sim_s'] / m['wall_s']:>14.1f}{m['cpu_s'] / m['wall_s']:>15.2f}"
+              f"{m['sim_s'] / m['wall_s']:>14.1f}{m['game_wall_s'] / m['wall_s']:>15.2f}"
+              f"{m['cpu_s'] / m['games']:>12.2f}{m['cpu_s'] / m['wall_s']:>14.2f}"
               f"{m['found']:>7}{m['load_before']:>13.2f}{m['load_after']:>12.2f}")
-    print("game s/wall s: the games' own wall time summed, over the run's wall time "
-          "(the parallelism achieved)")
+    print("game s/wall s: the games' own wall time summed over the run's wall time (workers "
+          "kept busy); CPU s/wall s: the CPU the games got (2 on two idle cores); CPU s/game "
+          "equal in both runs means the pool adds no work")
     print(f"same games in both runs (trace hashes by index): {'yes' if same else 'NO'}")
     print(f"ratio 2 workers / 1 worker: {ratio:.2f} (target >= 1.8 on {cpus} otherwise idle "
           f"cores; load before/after the 2-worker run {two['load_before']:.2f}/"
@@ -108,6 +112,9 @@ def main(argv: list[str] | None = None) -> None:
                       "wall_s_1": round(one["wall_s"], 2), "wall_s_2": round(two["wall_s"], 2),
                       "load_1": [round(one["load_before"], 2), round(one["load_after"], 2)],
                       "load_2": [round(two["load_before"], 2), round(two["load_after"], 2)],
+                      "cpu_s_per_game_1": round(one["cpu_s"] / one["games"], 3),
+                      "cpu_s_per_game_2": round(two["cpu_s"] / two["games"], 3),
+                      "cpu_per_wall_2": round(two["cpu_s"] / two["wall_s"], 3),
                       "same_games": same}))
 
 

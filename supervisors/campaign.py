@@ -513,7 +513,8 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         ``index``, ``ref``, ``reproduce``, ``room``, ``run_seed``, ``faults``
         (target/kind/at_s/duration_s/label each), ``outcome``, ``reason``,
         ``violations`` (``name: detail`` strings), ``faults_fired``,
-        ``restarts``, ``resent``, ``dropped``, ``sim_s``, ``wall_s``,
+        ``restarts``, ``resent``, ``dropped``, ``sim_s``, ``wall_s``, ``cpu_s``
+        (this process's CPU time for the game, replays included [s]),
         ``trace_hash``, ``replay_hash`` (None unless replayed), ``events``,
         ``baseline`` (outcome without the faults, or None when not played).
 
@@ -529,10 +530,11 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
                     "duration_s": f.duration_s, "params": dict(f.params)}
                    for lab, f in zip(spec.labels, spec.faults, strict=True)],
         "outcome": "failed", "reason": "", "violations": [], "faults_fired": 0,
-        "restarts": 0, "resent": 0, "dropped": 0, "sim_s": 0.0, "wall_s": 0.0,
+        "restarts": 0, "resent": 0, "dropped": 0, "sim_s": 0.0, "wall_s": 0.0, "cpu_s": 0.0,
         "trace_hash": "", "replay_hash": None, "events": {}, "baseline": None,
     }
-    wall0 = time.perf_counter()  # wall time is measured for the report only
+    wall0 = time.perf_counter()  # wall and CPU time are measured for the report only
+    cpu0 = time.process_time()
     try:
         report, checks = _run_one(spec, wall_timeout_s, nav_factory)
         out.update(outcome=report.outcome, reason=report.reason, restarts=report.restarts,
@@ -557,6 +559,7 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         out["violations"] = [f"harness.exception: {type(exc).__name__}: {exc}{where}"]
         out["reason"] = out["reason"] or f"{type(exc).__name__}: {exc}"
     out["wall_s"] = time.perf_counter() - wall0
+    out["cpu_s"] = time.process_time() - cpu0
     return out
 
 
