@@ -117,3 +117,22 @@ def test_futile_trips_count_whole_visits_and_end_exploration() -> None:
     assert nav.ex.gains == [500, 10, 20]
     nav._blacklist((3.0, 4.0))
     assert nav.ex.gains == [10, 20, 5] and nav._futile()
+
+
+def test_a_minute_of_exploring_that_reveals_too_little_ends_exploration() -> None:
+    """Known cells grew by less than the least useful gain over ``stall_window_s``:
+    futile, even with no finished trip; growing enough is not."""
+    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+
+    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(stall_window_s=60.0,
+                                                                min_gain_cells=30,
+                                                                min_gain_share=0.003))
+    cells = np.full((100, 100), UNKNOWN, dtype=np.int8)
+    cells.reshape(-1)[:5000] = 0  # 5000 known: the least useful gain is 30 cells
+    nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
+    nav._growth = [(0.0, 4980), (30.0, 4990), (59.0, 4995)]
+    assert not nav._futile()  # not a whole window yet
+    nav._growth.append((61.0, 5000))
+    assert nav._futile()  # 20 cells in 61 s
+    nav._growth = [(0.0, 4900), (61.0, 5000)]
+    assert not nav._futile()  # 100 cells: still useful
