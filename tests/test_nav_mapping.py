@@ -119,20 +119,17 @@ def test_futile_trips_count_whole_visits_and_end_exploration() -> None:
     assert nav.ex.gains == [10, 20, 5] and nav._futile()
 
 
-def test_a_minute_of_exploring_that_reveals_too_little_ends_exploration() -> None:
-    """Known cells grew by less than the least useful gain over ``stall_window_s``:
-    futile, even with no finished trip; growing enough is not."""
+
+def test_the_least_useful_gain_grows_with_the_map() -> None:
+    """In a big map a visit must reveal 0.3 % of what is known to count: 60 cells of
+    30000 known is futile, though more than ``min_gain_cells``."""
     from actors.firmware.nav_mapping import MappingNav, MappingOptions
 
-    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(stall_window_s=60.0,
-                                                                min_gain_cells=30,
-                                                                min_gain_share=0.003))
-    cells = np.full((100, 100), UNKNOWN, dtype=np.int8)
-    cells.reshape(-1)[:5000] = 0  # 5000 known: the least useful gain is 30 cells
+    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=2))
+    cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
+    cells.reshape(-1)[:30000] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
-    nav._growth = [(0.0, 4980), (30.0, 4990), (59.0, 4995)]
-    assert not nav._futile()  # not a whole window yet
-    nav._growth.append((61.0, 5000))
-    assert nav._futile()  # 20 cells in 61 s
-    nav._growth = [(0.0, 4900), (61.0, 5000)]
-    assert not nav._futile()  # 100 cells: still useful
+    nav.ex.gains = [60, 60]
+    assert nav._futile()
+    nav.ex.gains = [60, 120]
+    assert not nav._futile()

@@ -117,11 +117,8 @@ class MappingOptions:
     """A trip that made fewer cells known than this was futile [cells]..."""
     min_gain_share: float = 0.003
     """...or fewer than this share of the cells already known (a big hall's ragged far
-    edges give a few dozen cells per visit for ever)."""
-    stall_window_s: float = 60.0
-    """Exploring this long without making ``min_gain_share`` (at least
-    ``min_gain_cells``) more cells known also means the frontiers left are not
-    useful [s]."""
+    edges give a few dozen cells per visit for ever). Counted per visit, not per
+    minute: crossing a big hall to a far frontier reveals nothing for a while."""
 
 
 @dataclass
@@ -165,7 +162,6 @@ class MappingNav(NavBase):
         self._wait_map = False  # decide at the next map update
         self._last_wait_decide = -math.inf
         self._finish_reason = ""
-        self._growth: list[tuple[float, int]] = []  # (time, known cells) while exploring
 
     # ------------------------------------------------------------------ lifecycle
     async def on_restart(self) -> None:
@@ -218,11 +214,6 @@ class MappingNav(NavBase):
             news = int(np.count_nonzero(known != (prev.cells != UNKNOWN)))
             if news > max(self.m.change_cells, self.m.change_share * int(known.sum())):
                 self._changed_at, self._scans_at_change = now, self.scans
-        if self.state == "exploring" and (not self._growth or now - self._growth[-1][0] >= 1.0):
-            self._growth.append((now, self._known()))
-            cutoff = now - self.m.stall_window_s - 5.0
-            while len(self._growth) > 2 and self._growth[1][0] <= cutoff:
-                del self._growth[0]
         if self.state == "uploading":
             await self._upload()
         elif self.state == "scanning":
@@ -392,19 +383,12 @@ class MappingNav(NavBase):
         return max(self.m.min_gain_cells, self.m.min_gain_share * known)
 
     def _futile(self) -> bool:
-        """Whether exploring goes on revealing too little: the last ``futile_trips`` trips
-        each, or the last ``stall_window_s`` of exploring together."""
+        """Whether each of the last ``futile_trips`` visits revealed too little to go on."""
         g = self.ex.gains
-        known = self._known() if self.grid is not None else 0
-        least = self._min_gain(known)
-        if len(g) >= self.m.futile_trips and all(v < least for v in g[-self.m.futile_trips:]):
-            return True
-        growth = self._growth
-        if not growth or growth[-1][0] - growth[0][0] < self.m.stall_window_s:
+        if len(g) < self.m.futile_trips:
             return False
-        now = growth[-1][0]
-        then = max((k for t, k in growth if now - t >= self.m.stall_window_s), default=None)
-        return then is not None and known - then < least
+        least = self._min_gain(self._known() if self.grid is not None else 0)
+        return all(v < least for v in g[-self.m.futile_trips:])
 
     def _known(self) -> int:
         assert self.grid is not None
