@@ -35,6 +35,7 @@ handling (or, when idle, the actor at once) raise `InjectedCrash`; a pending
 
 from __future__ import annotations
 
+import math
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
 
@@ -292,10 +293,59 @@ def _drop_poison(cell: Cell, actor: Actor, trace: Trace, reason: ExitReason) -> 
 
 async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
                  max_burst: int) -> ExitReason:
+    """Serve under one watchdog guard per incarnation (see `_Guard`); a guard that fired
+    while no message was being handled (only possible on a real clock, at a checkpoint
+    between bursts) was a false alarm: a new guard is opened and serving goes on."""
+    while True:
+        guard = _Guard(cell.watchdog)
+        with guard.scope:
+            return await _serve_loop(cell, actor, ctx, trace, max_burst, guard)
+        if cell.current is not None:
+            return _hung(cell, actor, trace)
+
+
+class _Guard:
+    """The watchdog of one incarnation: one cancel scope whose deadline is moved.
+
+    Why not a scope per message: entering and leaving a Trio cancel scope per
+    handled message was the largest single cost of the runtime in a whole game
+    (about 13 us each). Here the deadline is set to (start of the message being
+    handled + watchdog) only when the clock has moved since it was last set (in
+    virtual time a burst handled at one instant sets it once), and put back to
+    infinity before the actor parks on an empty mailbox, so an idle actor is
+    never woken by it. A handler that blocks past its deadline is cancelled at
+    exactly start + watchdog, as with a scope of its own.
+    """
+
+    __slots__ = ("scope", "watchdog", "since")
+
+    def __init__(self, watchdog: float | None) -> None:
+        self.scope = trio.CancelScope()
+        self.watchdog = watchdog
+        self.since = math.inf  # when the deadline was last set [s]; inf: not armed
+
+    def arm(self) -> None:
+        """A message starts now: its handling must end within the watchdog deadline."""
+        if self.watchdog is not None:
+            now = trio.current_time()
+            if now != self.since:
+                self.since = now
+                self.scope.deadline = now + self.watchdog
+
+    def disarm(self) -> None:
+        """Nothing is being handled from now on (before parking, or a fault's own scope)."""
+        if self.since != math.inf:
+            self.since = math.inf
+            self.scope.deadline = math.inf
+
+
+async def _serve_loop(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
+                      max_burst: int, guard: _Guard) -> ExitReason:
     mailbox = cell.mailbox
     queue = mailbox._queue  # read-only peeks on the hot path
     receive = mailbox.receive_nowait
     handle = actor.handle
+    arm = guard.arm
     burst_mode = type(actor).handle_burst is not Actor.handle_burst
     checkpoint = trio.lowlevel.checkpoint
     while True:
@@ -304,27 +354,32 @@ async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
         if ctx._stop:
             return NORMAL
         if cell.crash_pending or cell.hang_pending:
+            guard.disarm()
             if not await _slow(cell, actor, trace, None):
                 return _hung(cell, actor, trace)
             continue
         if not queue:
+            guard.disarm()
             await mailbox.wait()
             continue
         if burst_mode:
-            if not await _burst(cell, actor, trace, max_burst):
+            if not await _burst(cell, actor, trace, max_burst, guard):
                 return _hung(cell, actor, trace)
         else:
             n = 0
             while queue and n < max_burst:
                 item = receive()
                 cell.current = item
-                if cell.watchdog is not None or cell.crash_pending or cell.hang_pending:
+                if cell.crash_pending or cell.hang_pending:
+                    guard.disarm()
                     if not await _slow(cell, actor, trace, item):
                         return _hung(cell, actor, trace)
                 elif type(item) is CallEnvelope:
+                    arm()
                     if not item.reply(await handle(item.request)):
                         trace.emit(EventKind.LATE_REPLY, cell.name, cell.name, item, len(queue))
                 else:
+                    arm()
                     await handle(item)
                 n += 1
                 if cell.stop_requested or ctx._stop:
@@ -380,10 +435,18 @@ async def _guarded(cell: Cell, work: Callable[[Any], Awaitable[Any]] | None,
     return not scope.cancelled_caught, value
 
 
-async def _burst(cell: Cell, actor: Actor, trace: Trace, max_burst: int) -> bool:
-    """Drain a burst for a `handle_burst` override; calls are handled one by one."""
+async def _burst(cell: Cell, actor: Actor, trace: Trace, max_burst: int,
+                 guard: _Guard) -> bool:
+    """Drain a burst for a `handle_burst` override; calls are handled one by one.
+
+    Faults pending take the slow path (`_slow`, its own scope); otherwise the
+    burst runs under the incarnation's ``guard``, whose firing `_serve` reports.
+    """
     queue = cell.mailbox._queue
     receive = cell.mailbox.receive_nowait
+    slow = cell.crash_pending or cell.hang_pending
+    if slow:
+        guard.disarm()
     batch: list[Any] = []
     while queue and len(batch) < max_burst:
         if type(queue[0]) is CallEnvelope:
@@ -391,12 +454,24 @@ async def _burst(cell: Cell, actor: Actor, trace: Trace, max_burst: int) -> bool
                 break
             item = receive()
             cell.current = item
-            ok = await _slow(cell, actor, trace, item)
+            if slow:
+                ok = await _slow(cell, actor, trace, item)
+            else:
+                guard.arm()
+                value = await actor.handle(item.request)
+                if not item.reply(value):
+                    trace.emit(EventKind.LATE_REPLY, cell.name, cell.name, item,
+                               cell.mailbox.depth)
+                ok = True
             cell.current = None
             return ok
         batch.append(receive())
     cell.current = batch
-    ok, _ = await _guarded(cell, actor.handle_burst, batch)
+    if slow:
+        ok, _ = await _guarded(cell, actor.handle_burst, batch)
+    else:
+        guard.arm()
+        await actor.handle_burst(batch)
+        ok = True
     cell.current = None
     return ok
-
