@@ -446,3 +446,50 @@ def test_a_corridor_mapped_20_cm_wide_is_planned_at_the_body_width() -> None:
     found = [plan_route(m, (100, 150), (500, 150), radius_cm=r, margin_cm=g) is not None
              for r, g in tiers]
     assert found == [False, False, False, True]
+
+
+def scraped_nav(yaw_deg: float, **options: Any) -> Any:
+    """A hider navigation (not started) mid-corridor by dead reckoning (map (300, 150) @ 0,
+    own frame (250, 100) @ 0), whose last forward move ended blocked after yawing
+    ``yaw_deg``."""
+    nav = make_nav("hider", pool=BufferPool(4), options=NavOptions(**options))
+    nav.map = nav.work_map = room_map(
+        Truth(0, 0, 700, 300, boxes=((250, 0, 200, 135), (250, 165, 200, 135))))
+    nav.origin = Pose(50.0, 50.0, 0.0)
+    nav.pose = Pose(250.0, 100.0, yaw_deg)
+    nav.last_motion = Motion("move", 20.0)
+    nav.motion_from = Pose(280.0, 150.0, 0.0)
+    return nav
+
+
+def test_a_scrape_moves_the_pose_to_the_wall_on_the_stalled_side() -> None:
+    """Yawed left while blocked: the left side touches the corridor's wall at y = 165, so
+    the map pose moves left (the origin changes; Motor Control's pose does not) and the
+    retained memory keeps the corrected origin."""
+    nav = scraped_nav(3.0)
+    assert nav._contact_fix()
+    p = nav.map_pose
+    assert 154.0 <= p.y <= 162.0 and p.x == pytest.approx(300.0, abs=3.0)
+    assert nav.pose == Pose(250.0, 100.0, 3.0)
+    assert nav.memory.origin == pytest.approx((nav.origin.x, nav.origin.y,
+                                               nav.origin.heading_deg))
+    assert nav.counters["contacts"] == 1
+
+
+def test_no_correction_when_the_side_is_unknown_or_the_budget_is_spent() -> None:
+    """No yaw: left and right explain the block alike (no correction); with the
+    corrections used up, or the sideways budget too small, none either."""
+    assert not scraped_nav(0.0)._contact_fix()
+    assert not scraped_nav(3.0, contact_fixes=0)._contact_fix()
+    assert not scraped_nav(3.0, contact_max_shift_cm=3.0)._contact_fix()
+    nav = scraped_nav(3.0)
+    nav.last_motion = Motion("turn", 20.0)
+    assert not nav._contact_fix()  # a turn that stalled says nothing about the side walls
+
+
+def test_correct_pose_sets_the_map_pose_exactly() -> None:
+    nav = scraped_nav(10.0)
+    target = Pose(310.0, 140.0, 5.0)
+    nav.correct_pose(target)
+    p = nav.map_pose
+    assert (p.x, p.y, p.heading_deg) == pytest.approx((310.0, 140.0, 5.0))

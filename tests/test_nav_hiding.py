@@ -8,7 +8,7 @@ import pytest
 import trio
 
 from actors import BufferPool, open_actor_system
-from actors.firmware.nav_common import NavMemory
+from actors.firmware.nav_common import NavMemory, NavOptions
 from actors.firmware.odometry import Pose
 from tests.test_nav_common import Body, Truth, download, net, room_map, rover_spec, wait_for
 
@@ -140,8 +140,9 @@ async def test_hider_finds_a_gap_its_dead_reckoning_misses_by_nudging_sideways(a
                 boxes=tuple((x - 50, y - 50, w, h) for x, y, w, h in true_boxes))
     body = Body(truth=own)
     pool = BufferPool(64)
+    options = NavOptions(contact_fixes=0)  # the search alone, without contact localisation
     async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await system.start_supervisor(rover_spec("hider", body, pool, options=options), "hider")
         await net(system, pool, "hider", "origin", ORIGIN)
         await net(system, pool, "hider", "start")
         await net(system, pool, "hider", "destination", {"x": 300.0, "y": 60.0, "heading": 270.0})

@@ -44,9 +44,10 @@ import trio
 from actors import Actor, BufferPool, Message, PoolExhausted, ValueType
 from actors.firmware.clearance import turning_radius_cm
 from actors.firmware.commands import Cmd
+from actors.firmware.contact import locate_contact, stalled_side
 from actors.firmware.devices import HardwareSpec
 from actors.firmware.occupancy import OCCUPIED, GridMap
-from actors.firmware.odometry import ORIGIN, Pose, angle_diff_deg, compose
+from actors.firmware.odometry import ORIGIN, Pose, angle_diff_deg, compose, inverse
 from actors.firmware.planner import Plan, plan_path, traversable
 from server.protocol import Frame, FrameError, make_frame, read_data
 
@@ -109,6 +110,12 @@ class NavOptions:
     """Sideways offsets tried per route, at most."""
     nudge_reach_cm: float = 50.0
     """Waypoints this close to the block point are shifted by a nudge [cm]."""
+    contact_fixes: int = 4
+    """Pose corrections from contacts with mapped walls per route, at most (see `contact`)."""
+    contact_max_shift_cm: float = 14.0
+    """Largest sideways correction one contact, and all of a route's together, may make [cm]."""
+    contact_max_turn_deg: float = 8.0
+    """Largest heading correction one contact may make [deg]."""
     backoff_cm: float = 6.0
     """Reverse this far after being blocked [cm]."""
     backoff_repeat_cm: float = 20.0
@@ -347,11 +354,14 @@ class NavBase(Actor):
         self.state = "idle"
         """What navigation is doing (also the ``status`` state sent to the server)."""
         self.counters: dict[str, int] = {"dropped": 0, "bad_frames": 0, "blocked": 0,
-                                         "timeouts": 0, "motions": 0, "nudges": 0}
+                                         "timeouts": 0, "motions": 0, "nudges": 0,
+                                         "contacts": 0}
         self._xy_mm: tuple[int, int] | None = None
         self._motion: Motion | None = None
         self.last_motion: Motion | None = None
         """The last motion commanded."""
+        self.motion_from: Pose | None = None
+        """The map-frame pose the last motion was commanded from."""
         self._motion_deadline = math.inf
         self._blocked = False
         self._done = 0.0
@@ -465,6 +475,7 @@ class NavBase(Actor):
         code = Cmd.MOTOR_TURN if motion.kind == "turn" else Cmd.MOTOR_MOVE
         self._motion = motion
         self.last_motion = motion
+        self.motion_from = self.map_pose
         self.counters["motions"] += 1
         nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \
             else abs(motion.amount) / 90.0
@@ -675,6 +686,8 @@ class RouteNav(NavBase):
         self._nudge: tuple[float, float, float, float] | None = None  # (dx, dy, cx, cy) [cm]
         self._anchor: tuple[float, float, float] | None = None  # the block nudges start from
         self._nudges = 0  # nudges tried on this route
+        self._contact_fixes = 0  # pose corrections from contacts on this route
+        self._contact_shift = 0.0  # their sideways sum [cm]
 
     # ------------------------------------------------------------------ server
     async def on_start_cmd(self) -> None:
@@ -735,6 +748,7 @@ class RouteNav(NavBase):
         self.stop_short_cm = stop_short_cm
         self.replans = 0
         self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
+        self._contact_fixes, self._contact_shift = 0, 0.0
         if not self._plan():
             return False
         await self.set_state("driving", f"to ({goal[0]:.0f}, {goal[1]:.0f})")
@@ -894,7 +908,9 @@ class RouteNav(NavBase):
         ahead = self.radius_cm + 8.0
         h = math.radians(p.heading_deg)
         back = self.o.backoff_cm
-        if why == "blocked":
+        if why == "blocked" and self._contact_fix():
+            pass  # a mapped wall stopped it: the pose is corrected, nothing to learn
+        elif why == "blocked":
             # a second block near the first: something the map does not show is there
             # (one block alone may be a restarted motor cutting its command short)
             last, self._last_block = self._last_block, (p.x, p.y, p.heading_deg)
@@ -904,6 +920,48 @@ class RouteNav(NavBase):
                 back = self.o.backoff_repeat_cm
         self._replan = True
         await self.command(Motion("move", -back))
+
+    def _contact_fix(self) -> bool:
+        """After a straight move ended blocked: correct the pose to where the body
+        touches a wall of the server's map (`contact.locate_contact`).
+
+        Returns:
+            True when the pose was corrected. False when the dead-reckoned pose
+            already explains the block, when no pose within reach does (an
+            obstacle the map does not show), when the contact is ambiguous
+            (left or right alike), or when ``contact_fixes`` corrections were
+            made on this route already.
+        """
+        m, start = self.last_motion, self.motion_from
+        if (m is None or m.kind != "move" or m.amount == 0 or start is None or self.map is None
+                or self._contact_fixes >= self.o.contact_fixes):
+            return False
+        p = self.map_pose
+        direction = 1 if m.amount > 0 else -1
+        side = stalled_side(angle_diff_deg(p.heading_deg, start.heading_deg), direction)
+        c = locate_contact(self.map, p, length_cm=self.length_cm, width_cm=self.width_cm,
+                           direction=direction, side=side,
+                           max_shift_cm=self.o.contact_max_shift_cm,
+                           max_turn_deg=self.o.contact_max_turn_deg)
+        if c is None or c.ambiguous or not c.needed or \
+                self._contact_shift + abs(c.shift_cm) > self.o.contact_max_shift_cm:
+            return False
+        self._contact_shift += abs(c.shift_cm)
+        self.correct_pose(c.pose)
+        self._contact_fixes += 1
+        self.counters["contacts"] += 1
+        return True
+
+    def correct_pose(self, target: Pose) -> None:
+        """Make the map-frame pose ``target`` by moving the origin (own frame -> map frame).
+
+        Motor Control's dead reckoning is left as it is: its pose stays
+        continuous, and every later pose is read through the corrected
+        origin. The retained memory keeps it across a restart.
+        """
+        origin = compose(target, inverse(self.pose))
+        self.origin = origin
+        self.memory.origin = (origin.x, origin.y, origin.heading_deg)
 
     async def _give_up(self, reason: str) -> None:
         self.follower = None

@@ -1,0 +1,179 @@
+"""Contact localisation: where the rover must be, given that a mapped wall stopped it.
+
+Why
+    Hider and seeker have no LIDAR: their pose is dead reckoning, and tread
+    slip makes it drift sideways by several cm over a few metres. In a passage
+    only 15-20 cm wider than the body that is enough to scrape a wall. The
+    contact itself is a measurement: the body stopped, so some part of its
+    outline is touching something. When the map shows a wall near the
+    dead-reckoned pose, the pose nearest to it at which the body's leading
+    edge touches that wall (and the body overlaps nothing) is where the rover
+    most likely is. Correcting to it lets the next plan re-centre the rover in
+    the passage instead of scraping the same wall again.
+
+Method
+    Occupied cells within reach are taken as points at their centres (a LIDAR
+    hit lands in the cell holding the wall's face, so the face lies anywhere in
+    the cell: the centre is its unbiased guess, ``tol_cm`` its spread).
+    Candidate poses are the dead-reckoned one shifted sideways by ``s``, along
+    the heading by ``u`` and turned by ``a``, on a small grid. A candidate
+    explains the block when (1) the body, shrunk by ``tol_cm``, holds no point,
+    and (2) the band just ahead of its leading edge (``direction`` of the
+    motion; one cell deep, as wide as the body plus ``tol_cm``) holds a point,
+    on the side that stalled when that is known. The cheapest candidate wins,
+    cost ``|s| + along_weight |u| + turn_weight |a|`` [cm]. When a candidate
+    touching with the other side of the body is almost as cheap and the
+    stalled side is not known, the contact is ambiguous (a gap missed to the
+    left or to the right looks alike) and is reported so, for the caller not
+    to act on it.
+
+    The stalled side comes from the heading change during a straight move: the
+    tread on the touching side is held, the other one drives on, so the body
+    yaws toward the contact (counter-clockwise for a left contact moving
+    forward).
+
+Units: [cm], [deg]; poses in the map frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from actors.firmware.occupancy import OCCUPIED, GridMap
+from actors.firmware.odometry import Pose
+
+__all__ = ["Contact", "locate_contact", "stalled_side"]
+
+
+@dataclass(frozen=True, slots=True)
+class Contact:
+    """The pose that explains a block, and how far it is from dead reckoning."""
+
+    pose: Pose
+    """The corrected pose (map frame)."""
+    shift_cm: float
+    """Sideways correction, positive to the left of the heading [cm]."""
+    along_cm: float
+    """Correction along the heading [cm]."""
+    turn_deg: float
+    """Heading correction, counter-clockwise [deg]."""
+    ambiguous: bool
+    """The other side explains the block about as well: do not act on it."""
+
+    @property
+    def needed(self) -> bool:
+        """The dead-reckoned pose does not already explain the block."""
+        return bool(self.shift_cm or self.along_cm or self.turn_deg)
+
+
+def stalled_side(turned_deg: float, direction: int, threshold_deg: float = 1.5) -> int:
+    """The side of the body that touched: +1 left, -1 right, 0 unknown.
+
+    Args:
+        turned_deg: heading change during a straight move that ended blocked [deg].
+        direction: +1 the move was forward, -1 backward.
+        threshold_deg: smaller changes say nothing (motor noise) [deg].
+    """
+    if abs(turned_deg) < threshold_deg:
+        return 0
+    return (1 if turned_deg > 0 else -1) * (1 if direction >= 0 else -1)
+
+
+def _grid_axis(limit: float, step: float) -> np.ndarray:
+    n = int(math.floor(limit / step + 1e-9)) if step > 0 else 0
+    return np.arange(-n, n + 1, dtype=float) * step
+
+
+def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: float,
+                   direction: int = 1, side: int = 0, max_shift_cm: float = 14.0,
+                   max_along_cm: float = 6.0, max_turn_deg: float = 8.0,
+                   shift_step_cm: float = 1.0, along_step_cm: float = 2.0,
+                   turn_step_deg: float = 1.0, along_weight: float = 0.5,
+                   turn_weight: float = 1.5, tol_cm: float | None = None,
+                   ambiguity_cm: float = 3.0) -> Contact | None:
+    """The pose nearest ``pose`` at which the body touches a mapped wall ahead.
+
+    Args:
+        grid: the map (map frame); only its occupied cells count.
+        pose: the dead-reckoned pose at the block (map frame).
+        length_cm: body length, along the heading [cm].
+        width_cm: body width [cm].
+        direction: +1 the blocked motion was forward, -1 backward.
+        side: the side that stalled (`stalled_side`): +1 left, -1 right, 0 unknown.
+        max_shift_cm, max_along_cm, max_turn_deg: the search box [cm], [cm], [deg].
+        shift_step_cm, along_step_cm, turn_step_deg: its steps.
+        along_weight, turn_weight: cost of 1 cm along / 1 deg of turn, in cm of shift.
+        tol_cm: how far a wall face may lie from its cell's centre [cm];
+            default half a cell.
+        ambiguity_cm: a cheapest explanation on the other side within this much
+            cost makes the contact ambiguous (when ``side`` is 0) [cm].
+
+    Returns:
+        The cheapest explaining `Contact` (zero corrections when the
+        dead-reckoned pose explains the block), or None when no pose in the
+        search box does (something the map does not show stopped the rover).
+
+    Raises:
+        ValueError: when ``direction`` is not +1 or -1, or a body size is not positive.
+    """
+    if direction not in (1, -1):
+        raise ValueError(f"direction must be 1 or -1, got {direction!r}")
+    if not (length_cm > 0 and width_cm > 0):
+        raise ValueError(f"body size must be positive, got {length_cm!r} x {width_cm!r}")
+    res = grid.resolution_cm
+    tol = 0.5 * res if tol_cm is None else float(tol_cm)
+    half_l, half_w = 0.5 * length_cm, 0.5 * width_cm
+    reach = math.hypot(half_l + res, half_w + tol) + max_shift_cm + max_along_cm + res
+    r0, c0 = grid.world_to_cell(pose.x - reach, pose.y - reach)
+    r1, c1 = grid.world_to_cell(pose.x + reach, pose.y + reach)
+    ny, nx = grid.shape
+    r0, r1, c0, c1 = max(0, r0), min(ny, r1 + 1), max(0, c0), min(nx, c1 + 1)
+    if r0 >= r1 or c0 >= c1:
+        return None
+    rows, cols = np.nonzero(grid.cells[r0:r1, c0:c1] == OCCUPIED)
+    if rows.size == 0:
+        return None
+    ox, oy = grid.origin_cm
+    px = ox + (cols + c0 + 0.5) * res - pose.x  # points relative to the pose [cm]
+    py = oy + (rows + r0 + 0.5) * res - pose.y
+    h = pose.heading_rad
+    ch, sh = math.cos(h), math.sin(h)
+    fx, fy = px * ch + py * sh, -px * sh + py * ch  # in the dead-reckoned body frame
+
+    s = _grid_axis(max_shift_cm, shift_step_cm)
+    u = _grid_axis(max_along_cm, along_step_cm)
+    a = _grid_axis(max_turn_deg, turn_step_deg)
+    S, U, A = np.meshgrid(s, u, a, indexing="ij")
+    S, U, A = S.ravel(), U.ravel(), A.ravel()
+    ar = np.radians(A)
+    ca, sa = np.cos(ar)[:, None], np.sin(ar)[:, None]
+    # points in each candidate body frame: translate by (U, S), then rotate by -A
+    dx = fx[None, :] - U[:, None]
+    dy = fy[None, :] - S[:, None]
+    bx = (dx * ca + dy * sa) * direction
+    by = (-dx * sa + dy * ca) * direction
+    inside = (np.abs(bx) < half_l - tol) & (np.abs(by) < half_w - tol)
+    band = (bx >= half_l - tol) & (bx <= half_l + res) & (np.abs(by) <= half_w + tol)
+    if side:
+        band &= (by * direction * side) > 0
+    ok = ~inside.any(axis=1) & band.any(axis=1)
+    if not ok.any():
+        return None
+    cost = np.abs(S) + along_weight * np.abs(U) + turn_weight * np.abs(A)
+    cost = np.where(ok, cost, np.inf)
+    best = int(np.argmin(cost))
+    # the side of the body each candidate touches with: +1 left, -1 right, 0 both (head-on)
+    left = (band & (by * direction > 0)).any(axis=1)
+    right = (band & (by * direction < 0)).any(axis=1)
+    touch = left.astype(int) - right.astype(int)
+    ambiguous = False
+    if side == 0 and touch[best] != 0:
+        other = np.where(touch == -touch[best], cost, np.inf)
+        ambiguous = bool(other.min() <= cost[best] + ambiguity_cm)
+    sb, ub, ab = float(S[best]), float(U[best]), float(A[best])
+    x = pose.x + ub * ch - sb * sh
+    y = pose.y + ub * sh + sb * ch
+    return Contact(Pose(x, y, pose.heading_deg + ab), sb, ub, ab, ambiguous)

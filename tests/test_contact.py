@@ -1,0 +1,95 @@
+"""Contact localisation: which pose explains a block against a mapped wall."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from actors.firmware.contact import locate_contact, stalled_side
+from actors.firmware.occupancy import OCCUPIED, GridMap
+from actors.firmware.odometry import Pose
+
+BODY = {"length_cm": 20.0, "width_cm": 15.0}
+
+
+def boxes_map(*boxes: tuple[float, float, float, float], w: float = 700.0, h: float = 450.0,
+              res: float = 5.0) -> GridMap:
+    """A map whose cells overlapping any box (x, y, w, h) [cm] are occupied."""
+    ny, nx = int(h / res), int(w / res)
+    cells = np.zeros((ny, nx), np.int8)
+    xs = (np.arange(nx) + 0.5) * res
+    ys = (np.arange(ny) + 0.5) * res
+    for x0, y0, bw, bh in boxes:
+        mx = (xs + res / 2 > x0) & (xs - res / 2 < x0 + bw)
+        my = (ys + res / 2 > y0) & (ys - res / 2 < y0 + bh)
+        cells[np.ix_(my, mx)] = OCCUPIED
+    return GridMap(cells, res, (0.0, 0.0))
+
+
+CORRIDOR = boxes_map((250, 0, 200, 135), (250, 165, 200, 135))  # 30 cm wide, axis y = 150
+GAP = boxes_map((400, 0, 15, 300), (400, 335, 15, 115))  # gap y 300..335, middle 317.5
+
+
+def test_stalled_side_from_the_yaw_during_a_straight_move() -> None:
+    """Forward: a left contact holds the left tread, the body yaws left (CCW); backward
+    the other way round; a yaw under the threshold says nothing."""
+    assert stalled_side(4.0, 1) == 1
+    assert stalled_side(-4.0, 1) == -1
+    assert stalled_side(4.0, -1) == -1
+    assert stalled_side(-4.0, -1) == 1
+    assert stalled_side(1.0, 1) == 0
+
+
+def test_a_scrape_on_the_left_moves_the_pose_toward_the_left_wall() -> None:
+    """Dead reckoning says mid-corridor, the left tread stalled: the rover is where its
+    left side touches the wall at y = 165, 7.5 cm + up to a cell from the axis."""
+    c = locate_contact(CORRIDOR, Pose(300, 150, 0), side=1, **BODY)
+    assert c is not None and c.needed and not c.ambiguous
+    assert 5.0 <= c.shift_cm <= 12.0
+    assert c.pose.y == pytest.approx(150 + c.shift_cm)
+    right = locate_contact(CORRIDOR, Pose(300, 150, 0), side=-1, **BODY)
+    assert right is not None and right.shift_cm == pytest.approx(-c.shift_cm)
+
+
+def test_a_contact_that_either_side_explains_is_ambiguous() -> None:
+    """Mid-corridor with no yaw to tell the side: left and right explain it alike."""
+    c = locate_contact(CORRIDOR, Pose(300, 150, 0), **BODY)
+    assert c is not None and c.ambiguous
+
+
+def test_a_missed_gap_is_placed_on_the_side_that_stalled() -> None:
+    """In front of the gap's middle by dead reckoning, stopped: the body must be ~10 cm
+    (half the gap minus half the body) off the middle, on the stalled side."""
+    for side in (1, -1):
+        c = locate_contact(GAP, Pose(390, 317.5, 0), side=side, **BODY)
+        assert c is not None and not c.ambiguous
+        assert 8.0 <= side * c.shift_cm <= 14.0
+
+
+def test_a_block_the_pose_already_explains_needs_no_correction() -> None:
+    """Nose against the wall by dead reckoning: nothing to correct."""
+    c = locate_contact(GAP, Pose(388, 200, 0), **BODY)
+    assert c is not None and not c.needed
+
+
+def test_a_block_on_open_floor_is_not_a_mapped_wall() -> None:
+    """Nothing mapped within reach: another rover or an unmapped thing (None)."""
+    assert locate_contact(GAP, Pose(200, 200, 0), **BODY) is None
+
+
+def test_backing_into_a_wall_uses_the_rear_edge() -> None:
+    """Facing +x, reversing into the wall whose face is at x = 415: the rear edge (10 cm
+    behind the centre) touches, so the pose moves back along the heading, not sideways;
+    driving forward from there, nothing mapped is ahead."""
+    c = locate_contact(GAP, Pose(432, 200, 0), direction=-1, **BODY)
+    assert c is not None
+    assert c.shift_cm == 0.0 and c.needed
+    assert 422.0 <= c.pose.x <= 428.0
+    assert locate_contact(GAP, Pose(432, 200, 0), direction=1, **BODY) is None
+
+
+def test_bad_arguments_are_refused() -> None:
+    with pytest.raises(ValueError, match="direction"):
+        locate_contact(GAP, Pose(390, 317.5, 0), direction=0, **BODY)
+    with pytest.raises(ValueError, match="body size"):
+        locate_contact(GAP, Pose(390, 317.5, 0), length_cm=0.0, width_cm=15.0)
