@@ -8,7 +8,7 @@ import trio
 from actors import Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.devices import Interrupt
-from actors.firmware.ir import IrSensor
+from actors.firmware.ir import IR_LEASE, IrSensor
 from supervisors import ChildSpec, SupervisorSpec
 
 from .test_fw_motor import FakeHardware, Recorder
@@ -29,23 +29,105 @@ def test_bad_thresholds_are_refused() -> None:
         IrSensor(FakeHardware(), low=3000, high=2000)
 
 
-@pytest.mark.trio
-async def test_adc_interrupts_reach_navigation_as_nav_ir(autojump_clock) -> None:
-    """The actor sets the timer, its Int C ISR posts samples, navigation gets the decision."""
-    hw = FakeHardware()
+def ir_tree(hw, log: list, **kw) -> SupervisorSpec:
+    """A seeker tree with a recording navigation and the IR actor (rate 40 Hz)."""
     hw.rate = None
     hw.set_ir_timer = lambda r: setattr(hw, "rate", r)
+    return SupervisorSpec([ChildSpec("nav", lambda: Recorder(log)),
+                           ChildSpec("ir", lambda: IrSensor(hw, rate_hz=40.0, **kw))])
+
+
+def nav_ir(log: list) -> list[int]:
+    return [int(m.value) for _, m in log if m.command == Cmd.NAV_IR]
+
+
+@pytest.mark.trio
+async def test_adc_interrupts_reach_navigation_as_nav_ir(autojump_clock) -> None:
+    """Always on: the actor sets the timer, its Int C ISR posts samples, navigation gets
+    the decision."""
+    hw = FakeHardware()
     log: list = []
-    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log)),
-                           ChildSpec("ir", lambda: IrSensor(hw, rate_hz=40.0))])
     async with open_actor_system(1) as system:
-        await system.start_supervisor(spec, "seeker")
+        await system.start_supervisor(ir_tree(hw, log, always_on=True), "seeker")
         assert hw.rate == 40.0
         adc = hw.handlers[Interrupt.INT_C]
         for s in (3000, 3000, 3000):
             adc(s)
         await trio.sleep(0.01)
-        assert [m.value for _, m in log if m.command == Cmd.NAV_IR][-1] == 1
+        assert nav_ir(log)[-1] == 1
         await system.send("seeker/ir", Message.int(Cmd.IR_SAMPLE, 0))
         await trio.sleep(0.01)
         assert [m.value for _, m in log][-1] == 1  # one low sample is not enough
+        await system.send("seeker/ir", Message.float(IR_LEASE, 0.0))  # no effect: always on
+        await trio.sleep(0.01)
+        assert hw.rate == 40.0
+
+
+@pytest.mark.trio
+async def test_sampling_runs_only_under_a_lease(autojump_clock) -> None:
+    """On demand (the default): stopped at start, started by a lease, samples while
+    stopped are ignored, and the decision falls back to "not in range" when it stops."""
+    hw = FakeHardware()
+    log: list = []
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(ir_tree(hw, log), "seeker")
+        assert hw.rate == 0.0
+        adc = hw.handlers[Interrupt.INT_C]
+        for s in (3000, 3000, 3000):
+            adc(s)
+        await trio.sleep(0.01)
+        assert nav_ir(log) == []  # a stopped sensor decides nothing
+        await system.send("seeker/ir", Message.float(IR_LEASE, 1.0))
+        await trio.sleep(0.01)
+        assert hw.rate == 40.0
+        for s in (3000, 3000, 3000):
+            adc(s)
+        await trio.sleep(0.01)
+        assert nav_ir(log)[-1] == 1
+        await system.send("seeker/ir", Message.float(IR_LEASE, 0.0))
+        await trio.sleep(0.01)
+        assert hw.rate == 0.0 and nav_ir(log)[-1] == 0
+
+
+@pytest.mark.trio
+async def test_a_lease_nobody_renews_runs_out(autojump_clock) -> None:
+    """The end of a lease is noticed at the next sample; renewals keep it running."""
+    hw = FakeHardware()
+    log: list = []
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(ir_tree(hw, log), "seeker")
+        adc = hw.handlers[Interrupt.INT_C]
+        await system.send("seeker/ir", Message.float(IR_LEASE, 0.5))
+        await trio.sleep(0.4)
+        await system.send("seeker/ir", Message.float(IR_LEASE, 0.5))  # renewed until 0.9
+        await trio.sleep(0.3)
+        adc(100)
+        await trio.sleep(0.01)
+        assert hw.rate == 40.0
+        await trio.sleep(0.3)
+        adc(100)
+        await trio.sleep(0.01)
+        assert hw.rate == 0.0
+
+
+@pytest.mark.trio
+async def test_a_restarted_ir_starts_stopped_and_noop_is_ignored(autojump_clock) -> None:
+    """A crash while sampling: the new incarnation stops the timer until the next lease;
+    a NOOP flood does not crash the actor."""
+    hw = FakeHardware()
+    log: list = []
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(ir_tree(hw, log), "seeker")
+        await system.send("seeker/ir", Message.float(IR_LEASE, 5.0))
+        await trio.sleep(0.01)
+        assert hw.rate == 40.0
+        mon = system.monitor("seeker/ir")
+        system.inject_crash("seeker/ir")
+        await mon.receive()
+        await trio.sleep(0.01)
+        assert hw.rate == 0.0
+        system.flood("seeker/ir", 10, Message.uint(Cmd.NOOP, 0))
+        await system.send("seeker/ir", Message.float(IR_LEASE, 1.0))
+        await trio.sleep(0.01)
+        assert hw.rate == 40.0
+        assert system.whereis("seeker/ir").last_exit.kind.name == "CRASH"  # only the injected one

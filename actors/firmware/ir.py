@@ -11,9 +11,26 @@ so sensor noise near the threshold does not make the decision flicker.
 once per burst of samples (so navigation always has a recent decision). The
 decision of a restarted incarnation starts at "not in range" and is rebuilt
 from the next ``consecutive`` samples: nothing to ask anyone.
+
+Sampling on demand (the seed's IR timer is a device command): by default the
+IR timer runs only while navigation holds a lease, an `IR_LEASE` message
+(float32 [s]: keep sampling that long from now; 0 stops at once). Why: at
+50 Hz the samples and decisions were a quarter of all messages of a game,
+while navigation looks only during a few seconds of each guess. A lease, not
+on/off: navigation renews it while it looks, so a restart of either actor
+heals by itself (a new IR incarnation starts stopped and the next renewal
+starts it; a lease nobody renews runs out). The lease's end is noticed when
+samples arrive, so a running timer stops at most one sample late. When the
+timer stops the decision falls back to "not in range" (sent to navigation),
+so a later look never starts from a stale "in range". ``always_on=True``
+keeps the timer running from the start, as before.
 """
 
 from __future__ import annotations
+
+import math
+
+import trio
 
 from actors import Actor, ExitKind, ExitReason, Message
 
@@ -21,7 +38,16 @@ from .commands import Cmd
 from .devices import Interrupt, RoverHardware
 from .isr import IrAdcIsr, IrTimerIsr
 
-__all__ = ["IrSensor"]
+__all__ = ["IR_LEASE", "IrSensor"]
+
+IR_LEASE = 0x0601
+"""IR queue: navigation's lease on sampling; value float32 [s] from now (0 stops).
+
+Belongs in `Cmd` (``commands.py``) beside ``IR_SAMPLE``; kept here until that
+file's owner moves it (same code, so traces and tests do not change)."""
+
+#: the longest lease accepted [s]: a renewal is expected every navigation tick
+MAX_LEASE_S = 60.0
 
 
 class IrSensor(Actor):
@@ -34,13 +60,15 @@ class IrSensor(Actor):
         low: ADC level below which a sample says "out of range" (< high).
         consecutive: samples in a row needed to change the decision.
         adc_isr: the ADC ISR (its counters survive restarts); made here when None.
+        always_on: run the IR timer from the start, without leases (see the module).
 
     Raises:
         ValueError: thresholds or counts out of range.
     """
 
     def __init__(self, hardware: RoverHardware, *, rate_hz: float = 50.0, high: int = 2200,
-                 low: int = 1800, consecutive: int = 3, adc_isr: IrAdcIsr | None = None) -> None:
+                 low: int = 1800, consecutive: int = 3, adc_isr: IrAdcIsr | None = None,
+                 always_on: bool = False) -> None:
         if not 0 <= low < high <= 4095:
             raise ValueError(f"need 0 <= low < high <= 4095, got low={low!r} high={high!r}")
         if consecutive < 1:
@@ -56,6 +84,10 @@ class IrSensor(Actor):
         self.last_sample = 0
         """The latest ADC reading [0..4095]."""
         self._streak = 0  # samples in a row that disagree with the decision
+        self.always_on = always_on
+        self.sampling = False
+        """Whether the IR timer runs (set by this incarnation)."""
+        self._until = -math.inf  # the lease's end [s]
 
     async def on_start(self) -> None:
         prefix = self.ctx.name.rpartition("/")[0]
@@ -64,7 +96,8 @@ class IrSensor(Actor):
             self._adc_isr = IrAdcIsr(self._post)
         self.hw.attach(Interrupt.INT_D, IrTimerIsr(self.hw))
         self.hw.attach(Interrupt.INT_C, self._adc_isr)
-        self.hw.set_ir_timer(self.rate_hz)
+        # a restarted incarnation starts stopped (the old one may have left the timer on)
+        self._set_sampling(self.always_on, report=False)
 
     def _post(self, message: Message) -> bool:
         return self.ctx.system.send_nowait(self.ctx.name, message)
@@ -84,14 +117,46 @@ class IrSensor(Actor):
     async def handle_burst(self, messages: list[Message]) -> None:
         samples = 0
         for m in messages:
-            if m.command != Cmd.IR_SAMPLE:
-                raise ValueError(f"ir got an unknown command 0x{m.command:04x}")
-            samples += 1
-            if self.update(int(m.value)):
-                self._report()
-                samples = 0
+            cmd = m.command
+            if cmd == Cmd.IR_SAMPLE:
+                if not self.sampling:
+                    continue  # posted before the timer stopped: a stopped sensor decides nothing
+                samples += 1
+                if self.update(int(m.value)):
+                    self._report()
+                    samples = 0
+            elif cmd == IR_LEASE:
+                self.lease(float(m.value))
+            elif cmd != Cmd.NOOP:
+                raise ValueError(f"ir got an unknown command 0x{cmd:04x}")
         if samples:
             self._report()
+        if self.sampling and not self.always_on and trio.current_time() >= self._until:
+            self._set_sampling(False)
+
+    def lease(self, seconds: float) -> None:
+        """Keep sampling for ``seconds`` [s] from now (at most `MAX_LEASE_S`); 0 or less
+        stops at once. A no-op when ``always_on``."""
+        if self.always_on:
+            return
+        if not seconds > 0:  # nan included
+            self._until = -math.inf
+            self._set_sampling(False)
+            return
+        self._until = trio.current_time() + min(seconds, MAX_LEASE_S)
+        if not self.sampling:
+            self._set_sampling(True)
+
+    def _set_sampling(self, on: bool, *, report: bool = True) -> None:
+        """Start or stop the IR timer; stopping resets the decision to "not in range"."""
+        self.hw.set_ir_timer(self.rate_hz if on else 0.0)
+        self.sampling = on
+        if not on:
+            changed = self.in_range
+            self.in_range = False
+            self._streak = 0
+            if report and changed:
+                self._report()
 
     def update(self, sample: int) -> bool:
         """Feed one sample; True when the decision changed."""

@@ -27,6 +27,10 @@ the range minus half the body length from the hider's centre). Steps of
 20 [deg] keep a hider close by inside the +-20 [deg] field of view as seen
 from the nose, not just from the centre.
 
+IR on demand: while confirming, navigation holds a lease on the IR actor's
+sampling (`ir.IR_LEASE`, renewed every tick for ``ir_lease_s``) and ends it
+when it answers, so the IR timer runs only while the seeker looks.
+
 Frame: destination and reports in the map frame [cm, deg].
 """
 
@@ -37,8 +41,9 @@ from dataclasses import dataclass
 
 import trio
 
-from actors import BufferPool
+from actors import BufferPool, Message
 from actors.firmware.devices import HardwareSpec
+from actors.firmware.ir import IR_LEASE
 from actors.firmware.nav_common import Motion, NavMemory, NavOptions, RouteNav, passable_at
 from actors.firmware.odometry import angle_diff_deg
 
@@ -67,6 +72,9 @@ class SeekingOptions:
     """The approach to the place itself stops this short of it [cm]."""
     all_round_step_deg: float = 20.0
     """Step of the all-round scan from the place [deg]."""
+    ir_lease_s: float = 1.0
+    """How long each IR lease keeps the sensor sampling [s]; renewed every navigation tick
+    while confirming, so it outlasts a few missed ticks."""
 
     def all_round_deg(self) -> tuple[float, ...]:
         """The all-round scan's headings relative to facing the place [deg]: the
@@ -170,6 +178,7 @@ class SeekingNav(RouteNav):
         assert self.place is not None
         await self.set_state("confirming", "looking with the IR sensor"
                              + (" all round" if self.stage == "close" else ""))
+        await self._ir_lease(self.s.ir_lease_s)
         p = self.map_pose
         if self._distance() > 2.0 * self.o.goal_tol_cm:
             base = math.degrees(math.atan2(self.place[1] - p.y, self.place[0] - p.x))
@@ -202,9 +211,18 @@ class SeekingNav(RouteNav):
         self._ir_at = trio.current_time()
         await self._check()
 
+    async def _ir_lease(self, seconds: float) -> None:
+        """Ask the IR actor to sample for ``seconds`` [s] (0: stop now); not waiting long."""
+        name = f"{self.prefix}/ir"
+        if self.ctx.system.whereis(name) is not None:  # a tree without IR: nothing to ask
+            await self.post(name, Message.float(IR_LEASE, seconds))
+
     async def on_tick(self, now: float) -> None:
         await super().on_tick(now)
-        if self.state != "confirming" or self.moving:
+        if self.state != "confirming":
+            return
+        await self._ir_lease(self.s.ir_lease_s)
+        if self.moving:
             return
         if await self._check():
             return
@@ -224,6 +242,7 @@ class SeekingNav(RouteNav):
                 and self._ir_at >= self._check_from and now >= self._check_from):
             self._check_until = math.inf
             self.answered()
+            await self._ir_lease(0.0)
             await self.report("found", self.pose_data())
             await self.set_state("found", "the hider is in IR range")
             return True
@@ -232,5 +251,6 @@ class SeekingNav(RouteNav):
     async def _not_found(self, reason: str) -> None:
         self._check_until = math.inf
         self.answered()
+        await self._ir_lease(0.0)
         await self.report("not_found", {"reason": reason})
         await self.set_state("ready", reason)
