@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actors.firmware.clearance import check_spot, obstacle_ahead, turning_radius_cm
+from actors.firmware.clearance import check_spot, obstacle_ahead, passage_width, turning_radius_cm
 from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.odometry import Pose
 
@@ -113,3 +113,19 @@ def test_obstacle_ahead_sees_a_box_to_the_side_within_the_cone():
     cells2 = np.full((40, 40), FREE, dtype=np.int8)
     cells2[26, 24] = OCCUPIED  # centre (122.5, 132.5): lateral 32.5 > max(12.5, 22.5 tan 30)
     assert obstacle_ahead(GridMap(cells2, RES, (0, 0)), Pose(100, 100, 0), 30) is None
+
+
+def test_passage_width_across_the_heading():
+    """A 30 cm corridor along x (walls' cells from y 165 and below y 135): about 30 cm
+    across it anywhere inside; along it, or in the open, no wall on both sides (None)."""
+    cells = np.zeros((60, 140), np.int8)
+    cells[:27, 50:90] = OCCUPIED  # y < 135, x 250..450
+    cells[33:, 50:90] = OCCUPIED  # y >= 165
+    grid = GridMap(cells, 5.0, (0.0, 0.0))
+    w = passage_width(grid, 300.0, 150.0, 0.0)
+    assert w is not None and 29.0 <= w <= 32.0
+    off = passage_width(grid, 300.0, 143.0, 180.0)
+    assert off is not None and abs(off - w) <= 1.0  # off-centre, reversed: the same width
+    assert passage_width(grid, 300.0, 150.0, 90.0) is None  # along the corridor
+    assert passage_width(grid, 100.0, 150.0, 0.0) is None  # the open room
+    assert passage_width(grid, 300.0, 150.0, 0.0, max_cm=10.0) is None  # beyond reach

@@ -493,3 +493,26 @@ def test_correct_pose_sets_the_map_pose_exactly() -> None:
     nav.correct_pose(target)
     p = nav.map_pose
     assert (p.x, p.y, p.heading_deg) == pytest.approx((310.0, 140.0, 5.0))
+
+
+def test_a_block_in_a_narrow_passage_probes_sideways_at_once() -> None:
+    """Blocked moving forward mid-corridor: a passage (walls both sides within 40 cm), so
+    the plan is shifted sideways at once; a later block 25 cm on starts a new series
+    on the side that helped; in the open room it is no passage."""
+    nav = scraped_nav(0.0)
+    assert nav._in_passage()
+    nav._last_block = (300.0, 150.0, 0.0)
+    nav.goal, nav.goal_heading = (600.0, 150.0), None
+    assert nav._probe_plan()
+    assert nav._nudge_off == 4.0 and nav._anchor == (300.0, 150.0, 0.0)
+    assert nav.follower.waypoints[0] == pytest.approx((350.0, 154.0))
+    assert nav._probe_plan() and nav._nudge_off == -4.0  # the same place: the other side
+    nav.pose = Pose(280.0, 100.0, 0.0)  # map (330, 150): progress since the block
+    nav._last_block = (330.0, 150.0, 0.0)
+    assert nav._probe_plan()
+    assert nav._nudge_off == -4.0 and nav._anchor == (330.0, 150.0, 0.0)
+    nav.pose = Pose(0.0, 100.0, 0.0)  # map (50, 150): the open room
+    assert not nav._in_passage()
+    nav.last_motion = Motion("move", -6.0)
+    nav.pose = Pose(250.0, 100.0, 0.0)
+    assert not nav._in_passage()  # a backoff blocked: not a scrape ahead

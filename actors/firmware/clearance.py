@@ -42,7 +42,7 @@ import numpy as np
 from actors.firmware.occupancy import OCCUPIED, UNKNOWN, GridMap, normalise_cells
 from actors.firmware.odometry import Pose, angle_diff_deg
 
-__all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead"]
+__all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead", "passage_width"]
 
 
 def turning_radius_cm(length_cm: float = 20.0, width_cm: float = 15.0) -> float:
@@ -194,3 +194,43 @@ def obstacle_ahead(
     bearing = angle_diff_deg(math.degrees(math.atan2(py[i], px[i])), pose.heading_deg)
     return Obstacle(float(dist[i]), float(fwd[i]), bearing,
                     (float(px[i] + pose.x), float(py[i] + pose.y)))
+
+
+def passage_width(grid: GridMap, x: float, y: float, heading_deg: float, *,
+                  max_cm: float = 40.0, step_cm: float = 1.0) -> float | None:
+    """Free width across the heading at (x, y): the distance between the first occupied
+    cells met walking to the left and to the right [cm].
+
+    Why: a block in a passage with mapped walls close on both sides is most likely
+    the rover's own drift into one of them (which one, dead reckoning cannot tell),
+    not an obstacle the map does not show.
+
+    Args:
+        grid: the map; unknown cells and the grid's edge count as no wall.
+        x, y: the point [cm].
+        heading_deg: the direction of travel [deg].
+        max_cm: how far to look each side [cm].
+        step_cm: sampling step [cm].
+
+    Returns:
+        The width [cm], or None when either side has no occupied cell within ``max_cm``.
+    """
+    h = math.radians(heading_deg)
+    nx_, ny_ = -math.sin(h), math.cos(h)  # the left normal
+    d = np.arange(0.0, max_cm + 1e-9, step_cm)
+    sides = []
+    for sign in (1.0, -1.0):
+        px = x + sign * nx_ * d
+        py = y + sign * ny_ * d
+        ox, oy = grid.origin_cm
+        cols = np.floor((px - ox) / grid.resolution_cm).astype(int)
+        rows = np.floor((py - oy) / grid.resolution_cm).astype(int)
+        ny, nx = grid.shape
+        inside = (rows >= 0) & (rows < ny) & (cols >= 0) & (cols < nx)
+        occ = np.zeros(d.shape, dtype=bool)
+        occ[inside] = grid.cells[rows[inside], cols[inside]] == OCCUPIED
+        hit = np.flatnonzero(occ)
+        if hit.size == 0:
+            return None
+        sides.append(float(d[hit[0]]))
+    return sides[0] + sides[1]

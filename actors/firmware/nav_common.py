@@ -42,7 +42,7 @@ import numpy as np
 import trio
 
 from actors import Actor, BufferPool, Message, PoolExhausted, ValueType
-from actors.firmware.clearance import turning_radius_cm
+from actors.firmware.clearance import passage_width, turning_radius_cm
 from actors.firmware.commands import Cmd
 from actors.firmware.contact import locate_contact, stalled_side
 from actors.firmware.devices import HardwareSpec
@@ -116,6 +116,11 @@ class NavOptions:
     """Largest sideways correction one contact, and all of a route's together, may make [cm]."""
     contact_max_turn_deg: float = 8.0
     """Largest heading correction one contact may make [deg]."""
+    probe_width_cm: float = 40.0
+    """A block where the map's passage across the heading is narrower than this probes
+    sideways at once (see `RouteNav._probe_plan`) [cm]."""
+    probe_progress_cm: float = 25.0
+    """A block this far from the last one starts a new sideways probe [cm]."""
     backoff_cm: float = 6.0
     """Reverse this far after being blocked [cm]."""
     backoff_repeat_cm: float = 20.0
@@ -688,6 +693,9 @@ class RouteNav(NavBase):
         self._nudges = 0  # nudges tried on this route
         self._contact_fixes = 0  # pose corrections from contacts on this route
         self._contact_shift = 0.0  # their sideways sum [cm]
+        self._probe = False  # the block in flight was in a narrow passage: probe sideways
+        self._nudge_off = 0.0  # the last sideways offset tried [cm], signed (left +)
+        self._nudge_first = 1.0  # the side a series of nudges tries first
 
     # ------------------------------------------------------------------ server
     async def on_start_cmd(self) -> None:
@@ -749,6 +757,7 @@ class RouteNav(NavBase):
         self.replans = 0
         self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
         self._contact_fixes, self._contact_shift = 0, 0.0
+        self._probe, self._nudge_off = False, 0.0
         if not self._plan():
             return False
         await self.set_state("driving", f"to ({goal[0]:.0f}, {goal[1]:.0f})")
@@ -834,7 +843,10 @@ class RouteNav(NavBase):
             return
         if self._replan:
             self._replan = False
-            if not self._plan() and not self._nudged_plan():
+            probe, self._probe = self._probe, False
+            if probe and self._probe_plan():
+                pass
+            elif not self._plan() and not self._nudged_plan():
                 await self._give_up("no path after being blocked")
                 return
         await self._step()
@@ -885,11 +897,15 @@ class RouteNav(NavBase):
         bx, by, bh = self._anchor
         h = math.radians(bh)
         self.work_map = self.map
+        if self._nudges == 0:  # a new series: first toward the side that helped last
+            self._nudge_first = 1.0 if self._nudge_off >= 0 else -1.0
+        first = self._nudge_first
         while self._nudges < self.o.max_nudges:
             k = self._nudges
             self._nudges += 1
-            off = self.o.nudge_step_cm * (k // 2 + 1) * (1.0 if k % 2 == 0 else -1.0)
+            off = self.o.nudge_step_cm * (k // 2 + 1) * (first if k % 2 == 0 else -first)
             self._nudge = (-math.sin(h) * off, math.cos(h) * off, bx, by)
+            self._nudge_off = off
             if self._plan():
                 self.counters["nudges"] += 1
                 return True
@@ -910,6 +926,10 @@ class RouteNav(NavBase):
         back = self.o.backoff_cm
         if why == "blocked" and self._contact_fix():
             pass  # a mapped wall stopped it: the pose is corrected, nothing to learn
+        elif why == "blocked" and self._in_passage():
+            # a mapped wall on one side or the other: drift, nothing to learn; probe sideways
+            self._last_block = (p.x, p.y, p.heading_deg)
+            self._probe = True
         elif why == "blocked":
             # a second block near the first: something the map does not show is there
             # (one block alone may be a restarted motor cutting its command short)
@@ -951,6 +971,31 @@ class RouteNav(NavBase):
         self._contact_fixes += 1
         self.counters["contacts"] += 1
         return True
+
+    def _in_passage(self) -> bool:
+        """The last forward move was blocked where the map's walls are close on both sides
+        (narrower than ``probe_width_cm`` across the heading)."""
+        m = self.last_motion
+        if m is None or m.kind != "move" or m.amount <= 0 or self.map is None:
+            return False
+        p = self.map_pose
+        w = passage_width(self.map, p.x, p.y, p.heading_deg, max_cm=self.o.probe_width_cm)
+        return w is not None and w < self.o.probe_width_cm
+
+    def _probe_plan(self) -> bool:
+        """Plan after a block in a narrow passage: the route shifted sideways at once.
+
+        Dead reckoning cannot tell which wall the rover scraped (its heading
+        error is invisible to it), so it tries the nudge series (`_nudged_plan`)
+        without first learning an obstacle, which in a passage would only close
+        it. Once a probe made progress (the next block is ``probe_progress_cm``
+        on), a new series starts on the side that helped.
+        """
+        p = self.map_pose
+        if self._anchor is None or math.dist(self._anchor[:2], (p.x, p.y)) > \
+                self.o.probe_progress_cm:
+            self._anchor, self._nudge, self._nudges = self._last_block, None, 0
+        return self._nudged_plan()
 
     def correct_pose(self, target: Pose) -> None:
         """Make the map-frame pose ``target`` by moving the origin (own frame -> map frame).
