@@ -45,6 +45,7 @@ import trio
 from .call import CallEnvelope, CallFailed
 from .cell import ActorState, Cell, Monitor
 from .exits import HUNG, KILLED, NORMAL, SHUTDOWN, ExitReason
+from .timers import TaskTimer, Timer
 from .trace import EventKind, Trace
 
 if TYPE_CHECKING:
@@ -95,24 +96,6 @@ class Actor:
         """
 
 
-class Timer:
-    """A running timer (made by `ActorContext.start_timer`); `cancel` stops it."""
-
-    __slots__ = ("_scope",)
-
-    def __init__(self, scope: trio.CancelScope) -> None:
-        self._scope = scope
-
-    def cancel(self) -> None:
-        """Stop the timer (idempotent)."""
-        self._scope.cancel()
-
-    @property
-    def cancelled(self) -> bool:
-        """True once cancelled (or its actor stopped)."""
-        return self._scope.cancel_called
-
-
 class ActorContext:
     """What an actor can reach: its name, the system, the trace, its rng, timers."""
 
@@ -127,8 +110,8 @@ class ActorContext:
         """This actor's generator, derived from the run's seed and the name (kept across
         restarts)."""
         self._cell = cell
-        self._timers: trio.Nursery | None = None
-        self._n_timers = 0
+        self._timers: trio.Nursery | None = None  # set while the incarnation runs
+        self._live_timers: dict[Timer | TaskTimer, None] = {}  # running timers, in start order
         self._stop = False
 
     # ---------------------------------------------------------------- messaging
@@ -162,7 +145,8 @@ class ActorContext:
         self._stop = True
 
     # ---------------------------------------------------------------- timers
-    def start_timer(self, delay: float, message: Any, *, interval: float | None = None) -> Timer:
+    def start_timer(self, delay: float, message: Any, *,
+                    interval: float | None = None) -> Timer | TaskTimer:
         """Post ``message`` to this actor's own mailbox after ``delay`` [s], then every
         ``interval`` [s] if given. Timers stop with the incarnation.
 
@@ -178,25 +162,39 @@ class ActorContext:
             raise ValueError(f"interval must be > 0 [s], got {interval!r}")
         if self._timers is None:
             raise RuntimeError("start_timer needs a running actor (from on_start or handle)")
-        if self._n_timers >= MAX_TIMERS:
+        if len(self._live_timers) >= MAX_TIMERS:
             raise RuntimeError(f"an actor may run at most {MAX_TIMERS} timers")
-        scope = trio.CancelScope()
-        self._n_timers += 1
-        self._timers.start_soon(self._tick, scope, delay, message, interval)
-        return Timer(scope)
+        service = self.system.timers
+        timer: Timer | TaskTimer
+        if service is not None:
+            timer = service.start(self._cell.mailbox, message, delay, interval,
+                                  self._timer_done)
+        else:
+            timer = TaskTimer(trio.CancelScope())
+            self._timers.start_soon(self._tick, timer, delay, message, interval)
+        self._live_timers[timer] = None
+        return timer
 
-    async def _tick(self, scope: trio.CancelScope, delay: float, message: Any,
+    def _timer_done(self, timer: Timer | TaskTimer) -> None:
+        self._live_timers.pop(timer, None)
+
+    async def _tick(self, timer: TaskTimer, delay: float, message: Any,
                     interval: float | None) -> None:
         mailbox = self._cell.mailbox
         try:
-            with scope:
+            with timer._scope:
                 await trio.sleep(delay)
                 mailbox.send_nowait(message)
                 while interval is not None:
                     await trio.sleep(interval)
                     mailbox.send_nowait(message)
         finally:
-            self._n_timers -= 1
+            self._timer_done(timer)
+
+    def _cancel_timers(self) -> None:
+        """Stop every timer of this incarnation (at its end)."""
+        for timer in list(self._live_timers):
+            timer.cancel()
 
 
 # ---------------------------------------------------------------------- running one incarnation
@@ -216,6 +214,7 @@ async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
     trace = system.trace
     started = False
     reason: ExitReason = KILLED
+    ctx: ActorContext | None = None
     cell.state = ActorState.STARTING
     cell.stop_requested = False
     try:
@@ -250,6 +249,9 @@ async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
             reason = KILLED  # the supervisor traces why it killed
         return reason
     finally:
+        if ctx is not None:
+            ctx._timers = None
+            ctx._cancel_timers()  # timers stop with the incarnation, however it ended
         cell.scope = None
         cell.actor = None
         cell.current = None

@@ -39,6 +39,7 @@ import trio
 from .call import CallEnvelope, CallTimeout, UnknownActor
 from .cell import Cell, Monitor
 from .mailbox import Mailbox, MailboxStatistics
+from .timers import TimerService
 from .trace import EventKind, Trace
 
 __all__ = ["ActorSystem", "open_actor_system", "SupervisorHandle", "StartFailed"]
@@ -78,13 +79,17 @@ class ActorSystem:
         max_burst: the most messages an actor handles between two checkpoints.
     """
 
-    def __init__(self, nursery: trio.Nursery, *, seed: int, trace: Trace, max_burst: int) -> None:
+    def __init__(self, nursery: trio.Nursery, *, seed: int, trace: Trace, max_burst: int,
+                 timer_service: bool = False) -> None:
         self._nursery = nursery
         self.seed = seed
         self.rng = np.random.default_rng(seed)
         self.trace = trace
         self.max_burst = max_burst
         self._cells: dict[str, Cell] = {}
+        self.timers: TimerService | None = TimerService() if timer_service else None
+        """Posts every actor timer's ticks in one task (see `actors.timers`); None: a task
+        per timer."""
         self.roots: list[Any] = []
         """Supervisors started with `start_supervisor`, in start order."""
 
@@ -263,7 +268,8 @@ class ActorSystem:
 
 @asynccontextmanager
 async def open_actor_system(seed: int = 0, *, trace: Trace | None = None, max_burst: int = 256,
-                            shutdown_timeout: float = 10.0) -> AsyncIterator[ActorSystem]:
+                            shutdown_timeout: float = 10.0,
+                            timer_service: bool = False) -> AsyncIterator[ActorSystem]:
     """Open an actor system for the block; leaving it stops every tree cleanly.
 
     Args:
@@ -271,11 +277,16 @@ async def open_actor_system(seed: int = 0, *, trace: Trace | None = None, max_bu
         trace: the trace hub (a new `Trace` by default).
         max_burst: the most messages handled between two checkpoints (>= 1).
         shutdown_timeout: [s] to stop the trees gracefully before cancelling.
+        timer_service: post all actor timers from one task (`actors.timers`; faster
+            when many timers tick together) instead of a task per timer.
     """
     if max_burst < 1:
         raise ValueError(f"max_burst must be >= 1, got {max_burst!r}")
     async with trio.open_nursery() as nursery:
-        system = ActorSystem(nursery, seed=seed, trace=trace or Trace(), max_burst=max_burst)
+        system = ActorSystem(nursery, seed=seed, trace=trace or Trace(), max_burst=max_burst,
+                             timer_service=timer_service)
+        if system.timers is not None:
+            nursery.start_soon(system.timers.run)
         try:
             yield system
         finally:

@@ -275,16 +275,73 @@ class Ticker(Actor):
 
 
 @pytest.mark.trio
-async def test_timers_tick_and_stop_with_the_actor(autojump_clock) -> None:
+@pytest.mark.parametrize("service", [False, True], ids=["task_timers", "timer_service"])
+async def test_timers_tick_and_stop_with_the_actor(autojump_clock, service: bool) -> None:
     """A periodic timer posts to the actor's own mailbox and dies with its incarnation."""
     log: list = []
-    async with open_actor_system(seed=1) as system:
+    async with open_actor_system(seed=1, timer_service=service) as system:
         spec = SupervisorSpec([ChildSpec("t", lambda: Ticker(log))], intensity=0)
         sup = await system.start_supervisor(spec)
         await sup.wait_stopped()
         # the supervisor gave up at the crash; had the timer survived, ticks would continue
         await trio.sleep(5)
     assert log == [(1.0, "tick"), (2.0, "tick"), (3.0, "tick")]
+
+
+class Timers(Actor):
+    """Starts the timers it is given at start; logs (time, tick); ("cancel", name) cancels
+    one, ("start", name, delay) starts a one-shot."""
+
+    def __init__(self, log: list, timers: list[tuple[str, float, float | None]]) -> None:
+        self.log, self.timers, self.running = log, timers, {}
+
+    async def on_start(self) -> None:
+        for name, delay, interval in self.timers:
+            self.running[name] = self.ctx.start_timer(delay, name, interval=interval)
+
+    async def handle(self, message) -> None:
+        if isinstance(message, tuple):
+            if message[0] == "start":
+                self.running[message[1]] = self.ctx.start_timer(message[2], message[1])
+            else:
+                self.running[message[1]].cancel()
+            return
+        self.log.append((trio.current_time(), message))
+
+
+@pytest.mark.trio
+async def test_timer_service_orders_same_instant_ticks_and_wakes_for_a_sooner_timer(
+        autojump_clock) -> None:
+    """Ticks due together arrive in start order; a timer started while the service sleeps
+    toward a later deadline still fires on time; a cancelled timer stops; one-shots end."""
+    log: list = []
+    async with open_actor_system(seed=1, timer_service=True) as system:
+        spec = SupervisorSpec([ChildSpec("far", lambda: Timers([], [("far", 100.0, None)])),
+                               ChildSpec("t", lambda: Timers(log, [
+                                   ("b", 0.5, 0.5), ("a", 0.5, 0.5), ("once", 0.75, None)]))])
+        await system.start_supervisor(spec)
+        await trio.sleep(1.1)
+        system.send_nowait("t", ("cancel", "b"))
+        system.send_nowait("t", ("start", "late", 0.2))  # the service sleeps toward 1.5
+        await trio.sleep(1.0)
+        actor = system.whereis("t").actor
+        assert actor.running["once"].cancelled and actor.running["b"].cancelled
+        assert not actor.running["a"].cancelled
+    assert log == [(0.5, "b"), (0.5, "a"), (0.75, "once"), (1.0, "b"), (1.0, "a"),
+                   (1.3, "late"), (1.5, "a"), (2.0, "a")]
+
+
+@pytest.mark.trio
+async def test_timer_service_stops_timers_of_a_killed_incarnation(autojump_clock) -> None:
+    """A restarted actor's old timers stop (one tick stream, not two)."""
+    log: list = []
+    async with open_actor_system(seed=1, timer_service=True) as system:
+        spec = SupervisorSpec([ChildSpec("t", lambda: Timers(log, [("x", 1.0, 1.0)]))])
+        await system.start_supervisor(spec)
+        await trio.sleep(1.5)
+        system.inject_crash("t")  # idle: crashes at once, restarted at 1.5
+        await trio.sleep(2.2)
+    assert log == [(1.0, "x"), (2.5, "x"), (3.5, "x")]
 
 
 class Batcher(Actor):
