@@ -148,3 +148,41 @@ async def test_restart_keeps_unacknowledged_frames(autojump_clock) -> None:
 def test_bad_rover_id_is_refused_at_construction() -> None:
     with pytest.raises(ValueError, match="does not fit its schema"):
         Wifly(FakeHardware(), BufferPool(4), rover_id="bad id!", role="hider")
+
+
+@pytest.mark.trio
+async def test_a_noop_flood_costs_queue_slots_not_restarts(autojump_clock) -> None:
+    """A flood fault fills the mailbox with NOOPs: ignored, and the link keeps working."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
+        server = FakeServer(hw)
+        nursery.start_soon(server.run)
+        tree = await system.start_supervisor(wifly_tree(hw, pool, log), "hider")
+        await trio.sleep(1.0)
+        assert system.flood("hider/wifly", 1000, Message.int(Cmd.NOOP, 0)) == 256
+        await system.send("hider/wifly", Message.handle(
+            Cmd.WIFLY_SEND, pool.put(make_frame("arrived", {"x": 1, "y": 2, "heading": 3}))))
+        await trio.sleep(2.0)
+        assert [f.cmd for f in server.got].count("arrived") == 1
+        assert [c.restarts for c in tree.which_children() if c.id == "wifly"] == [0]
+        nursery.cancel_scope.cancel()
+
+
+@pytest.mark.trio
+async def test_a_poison_message_gives_its_pool_buffer_back(autojump_clock) -> None:
+    """A map WiFly cannot send crashes it mid-burst; the buffers of the dropped burst are freed."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
+        server = FakeServer(hw)
+        nursery.start_soon(server.run)
+        tree = await system.start_supervisor(wifly_tree(hw, pool, log), "hider")
+        await trio.sleep(1.0)
+        in_use = pool.statistics().in_use
+        system.send_nowait("hider/wifly", Message.handle(Cmd.WIFLY_SEND_MAP,
+                                                         pool.put("not a map")))
+        system.send_nowait("hider/wifly", Message.handle(Cmd.WIFLY_SEND, pool.put(
+            make_frame("arrived", {"x": 1, "y": 2, "heading": 3}))))
+        await trio.sleep(1.0)
+        assert [c.restarts for c in tree.which_children() if c.id == "wifly"] == [1]
+        assert pool.statistics().in_use == in_use
+        nursery.cancel_scope.cancel()

@@ -28,6 +28,7 @@ the hardware; the pose is asked again from Motor Control (``MOTOR_GET_POSE``).
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,6 +108,12 @@ class LidarControl(Actor):
 
     async def handle(self, message: Message) -> None:
         await self.handle_burst([message])
+
+    def discard(self, message: Message) -> None:
+        """A dropped poison message gives its pool buffer back (the handler may have taken it)."""
+        if message.command == Cmd.LIDAR_SAMPLES:
+            with contextlib.suppress(KeyError):
+                self.pool.take(int(message.value))
 
     async def handle_burst(self, messages: list[Message]) -> None:
         had_pending = self._pending > 0

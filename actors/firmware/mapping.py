@@ -36,6 +36,8 @@ queue slots and dropped scans, never a restart.
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import trio
 
@@ -127,6 +129,12 @@ class MapManagement(Actor):
         """``send_nowait`` to a neighbour; False when full or not registered (yet)."""
         system = self.ctx.system
         return system.whereis(name) is not None and system.send_nowait(name, message)
+
+    def discard(self, message: Message) -> None:
+        """A dropped poison message gives its pool buffer back (the handler may have taken it)."""
+        if message.command in (Cmd.MAP_SCAN, Cmd.MAP_RESTORE):
+            with contextlib.suppress(KeyError):
+                self.pool.take(int(message.value))
 
     async def handle(self, message: Message) -> None:
         cmd = message.command

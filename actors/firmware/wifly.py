@@ -39,6 +39,7 @@ tree) starts a fresh session, which the server accepts by the same hello.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections import deque
 from typing import Any
@@ -69,6 +70,10 @@ from .commands import Cmd
 from .devices import Interrupt, RoverHardware
 from .isr import WiflyUartIsr
 from .occupancy import GridMap
+
+_HANDLE_COMMANDS = frozenset((Cmd.WIFLY_RX, Cmd.WIFLY_SEND, Cmd.WIFLY_SEND_UNRELIABLE,
+                              Cmd.WIFLY_SEND_MAP))
+"""Commands whose value is a pool handle (released by `Wifly.discard` when dropped)."""
 
 __all__ = ["LinkMemory", "Wifly"]
 
@@ -188,11 +193,17 @@ class Wifly(Actor):
                 self.session.send(self.pool.take(int(m.value)), reliable=False)
             elif cmd == Cmd.WIFLY_SEND_MAP:
                 self._upload(self.pool.take(int(m.value)))
-            elif cmd == Cmd.WIFLY_TIMER:
-                pass  # the work below runs after every burst
+            elif cmd == Cmd.WIFLY_TIMER or cmd == Cmd.NOOP:
+                pass  # the work below runs after every burst; NOOP is a flood fault's filler
             else:
                 raise ValueError(f"wifly got an unknown command 0x{cmd:04x}")
         self._service(now)
+
+    def discard(self, message: Message) -> None:
+        """A dropped poison message gives its pool buffer back (the handler may have taken it)."""
+        if message.command in _HANDLE_COMMANDS:
+            with contextlib.suppress(KeyError):
+                self.pool.take(int(message.value))
 
     # ------------------------------------------------------------------ sending
     def _queue_reliable(self, frames: list[Frame]) -> None:
