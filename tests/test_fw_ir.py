@@ -8,7 +8,7 @@ import trio
 from actors import Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.devices import Interrupt
-from actors.firmware.ir import IR_LEASE, IrSensor
+from actors.firmware.ir import IrSensor
 from supervisors import ChildSpec, SupervisorSpec
 
 from .test_fw_motor import FakeHardware, Recorder
@@ -58,7 +58,7 @@ async def test_adc_interrupts_reach_navigation_as_nav_ir(autojump_clock) -> None
         await system.send("seeker/ir", Message.int(Cmd.IR_SAMPLE, 0))
         await trio.sleep(0.01)
         assert [m.value for _, m in log][-1] == 1  # one low sample is not enough
-        await system.send("seeker/ir", Message.float(IR_LEASE, 0.0))  # no effect: always on
+        await system.send("seeker/ir", Message.float(Cmd.IR_LEASE, 0.0))  # no effect: always on
         await trio.sleep(0.01)
         assert hw.rate == 40.0
 
@@ -77,14 +77,14 @@ async def test_sampling_runs_only_under_a_lease(autojump_clock) -> None:
             adc(s)
         await trio.sleep(0.01)
         assert nav_ir(log) == []  # a stopped sensor decides nothing
-        await system.send("seeker/ir", Message.float(IR_LEASE, 1.0))
+        await system.send("seeker/ir", Message.float(Cmd.IR_LEASE, 1.0))
         await trio.sleep(0.01)
         assert hw.rate == 40.0
         for s in (3000, 3000, 3000):
             adc(s)
         await trio.sleep(0.01)
         assert nav_ir(log)[-1] == 1
-        await system.send("seeker/ir", Message.float(IR_LEASE, 0.0))
+        await system.send("seeker/ir", Message.float(Cmd.IR_LEASE, 0.0))
         await trio.sleep(0.01)
         assert hw.rate == 0.0 and nav_ir(log)[-1] == 0
 
@@ -97,9 +97,9 @@ async def test_a_lease_nobody_renews_runs_out(autojump_clock) -> None:
     async with open_actor_system(1) as system:
         await system.start_supervisor(ir_tree(hw, log), "seeker")
         adc = hw.handlers[Interrupt.INT_C]
-        await system.send("seeker/ir", Message.float(IR_LEASE, 0.5))
+        await system.send("seeker/ir", Message.float(Cmd.IR_LEASE, 0.5))
         await trio.sleep(0.4)
-        await system.send("seeker/ir", Message.float(IR_LEASE, 0.5))  # renewed until 0.9
+        await system.send("seeker/ir", Message.float(Cmd.IR_LEASE, 0.5))  # renewed until 0.9
         await trio.sleep(0.3)
         adc(100)
         await trio.sleep(0.01)
@@ -118,7 +118,7 @@ async def test_a_restarted_ir_starts_stopped_and_noop_is_ignored(autojump_clock)
     log: list = []
     async with open_actor_system(1) as system:
         await system.start_supervisor(ir_tree(hw, log), "seeker")
-        await system.send("seeker/ir", Message.float(IR_LEASE, 5.0))
+        await system.send("seeker/ir", Message.float(Cmd.IR_LEASE, 5.0))
         await trio.sleep(0.01)
         assert hw.rate == 40.0
         mon = system.monitor("seeker/ir")
@@ -127,7 +127,7 @@ async def test_a_restarted_ir_starts_stopped_and_noop_is_ignored(autojump_clock)
         await trio.sleep(0.01)
         assert hw.rate == 0.0
         system.flood("seeker/ir", 10, Message.uint(Cmd.NOOP, 0))
-        await system.send("seeker/ir", Message.float(IR_LEASE, 1.0))
+        await system.send("seeker/ir", Message.float(Cmd.IR_LEASE, 1.0))
         await trio.sleep(0.01)
         assert hw.rate == 40.0
         assert system.whereis("seeker/ir").last_exit.kind.name == "CRASH"  # only the injected one

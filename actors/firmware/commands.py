@@ -120,6 +120,8 @@ class Cmd(enum.IntEnum):
     # -- IR queue ----------------------------------------------------------
     IR_SAMPLE = 0x0600
     """ADC sample from the IR ADC ISR; value int32 0..4095."""
+    IR_LEASE = 0x0601
+    """Navigation's lease on IR sampling; value float32 [s] from now (0 stops at once)."""
 
 
 def name_of(command: int) -> str:

@@ -13,7 +13,7 @@ decision of a restarted incarnation starts at "not in range" and is rebuilt
 from the next ``consecutive`` samples: nothing to ask anyone.
 
 Sampling on demand (the seed's IR timer is a device command): by default the
-IR timer runs only while navigation holds a lease, an `IR_LEASE` message
+IR timer runs only while navigation holds a lease, an `Cmd.IR_LEASE` message
 (float32 [s]: keep sampling that long from now; 0 stops at once). Why: at
 50 Hz the samples and decisions were a quarter of all messages of a game,
 while navigation looks only during a few seconds of each guess. A lease, not
@@ -38,13 +38,7 @@ from .commands import Cmd
 from .devices import Interrupt, RoverHardware
 from .isr import IrAdcIsr, IrTimerIsr
 
-__all__ = ["IR_LEASE", "IrSensor"]
-
-IR_LEASE = 0x0601
-"""IR queue: navigation's lease on sampling; value float32 [s] from now (0 stops).
-
-Belongs in `Cmd` (``commands.py``) beside ``IR_SAMPLE``; kept here until that
-file's owner moves it (same code, so traces and tests do not change)."""
+__all__ = ["IrSensor"]
 
 #: the longest lease accepted [s]: a renewal is expected every navigation tick
 MAX_LEASE_S = 60.0
@@ -125,7 +119,7 @@ class IrSensor(Actor):
                 if self.update(int(m.value)):
                     self._report()
                     samples = 0
-            elif cmd == IR_LEASE:
+            elif cmd == Cmd.IR_LEASE:
                 self.lease(float(m.value))
             elif cmd != Cmd.NOOP:
                 raise ValueError(f"ir got an unknown command 0x{cmd:04x}")

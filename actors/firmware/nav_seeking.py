@@ -28,7 +28,7 @@ the range minus half the body length from the hider's centre). Steps of
 from the nose, not just from the centre.
 
 IR on demand: while confirming, navigation holds a lease on the IR actor's
-sampling (`ir.IR_LEASE`, renewed every tick for ``ir_lease_s``) and ends it
+sampling (`Cmd.IR_LEASE`, renewed every tick for ``ir_lease_s``) and ends it
 when it answers, so the IR timer runs only while the seeker looks.
 
 Frame: destination and reports in the map frame [cm, deg].
@@ -42,8 +42,8 @@ from dataclasses import dataclass
 import trio
 
 from actors import BufferPool, Message
+from actors.firmware.commands import Cmd
 from actors.firmware.devices import HardwareSpec
-from actors.firmware.ir import IR_LEASE
 from actors.firmware.nav_common import Motion, NavMemory, NavOptions, RouteNav, passable_at
 from actors.firmware.odometry import angle_diff_deg
 
@@ -215,7 +215,7 @@ class SeekingNav(RouteNav):
         """Ask the IR actor to sample for ``seconds`` [s] (0: stop now); not waiting long."""
         name = f"{self.prefix}/ir"
         if self.ctx.system.whereis(name) is not None:  # a tree without IR: nothing to ask
-            await self.post(name, Message.float(IR_LEASE, seconds))
+            await self.post(name, Message.float(Cmd.IR_LEASE, seconds))
 
     async def on_tick(self, now: float) -> None:
         await super().on_tick(now)
