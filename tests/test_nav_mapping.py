@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 import trio
 
 from actors import BufferPool, open_actor_system
+from actors.firmware.nav_mapping import MappingOptions
 from actors.firmware.occupancy import UNKNOWN, GridMap
 from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
 
@@ -31,25 +34,53 @@ def coverage(grid: GridMap, truth: Truth) -> float:
 
 @pytest.mark.trio
 async def test_mapper_explores_detects_completion_and_uploads(autojump_clock) -> None:
-    """Start -> LIDAR on -> exploring -> complete by itself -> motor and LIDAR stop -> map."""
+    """Start -> LIDAR on -> exploring -> complete by itself -> home -> motor and LIDAR
+    stop -> map."""
     truth = Truth(**ROOM)
     body = Body(truth=truth)
     pool = BufferPool(256)
-    async with open_actor_system(seed=1) as system:
+    farthest = [0.0]
+
+    async def watch_x() -> None:
+        while True:
+            farthest[0] = max(farthest[0], body.pose.x)
+            await trio.sleep(0.5)
+
+    async with open_actor_system(seed=1) as system, trio.open_nursery() as nursery:
+        nursery.start_soon(watch_x)
         await system.start_supervisor(rover_spec("mapper", body, pool), "mapper")
         await net(system, pool, "mapper", "origin", {"x": 0.0, "y": 0.0, "heading": 0.0})
         await net(system, pool, "mapper", "start")
         assert await wait_for(lambda: any(c == "WIFLY_SEND_MAP" for c, _ in body.sent), 600.0)
         t_done = trio.current_time()
+        nursery.cancel_scope.cancel()
         grid = next(o for c, o in body.sent if c == "WIFLY_SEND_MAP")
         assert body.lidar_log[0] == "LIDAR_START" and body.lidar_log[-1] == "LIDAR_STOP"
         assert body.motor_log[-1][0] == "MOTOR_STOP"
         assert coverage(grid, truth) >= 0.95
-        assert body.pose.x > 165.0  # it went through the doorway to see the far half
+        assert farthest[0] > 165.0  # it went through the doorway to see the far half
+        assert math.hypot(body.pose.x, body.pose.y) <= 20.0  # and came back to its start
         states = [f.data["state"] for f in body.frames("status")]
-        assert states[-3:] == ["exploring", "uploading", "mapped"]
+        assert states[-4:] == ["exploring", "homing", "uploading", "mapped"]
         assert "map is stable" in body.frames("status")[-1].data["detail"]
         assert t_done < 600.0
+
+
+@pytest.mark.trio
+async def test_homing_disabled_uploads_where_the_mapper_stands(autojump_clock) -> None:
+    """``home_budget_s=0``: completion uploads at once, the rover stays where it was."""
+    truth = Truth(**ROOM)
+    body = Body(truth=truth)
+    pool = BufferPool(256)
+    options = MappingOptions(home_budget_s=0.0)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("mapper", body, pool, mapping=options),
+                                      "mapper")
+        await net(system, pool, "mapper", "start")
+        assert await wait_for(lambda: any(c == "WIFLY_SEND_MAP" for c, _ in body.sent), 600.0)
+        states = [f.data["state"] for f in body.frames("status")]
+        assert "homing" not in states and states[-2:] == ["uploading", "mapped"]
+        assert math.hypot(body.pose.x, body.pose.y) > 50.0
 
 
 @pytest.mark.trio

@@ -3,9 +3,17 @@
 Flow
     idle --start--> scanning (LIDAR_START, wait for the first scans) -->
     exploring (frontier -> A* route -> ADP steps; re-choose every few steps as
-    the map grows) --complete | stop | time budget--> uploading (MOTOR_STOP,
-    LIDAR_STOP, MAP_GET, wait for the fresh snapshot) --> mapped (WIFLY_SEND_MAP
-    with the map cropped to its known part).
+    the map grows) --complete--> homing --> uploading; --stop | time budget-->
+    uploading (MOTOR_STOP, LIDAR_STOP, MAP_GET, wait for the fresh snapshot) -->
+    mapped (WIFLY_SEND_MAP with the map cropped to its known part).
+
+Homing
+    A mapper left where its last frontier was can block the only passage the
+    hider needs (a corridor barely wider than a rover: the hider pushes it and
+    gives up). So when mapping completes by itself, the mapper first drives
+    back to its start pose, the LIDAR still scanning (scan matching keeps its
+    pose honest), bounded by ``home_budget_s`` and ``home_blocks``; then it
+    uploads. A stop from the server or the time budget uploads at once.
 
 Choosing where to go
     `frontier.find_frontiers` + `frontier.choose_frontier` on the latest
@@ -115,6 +123,12 @@ class MappingOptions:
     useful, and completion may follow."""
     min_gain_cells: int = 30
     """A trip that made fewer cells known than this was futile [cells]..."""
+    home_budget_s: float = 180.0
+    """Most time spent driving back to the start before uploading; 0 skips homing [s]."""
+    home_reach_cm: float = 15.0
+    """Home counts as reached this close to the start [cm]."""
+    home_blocks: int = 3
+    """Blocked motions on the way home before uploading from where the rover is."""
     min_gain_share: float = 0.003
     """...or fewer than this share of the cells already known (a big hall's ragged far
     edges give a few dozen cells per visit for ever). Counted per visit, not per
@@ -162,6 +176,7 @@ class MappingNav(NavBase):
         self._wait_map = False  # decide at the next map update
         self._last_wait_decide = -math.inf
         self._finish_reason = ""
+        self._home_deadline = math.inf
 
     # ------------------------------------------------------------------ lifecycle
     async def on_restart(self) -> None:
@@ -180,7 +195,7 @@ class MappingNav(NavBase):
             await self.put_and_post(self.map_name, Cmd.MAP_RESTORE, self.grid)
 
     async def on_start_cmd(self) -> None:
-        if self.state in ("scanning", "exploring", "uploading"):
+        if self.state in ("scanning", "exploring", "homing", "uploading"):
             return  # a repeated start (resent after a reconnect) changes nothing
         await self._begin(trio.current_time(), resumed=False)
 
@@ -199,7 +214,7 @@ class MappingNav(NavBase):
             await self.set_state("scanning", "waiting for the first scans")
 
     async def on_stop_cmd(self) -> None:
-        if self.state in ("scanning", "exploring"):
+        if self.state in ("scanning", "exploring", "homing"):
             await self._finish("stopped by the server")
 
     # ------------------------------------------------------------------ map events
@@ -245,6 +260,12 @@ class MappingNav(NavBase):
         if self.state == "uploading" and now >= self._upload_deadline:
             await self._upload()
             return
+        if self.state == "homing":
+            if now >= self._home_deadline:
+                await self._finish(self._finish_reason + "; home not reached in time")
+            elif not self.moving:
+                await self._home_step()
+            return
         if self.state not in ("exploring", "scanning"):
             return
         if now - self._started_at >= self.m.budget_s:
@@ -252,7 +273,8 @@ class MappingNav(NavBase):
             return
         if self.state == "exploring" and not self.moving:
             if self.complete(now):
-                await self._finish("no reachable frontier left and the map is stable")
+                await self._finish("no reachable frontier left and the map is stable",
+                                   home=True)
             elif self.ex.no_frontier or self._wait_map:
                 # waiting for the map to change; look again about once a second
                 if now - self._last_wait_decide >= 1.0:
@@ -268,6 +290,9 @@ class MappingNav(NavBase):
 
     # ------------------------------------------------------------------ exploring
     async def after_motion(self, blocked: bool, done: float) -> None:
+        if self.state == "homing":
+            await self._after_home_motion(blocked)
+            return
         if self.state != "exploring":
             return
         if blocked:
@@ -436,8 +461,72 @@ class MappingNav(NavBase):
         if len(bl) > self.m.blacklist:
             del bl[0]
 
+    # ------------------------------------------------------------------ homing
+    def _plan_home(self) -> bool:
+        """A route back to the start pose (0, 0); False when there or no route is known."""
+        assert self.grid is not None
+        pose = self.pose
+        if math.hypot(pose.x, pose.y) <= self.m.home_reach_cm:
+            return False
+        for radius, margin in self._tiers():
+            plan = plan_route(self.grid, (pose.x, pose.y), (0.0, 0.0), radius_cm=radius,
+                              margin_cm=margin)
+            if plan is not None:
+                break
+        else:
+            return False
+        ex = self.ex
+        ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
+        ex.target = (0.0, 0.0)
+        ex.steps = 0
+        ex.budget = ex.follower.budget(pose)
+        return True
+
+    async def _home_step(self) -> None:
+        """One ADP step home; uploads once home, or when home cannot be reached."""
+        if self.state != "homing" or self.moving or not self.can_move:
+            return
+        ex = self.ex
+        pose = self.pose
+        if ex.follower is None and not self._plan_home():
+            await self._finish(self._finish_reason)
+            return
+        assert ex.follower is not None
+        motion = ex.follower.next_motion(pose)
+        if motion is None or math.hypot(pose.x, pose.y) <= self.m.home_reach_cm \
+                or ex.steps >= ex.budget:
+            await self._finish(self._finish_reason)
+            return
+        if motion.kind == "move":
+            motion = self._mind_the_obstacle(motion)
+            if motion.kind == "turn":
+                ex.follower = None  # turned away from an obstacle: plan again from there
+        ex.steps += 1
+        await self.command(motion)
+
+    async def _after_home_motion(self, blocked: bool) -> None:
+        ex = self.ex
+        if not blocked:
+            await self._home_step()
+            return
+        ex.blocks += 1
+        ex.follower = None
+        if ex.blocks >= self.m.home_blocks:
+            await self._finish(self._finish_reason + "; home blocked")
+            return
+        await self.command(Motion("move", -self.o.backoff_cm))
+
     # ------------------------------------------------------------------ finishing
-    async def _finish(self, reason: str) -> None:
+    async def _finish(self, reason: str, *, home: bool = False) -> None:
+        """End exploring: drive home first when ``home`` (see Homing), then upload."""
+        if home and self.m.home_budget_s > 0 and self.grid is not None and self._plan_home():
+            self._finish_reason = reason
+            self._home_deadline = trio.current_time() + self.m.home_budget_s
+            self.ex.blocks = 0
+            await self.set_state("homing", f"{reason}; driving back to the start")
+            await self._home_step()
+            return
+        self._home_deadline = math.inf
         await self.stop_motor()
         await self.post(self.lidar, Message.uint(Cmd.LIDAR_STOP, 0))
         await self.post(self.map_name, Message.uint(Cmd.MAP_GET, 0))
