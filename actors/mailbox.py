@@ -114,7 +114,7 @@ class Mailbox:
         self._received += 1
         if self._senders:
             self._senders.unpark()
-        if self._trace.per_message:
+        if self._trace.per_message_receive:
             self._trace.emit(EventKind.RECEIVE, self.name, self.name, item, len(self._queue))
         return item
 

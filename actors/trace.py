@@ -10,8 +10,10 @@ Subscribers are callbacks (called synchronously; they must not block) or
 bounded channels (`Trace.open_channel`; a full channel drops and counts).
 `JsonLinesRecorder` writes events as JSON lines.
 
-The trace hash (`Trace.hexdigest`) is a BLAKE2b digest of every event made,
-order-independent among events with the same timestamp: Trio may wake tasks
+The trace hash (`Trace.hexdigest`) is a BLAKE2b digest of every event made
+(per-message events only with ``Trace(per_message=True)``, not when a
+subscriber alone asked for them: a console watching a run does not change
+its hash), order-independent among events with the same timestamp: Trio may wake tasks
 that became runnable at one instant in any order, so events are grouped by
 timestamp and sorted within a group before hashing. Two runs of one seed on a
 virtual clock give the same hash; `seed_trio_scheduler` additionally makes
@@ -81,12 +83,14 @@ class TraceEvent:
 class Subscription:
     """A subscriber's handle; `close` detaches it."""
 
-    __slots__ = ("_trace", "callback", "per_message", "_counter")
+    __slots__ = ("_trace", "callback", "per_message", "receives", "_counter")
 
-    def __init__(self, trace: Trace, callback: Callable[[TraceEvent], Any], per_message: bool):
+    def __init__(self, trace: Trace, callback: Callable[[TraceEvent], Any], per_message: bool,
+                 receives: bool = True):
         self._trace = trace
         self.callback = callback
         self.per_message = per_message
+        self.receives = receives
         self._counter: _DropCounter | None = None  # channel subscriptions only
 
     @property
@@ -111,6 +115,8 @@ class Trace:
         self._always_per_message = per_message
         self.per_message: bool = per_message
         """True when per-message events are being made (read on the hot path)."""
+        self.per_message_receive: bool = per_message
+        """True when ``receive`` events are being made too (read on the hot path)."""
         self._subs: list[Subscription] = []
         self._hash = hashlib.blake2b(digest_size=16)
         self._bucket_time: float | None = None
@@ -120,14 +126,16 @@ class Trace:
 
     # ---------------------------------------------------------------- subscribers
     def subscribe(self, callback: Callable[[TraceEvent], Any], *,
-                  per_message: bool = False) -> Subscription:
+                  per_message: bool = False, receives: bool = True) -> Subscription:
         """Call ``callback(event)`` for every event from now on.
 
         The callback runs synchronously where the event happens: it must be
         quick and must not block. With ``per_message`` it also gets
-        ``send``/``receive`` events (which slows every message down).
+        ``send``/``receive`` events (which slows every message down);
+        ``receives=False`` asks for the sends only, so no ``receive`` event
+        is made for it (a message log needs one line per message, not two).
         """
-        sub = Subscription(self, callback, per_message)
+        sub = Subscription(self, callback, per_message, receives)
         self._subs.append(sub)
         self._refresh()
         return sub
@@ -155,6 +163,8 @@ class Trace:
 
     def _refresh(self) -> None:
         self.per_message = self._always_per_message or any(s.per_message for s in self._subs)
+        self.per_message_receive = self._always_per_message or any(
+            s.per_message and s.receives for s in self._subs)
 
     # ---------------------------------------------------------------- events
     def emit(self, kind: EventKind, actor: str, queue: str = "", message: Any = None,
@@ -163,13 +173,17 @@ class Trace:
         event = TraceEvent(trio.current_time(), kind, actor, queue,
                            "" if message is None else repr(message), depth, detail)
         self.count += 1
-        if event.time != self._bucket_time:
-            self._flush()
-            self._bucket_time = event.time
-        self._bucket.append(event.key())
         per_message = kind in PER_MESSAGE
+        if not per_message or self._always_per_message:
+            # per-message events made only for a subscriber (a console's log) stay out
+            # of the hash: watching a run must not change its hash
+            if event.time != self._bucket_time:
+                self._flush()
+                self._bucket_time = event.time
+            self._bucket.append(event.key())
+        receive = kind is EventKind.RECEIVE
         for sub in tuple(self._subs):
-            if per_message and not sub.per_message:
+            if per_message and (not sub.per_message or (receive and not sub.receives)):
                 continue
             sub.callback(event)
         return event

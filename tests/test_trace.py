@@ -122,3 +122,31 @@ def test_channel_subscriber_is_bounded() -> None:
         return sub.dropped, trace.count
 
     assert run(main) == (2, 6)
+
+
+def test_a_sends_only_subscriber_gets_no_receive_events() -> None:
+    """``receives=False``: sends (and drops) arrive, receive events are not even made;
+    another subscriber asking for receives gets both."""
+    class Sink(Actor):
+        async def handle(self, message) -> None:
+            pass
+
+    async def main() -> tuple[list, list]:
+        sends_only: list = []
+        both: list = []
+        async with open_actor_system(seed=1) as system:
+            sub = system.trace.subscribe(lambda e: sends_only.append(e.kind),
+                                         per_message=True, receives=False)
+            await system.start_supervisor(SupervisorSpec([ChildSpec("a", Sink)]))
+            system.send_nowait("a", 1)
+            await trio.sleep(1)
+            assert not system.trace.per_message_receive
+            system.trace.subscribe(lambda e: both.append(e.kind), per_message=True)
+            system.send_nowait("a", 2)
+            await trio.sleep(1)
+            sub.close()
+        return sends_only, both
+
+    sends_only, both = run(main)
+    assert sends_only.count(EventKind.SEND) == 2 and EventKind.RECEIVE not in sends_only
+    assert both.count(EventKind.SEND) == 1 and both.count(EventKind.RECEIVE) == 1

@@ -161,3 +161,27 @@ def test_world_lag_is_within_a_tick_when_the_machine_keeps_up() -> None:
 
     trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0))
     assert all(0.0 <= lag <= 0.05 + 1e-9 for lag in lags), lags
+
+
+def test_message_log_decodes_the_latest_lines_when_a_snapshot_asks() -> None:
+    """Traced sends become decoded log lines, numbered in order, at most MAX_LOG_LINES,
+    DROP marked; lines scrolled out before a snapshot are never decoded."""
+    from actors import EventKind, Message, TraceEvent
+    from actors.firmware.commands import Cmd
+    from tui.live import MAX_LOG_LINES
+
+    live = LiveSystem(load_scenario("empty"))
+    moves = [Message.float(Cmd.MOTOR_MOVE, float(i)) for i in range(MAX_LOG_LINES + 10)]
+    for m in moves:
+        live._on_trace(TraceEvent(1.0, EventKind.SEND, "hider/motor", "hider/motor", repr(m)))
+        live._on_trace(TraceEvent(1.0, EventKind.RECEIVE, "hider/motor", "hider/motor",
+                                  repr(m)))
+    lines = live._log_lines()
+    assert len(lines) == MAX_LOG_LINES
+    assert [ln.seq for ln in lines] == list(range(11, MAX_LOG_LINES + 11))
+    assert lines[-1].text == f"MOTOR_MOVE {float(MAX_LOG_LINES + 9)}"
+    live._on_trace(TraceEvent(2.0, EventKind.DROP, "mapper/map", "mapper/map",
+                              repr(Message.int(Cmd.NOOP, 0))))
+    lines = live._log_lines()
+    assert lines[-1].seq == MAX_LOG_LINES + 11 and lines[-1].text == "DROP overflow NOOP 0"
+    assert lines[-2].text == f"MOTOR_MOVE {float(MAX_LOG_LINES + 9)}"

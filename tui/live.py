@@ -118,6 +118,10 @@ class LiveSystem(QueuedController):
         self._log_messages = log_messages
         self._system: SimSystem | None = None
         self._log: deque[LogLine] = deque(maxlen=MAX_LOG_LINES)
+        # messages as traced, decoded into `_log` only when a snapshot shows them: most
+        # scroll out between two frames, and decoding each costs the simulation time
+        self._raw_log: deque[TraceEvent] = deque(maxlen=MAX_LOG_LINES)
+        self._decoded_seq = 0
         self._timeline: deque[TimelineEvent] = deque(maxlen=MAX_TIMELINE)
         self._log_seq = 0
         self._event_seq = 0
@@ -140,7 +144,8 @@ class LiveSystem(QueuedController):
             async with open_sim_system(self.scenario, seed=self.seed, store=store,
                                        roles=roles) as system:
                 self._system = system
-                system.actors.trace.subscribe(self._on_trace, per_message=self._log_messages)
+                system.actors.trace.subscribe(self._on_trace, per_message=self._log_messages,
+                                              receives=False)
                 events = system.server.subscribe()
                 self._event("game", f"{self.scenario.name}: system started (seed {self.seed})")
                 await self._attach_remote(system)
@@ -282,20 +287,27 @@ class LiveSystem(QueuedController):
         self._timeline.append(TimelineEvent(self._event_seq, trio.current_time(), kind, text))
 
     def _on_trace(self, event: TraceEvent) -> None:
-        if event.kind in (EventKind.SEND, EventKind.RECEIVE, EventKind.DROP):
-            if event.kind is EventKind.RECEIVE:
-                return  # one line per message: its send
+        if event.kind in (EventKind.SEND, EventKind.DROP):
             self._log_seq += 1
-            text = _decode(event.message)
-            if event.kind is EventKind.DROP:
-                text = "DROP overflow " + text
-            self._log.append(LogLine(self._log_seq, event.time, event.actor, event.queue, text))
+            self._raw_log.append(event)
             return
         if event.kind in _LIFECYCLE:
             if event.kind in (EventKind.CRASH, EventKind.HUNG, EventKind.KILLED):
                 self._exits[event.actor] = event.time
             kind = {EventKind.RESTART: "restart", EventKind.FAULT: "fault"}.get(event.kind, "crash")
             self._event(kind, f"{event.kind.value} {event.actor} {event.detail}".strip())
+
+    def _log_lines(self) -> tuple[LogLine, ...]:
+        """The message log, decoding what was traced since the last snapshot."""
+        first = self._log_seq - len(self._raw_log) + 1  # seq of the oldest raw entry
+        for i in range(max(self._decoded_seq + 1, first), self._log_seq + 1):
+            event = self._raw_log[i - first]
+            text = _decode(event.message)
+            if event.kind is EventKind.DROP:
+                text = "DROP overflow " + text
+            self._log.append(LogLine(i, event.time, event.actor, event.queue, text))
+        self._decoded_seq = self._log_seq
+        return tuple(self._log)
 
     async def _server_events(self, events: trio.MemoryReceiveChannel) -> None:
         async for e in events:
@@ -323,7 +335,7 @@ class LiveSystem(QueuedController):
             truth=self._truth_view(grid), rovers=self._rovers(system, server),
             hide_spot=_pose(server.hide_spot),
             seek_guesses=tuple((g.x, g.y) for g in server.guesses),
-            queues=self._queues(system, now), log=tuple(self._log),
+            queues=self._queues(system, now), log=self._log_lines(),
             tree=self._tree(system), links=self._links(server),
             timeline=tuple(self._timeline), faults=self._faults(system),
             catalogue=self._catalogue(system))
