@@ -42,7 +42,8 @@ import numpy as np
 from actors.firmware.occupancy import OCCUPIED, UNKNOWN, GridMap, normalise_cells
 from actors.firmware.odometry import Pose, angle_diff_deg
 
-__all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead", "passage_width"]
+__all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead", "occupied_near",
+           "passage_width"]
 
 
 def turning_radius_cm(length_cm: float = 20.0, width_cm: float = 15.0) -> float:
@@ -58,6 +59,33 @@ def _square_gaps(x: float, y: float, res: float, ox: float, oy: float,
     dx = np.maximum(np.abs(x - cx) - 0.5 * res, 0.0)
     dy = np.maximum(np.abs(y - cy) - 0.5 * res, 0.0)
     return np.hypot(dx, dy)
+
+
+def occupied_near(grid: GridMap, pose: Pose, reach_cm: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Occupied cells within a square of half-side ``reach_cm`` around ``pose``.
+
+    Returns:
+        (px, py, fwd, lat): the cell centres relative to the pose in the map's axes,
+        and the same in the pose's body frame (forward, left) [cm]; None when the
+        square holds no occupied cell.
+    """
+    res = grid.resolution_cm
+    k = math.ceil(reach_cm / res) + 1
+    r, c = grid.world_to_cell(pose.x, pose.y)
+    ny, nx = grid.shape
+    r0, r1, c0, c1 = max(0, r - k), min(ny, r + k + 1), max(0, c - k), min(nx, c + k + 1)
+    if r0 >= r1 or c0 >= c1:
+        return None
+    rows, cols = np.nonzero(grid.cells[r0:r1, c0:c1] == OCCUPIED)
+    if rows.size == 0:
+        return None
+    ox, oy = grid.origin_cm
+    px = ox + (cols + c0 + 0.5) * res - pose.x
+    py = oy + (rows + r0 + 0.5) * res - pose.y
+    h = pose.heading_rad
+    ch, sh = math.cos(h), math.sin(h)
+    return px, py, px * ch + py * sh, -px * sh + py * ch
 
 
 def check_spot(
@@ -166,24 +194,12 @@ def obstacle_ahead(
         raise ValueError(f"distance_cm must be positive, got {distance_cm!r}")
     if not 0 <= half_angle_deg < 90:
         raise ValueError(f"half_angle_deg must be in [0, 90), got {half_angle_deg!r}")
-    res = grid.resolution_cm
     reach = math.hypot(distance_cm, max(half_width_cm,
                                         distance_cm * math.tan(math.radians(half_angle_deg))))
-    k = math.ceil(reach / res) + 1
-    r, c = grid.world_to_cell(pose.x, pose.y)
-    ny, nx = grid.shape
-    r0, r1, c0, c1 = max(0, r - k), min(ny, r + k + 1), max(0, c - k), min(nx, c + k + 1)
-    if r0 >= r1 or c0 >= c1:
+    near = occupied_near(grid, pose, reach)
+    if near is None:
         return None
-    rows, cols = np.nonzero(grid.cells[r0:r1, c0:c1] == OCCUPIED)
-    if rows.size == 0:
-        return None
-    ox, oy = grid.origin_cm
-    px = ox + (cols + c0 + 0.5) * res - pose.x
-    py = oy + (rows + r0 + 0.5) * res - pose.y
-    h = pose.heading_rad
-    fwd = px * math.cos(h) + py * math.sin(h)
-    lat = -px * math.sin(h) + py * math.cos(h)
+    px, py, fwd, lat = near
     width = np.maximum(half_width_cm, fwd * math.tan(math.radians(half_angle_deg)))
     ahead = (fwd > 0) & (fwd <= distance_cm) & (np.abs(lat) <= width)
     if not ahead.any():

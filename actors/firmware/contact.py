@@ -42,7 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.occupancy import OCCUPIED, GridMap
+from actors.firmware.clearance import occupied_near
+from actors.firmware.occupancy import GridMap
 from actors.firmware.odometry import Pose
 
 __all__ = ["Contact", "locate_contact", "stalled_side"]
@@ -127,21 +128,10 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
     tol = 0.5 * res if tol_cm is None else float(tol_cm)
     half_l, half_w = 0.5 * length_cm, 0.5 * width_cm
     reach = math.hypot(half_l + res, half_w + tol) + max_shift_cm + max_along_cm + res
-    r0, c0 = grid.world_to_cell(pose.x - reach, pose.y - reach)
-    r1, c1 = grid.world_to_cell(pose.x + reach, pose.y + reach)
-    ny, nx = grid.shape
-    r0, r1, c0, c1 = max(0, r0), min(ny, r1 + 1), max(0, c0), min(nx, c1 + 1)
-    if r0 >= r1 or c0 >= c1:
+    near = occupied_near(grid, pose, reach)
+    if near is None:
         return None
-    rows, cols = np.nonzero(grid.cells[r0:r1, c0:c1] == OCCUPIED)
-    if rows.size == 0:
-        return None
-    ox, oy = grid.origin_cm
-    px = ox + (cols + c0 + 0.5) * res - pose.x  # points relative to the pose [cm]
-    py = oy + (rows + r0 + 0.5) * res - pose.y
-    h = pose.heading_rad
-    ch, sh = math.cos(h), math.sin(h)
-    fx, fy = px * ch + py * sh, -px * sh + py * ch  # in the dead-reckoned body frame
+    _, _, fx, fy = near  # occupied cells in the dead-reckoned body frame [cm]
 
     s = _grid_axis(max_shift_cm, shift_step_cm)
     u = _grid_axis(max_along_cm, along_step_cm)
@@ -174,6 +164,7 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
         other = np.where(touch == -touch[best], cost, np.inf)
         ambiguous = bool(other.min() <= cost[best] + ambiguity_cm)
     sb, ub, ab = float(S[best]), float(U[best]), float(A[best])
+    ch, sh = math.cos(pose.heading_rad), math.sin(pose.heading_rad)
     x = pose.x + ub * ch - sb * sh
     y = pose.y + ub * sh + sb * ch
     return Contact(Pose(x, y, pose.heading_deg + ab), sb, ub, ab, ambiguous)
