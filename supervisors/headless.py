@@ -100,11 +100,25 @@ class _Phases:
         """
         with trio.move_on_after(timeout):
             while self.phase not in wanted:
-                event = await self._events.receive()
-                if event.kind in ("phase", "report", "refused", "map", "link_down", "link_up"):
-                    self.log.append(event.format())
+                self._note(await self._events.receive())
+            self._drain()
             return self.phase
+        self._drain()
         return None
+
+    def _note(self, event: Any) -> None:
+        if event.kind in ("phase", "report", "refused", "map", "link_down", "link_up"):
+            self.log.append(event.format())
+
+    def _drain(self) -> None:
+        """Log the events already queued: the phase is read from the game, which may
+        be ahead of its events (the report that ended the game), and they belong in
+        the log. Never waits, so the run's scheduling does not change."""
+        while True:
+            try:
+                self._note(self._events.receive_nowait())
+            except trio.WouldBlock:
+                return
 
 
 async def _wait_for_rovers(system: SimSystem, timeout: float) -> bool:

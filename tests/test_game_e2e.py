@@ -31,6 +31,8 @@ def test_whole_game_on_the_empty_room_finds_the_hider() -> None:
     assert set(report.phases) == {"mapping", "hiding", "seeking"}
     assert report.guesses >= 1
     assert report.messages > 10_000
+    reports = [e for e in report.events if "report=" in e]
+    assert "report=arrived" in reports[0] and "report=found" in reports[-1]  # the last too
 
 
 def test_same_seed_gives_the_same_game_event_for_event() -> None:
