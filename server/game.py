@@ -170,15 +170,24 @@ class Game:
                         f"[{ox:.0f}..{ox + nx * r:.0f}] x [{oy:.0f}..{oy + ny * r:.0f}]")
         return p
 
+    def _origin_and_spot(self, role: str, what: str, x, y, heading,
+                         frame) -> tuple[Pose2, Pose2] | str:
+        """The rover's start pose and the checked spot, or the reason to refuse."""
+        origin = self.origin_of(role)
+        if origin is None:
+            return f"start pose of the {role} is not configured (--origin ID=X,Y,HEADING)"
+        spot = self._spot(x, y, heading, frame, what)
+        if isinstance(spot, str):
+            return spot
+        return origin, spot
+
     def _cmd_hide(self, x, y, heading, frame) -> Result:
         if self.phase is not Phase.MAP_READY:
             return _refuse(f"hide needs phase map_ready, the game is {self.phase}")
-        origin = self.origin_of("hider")
-        if origin is None:
-            return _refuse("start pose of the hider is not configured (--origin ID=X,Y,HEADING)")
-        spot = self._spot(x, y, heading, frame, "hide")
-        if isinstance(spot, str):
-            return _refuse(spot)
+        placed = self._origin_and_spot("hider", "hide", x, y, heading, frame)
+        if isinstance(placed, str):
+            return _refuse(placed)
+        origin, spot = placed
         self.hide_spot = spot
         self.phase = Phase.HIDING
         dest = {"x": spot.x, "y": spot.y, "heading": spot.heading}
@@ -189,12 +198,10 @@ class Game:
     def _cmd_seek(self, x, y, heading, frame) -> Result:
         if self.phase not in (Phase.HIDDEN, Phase.NOT_FOUND):
             return _refuse(f"seek needs phase hidden or not_found, the game is {self.phase}")
-        origin = self.origin_of("seeker")
-        if origin is None:
-            return _refuse("start pose of the seeker is not configured (--origin ID=X,Y,HEADING)")
-        spot = self._spot(x, y, heading, frame, "seek")
-        if isinstance(spot, str):
-            return _refuse(spot)
+        placed = self._origin_and_spot("seeker", "seek", x, y, heading, frame)
+        if isinstance(placed, str):
+            return _refuse(placed)
+        origin, spot = placed
         self.guesses.append(spot)
         self.phase = Phase.SEEKING
         dest = {"x": spot.x, "y": spot.y, "heading": None if heading is None else spot.heading}
