@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import pytest
 import trio
@@ -55,6 +57,27 @@ class FakeServer:
             await trio.sleep(0.05)
 
 
+@contextlib.asynccontextmanager
+async def linked_wifly():
+    """A hider's WiFly linked to a `FakeServer`, one second after start (welcomed).
+
+    Yields (system, server, tree, pool, log); the server stops on exit."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
+        server = FakeServer(hw)
+        nursery.start_soon(server.run)
+        tree = await system.start_supervisor(wifly_tree(hw, pool, log), "hider")
+        await trio.sleep(1.0)
+        yield system, server, tree, pool, log
+        nursery.cancel_scope.cancel()
+
+
+def arrived(pool: BufferPool) -> Message:
+    """A WIFLY_SEND of an ``arrived`` report, as navigation posts it."""
+    return Message.handle(Cmd.WIFLY_SEND,
+                          pool.put(make_frame("arrived", {"x": 1, "y": 2, "heading": 3})))
+
+
 def wifly_tree(hw, pool, log):
     return SupervisorSpec([
         ChildSpec("nav", lambda: Recorder(log, pool)),
@@ -65,12 +88,7 @@ def wifly_tree(hw, pool, log):
 @pytest.mark.trio
 async def test_hello_welcome_frames_and_map_download(autojump_clock) -> None:
     """Hello until welcome (NAV_LINK 1); frames go to nav; map chunks arrive as one map."""
-    hw, pool, log = FakeHardware(), BufferPool(64), []
-    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
-        server = FakeServer(hw)
-        nursery.start_soon(server.run)
-        await system.start_supervisor(wifly_tree(hw, pool, log), "hider")
-        await trio.sleep(1.0)
+    async with linked_wifly() as (system, server, _tree, pool, log):
         assert (Cmd.NAV_LINK, 1) in log
         assert server.got[0].cmd == "hello" and read_data(server.got[0]).id == "hider-1"
         server.session.send(make_frame("start"))
@@ -85,18 +103,12 @@ async def test_hello_welcome_frames_and_map_download(autojump_clock) -> None:
         (grid,) = [p for c, p in log if c == Cmd.NAV_MAP_DOWNLOAD]
         assert isinstance(grid, GridMap) and np.array_equal(grid.cells, cells)
         assert grid.origin_cm == (-10.0, -20.0)
-        nursery.cancel_scope.cancel()
 
 
 @pytest.mark.trio
 async def test_deaf_server_then_reconnect_loses_and_duplicates_nothing(autojump_clock) -> None:
     """Reliable frames and a map sent while the server is deaf arrive once, in order."""
-    hw, pool, log = FakeHardware(), BufferPool(64), []
-    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
-        server = FakeServer(hw)
-        nursery.start_soon(server.run)
-        await system.start_supervisor(wifly_tree(hw, pool, log), "hider")
-        await trio.sleep(1.0)
+    async with linked_wifly() as (system, server, _tree, pool, log):
         server.deaf = True
         for k in range(3):
             frame = make_frame("invalid_spot", {"reason": f"r{k}"})
@@ -115,7 +127,6 @@ async def test_deaf_server_then_reconnect_loses_and_duplicates_nothing(autojump_
                 if (m := assembler.add(read_data(f))) is not None]
         assert len(maps) == 1 and maps[0].cells.shape == (30, 30)
         assert system.whereis("hider/wifly").actor.statistics()["unacked"] == 0
-        nursery.cancel_scope.cancel()
 
 
 @pytest.mark.trio
@@ -134,8 +145,7 @@ async def test_restart_keeps_unacknowledged_frames(autojump_clock) -> None:
         await system.start_supervisor(spec, "hider")
         await trio.sleep(1.0)
         server.deaf = True
-        await system.send("hider/wifly", Message.handle(
-            Cmd.WIFLY_SEND, pool.put(make_frame("arrived", {"x": 1, "y": 2, "heading": 3}))))
+        await system.send("hider/wifly", arrived(pool))
         await trio.sleep(0.5)
         system.inject_crash("hider/wifly")
         await trio.sleep(0.5)
@@ -153,36 +163,22 @@ def test_bad_rover_id_is_refused_at_construction() -> None:
 @pytest.mark.trio
 async def test_a_noop_flood_costs_queue_slots_not_restarts(autojump_clock) -> None:
     """A flood fault fills the mailbox with NOOPs: ignored, and the link keeps working."""
-    hw, pool, log = FakeHardware(), BufferPool(64), []
-    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
-        server = FakeServer(hw)
-        nursery.start_soon(server.run)
-        tree = await system.start_supervisor(wifly_tree(hw, pool, log), "hider")
-        await trio.sleep(1.0)
+    async with linked_wifly() as (system, server, tree, pool, log):
         assert system.flood("hider/wifly", 1000, Message.int(Cmd.NOOP, 0)) == 256
-        await system.send("hider/wifly", Message.handle(
-            Cmd.WIFLY_SEND, pool.put(make_frame("arrived", {"x": 1, "y": 2, "heading": 3}))))
+        await system.send("hider/wifly", arrived(pool))
         await trio.sleep(2.0)
         assert [f.cmd for f in server.got].count("arrived") == 1
         assert [c.restarts for c in tree.which_children() if c.id == "wifly"] == [0]
-        nursery.cancel_scope.cancel()
 
 
 @pytest.mark.trio
 async def test_a_poison_message_gives_its_pool_buffer_back(autojump_clock) -> None:
     """A map WiFly cannot send crashes it mid-burst; the buffers of the dropped burst are freed."""
-    hw, pool, log = FakeHardware(), BufferPool(64), []
-    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
-        server = FakeServer(hw)
-        nursery.start_soon(server.run)
-        tree = await system.start_supervisor(wifly_tree(hw, pool, log), "hider")
-        await trio.sleep(1.0)
+    async with linked_wifly() as (system, server, tree, pool, log):
         in_use = pool.statistics().in_use
         system.send_nowait("hider/wifly", Message.handle(Cmd.WIFLY_SEND_MAP,
                                                          pool.put("not a map")))
-        system.send_nowait("hider/wifly", Message.handle(Cmd.WIFLY_SEND, pool.put(
-            make_frame("arrived", {"x": 1, "y": 2, "heading": 3}))))
+        system.send_nowait("hider/wifly", arrived(pool))
         await trio.sleep(1.0)
         assert [c.restarts for c in tree.which_children() if c.id == "wifly"] == [1]
         assert pool.statistics().in_use == in_use
-        nursery.cancel_scope.cancel()
