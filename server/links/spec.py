@@ -55,25 +55,26 @@ def parse_link(text: str) -> LinkSpec:
         if not sep or not host:
             raise ValueError(f"tcp link must be tcp:HOST:PORT, got {text!r}")
         host = host.strip("[]")
-        try:
-            port = int(port_s)
-        except ValueError:
-            raise ValueError(f"tcp port must be a number, got {port_s!r} in {text!r}") from None
-        if not 0 <= port <= 65535:
-            raise ValueError(f"tcp port must be 0..65535, got {port}")
+        port = _int_in(port_s, "tcp port", 0, 65535, text)
         return LinkSpec("tcp_listen", text, host=host, port=port)
     if t.startswith("serial:"):
         url, sep, baud_s = t[7:].rpartition(",")
         if not sep or not url:
             raise ValueError(f"serial link must be serial:PORT,BAUD, got {text!r}")
-        try:
-            baud = int(baud_s)
-        except ValueError:
-            raise ValueError(f"serial baud must be a number, got {baud_s!r} in {text!r}") from None
-        if not 50 <= baud <= 4_000_000:
-            raise ValueError(f"serial baud must be 50..4000000, got {baud}")
+        baud = _int_in(baud_s, "serial baud", 50, 4_000_000, text)
         return LinkSpec("serial", text, url=url, baud=baud)
     raise ValueError(f"link must be {_KINDS}, got {text!r}")
+
+
+def _int_in(value: str, what: str, lo: int, hi: int, text: str) -> int:
+    """``value`` as an int in lo..hi; a ValueError naming ``what`` and the link otherwise."""
+    try:
+        n = int(value)
+    except ValueError:
+        raise ValueError(f"{what} must be a number, got {value!r} in {text!r}") from None
+    if not lo <= n <= hi:
+        raise ValueError(f"{what} must be {lo}..{hi}, got {n}")
+    return n
 
 
 def is_loopback(host: str) -> bool:
