@@ -239,6 +239,17 @@ async def download(system: Any, pool: BufferPool, rover: str, grid: GridMap) -> 
     await system.send(f"{rover}/nav", Message.handle(Cmd.NAV_MAP_DOWNLOAD, pool.put(grid)))
 
 
+async def send_route(system: Any, pool: BufferPool, rover: str, origin: Any, dest: Any,
+                     grid: GridMap) -> None:
+    """What the server sends for ``hide`` / ``seek``: origin, start, destination; then,
+    once navigation asked for it, the map."""
+    await net(system, pool, rover, "origin", origin)
+    await net(system, pool, rover, "start")
+    await net(system, pool, rover, "destination", dest)
+    await trio.sleep(0.5)
+    await download(system, pool, rover, grid)
+
+
 def room_map(truth: Truth) -> GridMap:
     """The truth as a fully known map (what the mapper would have uploaded)."""
     return GridMap(np.where(truth.solid, OCCUPIED, FREE).astype(np.int8), truth.res, truth.origin)

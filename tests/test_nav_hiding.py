@@ -10,7 +10,16 @@ import trio
 from actors import BufferPool, open_actor_system
 from actors.firmware.nav_common import NavMemory, NavOptions
 from actors.firmware.odometry import Pose
-from tests.test_nav_common import Body, Truth, download, net, room_map, rover_spec, wait_for
+from tests.test_nav_common import (
+    Body,
+    Truth,
+    download,
+    net,
+    room_map,
+    rover_spec,
+    send_route,
+    wait_for,
+)
 
 # the hider starts at (50, 50) @ 0 in the map frame; its own frame starts at (0, 0)
 ORIGIN = {"x": 50.0, "y": 50.0, "heading": 0.0}
@@ -24,11 +33,7 @@ def own_truth() -> Truth:
 
 async def begin(system, pool, dest) -> None:
     """What the server sends for ``hide``: origin, start, destination; then the map."""
-    await net(system, pool, "hider", "origin", ORIGIN)
-    await net(system, pool, "hider", "start")
-    await net(system, pool, "hider", "destination", dest)
-    await trio.sleep(0.5)
-    await download(system, pool, "hider", room_map(TRUTH_MAP))
+    await send_route(system, pool, "hider", ORIGIN, dest, room_map(TRUTH_MAP))
 
 
 @pytest.mark.trio

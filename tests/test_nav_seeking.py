@@ -5,11 +5,18 @@ from __future__ import annotations
 import math
 
 import pytest
-import trio
 
 from actors import BufferPool, open_actor_system
 from actors.firmware.odometry import Pose, angle_diff_deg
-from tests.test_nav_common import Body, Truth, download, net, room_map, rover_spec, wait_for
+from tests.test_nav_common import (
+    Body,
+    Truth,
+    net,
+    room_map,
+    rover_spec,
+    send_route,
+    wait_for,
+)
 
 ORIGIN = {"x": 50.0, "y": 50.0, "heading": 0.0}
 TRUTH_MAP = Truth(0, 0, 300, 200)
@@ -26,11 +33,7 @@ def ir_sees_hider(pose: Pose) -> bool:
 
 
 async def begin(system, pool, dest) -> None:
-    await net(system, pool, "seeker", "origin", ORIGIN)
-    await net(system, pool, "seeker", "start")
-    await net(system, pool, "seeker", "destination", dest)
-    await trio.sleep(0.5)
-    await download(system, pool, "seeker", room_map(TRUTH_MAP))
+    await send_route(system, pool, "seeker", ORIGIN, dest, room_map(TRUTH_MAP))
 
 
 @pytest.mark.trio
