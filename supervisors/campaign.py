@@ -25,8 +25,10 @@ attached that change nothing, then lets the system drain for a while and
 checks the invariants of `supervisors.invariants`.
 
 Running (`run_campaign`): a pool of ``spawn`` worker processes, one per core
-by default; results arrive in completion order and are summarised by
-`summarize` and stored by `CampaignStore` (SQLite).
+by default, handed the games longest expected first (`dispatch_order`) so
+the workers finish together; results arrive in completion order, keyed by
+index, and are summarised by `summarize` and stored by `CampaignStore`
+(SQLite).
 
 Like `supervisors.system` this is wiring: it reads ground truth (through
 the system) only to check and score, never to steer.
@@ -72,7 +74,7 @@ __all__ = [
     "FAULT_LABELS", "MODES", "CampaignError", "CampaignConfig", "GameSpec", "plan_game",
     "parse_game_ref", "game_from_ref", "select_kinds", "play_campaign_game", "run_campaign",
     "summarize", "CampaignStore", "ACTORS_BY_ROLE", "default_workers", "MAX_GAMES",
-    "seed_game_scheduler",
+    "seed_game_scheduler", "ROOM_CPU_S", "ORDER_BLOCK", "expected_cpu_s", "dispatch_order",
 ]
 
 MODES = ("single", "overlapping", "none")
@@ -352,6 +354,69 @@ def game_from_ref(ref: str) -> tuple[Scenario, int, float]:
     return spec.scenario(), spec.run_seed, config.mapping_budget_s
 
 
+# ---------------------------------------------------------------------------- dispatch order
+
+#: a game's expected CPU time per built-in room [s] (whole game, one core; measured, see
+#: docs/scaling.md "Dispatch order"); only the dispatch order reads it, so a stale figure
+#: costs the pool some balance at the end, never a different result
+ROOM_CPU_S: dict[str, float] = {
+    "empty": 3.0, "l_shaped": 6.0, "corridor": 6.0, "gap": 7.0, "round": 10.0,
+    "cluttered": 16.0, "hall": 25.0, "furniture": 25.0,
+}
+#: generated rooms (and rooms missing above): expected CPU time per m² of free floor [s]
+_CPU_S_PER_FREE_M2 = 0.5
+#: games ordered together; the blocks follow index order, so a campaign stopped early
+#: (``--max-wall``) has played about a prefix of its games and planning stays bounded
+ORDER_BLOCK = 64
+
+
+def expected_cpu_s(spec: GameSpec, *, replayed: bool = False) -> float:
+    """The game's expected CPU time [s], from what is known before it starts.
+
+    The room decides most of it (a 4 x 3 m empty room maps in a minute of
+    simulated time, a furnished one in up to ten), so built-in rooms use the
+    measured `ROOM_CPU_S` and generated rooms their free floor area. A
+    determinism replay plays the game twice. The figure only orders the
+    dispatch: it never changes what a game does.
+    """
+    if spec.room in ROOM_CPU_S:
+        cost = ROOM_CPU_S[spec.room]
+    else:
+        room = spec.scenario()
+        width, height = room.room_size
+        free_cm2 = width * height - sum(o.area for o in room.obstacles)
+        cost = _CPU_S_PER_FREE_M2 * max(free_cm2, 0.0) / 1e4
+    return 2.0 * cost if replayed else cost
+
+
+def dispatch_order(config: CampaignConfig, start: int, games: int,
+                   determinism_every: int = 0) -> Iterator[int]:
+    """Game indices in the order a pool should start them: longest expected first.
+
+    Games of one campaign differ tenfold in length, and a pool that starts
+    them in index order can end with one worker playing a long game while
+    the others idle. Longest-first (LPT) scheduling within blocks of
+    `ORDER_BLOCK` games ends with the short ones, so the workers finish
+    together. The first block takes the remainder, so the last block (whose
+    end is the campaign's end) is always a full one. Results are keyed by
+    index, so the order changes when a game finishes, never what it does.
+
+    Yields:
+        Each index of ``start .. start+games-1`` exactly once.
+    """
+    end = start + games
+    first = start + (games % ORDER_BLOCK or ORDER_BLOCK)
+    edges = [start, *range(first, end, ORDER_BLOCK), end]
+    for lo, hi in zip(edges, edges[1:], strict=False):
+        costs = {i: expected_cpu_s(plan_game(config, i), replayed=_replayed(i, determinism_every))
+                 for i in range(lo, hi)}
+        yield from sorted(costs, key=lambda i: (-costs[i], i))
+
+
+def _replayed(index: int, determinism_every: int) -> bool:
+    return bool(determinism_every) and index % determinism_every == 0
+
+
 # ---------------------------------------------------------------------------- playing
 
 def _actor_states(system: Any) -> dict[str, str]:
@@ -516,7 +581,10 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         ``restarts``, ``resent``, ``dropped``, ``sim_s``, ``wall_s``, ``cpu_s``
         (this process's CPU time for the game, replays included [s]),
         ``trace_hash``, ``replay_hash`` (None unless replayed), ``events``,
-        ``baseline`` (outcome without the faults, or None when not played).
+        ``baseline`` (outcome without the faults, or None when not played),
+        ``baseline_violations`` (the invariants that broke without the
+        faults: a failure whose violation repeats without them is the game's,
+        not fault recovery's).
 
     Raises:
         CampaignError: ``ref`` is not a valid game reference.
@@ -532,6 +600,7 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         "outcome": "failed", "reason": "", "violations": [], "faults_fired": 0,
         "restarts": 0, "resent": 0, "dropped": 0, "sim_s": 0.0, "wall_s": 0.0, "cpu_s": 0.0,
         "trace_hash": "", "replay_hash": None, "events": {}, "baseline": None,
+        "baseline_violations": [],
     }
     wall0 = time.perf_counter()  # wall and CPU time are measured for the report only
     cpu0 = time.process_time()
@@ -549,9 +618,10 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
                 f"first: {report.outcome} after {report.sim_seconds:.1f} s)"
                 for v in inv.check_determinism(report.trace_hash, again.trace_hash)]
         if baseline and spec.faults and (out["violations"] or out["outcome"] != "found"):
-            calm, _ = _run_one(dataclasses.replace(spec, faults=(), labels=()), wall_timeout_s,
-                               nav_factory)
+            calm, calm_checks = _run_one(dataclasses.replace(spec, faults=(), labels=()),
+                                         wall_timeout_s, nav_factory)
             out["baseline"] = calm.outcome
+            out["baseline_violations"] = calm_checks["violations"]
     except Exception as group:  # noqa: BLE001 - a broken game is a result, not a crash
         exc = _leaf(group)
         last = traceback.extract_tb(exc.__traceback__)[-1:]
@@ -591,6 +661,10 @@ def run_campaign(config: CampaignConfig, games: int, *, workers: int | None = No
                  start: int = 0, pool: Any = None) -> Iterator[dict[str, Any]]:
     """Play games ``start .. start+games-1`` of a campaign; yield results as they finish.
 
+    A pool gets the games in `dispatch_order` (longest expected first, in
+    blocks); in this process they are played in index order. Either way each
+    game is played once and its result carries its ``index``.
+
     Args:
         config: the campaign.
         games: how many games (1..`MAX_GAMES`).
@@ -614,16 +688,16 @@ def run_campaign(config: CampaignConfig, games: int, *, workers: int | None = No
         raise CampaignError(f"workers must be within 0..256, got {workers!r}")
     if not isinstance(determinism_every, int) or determinism_every < 0:
         raise CampaignError(f"determinism_every must be >= 0, got {determinism_every!r}")
-    jobs = [(worker, config.game_ref(i),
-             bool(determinism_every) and i % determinism_every == 0, wall_timeout_s)
-            for i in range(start, start + games)]
+    n = default_workers() if workers is None else workers
+    if pool is None and n == 0:  # in this process: index order, easiest to follow
+        for i in range(start, start + games):
+            yield _call((worker, config.game_ref(i), _replayed(i, determinism_every),
+                         wall_timeout_s))
+        return
+    jobs = ((worker, config.game_ref(i), _replayed(i, determinism_every), wall_timeout_s)
+            for i in dispatch_order(config, start, games, determinism_every))
     if pool is not None:
         yield from pool.imap_unordered(_call, jobs, chunksize=1)
-        return
-    n = default_workers() if workers is None else workers
-    if n == 0:
-        for job in jobs:
-            yield _call(job)
         return
     ctx = multiprocessing.get_context("spawn")
     # recycle workers now and then: a game that hit the wall-time guard may leave garbage
@@ -637,13 +711,32 @@ def _failed(r: dict[str, Any]) -> bool:
     return r["outcome"] != "found" or bool(r["violations"])
 
 
+def _cause(r: dict[str, Any]) -> str | None:
+    """Whose failure a failed game is: ``faults``, ``game``, or None (not known).
+
+    ``game`` when it fails without faults too (it had none, or its replay
+    without them also failed or broke an invariant), ``faults`` when that
+    replay found the hider with every invariant kept; None when no replay
+    was played (``baseline=False``) or the game did not fail.
+    """
+    if not _failed(r):
+        return None
+    if not r["faults"]:
+        return "game"
+    if r.get("baseline") is None:
+        return None
+    return "faults" if r["baseline"] == "found" and not r.get("baseline_violations") else "game"
+
+
 def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
               wall_s: float, workers: int) -> dict[str, Any]:
     """The campaign's JSON summary (what ``hideseek campaign --json`` prints).
 
     A game counts as a failure when the hider was not found or an invariant
     broke; per fault label, a fault is *injected* when its start came before
-    the game ended, *recovered* when such a game did not fail.
+    the game ended, *recovered* when such a game did not fail. Each failure
+    says whose it is (``cause``: ``faults``, ``game`` or None, see `_cause`),
+    from the replay of the game without its faults.
     """
     results = sorted(results, key=lambda r: r["index"])
     outcomes = Counter(r["outcome"] for r in results)
@@ -674,8 +767,9 @@ def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
                             "failed": c["failed"], "not_reached": c["not_reached"]}
                         for k, c in sorted(per_kind.items())},
         "violations": dict(sorted(violated.items())),
-        "failures_also_without_faults": sum(
-            1 for r in results if _failed(r) and r.get("baseline") not in (None, "found")),
+        "failures_also_without_faults": sum(1 for r in results if _cause(r) == "game"),
+        "failures_by_cause": dict(sorted(Counter(_cause(r) or "unknown" for r in results
+                                                 if _failed(r)).items())),
         "restarts": sum(r["restarts"] for r in results),
         "resent": sum(r["resent"] for r in results),
         "dropped": sum(r["dropped"] for r in results),
@@ -691,6 +785,8 @@ def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
                       "faults": [f"{f['target']} {f['kind']} at {f['at_s']:g} s for "
                                  f"{f['duration_s']:g} s" for f in r["faults"]],
                       "without_faults": r.get("baseline"),
+                      "without_faults_violations": r.get("baseline_violations", []),
+                      "cause": _cause(r),
                       "reproduce": r["reproduce"]}
                      for r in results if _failed(r)],
     }

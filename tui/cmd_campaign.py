@@ -36,6 +36,8 @@ from supervisors.campaign import (
 from world.scenario import builtin_scenarios
 
 _BAR = 30  # progress bar width [characters]
+_CAUSES = {"faults": "the faults (found, every invariant kept, without them)",
+           "game": "the game itself (fails without faults too)"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -158,7 +160,11 @@ def _print_table(s: dict[str, Any]) -> None:
         for v in f["violations"]:
             print(f"    broken: {v}")
         if f.get("without_faults"):
-            print(f"    without its faults: {f['without_faults']}")
+            broken = f.get("without_faults_violations") or []
+            print(f"    without its faults: {f['without_faults']}"
+                  + (f", broken: {'; '.join(broken)}" if broken else ""))
+        if f.get("cause"):
+            print(f"    cause: {_CAUSES[f['cause']]}")
         print(f"    reproduce: {f['reproduce']}")
 
 
