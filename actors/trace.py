@@ -8,7 +8,10 @@ Mailbox counters are kept separately and always (``Mailbox.statistics()``).
 
 Subscribers are callbacks (called synchronously; they must not block) or
 bounded channels (`Trace.open_channel`; a full channel drops and counts).
-`JsonLinesRecorder` writes events as JSON lines.
+`JsonLinesRecorder` writes events as JSON lines. A *message tap*
+(`Trace.tap_messages`) is the cheap way to watch every message: it is handed
+the message object itself, with no ``repr`` and no `TraceEvent` made, which
+is what a console's live log needs at thousands of messages a second.
 
 The trace hash (`Trace.hexdigest`) is a BLAKE2b digest of every event made
 (per-message events only with ``Trace(per_message=True)``, not when a
@@ -36,6 +39,7 @@ __all__ = [
     "TraceEvent",
     "Trace",
     "Subscription",
+    "MessageTap",
     "JsonLinesRecorder",
     "seed_trio_scheduler",
 ]
@@ -80,17 +84,23 @@ class TraceEvent:
                 f"{self.message}|{self.depth}|{self.detail}")
 
 
+#: A message tap's callback: ``(time [s], kind, queue, message, depth [messages])``.
+MessageTap = Callable[[float, EventKind, str, Any, int], Any]
+
+
 class Subscription:
     """A subscriber's handle; `close` detaches it."""
 
-    __slots__ = ("_trace", "callback", "per_message", "receives", "_counter")
+    __slots__ = ("_trace", "callback", "per_message", "receives", "tap", "_counter")
 
-    def __init__(self, trace: Trace, callback: Callable[[TraceEvent], Any], per_message: bool,
-                 receives: bool = True):
+    def __init__(self, trace: Trace, callback: Callable[..., Any], per_message: bool,
+                 receives: bool = True, tap: bool = False):
         self._trace = trace
         self.callback = callback
         self.per_message = per_message
         self.receives = receives
+        self.tap = tap
+        """A message tap (`Trace.tap_messages`): raw messages only, no events."""
         self._counter: _DropCounter | None = None  # channel subscriptions only
 
     @property
@@ -118,6 +128,8 @@ class Trace:
         self.per_message_receive: bool = per_message
         """True when ``receive`` events are being made too (read on the hot path)."""
         self._subs: list[Subscription] = []
+        self._taps: tuple[Subscription, ...] = ()  # message taps, read on the hot path
+        self._event_per_message = per_message  # some per-message TraceEvent is wanted
         self._hash = hashlib.blake2b(digest_size=16)
         self._bucket_time: float | None = None
         self._bucket: list[str] = []
@@ -136,6 +148,24 @@ class Trace:
         is made for it (a message log needs one line per message, not two).
         """
         sub = Subscription(self, callback, per_message, receives)
+        self._subs.append(sub)
+        self._refresh()
+        return sub
+
+    def tap_messages(self, callback: MessageTap, *, receives: bool = False) -> Subscription:
+        """Call ``callback(time, kind, queue, message, depth)`` for every message sent.
+
+        The cheapest way to watch every message: no `TraceEvent` and no
+        ``repr`` is made for a tap (an event subscriber costs both per
+        message), and taps never change the trace hash. ``message`` is the
+        object itself: a tap that keeps it must treat it as read-only and
+        format it later (the firmware's `Message` is frozen). ``time`` is
+        Trio's clock [s], ``depth`` the queue depth after the send
+        [messages]. ``receives=True`` also calls it (kind ``receive``) for
+        every message taken from a mailbox. Drops are not tapped: they are
+        ordinary ``drop`` events (`subscribe`).
+        """
+        sub = Subscription(self, callback, True, receives, tap=True)
         self._subs.append(sub)
         self._refresh()
         return sub
@@ -165,11 +195,27 @@ class Trace:
         self.per_message = self._always_per_message or any(s.per_message for s in self._subs)
         self.per_message_receive = self._always_per_message or any(
             s.per_message and s.receives for s in self._subs)
+        self._taps = tuple(s for s in self._subs if s.tap)
+        self._event_per_message = self._always_per_message or any(
+            s.per_message and not s.tap for s in self._subs)
 
     # ---------------------------------------------------------------- events
     def emit(self, kind: EventKind, actor: str, queue: str = "", message: Any = None,
-             depth: int = 0, detail: str = "") -> TraceEvent:
-        """Make an event now (Trio's current time) and deliver it (``message`` as its repr)."""
+             depth: int = 0, detail: str = "") -> TraceEvent | None:
+        """Make an event now (Trio's current time) and deliver it (``message`` as its repr).
+
+        Returns:
+            The event, or None for a per-message event that only message taps
+            wanted (they get the message itself and no event is made).
+        """
+        if self._taps and kind in PER_MESSAGE:
+            now = trio.current_time()
+            receive = kind is EventKind.RECEIVE
+            for tap in self._taps:
+                if not receive or tap.receives:
+                    tap.callback(now, kind, queue, message, depth)
+            if not self._event_per_message:
+                return None
         event = TraceEvent(trio.current_time(), kind, actor, queue,
                            "" if message is None else repr(message), depth, detail)
         self.count += 1
@@ -183,7 +229,8 @@ class Trace:
             self._bucket.append(event.key())
         receive = kind is EventKind.RECEIVE
         for sub in tuple(self._subs):
-            if per_message and (not sub.per_message or (receive and not sub.receives)):
+            if sub.tap or (per_message and (
+                    not sub.per_message or (receive and not sub.receives))):
                 continue
             sub.callback(event)
         return event

@@ -150,3 +150,96 @@ def test_a_sends_only_subscriber_gets_no_receive_events() -> None:
     sends_only, both = run(main)
     assert sends_only.count(EventKind.SEND) == 2 and EventKind.RECEIVE not in sends_only
     assert both.count(EventKind.SEND) == 1 and both.count(EventKind.RECEIVE) == 1
+
+
+class Frozen:
+    """A message whose repr is counted (a tap must never ask for it)."""
+
+    reprs = 0
+
+    def __repr__(self) -> str:
+        Frozen.reprs += 1
+        return "Frozen()"
+
+
+def test_a_message_tap_gets_the_message_itself_and_no_event_is_made() -> None:
+    """A tap sees every send as (time, kind, queue, object, depth) with no repr and no
+    TraceEvent; event subscribers still get lifecycle events; closing stops the tap."""
+    class Sink(Actor):
+        async def handle(self, message) -> None:
+            pass
+
+    async def main() -> tuple[list, list, int]:
+        tapped: list = []
+        events: list = []
+        async with open_actor_system(seed=1) as system:
+            trace = system.trace
+            system.trace.subscribe(lambda e: events.append(e.kind))
+            await system.start_supervisor(SupervisorSpec([ChildSpec("a", Sink)]))
+            count = trace.count
+            sub = trace.tap_messages(lambda *args: tapped.append(args))
+            assert trace.per_message and not trace.per_message_receive
+            message = Frozen()
+            await trio.sleep(2)
+            system.send_nowait("a", message)
+            await trio.sleep(1)
+            made = trace.count - count
+            sub.close()
+            assert not trace.per_message
+            system.send_nowait("a", Frozen())
+            await trio.sleep(1)
+        return tapped, events, made
+
+    Frozen.reprs = 0
+    tapped, events, made = run(main)
+    assert len(tapped) == 1
+    time, kind, queue, message, depth = tapped[0]
+    assert (time, kind, queue, depth) == (2.0, EventKind.SEND, "a", 1)
+    assert isinstance(message, Frozen) and Frozen.reprs == 0
+    assert made == 0 and EventKind.SEND not in events and EventKind.START in events
+
+
+def test_a_tap_asking_for_receives_gets_both_and_events_are_made_only_for_subscribers() -> None:
+    """``receives=True`` taps receives too; an event subscriber beside a tap still gets
+    its TraceEvents (with the repr), the tap its objects."""
+    async def main() -> tuple[list, list]:
+        trace = Trace()
+        tapped: list = []
+        events: list = []
+        trace.tap_messages(lambda t, kind, q, m, d: tapped.append((kind, m)), receives=True)
+        assert trace.per_message_receive
+        assert trace.emit(EventKind.SEND, "a", "a", 7, 1) is None
+        assert trace.emit(EventKind.RECEIVE, "a", "a", 7, 0) is None
+        trace.subscribe(lambda e: events.append((e.kind, e.message)), per_message=True,
+                        receives=False)
+        trace.emit(EventKind.SEND, "a", "a", 8, 1)
+        trace.emit(EventKind.RECEIVE, "a", "a", 8, 0)
+        return tapped, events
+
+    tapped, events = run(main)
+    assert tapped == [(EventKind.SEND, 7), (EventKind.RECEIVE, 7), (EventKind.SEND, 8),
+                      (EventKind.RECEIVE, 8)]
+    assert events == [(EventKind.SEND, "8")]
+
+
+def test_a_tap_does_not_change_the_trace_hash() -> None:
+    """Watching every message with a tap leaves the run's hash as it was."""
+    def hashed(tap: bool) -> str:
+        seed_trio_scheduler(5)
+
+        async def main() -> str:
+            trace = Trace()
+            seen: list = []
+            if tap:
+                trace.tap_messages(lambda *args: seen.append(args))
+            spec = SupervisorSpec([ChildSpec("a", lambda: Pinger("b")),
+                                   ChildSpec("b", lambda: Pinger("a"))], intensity=100)
+            async with open_actor_system(seed=5, trace=trace) as system:
+                await system.start_supervisor(spec)
+                await trio.sleep(10)
+            assert (len(seen) > 50) == tap
+            return trace.hexdigest()
+
+        return run(main)
+
+    assert hashed(True) == hashed(False)

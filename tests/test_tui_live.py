@@ -164,7 +164,7 @@ def test_world_lag_is_within_a_tick_when_the_machine_keeps_up() -> None:
 
 
 def test_message_log_decodes_the_latest_lines_when_a_snapshot_asks() -> None:
-    """Traced sends become decoded log lines, numbered in order, at most MAX_LOG_LINES,
+    """Tapped sends become decoded log lines, numbered in order, at most MAX_LOG_LINES,
     DROP marked; lines scrolled out before a snapshot are never decoded."""
     from actors import EventKind, Message, TraceEvent
     from actors.firmware.commands import Cmd
@@ -173,9 +173,7 @@ def test_message_log_decodes_the_latest_lines_when_a_snapshot_asks() -> None:
     live = LiveSystem(load_scenario("empty"))
     moves = [Message.float(Cmd.MOTOR_MOVE, float(i)) for i in range(MAX_LOG_LINES + 10)]
     for m in moves:
-        live._on_trace(TraceEvent(1.0, EventKind.SEND, "hider/motor", "hider/motor", repr(m)))
-        live._on_trace(TraceEvent(1.0, EventKind.RECEIVE, "hider/motor", "hider/motor",
-                                  repr(m)))
+        live._on_message(1.0, EventKind.SEND, "hider/motor", m, 1)
     lines = live._log_lines()
     assert len(lines) == MAX_LOG_LINES
     assert [ln.seq for ln in lines] == list(range(11, MAX_LOG_LINES + 11))

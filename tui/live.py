@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import trio
 
-from actors import EventKind, TraceEvent
+from actors import EventKind, Message, TraceEvent
 from actors.firmware.commands import name_of
 from server.export import write_pgm, write_png
 from server.links import LinkSpec
@@ -67,6 +67,14 @@ def _decode(message: str) -> str:
     if m is None:
         return message[:80]
     return f"{name_of(int(m.group(1)))} {m.group(2)}"
+
+
+def describe(message: Any) -> str:
+    """A log line's text for a message object: ``MOTOR_MOVE 12.5`` for the firmware's
+    `Message`, else its repr (at most 80 characters)."""
+    if type(message) is Message:
+        return f"{name_of(message.command)} {message.value!r}"
+    return repr(message)[:80]
 
 
 class LiveSystem(QueuedController):
@@ -118,9 +126,10 @@ class LiveSystem(QueuedController):
         self._log_messages = log_messages
         self._system: SimSystem | None = None
         self._log: deque[LogLine] = deque(maxlen=MAX_LOG_LINES)
-        # messages as traced, decoded into `_log` only when a snapshot shows them: most
-        # scroll out between two frames, and decoding each costs the simulation time
-        self._raw_log: deque[TraceEvent] = deque(maxlen=MAX_LOG_LINES)
+        # messages as tapped (time, queue, message object, dropped), decoded into `_log`
+        # only when a snapshot shows them: most scroll out between two frames, and
+        # decoding each costs the simulation time
+        self._raw_log: deque[tuple[float, str, Any, bool]] = deque(maxlen=MAX_LOG_LINES)
         self._decoded_seq = 0
         self._timeline: deque[TimelineEvent] = deque(maxlen=MAX_TIMELINE)
         self._log_seq = 0
@@ -144,8 +153,10 @@ class LiveSystem(QueuedController):
             async with open_sim_system(self.scenario, seed=self.seed, store=store,
                                        roles=roles) as system:
                 self._system = system
-                system.actors.trace.subscribe(self._on_trace, per_message=self._log_messages,
-                                              receives=False)
+                trace = system.actors.trace
+                trace.subscribe(self._on_trace)  # lifecycle events and drops
+                if self._log_messages:
+                    trace.tap_messages(self._on_message)  # every send, cheaply
                 events = system.server.subscribe()
                 self._event("game", f"{self.scenario.name}: system started (seed {self.seed})")
                 await self._attach_remote(system)
@@ -286,10 +297,16 @@ class LiveSystem(QueuedController):
         self._event_seq += 1
         self._timeline.append(TimelineEvent(self._event_seq, trio.current_time(), kind, text))
 
+    def _on_message(self, time: float, kind: EventKind, queue: str, message: Any,
+                    depth: int) -> None:
+        """A message tap (`actors.Trace.tap_messages`): runs for every message sent."""
+        self._log_seq += 1
+        self._raw_log.append((time, queue, message, False))
+
     def _on_trace(self, event: TraceEvent) -> None:
-        if event.kind in (EventKind.SEND, EventKind.DROP):
+        if event.kind is EventKind.DROP:
             self._log_seq += 1
-            self._raw_log.append(event)
+            self._raw_log.append((event.time, event.queue, event.message, True))
             return
         if event.kind in _LIFECYCLE:
             if event.kind in (EventKind.CRASH, EventKind.HUNG, EventKind.KILLED):
@@ -301,11 +318,10 @@ class LiveSystem(QueuedController):
         """The message log, decoding what was traced since the last snapshot."""
         first = self._log_seq - len(self._raw_log) + 1  # seq of the oldest raw entry
         for i in range(max(self._decoded_seq + 1, first), self._log_seq + 1):
-            event = self._raw_log[i - first]
-            text = _decode(event.message)
-            if event.kind is EventKind.DROP:
-                text = "DROP overflow " + text
-            self._log.append(LogLine(i, event.time, event.actor, event.queue, text))
+            time, queue, message, dropped = self._raw_log[i - first]
+            # a drop is a trace event: its message is a repr already
+            text = "DROP overflow " + _decode(message) if dropped else describe(message)
+            self._log.append(LogLine(i, time, queue, queue, text))
         self._decoded_seq = self._log_seq
         return tuple(self._log)
 
