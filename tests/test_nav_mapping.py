@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 import trio
 
-from actors import BufferPool, open_actor_system
+from actors import BufferPool, Message, open_actor_system
+from actors.firmware.commands import Cmd
+from actors.firmware.lidar import LidarHealth
 from actors.firmware.nav_mapping import MappingOptions
 from actors.firmware.occupancy import UNKNOWN, GridMap
 from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
@@ -83,9 +85,14 @@ async def test_homing_disabled_uploads_where_the_mapper_stands(autojump_clock) -
         assert math.hypot(body.pose.x, body.pose.y) > 50.0
 
 
+def _motions(body: Body) -> int:
+    return sum(c in ("MOTOR_MOVE", "MOTOR_TURN") for c, _ in body.motor_log)
+
+
 @pytest.mark.trio
 async def test_stalled_lidar_never_reads_as_complete(autojump_clock) -> None:
-    """No scans arriving (LIDAR dead): no upload even though the map does not change."""
+    """No scans arriving (LIDAR dead): no upload even though the map does not change, and
+    the rover holds still (no Command A) saying the LIDAR is silent."""
     truth = Truth(**ROOM)
     body = Body(truth=truth)
     pool = BufferPool(256)
@@ -95,9 +102,80 @@ async def test_stalled_lidar_never_reads_as_complete(autojump_clock) -> None:
         assert await wait_for(lambda: body.frames("status")
                               and body.frames("status")[-1].data["state"] == "exploring", 30.0)
         body.lidar_on = False  # the LIDAR stalls: no more scans
-        await trio.sleep(60.0)
+        await trio.sleep(5.0)  # silence is noticed, a motion in flight ends
+        moved = _motions(body)
+        await trio.sleep(50.0)
         assert not any(c == "WIFLY_SEND_MAP" for c, _ in body.sent)
-        assert body.frames("status")[-1].data["state"] == "exploring"
+        assert _motions(body) == moved
+        last = body.frames("status")[-1].data
+        assert last["state"] == "lidar_fault" and "silent" in last["detail"]
+
+
+@pytest.mark.trio
+async def test_silent_lidar_pause_ends_when_scans_return(autojump_clock) -> None:
+    """A LIDAR silent for 10 s: the rover holds still, then explores on to an upload."""
+    truth = Truth(**ROOM)
+    body = Body(truth=truth)
+    pool = BufferPool(256)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("mapper", body, pool), "mapper")
+        await net(system, pool, "mapper", "start")
+        await trio.sleep(8.0)
+        body.lidar_on = False
+        await trio.sleep(3.0)
+        moved = _motions(body)
+        await trio.sleep(7.0)
+        assert _motions(body) == moved
+        body.lidar_on = True
+        assert await wait_for(lambda: any(c == "WIFLY_SEND_MAP" for c, _ in body.sent), 600.0)
+        assert _motions(body) > moved
+        details = [f.data.get("detail", "") for f in body.frames("status")]
+        assert any(d.startswith("LIDAR recovered after") for d in details)
+
+
+@pytest.mark.trio
+async def test_lidar_fault_verdict_holds_the_rover_until_healthy(autojump_clock) -> None:
+    """NAV_LIDAR_HEALTH stuck: no Command A while it lasts (scans still counted), and
+    exploring goes on after NAV_LIDAR_HEALTH ok."""
+    truth = Truth(**ROOM)
+    body = Body(truth=truth)
+    pool = BufferPool(256)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("mapper", body, pool), "mapper")
+        await net(system, pool, "mapper", "start")
+        await trio.sleep(8.0)
+        await system.send("mapper/nav", Message.int(Cmd.NAV_LIDAR_HEALTH, LidarHealth.STUCK))
+        await trio.sleep(3.0)
+        moved = _motions(body)
+        assert body.frames("status")[-1].data["detail"].startswith("LIDAR stuck")
+        await trio.sleep(20.0)
+        assert _motions(body) == moved
+        await system.send("mapper/nav", Message.int(Cmd.NAV_LIDAR_HEALTH, LidarHealth.OK))
+        await trio.sleep(5.0)
+        assert _motions(body) > moved
+
+
+@pytest.mark.trio
+async def test_lidar_fault_outlasting_the_pause_is_driven_through(autojump_clock) -> None:
+    """A fault longer than ``lidar_pause_s``: the rover holds that long, then drives on."""
+    truth = Truth(**ROOM)
+    body = Body(truth=truth)
+    pool = BufferPool(256)
+    options = MappingOptions(lidar_pause_s=20.0)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("mapper", body, pool, mapping=options),
+                                      "mapper")
+        await net(system, pool, "mapper", "start")
+        await trio.sleep(8.0)
+        await system.send("mapper/nav", Message.int(Cmd.NAV_LIDAR_HEALTH, LidarHealth.NOISY))
+        await trio.sleep(3.0)
+        moved = _motions(body)
+        await trio.sleep(15.0)
+        assert _motions(body) == moved
+        await trio.sleep(10.0)
+        assert _motions(body) > moved
+        details = [f.data.get("detail", "") for f in body.frames("status")]
+        assert "LIDAR still faulty after 20 s: driving on" in details
 
 
 @pytest.mark.trio

@@ -73,6 +73,9 @@ class Cmd(enum.IntEnum):
     NAV_MAP_LOST = 0x020B
     """Map Management restarted with an empty grid; navigation may answer MAP_RESTORE
     with the last `GridMap` it received. Value unused."""
+    NAV_LIDAR_HEALTH = 0x020C
+    """LIDAR Control's verdict on its sensor changed; value int32, a `lidar.LidarHealth`
+    (0 healthy; otherwise the fault seen: scans are withheld until it is healthy again)."""
 
     # -- LIDAR queue -------------------------------------------------------
     LIDAR_SAMPLE = 0x0300

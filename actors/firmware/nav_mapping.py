@@ -42,6 +42,17 @@ Complete when both hold (either alone can lie)
       rising (a stalled LIDAR gives no scans, so it never reads as done).
     Or when the server says ``stop``, or after ``budget_s`` of mapping.
 
+A faulty LIDAR (why: a map drawn while it fails has phantom or missing obstacles)
+    LIDAR Control withholds the scans of a sensor it judges faulty and says so
+    (``NAV_LIDAR_HEALTH``: garbled, stuck, noisy); a dead one sends nothing, which
+    shows here as a scan count that stops rising for ``lidar_silent_s`` while
+    the LIDAR should be scanning. Either way navigation holds still (MOTOR_STOP;
+    driving blind is what distorted the maps: no obstacle check, no scan matching)
+    and reports ``lidar_fault`` in its status. It goes on once the verdict is
+    healthy again and scans are counted again, with a fresh route and a fresh
+    stable window; a fault that outlasts ``lidar_pause_s`` is driven through
+    (once per ``lidar_pause_s``): the budget, not the fault, ends mapping.
+
 Restart
     The new incarnation asks Map Management for a snapshot (MAP_GET) and Motor
     Control for the pose. Only navigation starts the LIDAR, so scans still
@@ -56,6 +67,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import trio
@@ -65,6 +77,7 @@ from actors.firmware.clearance import obstacle_ahead
 from actors.firmware.commands import Cmd
 from actors.firmware.devices import HardwareSpec
 from actors.firmware.frontier import Frontier, choose_frontier, find_frontiers
+from actors.firmware.lidar import LidarHealth
 from actors.firmware.nav_common import (
     Motion,
     NavBase,
@@ -129,6 +142,13 @@ class MappingOptions:
     """Home counts as reached this close to the start [cm]."""
     home_blocks: int = 3
     """Blocked motions on the way home before uploading from where the rover is."""
+    lidar_silent_s: float = 1.5
+    """No scan counted for this long while scanning: the LIDAR is silent (dead or
+    garbled), and navigation holds still [s]. Map Management publishes the count every
+    0.25 s while scans arrive."""
+    lidar_pause_s: float = 60.0
+    """Hold still for a LIDAR fault at most this long, then drive on regardless for as
+    long before holding again [s]."""
     min_gain_share: float = 0.003
     """...or fewer than this share of the cells already known (a big hall's ragged far
     edges give a few dozen cells per visit for ever). Counted per visit, not per
@@ -177,6 +197,22 @@ class MappingNav(NavBase):
         self._last_wait_decide = -math.inf
         self._finish_reason = ""
         self._home_deadline = math.inf
+        self.lidar_fault: LidarHealth | None = None
+        """The LIDAR fault navigation holds still for, None while driving normally."""
+        self.lidar_faults = 0
+        """LIDAR faults held still for (this incarnation)."""
+        self._lidar_verdict = LidarHealth.OK  # LIDAR Control's last verdict
+        self._scan_rise_at = -math.inf  # trio time the scan count last rose
+        self._pause_started = -math.inf
+        self._pause_off_until = -math.inf  # a fault that outlasted lidar_pause_s: drive on
+        self._scans_at_pause = 0
+
+    # ------------------------------------------------------------------ dispatch
+    async def handle(self, message: Any) -> Any:
+        if isinstance(message, Message) and message.command == Cmd.NAV_LIDAR_HEALTH:
+            await self.on_lidar_health(int(message.value))
+            return None
+        return await super().handle(message)
 
     # ------------------------------------------------------------------ lifecycle
     async def on_restart(self) -> None:
@@ -205,6 +241,8 @@ class MappingNav(NavBase):
         self._started_at = now
         self._scans_at_start = self.scans
         self._changed_at, self._scans_at_change = now, self.scans
+        self._scan_rise_at = now  # the LIDAR spins up: silence counts from here
+        self.lidar_fault = None
         self.ex = _Exploration()
         await self.post(self.lidar, Message.float(Cmd.LIDAR_START, self.m.lidar_duty))
         if resumed:
@@ -246,6 +284,8 @@ class MappingNav(NavBase):
             self.scans = count
             await self._begin(trio.current_time(), resumed=True)
             return
+        if count > self.scans:
+            self._scan_rise_at = trio.current_time()
         self.scans = count
         if self.state == "scanning":
             await self._maybe_explore()
@@ -255,15 +295,67 @@ class MappingNav(NavBase):
             await self.set_state("exploring", "frontier exploration")
             await self.decide()
 
+    # ------------------------------------------------------------------ LIDAR faults
+    async def on_lidar_health(self, value: int) -> None:
+        """LIDAR Control's verdict changed (``NAV_LIDAR_HEALTH``): hold still at once."""
+        try:
+            self._lidar_verdict = LidarHealth(value)
+        except ValueError:
+            self.counters["bad_frames"] += 1
+            return
+        await self._lidar_watch(trio.current_time())
+
+    async def _lidar_watch(self, now: float) -> bool:
+        """Begin or end holding still for a faulty LIDAR; True while holding.
+
+        See "A faulty LIDAR" in the module docstring."""
+        if self.state not in ("scanning", "exploring", "homing"):
+            self.lidar_fault = None
+            return False
+        m = self.m
+        silent = now - self._scan_rise_at >= m.lidar_silent_s
+        if self.lidar_fault is None:
+            fault = self._lidar_verdict if self._lidar_verdict != LidarHealth.OK else (
+                LidarHealth.SILENT if silent else None)
+            if fault is None or now < self._pause_off_until:
+                return False
+            self.lidar_fault = fault
+            self.lidar_faults += 1
+            self._pause_started = now
+            self._scans_at_pause = self.scans
+            if self.moving:
+                await self.stop_motor()
+            await self.status("lidar_fault",
+                              f"LIDAR {fault.name.lower()}: holding still until it recovers")
+            return True
+        healthy = (self._lidar_verdict == LidarHealth.OK and not silent
+                   and self.scans > self._scans_at_pause)
+        if not healthy and now - self._pause_started < m.lidar_pause_s:
+            return True
+        if healthy:
+            why = f"LIDAR recovered after {now - self._pause_started:.1f} s"
+        else:
+            why = f"LIDAR still faulty after {m.lidar_pause_s:.0f} s: driving on"
+            self._pause_off_until = now + m.lidar_pause_s
+        self.lidar_fault = None
+        # what was planned before may have been planned on a map the fault spoiled
+        self._changed_at, self._scans_at_change = now, self.scans
+        self.ex.follower = None
+        self._wait_map = True
+        self._last_wait_decide = -math.inf
+        await self.status(self.state, why)
+        return False
+
     # ------------------------------------------------------------------ ticks
     async def on_tick(self, now: float) -> None:
         if self.state == "uploading" and now >= self._upload_deadline:
             await self._upload()
             return
+        holding = await self._lidar_watch(now)
         if self.state == "homing":
             if now >= self._home_deadline:
                 await self._finish(self._finish_reason + "; home not reached in time")
-            elif not self.moving:
+            elif not self.moving and not holding:
                 await self._home_step()
             return
         if self.state not in ("exploring", "scanning"):
@@ -271,7 +363,7 @@ class MappingNav(NavBase):
         if now - self._started_at >= self.m.budget_s:
             await self._finish(f"time budget of {self.m.budget_s:.0f} s used")
             return
-        if self.state == "exploring" and not self.moving:
+        if self.state == "exploring" and not self.moving and not holding:
             if self.complete(now):
                 await self._finish("no reachable frontier left and the map is stable",
                                    home=True)
@@ -284,16 +376,17 @@ class MappingNav(NavBase):
 
     def complete(self, now: float) -> bool:
         """Both completion conditions: no useful frontier, and a stable map while scanning."""
-        return (self.ex.no_frontier
+        return (self.ex.no_frontier and self.lidar_fault is None
                 and now - self._changed_at >= self.m.stable_window_s
                 and self.scans - self._scans_at_change >= self.m.stable_scans)
 
     # ------------------------------------------------------------------ exploring
     async def after_motion(self, blocked: bool, done: float) -> None:
         if self.state == "homing":
-            await self._after_home_motion(blocked)
+            if self.lidar_fault is None:
+                await self._after_home_motion(blocked)
             return
-        if self.state != "exploring":
+        if self.state != "exploring" or self.lidar_fault is not None:
             return
         if blocked:
             self.ex.blocks += 1
@@ -310,7 +403,8 @@ class MappingNav(NavBase):
 
     async def decide(self) -> None:
         """One ADP decision: keep or choose a frontier, then command one motion."""
-        if self.state != "exploring" or self.moving or self.grid is None:
+        if self.state != "exploring" or self.moving or self.grid is None \
+                or self.lidar_fault is not None:
             return
         if not self.can_move:
             self._wait_map = True  # the tick tries again
@@ -484,7 +578,8 @@ class MappingNav(NavBase):
 
     async def _home_step(self) -> None:
         """One ADP step home; uploads once home, or when home cannot be reached."""
-        if self.state != "homing" or self.moving or not self.can_move:
+        if self.state != "homing" or self.moving or not self.can_move \
+                or self.lidar_fault is not None:
             return
         ex = self.ex
         pose = self.pose
