@@ -25,7 +25,14 @@ Method
     touching with the other side of the body is almost as cheap and the
     stalled side is not known, the contact is ambiguous (a gap missed to the
     left or to the right looks alike) and is reported so, for the caller not
-    to act on it.
+    to act on it. "Almost as cheap" is relative to how far dead reckoning may be
+    off: the caller passes ``ambiguity_cm`` (it grows with the distance driven
+    since the pose was last known) and ``other_shift_cm``, a sideways window
+    wider than the one corrections are taken from, in which the other side is
+    looked for. Why: at a gap's edge the true pose may lie beyond the
+    correction window (measured: 20 cm off after 6 m of seeking); the
+    cheapest candidate inside it is then the wrong edge, and acting on it
+    pushed dead reckoning further off on every block.
 
     The stalled side comes from the heading change during a straight move: the
     tread on the touching side is held, the other one drives on, so the body
@@ -94,7 +101,8 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
                    shift_step_cm: float = 1.0, along_step_cm: float = 2.0,
                    turn_step_deg: float = 1.0, along_weight: float = 0.5,
                    turn_weight: float = 1.5, tol_cm: float | None = None,
-                   ambiguity_cm: float = 3.0) -> Contact | None:
+                   ambiguity_cm: float = 3.0,
+                   other_shift_cm: float | None = None) -> Contact | None:
     """The pose nearest ``pose`` at which the body touches a mapped wall ahead.
 
     Args:
@@ -111,6 +119,9 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
             default half a cell.
         ambiguity_cm: a cheapest explanation on the other side within this much
             cost makes the contact ambiguous (when ``side`` is 0) [cm].
+        other_shift_cm: the sideways window searched for that other-side
+            explanation [cm]; default (and at least) ``max_shift_cm``. The
+            returned pose always lies within ``max_shift_cm``.
 
     Returns:
         The cheapest explaining `Contact` (zero corrections when the
@@ -127,13 +138,14 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
     res = grid.resolution_cm
     tol = 0.5 * res if tol_cm is None else float(tol_cm)
     half_l, half_w = 0.5 * length_cm, 0.5 * width_cm
-    reach = math.hypot(half_l + res, half_w + tol) + max_shift_cm + max_along_cm + res
+    wide = max(max_shift_cm, other_shift_cm if other_shift_cm is not None else 0.0)
+    reach = math.hypot(half_l + res, half_w + tol) + wide + max_along_cm + res
     near = occupied_near(grid, pose, reach)
     if near is None:
         return None
     _, _, fx, fy = near  # occupied cells in the dead-reckoned body frame [cm]
 
-    s = _grid_axis(max_shift_cm, shift_step_cm)
+    s = _grid_axis(wide, shift_step_cm)
     u = _grid_axis(max_along_cm, along_step_cm)
     a = _grid_axis(max_turn_deg, turn_step_deg)
     S, U, A = np.meshgrid(s, u, a, indexing="ij")
@@ -149,10 +161,12 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
     band = (bx >= half_l - tol) & (bx <= half_l + res) & (np.abs(by) <= half_w + tol)
     if side:
         band &= (by * direction * side) > 0
-    ok = ~inside.any(axis=1) & band.any(axis=1)
+    explains = ~inside.any(axis=1) & band.any(axis=1)
+    ok = explains & (np.abs(S) <= max_shift_cm + 1e-9)
     if not ok.any():
         return None
     cost = np.abs(S) + along_weight * np.abs(U) + turn_weight * np.abs(A)
+    any_cost = np.where(explains, cost, np.inf)
     cost = np.where(ok, cost, np.inf)
     best = int(np.argmin(cost))
     # the side of the body each candidate touches with: +1 left, -1 right, 0 both (head-on)
@@ -161,7 +175,7 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
     touch = left.astype(int) - right.astype(int)
     ambiguous = False
     if side == 0 and touch[best] != 0:
-        other = np.where(touch == -touch[best], cost, np.inf)
+        other = np.where(touch == -touch[best], any_cost, np.inf)
         ambiguous = bool(other.min() <= cost[best] + ambiguity_cm)
     sb, ub, ab = float(S[best]), float(U[best]), float(A[best])
     ch, sh = math.cos(pose.heading_rad), math.sin(pose.heading_rad)

@@ -105,7 +105,15 @@ class NavOptions:
     replan_limit: int = 10
     """Replans after being blocked before a route is given up."""
     nudge_step_cm: float = 4.0
-    """Lateral step of the search for a narrow passage missed by dead reckoning [cm]."""
+    """Lateral step of the search for a narrow passage missed by dead reckoning [cm]; it
+    grows with the drift (`NavBase.drift_cm`) to at most ``nudge_step_max_cm``."""
+    nudge_step_max_cm: float = 8.0
+    """Largest lateral step of that search [cm]: below the free width a 35 cm gap leaves
+    a 15 cm wide body (20 cm), so the offsets tried leave no hole between them."""
+    drift_per_cm: float = 0.04
+    """How far dead reckoning may be off sideways per cm driven since the pose was last
+    known (start, or a contact correction) [cm/cm]: measured 10-20 cm after 3-6 m of
+    hiding or seeking in the gap room (turns are resolved to about 2 deg)."""
     max_nudges: int = 6
     """Sideways offsets tried per route, at most."""
     nudge_reach_cm: float = 50.0
@@ -361,6 +369,8 @@ class NavBase(Actor):
         self.counters: dict[str, int] = {"dropped": 0, "bad_frames": 0, "blocked": 0,
                                          "timeouts": 0, "motions": 0, "nudges": 0,
                                          "contacts": 0}
+        self.driven_cm = 0.0
+        """Distance driven since the pose was last known (start, origin, correction) [cm]."""
         self._xy_mm: tuple[int, int] | None = None
         self._motion: Motion | None = None
         self.last_motion: Motion | None = None
@@ -482,6 +492,8 @@ class NavBase(Actor):
         self.last_motion = motion
         self.motion_from = self.map_pose
         self.counters["motions"] += 1
+        if motion.kind == "move":
+            self.driven_cm += abs(motion.amount)
         nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \
             else abs(motion.amount) / 90.0
         self._motion_deadline = trio.current_time() + self.o.motion_timeout_s + nominal
@@ -508,6 +520,11 @@ class NavBase(Actor):
 
     async def after_motion(self, blocked: bool, done: float) -> None:
         """Hook: the motion ended (``blocked`` when the motor gave up) and the pose is fresh."""
+
+    @property
+    def drift_cm(self) -> float:
+        """How far the dead-reckoned pose may be off sideways now [cm] (at least 3)."""
+        return max(3.0, self.o.drift_per_cm * self.driven_cm)
 
     # ------------------------------------------------------------------ timer
     async def _on_tick(self) -> None:
@@ -555,6 +572,7 @@ class NavBase(Actor):
         elif cmd == "origin":
             self.origin = Pose(data.x, data.y, data.heading)
             self.memory.origin = (data.x, data.y, data.heading)
+            self.driven_cm = 0.0
         elif cmd == "destination":
             await self.on_destination(data.x, data.y, data.heading)
 
@@ -860,16 +878,19 @@ class RouteNav(NavBase):
         dx, dy, cx, cy = self._nudge
         reach = self.o.nudge_reach_cm
         near = [i < len(pts) - 1 and math.dist(q, (cx, cy)) <= reach for i, q in enumerate(pts)]
+        # an offset within the drift may put the point in a mapped wall: dead reckoning
+        # is that far off, so the wall may well be where the rover can pass
+        free = math.hypot(dx, dy) <= self.drift_cm
         if any(near):
             out = [(x + dx, y + dy) if n else (x, y) for (x, y), n in zip(pts, near, strict=True)]
-            ok = all(self._fits(*q) for q, n in zip(out, near, strict=True) if n)
+            ok = free or all(self._fits(*q) for q, n in zip(out, near, strict=True) if n)
             return out if ok else None
         h = math.radians(self._anchor[2])
         ahead = (cx + reach * math.cos(h) + dx, cy + reach * math.sin(h) + dy)
         to_goal = math.dist((cx, cy), pts[-1])
         if to_goal <= reach or math.dist(ahead, pts[-1]) >= to_goal:
             return pts  # the goal is near, or ahead of the block leads away from it
-        return [ahead, *pts] if self._fits(*ahead) else None
+        return [ahead, *pts] if free or self._fits(*ahead) else None
 
     def _fits(self, x: float, y: float) -> bool:
         """(x, y) [cm] is on free ground of the server's map. Not more: the offset must
@@ -900,10 +921,11 @@ class RouteNav(NavBase):
         if self._nudges == 0:  # a new series: first toward the side that helped last
             self._nudge_first = 1.0 if self._nudge_off >= 0 else -1.0
         first = self._nudge_first
+        step = min(self.o.nudge_step_max_cm, max(self.o.nudge_step_cm, self.drift_cm / 3.0))
         while self._nudges < self.o.max_nudges:
             k = self._nudges
             self._nudges += 1
-            off = self.o.nudge_step_cm * (k // 2 + 1) * (first if k % 2 == 0 else -first)
+            off = step * (k // 2 + 1) * (first if k % 2 == 0 else -first)
             self._nudge = (-math.sin(h) * off, math.cos(h) * off, bx, by)
             self._nudge_off = off
             if self._plan():
@@ -959,10 +981,13 @@ class RouteNav(NavBase):
         p = self.map_pose
         direction = 1 if m.amount > 0 else -1
         side = stalled_side(angle_diff_deg(p.heading_deg, start.heading_deg), direction)
+        drift = min(self.drift_cm, 3.0 * self.o.contact_max_shift_cm)
         c = locate_contact(self.map, p, length_cm=self.length_cm, width_cm=self.width_cm,
                            direction=direction, side=side,
                            max_shift_cm=self.o.contact_max_shift_cm,
-                           max_turn_deg=self.o.contact_max_turn_deg)
+                           max_turn_deg=self.o.contact_max_turn_deg,
+                           ambiguity_cm=drift,
+                           other_shift_cm=self.o.contact_max_shift_cm + drift)
         if c is None or c.ambiguous or not c.needed or \
                 self._contact_shift + abs(c.shift_cm) > self.o.contact_max_shift_cm:
             return False
@@ -1006,6 +1031,7 @@ class RouteNav(NavBase):
         """
         origin = compose(target, inverse(self.pose))
         self.origin = origin
+        self.driven_cm = 0.0
         self.memory.origin = (origin.x, origin.y, origin.heading_deg)
 
     async def _give_up(self, reason: str) -> None:
