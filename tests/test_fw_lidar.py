@@ -2,13 +2,23 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.lidar import LidarControl, Scan
+from actors.firmware.devices import Interrupt
+from actors.firmware.lidar import (
+    HealthOptions,
+    LidarControl,
+    LidarHealth,
+    Scan,
+    batch_health,
+    roughness_cm,
+)
 from supervisors import ChildSpec, SupervisorSpec
 
 from .test_fw_motor import FakeHardware
@@ -98,3 +108,118 @@ async def test_a_noop_flood_is_ignored_not_a_crash(autojump_clock) -> None:
         await trio.sleep(0.01)
         assert [c for c, _ in log] == [Cmd.MAP_SCAN]
         assert [c.restarts for c in tree.which_children() if c.id == "lidar"] == [0]
+
+
+# ---------------------------------------------------------------------- LIDAR health
+
+def _frames(angles_cdeg, ranges_cm) -> bytes:
+    """Data Packet A frames (devices.py) for the ISR."""
+    out = bytearray()
+    for a, d in zip(angles_cdeg, ranges_cm, strict=True):
+        a0, a1, d0, d1 = a & 0xFF, a >> 8, d & 0xFF, d >> 8
+        out += bytes([0xA5, a0, a1, d0, d1, a0 ^ a1 ^ d0 ^ d1])
+    return bytes(out)
+
+
+def _wall(start_deg: int, n: int = 100) -> tuple[list[int], list[int]]:
+    """A sweep of ``n`` samples 1 deg apart at a flat wall 150 cm ahead of angle 0."""
+    deg = [(start_deg + i) % 360 for i in range(n)]
+    ranges = [round(min(150.0 / max(math.cos(math.radians(d)), 0.3), 500.0) / 2) * 2
+              for d in deg]
+    return [d * 100 for d in deg], ranges
+
+
+def test_roughness_of_a_flat_wall_is_the_quantum_and_noise_is_far_above() -> None:
+    """A flat wall's second difference stays at the 2 cm quantum; 5 cm noise lifts the
+    median above the 5 cm limit."""
+    a, r = _wall(300)
+    angles = np.array(a) / 100.0
+    smooth, n = roughness_cm(angles, np.array(r, dtype=float))
+    assert n == 98 and smooth <= 2.0
+    rng = np.random.default_rng(7)
+    noisy, _ = roughness_cm(angles, np.array(r) + rng.normal(0.0, 5.0, len(r)))
+    assert noisy > HealthOptions().noise_limit_cm
+    assert roughness_cm(angles[:2], np.array(r[:2], dtype=float)) == (0.0, 0)
+
+
+@pytest.mark.parametrize(("angles", "ranges", "bad", "verdict"), [
+    (np.arange(100.0), np.full(100, 200.0), 0, LidarHealth.OK),
+    (np.full(100, 42.0), np.full(100, 200.0), 0, LidarHealth.STUCK),
+    (np.arange(100.0), 200.0 + 30.0 * (np.arange(100) % 2), 0, LidarHealth.NOISY),
+    (np.arange(100.0), np.full(100, 200.0), 40, LidarHealth.GARBLED),
+    (np.array([5.0]), np.array([900.0]), 3, LidarHealth.GARBLED),
+    (np.full(5, 42.0), np.full(5, 200.0), 0, LidarHealth.OK),  # too few to judge
+    (np.arange(350.0, 450.0) % 360, np.full(100, 200.0), 0, LidarHealth.OK),  # wraps
+], ids=["wall", "stuck", "noisy", "garbled", "stray-frame", "few", "wrap"])
+def test_batch_health_verdicts(angles, ranges, bad, verdict) -> None:
+    """Each fault has its signature; a healthy sweep across 0 deg is not stuck or rough."""
+    assert batch_health(angles, ranges, bad) == verdict
+
+
+def _health_tree(log: list, pool: BufferPool, hw: FakeHardware) -> SupervisorSpec:
+    return SupervisorSpec([ChildSpec("map", lambda: Recorder(log, pool)),
+                           ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("lidar", lambda: LidarControl(hw, pool), mailbox=1024)])
+
+
+async def _interrupt(system, hw: FakeHardware, data: bytes, heading: float = 0.0) -> None:
+    """One Int A with ``data``, then the pose of that tick."""
+    hw.handlers[int(Interrupt.INT_A)](data)
+    system.send_nowait("mapper/lidar", Message.pair(Cmd.LIDAR_POSE_XY, 0, 0))
+    system.send_nowait("mapper/lidar", Message.float(Cmd.LIDAR_POSE_HEADING, heading))
+    await trio.sleep(0.05)
+
+
+@pytest.mark.trio
+async def test_stuck_rotor_batches_are_withheld_until_it_turns_again(autojump_clock) -> None:
+    """Samples all at one angle: no scan from the first such batch on, navigation told
+    STUCK once; after ``recover_batches`` good sweeps it is told OK and scans flow."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(_health_tree(log, pool, hw), "mapper")
+        await system.send("mapper/lidar", Message.float(Cmd.LIDAR_START, 0.5))
+        await _interrupt(system, hw, _frames(*_wall(0)))
+        assert [c for c, _ in log] == [Cmd.MAP_SCAN]
+        for _ in range(5):
+            await _interrupt(system, hw, _frames([4200] * 100, [150] * 100))
+        assert [(c, v) for c, v in log[1:]] == [(Cmd.NAV_LIDAR_HEALTH, LidarHealth.STUCK)]
+        recover = HealthOptions().recover_batches
+        for i in range(recover - 1):
+            await _interrupt(system, hw, _frames(*_wall(i * 100)))
+        assert len(log) == 2  # good sweeps, but not yet enough of them
+        await _interrupt(system, hw, _frames(*_wall(0)))  # the last one needed is sent
+        assert sorted(c for c, _ in log[2:]) == [Cmd.NAV_LIDAR_HEALTH, Cmd.MAP_SCAN]
+        assert (Cmd.NAV_LIDAR_HEALTH, LidarHealth.OK) in log[2:]
+        assert pool.statistics().in_use == 0
+
+
+@pytest.mark.trio
+async def test_garbage_on_the_line_never_reaches_the_map(autojump_clock) -> None:
+    """Random bytes (and the odd frame they happen to form): nothing is integrated, and
+    navigation hears GARBLED once a stray frame comes through."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    rng = np.random.default_rng(3)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(_health_tree(log, pool, hw), "mapper")
+        await system.send("mapper/lidar", Message.float(Cmd.LIDAR_START, 0.5))
+        for _ in range(20):
+            junk = bytearray(rng.integers(0, 256, 600, dtype=np.uint8).tobytes())
+            junk += _frames([1000], [300])  # a frame that decodes among the garbage
+            await _interrupt(system, hw, bytes(junk))
+        assert Cmd.MAP_SCAN not in [c for c, _ in log]
+        assert log[0] == (Cmd.NAV_LIDAR_HEALTH, LidarHealth.GARBLED)
+
+
+@pytest.mark.trio
+async def test_noisy_ranges_are_withheld(autojump_clock) -> None:
+    """Range noise far above the calibrated 0.5 cm: no scan, navigation told NOISY."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    rng = np.random.default_rng(5)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(_health_tree(log, pool, hw), "mapper")
+        await system.send("mapper/lidar", Message.float(Cmd.LIDAR_START, 0.5))
+        for i in range(4):
+            a, r = _wall(i * 90)
+            r = [max(1, int(v + rng.normal(0.0, 10.0))) for v in r]
+            await _interrupt(system, hw, _frames(a, r))
+        assert log == [(Cmd.NAV_LIDAR_HEALTH, LidarHealth.NOISY)]

@@ -106,8 +106,8 @@ class HealthOptions:
     garbled_share: float = 0.25
     """A batch during which the ISR dropped more bad frames than this share of its
     samples (and at least ``garbled_min``) came over a garbled line."""
-    garbled_min: int = 3
-    """Fewest bad frames that can make a batch garbled."""
+    garbled_min: int = 1
+    """Fewest bad frames that can make a batch garbled (a healthy line has none)."""
     fault_batches: int = 2
     """Bad batches in a row that make the sensor faulty (one alone is only dropped)."""
     recover_batches: int = 20
@@ -326,6 +326,9 @@ class LidarControl(Actor):
             bad_frames = self._isr.bad_frames - self._bad_frames_seen
             self._bad_frames_seen = self._isr.bad_frames
         verdict = batch_health(angles, ranges, bad_frames, o)
+        if verdict == LidarHealth.OK and angles.size < o.min_samples:
+            # too few to judge (a stray frame among garbage?): not evidence of recovery
+            return self.health == LidarHealth.OK
         if verdict == LidarHealth.OK:
             self._good += 1
             self._bad = 0
