@@ -93,3 +93,23 @@ def test_bad_arguments_are_refused() -> None:
         locate_contact(GAP, Pose(390, 317.5, 0), direction=0, **BODY)
     with pytest.raises(ValueError, match="body size"):
         locate_contact(GAP, Pose(390, 317.5, 0), length_cm=0.0, width_cm=15.0)
+
+
+def test_the_other_edge_beyond_the_correction_window_makes_a_gap_contact_ambiguous() -> None:
+    """Dead reckoning 20 cm below the truth at the gap: the rover's left front touched the
+    upper wall's face (x = 400) while dead reckoning puts it 5 cm into the gap, 5 cm
+    above its lower edge. Inside the 14 cm window only the lower edge explains it (the
+    wrong one). Searching the other side 20 cm wider with an ambiguity as large as the
+    drift (20 cm) finds the upper face: ambiguous, so navigation does not act on it."""
+    dr = Pose(395.0, 312.5, 0.0)
+    narrow = locate_contact(GAP, dr, **BODY)
+    assert narrow is not None and not narrow.ambiguous and narrow.shift_cm < 0
+    wide = locate_contact(GAP, dr, ambiguity_cm=20.0, other_shift_cm=34.0, **BODY)
+    assert wide is not None and wide.ambiguous
+    assert abs(wide.shift_cm) <= 14.0  # the pose offered stays within the correction window
+
+
+def test_a_wider_search_alone_does_not_make_a_clear_contact_ambiguous() -> None:
+    """Nose against a plain wall face: the wider window finds no other edge to blame."""
+    c = locate_contact(GAP, Pose(388, 200, 0), ambiguity_cm=20.0, other_shift_cm=34.0, **BODY)
+    assert c is not None and not c.needed and not c.ambiguous

@@ -527,3 +527,31 @@ def test_a_block_in_a_narrow_passage_probes_sideways_at_once() -> None:
     nav.last_motion = Motion("move", -6.0)
     nav.pose = Pose(250.0, 100.0, 0.0)
     assert not nav._in_passage()  # a backoff blocked: not a scrape ahead
+
+
+def test_drift_grows_with_distance_driven_and_restarts_at_a_correction() -> None:
+    """Moves (not turns) add to the distance since the pose was known; a contact
+    correction makes it known again."""
+    nav = scraped_nav(0.0)
+    assert nav.drift_cm == 3.0  # the floor
+    nav.driven_cm = 500.0
+    assert nav.drift_cm == pytest.approx(500.0 * nav.o.drift_per_cm)
+    nav.correct_pose(Pose(300.0, 150.0, 0.0))
+    assert nav.driven_cm == 0.0 and nav.drift_cm == 3.0
+
+
+def test_after_a_long_drive_nudges_are_wider_and_may_enter_a_mapped_wall() -> None:
+    """5 m driven (20 cm of drift): the search steps 6.7 cm at a time, not 4, and a 20 cm
+    shift into the corridor's wall, refused right after the start, is tried: dead
+    reckoning may be that far off."""
+    pts = [(420.0, 150.0), (500.0, 60.0)]
+    nav = nudging_nav((250.0, 150.0, 0.0), 20.0)
+    assert nav._nudged(pts) is None
+    nav.driven_cm = 500.0
+    assert nav._nudged(pts) == [(300.0, 170.0), *pts]
+    nav = scraped_nav(0.0)
+    nav.driven_cm = 500.0
+    nav._last_block = (300.0, 150.0, 0.0)
+    nav.goal, nav.goal_heading = (600.0, 150.0), None
+    assert nav._probe_plan()
+    assert nav._nudge_off == pytest.approx(20.0 / 3.0)
