@@ -314,6 +314,8 @@ class OccupancyGrid:
         """Sensor model and thresholds."""
         self._log_odds = np.zeros((ny, nx), dtype=np.float32)
         self._hits = np.zeros((ny, nx), dtype=np.float32)
+        self._scratch = np.zeros(ny * nx, dtype=np.int32)  # `_distinct`'s work space
+        self._mark = np.zeros(ny * nx, dtype=bool)  # hit cells of a batch, cleared after use
         self.batches = 0
         """Batches integrated so far (one per `integrate` call with at least one ray)."""
         self.rays = 0
@@ -421,49 +423,80 @@ class OccupancyGrid:
         t = (np.arange(total) - np.repeat(first, n_samples)) * step
         fc = np.floor(px + cos[ray_of] * t).astype(np.int64)
         fr = np.floor(py + sin[ray_of] * t).astype(np.int64)
-        inside = (fc >= 0) & (fc < nx) & (fr >= 0) & (fr < ny)
-        free_flat = fr[inside] * nx + fc[inside]
+        free_flat = self._inside(fr, fc)
 
-        hc = np.floor(px + cos[has_hit] * length_c[has_hit]).astype(np.int64)
-        hr = np.floor(py + sin[has_hit] * length_c[has_hit]).astype(np.int64)
-        inside = (hc >= 0) & (hc < nx) & (hr >= 0) & (hr < ny)
-        hit_flat = hr[inside] * nx + hc[inside]
+        hx = px + cos[has_hit] * length_c[has_hit]  # hits [cells]
+        hy = py + sin[has_hit] * length_c[has_hit]
+        hit_idx = np.unique(self._inside(np.floor(hy).astype(np.int64),
+                                         np.floor(hx).astype(np.int64)))
+        free_idx = self._distinct(free_flat)
+        if hit_idx.size:  # a cell hit by a ray of the batch is not also cleared by another
+            mark = self._mark
+            mark[hit_idx] = True
+            free_idx = free_idx[~mark[free_idx]]
+            mark[hit_idx] = False
 
+        # one gather, the update, one scatter (every index is distinct)
         flat = self._log_odds.reshape(-1)
-        touched = np.zeros(flat.size, dtype=bool)
-        touched[free_flat] = True
-        touched[hit_flat] = False
-        free_idx = np.flatnonzero(touched)
-        hit_idx = np.unique(hit_flat)
+        n_free = free_idx.size
         idx = np.concatenate([free_idx, hit_idx])
-        before = self._classify(flat[idx])
-        flat[free_idx] += m.l_free
-        flat[hit_idx] += m.l_occ
-        flat[idx] = np.clip(flat[idx], m.l_min, m.l_max)
-        changed = int(np.count_nonzero(self._classify(flat[idx]) != before))
-        self._splat_hits(px + cos[has_hit] * length_c[has_hit],
-                         py + sin[has_hit] * length_c[has_hit])
+        vals = flat[idx]
+        was_free, was_occ = vals < m.free_threshold, vals > m.occ_threshold
+        vals[:n_free] += m.l_free
+        vals[n_free:] += m.l_occ
+        np.clip(vals, m.l_min, m.l_max, out=vals)
+        flat[idx] = vals
+        changed = int(np.count_nonzero((was_free != (vals < m.free_threshold))
+                                       | (was_occ != (vals > m.occ_threshold))))
+        self._splat_hits(hx, hy)
 
         self.batches += 1
         self.rays += int(angles.size)
         self.changed_total += changed
         return changed
 
+    def _distinct(self, flat_idx: np.ndarray) -> np.ndarray:
+        """The distinct values of ``flat_idx`` (cell indices), in no particular order.
+
+        Why not `np.unique`: it sorts (the rays of a batch give tens of thousands of
+        samples), and a mask over the whole grid costs a pass over every cell. Here
+        each sample writes its position into a scratch cell; whichever write of a cell
+        won, exactly one of that cell's samples reads its own position back.
+        """
+        pos = np.arange(flat_idx.size, dtype=np.int32)
+        scratch = self._scratch
+        scratch[flat_idx] = pos
+        return flat_idx[scratch[flat_idx] == pos]
+
+    def _inside(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Flat indices of the (row, col) cells that lie on the grid (the others dropped)."""
+        ny, nx = self._log_odds.shape
+        # a negative index reads as a huge unsigned one: one comparison per axis
+        inside = (rows.view(np.uint64) < ny) & (cols.view(np.uint64) < nx)
+        flat = rows * nx + cols
+        return flat if inside.all() else flat[inside]
+
     def _splat_hits(self, hx: np.ndarray, hy: np.ndarray) -> None:
         """Add each hit [cells] to the four nearest cell centres, bilinearly: the counts
         then keep where inside the cells the returns fell (a face on a cell edge
         splits its weight evenly between the cells on both sides)."""
-        ny, nx = self._hits.shape
         gx, gy = hx - 0.5, hy - 0.5
         c0 = np.floor(gx).astype(np.int64)
         r0 = np.floor(gy).astype(np.int64)
         fx, fy = gx - c0, gy - r0
-        flat = self._hits.reshape(-1)
-        for dr, dc, w in ((0, 0, (1 - fx) * (1 - fy)), (0, 1, fx * (1 - fy)),
-                          (1, 0, (1 - fx) * fy), (1, 1, fx * fy)):
-            r, c = r0 + dr, c0 + dc
-            ok = (r >= 0) & (r < ny) & (c >= 0) & (c < nx)
-            np.add.at(flat, r[ok] * nx + c[ok], w[ok])
+        ex, ey = 1 - fx, 1 - fy
+        r1, c1 = r0 + 1, c0 + 1
+        # the four corners in one ufunc.at call, in the order (0, 0), (0, 1), (1, 0),
+        # (1, 1): it adds in sequence, as four calls would (same float32 roundings)
+        rows = np.concatenate([r0, r0, r1, r1])
+        cols = np.concatenate([c0, c1, c0, c1])
+        weights = np.concatenate([ex * ey, fx * ey, ex * fy, fx * fy])
+        ny, nx = self._hits.shape
+        inside = (rows.view(np.uint64) < ny) & (cols.view(np.uint64) < nx)
+        flat = rows * nx + cols
+        if not inside.all():
+            flat, weights = flat[inside], weights[inside]
+        np.add.at(self._hits.reshape(-1), flat, weights)
 
     def _classify(self, log_odds: np.ndarray) -> np.ndarray:
         m = self.model
