@@ -1,13 +1,20 @@
 """Console cost: simulated-time throughput with the console attached vs headless,
 and key-to-actor latency.
 
-Run as ``python -m benchmarks.console [--quick] [--live SCENARIO]``. Both
-throughput runs use the fake system (`tui.fake.FakeSystem`), or with ``--live``
-the simulated system (`tui.live.LiveSystem`), at "as fast as possible" with the
-same script (map the room, start a new game, map again ...); the headless run is
-the baseline measured in the same process. "Attached" is the console in
-Textual's headless driver at 120x40: it lays out and renders every frame but
-writes to no terminal, so a real terminal adds the cost of output on top.
+Run as ``python -m benchmarks.console [--quick] [--live SCENARIO] [--tab TAB]``.
+Both throughput runs use the fake system (`tui.fake.FakeSystem`), or with
+``--live`` the simulated system (`tui.live.LiveSystem`), at "as fast as
+possible" with the same script (map the room, start a new game, map again ...);
+the headless run is the baseline measured in the same process. "Attached" is
+the console in Textual's headless driver at 120x40 showing tab ``TAB`` (queues
+by default): it lays out and renders every frame but writes to no terminal, so
+a real terminal adds the cost of output on top.
+
+Both runs are timed over the same stretch of the game, from simulated second
+``S0`` to ``S1`` (a task in Trio notes the wall and CPU time when the virtual
+clock passes each): a game's cost per simulated second varies by half between
+its phases, so timing each run for a fixed wall time compared different
+stretches of the game.
 
 Other processes on a shared machine take wall time from both runs unequally,
 so the ratio is also given per CPU second of this process (``process_time``),
@@ -22,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import functools
 import json
 import random
 import statistics
@@ -86,68 +94,98 @@ class Scripted:
             await trio.sleep(self.period_s)
 
 
-def fake_system():
+class Timed:
+    """Any console `System` plus a stopwatch: the wall and CPU time [s] when the
+    virtual clock passes each second of ``stretch`` (noted in Trio, so exactly
+    there whatever draws the screen)."""
+
+    def __init__(self, inner, stretch: tuple[float, float]) -> None:
+        self.inner = inner
+        self.clock = inner.clock
+        self.stretch = stretch
+        self.marks: list[tuple[float, float]] = []  # (perf_counter, process_time) [s]
+
+    def __getattr__(self, name: str):
+        return getattr(self.inner, name)
+
+    async def run(self, publish, requests) -> None:
+        async with trio.open_nursery() as nursery:
+            nursery.start_soon(self._stopwatch)
+            await self.inner.run(publish, requests)
+
+    async def _stopwatch(self) -> None:
+        for at in self.stretch:
+            await trio.sleep_until(at)
+            self.marks.append((time.perf_counter(), time.process_time()))
+
+    def rates(self) -> tuple[float, float]:
+        """Simulated seconds per wall second and per CPU second over the stretch."""
+        (w0, c0), (w1, c1) = self.marks
+        sim = self.stretch[1] - self.stretch[0]
+        return sim / (w1 - w0), sim / (c1 - c0)
+
+
+#: Simulated stretch [s] timed per system: about 3 s of wall time each, unloaded.
+FAKE_STRETCH = (20.0, 800.0)
+LIVE_STRETCH = (20.0, 140.0)
+
+
+def fake_system(stretch: tuple[float, float] = FAKE_STRETCH) -> Timed:
     """The default system under test."""
-    return ScriptedFake(speed=None)
+    return Timed(ScriptedFake(speed=None), stretch)
 
 
-def live_system(scenario: str):
+def live_system(scenario: str, stretch: tuple[float, float] = LIVE_STRETCH):
     """A factory for the simulated system on a scenario (imported only when asked)."""
     from tui.live import LiveSystem
     from world.scenario import load_scenario
 
     loaded = load_scenario(scenario)
-    return lambda: Scripted(LiveSystem(loaded, seed=1, speed=None, db=":memory:"), 300.0)
+    return lambda: Timed(Scripted(LiveSystem(loaded, seed=1, speed=None, db=":memory:"),
+                                  300.0), stretch)
 
 
-def headless(wall_s: float, make=fake_system) -> tuple[float, float]:
+def headless(make=fake_system) -> tuple[float, float]:
     """Simulated seconds per wall second and per CPU second, without the console."""
-    fake = make()
-    out = {}
+    timed = make()
 
     async def main() -> None:
         _, receive = trio.open_memory_channel[None](1)
         async with trio.open_nursery() as nursery:
-            nursery.start_soon(fake.run, lambda item: None, receive)
-            t0, c0, s0 = time.perf_counter(), time.process_time(), trio.current_time()
-            while time.perf_counter() - t0 < wall_s:
-                await trio.sleep(1.0)
-            sim = trio.current_time() - s0
-            out["rate"] = sim / (time.perf_counter() - t0), sim / (time.process_time() - c0)
+            nursery.start_soon(timed.run, lambda item: None, receive)
+            await trio.sleep_until(timed.stretch[1] + 1e-6)
             nursery.cancel_scope.cancel()
 
-    trio.run(main, clock=fake.clock)
-    return out["rate"]
+    trio.run(main, clock=timed.clock)
+    return timed.rates()
 
 
-async def _wait(cond, timeout: float = 10.0) -> None:
+async def _wait(cond, timeout: float = 10.0, poll_s: float = 0.001) -> None:
     deadline = time.perf_counter() + timeout
     while not cond():
         if time.perf_counter() > deadline:
             raise TimeoutError("the console did not respond")
-        await asyncio.sleep(0.001)
+        await asyncio.sleep(poll_s)
 
 
-def attached(wall_s: float, make=fake_system) -> tuple[float, float, float]:
-    """Simulated seconds per wall second and per CPU second with the console, and
-    snapshots shown per wall second."""
-    fake = make()
-    app = ConsoleApp(fake)
+def attached(make=fake_system, tab: str = "queues") -> tuple[float, float, float]:
+    """Simulated seconds per wall second and per CPU second with the console showing
+    ``tab``, and snapshots shown per wall second."""
+    timed = make()
+    app = ConsoleApp(timed)
     out = {}
 
     async def main() -> None:
         async with app.run_test(size=(120, 40)):
             await _wait(lambda: app.snapshot is not None)
-            s0, n0 = app.snapshot.time_s, app.snapshots_shown
-            t0, c0 = time.perf_counter(), time.process_time()
-            await asyncio.sleep(wall_s)
-            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-            sim = app.snapshot.time_s - s0
-            out["rate"] = (sim / wall, sim / cpu)
-            out["fps"] = (app.snapshots_shown - n0) / wall
+            app.action_tab(tab)
+            await _wait(lambda: len(timed.marks) >= 1, timeout=300.0)
+            n0, t0 = app.snapshots_shown, time.perf_counter()
+            await _wait(lambda: len(timed.marks) >= 2, timeout=300.0)
+            out["fps"] = (app.snapshots_shown - n0) / (time.perf_counter() - t0)
 
     asyncio.run(main())
-    return (*out["rate"], out["fps"])
+    return (*timed.rates(), out["fps"])
 
 
 def key_latency(speed: float | None, samples: int) -> list[float]:
@@ -185,23 +223,34 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
     parser.add_argument("--live", metavar="SCENARIO",
                         help="measure throughput on the simulated system with this scenario")
+    parser.add_argument("--tab", choices=("queues", "log", "tree", "events"), default="queues",
+                        help="the tab the console shows while measured (default queues)")
     args = parser.parse_args(argv)
-    make = live_system(args.live) if args.live else fake_system
-    wall_s, rounds, samples = (1.5, 3, 20) if args.quick else (3.0, 5, 100)
+    rounds, samples = (3, 20) if args.quick else (5, 100)
+    s0, s1 = LIVE_STRETCH if args.live else FAKE_STRETCH
+    stretch = (s0, s0 + (s1 - s0) / 3) if args.quick else (s0, s1)
+    if args.live:
+        try:
+            make = live_system(args.live, stretch)
+        except ValueError as exc:  # an unknown scenario (ScenarioError): no traceback
+            parser.error(str(exc))
+    else:
+        make = functools.partial(fake_system, stretch)
 
     # Alternate baseline and console runs and take medians, so a change in the
     # machine's load during the benchmark hits both sides alike.
     runs = []
     for _ in range(rounds):
-        base, base_cpu = headless(wall_s, make)
-        with_ui, with_ui_cpu, fps = attached(wall_s, make)
+        base, base_cpu = headless(make)
+        with_ui, with_ui_cpu, fps = attached(make, args.tab)
         runs.append((base, base_cpu, with_ui, with_ui_cpu, fps))
     med = [statistics.median(r[i] for r in runs) for i in range(5)]
     lat1 = key_latency(1.0, samples)
     latmax = key_latency(None, samples)
     figures = {
         "system": f"live:{args.live}" if args.live else "fake",
-        "wall_s_per_run": wall_s,
+        "tab": args.tab,
+        "sim_stretch_s": f"{stretch[0]:g}-{stretch[1]:g}",
         "rounds": rounds,
         "headless_sim_s_per_wall_s": round(med[0], 1),
         "console_sim_s_per_wall_s": round(med[2], 1),

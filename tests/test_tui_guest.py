@@ -90,3 +90,43 @@ def test_guest_starts_once_and_stop_before_start_is_harmless():
 def test_widgets_package_exports_its_public_names():
     """Every name in tui.widgets.__all__ exists."""
     assert all(hasattr(tui.widgets, name) for name in tui.widgets.__all__)
+
+
+def test_ready_trio_batches_run_back_to_back_yet_the_host_keeps_its_turns():
+    """Trio batches that are ready at once run in bursts (far fewer host-loop turns than
+    batches), and a Trio task that never blocks still leaves the host loop running."""
+    host_turns = 0
+    batches = 2000
+
+    async def main():
+        nonlocal host_turns
+        done = asyncio.Event()
+
+        async def trio_main():
+            for _ in range(batches):
+                await trio.lowlevel.checkpoint()  # one scheduler batch each
+            done.set()
+            while True:  # busy forever: never idle, never sleeping
+                await trio.lowlevel.checkpoint()
+
+        async def count_turns():
+            nonlocal host_turns
+            while not done.is_set():
+                host_turns += 1
+                await asyncio.sleep(0)
+
+        guest = TrioGuest()
+        counter = asyncio.ensure_future(count_turns())
+        guest.start(trio_main)
+        await asyncio.wait_for(done.wait(), 10.0)
+        await counter
+        # the host loop still runs while Trio is busy: a timer fires on time
+        t0 = asyncio.get_running_loop().time()
+        await asyncio.sleep(0.02)
+        late = asyncio.get_running_loop().time() - t0 - 0.02
+        await guest.stop()
+        return late
+
+    late = asyncio.run(main())
+    assert host_turns < batches / 4, host_turns
+    assert late < 0.5, late  # starved, it would never fire (bursts last BURST_S)
