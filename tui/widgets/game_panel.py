@@ -3,16 +3,17 @@
 Drawn as fixed lines that never wrap (long lines end in an ellipsis), so the
 panel's height depends only on the number of rovers and a new snapshot never
 needs a new layout: a layout of the whole screen costs tens of milliseconds.
+Only the lines that changed are repainted (`tui.widgets.text_lines`).
 """
 
 from __future__ import annotations
 
 from rich.text import Text
-from textual.widgets import Static
 
 from tui.snapshot import Snapshot
+from tui.widgets.text_lines import TextLines
 
-__all__ = ["GamePanel", "speed_text", "render_game"]
+__all__ = ["GamePanel", "speed_text", "render_game", "game_lines"]
 
 _PHASE_STYLE = {"found": "bold green", "not_found": "bold red", "mapping": "bold cyan"}
 
@@ -24,10 +25,18 @@ def speed_text(speed: float | None, paused: bool) -> str:
 
 
 def render_game(snap: Snapshot | None) -> Text:
+    """The panel for a snapshot as one text (`game_lines` joined)."""
+    out = Text("\n").join(game_lines(snap))
+    out.no_wrap = True
+    out.overflow = "ellipsis"
+    return out
+
+
+def game_lines(snap: Snapshot | None) -> list[Text]:
     """The panel's lines for a snapshot: phase and time; speed, guesses, faults;
     scenario and seed; one line per rover with pose [cm, deg] and link."""
     if snap is None:
-        return Text("waiting for the system…", style="dim")
+        return [Text("waiting for the system…", style="dim")]
     lines = [
         Text.assemble(("phase ", "dim"),
                       (snap.phase.replace("_", " "), _PHASE_STYLE.get(snap.phase, "bold")),
@@ -55,21 +64,20 @@ def render_game(snap: Snapshot | None) -> Text:
             if ln.lost or ln.resent or ln.bad_frames:
                 line.append(f" lost {ln.lost} re {ln.resent} bad {ln.bad_frames}", "yellow")
         lines.append(line)
-    out = Text("\n").join(lines)
-    out.no_wrap = True
-    out.overflow = "ellipsis"
-    return out
+    return lines
 
 
-class GamePanel(Static):
+class GamePanel(TextLines):
     """Redrawn from each snapshot."""
 
     DEFAULT_CSS = """
     GamePanel { height: auto; border: round $primary; padding: 0 1; }
     """
 
+    def on_mount(self) -> None:
+        if not self.lines:
+            self.set_lines(game_lines(None))
+
     def update_snapshot(self, snap: Snapshot) -> None:
         """Show a snapshot (a new layout only when the number of rovers changes)."""
-        rovers = len(snap.rovers)
-        self.update(render_game(snap), layout=rovers != getattr(self, "_rovers", None))
-        self._rovers = rovers
+        self.set_lines(game_lines(snap))

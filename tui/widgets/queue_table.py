@@ -1,18 +1,19 @@
 """Mailbox traffic: depth against capacity, rate and overflow drops, per rover.
 
-Drawn as one block of text rather than a `DataTable`: a DataTable re-renders
+Drawn as lines of text rather than a `DataTable`: a DataTable re-renders
 every cell through Textual's style machinery and, refreshed 15 times a second,
-cost more than the whole simulation at full speed (see ``benchmarks/console``).
+cost more than the whole simulation at full speed (see ``benchmarks/console``);
+only the lines that changed are repainted (`tui.widgets.text_lines`).
 """
 
 from __future__ import annotations
 
 from rich.text import Text
-from textual.widgets import Static
 
 from tui.snapshot import QueueStats
+from tui.widgets.text_lines import TextLines
 
-__all__ = ["QueueTable", "depth_bar", "short_name", "render_queues"]
+__all__ = ["QueueTable", "depth_bar", "short_name", "render_queues", "queue_lines"]
 
 
 def depth_bar(depth: int, capacity: int, width: int = 8) -> Text:
@@ -30,32 +31,30 @@ def short_name(name: str) -> str:
 
 
 def render_queues(queues: tuple[QueueStats, ...]) -> Text:
+    """The table as one text (`queue_lines` joined)."""
+    return Text("\n").join(queue_lines(queues))
+
+
+def queue_lines(queues: tuple[QueueStats, ...]) -> list[Text]:
     """A header line, then per rover its name and one line per mailbox:
     name, fill bar, depth/capacity, rate [msg/s], drops."""
-    out = Text.assemble(("mailbox  depth       msg/s   drop", "bold underline"))
+    out = [Text.assemble(("mailbox  depth       msg/s   drop", "bold underline"))]
     rover = None
     for q in queues:
         if q.rover != rover:
             rover = q.rover
-            out.append(f"\n{rover}", style="bold")
-        out.append(f"\n {short_name(q.name)[:7]:<7} ")
-        out.append_text(depth_bar(q.depth, q.capacity, width=4))
-        out.append(f" {q.depth:>3}/{q.capacity:<4} {q.rate_hz:>5.0f} ")
-        out.append(f"{q.drops:>6}", style="bold red" if q.drops else "")
+            out.append(Text(rover, style="bold"))
+        line = Text(f" {short_name(q.name)[:7]:<7} ")
+        line.append_text(depth_bar(q.depth, q.capacity, width=4))
+        line.append(f" {q.depth:>3}/{q.capacity:<4} {q.rate_hz:>5.0f} ")
+        line.append(f"{q.drops:>6}", style="bold red" if q.drops else "")
+        out.append(line)
     return out
 
 
-class QueueTable(Static):
+class QueueTable(TextLines):
     """Redrawn from each snapshot (put it in a scrolling container)."""
-
-    def __init__(self, *, name: str | None = None, id: str | None = None,
-                 classes: str | None = None) -> None:
-        super().__init__(name=name, id=id, classes=classes)
-        self._lines = 0
 
     def update_queues(self, queues: tuple[QueueStats, ...]) -> None:
         """Show these mailboxes (a new layout only when the number of lines changes)."""
-        text = render_queues(queues)
-        lines = len(queues) + len({q.rover for q in queues}) + 1
-        self.update(text, layout=lines != self._lines)
-        self._lines = lines
+        self.set_lines(queue_lines(queues))
