@@ -356,14 +356,17 @@ def game_from_ref(ref: str) -> tuple[Scenario, int, float]:
 
 # ---------------------------------------------------------------------------- dispatch order
 
-#: a game's expected CPU time per built-in room [s] (whole game, one core; measured, see
-#: docs/scaling.md "Dispatch order"); only the dispatch order reads it, so a stale figure
-#: costs the pool some balance at the end, never a different result
+#: a game's expected CPU time per built-in room [s] (whole campaign game, one core; games of
+#: campaigns 1 and 2 at commit f1f70c4, rounded: docs/scaling.md "Dispatch order"); only the
+#: dispatch order reads it, so a stale figure costs the pool some balance at the end, never
+#: a different result
 ROOM_CPU_S: dict[str, float] = {
-    "empty": 3.0, "l_shaped": 6.0, "corridor": 6.0, "gap": 7.0, "round": 10.0,
-    "cluttered": 16.0, "hall": 25.0, "furniture": 25.0,
+    "empty": 4.0, "corridor": 8.0, "round": 12.0, "gap": 12.0, "l_shaped": 12.0,
+    "cluttered": 16.0, "furniture": 25.0, "hall": 30.0,
 }
 #: generated rooms (and rooms missing above): expected CPU time per m² of free floor [s]
+#: (the built-in rooms' median; a generated campaign has only generated rooms, so only the
+#: proportion to floor area matters)
 _CPU_S_PER_FREE_M2 = 0.5
 #: games ordered together; the blocks follow index order, so a campaign stopped early
 #: (``--max-wall``) has played about a prefix of its games and planning stays bounded
