@@ -71,3 +71,57 @@ def test_fit_view_picks_the_finest_zoom_that_shows_the_extent(extent, size, zoom
         assert ((extent[2] - extent[0]) / finer > size[0]
                 or (extent[3] - extent[1]) / finer > 2 * size[1])
     assert centre == ((extent[0] + extent[2]) / 2, (extent[1] + extent[3]) / 2)
+
+
+@pytest.mark.parametrize("zoom", [0, 3, 6, 9])
+@pytest.mark.parametrize("with_truth", [False, True], ids=["map", "truth"])
+def test_pixel_classes_per_cell_codes_match_sampling_every_point(monkeypatch, zoom, with_truth):
+    """The fast path (classify each cell once, max of codes) draws exactly what
+    classifying every sample point and taking the most significant draws."""
+    import asyncio
+
+    from textual.app import App, ComposeResult
+
+    from tui.snapshot import Snapshot
+    from tui.widgets import map_view
+    from tui.widgets.map_view import MapView
+
+    rng = np.random.default_rng(zoom)
+    cells = rng.choice(np.array([-1, 0, 100], np.int8), size=(60, 80), p=[0.3, 0.5, 0.2])
+    truth = rng.choice(np.array([0, 100], np.int8), size=(60, 80), p=[0.7, 0.3])
+    snap = Snapshot(0.0, 1.0, False, "test", 0, "mapping",
+                    map=GridView(cells, 5.0, (-200.0, -150.0)),
+                    truth=GridView(truth, 5.0, (-200.0, -150.0)))
+
+    class MapApp(App):
+        def compose(self) -> ComposeResult:
+            yield MapView()
+
+    async def main() -> tuple[np.ndarray, np.ndarray]:
+        app = MapApp()
+        async with app.run_test(size=(50, 20)) as pilot:
+            view = app.query_one(MapView)
+            view.update_snapshot(snap)
+            view.auto_fit = False
+            view.zoom = zoom
+            view.show_truth = with_truth
+            view.center = (13.0, -7.0)
+            await pilot.pause()
+            fast = view.pixel_classes()
+            monkeypatch.setattr(map_view, "_same_raster", lambda a, b: False)
+            view.snapshot = Snapshot(0.0, 1.0, False, "test", 0, "mapping", map=None)
+            none = view.pixel_classes()
+            view.snapshot = snap
+            if not with_truth:  # the general path samples the map alone when truth is off
+                view.show_truth = True
+                view.snapshot = Snapshot(0.0, 1.0, False, "test", 0, "mapping", map=snap.map,
+                                         truth=GridView(np.zeros((1, 1), np.int8), 1.0,
+                                                        (1e6, 1e6)))
+            slow = view.pixel_classes()
+            assert (none == 0).all()
+            return fast, slow
+
+    fast, slow = asyncio.run(main())
+    assert fast.shape == slow.shape and fast.shape[0] > 10
+    assert len(np.unique(fast)) >= 2
+    np.testing.assert_array_equal(fast, slow)

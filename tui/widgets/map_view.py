@@ -39,6 +39,8 @@ _COLOURS = ("#161616", "#4a4a4a", "#e0e0e0", "#d040ff", "#e07020", "#c8a000", "#
             "#283c64")
 #: Which sample wins when a pixel covers several cells (index = class).
 _RANK = np.array([0, 2, 5, 4, 3, 0, 0, 1], np.int8)
+#: A class with its rank above it (rank * 8 + class): the largest code wins.
+_CODE = (_RANK.astype(np.uint8) << 3) | np.arange(8, dtype=np.uint8)
 _ROVER_COLOURS = {"mapper": "#40d0ff", "hider": "#40ff60", "seeker": "#ff60ff"}
 _ARROWS = "→↗↑↖←↙↓↘"
 
@@ -70,6 +72,12 @@ def classify_values(map_val: np.ndarray | None, true_val: np.ndarray | None,
         out[(true_val == OCCUPIED) & (map_val == FREE)] = _MISSED
         out[(true_val == FREE) & (map_val == OCCUPIED)] = _FALSE
     return out
+
+
+def _same_raster(a: GridView, b: GridView) -> bool:
+    """Whether two grids share cells one for one (shape, origin and resolution)."""
+    return (a.cells.shape == b.cells.shape and a.origin_cm == b.origin_cm
+            and a.resolution_cm == b.resolution_cm)
 
 
 def _sample(grid: GridView, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
@@ -328,20 +336,30 @@ class MapView(Widget, can_focus=True):
             self._samples = (key, *np.broadcast_arrays(gx, gy), {})
         _, gx, gy, indexers = self._samples
 
-        def values(g: GridView | None) -> np.ndarray | None:
-            # sample positions depend only on the view and the grid's geometry: cached
-            if g is None:
-                return None
-            gkey = (g.cells.shape, g.origin_cm, g.resolution_cm)
-            if gkey not in indexers:
-                indexers[gkey] = _indexer(g, gx, gy)
-            return _gather(g, indexers[gkey])
+        n_samples = k * k
+        if grid is not None and (truth is None or _same_raster(grid, truth)):
+            # Classify each cell once, then pick per pixel the most significant of its
+            # samples as the largest code (rank above class): one gather and one max.
+            cells = classify_values(grid.cells, None if truth is None else truth.cells,
+                                    grid.cells.shape)
+            codes = np.append(_CODE[cells].reshape(-1), _CODE[_UNKNOWN])  # last: outside
+            index = self._sample_index(grid, indexers, gx, gy)
+            out = (codes[index].reshape(2 * h, w, n_samples).max(axis=2) & 7).astype(np.int8)
+        else:  # no map, or ground truth on another raster: sample both
 
-        cls = classify_values(values(grid), values(truth), gx.shape)
-        # significance: occupied/errors over free over unknown
-        rank = _RANK[cls]
-        best = rank.reshape(2 * h, w, k * k).argmax(axis=2)
-        out = np.take_along_axis(cls.reshape(2 * h, w, k * k), best[..., None], 2)[..., 0]
+            def values(g: GridView | None) -> np.ndarray | None:
+                if g is None:
+                    return None
+                gkey = ("raw", g.cells.shape, g.origin_cm, g.resolution_cm)
+                if gkey not in indexers:
+                    indexers[gkey] = _indexer(g, gx, gy)
+                return _gather(g, indexers[gkey])
+
+            cls = classify_values(values(grid), values(truth), gx.shape)
+            # significance: occupied/errors over free over unknown
+            rank = _RANK[cls]
+            best = rank.reshape(2 * h, w, n_samples).argmax(axis=2)
+            out = np.take_along_axis(cls.reshape(2 * h, w, n_samples), best[..., None], 2)[..., 0]
         if snap is None:
             return out
         for rover in snap.rovers:
@@ -352,6 +370,21 @@ class MapView(Widget, can_focus=True):
         if len(snap.lidar_points):
             self._plot(out, snap.lidar_points[:, 0], snap.lidar_points[:, 1], _LIDAR)
         return out
+
+    @staticmethod
+    def _sample_index(grid: GridView, indexers: dict, gx: np.ndarray,
+                      gy: np.ndarray) -> np.ndarray:
+        """Flat cell index of each sample point, the cell count where outside the grid
+        (cached: it depends only on the view and the grid's geometry)."""
+        key = (grid.cells.shape, grid.origin_cm, grid.resolution_cm)
+        index = indexers.get(key)
+        if index is None:
+            if len(indexers) > 8:  # a growing map changes geometry now and then
+                indexers.clear()
+            index = _indexer(grid, gx, gy)
+            index = np.where(index < 0, grid.cells.size, index).astype(np.intp)
+            indexers[key] = index
+        return index
 
     def _plot(self, out: np.ndarray, xs: np.ndarray, ys: np.ndarray, cls: int) -> None:
         h2, w = out.shape
