@@ -53,6 +53,17 @@ def _to_float32(value: float) -> float:
     return _F32.unpack(_F32.pack(value))[0]
 
 
+def _checked(cls: type, command: int, vtype: int, value: int | float) -> Message:
+    """A Message whose fields the caller has already checked (and rounded): the
+    constructors' fast path, which skips ``__post_init__`` (firmware makes these by
+    the thousand per simulated minute)."""
+    m = object.__new__(cls)
+    _set(m, "command", command)
+    _set(m, "type", vtype)
+    _set(m, "value", value)
+    return m
+
+
 @dataclass(frozen=True, slots=True)
 class Message:
     """One internal message: ``command`` (uint32), ``type`` (uint32), ``value`` (32 bits).
@@ -100,16 +111,28 @@ class Message:
     @classmethod
     def int(cls, command: int, value: int) -> Message:
         """A signed 32-bit integer value."""
+        if isinstance(command, int) and type(command) is not bool and type(value) is int \
+                and 0 <= command <= _UINT32_MAX \
+                and _INT32_MIN <= value <= _INT32_MAX:
+            return _checked(cls, command, ValueType.INT32, value)
         return cls(command, ValueType.INT32, value)
 
     @classmethod
     def uint(cls, command: int, value: int) -> Message:
         """An unsigned 32-bit integer value."""
+        if isinstance(command, int) and type(command) is not bool and type(value) is int \
+                and 0 <= command <= _UINT32_MAX \
+                and 0 <= value <= _UINT32_MAX:
+            return _checked(cls, command, ValueType.UINT32, value)
         return cls(command, ValueType.UINT32, value)
 
     @classmethod
     def float(cls, command: int, value: float) -> Message:
         """A float32 value (stored rounded to float32)."""
+        if isinstance(command, int) and type(command) is not bool and type(value) is float \
+                and 0 <= command <= _UINT32_MAX \
+                and -_FLOAT32_MAX <= value <= _FLOAT32_MAX:
+            return _checked(cls, command, ValueType.FLOAT32, _to_float32(value))
         return cls(command, ValueType.FLOAT32, value)
 
     @classmethod

@@ -78,6 +78,11 @@ class Pose:
     """Heading, counter-clockwise from +x [deg], in [-180, 180)."""
 
     def __post_init__(self) -> None:
+        x, y, h = self.x, self.y, self.heading_deg
+        if type(x) is float and type(y) is float and type(h) is float \
+                and math.isfinite(x + y + h):  # the common case: three finite floats
+            object.__setattr__(self, "heading_deg", wrap_deg(h))
+            return
         for name in ("x", "y", "heading_deg"):
             value = getattr(self, name)
             if not isinstance(value, numbers.Real) or not math.isfinite(value):

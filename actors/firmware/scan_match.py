@@ -143,27 +143,40 @@ class OccupancyField:
         self.origin_cm = (origin_cm[0] - resolution_cm, origin_cm[1] - resolution_cm)
         """Lower-left corner of ``values``' cell [0, 0] [cm] (the border included)."""
         self.resolution_cm = resolution_cm
+        ny, nx = self.values.shape
+        self._nx = nx
+        # the four nodes around a point, as views: node i, i + 1, i + nx, i + nx + 1
+        self._right = self._flat[1:]
+        self._up = self._flat[nx:]
+        self._up_right = self._flat[nx + 1:]
+        self._node0 = np.array([[self.origin_cm[0] + 0.5 * resolution_cm],
+                                [self.origin_cm[1] + 0.5 * resolution_cm]])
+        self._node_max = np.array([[nx - 1.000001], [ny - 1.000001]])
 
     def sample(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bilinear value and gradient [1/cm] at points (x, y) [cm]; 0 outside the crop."""
+        return self.sample_xy(np.stack([np.asarray(x, dtype=np.float64),
+                                        np.asarray(y, dtype=np.float64)]))
+
+    def sample_xy(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`sample` of points stacked as rows x and y, (2, n) [cm]; ``xy`` is overwritten.
+
+        Both axes go through each numpy call at once: with about a hundred hits
+        per scan the calls' overhead, not the arithmetic, is the cost.
+        """
         inv = 1.0 / self.resolution_cm
-        ny, nx = self.values.shape
-        # cell centres are the interpolation nodes
-        gx = (x - (self.origin_cm[0] + 0.5 * self.resolution_cm)) * inv
-        gy = (y - (self.origin_cm[1] + 0.5 * self.resolution_cm)) * inv
-        np.clip(gx, 0.0, nx - 1.000001, out=gx)
-        np.clip(gy, 0.0, ny - 1.000001, out=gy)
-        c0 = gx.astype(np.int64)
-        r0 = gy.astype(np.int64)
-        fx = gx - c0
-        fy = gy - r0
-        i = r0 * nx + c0
-        f = self._flat
-        v00 = f[i]
-        a = f[i + 1] - v00
-        i += nx
-        v10 = f[i]
-        b = f[i + 1] - v10
+        # cell centres are the interpolation nodes: to node units, clamped to the crop
+        g = np.subtract(xy, self._node0, out=xy)
+        g *= inv
+        np.maximum(g, 0.0, out=g)
+        np.minimum(g, self._node_max, out=g)
+        cr = g.astype(np.int64)
+        frac = g - cr
+        fx, fy = frac[0], frac[1]
+        i = cr[1] * self._nx + cr[0]
+        v00, v10 = self._flat[i], self._up[i]
+        a = self._right[i] - v00
+        b = self._up_right[i] - v10
         top = v00 + a * fx
         vert = v10 + b * fx - top
         val = top + vert * fy
@@ -213,13 +226,15 @@ def _gauss_newton(field: OccupancyField, pts: np.ndarray, pose: np.ndarray, gues
     x, y, th = (float(v) for v in pose)
     gx0, gy0, gth0 = (float(v) for v in guess)
     px, py = pts[:, 0], pts[:, 1]
+    p = np.stack([px, py])  # the hits as rows x, y
+    q = np.stack([-py, px])  # turned a quarter: c p + s q is the hits rotated by theta
     lx, ly, lth = (float(v) for v in prior)
     dot = np.dot
     for _ in range(iterations):
         c, s = math.cos(th), math.sin(th)
-        rx = c * px - s * py  # the hits rotated, relative to the rover
-        ry = s * px + c * py
-        m, mx, my = field.sample(x + rx, y + ry)
+        rot = c * p + s * q  # the hits rotated, relative to the rover
+        rx, ry = rot[0], rot[1]
+        m, mx, my = field.sample_xy(rot + np.array([[x], [y]]))
         dth = my * rx - mx * ry
         r = 1.0 - m
         hxx, hxy, hxt = dot(mx, mx), dot(mx, my), dot(mx, dth)
