@@ -149,3 +149,17 @@ def test_each_failure_says_whether_the_faults_or_the_game_caused_it():
     assert s["failures_also_without_faults"] == 3
     by_index = {f["index"]: f for f in s["failures"]}
     assert by_index[3]["without_faults_violations"] == ["noloss.exactly_once: x"]
+
+
+def test_the_table_prints_each_failures_cause_and_what_broke_without_faults(capsys):
+    from tui import cmd_campaign  # noqa: PLC0415
+
+    results = [_result(1, outcome="not_found", baseline="found"),
+               _result(3, violations=("no_loss.lost: x",), baseline="found",
+                       baseline_violations=("no_loss.lost: x",))]
+    cmd_campaign._print_table(summarize(CampaignConfig(1), results, wall_s=1.0, workers=1))
+    out = capsys.readouterr().out
+    blocks = out.split("FAILED game ")[1:]
+    assert "cause: the faults" in blocks[0] and "without its faults: found\n" in blocks[0]
+    assert "cause: the game itself" in blocks[1]
+    assert "without its faults: found, broken: no_loss.lost: x" in blocks[1]
