@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from importlib import resources
 
+import numpy as np
 import trio
 
 from actors import seed_trio_scheduler, virtual_clock
 from server.store import Store
 from supervisors.system import open_sim_system
 from world.scenario import parse_scenario
+from world.world import World
 
 SCHEDULE = """
 [[faults]]
@@ -62,3 +64,18 @@ def test_scheduled_crash_hang_flood_on_device_named_actors_are_performed() -> No
     assert seen["exits"] == {"hider/motor": "crash", "mapper/lidar": "hung",
                              "seeker/wifly": "crash"}
     assert seen["device"] == [("hider/motor", "weak")]
+
+
+def test_next_actor_fault_time_follows_the_schedule_and_ends_with_none() -> None:
+    """A poller can sleep until the next scheduled actor fault and stop after the last."""
+    text = resources.files("world.scenarios").joinpath("empty.toml").read_text(encoding="utf-8")
+    world = World(parse_scenario(text + SCHEDULE, "empty+faults"), np.random.default_rng(1))
+    assert world.next_actor_fault_s() == 1.0  # the device fault at 3 s is not an actor's
+    while world.time < 1.6:
+        world.step()
+    assert [f.kind for f in world.actor_faults_due()] == ["crash", "hang"]
+    assert world.next_actor_fault_s() == 2.0
+    while world.time < 2.6:
+        world.step()
+    world.actor_faults_due()
+    assert world.next_actor_fault_s() is None

@@ -150,6 +150,12 @@ class World:
                                                      "params": f.params})
         return due
 
+    def next_actor_fault_s(self) -> float | None:
+        """World time [s] of the next scheduled actor fault not yet returned by
+        `actor_faults_due`, or None when none is left: a poller can sleep until then
+        instead of waking every tick."""
+        return min((f.at_s for f in self._actor_schedule), default=None)
+
     def statistics(self) -> dict[str, Any]:
         """Counters for the console: time, drops, link stats."""
         return {
