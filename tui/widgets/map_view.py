@@ -195,6 +195,7 @@ class MapView(Widget, can_focus=True):
         self._row_keys: list[tuple] = []  # what each drawn row showed, to refresh only changes
         self._samples: tuple | None = None  # (view key, xs, ys, {grid geometry: indexes})
         self._styles: dict[tuple, Style] = {}
+        self._code_styles: dict[int, Style] = {}  # top * 16 + bottom class -> style
 
     def validate_zoom(self, value: int) -> int:
         return max(0, min(len(ZOOMS_CM) - 1, value))
@@ -264,9 +265,13 @@ class MapView(Widget, can_focus=True):
     def _view_size(self) -> tuple[int, int]:
         return max(1, self.size.width), max(1, self.size.height)
 
-    def to_screen(self, x_cm: float, y_cm: float) -> tuple[int, int, int]:
-        """(column, row, half) of a map point: the character cell and which half (0 top)."""
-        w, h = self._view_size()
+    def to_screen(self, x_cm: float, y_cm: float,
+                  view: tuple[int, int] | None = None) -> tuple[int, int, int]:
+        """(column, row, half) of a map point: the character cell and which half (0 top).
+
+        ``view`` is the view's (width, height) when the caller has it (asking the
+        widget for its size costs more than the arithmetic)."""
+        w, h = view or self._view_size()
         s = self.scale
         px = math.floor((x_cm - self.center[0]) / s + w / 2)
         py = math.floor(h - (y_cm - self.center[1]) / s)  # pixel row from top, 2h rows
@@ -404,9 +409,10 @@ class MapView(Widget, can_focus=True):
         marks: dict[tuple[int, int], tuple[str, str]] = {}
         if snap is None:
             return marks
+        view = self._view_size()
 
         def put(x: float, y: float, char: str, colour: str) -> None:
-            col, row, _ = self.to_screen(x, y)
+            col, row, _ = self.to_screen(x, y, view)
             marks[(col, row)] = (char, colour)
 
         for i, (gx, gy) in enumerate(snap.seek_guesses):
@@ -426,42 +432,51 @@ class MapView(Widget, can_focus=True):
 
     def _render_frame(self) -> list[Strip]:
         """Strips for the whole view, one segment per run of equal cells (few segments
-        per line keeps Textual's per-segment work small)."""
-        w, h = self._view_size()
+        per line keeps Textual's per-segment work small). Rows that show exactly what
+        they showed last frame keep their strip."""
+        w, h = view = self._view_size()
         cls = self.pixel_classes().astype(np.int32)
         codes = cls[0::2] * 16 + cls[1::2]  # (h, w): top and bottom class of each cell
         overlays: list[tuple[str, Style]] = []
+        row_marks: dict[int, list[tuple[int, str, Style]]] = {}  # what each row overlays
+
+        def overlay(col: int, row: int, char: str, style: Style) -> None:
+            overlays.append((char, style))
+            codes[row, col] = 256 + len(overlays) - 1
+            row_marks.setdefault(row, []).append((col, char, style))
+
         for (col, row), (char, colour) in self.glyphs().items():
             if 0 <= col < w and 0 <= row < h:
                 bg = _COLOURS[cls[2 * row + 1, col]]
-                overlays.append((char, self._style(colour, bg, bold=True)))
-                codes[row, col] = 256 + len(overlays) - 1
-        ccol, crow, _ = self.to_screen(*self.cursor)
+                overlay(col, row, char, self._style(colour, bg, bold=True))
+        ccol, crow, _ = self.to_screen(*self.cursor, view)
         if 0 <= ccol < w and 0 <= crow < h:
-            overlays.append((heading_glyph(self.cursor_heading),
-                             self._style("#000000", "#ffff00", bold=True)))
-            codes[crow, ccol] = 256 + len(overlays) - 1
-        # Rows that show exactly what they showed last frame keep their strip.
+            overlay(ccol, crow, heading_glyph(self.cursor_heading),
+                    self._style("#000000", "#ffff00", bold=True))
         old_keys, old_lines = self._row_keys, self._lines or []
+        row_bytes = codes.tobytes()
+        stride = w * codes.itemsize
+        styles = self._code_styles
         lines = []
         keys = []
         for row in range(h):
-            line = codes[row]
-            key = (line.tobytes(), tuple(overlays[c - 256] for c in line[line >= 256]))
+            key = (row_bytes[row * stride:(row + 1) * stride], tuple(row_marks.get(row, ())))
             keys.append(key)
             if row < len(old_lines) and row < len(old_keys) and old_keys[row] == key:
                 lines.append(old_lines[row])
                 continue
-            starts = np.concatenate(([0], np.flatnonzero(np.diff(line)) + 1))
-            ends = np.append(starts[1:], w)
+            line = codes[row]
+            bounds = [0, *(np.flatnonzero(line[1:] != line[:-1]) + 1).tolist(), w]
             segs = []
-            for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
-                code = int(line[a])
+            for a, b, code in zip(bounds, bounds[1:], line[bounds[:-1]].tolist(), strict=False):
                 if code >= 256:
                     char, style = overlays[code - 256]
                     segs.append(Segment(char * (b - a), style))
                 else:
-                    style = self._style(_COLOURS[code >> 4], _COLOURS[code & 15])
+                    style = styles.get(code)
+                    if style is None:
+                        style = styles[code] = self._style(_COLOURS[code >> 4],
+                                                           _COLOURS[code & 15])
                     segs.append(Segment("▀" * (b - a), style))
             lines.append(Strip(segs, w))
         self._row_keys = keys
