@@ -55,6 +55,9 @@ __all__ = ["LiveSystem"]
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
 LAG_MAX_S = 0.5  # the world this far behind the clock: hold the clock [s]
 LAG_RESUME_S = 0.1  # ... until it is at most this far behind [s]
+#: Mailbox statistics, the supervision tree and the fault catalogue are rebuilt on
+#: every this many snapshots (the console draws those tables at a third of its rate).
+TABLES_EVERY = 3
 _MAP_MARGIN_CELLS = 20  # unknown border shown around the known map [cells]
 _MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?,.*?value=([^)]+)\)")
 _LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
@@ -141,6 +144,8 @@ class LiveSystem(QueuedController):
         self._truth_key: tuple | None = None
         self._mapper_room = Pose2(0, 0, 0)
         self._warned_behind = False
+        self._snapshots = 0  # snapshots built
+        self._tables: tuple[Any, Any, Any] | None = None  # (queues, tree, catalogue)
 
     # -- Trio side ----------------------------------------------------------------------
     async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
@@ -338,23 +343,27 @@ class LiveSystem(QueuedController):
 
     # -- snapshot -----------------------------------------------------------------------
     def snapshot(self) -> Snapshot:
-        """A whole picture of the system now."""
+        """A whole picture of the system now (its queues, tree and fault catalogue as of
+        at most `TABLES_EVERY` - 1 snapshots ago)."""
         system = self._system
         now = trio.current_time()
         if system is None:
             return Snapshot(now, self._speed, self._paused, self.scenario.name, self.seed, "idle")
         server = system.server.snapshot()
         grid = self._map_view(system)
+        if self._tables is None or self._snapshots % TABLES_EVERY == 0:
+            self._tables = (self._queues(system, now), self._tree(system),
+                            self._catalogue(system))
+        self._snapshots += 1
+        queues, tree, catalogue = self._tables
         return Snapshot(
             time_s=now, speed=self._speed, paused=self._paused, scenario=self.scenario.name,
             seed=self.seed, phase=server.phase, guesses=len(server.guesses), map=grid,
             truth=self._truth_view(grid), rovers=self._rovers(system, server),
             hide_spot=_pose(server.hide_spot),
             seek_guesses=tuple((g.x, g.y) for g in server.guesses),
-            queues=self._queues(system, now), log=self._log_lines(),
-            tree=self._tree(system), links=self._links(server),
-            timeline=tuple(self._timeline), faults=self._faults(system),
-            catalogue=self._catalogue(system))
+            queues=queues, log=self._log_lines(), tree=tree, links=self._links(server),
+            timeline=tuple(self._timeline), faults=self._faults(system), catalogue=catalogue)
 
     def _map_view(self, system: SimSystem) -> GridView | None:
         snap = system.mapper_grid()
