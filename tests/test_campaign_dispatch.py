@@ -159,6 +159,7 @@ def test_the_table_prints_each_failures_cause_and_what_broke_without_faults(caps
                        baseline_violations=("no_loss.lost: x",))]
     cmd_campaign._print_table(summarize(CampaignConfig(1), results, wall_s=1.0, workers=1))
     out = capsys.readouterr().out
+    assert "failures by cause: faults 1, game 1" in out
     blocks = out.split("FAILED game ")[1:]
     assert "cause: the faults" in blocks[0] and "without its faults: found\n" in blocks[0]
     assert "cause: the game itself" in blocks[1]

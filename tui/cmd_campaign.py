@@ -140,6 +140,9 @@ def _print_table(s: dict[str, Any]) -> None:
           f"games with broken invariants {s['games_with_violations']}; "
           f"success rate {100 * s['success_rate']:.1f} %; failures that fail without "
           f"their faults too {s['failures_also_without_faults']}")
+    if s.get("failures_by_cause"):
+        print("  failures by cause: " + ", ".join(f"{k} {v}" for k, v
+                                                  in s["failures_by_cause"].items()))
     print(f"  restarts {s['restarts']}, resent {s['resent']}, dropped {s['dropped']}; "
           f"determinism: {s['determinism']['replayed']} replayed, "
           f"{s['determinism']['mismatched']} mismatched")
