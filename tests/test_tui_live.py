@@ -183,3 +183,19 @@ def test_message_log_decodes_the_latest_lines_when_a_snapshot_asks() -> None:
     lines = live._log_lines()
     assert lines[-1].seq == MAX_LOG_LINES + 11 and lines[-1].text == "DROP overflow NOOP 0"
     assert lines[-2].text == f"MOTOR_MOVE {float(MAX_LOG_LINES + 9)}"
+
+
+def test_message_log_shows_other_objects_as_their_repr_and_only_new_lines_are_decoded() -> None:
+    """A tapped object that is not a firmware Message is shown as its repr (cut to 80
+    characters); lines decoded once are not decoded again."""
+    from actors import EventKind, Message
+    from actors.firmware.commands import Cmd
+
+    live = LiveSystem(load_scenario("empty"))
+    live._on_message(1.0, EventKind.SEND, "server/game", ("report", "x" * 100), 0)
+    first = live._log_lines()
+    assert first[-1].text == repr(("report", "x" * 100))[:80] and first[-1].actor == "server/game"
+    live._on_message(2.0, EventKind.SEND, "seeker/ir", Message.int(Cmd.NOOP, 3), 0)
+    second = live._log_lines()
+    assert [ln.seq for ln in second] == [1, 2] and second[0] is first[0]
+    assert (second[1].time_s, second[1].text) == (2.0, "NOOP 3")

@@ -15,6 +15,7 @@ import math
 import pathlib
 import re
 from collections import deque
+from itertools import islice
 from typing import Any
 
 import numpy as np
@@ -134,6 +135,7 @@ class LiveSystem(QueuedController):
         # decoding each costs the simulation time
         self._raw_log: deque[tuple[float, str, Any, bool]] = deque(maxlen=MAX_LOG_LINES)
         self._decoded_seq = 0
+        self._names: dict[int, str] = {}  # command code -> name, for the log
         self._timeline: deque[TimelineEvent] = deque(maxlen=MAX_TIMELINE)
         self._log_seq = 0
         self._event_seq = 0
@@ -321,12 +323,25 @@ class LiveSystem(QueuedController):
 
     def _log_lines(self) -> tuple[LogLine, ...]:
         """The message log, decoding what was traced since the last snapshot."""
-        first = self._log_seq - len(self._raw_log) + 1  # seq of the oldest raw entry
-        for i in range(max(self._decoded_seq + 1, first), self._log_seq + 1):
-            time, queue, message, dropped = self._raw_log[i - first]
-            # a drop is a trace event: its message is a repr already
-            text = "DROP overflow " + _decode(message) if dropped else describe(message)
-            self._log.append(LogLine(i, time, queue, queue, text))
+        raw = self._raw_log
+        first = self._log_seq - len(raw) + 1  # seq of the oldest raw entry
+        start = max(self._decoded_seq + 1, first)
+        names = self._names
+        append = self._log.append
+        # indexing a deque walks it: take the new entries from its end in one go
+        for i, (time, queue, message, dropped) in enumerate(
+                islice(raw, start - first, None), start):
+            if dropped:  # a drop is a trace event: its message is a repr already
+                text = "DROP overflow " + _decode(message)
+            elif type(message) is Message:
+                command = message.command
+                name = names.get(command)
+                if name is None:
+                    name = names[command] = name_of(command)
+                text = f"{name} {message.value!r}"
+            else:
+                text = repr(message)[:80]
+            append(LogLine(i, time, queue, queue, text))
         self._decoded_seq = self._log_seq
         return tuple(self._log)
 
