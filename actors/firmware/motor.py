@@ -3,7 +3,8 @@
 The seed's Motor Control thread. Navigation sends Command A (``MOTOR_MOVE``
 [cm], ``MOTOR_TURN`` [deg], ``MOTOR_STOP``); the motor counter ISR (Int E)
 posts ``MOTOR_TICK`` each time a tread went `HardwareSpec.cm_per_interrupt`;
-a self-timer posts ``MOTOR_CONTROL`` every control period.
+a self-timer posts ``MOTOR_CONTROL`` every control period while there is
+something to control (a command, an undelivered outcome, a pose to publish).
 
 Control law (per control period, per tread)
     Each command sets a target travel per tread (move: both ``d``; turn:
@@ -49,10 +50,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import trio
 
-from actors import Actor, ExitReason, Message
+from actors import Actor, ExitReason, Message, Timer
 
 from .commands import Cmd
 from .devices import Interrupt, RoverHardware, decode_counter
@@ -62,6 +64,7 @@ from .odometry import Pose, advance, compose
 __all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
 
 _INT16 = 32767
+_CONTROL = Message.uint(Cmd.MOTOR_CONTROL, 0)  # the control period's tick
 
 
 @dataclass(frozen=True, slots=True)
@@ -150,6 +153,7 @@ class MotorControl(Actor):
         self._outcome: Message | None = None  # a DONE/BLOCKED report navigation refused
         self._pending = [0.0, 0.0]  # tread travel not yet integrated into the pose [cm]
         self._correct_xy: tuple[float, float] | None = None  # first half of a correction
+        self._period: Timer | Any = None  # the control period's timer while it runs, else None
         self.commands = 0
         """Command A received (this incarnation)."""
 
@@ -168,8 +172,7 @@ class MotorControl(Actor):
             self.memory.active = False
             self._send(self._nav, Message.float(Cmd.NAV_MOTION_BLOCKED, 0.0))
         self._publish()
-        ctx.start_timer(self.tuning.period_s, Message.uint(Cmd.MOTOR_CONTROL, 0),
-                        interval=self.tuning.period_s)
+        self._pace()
 
     def _post(self, message: Message) -> bool:
         return self.ctx.system.send_nowait(self.ctx.name, message)
@@ -240,6 +243,24 @@ class MotorControl(Actor):
         self._integrate()
         if self._lidar_dirty:
             self._publish_lidar()
+        self._pace()
+
+    def _pace(self) -> None:
+        """Run the control period only while there is something to do: a command, an
+        outcome to deliver, or a pose to publish.
+
+        Why: an idle rover's motor ticking every period (the hider and the seeker
+        through all of mapping) made a fifth of a whole game's actor wake-ups. A
+        tick that arrives while idle (coasting, or pushed) starts the period again,
+        so the new pose is published one period later, as before.
+        """
+        busy = self._kind is not None or self._outcome is not None or self._pose_dirty
+        if busy and self._period is None:
+            period = self.tuning.period_s
+            self._period = self.ctx.start_timer(period, _CONTROL, interval=period)
+        elif not busy and self._period is not None:
+            self._period.cancel()
+            self._period = None
 
     def _publish(self) -> None:
         self._integrate()
