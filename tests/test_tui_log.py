@@ -83,3 +83,21 @@ def test_paused_log_collects_but_does_not_show_until_resumed():
         assert len(log.shown_text()) == 3
 
     run(test)
+
+
+def test_only_the_rows_on_screen_are_formatted_and_the_newest_stay_in_view():
+    """Thousands of lines: the view keeps at most HISTORY, follows the newest, and
+    formats only the rows it draws."""
+    from tui.widgets.message_log import HISTORY, LogView
+
+    async def test(log, pilot):
+        for start in range(1, 3001, 300):
+            log.add_lines(lines(*range(start, start + 300)))
+        await pilot.pause()
+        view = log.query_one(LogView)
+        assert len(view.rows) == HISTORY and view.rows[-1].seq == 3000
+        bottom = view.render_line(view.size.height - 1).text
+        assert bottom.split()[:3] == ["300.0", "mapper/motor", "MOTOR_MOVE"]
+        assert 0 < len(view._strips) <= 4 * view.size.height
+
+    run(test)

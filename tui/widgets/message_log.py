@@ -4,6 +4,11 @@ Lines arrive as a bounded tail in each snapshot; this widget appends the ones
 whose ``seq`` it has not seen (see `tui.snapshot`), keeps the newest
 `HISTORY` lines so a new filter can be applied to the past, and while paused
 keeps collecting without scrolling, so nothing is missed on resume.
+
+The lines are drawn by `LogView`, a line-API scroll view over the bounded
+list of matching lines that formats only the rows on screen: at full speed
+hundreds of lines arrive per frame, and rendering each one as it came (as
+`RichLog.write` does) cost more than the simulation itself.
 """
 
 from __future__ import annotations
@@ -13,15 +18,20 @@ from collections import deque
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
+from textual.geometry import Size
 from textual.reactive import reactive
-from textual.widgets import Input, RichLog
+from textual.scroll_view import ScrollView
+from textual.strip import Strip
+from textual.widgets import Input
 
 from tui.snapshot import LogLine
 
-__all__ = ["MessageLog", "HISTORY", "format_line"]
+__all__ = ["MessageLog", "LogView", "HISTORY", "format_line"]
 
 #: Lines kept for re-filtering and for the view.
 HISTORY = 2000
+#: Widest line the view scrolls to [cells] (longer lines are cut).
+MAX_WIDTH = 200
 
 
 def format_line(line: LogLine) -> Text:
@@ -33,13 +43,83 @@ def format_line(line: LogLine) -> Text:
                          (line.text, style))
 
 
+class LogView(ScrollView):
+    """The lines of the log, newest last; formats only the rows it draws.
+
+    ``follow``: keep the newest line in view as lines are added (unless the
+    person scrolled up, or the log is paused).
+    """
+
+    DEFAULT_CSS = """
+    LogView { height: 1fr; }
+    """
+
+    def __init__(self, *, name: str | None = None, id: str | None = None,
+                 classes: str | None = None) -> None:
+        super().__init__(name=name, id=id, classes=classes)
+        self.rows: deque[LogLine] = deque(maxlen=HISTORY)
+        """The lines shown (bounded), oldest first."""
+        self.follow = True
+        self._width = 0  # widest line added [cells]
+        self._strips: dict[int, Strip] = {}  # seq -> strip of the rows drawn lately
+
+    def add(self, lines: list[LogLine]) -> None:
+        """Append lines (oldest first); scroll to the newest when following."""
+        if not lines:
+            return
+        at_end = self.is_vertical_scroll_end or self.scroll_y >= self.max_scroll_y
+        dropped = max(0, len(self.rows) + len(lines) - HISTORY)  # oldest rows pushed out
+        self.rows.extend(lines)
+        # width of a line without formatting it: time, actor and text columns
+        self._width = min(MAX_WIDTH, max(self._width, max(
+            9 + max(len(ln.actor), 13) + len(ln.text) for ln in lines)))
+        self.virtual_size = Size(self._width, len(self.rows))
+        if self.follow and at_end:
+            self.scroll_end(animate=False, immediate=True, x_axis=False, force=True)
+        elif dropped:  # keep the rows the person is reading where they are
+            self.scroll_to(y=max(0, self.scroll_y - dropped), animate=False, immediate=True,
+                           force=True)
+        self.refresh()
+
+    def clear(self) -> None:
+        """Remove every line."""
+        self.rows.clear()
+        self._strips.clear()
+        self._width = 0
+        self.virtual_size = Size(0, 0)
+        self.refresh()
+
+    def render_line(self, y: int) -> Strip:
+        scroll_x, scroll_y = self.scroll_offset
+        width = self.size.width
+        style = self.rich_style
+        index = scroll_y + y
+        if not 0 <= index < len(self.rows):
+            return Strip.blank(width, style)
+        line = self.rows[index]
+        strip = self._strips.get(line.seq)
+        if strip is None:
+            if len(self._strips) > 4 * max(1, self.size.height):  # rows drawn lately only
+                self._strips.clear()
+            text = format_line(line)
+            strip = Strip(text.render(self.app.console, end=""), text.cell_len)
+            if text.style:
+                strip = strip.apply_style(self.app.console.get_style(text.style))
+            self._strips[line.seq] = strip = strip.apply_style(style)
+        return strip.crop_extend(scroll_x, scroll_x + width, style)
+
+    def notify_style_update(self) -> None:
+        super().notify_style_update()
+        self._strips.clear()
+
+
 class MessageLog(Vertical):
     """A filter box above a scrolling log of decoded messages."""
 
     DEFAULT_CSS = """
     MessageLog { height: 1fr; }
     MessageLog > Input { height: 3; }
-    MessageLog > RichLog { height: 1fr; }
+    MessageLog > LogView { height: 1fr; }
     """
 
     paused: reactive[bool] = reactive(False)
@@ -59,11 +139,11 @@ class MessageLog(Vertical):
 
     def compose(self) -> ComposeResult:
         yield Input(placeholder="filter (actor or message)…", id="log-filter")
-        yield RichLog(max_lines=HISTORY, wrap=True, min_width=20, id="log-lines")
+        yield LogView(id="log-lines")
 
     def watch_paused(self, paused: bool) -> None:
         if self.is_mounted:
-            self.query_one(RichLog).auto_scroll = not paused
+            self.query_one(LogView).follow = not paused
             self.border_title = "paused" if paused else ""
             if not paused:
                 self._show_new()
@@ -82,8 +162,7 @@ class MessageLog(Vertical):
 
     def matches(self, line: LogLine) -> bool:
         """Whether a line passes the filter (the console's own markers always do)."""
-        f = self.filter_text.lower()
-        return not f or not line.actor or f in line.actor.lower() or f in line.text.lower()
+        return _matches(line, self.filter_text.lower())
 
     def add_lines(self, lines: tuple[LogLine, ...]) -> None:
         """Take the lines of a snapshot; only unseen ones (by seq) are added."""
@@ -102,17 +181,28 @@ class MessageLog(Vertical):
             self._show_new()
 
     def _show_new(self) -> None:
-        log = self.query_one(RichLog)
-        for line in self.history:
-            if line.seq > self._shown_seq and self.matches(line):
-                log.write(format_line(line))
+        shown = self._shown_seq
+        f = self.filter_text.lower()
+        new = []
+        for line in reversed(self.history):  # the new lines are at the end
+            if line.seq <= shown:
+                break
+            if _matches(line, f):
+                new.append(line)
+        new.reverse()
+        self.query_one(LogView).add(new)
         self._shown_seq = self.last_seq
 
     def _rebuild(self) -> None:
-        self.query_one(RichLog).clear()
+        self.query_one(LogView).clear()
         self._shown_seq = 0
         self._show_new()
 
     def shown_text(self) -> list[str]:
         """The plain text of the lines the log holds now (for tests)."""
-        return [strip.text for strip in self.query_one(RichLog).lines]
+        return [format_line(line).plain for line in self.query_one(LogView).rows]
+
+
+def _matches(line: LogLine, f: str) -> bool:
+    """``f`` (lower case) in the line's actor or text; markers and an empty filter match."""
+    return not f or not line.actor or f in line.actor.lower() or f in line.text.lower()
