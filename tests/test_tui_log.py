@@ -101,3 +101,17 @@ def test_only_the_rows_on_screen_are_formatted_and_the_newest_stay_in_view():
         assert 0 < len(view._strips) <= 4 * view.size.height
 
     run(test)
+
+
+def test_line_segments_read_as_the_formatted_line_with_its_styles():
+    """The segments drawn say what format_line says, alarms in bold red, markers dim."""
+    from tui.widgets.message_log import format_line, line_segments
+
+    for line in (LogLine(3, 12.5, "mapper/lidar", "mapper/lidar", "LIDAR_SAMPLE 1.0"),
+                 LogLine(4, 13.0, "mapper/map", "mapper/map", "DROP overflow NOOP 0"),
+                 LogLine(5, 13.0, "", "", "… 7 lines skipped")):
+        segs = line_segments(line)
+        assert "".join(seg.text for seg in segs) == format_line(line).plain
+    assert segs[0].style.dim and segs[0].style.italic
+    drop = line_segments(LogLine(4, 13.0, "mapper/map", "mapper/map", "DROP overflow"))
+    assert drop[-1].style.bold and drop[-1].style.color.name == "red"
