@@ -79,6 +79,7 @@ class LogView(ScrollView):
         self.follow = True
         self._width = 0  # widest line added [cells]
         self._strips: dict[int, Strip] = {}  # seq -> strip of the rows drawn lately
+        self._style: Style | None = None  # the base style, until styles change
 
     def add(self, lines: list[LogLine]) -> None:
         """Append lines (oldest first); scroll to the newest when following."""
@@ -108,15 +109,17 @@ class LogView(ScrollView):
 
     def render_line(self, y: int) -> Strip:
         scroll_x, scroll_y = self.scroll_offset
-        width = self.size.width
-        style = self.rich_style
+        width, height = self.size
+        style = self._style
+        if style is None:  # `rich_style` walks every ancestor's styles: once, not per row
+            style = self._style = self.rich_style
         index = scroll_y + y
         if not 0 <= index < len(self.rows):
             return Strip.blank(width, style)
         line = self.rows[index]
         strip = self._strips.get(line.seq)
         if strip is None:
-            if len(self._strips) > 4 * max(1, self.size.height):  # rows drawn lately only
+            if len(self._strips) > 4 * max(1, height):  # rows drawn lately only
                 self._strips.clear()
             strip = Strip(line_segments(line)).apply_style(style)
             self._strips[line.seq] = strip
@@ -125,6 +128,7 @@ class LogView(ScrollView):
     def notify_style_update(self) -> None:
         super().notify_style_update()
         self._strips.clear()
+        self._style = None
 
 
 class MessageLog(Vertical):

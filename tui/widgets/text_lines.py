@@ -13,6 +13,7 @@ in an ellipsis.
 
 from __future__ import annotations
 
+from rich.style import Style
 from rich.text import Text
 from textual.geometry import Region, Size
 from textual.strip import Strip
@@ -38,6 +39,7 @@ class TextLines(Widget):
         self._texts: list[Text] = []
         self._strips: dict[int, Strip] = {}  # line -> strip drawn at `_width`
         self._width = -1
+        self._style: Style | None = None  # the base style, until styles change
         self.repainted = 0
         """Lines marked for repaint so far (one per changed line; all on a new layout)."""
 
@@ -64,7 +66,9 @@ class TextLines(Widget):
             self._width = width
         strip = self._strips.get(y)
         if strip is None:
-            style = self.rich_style
+            style = self._style
+            if style is None:  # `rich_style` walks every ancestor's styles: once
+                style = self._style = self.rich_style
             if not 0 <= y < len(self._texts):
                 return Strip.blank(width, style)
             text = self._texts[y]
@@ -82,6 +86,7 @@ class TextLines(Widget):
     def notify_style_update(self) -> None:
         super().notify_style_update()
         self._strips.clear()  # drawn with the old base style
+        self._style = None
 
     def set_lines(self, lines: list[Text]) -> None:
         """Show these lines (one `Text` each, no newlines): repaint the changed ones."""
