@@ -195,29 +195,52 @@ def astar(
     for r, c in (start, goal):
         if not (0 <= r < ny and 0 <= c < nx) or not passable[r, c]:
             return None
-    w = nx + 2  # padded width: a blocked border means no bounds checks
-    pas = np.pad(np.asarray(passable, dtype=bool), 1).ravel().tolist()
-    extra = (np.pad(np.asarray(extra_cost, dtype=np.float64), 1).ravel().tolist()
-             if extra_cost is not None else None)
+    limit = max_expansions if max_expansions is not None else ny * nx
+    # Only passable cells are ever visited: search the box around them (plus the
+    # blocked border). Row-major indices keep their order in the box, so ties in the
+    # heap break the same way and the path is the one the whole grid gives.
+    passable = np.asarray(passable, dtype=bool)
+    if extra_cost is None:
+        rows = np.flatnonzero(passable.any(axis=1))
+        cols = np.flatnonzero(passable.any(axis=0))
+        r0, c0 = int(rows[0]), int(cols[0])
+        box = passable[r0:int(rows[-1]) + 1, c0:int(cols[-1]) + 1]
+        found = _astar_padded(box, (start[0] - r0, start[1] - c0),
+                              (goal[0] - r0, goal[1] - c0), None, heuristic_weight, limit)
+        if found is None:
+            return None
+        path, cost, expanded = found
+        return [(r + r0, c + c0) for r, c in path], cost, expanded
+    return _astar_padded(passable, start, goal,
+                         np.asarray(extra_cost, dtype=np.float64), heuristic_weight, limit)
+
+
+def _astar_padded(passable: np.ndarray, start: tuple[int, int], goal: tuple[int, int],
+                  extra_cost: np.ndarray | None, hw: float, limit: int,
+                  ) -> tuple[list[tuple[int, int]], float, int] | None:
+    """`astar` on ``passable`` padded with a blocked border (start and goal checked):
+    no bounds checks in the loop."""
+    ny, nx = passable.shape
+    w = nx + 2
+    pas = np.pad(passable, 1).view(np.uint8).ravel().tobytes()
+    extra = np.pad(extra_cost, 1).ravel().tolist() if extra_cost is not None else None
     n = len(pas)
     s = (start[0] + 1) * w + start[1] + 1
     g = (goal[0] + 1) * w + goal[1] + 1
     gr, gc = divmod(g, w)
-    limit = max_expansions if max_expansions is not None else ny * nx
-    hw = heuristic_weight
     k = SQRT2 - 2.0
-    moves = [(dr * w + dc, cost, dr * w, dc) for dr, dc, cost in MOVES]
-
     best = [math.inf] * n
     parent = [-1] * n
-    closed = bytearray(n)
+    avail = bytearray(pas)  # passable and not yet expanded
     best[s] = 0.0
     heap = [(0.0, 0.0, s)]
+    push, pop = heapq.heappush, heapq.heappop
+    moves = [(dr * w + dc, cost, dr * w, dc) for dr, dc, cost in MOVES]
     expanded = 0
     while heap:
-        _, gu, u = heapq.heappop(heap)
-        if closed[u]:
-            continue
+        _, gu, u = pop(heap)
+        if not avail[u]:
+            continue  # expanded already (a stale heap entry)
         if u == g:
             path = []
             while u != -1:
@@ -226,13 +249,13 @@ def astar(
                 u = parent[u]
             path.reverse()
             return path, gu, expanded
-        closed[u] = 1
+        avail[u] = 0
         expanded += 1
         if expanded > limit:
             return None
         for off, cost, orow, ocol in moves:
             v = u + off
-            if not pas[v] or closed[v]:
+            if not avail[v]:
                 continue
             if orow and ocol and not (pas[u + orow] and pas[u + ocol]):
                 continue  # no corner cutting
@@ -245,7 +268,7 @@ def astar(
                 vr, vc = divmod(v, w)
                 dr, dc = abs(vr - gr), abs(vc - gc)
                 h = dr + dc + k * (dr if dr < dc else dc)
-                heapq.heappush(heap, (gv + hw * h, gv, v))
+                push(heap, (gv + hw * h, gv, v))
     return None
 
 
