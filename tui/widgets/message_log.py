@@ -15,12 +15,13 @@ from __future__ import annotations
 
 from collections import deque
 
+from rich.cells import cell_len
 from rich.segment import Segment
 from rich.style import Style
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
-from textual.geometry import Size
+from textual.geometry import Region, Size
 from textual.reactive import reactive
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
@@ -80,6 +81,7 @@ class LogView(ScrollView):
         self._width = 0  # widest line added [cells]
         self._strips: dict[int, Strip] = {}  # seq -> strip of the rows drawn lately
         self._style: Style | None = None  # the base style, until styles change
+        self._frame: tuple | None = None  # (scroll offset, size) while a frame is drawn
 
     def add(self, lines: list[LogLine]) -> None:
         """Append lines (oldest first); scroll to the newest when following."""
@@ -107,9 +109,16 @@ class LogView(ScrollView):
         self.virtual_size = Size(0, 0)
         self.refresh()
 
+    def render_lines(self, crop: Region) -> list[Strip]:
+        # scroll offset and size cost a widget lookup each: read them once per frame
+        self._frame = (self.scroll_offset, self.size)
+        try:
+            return super().render_lines(crop)
+        finally:
+            self._frame = None
+
     def render_line(self, y: int) -> Strip:
-        scroll_x, scroll_y = self.scroll_offset
-        width, height = self.size
+        (scroll_x, scroll_y), (width, height) = self._frame or (self.scroll_offset, self.size)
         style = self._style
         if style is None:  # `rich_style` walks every ancestor's styles: once, not per row
             style = self._style = self.rich_style
@@ -121,7 +130,10 @@ class LogView(ScrollView):
         if strip is None:
             if len(self._strips) > 4 * max(1, height):  # rows drawn lately only
                 self._strips.clear()
-            strip = Strip(line_segments(line)).apply_style(style)
+            # one Strip, styled as made: each Strip made costs a handful of caches
+            segs = [Segment(seg.text, style + seg.style if seg.style else style)
+                    for seg in line_segments(line)]
+            strip = Strip(segs, sum(cell_len(seg.text) for seg in segs))
             self._strips[line.seq] = strip
         return strip.crop_extend(scroll_x, scroll_x + width, style)
 
