@@ -12,7 +12,7 @@ from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.lidar import LidarHealth
 from actors.firmware.nav_mapping import MappingOptions
-from actors.firmware.occupancy import UNKNOWN, GridMap
+from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
 from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
 
 # own frame = map frame; the rover starts at (0, 0) in a 4.5 x 2.5 m room split by a wall
@@ -242,3 +242,60 @@ def test_the_least_useful_gain_grows_with_the_map() -> None:
     assert nav._futile()
     nav.ex.gains = [60, 120]
     assert not nav._futile()
+
+
+def _walled_room(gaps: dict[str, int]) -> GridMap:
+    """A 3 x 3 m free room around the origin walled in, with openings to the unknown:
+    ``gaps`` maps a side ("west", "east") to an opening's length [cells]."""
+    cells = np.full((80, 80), UNKNOWN, dtype=np.int8)
+    cells[10:70, 10:70] = OCCUPIED
+    cells[11:69, 11:69] = FREE
+    for side, n in gaps.items():
+        col = 10 if side == "west" else 69
+        cells[40 - n // 2:40 - n // 2 + n, col] = FREE  # a gap, unknown beyond it
+    return GridMap(cells, 5.0, (-200.0, -200.0))
+
+
+def test_after_futile_visits_long_frontiers_still_count() -> None:
+    """Futile visits dismiss short frontiers only: a long one (a big room's unseen part) is
+    still chosen, and with it blacklisted nothing useful is left."""
+    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+
+    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=2))
+    nav.grid = _walled_room({"west": 8, "east": 40})  # east: two 1 m pieces of 20 cells
+    assert nav._choose(keep=False)  # not futile: any useful frontier
+    nav.ex = type(nav.ex)(gains=[0, 0])
+    assert nav._futile()
+    chosen = []
+    while nav._choose(keep=False) and len(chosen) < 5:
+        chosen.append(nav.ex.target)
+        nav.ex.blacklist.append(nav.ex.target)  # reached, and still a frontier
+        nav.ex.follower = None
+    assert len(chosen) == 2 and all(x > 0.0 for x, _ in chosen)  # the east opening's pieces
+    assert nav.ex.no_frontier
+    nav.ex.gains = [500, 0]  # a fruitful visit: short frontiers count again
+    assert nav._choose(keep=False) and nav.ex.target[0] < 0.0
+
+
+@pytest.mark.trio
+async def test_map_stability_counts_net_growth_not_edge_flicker(autojump_clock) -> None:
+    """Cells flickering between unknown and known (scan matching's jitter at rest) leave the
+    map stable; the known area growing is a change."""
+    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+
+    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(change_cells=3,
+                                                                change_share=0.0))
+    base = _walled_room({})
+    await nav.on_map_update(base)
+    t0 = nav._changed_at
+    await trio.sleep(5.0)
+    for k in range(6):  # ten edge cells go unknown and ten others come back, each time
+        cells = base.cells.copy()
+        cells[11:21, 11 + k] = UNKNOWN
+        cells[0, 10 * k:10 * k + 10] = FREE
+        await nav.on_map_update(GridMap(cells, 5.0, base.origin_cm))
+    assert nav._changed_at == t0
+    grown = base.cells.copy()
+    grown[0:5, 0:10] = FREE  # 50 new cells known
+    await nav.on_map_update(GridMap(grown, 5.0, base.origin_cm))
+    assert nav._changed_at == t0 + 5.0

@@ -36,10 +36,12 @@ Obstacles ahead
 Complete when both hold (either alone can lie)
     * no reachable frontier of useful size remains (a stalled LIDAR would also
       give "no change"); after ``futile_trips`` trips in a row that each made
-      fewer than ``min_gain_cells`` cells known, the frontiers left count as not
-      useful (pockets nobody can see into, ragged edges), and
-    * the map has not changed for ``stable_window_s`` while the scan count kept
-      rising (a stalled LIDAR gives no scans, so it never reads as done).
+      fewer than ``min_gain_cells`` cells known, only frontiers of at least
+      ``futile_min_cells`` still count as useful (the rest are pockets nobody
+      can see into, ragged edges), and
+    * the map's count of known cells has not moved for ``stable_window_s``
+      while the scan count kept rising (a stalled LIDAR gives no scans, so it
+      never reads as done).
     Or when the server says ``stop``, or after ``budget_s`` of mapping.
 
 A faulty LIDAR (why: a map drawn while it fails has phantom or missing obstacles)
@@ -52,6 +54,18 @@ A faulty LIDAR (why: a map drawn while it fails has phantom or missing obstacles
     healthy again and scans are counted again, with a fresh route and a fresh
     stable window; a fault that outlasts ``lidar_pause_s`` is driven through
     (once per ``lidar_pause_s``): the budget, not the fault, ends mapping.
+
+Odometry that scan matching contradicts (why: a stuck encoder drew a round room at 0.56 accuracy)
+    A tread whose encoder stops counting while it is driven makes the rover
+    spin or veer where dead reckoning sees it stand or go straight; scan
+    matching drags the pose after it, batch by batch, and the map is drawn
+    from a wrong pose. Navigation sees the contradiction in its map-frame pose:
+    an in-place turn that moved it more than ``odo_turn_shift_cm``, or a
+    straight move that turned it more than ``odo_move_turn_deg``. It stops the
+    motor at once and holds still (the LIDAR scanning, so matching can settle
+    the pose) for ``odo_hold_s``, doubled for each repeat within a minute up to
+    ``odo_hold_max_s``, reporting ``odometry_fault`` in its status; the fault
+    cannot be seen from standing still, so it drives on after the hold.
 
 Restart
     The new incarnation asks Map Management for a snapshot (MAP_GET) and Motor
@@ -88,6 +102,7 @@ from actors.firmware.nav_common import (
     route_points,
 )
 from actors.firmware.occupancy import UNKNOWN, GridMap
+from actors.firmware.odometry import angle_diff_deg
 
 __all__ = ["MappingOptions", "MappingNav"]
 
@@ -115,8 +130,10 @@ class MappingOptions:
     stable_scans: int = 5
     """...while at least this many scan batches arrived."""
     change_cells: int = 3
-    """A snapshot with more cells than this (or ``change_share`` of the known ones) gone
-    from unknown to known, or back, is a change; free/occupied flicker at edges is not."""
+    """The map changed when its count of known cells moved by more than this (or
+    ``change_share`` of it) since the last change; free/occupied flicker is not a change,
+    and neither is unknown/known flicker at the edges (scan matching's jitter at rest
+    once kept a furniture map "changing" for 340 s), which nets out."""
     change_share: float = 0.002
     """Relative part of the change threshold (of the known cells)."""
     budget_s: float = 900.0
@@ -134,6 +151,10 @@ class MappingOptions:
     that each revealed fewer than ``min_gain_cells``, the frontiers left are not worth
     visiting (pockets behind furniture, noise at edges): exploration treats them as not
     useful, and completion may follow."""
+    futile_min_cells: int = 16
+    """After futile trips, frontiers at least this long still count as useful [cells]:
+    four visits to small pockets near the start once ended a 10 m hall at 62 % coverage
+    with its far part, one long frontier, unseen."""
     min_gain_cells: int = 30
     """A trip that made fewer cells known than this was futile [cells]..."""
     home_budget_s: float = 180.0
@@ -149,6 +170,16 @@ class MappingOptions:
     lidar_pause_s: float = 60.0
     """Hold still for a LIDAR fault at most this long, then drive on regardless for as
     long before holding again [s]."""
+    odo_turn_shift_cm: float = 10.0
+    """An in-place turn that moved the map-frame position further than this: odometry
+    and scan matching disagree grossly (an encoder stuck or slipping) [cm]."""
+    odo_move_turn_deg: float = 25.0
+    """A straight move that turned the map-frame heading by more than this: the same [deg]."""
+    odo_hold_s: float = 3.0
+    """Hold still this long after such a disagreement [s]; doubled for each repeat
+    within ``60 s``, up to ``odo_hold_max_s``."""
+    odo_hold_max_s: float = 24.0
+    """Longest hold for an odometry disagreement [s]."""
     min_gain_share: float = 0.003
     """...or fewer than this share of the cells already known (a big hall's ragged far
     edges give a few dozen cells per visit for ever). Counted per visit, not per
@@ -188,6 +219,7 @@ class MappingNav(NavBase):
         self.ex = _Exploration()
         self._changed_at = 0.0  # trio time of the last map change
         self._scans_at_change = 0
+        self._known_at_change = 0  # known cells when the map last changed
         self._scans_at_start = 0
         self._started_at = 0.0
         self._probe_until = -math.inf
@@ -206,6 +238,11 @@ class MappingNav(NavBase):
         self._pause_started = -math.inf
         self._pause_off_until = -math.inf  # a fault that outlasted lidar_pause_s: drive on
         self._scans_at_pause = 0
+        self.odometry_faults = 0
+        """Odometry disagreements held still for (this incarnation)."""
+        self._odo_hold_until = -math.inf  # holding still for odometry until then
+        self._odo_last = -math.inf  # when the last disagreement was seen
+        self._odo_strikes = 0  # disagreements in a row, each within 60 s of the last
 
     # ------------------------------------------------------------------ dispatch
     async def handle(self, message: Any) -> Any:
@@ -260,13 +297,11 @@ class MappingNav(NavBase):
         prev = self.grid
         self.grid = grid
         now = trio.current_time()
-        if prev is None or prev.shape != grid.shape:
+        known = int(np.count_nonzero(grid.cells != UNKNOWN))
+        if prev is None or prev.shape != grid.shape or abs(known - self._known_at_change) > max(
+                self.m.change_cells, self.m.change_share * known):
             self._changed_at, self._scans_at_change = now, self.scans
-        else:
-            known = grid.cells != UNKNOWN
-            news = int(np.count_nonzero(known != (prev.cells != UNKNOWN)))
-            if news > max(self.m.change_cells, self.m.change_share * int(known.sum())):
-                self._changed_at, self._scans_at_change = now, self.scans
+            self._known_at_change = known
         if self.state == "uploading":
             await self._upload()
         elif self.state == "scanning":
@@ -346,12 +381,59 @@ class MappingNav(NavBase):
         await self.status(self.state, why)
         return False
 
+    @property
+    def holding(self) -> bool:
+        """Holding still: the LIDAR is faulty, or odometry was contradicted lately."""
+        return self.lidar_fault is not None or trio.current_time() < self._odo_hold_until
+
+    async def _odometry_watch(self, now: float) -> bool:
+        """Stop and hold when the motion in flight contradicts odometry; True while holding.
+
+        See "Odometry that scan matching contradicts" in the module docstring."""
+        m = self.m
+        if self.state not in ("exploring", "homing"):
+            return False
+        if self._odo_hold_until > -math.inf and now >= self._odo_hold_until:
+            self._odo_hold_until = -math.inf
+            self._changed_at, self._scans_at_change = now, self.scans
+            self.ex.follower = None
+            self._wait_map = True
+            self._last_wait_decide = -math.inf
+            await self.status(self.state, "odometry hold over: driving on")
+            return False
+        if now < self._odo_hold_until:
+            return True
+        motion, start = self.last_motion, self.motion_from
+        if not self.moving or motion is None or start is None:
+            return False
+        p = self.map_pose
+        if motion.kind == "turn":
+            off = math.hypot(p.x - start.x, p.y - start.y)
+            if off <= m.odo_turn_shift_cm:
+                return False
+            what = f"a turn moved the pose {off:.0f} cm"
+        else:
+            turned = abs(angle_diff_deg(p.heading_deg, start.heading_deg))
+            if turned <= m.odo_move_turn_deg:
+                return False
+            what = f"a straight move turned the pose {turned:.0f} deg"
+        self._odo_strikes = self._odo_strikes + 1 if now - self._odo_last <= 60.0 else 1
+        self._odo_last = now
+        hold = min(m.odo_hold_max_s, m.odo_hold_s * 2.0 ** (self._odo_strikes - 1))
+        self._odo_hold_until = now + hold
+        self.odometry_faults += 1
+        await self.stop_motor()
+        await self.status("odometry_fault",
+                          f"{what}: odometry and scan matching disagree; holding {hold:.0f} s")
+        return True
+
     # ------------------------------------------------------------------ ticks
     async def on_tick(self, now: float) -> None:
         if self.state == "uploading" and now >= self._upload_deadline:
             await self._upload()
             return
         holding = await self._lidar_watch(now)
+        holding = await self._odometry_watch(now) or holding
         if self.state == "homing":
             if now >= self._home_deadline:
                 await self._finish(self._finish_reason + "; home not reached in time")
@@ -376,17 +458,17 @@ class MappingNav(NavBase):
 
     def complete(self, now: float) -> bool:
         """Both completion conditions: no useful frontier, and a stable map while scanning."""
-        return (self.ex.no_frontier and self.lidar_fault is None
+        return (self.ex.no_frontier and not self.holding
                 and now - self._changed_at >= self.m.stable_window_s
                 and self.scans - self._scans_at_change >= self.m.stable_scans)
 
     # ------------------------------------------------------------------ exploring
     async def after_motion(self, blocked: bool, done: float) -> None:
         if self.state == "homing":
-            if self.lidar_fault is None:
+            if not self.holding:
                 await self._after_home_motion(blocked)
             return
-        if self.state != "exploring" or self.lidar_fault is not None:
+        if self.state != "exploring" or self.holding:
             return
         if blocked:
             self.ex.blocks += 1
@@ -403,8 +485,7 @@ class MappingNav(NavBase):
 
     async def decide(self) -> None:
         """One ADP decision: keep or choose a frontier, then command one motion."""
-        if self.state != "exploring" or self.moving or self.grid is None \
-                or self.lidar_fault is not None:
+        if self.state != "exploring" or self.moving or self.grid is None or self.holding:
             return
         if not self.can_move:
             self._wait_map = True  # the tick tries again
@@ -453,17 +534,16 @@ class MappingNav(NavBase):
         assert self.grid is not None
         ex = self.ex
         pose = self.pose
-        if self._futile():
-            ex.no_frontier = True
-            ex.follower = None
-            return False
+        # after futile visits only long frontiers still count (a big room's unseen far part),
+        # and each is blacklisted once reached (below), so this ends
+        min_size = self.m.futile_min_cells if self._futile() else self.m.min_frontier_cells
         # reachability with the narrowest tier the rover can drive (a corridor barely wider
         # than the body); the route itself tries the roomier tiers first
         radius, margin = self._tiers()[-1]
         frontiers = find_frontiers(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
                                    margin_cm=margin, approach_cm=self.m.approach_cm)
         for _ in range(self.m.max_choices):
-            f = choose_frontier(frontiers, min_size_cells=self.m.min_frontier_cells,
+            f = choose_frontier(frontiers, min_size_cells=min_size,
                                 blacklist=ex.blacklist, blacklist_radius_cm=self.m.approach_cm)
             if f is None:
                 ex.no_frontier = True
@@ -578,8 +658,7 @@ class MappingNav(NavBase):
 
     async def _home_step(self) -> None:
         """One ADP step home; uploads once home, or when home cannot be reached."""
-        if self.state != "homing" or self.moving or not self.can_move \
-                or self.lidar_fault is not None:
+        if self.state != "homing" or self.moving or not self.can_move or self.holding:
             return
         ex = self.ex
         pose = self.pose
