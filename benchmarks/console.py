@@ -179,9 +179,10 @@ def attached(make=fake_system, tab: str = "queues") -> tuple[float, float, float
         async with app.run_test(size=(120, 40)):
             await _wait(lambda: app.snapshot is not None)
             app.action_tab(tab)
-            await _wait(lambda: len(timed.marks) >= 1, timeout=300.0)
+            # poll coarsely: a 1 ms poll would itself cost the simulation time
+            await _wait(lambda: len(timed.marks) >= 1, timeout=300.0, poll_s=0.02)
             n0, t0 = app.snapshots_shown, time.perf_counter()
-            await _wait(lambda: len(timed.marks) >= 2, timeout=300.0)
+            await _wait(lambda: len(timed.marks) >= 2, timeout=300.0, poll_s=0.02)
             out["fps"] = (app.snapshots_shown - n0) / (time.perf_counter() - t0)
 
     asyncio.run(main())
