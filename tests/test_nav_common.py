@@ -555,3 +555,31 @@ def test_after_a_long_drive_nudges_are_wider_and_may_enter_a_mapped_wall() -> No
     nav.goal, nav.goal_heading = (600.0, 150.0), None
     assert nav._probe_plan()
     assert nav._nudge_off == pytest.approx(20.0 / 3.0)
+
+
+def gap_blocked_nav(driven_cm: float) -> Any:
+    """A hider navigation (not started) stopped 5 cm into the gap of a 15 cm wall at x 400
+    (gap y 300..335) by dead reckoning, 5 cm above its lower edge, after ``driven_cm``
+    of driving: only the lower edge explains it within 14 cm; the upper wall's face
+    does 20 cm up."""
+    nav = make_nav("hider", pool=BufferPool(4))
+    nav.map = nav.work_map = room_map(
+        Truth(0, 0, 700, 450, boxes=((400, 0, 15, 300), (400, 335, 15, 115))))
+    nav.origin = Pose(0.0, 0.0, 0.0)
+    nav.pose = Pose(395.0, 312.5, 0.0)
+    nav.last_motion = Motion("move", 20.0)
+    nav.motion_from = Pose(375.0, 312.5, 0.0)
+    nav.driven_cm = driven_cm
+    return nav
+
+
+def test_a_gap_edge_contact_is_acted_on_only_while_the_drift_is_small() -> None:
+    """Right after the start the lower edge is the only likely explanation: the pose
+    moves down. After 6 m (24 cm of drift) the upper face is as likely: no correction
+    (the passage is probed sideways instead)."""
+    nav = gap_blocked_nav(0.0)
+    assert nav._contact_fix() and nav.map_pose.y < 312.5
+    nav = gap_blocked_nav(600.0)
+    assert not nav._contact_fix()
+    assert nav.map_pose == Pose(395.0, 312.5, 0.0)
+    assert nav._in_passage()

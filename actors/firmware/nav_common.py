@@ -999,13 +999,19 @@ class RouteNav(NavBase):
 
     def _in_passage(self) -> bool:
         """The last forward move was blocked where the map's walls are close on both sides
-        (narrower than ``probe_width_cm`` across the heading)."""
+        (narrower than ``probe_width_cm`` across the heading), at the body's centre or at
+        its nose: a rover stopped at a gap's mouth has only its nose in the gap."""
         m = self.last_motion
         if m is None or m.kind != "move" or m.amount <= 0 or self.map is None:
             return False
         p = self.map_pose
-        w = passage_width(self.map, p.x, p.y, p.heading_deg, max_cm=self.o.probe_width_cm)
-        return w is not None and w < self.o.probe_width_cm
+        h = math.radians(p.heading_deg)
+        nose = 0.5 * self.length_cm
+        for x, y in ((p.x, p.y), (p.x + nose * math.cos(h), p.y + nose * math.sin(h))):
+            w = passage_width(self.map, x, y, p.heading_deg, max_cm=self.o.probe_width_cm)
+            if w is not None and w < self.o.probe_width_cm:
+                return True
+        return False
 
     def _probe_plan(self) -> bool:
         """Plan after a block in a narrow passage: the route shifted sideways at once.
