@@ -19,6 +19,7 @@ closes, so the process exits with status 0 and no traceback.
 from __future__ import annotations
 
 import functools
+import gc
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -258,6 +259,11 @@ class ConsoleApp(App[int]):
     # -- from the system -----------------------------------------------------
     def on_console_app_snapshot_arrived(self, message: SnapshotArrived) -> None:
         self._awaiting = 0
+        if self.snapshot is None:
+            # The app and the system are built: move every object made so far out of
+            # the collector's sight, so each full collection walks only what came
+            # after (it walked the whole UI and system, ~3% of the simulation's time).
+            gc.freeze()
         self.show(message.snapshot)
 
     def on_console_app_result_arrived(self, message: ResultArrived) -> None:
