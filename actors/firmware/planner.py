@@ -413,11 +413,16 @@ def bfs_steps(passable: np.ndarray, start: tuple[int, int]) -> np.ndarray:
         offsets = np.array([dr * w + dc for dr, dc, _ in MOVES], dtype=np.int64)
         front = np.array([(r + 1) * w + c + 1], dtype=np.int64)
         dist[front] = 0
+        # the next layer's cells, once each, without sorting: each candidate writes its
+        # position in `slot`, and the one whose position stays there is kept
+        slot = np.zeros(pas.size, dtype=np.int64)
         step = 0
         while front.size:
             step += 1
             cand = (front[:, None] + offsets[None, :]).ravel()
             cand = cand[pas[cand] & (dist[cand] < 0)]
             dist[cand] = step  # duplicates write the same value
-            front = np.unique(cand)
+            pos = np.arange(cand.size)
+            slot[cand] = pos
+            front = cand[slot[cand] == pos]
     return dist.reshape(ny + 2, w)[1:-1, 1:-1].copy()
