@@ -115,3 +115,27 @@ def test_line_segments_read_as_the_formatted_line_with_its_styles():
     assert segs[0].style.dim and segs[0].style.italic
     drop = line_segments(LogLine(4, 13.0, "mapper/map", "mapper/map", "DROP overflow"))
     assert drop[-1].style.bold and drop[-1].style.color.name == "red"
+
+
+def test_lines_added_while_hidden_show_the_newest_when_shown_again():
+    """The log on another tab keeps following: shown again, its newest line is in view;
+    a line too long for the view ends in an ellipsis."""
+    from tui.widgets.message_log import LogView
+
+    async def test(log, pilot):
+        log.add_lines(lines(*range(1, 30)))
+        await pilot.pause()
+        log.display = False
+        await pilot.pause()
+        log.add_lines(lines(*range(30, 200)))
+        log.add_lines((LogLine(200, 20.0, "mapper/lidar", "mapper/lidar", "X" * 120),))
+        await pilot.pause()
+        log.display = True
+        await pilot.pause()
+        await pilot.pause()
+        view = log.query_one(LogView)
+        bottom = view.render_line(view.size.height - 1).text
+        assert bottom.split()[:2] == ["20.0", "mapper/lidar"] and bottom.endswith("…")
+        assert len(bottom) == view.size.width
+
+    run(test)

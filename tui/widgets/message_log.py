@@ -82,12 +82,13 @@ class LogView(ScrollView):
         self._strips: dict[int, Strip] = {}  # seq -> strip of the rows drawn lately
         self._style: Style | None = None  # the base style, until styles change
         self._frame: tuple | None = None  # (scroll offset, size) while a frame is drawn
+        self._at_end = True  # the newest line is in view (False once scrolled up)
 
     def add(self, lines: list[LogLine]) -> None:
         """Append lines (oldest first); scroll to the newest when following."""
         if not lines:
             return
-        at_end = self.is_vertical_scroll_end or self.scroll_y >= self.max_scroll_y
+        at_end = self._at_end
         dropped = max(0, len(self.rows) + len(lines) - HISTORY)  # oldest rows pushed out
         self.rows.extend(lines)
         # width of a line without formatting it: time, actor and text columns
@@ -96,10 +97,20 @@ class LogView(ScrollView):
         self.virtual_size = Size(self._width, len(self.rows))
         if self.follow and at_end:
             self.scroll_end(animate=False, immediate=True, x_axis=False, force=True)
+            self._at_end = True
         elif dropped:  # keep the rows the person is reading where they are
             self.scroll_to(y=max(0, self.scroll_y - dropped), animate=False, immediate=True,
                            force=True)
         self.refresh()
+
+    def watch_scroll_y(self, old_value: float, new_value: float) -> None:
+        super().watch_scroll_y(old_value, new_value)
+        if self.size.height:  # a hidden view (another tab) has no end to be at
+            self._at_end = new_value >= self.max_scroll_y
+
+    def on_resize(self) -> None:
+        if self.follow and self._at_end:  # shown again, or resized: the newest in view
+            self.scroll_end(animate=False, x_axis=False, force=True)
 
     def clear(self) -> None:
         """Remove every line."""
@@ -135,6 +146,9 @@ class LogView(ScrollView):
                     for seg in line_segments(line)]
             strip = Strip(segs, sum(cell_len(seg.text) for seg in segs))
             self._strips[line.seq] = strip
+        if strip.cell_length > scroll_x + width > 1:  # cut: say so (scroll right to read)
+            return Strip.join([strip.crop(scroll_x, scroll_x + width - 1),
+                               Strip([Segment("…", style)], 1)])
         return strip.crop_extend(scroll_x, scroll_x + width, style)
 
     def notify_style_update(self) -> None:
