@@ -1,6 +1,7 @@
 """Campaign throughput: games per wall minute with 1 and with 2 worker processes.
 
-Run as ``python -m benchmarks.campaign [--quick] [--games N] [--budget S] [--no-probe]``.
+Run as ``python -m benchmarks.campaign [--quick] [--games N] [--budget S]
+[--no-probe | --probe-only]``.
 The same games (campaign seed 1, single faults, built-in rooms round-robin)
 are played once by a pool of one ``spawn`` worker (the baseline) and once by
 a pool of two; the figure is the ratio of games per wall minute (target
@@ -35,8 +36,10 @@ and as two processes at once, for pure Python arithmetic that stays in
 the core's own caches (slower in pairs only if the cores themselves slow
 down: a lower shared clock, or two virtual CPUs on one physical core) and
 for a numpy stream over arrays larger than the core's L2 cache (slower in
-pairs when shared cache or memory bandwidth is the limit). It reports CPU
-seconds per unit of work, pair / alone.
+pairs when shared cache or memory bandwidth is the limit), and for a walk
+over a million Python objects in random order (a heap the size of a game's,
+latency-bound: slower in pairs when the shared cache is what keeps it fast).
+It reports CPU seconds per unit of work, pair / alone.
 
 The table reports the CPUs this process may use and the load average
 before and after each run (a load near or above the CPU count means other
@@ -55,8 +58,9 @@ from typing import Any
 
 from supervisors.campaign import CampaignConfig, default_workers, run_campaign
 
-_PROBE_KINDS = ("python", "memory")
+_PROBE_KINDS = ("python", "memory", "objects")
 _STREAM_MB = 64          # probe array size per process [MB] (L2 is a few MB per core)
+_OBJECTS = 1_000_000     # probe: Python objects visited in random order (~100 MB, like a game)
 
 
 def _warm(_: int) -> int:
@@ -116,6 +120,18 @@ def _work(job: tuple[str, int]) -> float:
         acc = 0
         for i in range(units * 1_000_000):
             acc = (acc + i * 7) & 0xFFFF
+    elif kind == "objects":
+        import numpy as np  # noqa: PLC0415
+
+        order = np.random.default_rng(1).permutation(_OBJECTS).tolist()
+        items = [{"x": float(i), "y": [i, i + 1]} for i in range(_OBJECTS)]
+        cpu0 = time.process_time()  # building them is not the walk
+        acc = 0.0
+        step = _OBJECTS // 10  # a unit visits a tenth of them, about as long as the others
+        for u in range(units):
+            for i in order[(u % 10) * step:(u % 10 + 1) * step]:
+                item = items[i]
+                acc += item["x"] + item["y"][1]
     else:
         import numpy as np  # noqa: PLC0415
 
@@ -144,14 +160,32 @@ def _probe(units: int) -> dict[str, dict[str, float]]:
 
 # ---------------------------------------------------------------------------- report
 
+def _print_probe(probe: dict[str, dict[str, float]], *, json_line: bool = True) -> None:
+    print(f"\ncontention probe: CPU s per unit of work, alone and two processes at once "
+          f"(load now {_load():.2f})")
+    print(f"{'work':>8}{'alone [s]':>11}{'pair [s]':>10}{'pair/alone':>12}")
+    for kind, p in probe.items():
+        print(f"{kind:>8}{p['alone_s']:>11.4f}{p['pair_s']:>10.4f}"
+              f"{p['pair_over_alone']:>12.3f}")
+    print(f"python: arithmetic in the core's caches; memory: numpy stream over "
+          f"{_STREAM_MB} MB arrays per process; objects: {_OBJECTS:,} Python objects "
+          f"visited in random order (latency-bound, like a game's heap)")
+    if json_line:
+        print(json.dumps({"probe": {k: round(v["pair_over_alone"], 3)
+                                    for k, v in probe.items()}, "load": round(_load(), 2)}))
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.campaign")
     parser.add_argument("--quick", action="store_true", help="4 short games per run")
     parser.add_argument("--games", type=int, default=None, help="games per run (default 24)")
     parser.add_argument("--budget", type=float, default=None,
                         help="mapping budget [simulated s] (default 1200, 30 with --quick)")
-    parser.add_argument("--no-probe", action="store_true",
-                        help="skip the CPU contention probe")
+    probing = parser.add_mutually_exclusive_group()
+    probing.add_argument("--no-probe", action="store_true",
+                         help="skip the CPU contention probe")
+    probing.add_argument("--probe-only", action="store_true",
+                         help="only the CPU contention probe (a few seconds)")
     args = parser.parse_args(argv)
     if args.games is not None and not 1 <= args.games <= 10_000:
         parser.error(f"--games must be within 1..10000, got {args.games}")
@@ -161,6 +195,9 @@ def main(argv: list[str] | None = None) -> None:
     budget = args.budget or (30.0 if args.quick else 1200.0)
     config = CampaignConfig(1, mode="single", mapping_budget_s=budget)
     cpus = default_workers()
+    if args.probe_only:
+        _print_probe(_probe(2 if args.quick else 8))
+        return
     one = _measure(config, games, 1)
     two = _measure(config, games, 2)
     probe = None if args.no_probe else _probe(2 if args.quick else 8)
@@ -194,14 +231,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"CPU per game, 1 worker / 2 workers, paired by game: median "
               f"{paired[len(paired) // 2]:.3f}, range {paired[0]:.3f}..{paired[-1]:.3f}")
     if probe:
-        print(f"\ncontention probe: CPU s per unit of work, alone and two processes at once "
-              f"(load now {_load():.2f})")
-        print(f"{'work':>8}{'alone [s]':>11}{'pair [s]':>10}{'pair/alone':>12}")
-        for kind, p in probe.items():
-            print(f"{kind:>8}{p['alone_s']:>11.4f}{p['pair_s']:>10.4f}"
-                  f"{p['pair_over_alone']:>12.3f}")
-        print(f"python: arithmetic in the core's caches; memory: numpy stream over "
-              f"{_STREAM_MB} MB arrays per process")
+        _print_probe(probe, json_line=False)
     print(json.dumps({"games": games, "budget_s": budget, "cpus": cpus,
                       "games_per_min_1": round(one["games_per_min"], 3),
                       "games_per_min_2": round(two["games_per_min"], 3),
