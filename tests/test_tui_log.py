@@ -118,24 +118,36 @@ def test_line_segments_read_as_the_formatted_line_with_its_styles():
 
 
 def test_lines_added_while_hidden_show_the_newest_when_shown_again():
-    """The log on another tab keeps following: shown again, its newest line is in view;
-    a line too long for the view ends in an ellipsis."""
+    """The log on a tab not shown yet keeps following: shown, its newest line is in
+    view; a line too long for the view ends in an ellipsis."""
+    from textual.widgets import Static, TabbedContent, TabPane
+
     from tui.widgets.message_log import LogView
 
-    async def test(log, pilot):
-        log.add_lines(lines(*range(1, 30)))
-        await pilot.pause()
-        log.display = False
-        await pilot.pause()
-        log.add_lines(lines(*range(30, 200)))
-        log.add_lines((LogLine(200, 20.0, "mapper/lidar", "mapper/lidar", "X" * 120),))
-        await pilot.pause()
-        log.display = True
-        await pilot.pause()
-        await pilot.pause()
-        view = log.query_one(LogView)
-        bottom = view.render_line(view.size.height - 1).text
-        assert bottom.split()[:2] == ["20.0", "mapper/lidar"] and bottom.endswith("…")
-        assert len(bottom) == view.size.width
+    class TabsApp(App[None]):
+        def compose(self) -> ComposeResult:
+            with TabbedContent(id="tabs"):
+                with TabPane("Other", id="other"):
+                    yield Static("other")
+                with TabPane("Log", id="log"):
+                    yield MessageLog()
 
-    run(test)
+    async def main():
+        app = TabsApp()
+        async with app.run_test(size=(60, 20)) as pilot:
+            log = app.query_one(MessageLog)
+            for start in range(1, 200, 20):
+                log.add_lines(lines(*range(start, start + 20)))
+                await pilot.pause()
+            log.add_lines((LogLine(201, 20.1, "mapper/lidar", "mapper/lidar", "X" * 120),))
+            await pilot.pause()
+            app.query_one(TabbedContent).active = "log"
+            await pilot.pause()
+            await pilot.pause()
+            view = log.query_one(LogView)
+            visible = view.scrollable_content_region  # less the scrollbars
+            bottom = view.render_line(visible.height - 1).text[:visible.width]
+            assert bottom.split()[:2] == ["20.1", "mapper/lidar"] and bottom.endswith("…")
+            assert len(bottom) == visible.width
+
+    asyncio.run(main())

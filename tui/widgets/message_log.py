@@ -122,14 +122,16 @@ class LogView(ScrollView):
 
     def render_lines(self, crop: Region) -> list[Strip]:
         # scroll offset and size cost a widget lookup each: read them once per frame
-        self._frame = (self.scroll_offset, self.size)
+        # (the size less the scrollbars: a cut line's ellipsis must not hide under one)
+        self._frame = (self.scroll_offset, self.scrollable_content_region.size)
         try:
             return super().render_lines(crop)
         finally:
             self._frame = None
 
     def render_line(self, y: int) -> Strip:
-        (scroll_x, scroll_y), (width, height) = self._frame or (self.scroll_offset, self.size)
+        (scroll_x, scroll_y), (width, height) = self._frame or (
+            self.scroll_offset, self.scrollable_content_region.size)
         style = self._style
         if style is None:  # `rich_style` walks every ancestor's styles: once, not per row
             style = self._style = self.rich_style
