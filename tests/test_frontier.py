@@ -135,3 +135,21 @@ def test_small_and_blacklisted_frontiers_are_skipped():
     assert choose_frontier([tiny, bad, good], blacklist=[(95.0, 110.0)]) is good
     assert no_useful_frontier([tiny, bad], blacklist=[(95.0, 110.0)])
     assert not no_useful_frontier([tiny, bad])
+
+
+def test_open_share_tells_an_edge_in_the_open_from_one_along_a_wall():
+    """A frontier with no obstacle within 30 cm is in the open (1.0); one running along a
+    wall is not (0.0): after futile visits only the first kind still counts."""
+    cells = np.full((60, 60), UNKNOWN, dtype=np.int8)
+    cells[10:50, 10:30] = FREE  # known free; its east edge (col 29) faces the unknown
+    cells[10:50, 9] = OCCUPIED  # a wall along the west side ...
+    cells[9, 10:30] = OCCUPIED
+    cells[50, 10:30] = OCCUPIED
+    cells[10:50, 10] = FREE
+    cells[20:40, 11] = UNKNOWN  # ... with a ragged unknown strip right beside it
+    grid = GridMap(cells, 5.0, (-50.0, -100.0))
+    fronts = find_frontiers(grid, (0.0, 0.0), robot_radius_cm=5.0, margin_cm=0.0,
+                            split_cm=None)
+    by_side = {("east" if f.centroid_cm[0] > 50.0 else "west"): f for f in fronts}
+    assert by_side["west"].open_share == 0.0
+    assert by_side["east"].open_share > 0.5

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.occupancy import FREE, UNKNOWN, GridMap
+from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planner import bfs_steps, snap_to_passable, traversable
 
 __all__ = [
@@ -77,6 +77,10 @@ class Frontier:
     """Share of unknown cells around the centroid, 0..1 (high: little explored)."""
     resolution_cm: float
     """Cell side of the map the cluster was found in [cm]."""
+    open_share: float = 1.0
+    """Share of the cluster's cells with no occupied cell within ``open_cm`` (find_frontiers),
+    0..1: low for the ragged edge along a wall or a pocket behind furniture, high for the
+    edge of what an obstacle hid in open space."""
 
     @property
     def reachable(self) -> bool:
@@ -184,6 +188,7 @@ def find_frontiers(
     explore_radius_cm: float = 100.0,
     snap_radius_cm: float = 30.0,
     split_cm: float | None = 100.0,
+    open_cm: float = 30.0,
 ) -> list[Frontier]:
     """Every frontier cluster of ``grid``, with its distance from the rover.
 
@@ -201,6 +206,8 @@ def find_frontiers(
             from the rover into the next room) would otherwise have one target, the
             approach point nearest the rover, and be given up as a whole once that
             point was reached without seeing anything new.
+        open_cm: a frontier cell with no occupied cell this near is in the open
+            (`Frontier.open_share`) [cm].
 
     Returns:
         Clusters in label order (see `label_clusters`); empty when there is no
@@ -232,6 +239,9 @@ def find_frontiers(
     unknown = np.pad(cells == UNKNOWN, k_exp, constant_values=True).astype(np.int32)
     integral = np.pad(unknown.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
     area = (2 * k_exp + 1) ** 2
+
+    k_open = max(1, math.ceil(open_cm / res))
+    near_occ = _min_filter(-(cells == OCCUPIED).astype(np.int32), k_open) < 0
 
     rows_all, cols_all = np.nonzero(labels)
     lab = labels[rows_all, cols_all]
@@ -268,7 +278,9 @@ def find_frontiers(
             tr, tc = int(rr[b] + wr0), int(cc_[b] + wc0)
             target = sub.cell_to_world(tr, tc)
             distance = float(steps[tr, tc]) * res
-        out.append(Frontier(int(rows.size), (cx, cy), pts, distance, target, share, res))
+        open_share = 1.0 - float(np.count_nonzero(near_occ[rows, cols])) / rows.size
+        out.append(Frontier(int(rows.size), (cx, cy), pts, distance, target, share, res,
+                            open_share))
     return out
 
 

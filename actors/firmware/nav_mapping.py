@@ -37,8 +37,9 @@ Complete when both hold (either alone can lie)
     * no reachable frontier of useful size remains (a stalled LIDAR would also
       give "no change"); after ``futile_trips`` trips in a row that each made
       fewer than ``min_gain_cells`` cells known, only frontiers of at least
-      ``futile_min_cells`` still count as useful (the rest are pockets nobody
-      can see into, ragged edges), and
+      ``futile_min_cells`` lying mostly in the open (``futile_open_share``)
+      still count as useful (the rest are pockets nobody can see into, ragged
+      edges along walls), and
     * the map's count of known cells has not moved for ``stable_window_s``
       while the scan count kept rising (a stalled LIDAR gives no scans, so it
       never reads as done).
@@ -155,6 +156,9 @@ class MappingOptions:
     """After futile trips, frontiers at least this long still count as useful [cells]:
     four visits to small pockets near the start once ended a 10 m hall at 62 % coverage
     with its far part, one long frontier, unseen."""
+    futile_open_share: float = 0.5
+    """...and at least this share of their cells in the open (no obstacle within 30 cm):
+    a ragged edge along a wall or a pocket behind furniture is long too."""
     min_gain_cells: int = 30
     """A trip that made fewer cells known than this was futile [cells]..."""
     home_budget_s: float = 180.0
@@ -534,14 +538,17 @@ class MappingNav(NavBase):
         assert self.grid is not None
         ex = self.ex
         pose = self.pose
-        # after futile visits only long frontiers still count (a big room's unseen far part),
-        # and each is blacklisted once reached (below), so this ends
-        min_size = self.m.futile_min_cells if self._futile() else self.m.min_frontier_cells
+        # after futile visits only long frontiers in the open still count (what an obstacle
+        # hid in a big room), and each is blacklisted once reached (below), so this ends
+        futile = self._futile()
+        min_size = self.m.futile_min_cells if futile else self.m.min_frontier_cells
         # reachability with the narrowest tier the rover can drive (a corridor barely wider
         # than the body); the route itself tries the roomier tiers first
         radius, margin = self._tiers()[-1]
         frontiers = find_frontiers(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
                                    margin_cm=margin, approach_cm=self.m.approach_cm)
+        if futile:
+            frontiers = [f for f in frontiers if f.open_share >= self.m.futile_open_share]
         for _ in range(self.m.max_choices):
             f = choose_frontier(frontiers, min_size_cells=min_size,
                                 blacklist=ex.blacklist, blacklist_radius_cm=self.m.approach_cm)
