@@ -369,3 +369,33 @@ def test_cli_without_max_wall_plays_every_game(capsys):
                               worker=fake_worker)
     summary = json.loads(capsys.readouterr().out)
     assert status == 0 and summary["games"] == 3 and summary["stopped_early"] is None
+
+
+def test_cli_summary_records_the_code_version_and_warns_when_it_changed(monkeypatch, capsys):
+    """Games replay only with the code they were played with: a change mid-campaign is told."""
+    versions = iter(["abc123", "def456"])
+    monkeypatch.setattr(cmd_campaign, "code_version", lambda: next(versions))
+    args = ("-n", "2", "--workers", "0", "--faults", "wifly:loss", "--out", ":memory:",
+            "--no-progress")
+    assert cmd_campaign.run(_args(*args), worker=fake_worker) == 0
+    assert ("WARNING: the code changed during the campaign (abc123 -> def456)"
+            in capsys.readouterr().out)
+    monkeypatch.setattr(cmd_campaign, "code_version", lambda: "abc123")
+    assert cmd_campaign.run(_args(*args, "--json"), worker=fake_worker) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["code"] == {"at_start": "abc123", "at_end": "abc123"}
+    assert "WARNING" not in captured.out + captured.err
+
+
+def test_code_version_names_this_checkout():
+    """In a git checkout: the commit (12 hex digits), ``-dirty`` with uncommitted changes."""
+    import shutil  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    root = Path(cmd_campaign.__file__).resolve().parents[1]
+    if shutil.which("git") is None or not (root / ".git").exists():
+        pytest.skip("not a git checkout")
+    version = cmd_campaign.code_version()
+    assert version is not None
+    head = version.removesuffix("-dirty")
+    assert len(head) == 12 and all(c in "0123456789abcdef" for c in head)

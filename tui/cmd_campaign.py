@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import sys
 import time
+from pathlib import Path
 from typing import Any, TextIO
 
 from supervisors.campaign import (
@@ -80,6 +82,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
+def code_version() -> str | None:
+    """The project's git version (``git describe --always --dirty``), None where unknown.
+
+    A game reproduces (same trace hash) only with the code it was played
+    with; the summary records the version at the start and at the end, so
+    a campaign whose working tree changed meanwhile says so.
+    """
+    root = Path(__file__).resolve().parents[1]
+    try:
+        done = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty",
+                               "--abbrev=12"], capture_output=True, text=True, timeout=10,
+                              check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if done.returncode != 0:
+        return None
+    return done.stdout.strip() or None
+
+
 def config_from_args(args: argparse.Namespace) -> CampaignConfig:
     """The campaign configuration the options describe.
 
@@ -133,6 +154,12 @@ def _print_table(s: dict[str, Any]) -> None:
     print(f"\ncampaign seed {s['campaign']['seed']} ({s['campaign']['mode']} faults): "
           f"{s['games']} games in {s['wall_s']:.1f} s wall with {s['workers']} workers "
           f"({s['games_per_wall_minute']} games/min)")
+    code = s.get("code") or {}
+    if code.get("at_start") != code.get("at_end"):
+        print(f"  WARNING: the code changed during the campaign ({code.get('at_start')} -> "
+              f"{code.get('at_end')}): games may not replay with the same trace hash")
+    elif "dirty" in (code.get("at_start") or ""):
+        print(f"  code {code['at_start']}: uncommitted changes; a replay needs the same files")
     if s.get("stopped_early"):
         print(f"  stopped early ({s['stopped_early']}): {s['games']} of "
               f"{s['games_requested']} games played")
@@ -199,6 +226,7 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
               f"{workers} workers ...", flush=True)
     results = []
     stopped = None
+    code_at_start = code_version()
     wall0 = time.perf_counter()  # wall time is measured for the report and --max-wall only
     with store:
         cid = store.new_campaign(config, time.time())
@@ -224,6 +252,7 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
                             workers=workers)
         summary["games_requested"] = games
         summary["stopped_early"] = stopped
+        summary["code"] = {"at_start": code_at_start, "at_end": code_version()}
         store.finish(cid, summary)
     if args.json:
         print(json.dumps(summary))
