@@ -151,3 +151,25 @@ def test_lines_added_while_hidden_show_the_newest_when_shown_again():
             assert len(bottom) == visible.width
 
     asyncio.run(main())
+
+
+def test_scrolled_back_the_rows_stay_put_and_end_follows_again():
+    """Scrolled back, new lines do not move the rows in view; ``end`` shows the newest."""
+    from tui.widgets.message_log import LogView
+
+    async def test(log, pilot):
+        log.add_lines(lines(*range(1, 101)))
+        await pilot.pause()
+        view = log.query_one(LogView)
+        bottom = view.size.height - 1
+        view.action_scroll_back(10)
+        await pilot.pause()
+        assert view.render_line(bottom).text.split()[-1] == "90"
+        log.add_lines(lines(*range(101, 106)))
+        await pilot.pause()
+        assert view.render_line(bottom).text.split()[-1] == "90" and view.back == 15
+        view.action_scroll_back(-1000000)
+        await pilot.pause()
+        assert view.back == 0 and view.render_line(bottom).text.split()[-1] == "105"
+
+    run(test)

@@ -5,7 +5,7 @@ whose ``seq`` it has not seen (see `tui.snapshot`), keeps the newest
 `HISTORY` lines so a new filter can be applied to the past, and while paused
 keeps collecting without scrolling, so nothing is missed on resume.
 
-The lines are drawn by `LogView`, a line-API scroll view over the bounded
+The lines are drawn by `LogView`, a line-API widget over the bounded
 list of matching lines that formats only the rows on screen: at full speed
 hundreds of lines arrive per frame, and rendering each one as it came (as
 `RichLog.write` does) cost more than the simulation itself.
@@ -20,11 +20,13 @@ from rich.segment import Segment
 from rich.style import Style
 from rich.text import Text
 from textual.app import ComposeResult
+from textual.binding import Binding
 from textual.containers import Vertical
-from textual.geometry import Region, Size
+from textual.events import MouseScrollDown, MouseScrollUp
+from textual.geometry import Region
 from textual.reactive import reactive
-from textual.scroll_view import ScrollView
 from textual.strip import Strip
+from textual.widget import Widget
 from textual.widgets import Input
 
 from tui.snapshot import LogLine
@@ -33,8 +35,6 @@ __all__ = ["MessageLog", "LogView", "HISTORY", "format_line", "line_segments"]
 
 #: Lines kept for re-filtering and for the view.
 HISTORY = 2000
-#: Widest line the view scrolls to [cells] (longer lines are cut).
-MAX_WIDTH = 200
 
 
 _DIM = Style(dim=True)
@@ -61,12 +61,31 @@ def format_line(line: LogLine) -> Text:
                          (line.text, style))
 
 
-class LogView(ScrollView):
+class LogView(Widget, can_focus=True):
     """The lines of the log, newest last; formats only the rows it draws.
 
-    ``follow``: keep the newest line in view as lines are added (unless the
-    person scrolled up, or the log is paused).
+    It draws the last rows itself rather than scrolling a tall virtual
+    canvas: a scroll view moved its offset on every frame while following,
+    and Textual then recomposed the whole screen (about 20 widgets a frame).
+    ``back`` is how many rows the view is scrolled back from the newest
+    (mouse wheel, arrows, page keys, home / end while focused); at 0 it
+    follows the newest. A line wider than the view ends in an ellipsis.
+
+    | Key | Action |
+    |---|---|
+    | up / down | one row back / forward |
+    | pageup / pagedown | one page back / forward |
+    | home / end | the oldest / the newest row |
     """
+
+    BINDINGS = [
+        Binding("up", "scroll_back(1)", "Back", show=False),
+        Binding("down", "scroll_back(-1)", "Forward", show=False),
+        Binding("pageup", "page(1)", "Page back", show=False),
+        Binding("pagedown", "page(-1)", "Page forward", show=False),
+        Binding("home", "scroll_back(1000000)", "Oldest", show=False),
+        Binding("end", "scroll_back(-1000000)", "Newest", show=False),
+    ]
 
     DEFAULT_CSS = """
     LogView { height: 1fr; }
@@ -78,64 +97,65 @@ class LogView(ScrollView):
         self.rows: deque[LogLine] = deque(maxlen=HISTORY)
         """The lines shown (bounded), oldest first."""
         self.follow = True
-        self._width = 0  # widest line added [cells]
+        """Keep the newest rows in view as lines are added (False while paused)."""
+        self.back = 0
+        """Rows the view is scrolled back from the newest (0: the newest at the bottom)."""
         self._strips: dict[int, Strip] = {}  # seq -> strip of the rows drawn lately
         self._style: Style | None = None  # the base style, until styles change
-        self._frame: tuple | None = None  # (scroll offset, size) while a frame is drawn
-        self._at_end = True  # the newest line is in view (False once scrolled up)
+        self._frame: tuple | None = None  # size while a frame is drawn
 
     def add(self, lines: list[LogLine]) -> None:
-        """Append lines (oldest first); scroll to the newest when following."""
+        """Append lines (oldest first); a view scrolled back keeps its rows in place."""
         if not lines:
             return
-        at_end = self._at_end
-        dropped = max(0, len(self.rows) + len(lines) - HISTORY)  # oldest rows pushed out
         self.rows.extend(lines)
-        # width of a line without formatting it: time, actor and text columns
-        self._width = min(MAX_WIDTH, max(self._width, max(
-            9 + max(len(ln.actor), 13) + len(ln.text) for ln in lines)))
-        self.virtual_size = Size(self._width, len(self.rows))
-        if self.follow and at_end:
-            self.scroll_end(animate=False, immediate=True, x_axis=False, force=True)
-            self._at_end = True
-        elif dropped:  # keep the rows the person is reading where they are
-            self.scroll_to(y=max(0, self.scroll_y - dropped), animate=False, immediate=True,
-                           force=True)
+        if self.back or not self.follow:
+            self.back = min(self.back + len(lines), self._max_back())
         self.refresh()
-
-    def watch_scroll_y(self, old_value: float, new_value: float) -> None:
-        super().watch_scroll_y(old_value, new_value)
-        if self.size.height:  # a hidden view (another tab) has no end to be at
-            self._at_end = new_value >= self.max_scroll_y
-
-    def on_resize(self) -> None:
-        if self.follow and self._at_end:  # shown again, or resized: the newest in view
-            self.scroll_end(animate=False, x_axis=False, force=True)
 
     def clear(self) -> None:
         """Remove every line."""
         self.rows.clear()
         self._strips.clear()
-        self._width = 0
-        self.virtual_size = Size(0, 0)
+        self.back = 0
         self.refresh()
 
+    def _max_back(self) -> int:
+        return max(0, len(self.rows) - self.size.height)
+
+    def action_scroll_back(self, rows: int) -> None:
+        """Scroll ``rows`` back (negative: forward, towards the newest)."""
+        back = max(0, min(self.back + rows, self._max_back()))
+        if back != self.back:
+            self.back = back
+            self.refresh()
+
+    def action_page(self, pages: int) -> None:
+        self.action_scroll_back(pages * max(1, self.size.height - 1))
+
+    def on_mouse_scroll_up(self, event: MouseScrollUp) -> None:
+        event.stop()
+        self.action_scroll_back(3)
+
+    def on_mouse_scroll_down(self, event: MouseScrollDown) -> None:
+        event.stop()
+        self.action_scroll_back(-3)
+
     def render_lines(self, crop: Region) -> list[Strip]:
-        # scroll offset and size cost a widget lookup each: read them once per frame
-        # (the size less the scrollbars: a cut line's ellipsis must not hide under one)
-        self._frame = (self.scroll_offset, self.scrollable_content_region.size)
+        # the size costs a widget lookup: read it once per frame
+        self._frame = tuple(self.size)
         try:
             return super().render_lines(crop)
         finally:
             self._frame = None
 
     def render_line(self, y: int) -> Strip:
-        (scroll_x, scroll_y), (width, height) = self._frame or (
-            self.scroll_offset, self.scrollable_content_region.size)
+        width, height = self._frame or self.size
         style = self._style
         if style is None:  # `rich_style` walks every ancestor's styles: once, not per row
             style = self._style = self.rich_style
-        index = scroll_y + y
+        top = max(0, len(self.rows) - height - self.back)  # index of the first row shown
+        index = top + y
         if not 0 <= index < len(self.rows):
             return Strip.blank(width, style)
         line = self.rows[index]
@@ -148,10 +168,9 @@ class LogView(ScrollView):
                     for seg in line_segments(line)]
             strip = Strip(segs, sum(cell_len(seg.text) for seg in segs))
             self._strips[line.seq] = strip
-        if strip.cell_length > scroll_x + width > 1:  # cut: say so (scroll right to read)
-            return Strip.join([strip.crop(scroll_x, scroll_x + width - 1),
-                               Strip([Segment("…", style)], 1)])
-        return strip.crop_extend(scroll_x, scroll_x + width, style)
+        if strip.cell_length > width > 1:  # cut: say so
+            return Strip.join([strip.crop(0, width - 1), Strip([Segment("…", style)], 1)])
+        return strip.crop_extend(0, width, style)
 
     def notify_style_update(self) -> None:
         super().notify_style_update()
