@@ -531,28 +531,71 @@ def seed_game_scheduler(seed: int) -> None:
     seed_trio_scheduler(seed)
 
 
+#: a play blocked without computing is stopped after this many times its CPU guard in wall time
+WALL_GUARD_FACTOR = 10.0
+_GUARD_POLL_S = 0.5          # how often the guard looks at the clocks [wall s]
+
+
+class _Guard:
+    """Cancels a Trio run once it used ``cpu_s`` of CPU time, or ``factor x cpu_s`` of wall time.
+
+    CPU time, because on a loaded machine a healthy game can take ten times
+    its CPU time in wall time (measured: a furniture game of 24 CPU s took
+    over 600 wall s at load 12), while a game that loops forever burns CPU;
+    the wall-time bound catches a game blocked without computing. An
+    operational limit of the harness (a thread polling the clocks), not part
+    of the simulation: it never fires in a healthy game.
+    """
+
+    def __init__(self, cpu_s: float, token: trio.lowlevel.TrioToken,
+                 cancel: Callable[[], None], factor: float = WALL_GUARD_FACTOR) -> None:
+        self.cpu_s, self.wall_s = cpu_s, factor * cpu_s
+        self.fired = ""
+        self._token, self._cancel = token, cancel
+        self._stop = threading.Event()
+        self._cpu0, self._wall0 = time.process_time(), time.perf_counter()
+        self._thread = threading.Thread(target=self._watch, name="campaign-guard", daemon=True)
+        self._thread.start()
+
+    def _watch(self) -> None:
+        while not self._stop.wait(min(_GUARD_POLL_S, self.cpu_s)):
+            cpu = time.process_time() - self._cpu0
+            wall = time.perf_counter() - self._wall0
+            if cpu >= self.cpu_s or wall >= self.wall_s:
+                self.fired = (f"{cpu:.0f} CPU s of {self.cpu_s:g}" if cpu >= self.cpu_s
+                              else f"{wall:.0f} wall s of {self.wall_s:g}")
+                try:
+                    self._token.run_sync_soon(self._cancel)
+                except trio.RunFinishedError:
+                    pass
+                return
+
+    def stop(self) -> None:
+        """Stop watching (the run is over)."""
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+
+
 def _run_one(spec: GameSpec, wall_timeout_s: float | None,
              nav_factory: Callable[..., Any] | None = None) -> tuple[GameReport, dict]:
-    """Play a game in a fresh Trio run on a virtual clock, cancelled after a wall-time guard."""
+    """Play a game in a fresh Trio run on a virtual clock, cancelled by a `_Guard`."""
     seed_game_scheduler(spec.run_seed)
-    guard: list[threading.Timer] = []
+    guards: list[_Guard] = []
 
     async def main() -> tuple[GameReport, dict]:
         with trio.CancelScope() as scope:
             if wall_timeout_s is not None:
-                token = trio.lowlevel.current_trio_token()
-                timer = threading.Timer(wall_timeout_s, token.run_sync_soon, (scope.cancel,))
-                timer.daemon = True
-                timer.start()
-                guard.append(timer)
+                guards.append(_Guard(wall_timeout_s, trio.lowlevel.current_trio_token(),
+                                     scope.cancel))
             return await play_checked(spec, nav_factory=nav_factory)
-        raise TimeoutError(f"game exceeded the wall-time guard of {wall_timeout_s:g} s")
+        raise TimeoutError("game stopped by the guard after "
+                           + (guards[0].fired if guards else "a cancellation"))
 
     try:
         return trio.run(main, clock=virtual_clock())
     finally:
-        for timer in guard:
-            timer.cancel()
+        for guard in guards:
+            guard.stop()
 
 
 def play_campaign_game(ref: str, *, determinism: bool = False,
@@ -570,8 +613,11 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
     Args:
         ref: the game reference ``S:i[,key=value...]`` (`CampaignConfig.game_ref`).
         determinism: play the game a second time and compare trace hashes.
-        wall_timeout_s: wall-clock guard per play [s] (an operational limit,
-            not part of the simulation); None for none.
+        wall_timeout_s: guard per play [s]: a play is stopped once it used
+            this much CPU time, or `WALL_GUARD_FACTOR` times this much wall
+            time (blocked without computing); an operational limit, not part
+            of the simulation, that a healthy game never reaches (the longest
+            take about 35 CPU s). None for none.
         baseline: when the game fails and had faults, play it again without
             them, so the failure list tells fault-caused failures from others.
         nav_factory: tests only (in-process): a stand-in navigation, e.g. a
@@ -677,7 +723,7 @@ def run_campaign(config: CampaignConfig, games: int, *, workers: int | None = No
             which must be module-level functions for the ``spawn`` pool).
         determinism_every: replay every n-th game to compare trace hashes
             (0: never).
-        wall_timeout_s: wall-clock guard per game [s].
+        wall_timeout_s: guard per play [s] (see `play_campaign_game`).
         start: index of the first game.
         pool: an already started ``multiprocessing`` pool to use (``workers``
             is then ignored); benchmarks pass a warmed-up one.
@@ -703,7 +749,7 @@ def run_campaign(config: CampaignConfig, games: int, *, workers: int | None = No
         yield from pool.imap_unordered(_call, jobs, chunksize=1)
         return
     ctx = multiprocessing.get_context("spawn")
-    # recycle workers now and then: a game that hit the wall-time guard may leave garbage
+    # recycle workers now and then: a game stopped by its guard may leave garbage
     with ctx.Pool(min(n, games), maxtasksperchild=100) as pool:
         yield from pool.imap_unordered(_call, jobs, chunksize=1)
 

@@ -164,3 +164,71 @@ def test_the_table_prints_each_failures_cause_and_what_broke_without_faults(caps
     assert "cause: the faults" in blocks[0] and "without its faults: found\n" in blocks[0]
     assert "cause: the game itself" in blocks[1]
     assert "without its faults: found, broken: no_loss.lost: x" in blocks[1]
+
+
+# ---------------------------------------------------------------------------- guard
+
+def _guarded(body, cpu_s: float, factor: float) -> str:
+    """Run ``body`` in Trio under a `_Guard`; return what stopped it ("" if nothing)."""
+    import trio  # noqa: PLC0415
+
+    from supervisors.campaign import _Guard  # noqa: PLC0415
+
+    fired = []
+
+    async def main():
+        with trio.CancelScope() as scope:
+            guard = _Guard(cpu_s, trio.lowlevel.current_trio_token(), scope.cancel, factor)
+            try:
+                await body()
+            finally:
+                guard.stop()
+                fired.append(guard.fired)
+
+    trio.run(main)
+    return fired[0]
+
+
+def test_the_guard_stops_a_game_that_keeps_computing_by_its_cpu_time():
+    import time  # noqa: PLC0415
+
+    import trio  # noqa: PLC0415
+
+    async def spin():
+        while True:
+            t = time.perf_counter()
+            while time.perf_counter() - t < 0.01:
+                pass
+            await trio.lowlevel.checkpoint()
+
+    assert "CPU s of 0.2" in _guarded(spin, 0.2, 50.0)
+
+
+def test_the_guard_stops_a_game_blocked_without_computing_by_wall_time():
+    import time  # noqa: PLC0415
+
+    import trio  # noqa: PLC0415
+
+    async def blocked():
+        await trio.to_thread.run_sync(time.sleep, 3.0, abandon_on_cancel=True)
+
+    assert "wall s of 0.2" in _guarded(blocked, 0.05, 4.0)
+
+
+def test_the_guard_leaves_a_short_game_alone():
+    import trio  # noqa: PLC0415
+
+    async def short():
+        await trio.sleep(0.01)
+
+    assert _guarded(short, 5.0, 10.0) == ""
+
+
+def test_a_game_stopped_by_its_guard_is_a_harness_failure_not_a_crash():
+    from supervisors.campaign import play_campaign_game  # noqa: PLC0415
+
+    r = play_campaign_game(CampaignConfig(1, rooms=("empty",)).game_ref(0),
+                           wall_timeout_s=0.05, baseline=False)
+    assert r["outcome"] == "failed"
+    assert r["violations"][0].startswith("harness.exception: TimeoutError: game stopped by the "
+                                         "guard after")

@@ -69,7 +69,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--replay-every", type=int, default=10, metavar="K",
                         help="replay every K-th game to check determinism (0: never; default 10)")
     parser.add_argument("--timeout", type=float, default=600.0,
-                        help="wall-clock guard per game [s] (default 600)")
+                        help="guard per game [s]: stopped after this much CPU time, or "
+                             "10x this much wall time (default 600)")
     parser.add_argument("--max-wall", type=float, default=None, metavar="MINUTES",
                         help="stop after this much wall time and summarise the games done")
     parser.add_argument("--quick", action="store_true",
