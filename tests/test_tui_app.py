@@ -152,6 +152,19 @@ def test_pause_resume_and_speed_keys():
     drive(test, speed=1.0)
 
 
+def test_speed_keys_pressed_quickly_step_from_the_speed_asked_last():
+    """']' three times before a snapshot shows the first: x1 -> x4 -> x16 -> max."""
+
+    async def test(app, fake):
+        for _ in range(3):
+            press(app, "right_square_bracket")
+        await until(lambda: len(calls(fake, "set_speed")) == 3, "three speed calls")
+        assert calls(fake, "set_speed") == [(4.0,), (16.0,), (None,)]
+        await until(lambda: app.snapshot.speed is None, "max speed shown")
+
+    drive(test, speed=1.0)
+
+
 def test_fault_dialog_injects_a_crash_that_flashes_and_recovers():
     """f opens the dialog; a crash on mapper/lidar shows restarting, then ↻1."""
 

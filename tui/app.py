@@ -183,6 +183,7 @@ class ConsoleApp(App[int]):
         self._awaiting = 0  # ticks since the outstanding request, 0 = none outstanding
         self._credit = 0.0  # frames owed at a reduced refresh rate
         self._panel_phase = ""  # phase the game panel shows
+        self._asked_speed: tuple[int, int] | None = None  # (SPEEDS index, snapshots_shown)
         # Held, not queried: App.query_one searches the *current* screen, which is a
         # dialog while one is open, and snapshots keep arriving then.
         self.map_view = MapView(id="map")
@@ -359,6 +360,9 @@ class ConsoleApp(App[int]):
             self._call("pause")
 
     def _speed_index(self) -> int:
+        asked = self._asked_speed
+        if asked is not None and self.snapshots_shown - asked[1] < 3:
+            return asked[0]  # a key pressed again before a snapshot showed the last one
         speed = self.snapshot.speed if self.snapshot else 1.0
         if speed is None:
             return len(SPEEDS) - 1
@@ -371,6 +375,7 @@ class ConsoleApp(App[int]):
         self._set_speed(max(0, self._speed_index() - 1))
 
     def _set_speed(self, index: int) -> None:
+        self._asked_speed = (index, self.snapshots_shown)
         self._call("set_speed", SPEEDS[index])  # the result (or refusal) is the notification
 
     def action_toggle_truth(self) -> None:
