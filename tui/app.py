@@ -109,6 +109,7 @@ MAP_KEYS: tuple[tuple[str, str], ...] = (
     ("0", "fit the known map, and follow it as it grows"),
     ("r", "rotate the hide heading by 45°"),
     ("escape", "back to the map from the log filter"),
+    ("wheel / arrows, page keys", "scroll the log back (arrows once it is clicked); end: newest"),
     ("ctrl+p", "command palette: every action by name"),
 )
 
