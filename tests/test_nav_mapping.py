@@ -256,7 +256,8 @@ def _walled_room(gaps: dict[str, int]) -> GridMap:
     return GridMap(cells, 5.0, (-200.0, -200.0))
 
 
-def test_after_futile_visits_long_frontiers_still_count() -> None:
+@pytest.mark.trio
+async def test_after_futile_visits_long_frontiers_still_count(autojump_clock) -> None:
     """Futile visits dismiss short frontiers only: a long one (a big room's unseen part) is
     still chosen, and with it blacklisted nothing useful is left."""
     from actors.firmware.nav_mapping import MappingNav, MappingOptions

@@ -159,6 +159,9 @@ class MappingOptions:
     futile_open_share: float = 0.5
     """...and at least this share of their cells in the open (no obstacle within 30 cm):
     a ragged edge along a wall or a pocket behind furniture is long too."""
+    trip_max_s: float = 90.0
+    """A trip also ends after this long [s] (the rover switching frontiers on the way
+    never reaches a target: furniture once made one trip of 615 s and mapped 900 s)."""
     min_gain_cells: int = 30
     """A trip that made fewer cells known than this was futile [cells]..."""
     home_budget_s: float = 180.0
@@ -203,6 +206,7 @@ class _Exploration:
     reached: list[tuple[float, float]] = field(default_factory=list)  # targets arrived at
     no_frontier: bool = False  # the last decision found nothing useful to explore
     trip_known: int | None = None  # known cells when the current trip began
+    trip_started: float = 0.0  # trio time the current trip began [s]
     gains: list[int] = field(default_factory=list)  # cells each recent trip made known
 
 
@@ -496,6 +500,12 @@ class MappingNav(NavBase):
             return
         ex = self.ex
         pose = self.pose
+        if ex.trip_known is not None and trio.current_time() - ex.trip_started >= \
+                self.m.trip_max_s:
+            # a rover that keeps switching to new frontiers on the way never ends a trip
+            # (furniture seed 3: one trip of 615 s): count it as a visit, go on
+            self._end_trip()
+            ex.trip_known, ex.trip_started = self._known(), trio.current_time()
         if ex.follower is not None and ex.steps >= ex.budget:
             self._blacklist(ex.target)  # no progress worth the route
             ex.follower = None
@@ -614,6 +624,7 @@ class MappingNav(NavBase):
         ex = self.ex
         if ex.trip_known is None:  # a trip runs until a target is reached or given up
             ex.trip_known = self._known()
+            ex.trip_started = trio.current_time()
         ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
         ex.target = f.target_cm
         ex.steps = 0
