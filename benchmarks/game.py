@@ -157,29 +157,39 @@ def play_one(job: tuple[str, int, float, bool]) -> dict[str, Any]:
     report = GameReport(scenario.name, seed)
     probe: dict[str, Any] = {}
 
-    async def watch_hidden(system: Any) -> None:
-        # the hider's arrival report sets hider_pose; the hider then stands still
-        while system.server.game.hider_pose is None:
-            await trio.sleep(0.25)
-        p = system.world.true_pose("hider")
-        probe["true_hider"] = (p.x, p.y, p.heading_deg)
-        g = system.server.game
-        if g.hider_pose is not None and g.hide_spot is not None:
-            probe["dr_hider"] = (g.hider_pose.x, g.hider_pose.y, g.hider_pose.heading)
-            probe["dr_spot"] = (g.hide_spot.x, g.hide_spot.y, g.hide_spot.heading)
+    def watch_hidden(system: Any) -> None:
+        """Note the hider's true pose at each of its frames until its arrival is known.
+
+        A frame observer, not a polling task: an extra task would change Trio's
+        batches and so the game, and the row's trace hash would not replay with
+        ``hideseek run``. Observers run before the game logic sees the frame, so
+        the last pose noted is the one at the arrival report (the hider then stands).
+        """
+        game = system.server.game
+
+        def observe(_rover_id: str, role: str, _frame: Any) -> None:
+            if role == "hider" and game.hider_pose is None:
+                p = system.world.true_pose("hider")
+                probe["true_hider"] = (p.x, p.y, p.heading_deg)
+
+        system.server.observe_frames(observe)
 
     async def main() -> None:
         with Store(":memory:") as store:
             async with open_sim_system(scenario, seed=seed, store=store,
                                        nav_factory=nav_factory) as system:
                 t_start = trio.current_time()
+                watch_hidden(system)
                 try:
-                    async with trio.open_nursery() as nursery:
-                        nursery.start_soon(watch_hidden, system)
-                        await play_game(system, report, Budget(mapping=mapping_budget))
-                        nursery.cancel_scope.cancel()
+                    await play_game(system, report, Budget(mapping=mapping_budget))
                 finally:
                     finish_report(report, system, t_start)
+                g = system.server.game
+                if g.hider_pose is None:
+                    probe.pop("true_hider", None)
+                elif g.hide_spot is not None:
+                    probe["dr_hider"] = (g.hider_pose.x, g.hider_pose.y, g.hider_pose.heading)
+                    probe["dr_spot"] = (g.hide_spot.x, g.hide_spot.y, g.hide_spot.heading)
 
     seed_trio_scheduler(seed)
     wall0 = time.perf_counter()

@@ -9,7 +9,7 @@ import math
 import trio
 
 from actors import seed_trio_scheduler, virtual_clock
-from benchmarks.game import truth_map, truth_nav_factory
+from benchmarks.game import play_one, truth_map, truth_nav_factory
 from server.store import Store
 from supervisors.headless import Budget, GameReport, finish_report, play_game, run_game
 from supervisors.system import open_sim_system
@@ -131,6 +131,14 @@ def play_on_truth(scenario, seed: int = 1) -> tuple[GameReport, dict]:
 
     seed_trio_scheduler(seed)
     return trio.run(main, clock=virtual_clock()), seen
+
+
+def test_a_benchmark_row_is_the_game_hideseek_run_plays() -> None:
+    """`benchmarks.game` watches the hider without changing the game: its row has
+    the trace hash of the same scenario and seed played as `hideseek run` does."""
+    row = play_one(("empty", 2, 1200.0, False))
+    assert row["trace_hash"] == play(load_scenario("empty"), 2).trace_hash
+    assert row["hider_true_cm"] is not None and row["hider_dr_cm"] is not None
 
 
 def test_hider_through_the_gap_and_seeker_find_it_on_a_true_map() -> None:
