@@ -516,18 +516,13 @@ def _stored_map(system: Any, store: Store) -> Any:
 def seed_game_scheduler(seed: int) -> None:
     """Make Trio's task order a function of ``seed`` alone (call before ``trio.run``).
 
-    `actors.seed_trio_scheduler` seeds the shuffle of each batch of runnable
-    tasks, but Trio builds the batch in an order that depends on object ids
-    (deadline ties are broken by ``id()``), so a second game in the same
-    process (a pool worker) plays differently. Trio's own switch for
-    Hypothesis, ``_ALLOW_DETERMINISTIC_SCHEDULING``, sorts each batch by task
-    creation order before the seeded shuffle: measured, three runs of one
-    seed in one process then give one trace hash (without it, three).
-    Campaign games and ``hideseek run --campaign`` both use this.
+    The campaign's name for `actors.seed_trio_scheduler`, which seeds the shuffle
+    of each batch of runnable tasks and turns on Trio's deterministic batch order
+    (without it, deadline ties are broken by ``id()``, so a second game in the
+    same pool worker played differently: measured, three runs of one seed in one
+    process gave three trace hashes). Campaign games and ``hideseek run
+    --campaign`` both use it.
     """
-    from trio._core import _run  # noqa: PLC0415 - Trio's private switch, on purpose, here only
-
-    _run._ALLOW_DETERMINISTIC_SCHEDULING = True
     seed_trio_scheduler(seed)
 
 
