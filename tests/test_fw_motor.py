@@ -265,3 +265,69 @@ async def test_correction_puts_navigation_in_the_map_frame_and_lidar_stays_raw(
                                                    Cmd.MAP_CORRECTION_HEADING]
         assert map_log[0][1].as_pair() == (50, -20) and map_log[1][1].value == 90.0
         assert [c.restarts for c in tree.which_children() if c.id == "motor"] == [0]
+
+
+async def drive_fake_treads(hw: FakeHardware, counts: tuple[float, float],
+                            until: float) -> None:
+    """Stand-in for the treads and encoders: each tread goes as its last PWM says (30 cm/s
+    at full duty, 80 ms lag) and counts ``counts[tread]`` of that travel (0: a stuck
+    encoder, 0.5: a slipping one) as Int E every 0.5 cm."""
+    isr = hw.handlers[Interrupt.INT_E]
+    speed = [0.0, 0.0]
+    counted = [0.0, 0.0]
+    dt = 0.05
+    while trio.current_time() < until:
+        await trio.sleep(dt)
+        left, right = hw.pwm[-1] if hw.pwm else (0.0, 0.0)
+        for tread, duty in enumerate((left, right)):
+            speed[tread] += (duty * 30.0 - speed[tread]) * (1.0 - math.exp(-dt / 0.08))
+            counted[tread] += speed[tread] * dt * counts[tread]
+            while abs(counted[tread]) >= 0.5:
+                forward = counted[tread] > 0
+                counted[tread] -= 0.5 if forward else -0.5
+                isr(encode_counter(tread, forward))
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize(("command", "amount"), [(Cmd.MOTOR_MOVE, 30.0),
+                                                 (Cmd.MOTOR_TURN, -8.0)],
+                         ids=["move", "small-turn"])
+async def test_a_driven_tread_that_does_not_count_is_reported_at_once(
+        autojump_clock, command, amount) -> None:
+    """The right encoder stuck: NAV_TREAD_FAULT (value 1, the right tread) once, within
+    about 2 cm of the left tread's travel; the command itself goes on."""
+    hw = FakeHardware()
+    log: list = []
+    async with open_actor_system(1) as system, trio.open_nursery() as nursery:
+        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
+        t0 = trio.current_time()
+        nursery.start_soon(drive_fake_treads, hw, (1.0, 0.0), t0 + 3.0)
+        await system.send("hider/motor", Message.float(command, amount))
+        m = await wait_for(log, {Cmd.NAV_TREAD_FAULT}, timeout=3.0)
+        assert m.value == 1
+        # the left tread counted four interrupts at most (the first 50 ms steps of a move
+        # bring two or three at once): dead reckoning is at most 2 cm / 13 cm (8.8 deg) off
+        assert abs(dead_reckoned(log)[2]) <= math.degrees(2.0 / 13.0) + 0.1
+        await trio.sleep(3.0)
+        assert [x for _, x in log if x.command == Cmd.NAV_TREAD_FAULT] == []  # only once
+        nursery.cancel_scope.cancel()
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize("counts", [(1.0, 1.0), (1.0, 0.5), (0.0, 0.0)],
+                         ids=["healthy", "half-the-counts", "both-silent"])
+async def test_no_tread_fault_when_both_count_or_both_are_silent(autojump_clock,
+                                                                 counts) -> None:
+    """Healthy treads, a tread that counts half (a weak motor looks the same: its odometry
+    is right), and both silent (blocked: NAV_MOTION_BLOCKED's case) give no NAV_TREAD_FAULT."""
+    hw = FakeHardware()
+    log: list = []
+    async with open_actor_system(1) as system, trio.open_nursery() as nursery:
+        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
+        nursery.start_soon(drive_fake_treads, hw, counts, trio.current_time() + 8.0)
+        for command, amount in [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0),
+                                (Cmd.MOTOR_TURN, -8.0), (Cmd.MOTOR_MOVE, -10.0)]:
+            await system.send("hider/motor", Message.float(command, amount))
+            await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED}, timeout=8.0)
+        assert [x for _, x in log if x.command == Cmd.NAV_TREAD_FAULT] == []
+        nursery.cancel_scope.cancel()

@@ -76,6 +76,10 @@ class Cmd(enum.IntEnum):
     NAV_LIDAR_HEALTH = 0x020C
     """LIDAR Control's verdict on its sensor changed; value int32, a `lidar.LidarHealth`
     (0 healthy; otherwise the fault seen: scans are withheld until it is healthy again)."""
+    NAV_TREAD_FAULT = 0x020D
+    """Motor Control saw a tread that is driven but does not count (a stuck encoder, or a
+    stalled tread) while the other one counts; value uint32, the tread (0 left, 1 right).
+    At most once per tread per Command A; the command goes on (navigation decides)."""
 
     # -- LIDAR queue -------------------------------------------------------
     LIDAR_SAMPLE = 0x0300

@@ -34,6 +34,23 @@ Map frame (mapper)
     applies its own latest correction. The correction is retained like the
     pose, and handed back to a restarted Map Management on ``MOTOR_GET_POSE``.
 
+A tread that is driven but does not count (``NAV_TREAD_FAULT``)
+    Why: a stuck encoder makes dead reckoning see a turn where the rover goes
+    straight (or a spin where it turns a little); navigation's check against
+    scan matching came about 1.3 s late, with the heading already 6 deg off
+    (round, campaign game 1:22). Motor Control knows sooner: it drives the
+    tread, and the motors follow their PWM with a first-order lag
+    (``motor_tau_s``), so it models how far each tread should have gone since
+    its last Int E. When that reaches ``silent_cm`` (2.5 interrupts) while the
+    other tread counted at least ``silent_other`` interrupts in a row
+    meanwhile, it sends navigation one ``NAV_TREAD_FAULT``, value the tread (0
+    left, 1 right), at most once per tread per command. The command goes on:
+    navigation decides (the mapper stops and holds). Both treads silent is
+    the blocked case above, not this one. A weak motor or a slipping encoder
+    (half the counts) stays under the threshold: with odometry alone they
+    cannot be told from each other, and a weak motor's odometry is right. A
+    stalled motor on one side looks the same as a stuck encoder here.
+
 Restarts
     The pose lives in a `PoseMemory` made by the rover tree: the model of a
     retained RAM section that survives a thread restart but not a rover reset
@@ -90,6 +107,12 @@ class MotorTuning:
     """Treads commanded but no encoder progress for this long: blocked [s]."""
     settle_s: float = 0.15
     """After both treads arrive, wait this long for coasting ticks before reporting [s]."""
+    motor_tau_s: float = 0.08
+    """The treads' first-order lag behind their PWM, as modelled for the silent-tread check [s]."""
+    silent_cm: float = 1.25
+    """A tread the model says went this far since its last Int E is silent [cm]."""
+    silent_other: int = 2
+    """...provided the other tread counted this many Int E in a row meanwhile."""
 
 
 class PoseMemory:
@@ -152,6 +175,15 @@ class MotorControl(Actor):
         self._lidar_dirty = False
         self._outcome: Message | None = None  # a DONE/BLOCKED report navigation refused
         self._pending = [0.0, 0.0]  # tread travel not yet integrated into the pose [cm]
+        # the silent-tread check (see the module docstring), per tread
+        self._model_v = [0.0, 0.0]     # modelled tread speed (lagged PWM) [cm/s]
+        self._unticked = [0.0, 0.0]    # modelled travel since the tread's last Int E [cm]
+        self._run = [0, 0]             # Int E in a row without one from the other tread
+        self._silent_sent = [False, False]  # NAV_TREAD_FAULT sent in this command
+        self._pwm = (0.0, 0.0)          # the duties last set while driving
+        self._model_t = 0.0             # when the model was last advanced [s]
+        self.tread_faults = 0
+        """NAV_TREAD_FAULT reports sent (this incarnation)."""
         self._correct_xy: tuple[float, float] | None = None  # first half of a correction
         self._period: Timer | Any = None  # the control period's timer while it runs, else None
         self.commands = 0
@@ -199,7 +231,7 @@ class MotorControl(Actor):
         elif cmd == Cmd.MOTOR_STOP:
             if self._kind is not None:
                 self._finish(Cmd.NAV_MOTION_DONE)
-            self.hw.set_tread_pwm(0.0, 0.0)
+            self._set_pwm(0.0, 0.0)
         elif cmd == Cmd.MOTOR_GET_POSE:
             self._publish()
             self._publish_correction()
@@ -224,6 +256,10 @@ class MotorControl(Actor):
         tread, forward = decode_counter(payload)
         d = self._unit if forward else -self._unit
         self._pending[tread] += d
+        self._advance_model(self._now())
+        self._unticked[tread] = 0.0
+        self._run[tread] += 1
+        self._run[1 - tread] = 0
         if self._kind is not None:
             self._progress[tread] += d
             self._last_progress_t = self._now()
@@ -240,6 +276,8 @@ class MotorControl(Actor):
     async def handle_burst(self, messages: list[Message]) -> None:
         for message in messages:
             await self.handle(message)
+        if self._kind is not None:
+            self._watch_treads(period_pending=False)
         self._integrate()
         if self._lidar_dirty:
             self._publish_lidar()
@@ -314,6 +352,11 @@ class MotorControl(Actor):
         now = self._now()
         self._kind = kind
         self._progress = [0.0, 0.0]
+        self._silent_sent = [False, False]
+        self._unticked = [0.0, 0.0]
+        self._model_v = [0.0, 0.0]
+        self._run = [0, 0]
+        self._model_t = now
         self._started_t = self._last_progress_t = now
         self._arrived_t = None
         cruise = self._vmax * self.tuning.cruise_fraction
@@ -336,12 +379,14 @@ class MotorControl(Actor):
 
     def _drive(self, now: float) -> None:
         t = self.tuning
+        self._advance_model(now)
+        self._watch_treads(period_pending=True)
         pl, pr = self._progress
         tl, tr = self._target
         rl, rr = tl - pl, tr - pr
         tol = t.tolerance_cm
         if abs(rl) <= tol and abs(rr) <= tol:
-            self.hw.set_tread_pwm(0.0, 0.0)
+            self._set_pwm(0.0, 0.0)
             if self._arrived_t is None:
                 self._arrived_t = now
             elif now - self._arrived_t >= t.settle_s:
@@ -361,7 +406,44 @@ class MotorControl(Actor):
             vl, vr = vl - corr, vr + corr
         else:
             vl, vr = vl - corr, vr - corr
-        self.hw.set_tread_pwm(self._duty(vl), self._duty(vr))
+        self._set_pwm(self._duty(vl), self._duty(vr))
+
+    def _set_pwm(self, left: float, right: float) -> None:
+        self._pwm = (left, right)
+        self.hw.set_tread_pwm(left, right)
+
+    def _advance_model(self, now: float) -> None:
+        """Advance the lagged tread model to ``now`` (travel since each tread's last Int E)."""
+        dt = now - self._model_t
+        if dt <= 0.0:
+            return
+        self._model_t = now
+        k = 1.0 - math.exp(-dt / self.tuning.motor_tau_s)
+        for tread in (0, 1):
+            v0 = self._model_v[tread]
+            v1 = v0 + (self._pwm[tread] * self._vmax - v0) * k
+            self._model_v[tread] = v1
+            self._unticked[tread] += 0.5 * (abs(v0) + abs(v1)) * dt
+
+    def _watch_treads(self, period_pending: bool) -> None:
+        """Report a driven tread that does not count while the other one does
+        (``NAV_TREAD_FAULT``, see the module docstring).
+
+        The encoders of one world step arrive together, so at a control step whose
+        step's Int E may not have arrived yet (``period_pending``) the last period's
+        modelled travel does not count against the tread.
+        """
+        t = self.tuning
+        for tread in (0, 1):
+            if self._silent_sent[tread] or self._run[1 - tread] < t.silent_other:
+                continue
+            owed = self._unticked[tread]
+            if period_pending:
+                owed -= abs(self._model_v[tread]) * t.period_s
+            if owed >= t.silent_cm:
+                self._silent_sent[tread] = True
+                self.tread_faults += 1
+                self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, tread))
 
     def _speed(self, remaining: float, cruise: float) -> float:
         t = self.tuning
@@ -375,7 +457,7 @@ class MotorControl(Actor):
         return max(-1.0, min(1.0, v / self._vmax))
 
     def _finish(self, outcome: int) -> None:
-        self.hw.set_tread_pwm(0.0, 0.0)
+        self._set_pwm(0.0, 0.0)
         pl, pr = self._progress
         if self._kind == Cmd.MOTOR_TURN:
             done = math.degrees((pr - pl) / self._track)
