@@ -44,6 +44,7 @@ import trio
 
 from .call import CallEnvelope, CallFailed
 from .cell import ActorState, Cell, Monitor
+from .clock import sleep
 from .exits import HUNG, KILLED, NORMAL, SHUTDOWN, ExitReason
 from .timers import TaskTimer, Timer
 from .trace import EventKind, Trace
@@ -183,10 +184,10 @@ class ActorContext:
         mailbox = self._cell.mailbox
         try:
             with timer._scope:
-                await trio.sleep(delay)
+                await sleep(delay)
                 mailbox.send_nowait(message)
                 while interval is not None:
-                    await trio.sleep(interval)
+                    await sleep(interval)
                     mailbox.send_nowait(message)
         finally:
             self._timer_done(timer)
