@@ -68,6 +68,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--every-ms", type=float, default=2.0)
     ap.add_argument("--top", type=int, default=40)
+    ap.add_argument("--callers", default="",
+                    help="also count the callers (two frames up) of innermost frames "
+                         "whose label contains this text")
     args = ap.parse_args(argv)
 
     import trio  # noqa: PLC0415
@@ -80,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     incl: collections.Counter[str] = collections.Counter()
     area: collections.Counter[str] = collections.Counter()
     line: collections.Counter[str] = collections.Counter()
+    callers: collections.Counter[str] = collections.Counter()
     total = [0]
 
     def on_prof(_sig: int, frame: FrameType | None) -> None:
@@ -92,6 +96,8 @@ def main(argv: list[str] | None = None) -> int:
             return
         total[0] += 1
         own[labels[0]] += 1
+        if args.callers and args.callers in labels[0]:
+            callers[" <- ".join(labels[:4])] += 1
         for lab in set(labels):
             incl[lab] += 1
         area[_area(labels)] += 1
@@ -119,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{report.sim_seconds:.0f} s, CPU {cpu:.1f} s, RTFc {report.sim_seconds / cpu:.1f}, "
           f"hash {report.trace_hash}, {total[0]} samples", file=sys.stdout)
     for title, counter in (("area", area), ("self", own), ("inclusive", incl),
-                           ("innermost project line", line)):
+                           ("innermost project line", line), ("callers", callers)):
         print(f"\n-- {title} --")
         for lab, k in counter.most_common(args.top):
             print(f"{100.0 * k / n:5.1f} %  {lab}")
