@@ -19,9 +19,9 @@ import trio
 from trio.lowlevel import Abort, checkpoint, current_task, reschedule, wait_task_rescheduled
 from trio.testing import MockClock
 
-try:  # Trio's internal run context: the autojump's shortcut (see `virtual_clock`)
+try:  # Trio's internal run context: shortcuts of `virtual_clock` and `sleep_until`
     from trio._core._run import GLOBAL_RUN_CONTEXT
-except ImportError:  # pragma: no cover - another Trio: its own autojump is used
+except ImportError:  # pragma: no cover - another Trio: its own ways are used
     GLOBAL_RUN_CONTEXT = None
 
 __all__ = ["real_clock", "scaled_clock", "virtual_clock", "set_rate", "set_rate_soon", "sleep",
@@ -111,22 +111,74 @@ def set_rate_soon(token: trio.lowlevel.TrioToken, clock: MockClock, rate: float)
     token.run_sync_soon(set_rate, clock, rate)
 
 
-async def sleep_until(deadline: float) -> None:
-    """`trio.sleep_until` with the same wake-ups, cheaper: the deadline wakes the task
-    instead of raising and catching ``Cancelled``.
+class _Alarm:
+    """A sleeping task's entry in Trio's deadline heap, in place of a cancel scope.
 
-    Why: every timer tick and world step is a sleep; Trio's sleep is a cancel scope
-    whose expiry builds a ``Cancelled`` exception and throws it through the sleeping
-    coroutine. Here the scope's abort function, when its own deadline fired,
-    reschedules the task with a plain value at that same moment (so the same
-    scheduler batch, the same game) and the scope exits normally. A cancellation from
-    outside (a timer cancelled, an actor killed) still raises ``Cancelled`` as before.
+    Trio's `Deadlines` heap holds ``(deadline, id, scope)`` and, when the deadline
+    is due, calls ``scope._cancel(reason)`` if ``scope._registered_deadline`` still
+    equals it (`Deadlines.expire`; `next_deadline` and the autojump read the same
+    field). This object answers those two: its ``_cancel`` reschedules the sleeper,
+    at the moment a scope's cancellation would have.
+    """
+
+    __slots__ = ("_registered_deadline", "_task", "_deadlines")
+
+    def __init__(self, deadline: float, task: object, deadlines: object) -> None:
+        self._registered_deadline = deadline
+        self._task = task
+        self._deadlines = deadlines
+
+    def _cancel(self, _reason: object) -> None:
+        """The deadline is due (called by Trio's `Deadlines.expire`): wake the sleeper."""
+        self._deadlines.remove(self._registered_deadline, self)  # type: ignore[attr-defined]
+        self._registered_deadline = math.inf
+        reschedule(self._task)  # type: ignore[arg-type]
+
+    def abort(self, _raise_cancel: object) -> Abort:
+        """Cancelled from outside while sleeping: leave the heap, let Trio raise."""
+        if self._registered_deadline != math.inf:
+            self._deadlines.remove(self._registered_deadline, self)  # type: ignore[attr-defined]
+            self._registered_deadline = math.inf
+        return Abort.SUCCEEDED
+
+
+async def sleep_until(deadline: float) -> None:
+    """`trio.sleep_until` with the same wake-ups, cheaper.
+
+    Why: every timer tick and world step is a sleep (about 150 per simulated
+    second in a game), and Trio's sleep is a cancel scope (made, entered, its
+    deadline registered, exited) whose expiry builds a ``Cancelled`` exception and
+    throws it through the sleeping coroutine. Here the sleeper puts an `_Alarm`
+    into Trio's deadline heap and parks; when the deadline is due Trio's own expiry
+    pass wakes it with a plain value, at the moment it would have cancelled the
+    scope (so in the same scheduler batch: the same game, same trace hash). A
+    cancellation from outside (a timer cancelled, an actor killed) raises
+    ``Cancelled`` as before. Without Trio's internals (another Trio version), in
+    guest mode (the console) and for a deadline already due, a cancel scope does
+    it, still without the exception when its own deadline fires.
 
     Raises:
         ValueError: ``deadline`` is NaN.
     """
     if deadline != deadline:
         raise ValueError("deadline must not be NaN")
+    try:
+        runner = GLOBAL_RUN_CONTEXT.runner
+        deadlines = runner.deadlines
+        guest = runner.is_guest
+    except AttributeError:
+        guest = True
+    if guest or not deadline > trio.current_time():
+        await _scope_sleep_until(deadline)
+        return
+    alarm = _Alarm(deadline, current_task(), deadlines)
+    deadlines.add(deadline, alarm)
+    await wait_task_rescheduled(alarm.abort)
+
+
+async def _scope_sleep_until(deadline: float) -> None:
+    """`sleep_until` with a cancel scope whose own deadline wakes the task with a value
+    (its abort function reschedules it) instead of raising ``Cancelled``."""
     task = current_task()
     with trio.CancelScope(deadline=deadline) as scope:
         def abort(_raise_cancel: object) -> Abort:

@@ -109,3 +109,23 @@ def test_cheap_sleep_checks_its_argument() -> None:
         return trio.current_time()
 
     assert trio.run(main, clock=virtual_clock()) == 0.0
+
+
+def test_cheap_sleep_keeps_trios_deadline_heap_consistent() -> None:
+    """Thousands of sleeps cancelled from outside leave stale heap entries; Trio's
+    pruning (which asserts its count of live deadlines) and later sleeps still work."""
+    from actors import sleep  # noqa: PLC0415
+
+    async def main() -> tuple[int, float]:
+        cancelled = 0
+        for _ in range(3000):
+            with trio.move_on_after(0.01) as scope:
+                await sleep(1.0)
+            cancelled += scope.cancelled_caught
+        start = trio.current_time()
+        await sleep(2.5)
+        return cancelled, trio.current_time() - start
+
+    cancelled, slept = trio.run(main, clock=virtual_clock())
+    assert cancelled == 3000
+    assert slept == 2.5
