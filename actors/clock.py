@@ -111,6 +111,17 @@ def set_rate_soon(token: trio.lowlevel.TrioToken, clock: MockClock, rate: float)
     token.run_sync_soon(set_rate, clock, rate)
 
 
+def deadline_heap() -> object | None:
+    """Trio's heap of deadlines (`Deadlines`) of the running loop, or None where the
+    shortcuts that use it are off: another Trio version, or guest mode (the console),
+    where a change of the next deadline must also wake the host loop."""
+    try:
+        runner = GLOBAL_RUN_CONTEXT.runner
+        return None if runner.is_guest else runner.deadlines
+    except AttributeError:
+        return None
+
+
 class _Alarm:
     """A sleeping task's entry in Trio's deadline heap, in place of a cancel scope.
 
@@ -162,13 +173,8 @@ async def sleep_until(deadline: float) -> None:
     """
     if deadline != deadline:
         raise ValueError("deadline must not be NaN")
-    try:
-        runner = GLOBAL_RUN_CONTEXT.runner
-        deadlines = runner.deadlines
-        guest = runner.is_guest
-    except AttributeError:
-        guest = True
-    if guest or not deadline > trio.current_time():
+    deadlines = deadline_heap()
+    if deadlines is None or not deadline > trio.current_time():
         await _scope_sleep_until(deadline)
         return
     alarm = _Alarm(deadline, current_task(), deadlines)
