@@ -5,7 +5,7 @@ Layering inside the package (each module imports only those above it):
     message   Message, ValueType, BufferPool: the seed's 96-bit message
     exits     ExitReason: why an actor stopped, as data
     trace     TraceEvent, Trace, JsonLinesRecorder, seed_trio_scheduler
-    clock     real_clock, scaled_clock, virtual_clock, set_rate
+    clock     real_clock, scaled_clock, virtual_clock, set_rate, sleep, sleep_until
     mailbox   Mailbox: bounded, survives restarts, drains in bursts
     call      CallEnvelope, CallTimeout, CallFailed, UnknownActor
     cell      Cell, ActorState, Monitor, Down: per-name state outliving incarnations
@@ -18,7 +18,15 @@ Supervision lives in the ``supervisors`` package, built on these names.
 from .actor import MAX_TIMERS, Actor, ActorContext, InjectedCrash, Timer, run_actor
 from .call import CallEnvelope, CallFailed, CallTimeout, UnknownActor
 from .cell import ActorState, Cell, Down, Monitor
-from .clock import real_clock, scaled_clock, set_rate, set_rate_soon, virtual_clock
+from .clock import (
+    real_clock,
+    scaled_clock,
+    set_rate,
+    set_rate_soon,
+    sleep,
+    sleep_until,
+    virtual_clock,
+)
 from .exits import HUNG, KILLED, MAX_INTENSITY, NORMAL, SHUTDOWN, ExitKind, ExitReason
 from .mailbox import Mailbox, MailboxClosed, MailboxStatistics
 from .message import BufferPool, Message, PoolExhausted, PoolStatistics, ValueType
@@ -39,6 +47,6 @@ __all__ = [
     "MailboxClosed", "MailboxStatistics", "Message", "Monitor", "NORMAL", "PoolExhausted",
     "PoolStatistics", "SHUTDOWN", "StartFailed", "Subscription", "SupervisorHandle", "Timer",
     "Trace", "TraceEvent", "UnknownActor", "ValueType", "open_actor_system", "real_clock",
-    "run_actor", "scaled_clock", "seed_trio_scheduler", "set_rate", "set_rate_soon",
-    "virtual_clock",
+    "run_actor", "scaled_clock", "seed_trio_scheduler", "set_rate", "set_rate_soon", "sleep",
+    "sleep_until", "virtual_clock",
 ]

@@ -44,6 +44,7 @@ import trio
 
 from .call import CallEnvelope, CallFailed
 from .cell import ActorState, Cell, Monitor
+from .clock import deadline_heap, sleep
 from .exits import HUNG, KILLED, NORMAL, SHUTDOWN, ExitReason
 from .timers import TaskTimer, Timer
 from .trace import EventKind, Trace
@@ -183,10 +184,10 @@ class ActorContext:
         mailbox = self._cell.mailbox
         try:
             with timer._scope:
-                await trio.sleep(delay)
+                await sleep(delay)
                 mailbox.send_nowait(message)
                 while interval is not None:
-                    await trio.sleep(interval)
+                    await sleep(interval)
                     mailbox.send_nowait(message)
         finally:
             self._timer_done(timer)
@@ -300,31 +301,45 @@ async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
     between bursts) was a false alarm: a new guard is opened and serving goes on."""
     while True:
         guard = _Guard(cell.watchdog)
-        with guard.scope:
-            return await _serve_loop(cell, actor, ctx, trace, max_burst, guard)
+        try:
+            with guard.scope:
+                return await _serve_loop(cell, actor, ctx, trace, max_burst, guard)
+        finally:
+            guard.disarm()  # out of Trio's heap with the scope, as the scope's deadline was
         if cell.current is not None:
             return _hung(cell, actor, trace)
 
 
 class _Guard:
-    """The watchdog of one incarnation: one cancel scope whose deadline is moved.
+    """The watchdog of one incarnation: one cancel scope, cancelled when the deadline
+    of the message being handled passes.
 
     Why not a scope per message: entering and leaving a Trio cancel scope per
     handled message was the largest single cost of the runtime in a whole game
     (about 13 us each). Here the deadline is set to (start of the message being
     handled + watchdog) only when the clock has moved since it was last set (in
-    virtual time a burst handled at one instant sets it once), and put back to
-    infinity before the actor parks on an empty mailbox, so an idle actor is
-    never woken by it. A handler that blocks past its deadline is cancelled at
-    exactly start + watchdog, as with a scope of its own.
+    virtual time a burst handled at one instant sets it once), and taken away
+    before the actor parks on an empty mailbox, so an idle actor is never woken by
+    it. A handler that blocks past its deadline is cancelled at exactly start +
+    watchdog, as with a scope of its own.
+
+    Why the guard itself sits in Trio's deadline heap (as `actors.clock.sleep_until`'s
+    alarms do) instead of setting the scope's deadline: each deadline change of a
+    scope goes through Trio's bookkeeping (a context manager, twice per message
+    at a new instant, about 4 % of a game). When the deadline is due, Trio's expiry
+    pass calls `_cancel` with its reason, which cancels the scope at that moment,
+    as the scope's own deadline would have. Without the heap (guest mode, another
+    Trio) the scope's deadline is moved as before.
     """
 
-    __slots__ = ("scope", "watchdog", "since")
+    __slots__ = ("scope", "watchdog", "since", "_registered_deadline", "_deadlines")
 
     def __init__(self, watchdog: float | None) -> None:
         self.scope = trio.CancelScope()
         self.watchdog = watchdog
         self.since = math.inf  # when the deadline was last set [s]; inf: not armed
+        self._registered_deadline = math.inf  # our entry in Trio's heap; inf: none
+        self._deadlines: Any = deadline_heap() if watchdog is not None else None
 
     def arm(self) -> None:
         """A message starts now: its handling must end within the watchdog deadline."""
@@ -332,13 +347,30 @@ class _Guard:
             now = trio.current_time()
             if now != self.since:
                 self.since = now
-                self.scope.deadline = now + self.watchdog
+                deadlines = self._deadlines
+                if deadlines is None:
+                    self.scope.deadline = now + self.watchdog
+                    return
+                if self._registered_deadline != math.inf:
+                    deadlines.remove(self._registered_deadline, self)
+                self._registered_deadline = deadline = now + self.watchdog
+                deadlines.add(deadline, self)
 
     def disarm(self) -> None:
         """Nothing is being handled from now on (before parking, or a fault's own scope)."""
         if self.since != math.inf:
             self.since = math.inf
-            self.scope.deadline = math.inf
+            if self._deadlines is None:
+                self.scope.deadline = math.inf
+            elif self._registered_deadline != math.inf:
+                self._deadlines.remove(self._registered_deadline, self)
+                self._registered_deadline = math.inf
+
+    def _cancel(self, reason: Any) -> None:
+        """The deadline is due (called by Trio's `Deadlines.expire`): fire the watchdog."""
+        self._deadlines.remove(self._registered_deadline, self)
+        self._registered_deadline = math.inf
+        self.scope._cancel(reason)  # noqa: SLF001 - what the scope's own deadline calls
 
 
 async def _serve_loop(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,

@@ -21,7 +21,7 @@ import trio
 
 from actors import Trace
 from server.store import Store
-from world.metrics import accuracy, coverage, path_length, t90, t99
+from world.metrics import CoverageProbe, accuracy, coverage, path_length, t90, t99
 from world.scenario import Scenario
 from world.truth import truth_raster
 
@@ -132,7 +132,7 @@ async def _wait_for_rovers(system: SimSystem, timeout: float) -> bool:
 async def _probe(system: SimSystem, series: list[tuple[float, float]],
                  poses: list[tuple[float, float]], truth: Any) -> None:
     """Sample coverage of the mapper's working map and its true path (metrics only)."""
-    start = system.scenario.starts["mapper"]
+    probe = CoverageProbe(system.scenario.starts["mapper"], truth)
     t0 = trio.current_time()
     while True:
         p = system.world.true_pose("mapper")
@@ -140,7 +140,7 @@ async def _probe(system: SimSystem, series: list[tuple[float, float]],
         grid = system.mapper_grid()
         if grid is not None:
             series.append((trio.current_time() - t0,
-                           coverage(grid.cells, grid.resolution_cm, grid.origin_cm, start, truth)))
+                           probe(grid.cells, grid.resolution_cm, grid.origin_cm)))
         await trio.sleep(_PROBE_S)
 
 

@@ -26,7 +26,15 @@ from typing import Any
 import numpy as np
 import trio
 
-from actors import ActorSystem, EventKind, Message, Trace, open_actor_system, seed_trio_scheduler
+from actors import (
+    ActorSystem,
+    EventKind,
+    Message,
+    Trace,
+    open_actor_system,
+    seed_trio_scheduler,
+    sleep,
+)
 from actors.firmware.commands import Cmd
 from server.protocol import Pose2
 from server.server import Server, ServerConfig, open_server
@@ -177,7 +185,7 @@ class SimSystem:
 async def _watch_scheduled_actor_faults(system: SimSystem) -> None:
     """Hand the scenario's scheduled crash/hang/flood faults to the runtime when due."""
     while True:
-        await trio.sleep(_FAULT_POLL_S)
+        await sleep(_FAULT_POLL_S)
         for f in system.world.actor_faults_due():
             try:
                 system.inject_fault(f.target, f.kind, f.duration_s, **f.params)

@@ -53,3 +53,79 @@ def test_rates_must_be_finite_and_positive(bad: float) -> None:
 def test_rate_must_be_a_number() -> None:
     with pytest.raises(TypeError, match="rate must be a number, got 'fast'"):
         scaled_clock("fast")  # type: ignore[arg-type]
+
+
+def _wake_log(sleeper, seed: int) -> list[tuple[float, str]]:
+    """Who wakes when: tasks sleeping overlapping periods, one cancelled mid-sleep,
+    under the seeded (shuffled) scheduler a game runs with."""
+    from actors import seed_trio_scheduler  # noqa: PLC0415
+
+    log: list[tuple[float, str]] = []
+
+    async def ticker(name: str, period: float, n: int) -> None:
+        for _ in range(n):
+            await sleeper(period)
+            log.append((trio.current_time(), name))
+
+    async def main() -> None:
+        async with trio.open_nursery() as nursery:
+            for i, period in enumerate((0.05, 0.1, 0.25, 0.05, 0.02)):
+                nursery.start_soon(ticker, f"t{i}", period, 40)
+            with trio.CancelScope() as scope:
+                scope.deadline = trio.current_time() + 0.33
+                await sleeper(5.0)  # cancelled from outside: must raise, not wake
+                log.append((trio.current_time(), "not cancelled"))
+            log.append((trio.current_time(), f"cancelled {scope.cancelled_caught}"))
+
+    seed_trio_scheduler(seed)
+    trio.run(main, clock=virtual_clock())
+    return log
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_cheap_sleep_wakes_like_trios(seed: int) -> None:
+    """`actors.sleep` wakes the same tasks at the same instants in the same order as
+    `trio.sleep` (so games keep their trace), and an outer cancel still cancels it."""
+    from actors import sleep  # noqa: PLC0415
+
+    ours, trios = _wake_log(sleep, seed), _wake_log(trio.sleep, seed)
+    assert ours == trios
+    assert (0.33, "cancelled True") in ours
+    assert all(name != "not cancelled" for _, name in ours)
+
+
+def test_cheap_sleep_checks_its_argument() -> None:
+    """0 is a checkpoint; negative or NaN is refused as by Trio."""
+    from actors import sleep, sleep_until  # noqa: PLC0415
+
+    async def main() -> float:
+        await sleep(0)
+        for bad in (-1.0, float("nan")):
+            with pytest.raises(ValueError):
+                await sleep(bad)
+        with pytest.raises(ValueError):
+            await sleep_until(float("nan"))
+        await sleep_until(trio.current_time() - 1.0)  # past: returns at once
+        return trio.current_time()
+
+    assert trio.run(main, clock=virtual_clock()) == 0.0
+
+
+def test_cheap_sleep_keeps_trios_deadline_heap_consistent() -> None:
+    """Thousands of sleeps cancelled from outside leave stale heap entries; Trio's
+    pruning (which asserts its count of live deadlines) and later sleeps still work."""
+    from actors import sleep  # noqa: PLC0415
+
+    async def main() -> tuple[int, float]:
+        cancelled = 0
+        for _ in range(3000):
+            with trio.move_on_after(0.01) as scope:
+                await sleep(1.0)
+            cancelled += scope.cancelled_caught
+        start = trio.current_time()
+        await sleep(2.5)
+        return cancelled, trio.current_time() - start
+
+    cancelled, slept = trio.run(main, clock=virtual_clock())
+    assert cancelled == 3000
+    assert slept == 2.5

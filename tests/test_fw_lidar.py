@@ -223,3 +223,15 @@ async def test_noisy_ranges_are_withheld(autojump_clock) -> None:
             r = [max(1, int(v + rng.normal(0.0, 10.0))) for v in r]
             await _interrupt(system, hw, _frames(a, r))
         assert log == [(Cmd.NAV_LIDAR_HEALTH, LidarHealth.NOISY)]
+
+
+def test_roughness_is_the_median_of_the_second_differences() -> None:
+    """Odd and even counts of triples (even: the mean of the middle two), as np.median."""
+    rng = np.random.default_rng(7)
+    for n in (3, 4, 5, 6, 40, 99, 100):
+        angles = np.arange(n, dtype=float)
+        ranges = np.round(rng.uniform(100.0, 300.0, n))
+        rough, triples = roughness_cm(angles, ranges)
+        d2 = np.abs(ranges[:-2] - 2.0 * ranges[1:-1] + ranges[2:])
+        assert triples == n - 2
+        assert rough == float(np.median(d2))

@@ -157,3 +157,37 @@ def test_gridmap_is_read_only_and_normalises_probabilities():
 def test_bounds_of_empty_grid_is_none():
     """A grid with nothing known has no bounds."""
     assert small_grid().bounds() is None
+
+
+def _classified(g: OccupancyGrid) -> np.ndarray:
+    """The classes computed afresh from the log-odds (what the kept classes must equal)."""
+    m = g.model
+    lo = g.log_odds()
+    return np.where(lo < m.free_threshold, FREE, np.where(lo > m.occ_threshold, OCCUPIED,
+                                                          UNKNOWN)).astype(np.int8)
+
+
+def test_kept_classes_follow_every_update_and_fill():
+    """The classes the grid keeps per cell (snapshots read them) equal a fresh
+    classification of the log-odds after scans that free, hit and re-clear cells, and
+    after seeding unknown cells; an unchanged grid gives the same snapshot again."""
+    rng = np.random.default_rng(3)
+    g = small_grid()
+    for i in range(40):
+        pose = Pose(rng.uniform(-30, 30), rng.uniform(-30, 30), rng.uniform(0, 360))
+        ranges = rng.uniform(10, 90, 90) * (rng.random(90) > 0.1)
+        g.integrate(pose, np.arange(0, 360, 4.0), ranges)
+        snap = g.snapshot()
+        np.testing.assert_array_equal(snap.cells, _classified(g), err_msg=f"batch {i}")
+    assert g.snapshot() is snap  # nothing changed class since
+    seed = np.full((10, 12), FREE, dtype=np.int8)
+    seed[2:4] = OCCUPIED
+    before = g.cells()[:10, :12]
+    assert (before == UNKNOWN).any()
+    assert g.fill_unknown(0, 0, seed)  # unknown cells of the grid's corner get seeded
+    np.testing.assert_array_equal(g.snapshot().cells, _classified(g))
+    np.testing.assert_array_equal(g.cells()[:10, :12],
+                                  np.where(before == UNKNOWN, seed, before))
+    assert not g.fill_unknown(0, 0, seed)  # now known: nothing to seed
+    with pytest.raises(ValueError, match="off the grid"):
+        g.fill_unknown(35, 0, seed)

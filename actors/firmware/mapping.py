@@ -45,7 +45,7 @@ from actors import Actor, BufferPool, Message, PoolExhausted
 
 from .commands import Cmd
 from .lidar import Scan
-from .occupancy import FREE, OCCUPIED, UNKNOWN, GridMap, OccupancyGrid
+from .occupancy import GridMap, OccupancyGrid
 from .odometry import Pose, compose, inverse
 from .scan_match import MatchFields, MatchOptions, hits_to_local, match_scan
 
@@ -300,10 +300,4 @@ class MapManagement(Actor):
         if rs >= re or cs >= ce:
             return
         src = snap.cells[rs - r0:re - r0, cs - c0:ce - c0]
-        lo = grid._log_odds[rs:re, cs:ce]  # noqa: SLF001 - the grid's own storage
-        own = grid.cells()[rs:re, cs:ce]
-        fill = own == UNKNOWN
-        m = grid.model
-        lo[fill & (src == FREE)] = m.l_min
-        lo[fill & (src == OCCUPIED)] = m.l_max
-        self._changed = bool(np.any(fill & (src != UNKNOWN)))
+        self._changed = grid.fill_unknown(rs, cs, src)

@@ -316,6 +316,9 @@ class OccupancyGrid:
         self._hits = np.zeros((ny, nx), dtype=np.float32)
         self._scratch = np.zeros(ny * nx, dtype=np.int32)  # `_distinct`'s work space
         self._mark = np.zeros(ny * nx, dtype=bool)  # hit cells of a batch, cleared after use
+        # the cells' classes, kept up to date by every write of the log-odds (see `snapshot`)
+        self._classes = np.full((ny, nx), UNKNOWN, dtype=np.int8)
+        self._snap: GridMap | None = None  # the last snapshot, while no cell changed class
         self.batches = 0
         """Batches integrated so far (one per `integrate` call with at least one ray)."""
         self.rays = 0
@@ -349,6 +352,7 @@ class OccupancyGrid:
         lo = grid._log_odds
         lo[norm == FREE] = grid.model.l_min
         lo[norm == OCCUPIED] = grid.model.l_max
+        grid._classes = grid._classify(lo)
         return grid
 
     # -- geometry -----------------------------------------------------------
@@ -446,8 +450,11 @@ class OccupancyGrid:
         vals[n_free:] += m.l_occ
         np.clip(vals, m.l_min, m.l_max, out=vals)
         flat[idx] = vals
-        changed = int(np.count_nonzero((was_free != (vals < m.free_threshold))
-                                       | (was_occ != (vals > m.occ_threshold))))
+        now_free, now_occ = vals < m.free_threshold, vals > m.occ_threshold
+        moved = (was_free != now_free) | (was_occ != now_occ)
+        changed = int(np.count_nonzero(moved))
+        if changed:
+            self._set_classes(idx[moved], now_free[moved], now_occ[moved])
         self._splat_hits(hx, hy)
 
         self.batches += 1
@@ -498,6 +505,36 @@ class OccupancyGrid:
             flat, weights = flat[inside], weights[inside]
         np.add.at(self._hits.reshape(-1), flat, weights)
 
+    def _set_classes(self, flat_idx: np.ndarray, free: np.ndarray, occupied: np.ndarray) -> None:
+        """Record the new classes of the cells ``flat_idx`` (their log-odds just changed)."""
+        self._classes.reshape(-1)[flat_idx] = np.where(
+            free, np.int8(FREE), np.where(occupied, np.int8(OCCUPIED), np.int8(UNKNOWN)))
+        self._snap = None
+
+    def fill_unknown(self, row0: int, col0: int, cells: np.ndarray) -> bool:
+        """Seed the unknown cells of the box at (``row0``, ``col0``) from ``cells``
+        (free ones get ``l_min``, occupied ``l_max``: fully confident); known cells keep
+        what this grid observed. The box must lie on the grid.
+
+        Returns:
+            True when some cell was seeded (it changed class).
+        """
+        ny, nx = cells.shape
+        box = (slice(row0, row0 + ny), slice(col0, col0 + nx))
+        lo = self._log_odds[box]
+        if lo.shape != cells.shape:
+            raise ValueError(f"fill box {cells.shape} at ({row0}, {col0}) is off the grid")
+        fill = self._classes[box] == UNKNOWN
+        m = self.model
+        seed_free, seed_occ = fill & (cells == FREE), fill & (cells == OCCUPIED)
+        lo[seed_free] = m.l_min
+        lo[seed_occ] = m.l_max
+        if not (seed_free.any() or seed_occ.any()):
+            return False
+        self._classes[box] = self._classify(lo)
+        self._snap = None
+        return True
+
     def _classify(self, log_odds: np.ndarray) -> np.ndarray:
         m = self.model
         out = np.full(log_odds.shape, UNKNOWN, dtype=np.int8)
@@ -525,13 +562,21 @@ class OccupancyGrid:
 
     def cells(self) -> np.ndarray:
         """A new int8 array (ny, nx): -1 unknown, 0 free, 100 occupied."""
-        return self._classify(self._log_odds)
+        return self._classes.copy()
 
     def snapshot(self) -> GridMap:
-        """An immutable `GridMap` of the whole grid."""
-        cells = self.cells()
-        cells.flags.writeable = False
-        return GridMap(cells, self.resolution_cm, self.origin_cm)
+        """An immutable `GridMap` of the whole grid.
+
+        Why cheap: the classes are kept per cell as the log-odds change (classifying
+        the whole grid took three passes over it, 0.3 ms for 480 x 480 cells, at every
+        published update), and a snapshot taken while no cell changed class is the
+        previous one again (it is immutable).
+        """
+        if self._snap is None:
+            cells = self._classes.copy()
+            cells.flags.writeable = False
+            self._snap = GridMap(cells, self.resolution_cm, self.origin_cm)
+        return self._snap
 
     def bounds(self) -> tuple[int, int, int, int] | None:
         """Half-open box ``(row0, row1, col0, col1)`` of the known cells, or None."""
