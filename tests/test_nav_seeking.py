@@ -116,8 +116,8 @@ def test_ring_reach_and_the_cheapest_ring_that_sees_far_enough() -> None:
     for need in (75.0, 90.0, 100.0, 110.0):
         n, r = search_ring(need, 70.0, 6, 60.0)
         assert ring_reach_cm(r, 70.0, n) >= need
-        assert r == 10.0 or ring_reach_cm(r - 5.0, 70.0, n) < need  # the smallest radius
-        assert all(ring_reach_cm(q, 70.0, n - 1) < need for q in range(10, 61, 5))
+        assert r == 20.0 or ring_reach_cm(r - 5.0, 70.0, n) < need  # the smallest radius
+        assert all(ring_reach_cm(q, 70.0, n - 1) < need for q in range(20, 61, 5))
     assert search_ring(78.0, 70.0, 6, 60.0)[0] == 3
     assert search_ring(500.0, 70.0, 6, 60.0) == (6, 60.0)
 

@@ -133,12 +133,13 @@ def search_ring(need_cm: float, reach_cm: float, max_points: int,
                 max_cm: float) -> tuple[int, float] | None:
     """The cheapest ring that, with the place itself, sees everything within ``need_cm``
     of the place: the fewest points (3 .. ``max_points``), then the smallest radius
-    (5 cm steps, at most ``max_cm``) [cm]. None when the scan from the place alone sees
-    that far; the widest ring (``max_points``, ``max_cm``) when none does."""
+    (20 cm and up in 5 cm steps, at most ``max_cm``) [cm]. None when the scan from the
+    place alone sees that far; the widest ring (``max_points``, ``max_cm``) when none
+    does."""
     if need_cm <= reach_cm:
         return None
     for n in range(3, max_points + 1):
-        r = 10.0
+        r = 20.0  # a smaller ring sees hardly more than the place itself, at the same cost
         while r <= max_cm:
             if ring_reach_cm(r, reach_cm, n) >= need_cm:
                 return n, r
