@@ -7,8 +7,8 @@ import math
 import pytest
 
 from actors import BufferPool, open_actor_system
-from actors.firmware.nav_common import NavOptions
-from actors.firmware.nav_seeking import SeekingOptions, ring_reach_cm, search_ring
+from actors.firmware.nav_common import NavOptions, passable_at
+from actors.firmware.nav_seeking import SeekingNav, SeekingOptions, ring_reach_cm, search_ring
 from actors.firmware.odometry import Pose, angle_diff_deg
 from tests.test_nav_common import (
     Body,
@@ -173,3 +173,51 @@ async def test_a_small_drift_needs_no_search(autojump_clock) -> None:
     assert "ring" not in body.frames("not_found")[0].data["reason"]
     details = [fr.data.get("detail", "") for fr in body.frames("status")]
     assert not any(d.startswith("round the place") for d in details)
+
+
+def searching_nav(place: tuple[float, float], driven_cm: float) -> SeekingNav:
+    """A seeker navigation (not started) standing on ``place`` in a 300 x 200 cm room
+    (map frame = own frame), after driving ``driven_cm``."""
+    nav = SeekingNav(pool=BufferPool(4))
+    nav.map = nav.work_map = room_map(Truth(0, 0, 300, 200))
+    nav.origin = Pose(0.0, 0.0, 0.0)
+    nav.pose = Pose(place[0], place[1], 0.0)
+    nav.place = place
+    nav.stage = "close"
+    nav.driven_cm = driven_cm
+    return nav
+
+
+def test_the_ring_grows_with_the_drift_and_stays_on_free_ground() -> None:
+    """In the open, a larger drift asks for a wider ring or more points; every ring point
+    is passable and on the ring (or pulled in toward the place). Little drift: no ring."""
+    assert not searching_nav((150.0, 100.0), 100.0)._plan_search()  # drift 4 cm
+    rings = []
+    for driven in (600.0, 1000.0, 1500.0):
+        nav = searching_nav((150.0, 100.0), driven)
+        assert nav._plan_search() and nav.stage == "search"
+        rings.append((len(nav.search_points), nav.ring_cm))
+        for q in nav.search_points:
+            assert 0.5 * nav.ring_cm - 0.1 <= math.dist(q, (150.0, 100.0)) <= nav.ring_cm + 0.1
+            assert passable_at(nav.map, q[0], q[1], nav.radius_cm, 0.0)
+    assert rings == sorted(rings) and rings[0] != rings[-1]
+    first = searching_nav((150.0, 100.0), 1500.0)
+    first._plan_search()
+    assert first.search_points[0][0] > 150.0  # facing +x: the point ahead first
+
+
+def test_ring_points_in_walls_are_pulled_in_or_left_out() -> None:
+    """Ring points in or near the walls are pulled in toward the place (a place by a
+    wall), or left out when no pulled-in point is passable either (in a corner)."""
+    nav = searching_nav((20.0, 20.0), 1000.0)
+    assert nav._plan_search()
+    open_room = searching_nav((150.0, 100.0), 1000.0)
+    assert open_room._plan_search() and open_room.ring_cm == nav.ring_cm
+    assert 0 < len(nav.search_points) < len(open_room.search_points)
+    by_wall = searching_nav((40.0, 100.0), 1000.0)
+    assert by_wall._plan_search()
+    assert len(by_wall.search_points) == len(open_room.search_points)
+    assert any(math.dist(q, (40.0, 100.0)) < by_wall.ring_cm - 1.0
+               for q in by_wall.search_points)
+    for q in nav.search_points + by_wall.search_points:
+        assert passable_at(nav.map, q[0], q[1], nav.radius_cm, 0.0)

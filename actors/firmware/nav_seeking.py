@@ -275,7 +275,7 @@ class SeekingNav(RouteNav):
             a = first + 2.0 * math.pi * k / n
             for r in (ring, 0.75 * ring, 0.5 * ring):
                 q = (px + r * math.cos(a), py + r * math.sin(a))
-                if passable_at(self.map, q[0], q[1], 0.5 * self.width_cm, 0.0):
+                if passable_at(self.map, q[0], q[1], self.radius_cm, 0.0):  # turns there
                     if self._unseen_free(q, seen, need):
                         points.append(q)
                     break
