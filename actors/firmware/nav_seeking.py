@@ -12,7 +12,11 @@ Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
             confirming (all-round scan: facing, +-20, +-40, then on round
             in ``all_round_step_deg`` steps)
                 --in range--> found
-                --scan over--> ``not_found {reason}``, ready for the next guess
+                --scan over, own drift small--> ``not_found {reason}``
+                --scan over, own drift large--> searching: to each point of a ring
+                    round (x, y), scanning outward from it (+-100 deg)
+                        --in range--> found
+                        --ring over--> ``not_found {reason}``, ready for the next guess
 
 Standoff: the hider may stand at (x, y), so the seeker first stops
 ``standoff_cm`` away (centre to centre), on a passable point of the map
@@ -26,6 +30,13 @@ itself, turning in place, every such spot is seen (the nose is then at most
 the range minus half the body length from the hider's centre). Steps of
 20 [deg] keep a hider close by inside the +-20 [deg] field of view as seen
 from the nose, not just from the centre.
+
+Why the ring (`SeekingNav._plan_search`): the seeker stands where dead
+reckoning says; after metres of driving that may be tens of cm from the
+place, and a hider within IR range of the place may then be beyond what the
+scan from it sees. The ring is sized by the seeker's drift estimate
+(`NavBase.drift_cm`) so that its scans see everything within IR range of the
+place plus that drift.
 
 IR on demand: while confirming, navigation holds a lease on the IR actor's
 sampling (`Cmd.IR_LEASE`, renewed every tick for ``ir_lease_s``) and ends it
