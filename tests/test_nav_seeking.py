@@ -7,6 +7,8 @@ import math
 import pytest
 
 from actors import BufferPool, open_actor_system
+from actors.firmware.nav_common import NavOptions, passable_at
+from actors.firmware.nav_seeking import SeekingNav, SeekingOptions, ring_reach_cm, search_ring
 from actors.firmware.odometry import Pose, angle_diff_deg
 from tests.test_nav_common import (
     Body,
@@ -99,3 +101,123 @@ async def test_seeker_finds_a_hider_anywhere_within_ir_range_of_the_guess(autoju
         assert math.dist((f["x"], f["y"]), guess) <= 10.0  # found from the guess itself
         statuses = [fr.data.get("detail", "") for fr in body.frames("status")]
         assert "looking with the IR sensor all round" in statuses
+
+
+# ============================================================================ the search ring
+
+
+def test_ring_reach_and_the_cheapest_ring_that_sees_far_enough() -> None:
+    """Six points on a 50 cm ring, each seeing 70 cm, see everything within ~109 cm of the
+    centre; the ring chosen has the fewest points, then the smallest radius, that see as
+    far as needed; none when the scan from the place sees far enough; the cap holds."""
+    assert ring_reach_cm(50.0, 70.0, 6) == pytest.approx(25 * math.sqrt(3) + math.sqrt(4275))
+    assert ring_reach_cm(80.0, 70.0, 6) == 0.0  # holes next to the points
+    assert search_ring(65.0, 70.0, 6, 60.0) is None
+    for need in (75.0, 90.0, 100.0, 110.0):
+        n, r = search_ring(need, 70.0, 6, 60.0)
+        assert ring_reach_cm(r, 70.0, n) >= need
+        assert r == 20.0 or ring_reach_cm(r - 5.0, 70.0, n) < need  # the smallest radius
+        assert all(ring_reach_cm(q, 70.0, n - 1) < need for q in range(20, 61, 5))
+    assert search_ring(78.0, 70.0, 6, 60.0)[0] == 3
+    assert search_ring(500.0, 70.0, 6, 60.0) == (6, 60.0)
+
+
+def test_the_outward_scan_sweeps_plus_minus_100_deg() -> None:
+    assert SeekingOptions().outward_deg() == tuple(float(a) for a in range(-100, 101, 20))
+
+
+FAR_GUESS = (160.0, 140.0)  # 90 cm from the hider: beyond what the scan from it sees
+
+
+async def _seek_far_guess(options: NavOptions | None, seeking: SeekingOptions | None):
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=ir_sees_hider)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool, options=options,
+                                                 seeking=seeking), "seeker")
+        await begin(system, pool, {"x": FAR_GUESS[0], "y": FAR_GUESS[1]})
+        assert await wait_for(lambda: body.frames("found") or body.frames("not_found"), 600.0)
+    return body
+
+
+@pytest.mark.trio
+async def test_a_large_drift_searches_a_ring_round_the_guess_and_finds(autojump_clock) -> None:
+    """Dead reckoning believed far off (drift 30 % of the distance driven): after the scan
+    from the guess saw nothing, the seeker looks from a ring round it and finds the hider
+    90 cm from the guess, from a point nearer the hider than the guess is."""
+    assert math.dist(FAR_GUESS, HIDER) == pytest.approx(90.55, abs=0.01)
+    body = await _seek_far_guess(NavOptions(drift_per_cm=0.3), None)
+    assert body.frames("not_found") == []
+    f = body.frames("found")[0].data
+    assert math.dist((f["x"], f["y"]), HIDER) < 80.0
+    assert 20.0 <= math.dist((f["x"], f["y"]), FAR_GUESS) <= 65.0
+    details = [fr.data.get("detail", "") for fr in body.frames("status")]
+    assert "looking with the IR sensor all round" in details  # the guess itself first
+    assert any(d.startswith("round the place, ring") for d in details)
+
+
+@pytest.mark.trio
+async def test_without_the_search_the_same_guess_is_not_found(autojump_clock) -> None:
+    """The same game with the search off: the hider is out of reach of the guess."""
+    body = await _seek_far_guess(NavOptions(drift_per_cm=0.3), SeekingOptions(search=False))
+    assert body.frames("found") == []
+    assert "IR" in body.frames("not_found")[0].data["reason"]
+
+
+@pytest.mark.trio
+async def test_a_small_drift_needs_no_search(autojump_clock) -> None:
+    """After a short drive (drift a few cm) the scan from the guess covers every spot
+    within IR range of it: ``not_found`` without a ring."""
+    body = await _seek_far_guess(None, None)
+    assert body.frames("found") == []
+    assert "ring" not in body.frames("not_found")[0].data["reason"]
+    details = [fr.data.get("detail", "") for fr in body.frames("status")]
+    assert not any(d.startswith("round the place") for d in details)
+
+
+def searching_nav(place: tuple[float, float], driven_cm: float) -> SeekingNav:
+    """A seeker navigation (not started) standing on ``place`` in a 300 x 200 cm room
+    (map frame = own frame), after driving ``driven_cm``."""
+    nav = SeekingNav(pool=BufferPool(4))
+    nav.map = nav.work_map = room_map(Truth(0, 0, 300, 200))
+    nav.origin = Pose(0.0, 0.0, 0.0)
+    nav.pose = Pose(place[0], place[1], 0.0)
+    nav.place = place
+    nav.stage = "close"
+    nav.driven_cm = driven_cm
+    return nav
+
+
+def test_the_ring_grows_with_the_drift_and_stays_on_free_ground() -> None:
+    """In the open, a larger drift asks for a wider ring or more points; every ring point
+    is passable and on the ring (or pulled in toward the place). Little drift: no ring."""
+    assert not searching_nav((150.0, 100.0), 100.0)._plan_search()  # drift 4 cm
+    rings = []
+    for driven in (600.0, 1000.0, 1500.0):
+        nav = searching_nav((150.0, 100.0), driven)
+        assert nav._plan_search() and nav.stage == "search"
+        rings.append((len(nav.search_points), nav.ring_cm))
+        for q in nav.search_points:
+            assert 0.5 * nav.ring_cm - 0.1 <= math.dist(q, (150.0, 100.0)) <= nav.ring_cm + 0.1
+            assert passable_at(nav.map, q[0], q[1], nav.radius_cm, 0.0)
+    assert rings == sorted(rings) and rings[0] != rings[-1]
+    first = searching_nav((150.0, 100.0), 1500.0)
+    first._plan_search()
+    assert first.search_points[0][0] > 150.0  # facing +x: the point ahead first
+
+
+def test_ring_points_in_walls_are_pulled_in_or_left_out() -> None:
+    """Ring points in or near the walls are pulled in toward the place (a place by a
+    wall), or left out when no pulled-in point is passable either (in a corner)."""
+    nav = searching_nav((20.0, 20.0), 1000.0)
+    assert nav._plan_search()
+    open_room = searching_nav((150.0, 100.0), 1000.0)
+    assert open_room._plan_search() and open_room.ring_cm == nav.ring_cm
+    assert 0 < len(nav.search_points) < len(open_room.search_points)
+    by_wall = searching_nav((40.0, 100.0), 1000.0)
+    assert by_wall._plan_search()
+    assert len(by_wall.search_points) == len(open_room.search_points)
+    assert any(math.dist(q, (40.0, 100.0)) < by_wall.ring_cm - 1.0
+               for q in by_wall.search_points)
+    for q in nav.search_points + by_wall.search_points:
+        assert passable_at(nav.map, q[0], q[1], nav.radius_cm, 0.0)

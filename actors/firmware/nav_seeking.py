@@ -12,7 +12,11 @@ Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
             confirming (all-round scan: facing, +-20, +-40, then on round
             in ``all_round_step_deg`` steps)
                 --in range--> found
-                --scan over--> ``not_found {reason}``, ready for the next guess
+                --scan over, own drift small--> ``not_found {reason}``
+                --scan over, own drift large--> searching: to each point of a ring
+                    round (x, y), scanning outward from it (+-100 deg)
+                        --in range--> found
+                        --ring over--> ``not_found {reason}``, ready for the next guess
 
 Standoff: the hider may stand at (x, y), so the seeker first stops
 ``standoff_cm`` away (centre to centre), on a passable point of the map
@@ -27,6 +31,13 @@ the range minus half the body length from the hider's centre). Steps of
 20 [deg] keep a hider close by inside the +-20 [deg] field of view as seen
 from the nose, not just from the centre.
 
+Why the ring (`SeekingNav._plan_search`): the seeker stands where dead
+reckoning says; after metres of driving that may be tens of cm from the
+place, and a hider within IR range of the place may then be beyond what the
+scan from it sees. The ring is sized by the seeker's drift estimate
+(`NavBase.drift_cm`) so that its scans see everything within IR range of the
+place plus that drift.
+
 IR on demand: while confirming, navigation holds a lease on the IR actor's
 sampling (`Cmd.IR_LEASE`, renewed every tick for ``ir_lease_s``) and ends it
 when it answers, so the IR timer runs only while the seeker looks.
@@ -39,15 +50,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import trio
 
 from actors import BufferPool, Message
 from actors.firmware.commands import Cmd
 from actors.firmware.devices import HardwareSpec
 from actors.firmware.nav_common import Motion, NavMemory, NavOptions, RouteNav, passable_at
+from actors.firmware.occupancy import FREE
 from actors.firmware.odometry import angle_diff_deg
 
-__all__ = ["SeekingOptions", "SeekingNav"]
+__all__ = ["SeekingOptions", "SeekingNav", "ring_reach_cm", "search_ring"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -75,6 +88,26 @@ class SeekingOptions:
     ir_lease_s: float = 1.0
     """How long each IR lease keeps the sensor sampling [s]; renewed every navigation tick
     while confirming, so it outlasts a few missed ticks."""
+    search: bool = True
+    """After the all-round scan saw nothing, search around the place (see `search_ring`)."""
+    range_cm: float = 60.0
+    """A guess "within IR range" has the hider's centre this close to it [cm]."""
+    reach_cm: float = 70.0
+    """An all-round scan sees a hider whose centre is this close to the seeker's centre
+    [cm]: the nose is 10 cm ahead of it, the sensor sees 60 cm from the nose and the
+    hider's body is 7.5-10 cm deep; a few cm are left for the scan's 20 deg steps."""
+    search_points: int = 6
+    """Points of the search ring around the place, at most (fewer when they see far
+    enough: `search_ring`)."""
+    search_ring_max_cm: float = 60.0
+    """Largest radius of the search ring [cm] (with 6 points it covers 115 cm)."""
+    search_ir_wait_s: float = 0.8
+    """Longest wait for "in range" at one heading of a search scan [s]: the IR decision
+    comes within about 0.1 s (3 samples at 50 Hz); the scans from the place keep
+    ``ir_wait_s``."""
+    search_scan_deg: float = 100.0
+    """From a ring point, scan outward from the place +- this [deg] (the inside is
+    covered by the scan from the place itself)."""
 
     def all_round_deg(self) -> tuple[float, ...]:
         """The all-round scan's headings relative to facing the place [deg]: the
@@ -87,6 +120,42 @@ class SeekingOptions:
             out.append(a)
             a += step
         return tuple(out)
+
+    def outward_deg(self) -> tuple[float, ...]:
+        """The scan from a search point: headings relative to facing away from the place,
+        -``search_scan_deg`` .. +``search_scan_deg`` in ``all_round_step_deg`` steps [deg]."""
+        step = self.all_round_step_deg
+        k = math.floor(self.search_scan_deg / step + 1e-9)
+        return tuple(step * i for i in range(-k, k + 1))
+
+
+def ring_reach_cm(ring_cm: float, reach_cm: float, points: int) -> float:
+    """How far from the centre a ring of ``points`` scan points of radius ``ring_cm`` sees
+    everything, each seeing ``reach_cm`` round itself [cm] (the worst direction is
+    midway between two points); 0 when the ring has holes next to its points."""
+    half = math.pi / points
+    inner = reach_cm ** 2 - (ring_cm * math.sin(half)) ** 2
+    if inner <= 0 or ring_cm > reach_cm:
+        return 0.0
+    return ring_cm * math.cos(half) + math.sqrt(inner)
+
+
+def search_ring(need_cm: float, reach_cm: float, max_points: int,
+                max_cm: float) -> tuple[int, float] | None:
+    """The cheapest ring that, with the place itself, sees everything within ``need_cm``
+    of the place: the fewest points (3 .. ``max_points``), then the smallest radius
+    (20 cm and up in 5 cm steps, at most ``max_cm``) [cm]. None when the scan from the
+    place alone sees that far; the widest ring (``max_points``, ``max_cm``) when none
+    does."""
+    if need_cm <= reach_cm:
+        return None
+    for n in range(3, max_points + 1):
+        r = 20.0  # a smaller ring sees hardly more than the place itself, at the same cost
+        while r <= max_cm:
+            if ring_reach_cm(r, reach_cm, n) >= need_cm:
+                return n, r
+            r += 5.0
+    return max_points, max_cm
 
 
 class SeekingNav(RouteNav):
@@ -104,7 +173,12 @@ class SeekingNav(RouteNav):
         self.ir = False
         """The IR actor's latest decision."""
         self.stage = "standoff"
-        """``standoff`` (looking from near the place) or ``close`` (from the place itself)."""
+        """``standoff`` (looking from near the place), ``close`` (from the place itself) or
+        ``search`` (from points on a ring round it)."""
+        self.search_points: list[tuple[float, float]] = []
+        """Ring points still to look from (map frame [cm])."""
+        self.ring_cm = 0.0
+        """Radius of the search ring in progress [cm]."""
         self._ir_at = -math.inf
         self._scan: tuple[float, ...] = ()  # headings of the scan in progress [deg], map frame
         self._scan_index = 0
@@ -115,6 +189,7 @@ class SeekingNav(RouteNav):
     async def on_goal(self, x: float, y: float, heading: float | None) -> None:
         self.place = (x, y)
         self.stage = "standoff"
+        self.search_points = []
         if self._distance() <= self.s.near_cm:
             await self._confirm()
             return
@@ -170,22 +245,115 @@ class SeekingNav(RouteNav):
     async def on_route_failed(self, reason: str) -> None:
         if self.stage == "standoff":
             await self._approach()
+        elif self.stage == "search":
+            await self._next_search_point()
+        elif self._plan_search():
+            await self._next_search_point()
         else:
             await self._not_found(f"cannot get near the place: {reason}")
+
+    # ------------------------------------------------------------------ search
+    def _plan_search(self) -> bool:
+        """After the scan from the place saw nothing: choose the ring to look from.
+
+        A guess within IR range has the hider's centre within ``range_cm`` of
+        it; the seeker's own dead reckoning may be ``drift_cm`` off, so what
+        must be seen is everything within ``range_cm + drift_cm`` of the place
+        as the seeker believes it. The scan from the place sees ``reach_cm``;
+        beyond that, points on a ring (`search_ring`) do.
+        Points that are not passable are pulled in toward the place; points
+        from which no free cell beyond what the scan from the place saw is
+        within reach (walls, the map's edge) are left out.
+        """
+        s = self.s
+        if not s.search or self.place is None or self.map is None:
+            return False
+        drift = self.drift_cm
+        need = s.range_cm + drift
+        chosen = search_ring(need, s.reach_cm, s.search_points, s.search_ring_max_cm)
+        if chosen is None:
+            return False
+        n, ring = chosen
+        px, py = self.place
+        p = self.map_pose
+        if math.dist((p.x, p.y), self.place) > 2.0 * self.o.goal_tol_cm:
+            first = math.atan2(p.y - py, p.x - px)  # nearest the seeker first
+        else:
+            first = math.radians(p.heading_deg)  # on the place: the one it faces
+        seen = max(0.0, s.reach_cm - drift)
+        points: list[tuple[float, float]] = []
+        for k in range(n):
+            a = first + 2.0 * math.pi * k / n
+            for r in (ring, 0.75 * ring, 0.5 * ring):
+                q = (px + r * math.cos(a), py + r * math.sin(a))
+                if passable_at(self.map, q[0], q[1], self.radius_cm, 0.0):  # turns there
+                    if self._unseen_free(q, seen, need):
+                        points.append(q)
+                    break
+        if not points:
+            return False
+        self.stage = "search"
+        self.ring_cm = ring
+        self.search_points = points
+        return True
+
+    def _unseen_free(self, q: tuple[float, float], seen_cm: float, need_cm: float) -> bool:
+        """Whether a free cell of the map lies within ``reach_cm`` of ``q``, farther than
+        ``seen_cm`` from the place and within ``need_cm`` of it [cm]."""
+        assert self.map is not None and self.place is not None
+        g = self.map
+        px, py = self.place
+        reach = self.s.reach_cm
+        res = g.resolution_cm
+        r0, c0 = g.world_to_cell(q[0] - reach, q[1] - reach)
+        r1, c1 = g.world_to_cell(q[0] + reach, q[1] + reach)
+        ny, nx = g.shape
+        r0, c0, r1, c1 = max(0, r0), max(0, c0), min(ny, r1 + 1), min(nx, c1 + 1)
+        if r0 >= r1 or c0 >= c1:
+            return False
+        cells = np.asarray(g.cells)[r0:r1, c0:c1]
+        ox, oy = g.origin_cm
+        ys = oy + (np.arange(r0, r1) + 0.5) * res
+        xs = ox + (np.arange(c0, c1) + 0.5) * res
+        X, Y = np.meshgrid(xs, ys)
+        dp = np.hypot(X - px, Y - py)
+        mask = (cells == FREE) & (np.hypot(X - q[0], Y - q[1]) <= reach) & \
+            (dp > seen_cm) & (dp <= need_cm)
+        return bool(mask.any())
+
+    async def _next_search_point(self) -> None:
+        """Drive to the next ring point (then `on_arrived` scans outward); at the end of
+        the ring, ``not_found``."""
+        while self.search_points:
+            q = self.search_points.pop(0)
+            if await self.goto(q, None):
+                await self.set_state("searching", f"round the place, ring {self.ring_cm:.0f} cm")
+                return
+        await self._not_found(f"the IR sensor saw nothing there, nor on a ring of "
+                              f"{self.ring_cm:.0f} cm round it")
 
     # ------------------------------------------------------------------ IR confirmation
     async def _confirm(self) -> None:
         assert self.place is not None
-        await self.set_state("confirming", "looking with the IR sensor"
-                             + (" all round" if self.stage == "close" else ""))
+        where = {"close": " all round", "search": " from the search ring"}.get(self.stage, "")
+        await self.set_state("confirming", "looking with the IR sensor" + where)
         await self._ir_lease(self.s.ir_lease_s)
         p = self.map_pose
         if self._distance() > 2.0 * self.o.goal_tol_cm:
             base = math.degrees(math.atan2(self.place[1] - p.y, self.place[0] - p.x))
         else:
             base = p.heading_deg  # standing on the place: no bearing to it
-        offsets = self.s.all_round_deg() if self.stage == "close" else self.s.scan_deg
-        self._scan = tuple(base + o for o in offsets)
+        if self.stage == "search" and self._distance() > 2.0 * self.o.goal_tol_cm:
+            # facing away from the place, swept from the end nearer the heading
+            out = math.degrees(math.atan2(p.y - self.place[1], p.x - self.place[0]))
+            offsets = self.s.outward_deg()
+            if abs(angle_diff_deg(out + offsets[-1], p.heading_deg)) < \
+                    abs(angle_diff_deg(out + offsets[0], p.heading_deg)):
+                offsets = offsets[::-1]
+            self._scan = tuple(out + o for o in offsets)
+        else:
+            offsets = self.s.all_round_deg() if self.stage != "standoff" else self.s.scan_deg
+            self._scan = tuple(base + o for o in offsets)
         self._scan_index = 0
         await self._face(self._scan[0])
 
@@ -203,8 +371,9 @@ class SeekingNav(RouteNav):
 
     def _start_check(self) -> None:
         now = trio.current_time()
+        wait = self.s.search_ir_wait_s if self.stage == "search" else self.s.ir_wait_s
         self._check_from = now + self.s.settle_s
-        self._check_until = now + self.s.settle_s + self.s.ir_wait_s
+        self._check_until = now + self.s.settle_s + wait
 
     async def on_ir(self, in_range: bool) -> None:
         self.ir = in_range
@@ -233,6 +402,10 @@ class SeekingNav(RouteNav):
                 await self._face(self._scan[self._scan_index])
             elif self.stage == "standoff":
                 await self._approach()
+            elif self.stage == "close" and self._plan_search():
+                await self._next_search_point()
+            elif self.stage == "search":
+                await self._next_search_point()
             else:
                 await self._not_found("the IR sensor saw nothing there")
 
