@@ -182,6 +182,7 @@ class MotorControl(Actor):
         self._silent_sent = [False, False]  # NAV_TREAD_FAULT sent in this command
         self._pwm = (0.0, 0.0)          # the duties last set while driving
         self._model_t = 0.0             # when the model was last advanced [s]
+        self._ticked = False            # an Int E was in the burst being handled
         self.tread_faults = 0
         """NAV_TREAD_FAULT reports sent (this incarnation)."""
         self._correct_xy: tuple[float, float] | None = None  # first half of a correction
@@ -256,6 +257,7 @@ class MotorControl(Actor):
         tread, forward = decode_counter(payload)
         d = self._unit if forward else -self._unit
         self._pending[tread] += d
+        self._ticked = True
         self._advance_model(self._now())
         self._unticked[tread] = 0.0
         self._run[tread] += 1
@@ -274,9 +276,10 @@ class MotorControl(Actor):
             self._pose_dirty = self._lidar_dirty = True
 
     async def handle_burst(self, messages: list[Message]) -> None:
+        self._ticked = False
         for message in messages:
             await self.handle(message)
-        if self._kind is not None:
+        if self._ticked and self._kind is not None:  # this step's Int E are all in
             self._watch_treads(period_pending=False)
         self._integrate()
         if self._lidar_dirty:
