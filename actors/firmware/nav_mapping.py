@@ -433,14 +433,18 @@ class MappingNav(NavBase):
         await self._odometry_hold(now, f"{what}: odometry and scan matching disagree")
         return True
 
-    async def on_tread_fault(self, tread: int) -> None:
+    async def on_tread_fault(self, value: int) -> None:
         """Motor Control saw a driven tread that does not count (``NAV_TREAD_FAULT``): its
-        odometry is wrong from now on, so stop at once and hold, as for a disagreement."""
+        odometry is wrong from now on, so stop at once and hold, as for a disagreement.
+
+        A tread that only counts short (bit 1) is not held for: a weak motor looks the same
+        and its odometry is right; a slipping encoder is left to scan matching's
+        re-localisation and the disagreement check."""
         now = trio.current_time()
-        if self.state not in ("exploring", "homing") or not self.moving \
+        if value & 2 or self.state not in ("exploring", "homing") or not self.moving \
                 or now < self._odo_hold_until:
             return
-        side = "right" if tread == 1 else "left"
+        side = "right" if value & 1 else "left"
         await self._odometry_hold(now, f"the {side} tread is driven but does not count")
 
     async def _odometry_hold(self, now: float, what: str) -> None:
