@@ -230,7 +230,7 @@ def test_futile_trips_count_whole_visits_and_end_exploration() -> None:
 
 
 def test_the_least_useful_gain_grows_with_the_map() -> None:
-    """In a big map a visit must reveal 0.6 % of what is known to count: 120 cells of
+    """In a big map a visit must reveal 0.3 % of what is known to count: 60 cells of
     30000 known is futile, though more than ``min_gain_cells``."""
     from actors.firmware.nav_mapping import MappingNav, MappingOptions
 
@@ -238,30 +238,10 @@ def test_the_least_useful_gain_grows_with_the_map() -> None:
     cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:30000] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
-    nav.ex.gains = [60, 120]
+    nav.ex.gains = [60, 60]
     assert nav._futile()
-    nav.ex.gains = [60, 240]
+    nav.ex.gains = [60, 120]
     assert not nav._futile()
-
-
-@pytest.mark.trio
-@pytest.mark.parametrize(("gain", "given_up"), [(10, True), (500, False)])
-async def test_a_futile_trip_that_runs_out_of_time_gives_its_target_up(autojump_clock, gain,
-                                                                       given_up) -> None:
-    """A trip that lasted ``trip_max_s`` without reaching its target counts as a visit; when
-    it revealed too little, its target is blacklisted (furniture 5 went four times for 90 s
-    toward one stretch of wall), otherwise not."""
-    from actors.firmware.nav_mapping import MappingNav, MappingOptions
-
-    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(trip_max_s=90.0))
-    nav.grid = _walled_room({})  # nothing left to explore: decide() stops after choosing
-    known = int(np.count_nonzero(nav.grid.cells != UNKNOWN))
-    nav.state, nav.pose_known, nav._settled_at = "exploring", True, 0.0
-    nav.ex.trip_known, nav.ex.trip_started = known - gain, trio.current_time() - 91.0
-    nav.ex.target = (120.0, -40.0)
-    await nav.decide()
-    assert nav.ex.gains == [gain]
-    assert ((120.0, -40.0) in nav.ex.blacklist) == given_up
 
 
 def _walled_room(gaps: dict[str, int]) -> GridMap:
