@@ -344,3 +344,42 @@ async def test_a_turn_that_moves_the_pose_stops_and_holds_the_rover(autojump_clo
         details = [f.data.get("detail", "") for f in body.frames("status")]
         assert any(d.startswith("a turn moved the pose 15 cm") for d in details)
         assert "odometry hold over: driving on" in details
+
+
+@pytest.mark.trio
+async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock,
+                                                                   monkeypatch) -> None:
+    """NAV_TREAD_FAULT (Motor Control: the right tread is driven but does not count) during
+    a move: MOTOR_STOP at once, though the pose shows nothing yet, no Command A for
+    ``odo_hold_s``, an ``odometry_fault`` status naming the tread, then exploring goes on."""
+    import tests.test_nav_common as common
+
+    class StuckEncoderMotor(common.FakeMotor):
+        faults = 1
+
+        async def handle(self, message: Message) -> None:
+            if message.command == Cmd.MOTOR_MOVE and StuckEncoderMotor.faults > 0:
+                StuckEncoderMotor.faults -= 1
+                self.body.motor_log.append((Cmd(message.command).name, float(message.value)))
+                self.ctx.send_nowait(self.nav, Message.uint(Cmd.NAV_TREAD_FAULT, 1))
+                return  # the move never ends by itself: only the stop ends it
+            await super().handle(message)
+
+    monkeypatch.setattr(common, "FakeMotor", StuckEncoderMotor)
+    body = Body(truth=Truth(**ROOM))
+    pool = BufferPool(256)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("mapper", body, pool), "mapper")
+        await net(system, pool, "mapper", "start")
+        assert await wait_for(lambda: StuckEncoderMotor.faults == 0, 120.0)
+        t_fault = trio.current_time()
+        assert await wait_for(lambda: body.frames("status")[-1].data["state"]
+                              == "odometry_fault", 0.5)
+        assert await wait_for(lambda: body.motor_log[-1][0] == "MOTOR_STOP", 0.5)
+        moved = _motions(body)
+        await trio.sleep(t_fault + 2.5 - trio.current_time())
+        assert _motions(body) == moved  # holding
+        assert await wait_for(lambda: _motions(body) > moved, 10.0)
+        details = [f.data.get("detail", "") for f in body.frames("status")]
+        assert any(d.startswith("the right tread is driven but does not count") for d in details)
+        assert "odometry hold over: driving on" in details

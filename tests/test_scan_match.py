@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from actors.firmware.odometry import Pose
-from actors.firmware.scan_match import MatchFields, MatchOptions, hits_to_local, match_scan
+from actors.firmware.scan_match import (
+    MatchFields,
+    MatchOptions,
+    hits_to_local,
+    match_scan,
+    relocalise,
+)
 
 RES = 5.0
 ORIGIN = (-100.0, -100.0)
@@ -88,3 +94,33 @@ def test_options_are_checked() -> None:
     """Nonsense tunables are refused with the rule."""
     with pytest.raises(ValueError, match="iterations"):
         MatchOptions(iterations=0)
+
+
+@pytest.mark.parametrize("dx, dy, dh", [(0.0, 0.0, 15.0), (8.0, -6.0, -20.0), (3.0, 3.0, 10.0)])
+def test_relocalise_finds_a_pose_too_far_off_for_match_scan(dx, dy, dh) -> None:
+    """A heading 10-20 deg off (a stuck encoder's spin): match_scan refuses, relocalise finds
+    the true pose within 2 cm and 1 deg."""
+    occ = room_map()
+    truth = Pose(120.0, 80.0, 20.0)
+    angles, ranges = ray_scan(occ, truth)
+    pts = hits_to_local(angles, ranges, MatchOptions())
+    fields = MatchFields(occ, ORIGIN, RES)
+    guess = Pose(truth.x + dx, truth.y + dy, truth.heading_deg + dh)
+    assert not match_scan(fields, pts, guess).accepted
+    result = relocalise(fields, pts, guess)
+    assert result.accepted, result.reason
+    assert math.hypot(result.pose.x - truth.x, result.pose.y - truth.y) < 2.0
+    assert abs(result.pose.heading_deg - truth.heading_deg) < 1.0
+
+
+def test_relocalise_refuses_an_ambiguous_view() -> None:
+    """In a round room every heading fits as well: nothing to re-localise by."""
+    yy, xx = np.mgrid[0:80, 0:100]
+    cx, cy = (150.0 - ORIGIN[0]) / RES - 0.5, (100.0 - ORIGIN[1]) / RES - 0.5
+    occ = np.abs(np.hypot(xx - cx, yy - cy) - 30.0) < 0.6  # a circle, radius 150 cm
+    truth = Pose(150.0, 100.0, 0.0)
+    angles, ranges = ray_scan(occ, truth)
+    pts = hits_to_local(angles, ranges, MatchOptions())
+    result = relocalise(MatchFields(occ, ORIGIN, RES), pts, Pose(150.0, 100.0, 15.0))
+    assert not result.accepted
+    assert "ambiguous" in result.reason

@@ -78,8 +78,10 @@ class Cmd(enum.IntEnum):
     (0 healthy; otherwise the fault seen: scans are withheld until it is healthy again)."""
     NAV_TREAD_FAULT = 0x020D
     """Motor Control saw a tread that is driven but does not count (a stuck encoder, or a
-    stalled tread) while the other one counts; value uint32, the tread (0 left, 1 right).
-    At most once per tread per Command A; the command goes on (navigation decides)."""
+    stalled tread), or counts short (a slipping encoder, or a weak motor), while the other
+    one counts; value uint32: bit 0 the tread (0 left, 1 right), bit 1 set for "counts
+    short" (so 0/1 silent, 2/3 short). At most once of each per tread per Command A; the
+    command goes on (navigation decides). See motor.py."""
 
     # -- LIDAR queue -------------------------------------------------------
     LIDAR_SAMPLE = 0x0300

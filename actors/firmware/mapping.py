@@ -20,6 +20,13 @@ Scan matching (why: see `scan_match`)
     ``MOTOR_CORRECT_HEADING``) with the published updates, so navigation's
     pose is in the map frame.
 
+Re-localisation
+    A stuck or slipping encoder can turn the rover further than matching may
+    correct (``max_turn_deg``): then every batch that sees the map is refused
+    and the pose never comes back. After ``_RELOCALISE_AFTER`` such batches in
+    a row whose guess fits badly, `scan_match.relocalise` searches headings
+    within 24 deg (at most every ``_RELOCALISE_EVERY_S``; about 24 ms each).
+
 Restart: the grid is lost with the incarnation (it is the thread's working
 memory). The new incarnation starts empty, integrates scans from then on and
 tells navigation ``NAV_MAP_LOST``; navigation may answer ``MAP_RESTORE`` with
@@ -47,12 +54,22 @@ from .commands import Cmd
 from .lidar import Scan
 from .occupancy import GridMap, OccupancyGrid
 from .odometry import Pose, compose, inverse
-from .scan_match import MatchFields, MatchOptions, hits_to_local, match_scan
+from .scan_match import (
+    MatchFields,
+    MatchOptions,
+    MatchResult,
+    hits_to_local,
+    match_scan,
+    relocalise,
+)
 
 __all__ = ["MapManagement"]
 
 _MATCH = MatchOptions()  # immutable default
 _CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for Motor's copy of the correction
+_RELOCALISE_AFTER = 3  # supported batches refused in a row before the wider search
+_RELOCALISE_EVERY_S = 0.5  # at most one wider search per this much time [s] (24 ms each)
+_RELOCALISE_BELOW = 0.6  # ...and only when the guess scores below this (lost poses: 0.3-0.45)
 
 
 def _max3(values: np.ndarray) -> np.ndarray:
@@ -111,6 +128,10 @@ class MapManagement(Actor):
         """Batches dropped because they see the map but match nowhere near dead reckoning."""
         self.held_scans = 0
         """Batches dropped while waiting for the correction after a restart."""
+        self.relocalised = 0
+        """Batches placed by the wider search (`scan_match.relocalise`)."""
+        self._refused = 0  # supported batches refused in a row
+        self._relocalise_at = -float("inf")  # time of the last wider search
         self._changed = True  # a cell changed class since the last update
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
@@ -200,12 +221,31 @@ class MapManagement(Actor):
         assert self._fields is not None
         pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
         result = match_scan(self._fields, pts, guess, opts)
+        if not result.accepted and result.supported:
+            result = self._relocalise(pts, guess, result, now)
         if not result.accepted:
             return None if result.supported else guess
+        self._refused = 0
         self.matched += 1
         self._last_odom = odom
         self.correction = compose(result.pose, inverse(odom))
         return result.pose
+
+    def _relocalise(self, pts: np.ndarray, guess: Pose, refused: MatchResult, now: float
+                    ) -> MatchResult:
+        """After a few supported batches refused in a row (the pose is lost: a stuck or
+        slipping encoder), try the wider search, at most every ``_RELOCALISE_EVERY_S``."""
+        self._refused += 1
+        if self._refused < _RELOCALISE_AFTER or now - self._relocalise_at < _RELOCALISE_EVERY_S \
+                or refused.score_guess >= _RELOCALISE_BELOW:
+            return refused  # (a guess that fits this well is not lost)
+        self._relocalise_at = now
+        assert self._fields is not None
+        wide = relocalise(self._fields, pts, guess, self.matching)
+        if wide.accepted:
+            self.relocalised += 1
+            return wide
+        return refused
 
     def _build_fields(self, opts: MatchOptions, now: float) -> None:
         """Matching fields of the grid's obstacle surfaces (known part only).

@@ -43,13 +43,21 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
     (``motor_tau_s``), so it models how far each tread should have gone since
     its last Int E. When that reaches ``silent_cm`` (2.5 interrupts) while the
     other tread counted at least ``silent_other`` interrupts in a row
-    meanwhile, it sends navigation one ``NAV_TREAD_FAULT``, value the tread (0
-    left, 1 right), at most once per tread per command. The command goes on:
-    navigation decides (the mapper stops and holds). Both treads silent is
-    the blocked case above, not this one. A weak motor or a slipping encoder
-    (half the counts) stays under the threshold: with odometry alone they
-    cannot be told from each other, and a weak motor's odometry is right. A
-    stalled motor on one side looks the same as a stuck encoder here.
+    meanwhile, it sends navigation one ``NAV_TREAD_FAULT``. Both treads silent
+    is the blocked case above, not this one. A stalled motor on one side looks
+    the same as a stuck encoder here.
+
+    A tread that counts short: once a tread's modelled travel in the command
+    reaches ``short_after_cm``, a count under ``short_ratio`` of it while the
+    other tread counts at least ``short_other_ratio`` of its own is reported
+    too (a slipping encoder counts about half). A weak motor on that side looks
+    the same (it really goes half as far, and then its odometry is right).
+
+    The message: ``NAV_TREAD_FAULT``, value uint32: bit 0 the tread (0 left,
+    1 right), bit 1 the kind (0 silent, 1 counts short): 0/1 left/right
+    silent, 2/3 left/right short. At most one of each per tread per command
+    (short is not sent after silent). The command goes on: navigation
+    decides (the mapper stops and holds for a silent tread).
 
 Restarts
     The pose lives in a `PoseMemory` made by the rover tree: the model of a
@@ -113,6 +121,15 @@ class MotorTuning:
     """A tread the model says went this far since its last Int E is silent [cm]."""
     silent_other: int = 2
     """...provided the other tread counted this many Int E in a row meanwhile."""
+    short_after_cm: float = 5.0
+    """Judge a tread's count against its modelled travel once this far into a command [cm]."""
+    short_ratio: float = 0.65
+    """A tread that counted less than this share of its modelled travel counts short
+    (healthy: 0.77 or more after 6 cm in furniture seed 3; a slipping encoder about
+    0.45), provided the other counted at least
+    ``short_other_ratio`` of its own."""
+    short_other_ratio: float = 0.8
+    """See ``short_ratio``."""
 
 
 class PoseMemory:
@@ -178,10 +195,14 @@ class MotorControl(Actor):
         # the silent-tread check (see the module docstring), per tread
         self._model_v = [0.0, 0.0]     # modelled tread speed (lagged PWM) [cm/s]
         self._unticked = [0.0, 0.0]    # modelled travel since the tread's last Int E [cm]
+        self._modelled = [0.0, 0.0]    # modelled travel in this command [cm]
+        self._counted = [0.0, 0.0]     # counted travel in this command [cm]
+        self._short_sent = [False, False]  # NAV_TREAD_FAULT (counts short) sent in this command
         self._run = [0, 0]             # Int E in a row without one from the other tread
         self._silent_sent = [False, False]  # NAV_TREAD_FAULT sent in this command
         self._pwm = (0.0, 0.0)          # the duties last set while driving
         self._model_t = 0.0             # when the model was last advanced [s]
+        self._ticked = False            # an Int E was in the burst being handled
         self.tread_faults = 0
         """NAV_TREAD_FAULT reports sent (this incarnation)."""
         self._correct_xy: tuple[float, float] | None = None  # first half of a correction
@@ -256,8 +277,10 @@ class MotorControl(Actor):
         tread, forward = decode_counter(payload)
         d = self._unit if forward else -self._unit
         self._pending[tread] += d
+        self._ticked = True
         self._advance_model(self._now())
         self._unticked[tread] = 0.0
+        self._counted[tread] += self._unit
         self._run[tread] += 1
         self._run[1 - tread] = 0
         if self._kind is not None:
@@ -274,9 +297,10 @@ class MotorControl(Actor):
             self._pose_dirty = self._lidar_dirty = True
 
     async def handle_burst(self, messages: list[Message]) -> None:
+        self._ticked = False
         for message in messages:
             await self.handle(message)
-        if self._kind is not None:
+        if self._ticked and self._kind is not None:  # this step's Int E are all in
             self._watch_treads(period_pending=False)
         self._integrate()
         if self._lidar_dirty:
@@ -354,6 +378,9 @@ class MotorControl(Actor):
         self._progress = [0.0, 0.0]
         self._silent_sent = [False, False]
         self._unticked = [0.0, 0.0]
+        self._modelled = [0.0, 0.0]
+        self._counted = [0.0, 0.0]
+        self._short_sent = [False, False]
         self._model_v = [0.0, 0.0]
         self._run = [0, 0]
         self._model_t = now
@@ -423,7 +450,24 @@ class MotorControl(Actor):
             v0 = self._model_v[tread]
             v1 = v0 + (self._pwm[tread] * self._vmax - v0) * k
             self._model_v[tread] = v1
-            self._unticked[tread] += 0.5 * (abs(v0) + abs(v1)) * dt
+            travel = 0.5 * (abs(v0) + abs(v1)) * dt
+            self._unticked[tread] += travel
+            self._modelled[tread] += travel
+
+    def _watch_counts(self) -> None:
+        """Report a tread that counts far less than it is driven while the other counts
+        about right (``NAV_TREAD_FAULT`` with bit 1 set, see the module docstring)."""
+        t = self.tuning
+        for tread in (0, 1):
+            other = 1 - tread
+            modelled, counted = self._modelled[tread], self._counted[tread]
+            if self._short_sent[tread] or self._silent_sent[tread] or modelled < t.short_after_cm:
+                continue
+            if counted < t.short_ratio * modelled and \
+                    self._counted[other] >= t.short_other_ratio * self._modelled[other]:
+                self._short_sent[tread] = True
+                self.tread_faults += 1
+                self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 2 | tread))
 
     def _watch_treads(self, period_pending: bool) -> None:
         """Report a driven tread that does not count while the other one does
@@ -434,6 +478,8 @@ class MotorControl(Actor):
         modelled travel does not count against the tread.
         """
         t = self.tuning
+        if not period_pending:
+            self._watch_counts()
         for tread in (0, 1):
             if self._silent_sent[tread] or self._run[1 - tread] < t.silent_other:
                 continue

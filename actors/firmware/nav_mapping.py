@@ -66,7 +66,9 @@ Odometry that scan matching contradicts (why: a stuck encoder drew a round room 
     motor at once and holds still (the LIDAR scanning, so matching can settle
     the pose) for ``odo_hold_s``, doubled for each repeat within a minute up to
     ``odo_hold_max_s``, reporting ``odometry_fault`` in its status; the fault
-    cannot be seen from standing still, so it drives on after the hold.
+    cannot be seen from standing still, so it drives on after the hold. Motor
+    Control's ``NAV_TREAD_FAULT`` (a driven tread that does not count) starts
+    the same hold at once, a second or more before the pose shows it.
 
 Restart
     The new incarnation asks Map Management for a snapshot (MAP_GET) and Motor
@@ -257,6 +259,9 @@ class MappingNav(NavBase):
         if isinstance(message, Message) and message.command == Cmd.NAV_LIDAR_HEALTH:
             await self.on_lidar_health(int(message.value))
             return None
+        if isinstance(message, Message) and message.command == Cmd.NAV_TREAD_FAULT:
+            await self.on_tread_fault(int(message.value))
+            return None
         return await super().handle(message)
 
     # ------------------------------------------------------------------ lifecycle
@@ -425,15 +430,33 @@ class MappingNav(NavBase):
             if turned <= m.odo_move_turn_deg:
                 return False
             what = f"a straight move turned the pose {turned:.0f} deg"
+        await self._odometry_hold(now, f"{what}: odometry and scan matching disagree")
+        return True
+
+    async def on_tread_fault(self, value: int) -> None:
+        """Motor Control saw a driven tread that does not count (``NAV_TREAD_FAULT``): its
+        odometry is wrong from now on, so stop at once and hold, as for a disagreement.
+
+        A tread that only counts short (bit 1) is not held for: a weak motor looks the same
+        and its odometry is right; a slipping encoder is left to scan matching's
+        re-localisation and the disagreement check."""
+        now = trio.current_time()
+        if value & 2 or self.state not in ("exploring", "homing") or not self.moving \
+                or now < self._odo_hold_until:
+            return
+        side = "right" if value & 1 else "left"
+        await self._odometry_hold(now, f"the {side} tread is driven but does not count")
+
+    async def _odometry_hold(self, now: float, what: str) -> None:
+        """Stop the motor and hold still for odometry (see the module docstring)."""
+        m = self.m
         self._odo_strikes = self._odo_strikes + 1 if now - self._odo_last <= 60.0 else 1
         self._odo_last = now
         hold = min(m.odo_hold_max_s, m.odo_hold_s * 2.0 ** (self._odo_strikes - 1))
         self._odo_hold_until = now + hold
         self.odometry_faults += 1
         await self.stop_motor()
-        await self.status("odometry_fault",
-                          f"{what}: odometry and scan matching disagree; holding {hold:.0f} s")
-        return True
+        await self.status("odometry_fault", f"{what}; holding {hold:.0f} s")
 
     # ------------------------------------------------------------------ ticks
     async def on_tick(self, now: float) -> None:

@@ -37,7 +37,7 @@ import numpy as np
 from actors.firmware.odometry import Pose
 
 __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",
-           "match_scan"]
+           "match_scan", "RelocaliseOptions", "relocalise"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -320,3 +320,90 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
                            True)
     return MatchResult(Pose(float(est[0]), float(est[1]), math.degrees(est[2])), True,
                        score0, score1, "", True)
+
+
+@dataclass(frozen=True, slots=True)
+class RelocaliseOptions:
+    """Tunables of `relocalise`."""
+
+    turn_deg: float = 24.0
+    """Search headings up to this far either side of the guess [deg]."""
+    step_deg: float = 3.0
+    """Between the headings tried [deg] (within the wide field's basin of each other)."""
+    max_shift_cm: float = 40.0
+    """Largest accepted correction of the position [cm]."""
+    min_score: float = 0.45
+    """The winner's mean narrow-field value at the hits must reach this."""
+    min_support: float = 0.6
+    """...and this share of its hits must land on mapped obstacles."""
+    margin: float = 0.08
+    """...and it must beat the guess, and any other fit more than 2 ``step_deg`` away in
+    heading, by this much (an ambiguous view, such as a round wall, is not re-localised)."""
+
+
+def _fit(fields: MatchFields, pts: np.ndarray, start: np.ndarray, prior: np.ndarray,
+         o: MatchOptions) -> tuple[np.ndarray, float, float]:
+    """Gauss-Newton from ``start`` (wide, then narrow); the pose, its score and support."""
+    est = _gauss_newton(fields.wide, pts, start, start, o.iterations, o.damping, prior)
+    est = _gauss_newton(fields.narrow, pts, est, start, o.iterations, o.damping, prior)
+    wx, wy, _, _ = _to_map(pts, est[0], est[1], est[2])
+    m, _, _ = fields.narrow.sample(wx, wy)
+    return est, float(m.mean()), float(np.count_nonzero(m > 0.25)) / len(pts)
+
+
+def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
+               options: MatchOptions | None = None,
+               search: RelocaliseOptions | None = None) -> MatchResult:
+    """A wider search than `match_scan`, for a pose odometry has lost (a stuck or slipping
+    encoder turned the rover where dead reckoning did not, or the other way round).
+
+    Why: `match_scan` refuses corrections over ``max_turn_deg``, so once the heading is
+    further off every batch that sees the map is dropped and the pose never comes back.
+    Here Gauss-Newton starts from headings every ``step_deg`` within ``turn_deg`` of the
+    guess; the best fit is accepted only when it is good in itself, clearly better than
+    the guess, and unambiguous (see `RelocaliseOptions`). Use it while the rover stands.
+
+    Args:
+        fields: the map's fields.
+        points: hits in the rover frame, (n, 2) [cm].
+        guess: dead reckoning's pose (map frame).
+        options: matching tunables (iterations, blur, prior).
+        search: the search's tunables.
+
+    Returns:
+        The re-localised pose (accepted), or the guess with the reason it was refused.
+    """
+    o = options or MatchOptions()
+    r = search or RelocaliseOptions()
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(pts) < o.min_points or fields.empty:
+        return MatchResult(guess, False, 0.0, 0.0, "too few hits or nothing mapped")
+    theta0 = guess.heading_rad
+    wx, wy, _, _ = _to_map(pts, guess.x, guess.y, theta0)
+    m0, _, _ = fields.narrow.sample(wx, wy)
+    score0 = float(m0.mean())
+    a = o.prior_per_point * len(pts)
+    prior = np.array([a, a, a * float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2))])
+    n = int(r.turn_deg // r.step_deg)
+    fits = []
+    for k in range(-n, n + 1):
+        start = np.array([guess.x, guess.y, theta0 + math.radians(k * r.step_deg)])
+        est, score, support = _fit(fields, pts, start, prior, o)
+        if math.hypot(est[0] - guess.x, est[1] - guess.y) <= r.max_shift_cm:
+            fits.append((score, support, est))
+    if not fits:
+        return MatchResult(guess, False, score0, score0, "no fit near the guess", True)
+    score, support, est = max(fits, key=lambda f: f[0])
+    # the pull toward each start biases its fit: polish the winner from where it ended
+    est, score, support = _fit(fields, pts, est, prior, o)
+    rivals = [f[0] for f in fits
+              if abs(math.degrees(f[2][2] - est[2])) > 2.0 * r.step_deg]
+    rival = max(rivals, default=0.0)
+    if score < r.min_score or support < r.min_support:
+        return MatchResult(guess, False, score0, score0,
+                           f"best fit too weak ({score:.2f}, {support:.0%} on obstacles)", True)
+    if score < score0 + r.margin or score < rival + r.margin:
+        return MatchResult(guess, False, score0, score0,
+                           f"ambiguous ({score:.2f} against {max(score0, rival):.2f})", True)
+    return MatchResult(Pose(float(est[0]), float(est[1]), math.degrees(est[2])), True,
+                       score0, score, "", True)
