@@ -184,7 +184,7 @@ async def test_a_tread_fault_stops_the_move_holds_then_arrives_with_a_wider_drif
         await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 3))
         await trio.sleep(0.1)
         assert nav.tread_faults == 1 and nav.moving
-        await trio.sleep(3.5)  # within the 4 s hold: nothing new commanded
+        await trio.sleep(11.0)  # within the 12 s hold: nothing new commanded
         # (the fake motor logs the stop once its move, slept through, is over)
         assert body.motor_log[n][0] == "MOTOR_STOP"
         assert not any(c in ("MOTOR_MOVE", "MOTOR_TURN") for c, _ in body.motor_log[n:])

@@ -118,11 +118,16 @@ class NavOptions:
     """Sideways offsets tried per route, at most."""
     nudge_reach_cm: float = 50.0
     """Waypoints this close to the block point are shifted by a nudge [cm]."""
-    tread_hold_s: float = 4.0
+    tread_hold_s: float = 12.0
     """A tread fault (``NAV_TREAD_FAULT``) stops the motion and holds this long [s],
-    doubled for each repeat within a minute up to ``tread_hold_max_s``."""
-    tread_hold_max_s: float = 16.0
-    """Longest hold for a repeated tread fault [s]."""
+    doubled for a repeat within a minute: a slipping encoder or a weak motor lasts a
+    few seconds to 20 s, and the small turns driven meanwhile may not be reported
+    (a tread must travel about 5 cm for a short count to show) yet each turns the
+    rover tens of degrees more than it believes (campaign game 1:24)."""
+    tread_holds: int = 2
+    """Holds in a row (each report within a minute of the last), at most; a further
+    report ends the motion as blocked: a tread stalled against a wall looks the same
+    as one that does not count, and holding would not free it."""
     tread_fault_deg: float = 10.0
     """How far one tread fault may have turned the heading unseen [deg]: the fault is
     reported after about 5 cm of a tread's travel, counted at most 0.65 of it."""
@@ -540,9 +545,10 @@ class NavBase(Actor):
         motion driven on a faulty encoder turns the rover further off the
         heading it believes (campaign game 1:24: 90-100 deg after an 8.8 s
         slip). Stopping at the report keeps what one motion costs to about
-        ``tread_fault_deg``; the hold (``tread_hold_s``, doubled per repeat
-        within a minute) waits for a passing fault to clear, as nothing can
-        tell that while standing still. The error already made is not seen:
+        ``tread_fault_deg``; the hold (``tread_hold_s``, doubled for a repeat
+        within a minute, at most ``tread_holds`` in a row, then a report ends
+        the motion as blocked) waits for a passing fault to clear, as nothing
+        can tell that while standing still. The error already made is not seen:
         ``heading_err_deg`` grows by ``tread_fault_deg``, so `drift_cm` grows
         with every cm driven afterwards (the seeker's search ring widens, the
         nudges step wider). After the hold, `after_motion` decides again from
@@ -553,10 +559,16 @@ class NavBase(Actor):
         now = trio.current_time()
         self._tread_strikes = self._tread_strikes + 1 if now - self._tread_last <= 60.0 else 1
         self._tread_last = now
-        hold = min(self.o.tread_hold_max_s, self.o.tread_hold_s * 2.0 ** (self._tread_strikes - 1))
         self.tread_faults += 1
         self.heading_err_deg += self.o.tread_fault_deg
         await self.stop_motor()
+        if self._tread_strikes > self.o.tread_holds:  # as blocked: the route backs off
+            self._blocked, self._done = True, 0.0
+            self.counters["blocked"] += 1
+            self._pose_deadline = now + self.o.pose_wait_s
+            await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+            return
+        hold = self.o.tread_hold_s * 2.0 ** (self._tread_strikes - 1)
         self._blocked, self._done = False, 0.0
         self._hold_until = now + hold
         side = "right" if value & 1 else "left"
