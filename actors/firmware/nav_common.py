@@ -131,6 +131,8 @@ class NavOptions:
     tread_fault_deg: float = 10.0
     """How far one tread fault may have turned the heading unseen [deg]: the fault is
     reported after about 5 cm of a tread's travel, counted at most 0.65 of it."""
+    tread_stop_s: float = 1.0
+    """A tread fault that ends its motion as blocked waits this long before deciding [s]."""
     contact_fixes: int = 4
     """Pose corrections from contacts with mapped walls per route, at most (see `contact`)."""
     contact_max_shift_cm: float = 14.0
@@ -548,7 +550,11 @@ class NavBase(Actor):
         ``tread_fault_deg``; the hold (``tread_hold_s``, doubled for a repeat
         within a minute, at most ``tread_holds`` in a row, then a report ends
         the motion as blocked) waits for a passing fault to clear, as nothing
-        can tell that while standing still. The error already made is not seen:
+        can tell that while standing still. Only turns are held for: in a
+        straight move a tread scraping along a wall stalls and reports the
+        same (healthy hall 3: 36 s held for nothing), so a move ends as
+        blocked and the route's block handling (contact fix, back-off) follows.
+        The error already made is not seen:
         ``heading_err_deg`` grows by ``tread_fault_deg``, so `drift_cm` grows
         with every cm driven afterwards (the seeker's search ring widens, the
         nudges step wider). After the hold, `after_motion` decides again from
@@ -561,12 +567,14 @@ class NavBase(Actor):
         self._tread_last = now
         self.tread_faults += 1
         self.heading_err_deg += self.o.tread_fault_deg
+        turning = self._motion.kind == "turn"
         await self.stop_motor()
-        if self._tread_strikes > self.o.tread_holds:  # as blocked: the route backs off
+        if not turning or self._tread_strikes > self.o.tread_holds:  # as blocked (see above)
+            # a short hold all the same: the stopped motion's last pose and end arrive
+            # meanwhile and are ignored, and the decision uses the pose at rest
             self._blocked, self._done = True, 0.0
             self.counters["blocked"] += 1
-            self._pose_deadline = now + self.o.pose_wait_s
-            await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+            self._hold_until = now + self.o.tread_stop_s
             return
         hold = self.o.tread_hold_s * 2.0 ** (self._tread_strikes - 1)
         self._blocked, self._done = False, 0.0
