@@ -7,7 +7,8 @@ import math
 import pytest
 import trio
 
-from actors import BufferPool, open_actor_system
+from actors import BufferPool, Message, open_actor_system
+from actors.firmware.commands import Cmd
 from actors.firmware.nav_common import NavMemory, NavOptions
 from actors.firmware.odometry import Pose
 from tests.test_nav_common import (
@@ -161,3 +162,68 @@ async def test_hider_finds_a_gap_its_dead_reckoning_misses_by_nudging_sideways(a
         assert nav.counters["nudges"] >= 2  # +6 cm still hits the wall's end; -6 cm passes
         true = body.pose
         assert math.dist((true.x + 50, true.y + 50), (300, 60)) <= 5.0
+
+
+@pytest.mark.trio
+async def test_a_tread_fault_in_a_turn_stops_it_holds_then_arrives_with_a_wider_drift(
+        autojump_clock) -> None:
+    """NAV_TREAD_FAULT (the right tread counts short) during a turn: MOTOR_STOP at once,
+    no motion for the hold (``tread_hold_s``), then the route goes on and arrives; the
+    drift estimate grows with every cm driven after the fault (the heading is doubted)."""
+    body = Body(truth=own_truth(), speed=10.0)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, {"x": 50.0, "y": 150.0, "heading": 90.0})
+        assert await wait_for(lambda: any(c == "MOTOR_TURN" for c, _ in body.motor_log), 10.0)
+        nav = system.whereis("hider/nav").actor
+        drift0 = nav.drift_cm
+        n = len(body.motor_log)
+        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 3))
+        await trio.sleep(0.1)
+        assert nav.tread_faults == 1 and nav.moving
+        await trio.sleep(11.0)  # within the 12 s hold: nothing new commanded
+        # (the fake motor logs the stop once its turn, slept through, is over)
+        assert body.motor_log[n][0] == "MOTOR_STOP"
+        assert not any(c in ("MOTOR_MOVE", "MOTOR_TURN") for c, _ in body.motor_log[n:])
+        assert "counts short" in body.frames("status")[-1].data["detail"]
+        assert await wait_for(lambda: body.frames("arrived"), 60.0)
+        assert any(c == "MOTOR_MOVE" for c, _ in body.motor_log[n:])
+        assert nav.drift_cm > drift0 + 0.04 * 100.0  # more than distance alone would add
+        arrived = body.frames("arrived")[0].data
+        assert math.dist((arrived["x"], arrived["y"]), (50, 150)) <= 5.0
+
+
+@pytest.mark.trio
+async def test_a_tread_fault_in_a_move_ends_it_as_blocked(autojump_clock) -> None:
+    """NAV_TREAD_FAULT (the left tread silent) during a straight move: a tread stalled
+    against a wall reports the same, so no hold: the move ends as blocked and the
+    route backs off at once; the heading is doubted all the same."""
+    body = Body(truth=own_truth())
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, {"x": 120.0, "y": 50.0, "heading": 0.0})
+        assert await wait_for(lambda: any(c == "MOTOR_MOVE" for c, _ in body.motor_log), 10.0)
+        nav = system.whereis("hider/nav").actor
+        n = len(body.motor_log)
+        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 0))
+        assert await wait_for(lambda: any(c == "MOTOR_MOVE" and v < 0
+                                          for c, v in body.motor_log[n:]), 4.0)
+        assert body.motor_log[n][0] == "MOTOR_STOP"
+        assert nav.tread_faults == 1 and nav.heading_err_deg > 0
+        assert await wait_for(lambda: body.frames("arrived"), 60.0)
+
+
+@pytest.mark.trio
+async def test_a_tread_fault_while_standing_is_ignored(autojump_clock) -> None:
+    """A report arriving after the motion ended (nothing in flight) starts no hold."""
+    body = Body(truth=own_truth())
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await trio.sleep(2.0)
+        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 0))
+        await trio.sleep(0.5)
+        nav = system.whereis("hider/nav").actor
+        assert nav.tread_faults == 0 and not nav.moving

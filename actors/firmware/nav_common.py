@@ -118,6 +118,21 @@ class NavOptions:
     """Sideways offsets tried per route, at most."""
     nudge_reach_cm: float = 50.0
     """Waypoints this close to the block point are shifted by a nudge [cm]."""
+    tread_hold_s: float = 12.0
+    """A tread fault (``NAV_TREAD_FAULT``) stops the motion and holds this long [s],
+    doubled for a repeat within a minute: a slipping encoder or a weak motor lasts a
+    few seconds to 20 s, and the small turns driven meanwhile may not be reported
+    (a tread must travel about 5 cm for a short count to show) yet each turns the
+    rover tens of degrees more than it believes (campaign game 1:24)."""
+    tread_holds: int = 2
+    """Holds in a row (each report within a minute of the last), at most; a further
+    report ends the motion as blocked: a tread stalled against a wall looks the same
+    as one that does not count, and holding would not free it."""
+    tread_fault_deg: float = 10.0
+    """How far one tread fault may have turned the heading unseen [deg]: the fault is
+    reported after about 5 cm of a tread's travel, counted at most 0.65 of it."""
+    tread_stop_s: float = 1.0
+    """A tread fault that ends its motion as blocked waits this long before deciding [s]."""
     contact_fixes: int = 4
     """Pose corrections from contacts with mapped walls per route, at most (see `contact`)."""
     contact_max_shift_cm: float = 14.0
@@ -371,6 +386,16 @@ class NavBase(Actor):
                                          "contacts": 0}
         self.driven_cm = 0.0
         """Distance driven since the pose was last known (start, origin, correction) [cm]."""
+        self.heading_err_deg = 0.0
+        """Heading error that tread faults may have left unseen [deg] (see `on_tread_fault`)."""
+        self.fault_drift_cm = 0.0
+        """Sideways error those heading errors may have made since the pose was last
+        known [cm]: each move adds its length times the sine of ``heading_err_deg``."""
+        self.tread_faults = 0
+        """``NAV_TREAD_FAULT`` reports acted on."""
+        self._hold_until = math.inf  # holding still after a tread fault until then
+        self._tread_strikes = 0
+        self._tread_last = -math.inf
         self._xy_mm: tuple[int, int] | None = None
         self._motion: Motion | None = None
         self.last_motion: Motion | None = None
@@ -429,6 +454,8 @@ class NavBase(Actor):
             await self._on_motion_end(cmd == Cmd.NAV_MOTION_BLOCKED, float(message.value))
         elif cmd == Cmd.NAV_TIMER:
             await self._on_tick()
+        elif cmd == Cmd.NAV_TREAD_FAULT:
+            await self.on_tread_fault(int(message.value))
         elif cmd == Cmd.NAV_NET:
             frame = self._take(message)
             if isinstance(frame, Frame):
@@ -475,7 +502,7 @@ class NavBase(Actor):
             self.pose = Pose(self.pose.x, self.pose.y, heading)
         self._xy_mm = None
         self.pose_known = True
-        if self._pose_deadline < math.inf and self._motion is None:
+        if self._pose_deadline < math.inf and self._motion is None and self._hold_until == math.inf:
             self._pose_deadline = math.inf
             await self.after_motion(self._blocked, self._done)
 
@@ -483,7 +510,8 @@ class NavBase(Actor):
     @property
     def moving(self) -> bool:
         """A motion is in flight, or its pose at rest is awaited."""
-        return self._motion is not None or self._pose_deadline < math.inf
+        return self._motion is not None or self._pose_deadline < math.inf or \
+            self._hold_until < math.inf
 
     async def command(self, motion: Motion) -> None:
         """Send one Command A and wait (by events) for its end; `after_motion` follows."""
@@ -494,6 +522,8 @@ class NavBase(Actor):
         self.counters["motions"] += 1
         if motion.kind == "move":
             self.driven_cm += abs(motion.amount)
+            self.fault_drift_cm += abs(motion.amount) * math.sin(
+                math.radians(min(90.0, self.heading_err_deg)))
         nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \
             else abs(motion.amount) / 90.0
         self._motion_deadline = trio.current_time() + self.o.motion_timeout_s + nominal
@@ -505,7 +535,53 @@ class NavBase(Actor):
         self._motion = None
         self._motion_deadline = math.inf
         self._pose_deadline = math.inf
+        self._hold_until = math.inf
         await self.post(self.motor, Message.uint(Cmd.MOTOR_STOP, 0))
+
+    async def on_tread_fault(self, value: int) -> None:
+        """Motor Control saw a driven tread that does not count, or counts short
+        (``NAV_TREAD_FAULT``; bit 0 the tread, bit 1 short): dead reckoning is turning
+        the heading where the rover does not, or the other way round.
+
+        Why stop and hold: Motor Control ends a motion by the counts, so each
+        motion driven on a faulty encoder turns the rover further off the
+        heading it believes (campaign game 1:24: 90-100 deg after an 8.8 s
+        slip). Stopping at the report keeps what one motion costs to about
+        ``tread_fault_deg``; the hold (``tread_hold_s``, doubled for a repeat
+        within a minute, at most ``tread_holds`` in a row, then a report ends
+        the motion as blocked) waits for a passing fault to clear, as nothing
+        can tell that while standing still. Only turns are held for: in a
+        straight move a tread scraping along a wall stalls and reports the
+        same (healthy hall 3: 36 s held for nothing), so a move ends as
+        blocked and the route's block handling (contact fix, back-off) follows.
+        The error already made is not seen:
+        ``heading_err_deg`` grows by ``tread_fault_deg``, so `drift_cm` grows
+        with every cm driven afterwards (the seeker's search ring widens, the
+        nudges step wider). After the hold, `after_motion` decides again from
+        the pose, as after a motion that ended.
+        """
+        if self._motion is None:
+            return  # standing (or holding) already: the report is of a motion given up
+        now = trio.current_time()
+        self._tread_strikes = self._tread_strikes + 1 if now - self._tread_last <= 60.0 else 1
+        self._tread_last = now
+        self.tread_faults += 1
+        self.heading_err_deg += self.o.tread_fault_deg
+        turning = self._motion.kind == "turn"
+        await self.stop_motor()
+        if not turning or self._tread_strikes > self.o.tread_holds:  # as blocked (see above)
+            # a short hold all the same: the stopped motion's last pose and end arrive
+            # meanwhile and are ignored, and the decision uses the pose at rest
+            self._blocked, self._done = True, 0.0
+            self.counters["blocked"] += 1
+            self._hold_until = now + self.o.tread_stop_s
+            return
+        hold = self.o.tread_hold_s * 2.0 ** (self._tread_strikes - 1)
+        self._blocked, self._done = False, 0.0
+        self._hold_until = now + hold
+        side = "right" if value & 1 else "left"
+        kind = "counts short" if value & 2 else "does not count"
+        await self.status(self.state, f"the {side} tread {kind}; holding {hold:.0f} s")
 
     async def _on_motion_end(self, blocked: bool, done: float) -> None:
         if self._motion is None:
@@ -524,12 +600,17 @@ class NavBase(Actor):
     @property
     def drift_cm(self) -> float:
         """How far the dead-reckoned pose may be off sideways now [cm] (at least 3)."""
-        return max(3.0, self.o.drift_per_cm * self.driven_cm)
+        return max(3.0, self.o.drift_per_cm * self.driven_cm + self.fault_drift_cm)
 
     # ------------------------------------------------------------------ timer
     async def _on_tick(self) -> None:
         now = trio.current_time()
-        if self._motion is not None and now >= self._motion_deadline:
+        if self._hold_until < math.inf:
+            if now >= self._hold_until:  # the hold is over: decide again from the pose at rest
+                self._hold_until = math.inf
+                self._pose_deadline = now + self.o.pose_wait_s
+                await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+        elif self._motion is not None and now >= self._motion_deadline:
             self.counters["timeouts"] += 1
             await self.post(self.motor, Message.uint(Cmd.MOTOR_STOP, 0))
             self._motion = None
@@ -573,6 +654,7 @@ class NavBase(Actor):
             self.origin = Pose(data.x, data.y, data.heading)
             self.memory.origin = (data.x, data.y, data.heading)
             self.driven_cm = 0.0
+            self.fault_drift_cm = 0.0
         elif cmd == "destination":
             await self.on_destination(data.x, data.y, data.heading)
 
@@ -1038,6 +1120,7 @@ class RouteNav(NavBase):
         origin = compose(target, inverse(self.pose))
         self.origin = origin
         self.driven_cm = 0.0
+        self.fault_drift_cm = 0.0
         self.memory.origin = (origin.x, origin.y, origin.heading_deg)
 
     async def _give_up(self, reason: str) -> None:
