@@ -583,3 +583,34 @@ def test_a_gap_edge_contact_is_acted_on_only_while_the_drift_is_small() -> None:
     assert not nav._contact_fix()
     assert nav.map_pose == Pose(395.0, 312.5, 0.0)
     assert nav._in_passage()
+
+
+@pytest.mark.trio
+async def test_a_back_off_that_turns_while_blocked_holds_instead_of_backing_off_again(
+        autojump_clock) -> None:
+    """A back-off ends blocked having turned 25 deg: one tread stalls (campaign game 1:131
+    spent ten blocks in 12 s of a 16 s stall spinning on the spot), so the route holds
+    ``tread_hold_s`` and replans after it; a back-off blocked without turning (the rear
+    against something) backs off again at once."""
+    said: list[str | None] = []
+
+    async def status(state: str, detail: str | None = None, **extra: Any) -> None:
+        said.append(detail)
+
+    nav = scraped_nav(25.0)
+    nav.status = status  # not started: no WiFly to report to
+    nav.goal = (600.0, 150.0)
+    nav.last_motion = Motion("move", -6.0)
+    assert nav._backoff_turned()
+    await nav._blocked_route("blocked")
+    assert said == ["a tread stalls; holding 12 s"]
+    assert nav.counters["stall_holds"] == 1 and nav._replan and nav.replans == 1
+    assert nav._hold_until == pytest.approx(trio.current_time() + nav.o.tread_hold_s)
+    assert nav._motion is None and nav.moving
+    nav = scraped_nav(2.0)
+    nav.goal = (600.0, 150.0)
+    nav.last_motion = Motion("move", -6.0)
+    assert not nav._backoff_turned()
+    nav.last_motion = Motion("move", 20.0)
+    nav.pose = Pose(250.0, 100.0, 25.0)
+    assert not nav._backoff_turned()  # a forward move pivoting on a wall: no stall hold
