@@ -614,3 +614,29 @@ async def test_a_back_off_that_turns_while_blocked_holds_instead_of_backing_off_
     nav.last_motion = Motion("move", 20.0)
     nav.pose = Pose(250.0, 100.0, 25.0)
     assert not nav._backoff_turned()  # a forward move pivoting on a wall: no stall hold
+
+
+@pytest.mark.trio
+async def test_a_back_off_that_did_not_move_replans_instead_of_reversing_again(
+        autojump_clock) -> None:
+    """Wedged: a back-off ended blocked without moving (campaign game 1:103: six reverses
+    in a row stuck diagonally in the gap, the route given up). The route is planned
+    again from where the rover stands and driven on, not reversed once more; a back-off
+    that moved before its block backs off again as before."""
+    sent: list[Motion] = []
+
+    async def command(motion: Motion) -> None:
+        sent.append(motion)
+
+    nav = scraped_nav(0.0)
+    nav.command = command  # not started: no motor to drive
+    nav.goal, nav.goal_heading = (600.0, 150.0), None
+    nav._plan()
+    nav.last_motion = Motion("move", -6.0)
+    nav.motion_from = nav.map_pose
+    await nav._blocked_route("blocked")
+    assert sent and sent[0].amount > 0 and not nav._replan and nav.replans == 1
+    sent.clear()
+    nav.motion_from = Pose(305.0, 150.0, 0.0)  # it reversed 5 cm before the block
+    await nav._blocked_route("blocked")
+    assert sent and sent[0].kind == "move" and sent[0].amount < 0 and nav._replan

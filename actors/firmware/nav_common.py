@@ -1037,6 +1037,13 @@ class RouteNav(NavBase):
             self._hold_until = trio.current_time() + self.o.tread_hold_s
             await self.status(self.state, f"a tread stalls; holding {self.o.tread_hold_s:.0f} s")
             return
+        m, start = self.last_motion, self.motion_from
+        if why == "blocked" and m is not None and m.kind == "move" and m.amount < 0 and \
+                start is not None and math.dist((p.x, p.y), (start.x, start.y)) < 1.0:
+            # a back-off that did not move: wedged behind; reversing again cannot help
+            self._replan = True
+            await self.after_motion(False, 0.0)
+            return
         ahead = self.radius_cm + 8.0
         h = math.radians(p.heading_deg)
         back = self.o.backoff_cm
