@@ -583,3 +583,60 @@ def test_a_gap_edge_contact_is_acted_on_only_while_the_drift_is_small() -> None:
     assert not nav._contact_fix()
     assert nav.map_pose == Pose(395.0, 312.5, 0.0)
     assert nav._in_passage()
+
+
+@pytest.mark.trio
+async def test_a_back_off_that_turns_while_blocked_holds_instead_of_backing_off_again(
+        autojump_clock) -> None:
+    """A back-off ends blocked having turned 25 deg: one tread stalls (campaign game 1:131
+    spent ten blocks in 12 s of a 16 s stall spinning on the spot), so the route holds
+    ``tread_hold_s`` and replans after it; a back-off blocked without turning (the rear
+    against something) backs off again at once."""
+    said: list[str | None] = []
+
+    async def status(state: str, detail: str | None = None, **extra: Any) -> None:
+        said.append(detail)
+
+    nav = scraped_nav(25.0)
+    nav.status = status  # not started: no WiFly to report to
+    nav.goal = (600.0, 150.0)
+    nav.last_motion = Motion("move", -6.0)
+    assert nav._backoff_turned()
+    await nav._blocked_route("blocked")
+    assert said == ["a tread stalls; holding 12 s"]
+    assert nav.counters["stall_holds"] == 1 and nav._replan and nav.replans == 1
+    assert nav._hold_until == pytest.approx(trio.current_time() + nav.o.tread_hold_s)
+    assert nav._motion is None and nav.moving
+    nav = scraped_nav(2.0)
+    nav.goal = (600.0, 150.0)
+    nav.last_motion = Motion("move", -6.0)
+    assert not nav._backoff_turned()
+    nav.last_motion = Motion("move", 20.0)
+    nav.pose = Pose(250.0, 100.0, 25.0)
+    assert not nav._backoff_turned()  # a forward move pivoting on a wall: no stall hold
+
+
+@pytest.mark.trio
+async def test_a_back_off_that_did_not_move_replans_instead_of_reversing_again(
+        autojump_clock) -> None:
+    """Wedged: a back-off ended blocked without moving (campaign game 1:103: six reverses
+    in a row stuck diagonally in the gap, the route given up). The route is planned
+    again from where the rover stands and driven on, not reversed once more; a back-off
+    that moved before its block backs off again as before."""
+    sent: list[Motion] = []
+
+    async def command(motion: Motion) -> None:
+        sent.append(motion)
+
+    nav = scraped_nav(0.0)
+    nav.command = command  # not started: no motor to drive
+    nav.goal, nav.goal_heading = (600.0, 150.0), None
+    nav._plan()
+    nav.last_motion = Motion("move", -6.0)
+    nav.motion_from = nav.map_pose
+    await nav._blocked_route("blocked")
+    assert sent and sent[0].amount > 0 and not nav._replan and nav.replans == 1
+    sent.clear()
+    nav.motion_from = Pose(305.0, 150.0, 0.0)  # it reversed 5 cm before the block
+    await nav._blocked_route("blocked")
+    assert sent and sent[0].kind == "move" and sent[0].amount < 0 and nav._replan

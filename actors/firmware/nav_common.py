@@ -148,6 +148,9 @@ class NavOptions:
     """Reverse this far after being blocked [cm]."""
     backoff_repeat_cm: float = 20.0
     """Reverse this far after a second block at one place: room to come back sideways [cm]."""
+    stall_turn_deg: float = 8.0
+    """A back-off that ends blocked having turned more than this holds ``tread_hold_s``
+    before the route goes on: a tread stalled (see `RouteNav._backoff_turned`) [deg]."""
     settle_s: float = 1.0
     """After (re)start, no motion is commanded before this [s]: the end of a motion
     the previous incarnation commanded arrives meanwhile and is ignored."""
@@ -383,7 +386,7 @@ class NavBase(Actor):
         """What navigation is doing (also the ``status`` state sent to the server)."""
         self.counters: dict[str, int] = {"dropped": 0, "bad_frames": 0, "blocked": 0,
                                          "timeouts": 0, "motions": 0, "nudges": 0,
-                                         "contacts": 0}
+                                         "contacts": 0, "stall_holds": 0}
         self.driven_cm = 0.0
         """Distance driven since the pose was last known (start, origin, correction) [cm]."""
         self.heading_err_deg = 0.0
@@ -1025,6 +1028,22 @@ class RouteNav(NavBase):
             return
         assert self.work_map is not None
         p = self.map_pose
+        if why == "blocked" and self._backoff_turned():
+            # a tread stalled: backing off again only spins the rover where it stands
+            # (campaign game 1:131: ten blocks in 12 s of a 16 s stall); wait for it
+            self.counters["stall_holds"] += 1
+            self._replan = True
+            self._blocked, self._done = False, 0.0
+            self._hold_until = trio.current_time() + self.o.tread_hold_s
+            await self.status(self.state, f"a tread stalls; holding {self.o.tread_hold_s:.0f} s")
+            return
+        m, start = self.last_motion, self.motion_from
+        if why == "blocked" and m is not None and m.kind == "move" and m.amount < 0 and \
+                start is not None and math.dist((p.x, p.y), (start.x, start.y)) < 1.0:
+            # a back-off that did not move: wedged behind; reversing again cannot help
+            self._replan = True
+            await self.after_motion(False, 0.0)
+            return
         ahead = self.radius_cm + 8.0
         h = math.radians(p.heading_deg)
         back = self.o.backoff_cm
@@ -1044,6 +1063,16 @@ class RouteNav(NavBase):
                 back = self.o.backoff_repeat_cm
         self._replan = True
         await self.command(Motion("move", -back))
+
+    def _backoff_turned(self) -> bool:
+        """The last motion, a reverse (a back-off), ended blocked having turned the rover
+        more than ``stall_turn_deg``: one tread drives, the other does not. Backing away
+        from a wall is free ground, so a turn there is no wall's doing."""
+        m, start = self.last_motion, self.motion_from
+        if m is None or m.kind != "move" or m.amount >= 0 or start is None:
+            return False
+        turned = abs(angle_diff_deg(self.map_pose.heading_deg, start.heading_deg))
+        return turned > self.o.stall_turn_deg
 
     def _contact_fix(self) -> bool:
         """After a straight move ended blocked: correct the pose to where the body
