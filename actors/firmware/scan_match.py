@@ -274,6 +274,30 @@ class MatchFields:
         self.narrow = OccupancyField(occ, origin_cm, resolution_cm, o.blur_narrow)
 
 
+def _score(fields: MatchFields, pts: np.ndarray, x: float, y: float, theta: float
+           ) -> tuple[float, float]:
+    """How well the hits placed at (x, y, theta) fit the map: the mean of the narrow
+    field, and the share of hits on a mapped obstacle (field above 0.25)."""
+    wx, wy, _, _ = _to_map(pts, x, y, theta)
+    m, _, _ = fields.narrow.sample(wx, wy)
+    return float(m.mean()), float(np.count_nonzero(m > 0.25)) / len(pts)
+
+
+def _prior(pts: np.ndarray, o: MatchOptions) -> np.ndarray:
+    """The pull toward the starting pose per (x, y, theta), scaled by the hit count
+    (theta also by the hits' mean squared range)."""
+    a = o.prior_per_point * len(pts)
+    return np.array([a, a, a * float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2))])
+
+
+def _fit(fields: MatchFields, pts: np.ndarray, start: np.ndarray, prior: np.ndarray,
+         o: MatchOptions) -> tuple[np.ndarray, float, float]:
+    """Gauss-Newton from ``start`` (wide, then narrow); the pose, its score and support."""
+    est = _gauss_newton(fields.wide, pts, start, start, o.iterations, o.damping, prior)
+    est = _gauss_newton(fields.narrow, pts, est, start, o.iterations, o.damping, prior)
+    return (est, *_score(fields, pts, est[0], est[1], est[2]))
+
+
 def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
                options: MatchOptions | None = None) -> MatchResult:
     """Register scan hits against the map, starting from ``guess``.
@@ -294,19 +318,9 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
     if fields.empty:
         return MatchResult(guess, False, 0.0, 0.0, "no mapped obstacle to match against")
     theta0 = guess.heading_rad
-    wx, wy, _, _ = _to_map(pts, guess.x, guess.y, theta0)
-    m0, _, _ = fields.narrow.sample(wx, wy)
-    score0 = float(m0.mean())
-    support0 = float(np.count_nonzero(m0 > 0.25)) / len(pts)
+    score0, support0 = _score(fields, pts, guess.x, guess.y, theta0)
     start = np.array([guess.x, guess.y, theta0])
-    a = o.prior_per_point * len(pts)
-    prior = np.array([a, a, a * float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2))])
-    est = _gauss_newton(fields.wide, pts, start, start, o.iterations, o.damping, prior)
-    est = _gauss_newton(fields.narrow, pts, est, start, o.iterations, o.damping, prior)
-    wx1, wy1, _, _ = _to_map(pts, est[0], est[1], est[2])
-    m1, _, _ = fields.narrow.sample(wx1, wy1)
-    score1 = float(m1.mean())
-    support1 = float(np.count_nonzero(m1 > 0.25)) / len(pts)
+    est, score1, support1 = _fit(fields, pts, start, _prior(pts, o), o)
     shift = math.hypot(est[0] - guess.x, est[1] - guess.y)
     turn = abs(math.degrees(est[2] - theta0))
     if max(support0, support1) < o.min_support:
@@ -341,16 +355,6 @@ class RelocaliseOptions:
     heading, by this much (an ambiguous view, such as a round wall, is not re-localised)."""
 
 
-def _fit(fields: MatchFields, pts: np.ndarray, start: np.ndarray, prior: np.ndarray,
-         o: MatchOptions) -> tuple[np.ndarray, float, float]:
-    """Gauss-Newton from ``start`` (wide, then narrow); the pose, its score and support."""
-    est = _gauss_newton(fields.wide, pts, start, start, o.iterations, o.damping, prior)
-    est = _gauss_newton(fields.narrow, pts, est, start, o.iterations, o.damping, prior)
-    wx, wy, _, _ = _to_map(pts, est[0], est[1], est[2])
-    m, _, _ = fields.narrow.sample(wx, wy)
-    return est, float(m.mean()), float(np.count_nonzero(m > 0.25)) / len(pts)
-
-
 def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
                options: MatchOptions | None = None,
                search: RelocaliseOptions | None = None) -> MatchResult:
@@ -379,11 +383,8 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     if len(pts) < o.min_points or fields.empty:
         return MatchResult(guess, False, 0.0, 0.0, "too few hits or nothing mapped")
     theta0 = guess.heading_rad
-    wx, wy, _, _ = _to_map(pts, guess.x, guess.y, theta0)
-    m0, _, _ = fields.narrow.sample(wx, wy)
-    score0 = float(m0.mean())
-    a = o.prior_per_point * len(pts)
-    prior = np.array([a, a, a * float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2))])
+    score0, _ = _score(fields, pts, guess.x, guess.y, theta0)
+    prior = _prior(pts, o)
     n = int(r.turn_deg // r.step_deg)
     fits = []
     for k in range(-n, n + 1):
