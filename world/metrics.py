@@ -50,17 +50,9 @@ def _check_map(cells: np.ndarray, resolution_cm: float) -> np.ndarray:
 
 def coverage(cells: np.ndarray, resolution_cm: float, origin_cm: tuple[float, float],
              start: Pose, truth: TruthGrid) -> float:
-    """Share [0..1] of the reachable free truth cells that the map knows."""
-    cells = _check_map(cells, resolution_cm)
-    rows, cols = np.nonzero(truth.reachable)
-    if len(rows) == 0:
-        return 0.0
-    r = truth.resolution_cm
-    mr, mc = _to_map_cells((cols + 0.5) * r, (rows + 0.5) * r, start, resolution_cm, origin_cm)
-    inside = (mr >= 0) & (mr < cells.shape[0]) & (mc >= 0) & (mc < cells.shape[1])
-    known = np.zeros(len(rows), dtype=bool)
-    known[inside] = cells[mr[inside], mc[inside]] >= 0
-    return float(known.mean())
+    """Share [0..1] of the reachable free truth cells that the map knows (one map: for a
+    series of maps, `CoverageProbe` places the truth cells once)."""
+    return CoverageProbe(start, truth)(cells, resolution_cm, origin_cm)
 
 
 class CoverageProbe:
@@ -68,8 +60,8 @@ class CoverageProbe:
 
     Why: where each reachable truth cell falls on the map depends only on the start
     pose and the map's resolution, origin and shape, which stay put for a whole game;
-    `coverage` recomputed it for every sample (a few percent of a game's CPU). The
-    value is `coverage`'s, bit for bit.
+    placing them for every sample cost a few percent of a game's CPU. `coverage` of a
+    single map is a probe used once.
     """
 
     def __init__(self, start: Pose, truth: TruthGrid) -> None:
