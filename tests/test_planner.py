@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planner import (
+    _astar_padded,
     astar,
     bfs_steps,
     inflate,
@@ -99,6 +100,41 @@ def test_unreachable_goal_returns_none():
     cells = room()
     cells[:, 30] = OCCUPIED
     assert plan_path(GridMap(cells, 5.0, (0, 0)), (50, 50), (250, 50)) is None
+
+
+def _four_connected(p: np.ndarray, a: tuple[int, int], b: tuple[int, int]) -> bool:
+    """Reference: plain breadth-first search over 4-neighbours."""
+    seen, todo = {a}, [a]
+    while todo:
+        r, c = todo.pop()
+        for v in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
+            if v not in seen and 0 <= v[0] < p.shape[0] and 0 <= v[1] < p.shape[1] and p[v]:
+                seen.add(v)
+                todo.append(v)
+    return b in seen
+
+
+def test_astar_finds_a_path_exactly_between_4_connected_cells():
+    """The up-front reachability check agrees with the search it short-cuts.
+
+    A diagonal step needs both orthogonal neighbours, so A* reaches exactly the
+    start's 4-connected component; `astar` answers None without searching
+    otherwise, and must agree with the search itself (`_astar_padded`).
+    """
+    rng = np.random.default_rng(7)
+    seen = {True: 0, False: 0}
+    for _ in range(400):
+        ny, nx = (int(v) for v in rng.integers(1, 16, 2))
+        p = rng.random((ny, nx)) < rng.uniform(0.3, 0.9)
+        cells = np.argwhere(p)
+        if len(cells) == 0:
+            continue
+        a, b = (tuple(int(v) for v in cells[rng.integers(len(cells))]) for _ in range(2))
+        want = _four_connected(p, a, b)
+        seen[want] += 1
+        assert (astar(p, a, b) is not None) == want
+        assert (_astar_padded(p, a, b, None, 1.001, ny * nx) is not None) == want
+    assert min(seen.values()) > 50  # both answers were tried
 
 
 def test_goal_inside_inflation_snaps_to_nearest_passable_cell():

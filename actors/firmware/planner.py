@@ -32,6 +32,7 @@ Frame and units
 
 from __future__ import annotations
 
+import bisect
 import heapq
 import math
 from dataclasses import dataclass
@@ -200,6 +201,8 @@ def astar(
     # blocked border). Row-major indices keep their order in the box, so ties in the
     # heap break the same way and the path is the one the whole grid gives.
     passable = np.asarray(passable, dtype=bool)
+    if not _connected(passable, start, goal):
+        return None  # what the search gives after expanding start's whole component
     if extra_cost is None:
         rows = np.flatnonzero(passable.any(axis=1))
         cols = np.flatnonzero(passable.any(axis=0))
@@ -213,6 +216,64 @@ def astar(
         return [(r + r0, c + c0) for r, c in path], cost, expanded
     return _astar_padded(passable, start, goal,
                          np.asarray(extra_cost, dtype=np.float64), heuristic_weight, limit)
+
+
+def _connected(passable: np.ndarray, a: tuple[int, int], b: tuple[int, int]) -> bool:
+    """Whether passable cells ``a`` and ``b`` are 4-connected on ``passable``.
+
+    Why: that is exactly when `astar` (without an expansion limit) finds a path. Its
+    diagonal step needs both orthogonal neighbours passable, so it can be replaced by
+    two orthogonal steps and the search reaches the 4-connected component of start.
+    An unreachable goal costs A* that whole component (milliseconds in Python: most
+    of the planner's time in long mapping runs, whose frontier targets are often cut
+    off by the inflation); this check costs one pass over the row runs.
+
+    Algorithm: the horizontal runs of passable cells, joined (union-find) with the
+    runs they overlap in the row above.
+    """
+    ny, nx = passable.shape
+    w = nx + 1  # one blocked column ends every row's last run
+    row = np.zeros((ny, w), dtype=np.int8)
+    row[:, :nx] = passable
+    d = np.diff(row.ravel(), prepend=np.int8(0))
+    starts = np.flatnonzero(d == 1).tolist()
+    ends = np.flatnonzero(d == -1).tolist()  # exclusive; same count as starts
+    parent = list(range(len(starts)))
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    prev_lo = prev_hi = 0  # run indices of the previous row: [prev_lo, prev_hi)
+    i = 0
+    n = len(starts)
+    while i < n:
+        r = starts[i] // w
+        base = r * w
+        j = i
+        while j < n and starts[j] < base + w:
+            j += 1
+        # runs [i, j) lie in row r; join those overlapping runs of row r - 1
+        if prev_hi > prev_lo and starts[prev_lo] // w == r - 1:
+            p, q = prev_lo, i
+            while p < prev_hi and q < j:
+                p0, p1 = starts[p] + w, ends[p] + w  # shifted into row r
+                q0, q1 = starts[q], ends[q]
+                if p0 < q1 and q0 < p1:
+                    rp, rq = find(p), find(q)
+                    if rp != rq:
+                        parent[rq] = rp
+                if p1 <= q1:
+                    p += 1
+                else:
+                    q += 1
+        prev_lo, prev_hi = i, j
+        i = j
+    ra = bisect.bisect_right(starts, a[0] * w + a[1]) - 1
+    rb = bisect.bisect_right(starts, b[0] * w + b[1]) - 1
+    return find(ra) == find(rb)
 
 
 def _astar_padded(passable: np.ndarray, start: tuple[int, int], goal: tuple[int, int],
