@@ -422,11 +422,20 @@ class OccupancyGrid:
                                                     m.grazing_margin_cells)
         n_samples = np.ceil(np.maximum(free_c, 0.0) / step).astype(np.int64)
         total = int(n_samples.sum())
-        ray_of = np.repeat(np.arange(n_samples.size), n_samples)
-        first = np.cumsum(n_samples) - n_samples
-        t = (np.arange(total) - np.repeat(first, n_samples)) * step
-        fc = np.floor(px + cos[ray_of] * t).astype(np.int64)
-        fr = np.floor(py + sin[ray_of] * t).astype(np.int64)
+        # sample k of its ray at t = k step; each ray's cos and sin repeated per sample
+        # (cheaper than gathering them by a ray index), the arithmetic in place: the
+        # same operations in the same order, so the same cells
+        k = np.arange(total)
+        k -= np.repeat(np.cumsum(n_samples) - n_samples, n_samples)
+        t = k * step
+        x = np.repeat(cos, n_samples)
+        x *= t
+        x += px
+        y = np.repeat(sin, n_samples)
+        y *= t
+        y += py
+        fc = np.floor(x, out=x).astype(np.int64)
+        fr = np.floor(y, out=y).astype(np.int64)
         free_flat = self._inside(fr, fc)
 
         hx = px + cos[has_hit] * length_c[has_hit]  # hits [cells]
