@@ -35,6 +35,7 @@ from actors import (
     seed_trio_scheduler,
     sleep,
 )
+from actors.clock import fast_instruments
 from actors.firmware.commands import Cmd
 from server.protocol import Pose2
 from server.server import Server, ServerConfig, open_server
@@ -243,6 +244,7 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
     if bad:
         raise ValueError(f"roles must be among {', '.join(ROLES)}, got {bad[0]!r}")
     seed_trio_scheduler(seed)
+    fast_instruments()  # Trio's per-step instrument checks, cheaper (same events)
     trace = trace or Trace()
     fault_log: list[dict[str, Any]] = []
     world = World(scenario, np.random.default_rng(seed), on_event=_world_events(trace, fault_log))

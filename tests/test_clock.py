@@ -129,3 +129,31 @@ def test_cheap_sleep_keeps_trios_deadline_heap_consistent() -> None:
     cancelled, slept = trio.run(main, clock=virtual_clock())
     assert cancelled == 3000
     assert slept == 2.5
+
+
+def test_fast_instruments_keep_trios_instrument_hooks() -> None:
+    """After `fast_instruments`, Trio still calls instruments added later and stops
+    calling removed ones (its own add/remove/call run on the replacement)."""
+    from actors.clock import fast_instruments
+
+    calls: list[str] = []
+
+    class Steps(trio.abc.Instrument):
+        def before_task_step(self, task: object) -> None:
+            calls.append("step")
+
+    async def main() -> tuple[int, int]:
+        fast_instruments()
+        fast_instruments()  # a second call keeps the same registry
+        steps = Steps()
+        trio.lowlevel.add_instrument(steps)
+        await trio.sleep(0)
+        seen = len(calls)
+        trio.lowlevel.remove_instrument(steps)
+        await trio.sleep(0)
+        await trio.sleep(0)
+        return seen, len(calls)
+
+    seen, after = trio.run(main, clock=virtual_clock())
+    assert seen >= 1
+    assert after == seen  # nothing after the removal
