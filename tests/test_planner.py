@@ -40,6 +40,24 @@ def test_inflate_uses_distance_to_the_square_not_its_centre():
     assert inflate(blocked, 0).sum() == 1
 
 
+def test_inflate_matches_the_definition_on_random_grids():
+    """Every cell whose centre lies within the radius of a blocked cell's square, and
+    no other (brute force over all pairs), also on grids smaller than the reach."""
+    rng = np.random.default_rng(11)
+    for _ in range(60):
+        ny, nx = (int(v) for v in rng.integers(1, 14, 2))
+        blocked = rng.random((ny, nx)) < rng.uniform(0.0, 0.3)
+        radius = float(rng.uniform(0.0, 5.0))
+        want = blocked.copy()
+        for r, c in np.argwhere(blocked):
+            for rr in range(ny):
+                for cc in range(nx):
+                    gap = math.hypot(max(abs(rr - r) - 0.5, 0.0), max(abs(cc - c) - 0.5, 0.0))
+                    if gap < radius:
+                        want[rr, cc] = True
+        assert np.array_equal(inflate(blocked, radius), want)
+
+
 def test_inflate_radius_blocks_cells_within_reach():
     """Every cell whose centre is within r of the blocked square is blocked, others not."""
     blocked = np.zeros((21, 21), dtype=bool)
