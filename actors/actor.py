@@ -44,7 +44,7 @@ import trio
 
 from .call import CallEnvelope, CallFailed
 from .cell import ActorState, Cell, Monitor
-from .clock import deadline_heap, sleep
+from .clock import HeapEntry, deadline_heap, sleep
 from .exits import HUNG, KILLED, NORMAL, SHUTDOWN, ExitReason
 from .timers import TaskTimer, Timer
 from .trace import EventKind, Trace
@@ -310,7 +310,7 @@ async def _serve(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
             return _hung(cell, actor, trace)
 
 
-class _Guard:
+class _Guard(HeapEntry):
     """The watchdog of one incarnation: one cancel scope, cancelled when the deadline
     of the message being handled passes.
 
@@ -332,14 +332,13 @@ class _Guard:
     Trio) the scope's deadline is moved as before.
     """
 
-    __slots__ = ("scope", "watchdog", "since", "_registered_deadline", "_deadlines")
+    __slots__ = ("scope", "watchdog", "since")
 
     def __init__(self, watchdog: float | None) -> None:
+        super().__init__(deadline_heap() if watchdog is not None else None)
         self.scope = trio.CancelScope()
         self.watchdog = watchdog
         self.since = math.inf  # when the deadline was last set [s]; inf: not armed
-        self._registered_deadline = math.inf  # our entry in Trio's heap; inf: none
-        self._deadlines: Any = deadline_heap() if watchdog is not None else None
 
     def arm(self) -> None:
         """A message starts now: its handling must end within the watchdog deadline."""
@@ -347,14 +346,11 @@ class _Guard:
             now = trio.current_time()
             if now != self.since:
                 self.since = now
-                deadlines = self._deadlines
-                if deadlines is None:
+                if self._deadlines is None:
                     self.scope.deadline = now + self.watchdog
                     return
-                if self._registered_deadline != math.inf:
-                    deadlines.remove(self._registered_deadline, self)
-                self._registered_deadline = deadline = now + self.watchdog
-                deadlines.add(deadline, self)
+                self._leave()
+                self._enter(now + self.watchdog)
 
     def disarm(self) -> None:
         """Nothing is being handled from now on (before parking, or a fault's own scope)."""
@@ -362,14 +358,12 @@ class _Guard:
             self.since = math.inf
             if self._deadlines is None:
                 self.scope.deadline = math.inf
-            elif self._registered_deadline != math.inf:
-                self._deadlines.remove(self._registered_deadline, self)
-                self._registered_deadline = math.inf
+            else:
+                self._leave()
 
     def _cancel(self, reason: Any) -> None:
         """The deadline is due (called by Trio's `Deadlines.expire`): fire the watchdog."""
-        self._deadlines.remove(self._registered_deadline, self)
-        self._registered_deadline = math.inf
+        self._leave()
         self.scope._cancel(reason)  # noqa: SLF001 - what the scope's own deadline calls
 
 

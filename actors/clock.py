@@ -157,34 +157,58 @@ def fast_instruments() -> None:
         runner.instruments = _DictInstruments(runner.instruments)
 
 
-class _Alarm:
-    """A sleeping task's entry in Trio's deadline heap, in place of a cancel scope.
+class HeapEntry:
+    """An entry of Trio's deadline heap that is not a cancel scope (the protocol that
+    `_Alarm` and the actors' watchdog guard share).
 
     Trio's `Deadlines` heap holds ``(deadline, id, scope)`` and, when the deadline
     is due, calls ``scope._cancel(reason)`` if ``scope._registered_deadline`` still
     equals it (`Deadlines.expire`; `next_deadline` and the autojump read the same
-    field). This object answers those two: its ``_cancel`` reschedules the sleeper,
-    at the moment a scope's cancellation would have.
+    field). A subclass answers those two; ``_registered_deadline`` is ``inf`` while
+    the entry is not in the heap (Trio counts the live entries when it prunes, so an
+    entry leaves the heap exactly once per time it entered).
     """
 
-    __slots__ = ("_registered_deadline", "_task", "_deadlines")
+    __slots__ = ("_registered_deadline", "_deadlines")
 
-    def __init__(self, deadline: float, task: object, deadlines: object) -> None:
-        self._registered_deadline = deadline
-        self._task = task
+    def __init__(self, deadlines: Any) -> None:
+        self._registered_deadline = math.inf
         self._deadlines = deadlines
+
+    def _enter(self, deadline: float) -> None:
+        """Put the entry into the heap at ``deadline`` (it must not be in it)."""
+        self._registered_deadline = deadline
+        self._deadlines.add(deadline, self)
+
+    def _leave(self) -> None:
+        """Take the entry out of the heap, if it is in it."""
+        if self._registered_deadline != math.inf:
+            self._deadlines.remove(self._registered_deadline, self)
+            self._registered_deadline = math.inf
+
+    def _cancel(self, reason: Any) -> None:  # pragma: no cover - subclasses answer it
+        raise NotImplementedError
+
+
+class _Alarm(HeapEntry):
+    """A sleeping task's entry in Trio's deadline heap, in place of a cancel scope:
+    its ``_cancel`` (the deadline is due) reschedules the sleeper, at the moment a
+    scope's cancellation would have."""
+
+    __slots__ = ("_task",)
+
+    def __init__(self, task: object, deadlines: Any) -> None:
+        super().__init__(deadlines)
+        self._task = task
 
     def _cancel(self, _reason: object) -> None:
         """The deadline is due (called by Trio's `Deadlines.expire`): wake the sleeper."""
-        self._deadlines.remove(self._registered_deadline, self)  # type: ignore[attr-defined]
-        self._registered_deadline = math.inf
+        self._leave()
         reschedule(self._task)  # type: ignore[arg-type]
 
     def abort(self, _raise_cancel: object) -> Abort:
         """Cancelled from outside while sleeping: leave the heap, let Trio raise."""
-        if self._registered_deadline != math.inf:
-            self._deadlines.remove(self._registered_deadline, self)  # type: ignore[attr-defined]
-            self._registered_deadline = math.inf
+        self._leave()
         return Abort.SUCCEEDED
 
 
@@ -212,8 +236,8 @@ async def sleep_until(deadline: float) -> None:
     if deadlines is None or not deadline > trio.current_time():
         await _scope_sleep_until(deadline)
         return
-    alarm = _Alarm(deadline, current_task(), deadlines)
-    deadlines.add(deadline, alarm)
+    alarm = _Alarm(current_task(), deadlines)
+    alarm._enter(deadline)  # noqa: SLF001
     await wait_task_rescheduled(alarm.abort)
 
 
