@@ -107,7 +107,7 @@ class NavOptions:
     nudge_step_cm: float = 4.0
     """Lateral step of the search for a narrow passage missed by dead reckoning [cm]; it
     grows with the drift (`NavBase.drift_cm`) to at most ``nudge_step_max_cm``."""
-    nudge_step_max_cm: float = 8.0
+    nudge_step_max_cm: float = 12.0
     """Largest lateral step of that search [cm]: below the free width a 35 cm gap leaves
     a 15 cm wide body (20 cm), so the offsets tried leave no hole between them."""
     drift_per_cm: float = 0.04
