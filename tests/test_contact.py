@@ -113,3 +113,14 @@ def test_a_wider_search_alone_does_not_make_a_clear_contact_ambiguous() -> None:
     """Nose against a plain wall face: the wider window finds no other edge to blame."""
     c = locate_contact(GAP, Pose(388, 200, 0), ambiguity_cm=20.0, other_shift_cm=34.0, **BODY)
     assert c is not None and not c.needed and not c.ambiguous
+
+
+def test_a_wall_face_across_the_heading_does_not_pin_the_sideways_position() -> None:
+    """Nose against the long face of the gap's wall, far from the gap: the block says how
+    far along the heading the rover is, not where along the face (any sideways shift
+    explains it as well); at the gap's lower edge a shift either way does not (into
+    the gap nothing is touched, away from it the body overlaps the wall)."""
+    face = locate_contact(GAP, Pose(390, 200, 0), **BODY)
+    assert face is not None and not face.needed and face.sideways_free
+    edge = locate_contact(GAP, Pose(395, 312.5, 0), side=1, **BODY)
+    assert edge is not None and edge.needed and not edge.sideways_free

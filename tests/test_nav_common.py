@@ -640,3 +640,33 @@ async def test_a_back_off_that_did_not_move_replans_instead_of_reversing_again(
     nav.motion_from = Pose(305.0, 150.0, 0.0)  # it reversed 5 cm before the block
     await nav._blocked_route("blocked")
     assert sent and sent[0].kind == "move" and sent[0].amount < 0 and nav._replan
+
+
+def test_a_probe_sidesteps_across_before_joining_the_shifted_line() -> None:
+    """Backed off to (300, 150) after a block at (320, 150) heading +x, probing 10 cm to
+    the right: the route starts with the point beside the rover on the shifted line
+    (a sidestep square to the heading), then the shifted waypoint near the block;
+    a shift within the waypoint tolerance needs no sidestep, nor a route without it."""
+    nav = scraped_nav(0.0)
+    nav._last_block = nav._anchor = (320.0, 150.0, 0.0)
+    nav._nudge, nav._nudge_off = (0.0, -10.0, 320.0, 150.0), -10.0
+    pts = [(340.0, 150.0), (600.0, 150.0)]
+    assert nav._nudged(pts) == [(340.0, 140.0), (600.0, 150.0)]  # no sidestep asked
+    nav._sidestep = True
+    out = nav._nudged(pts)
+    assert [q for p in out for q in p] == pytest.approx([300.0, 140.0, 340.0, 140.0, 600.0, 150.0])
+    nav._nudge, nav._nudge_off = (0.0, -4.0, 320.0, 150.0), -4.0
+    assert nav._nudged(pts) == [(340.0, 146.0), (600.0, 150.0)]
+
+
+def test_a_contact_that_measures_only_along_the_heading_keeps_the_drift() -> None:
+    """A correction whose sideways position is not known (a wall's face across the
+    heading) moves the pose but keeps the distance driven, so the drift (and the
+    sideways search it sizes) stays; a full correction restarts it."""
+    nav = scraped_nav(0.0)
+    nav.driven_cm = 500.0
+    nav.correct_pose(Pose(296.0, 150.0, 0.0), sideways_known=False)
+    assert nav.map_pose.x == pytest.approx(296.0)
+    assert nav.drift_cm == pytest.approx(500.0 * nav.o.drift_per_cm)
+    nav.correct_pose(Pose(296.0, 150.0, 0.0))
+    assert nav.drift_cm == 3.0
