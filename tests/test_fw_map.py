@@ -191,6 +191,53 @@ async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_cloc
 
 
 @pytest.mark.trio
+async def test_a_batch_with_an_unchanged_odometry_stamp_is_matched_until_the_rover_stands(
+        autojump_clock) -> None:
+    """A turning rover's batch can carry the previous stamp (no Int E in its tick): it is
+    matched onto the walls, not placed at the old pose; only after ``settle_s`` of
+    unchanged odometry are batches placed unmatched (the rover stands)."""
+    from actors.firmware.odometry import Pose
+
+    pool, log, motor_log = BufferPool(64), [], []
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
+                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
+                                                                  warmup_scans=3, settle_s=1.0))])
+    truth = Pose(120.0, 80.0, 0.0)
+
+    def send(system, odom: Pose, taken_at: Pose) -> None:
+        a, r = _room_scans(taken_at)
+        system.send_nowait("mapper/map", Message.handle(
+            Cmd.MAP_SCAN, pool.put(Scan(odom, a.astype(np.float32), r.astype(np.float32)))))
+
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):  # the reference, at the true pose
+            send(system, truth, truth)
+        await trio.sleep(0.6)
+        mm = system.whereis("mapper/map").actor
+        odom = Pose(truth.x + 0.6, truth.y, 0.0)
+        send(system, odom, truth)  # odometry moved: matched
+        await trio.sleep(0.05)
+        assert mm.matched == 1
+        assert mm.correction.heading_deg == pytest.approx(0.0, abs=0.7)
+        send(system, odom, Pose(truth.x, truth.y, 3.0))  # turned 3 deg, same stamp
+        await trio.sleep(0.05)
+        assert mm.matched == 2
+        assert 1.5 < mm.correction.heading_deg < 3.5  # (before: kept at 0, 3 deg off)
+        for _ in range(25):  # standing 1.25 s: matched for settle_s, then left alone
+            send(system, odom, Pose(truth.x, truth.y, 3.0))
+            await trio.sleep(0.05)
+        standing = mm.matched
+        assert 2 < standing < 2 + 25
+        for _ in range(5):
+            send(system, odom, Pose(truth.x, truth.y, 3.0))
+            await trio.sleep(0.05)
+        assert mm.matched == standing
+        assert mm.scans + mm.unplaced == 3 + 2 + 25 + 5
+
+
+@pytest.mark.trio
 async def test_without_matching_a_heading_error_draws_a_second_wall(autojump_clock) -> None:
     """The same scans with matching off: the map grows a rotated copy of the walls (the
     failure the matching prevents)."""

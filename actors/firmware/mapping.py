@@ -79,6 +79,12 @@ def _max3(values: np.ndarray) -> np.ndarray:
     return np.maximum(np.maximum(rows[:, :-2], rows[:, 1:-1]), rows[:, 2:])
 
 
+def _same_pose(a: Pose, b: Pose | None) -> bool:
+    """Whether two odometry stamps are the same (within 5 mm and 0.3 deg)."""
+    return b is not None and abs(a.x - b.x) < 0.5 and abs(a.y - b.y) < 0.5 and abs(
+        a.heading_deg - b.heading_deg) < 0.3
+
+
 class MapManagement(Actor):
     """The ``mapper/map`` actor (see the module docstring).
 
@@ -91,12 +97,15 @@ class MapManagement(Actor):
         matching: scan-to-map matching options; None turns matching off.
         fields_s: rebuild the matching fields from the grid at most this often [s].
         warmup_scans: integrate this many batches unmatched first (the reference).
+        settle_s: a batch is placed unmatched (the correction kept) only when odometry
+            has not changed between batches for this long [s] and the last matched
+            batch was taken at the same odometry pose: the rover stands.
     """
 
     def __init__(self, pool: BufferPool, *, size_cm: tuple[float, float] = (2400.0, 2400.0),
                  resolution_cm: float = 5.0, publish_s: float = 0.25,
                  restarted: bool = False, matching: MatchOptions | None = _MATCH,
-                 fields_s: float = 0.5, warmup_scans: int = 20) -> None:
+                 fields_s: float = 0.5, warmup_scans: int = 20, settle_s: float = 1.0) -> None:
         self.pool = pool
         self.grid = OccupancyGrid(size_cm[0], size_cm[1], resolution_cm)
         self.publish_s = publish_s
@@ -112,6 +121,9 @@ class MapManagement(Actor):
         self.matching = matching
         self.fields_s = fields_s
         self.warmup_scans = warmup_scans
+        self.settle_s = settle_s
+        self._prev_odom: Pose | None = None  # odometry pose of the previous batch
+        self._still_since = -float("inf")  # time odometry last changed between two batches
         self.correction = Pose()
         """Odometry frame -> map frame, from scan matching (identity until a match)."""
         self.matched = 0
@@ -200,9 +212,16 @@ class MapManagement(Actor):
     def _place(self, scan: Scan) -> Pose | None:
         """The map-frame pose of a batch: corrected odometry, refined by scan matching.
 
-        A batch from where the last matched one was (the rover stands still: within
-        5 mm and 0.3 deg) keeps the correction; so does one that cannot be matched
-        (too few hits, unmapped view).
+        A batch keeps the correction unmatched when the rover stands: odometry has not
+        changed for ``settle_s`` and the last matched batch was taken at the same
+        odometry pose (within 5 mm and 0.3 deg); so does one that cannot be matched
+        (too few hits, unmapped view). An unchanged odometry stamp alone does not
+        mean the rover stands: one Int E turns the heading by 2.2 deg, so a turning
+        rover's batch can carry the previous tick's stamp, and after a turn the rover
+        keeps turning by up to an interrupt's worth (or swings back) unseen by its
+        encoders. Placed without matching, such batches were 2-9 deg off and drew
+        walls a cell or two off (furniture 5: map accuracy 0.968 against 0.996 with
+        the matched batches alone).
         None for a batch that sees mapped obstacles but whose match was refused: its
         pose is in doubt, and one badly placed batch clears free space through walls
         (outside the room, where no later ray can repair it).
@@ -210,12 +229,13 @@ class MapManagement(Actor):
         odom = scan.pose
         guess = compose(self.correction, odom)
         opts = self.matching
-        last = self._last_odom
-        if opts is None or self.scans < self.warmup_scans or (
-                last is not None and abs(odom.x - last.x) < 0.5 and abs(odom.y - last.y) < 0.5
-                and abs(odom.heading_deg - last.heading_deg) < 0.3):
-            return guess  # standing still: matching again would only add its own jitter
         now = trio.current_time()
+        if not _same_pose(odom, self._prev_odom):
+            self._still_since = now
+        self._prev_odom = odom
+        if opts is None or self.scans < self.warmup_scans or (
+                now - self._still_since >= self.settle_s and _same_pose(odom, self._last_odom)):
+            return guess  # standing still: matching again would only add its own jitter
         if self._fields is None or (self._fields_stale and now - self._fields_at >= self.fields_s):
             self._build_fields(opts, now)
         assert self._fields is not None
