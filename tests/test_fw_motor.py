@@ -374,3 +374,28 @@ async def test_both_encoders_silent_block_within_a_few_cm(autojump_clock, counts
         assert [x for _, x in log if x.command == Cmd.NAV_TREAD_FAULT and x.value & 2 == 0] \
             == []
         nursery.cancel_scope.cancel()
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize(("counts", "lidar", "expected"), [
+    ((0.45, 0.45), True, [6, 6, 6]), ((0.45, 0.45), False, []),
+    ((1.0, 1.0), True, []), ((1.0, 0.45), True, [3, 3, 3])],
+    ids=["both-short-mapper", "both-short-hider", "healthy-mapper", "right-short-mapper"])
+async def test_both_treads_counting_short_are_reported_to_the_mapper_only(
+        autojump_clock, counts, lidar, expected) -> None:
+    """Both encoders slipping alike (each counts 0.45): the mapper's navigation gets value 6
+    once in each command long enough to judge (the moves and the 90 deg turn), and no
+    single-tread report with it; a hider (no LIDAR to tell a slip from two weak motors)
+    gets nothing; one tread short is still reported as that tread."""
+    hw = FakeHardware()
+    log: list = []
+    async with open_actor_system(1) as system, trio.open_nursery() as nursery:
+        await system.start_supervisor(motor_tree(hw, PoseMemory(), log, lidar=lidar), "hider")
+        nursery.start_soon(drive_fake_treads, hw, counts, trio.current_time() + 30.0)
+        for command, amount in [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0),
+                                (Cmd.MOTOR_TURN, -8.0), (Cmd.MOTOR_MOVE, -10.0)]:
+            await system.send("hider/motor", Message.float(command, amount))
+            await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED}, timeout=10.0)
+        reports = [int(x.value) for _, x in log if x.command == Cmd.NAV_TREAD_FAULT]
+        assert [r for r in reports if r & 2] == expected
+        nursery.cancel_scope.cancel()

@@ -61,11 +61,22 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
     too (a slipping encoder counts about half). A weak motor on that side looks
     the same (it really goes half as far, and then its odometry is right).
 
+    Both treads counting short (mapper only): both slipping alike keep the
+    treads equal, so the comparison above says nothing, yet the rover turns
+    2.4 times the turn it counts (campaign game 1:187: a 75 deg turn went 229
+    deg, and scan matching could not follow). Once both modelled travels
+    reach ``short_after_cm`` and each tread counted under ``short_ratio`` of
+    its own, the mapper's navigation gets value 6 (bit 2: both). Motor
+    Control cannot tell this from two weak motors (which really go short, so
+    their odometry is right); the mapper's LIDAR can, so only the mapper's
+    navigation gets it (a hider or seeker could do nothing but hold for
+    nothing).
+
     The message: ``NAV_TREAD_FAULT``, value uint32: bit 0 the tread (0 left,
-    1 right), bit 1 the kind (0 silent, 1 counts short): 0/1 left/right
-    silent, 2/3 left/right short. At most one of each per tread per command
-    (short is not sent after silent). The command goes on: navigation
-    decides (the mapper stops and holds for a silent tread).
+    1 right), bit 1 the kind (0 silent, 1 counts short), bit 2 both treads:
+    0/1 left/right silent, 2/3 left/right short, 6 both short. At most one of
+    each per tread per command (short is not sent after silent). The command
+    goes on: navigation decides (the mapper stops and holds).
 
 Restarts
     The pose lives in a `PoseMemory` made by the rover tree: the model of a
@@ -488,8 +499,17 @@ class MotorControl(Actor):
 
     def _watch_counts(self) -> None:
         """Report a tread that counts far less than it is driven while the other counts
-        about right (``NAV_TREAD_FAULT`` with bit 1 set, see the module docstring)."""
+        about right (``NAV_TREAD_FAULT`` with bit 1 set), or on the mapper both treads
+        counting short (value 6); see the module docstring."""
         t = self.tuning
+        if self._lidar and not (self._short_sent[0] or self._short_sent[1]
+                                or self._silent_sent[0] or self._silent_sent[1]) \
+                and min(self._modelled) >= t.short_after_cm \
+                and all(self._counted[i] < t.short_ratio * self._modelled[i] for i in (0, 1)):
+            self._short_sent = [True, True]
+            self.tread_faults += 1
+            self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 6))
+            return
         for tread in (0, 1):
             other = 1 - tread
             modelled, counted = self._modelled[tread], self._counted[tread]
