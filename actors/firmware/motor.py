@@ -24,6 +24,12 @@ Blocked
     Int E. Both encoders stuck look exactly like a rover against a wall, and
     nothing counts to compare with; the model bounds what the rover drives
     unseen to about 3 cm instead of a second's travel (see `_both_silent`).
+    A turn ended so without a single Int E is also reported as
+    ``NAV_TREAD_FAULT`` value 4 (both silent) just before: a rover pressed
+    against a wall still turns a little before it jams, and navigation's
+    answer to a blocked turn (back off, turn again) is what drove the seeker
+    of overlapping game 2:27 70 cm and 110 deg off unseen; a tread fault
+    during a turn holds instead (nav_common).
 
 Dead reckoning
     This actor owns the pose: every tread increment goes through
@@ -74,7 +80,8 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
 
     The message: ``NAV_TREAD_FAULT``, value uint32: bit 0 the tread (0 left,
     1 right), bit 1 the kind (0 silent, 1 counts short), bit 2 both treads:
-    0/1 left/right silent, 2/3 left/right short, 6 both short. At most one of
+    0/1 left/right silent, 2/3 left/right short, 4 both silent (a turn,
+    see Blocked), 6 both short. At most one of
     each per tread per command (short is not sent after silent). The command
     goes on: navigation decides (the mapper stops and holds).
 
@@ -445,8 +452,14 @@ class MotorControl(Actor):
                 self._finish(Cmd.NAV_MOTION_DONE)
             return
         self._arrived_t = None
-        if now >= self._deadline or now - self._last_progress_t >= t.blocked_after_s \
-                or self._both_silent():
+        if self._both_silent():
+            if self._kind == Cmd.MOTOR_TURN and not any(self._counted):
+                # a turn that never counted: both encoders stuck, most likely (see above)
+                self.tread_faults += 1
+                self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 4))
+            self._finish(Cmd.NAV_MOTION_BLOCKED)
+            return
+        if now >= self._deadline or now - self._last_progress_t >= t.blocked_after_s:
             self._finish(Cmd.NAV_MOTION_BLOCKED)
             return
         cruise = self._vmax * t.cruise_fraction

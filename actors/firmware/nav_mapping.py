@@ -453,7 +453,10 @@ class MappingNav(NavBase):
                 or now < self._odo_hold_until:
             return
         if value & 4:
-            await self._odometry_hold(now, "both treads count short", self.m.short_hold_s)
+            # both silent (4) is a turn ended as blocked: that end follows, and the block
+            # handling backs off with the LIDAR keeping the pose honest meanwhile
+            if value & 2:
+                await self._odometry_hold(now, "both treads count short", self.m.short_hold_s)
             return
         side = "right" if value & 1 else "left"
         if value & 2:
