@@ -347,11 +347,16 @@ async def test_a_turn_that_moves_the_pose_stops_and_holds_the_rover(autojump_clo
 
 
 @pytest.mark.trio
-async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock,
-                                                                   monkeypatch) -> None:
-    """NAV_TREAD_FAULT (Motor Control: the right tread is driven but does not count) during
-    a move: MOTOR_STOP at once, though the pose shows nothing yet, no Command A for
-    ``odo_hold_s``, an ``odometry_fault`` status naming the tread, then exploring goes on."""
+@pytest.mark.parametrize(("value", "hold", "text"), [
+    (1, 3.0, "the right tread is driven but does not count"),
+    (2, 2.0, "the left tread counts short"),
+    (6, 2.0, "both treads count short")], ids=["right-silent", "left-short", "both-short"])
+async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock, monkeypatch,
+                                                                   value, hold, text) -> None:
+    """NAV_TREAD_FAULT during a move (Motor Control: the right tread is driven but does
+    not count; the left, or both, count short): MOTOR_STOP at once, though the pose shows
+    nothing yet, no Command A for the hold (``odo_hold_s``; ``short_hold_s`` for counting
+    short), an ``odometry_fault`` status naming the fault, then exploring goes on."""
     import tests.test_nav_common as common
 
     class StuckEncoderMotor(common.FakeMotor):
@@ -361,7 +366,7 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
             if message.command == Cmd.MOTOR_MOVE and StuckEncoderMotor.faults > 0:
                 StuckEncoderMotor.faults -= 1
                 self.body.motor_log.append((Cmd(message.command).name, float(message.value)))
-                self.ctx.send_nowait(self.nav, Message.uint(Cmd.NAV_TREAD_FAULT, 1))
+                self.ctx.send_nowait(self.nav, Message.uint(Cmd.NAV_TREAD_FAULT, value))
                 return  # the move never ends by itself: only the stop ends it
             await super().handle(message)
 
@@ -377,9 +382,9 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
                               == "odometry_fault", 0.5)
         assert await wait_for(lambda: body.motor_log[-1][0] == "MOTOR_STOP", 0.5)
         moved = _motions(body)
-        await trio.sleep(t_fault + 2.5 - trio.current_time())
+        await trio.sleep(t_fault + hold - 0.5 - trio.current_time())
         assert _motions(body) == moved  # holding
         assert await wait_for(lambda: _motions(body) > moved, 10.0)
         details = [f.data.get("detail", "") for f in body.frames("status")]
-        assert any(d.startswith("the right tread is driven but does not count") for d in details)
+        assert any(d.startswith(f"{text}; holding {hold:.0f} s") for d in details)
         assert "odometry hold over: driving on" in details

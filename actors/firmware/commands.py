@@ -80,8 +80,10 @@ class Cmd(enum.IntEnum):
     """Motor Control saw a tread that is driven but does not count (a stuck encoder, or a
     stalled tread), or counts short (a slipping encoder, or a weak motor), while the other
     one counts; value uint32: bit 0 the tread (0 left, 1 right), bit 1 set for "counts
-    short" (so 0/1 silent, 2/3 short). At most once of each per tread per Command A; the
-    command goes on (navigation decides). See motor.py."""
+    short" (so 0/1 silent, 2/3 short), bit 2 for both treads: 4 a turn blocked without
+    one Int E (both silent; its NAV_MOTION_BLOCKED follows), 6 both count short (mapper
+    only). At most once of each per tread per Command A; the command goes on (navigation
+    decides). See motor.py."""
 
     # -- LIDAR queue -------------------------------------------------------
     LIDAR_SAMPLE = 0x0300

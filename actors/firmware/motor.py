@@ -17,6 +17,20 @@ Control law (per control period, per tread)
     overshot and was pulled back) the command is done. The world's motors lag
     (first order, ~80 ms), which is why braking starts early.
 
+Blocked
+    A command whose treads do not count ends with ``NAV_MOTION_BLOCKED``: after
+    ``blocked_after_s`` without an Int E, or sooner, once the lagged model of
+    the treads (below) says one went ``blocked_cm`` since either tread's last
+    Int E. Both encoders stuck look exactly like a rover against a wall, and
+    nothing counts to compare with; the model bounds what the rover drives
+    unseen to about 3 cm instead of a second's travel (see `_both_silent`).
+    A turn ended so without a single Int E is also reported as
+    ``NAV_TREAD_FAULT`` value 4 (both silent) just before: a rover pressed
+    against a wall still turns a little before it jams, and navigation's
+    answer to a blocked turn (back off, turn again) is what drove the seeker
+    of overlapping game 2:27 70 cm and 110 deg off unseen; a tread fault
+    during a turn holds instead (nav_common).
+
 Dead reckoning
     This actor owns the pose: every tread increment goes through
     `odometry.advance` with the track width from the hardware spec. The pose is
@@ -53,11 +67,23 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
     too (a slipping encoder counts about half). A weak motor on that side looks
     the same (it really goes half as far, and then its odometry is right).
 
+    Both treads counting short (mapper only): both slipping alike keep the
+    treads equal, so the comparison above says nothing, yet the rover turns
+    2.4 times the turn it counts (campaign game 1:187: a 75 deg turn went 229
+    deg, and scan matching could not follow). Once both modelled travels
+    reach ``short_after_cm`` and each tread counted under ``short_ratio`` of
+    its own, the mapper's navigation gets value 6 (bit 2: both). Motor
+    Control cannot tell this from two weak motors (which really go short, so
+    their odometry is right); the mapper's LIDAR can, so only the mapper's
+    navigation gets it (a hider or seeker could do nothing but hold for
+    nothing).
+
     The message: ``NAV_TREAD_FAULT``, value uint32: bit 0 the tread (0 left,
-    1 right), bit 1 the kind (0 silent, 1 counts short): 0/1 left/right
-    silent, 2/3 left/right short. At most one of each per tread per command
-    (short is not sent after silent). The command goes on: navigation
-    decides (the mapper stops and holds for a silent tread).
+    1 right), bit 1 the kind (0 silent, 1 counts short), bit 2 both treads:
+    0/1 left/right silent, 2/3 left/right short, 4 both silent (a turn,
+    see Blocked), 6 both short. At most one of
+    each per tread per command (short is not sent after silent). The command
+    goes on: navigation decides (the mapper stops and holds).
 
 Restarts
     The pose lives in a `PoseMemory` made by the rover tree: the model of a
@@ -113,6 +139,9 @@ class MotorTuning:
     the counted travel stops at the interrupt nearest the target."""
     blocked_after_s: float = 1.0
     """Treads commanded but no encoder progress for this long: blocked [s]."""
+    blocked_cm: float = 3.0
+    """...or no Int E from either tread while the model says a tread went this far [cm]:
+    blocked sooner (a weak motor at strength 0.3 still counts every 1.7 cm modelled)."""
     settle_s: float = 0.15
     """After both treads arrive, wait this long for coasting ticks before reporting [s]."""
     motor_tau_s: float = 0.08
@@ -195,6 +224,7 @@ class MotorControl(Actor):
         # the silent-tread check (see the module docstring), per tread
         self._model_v = [0.0, 0.0]     # modelled tread speed (lagged PWM) [cm/s]
         self._unticked = [0.0, 0.0]    # modelled travel since the tread's last Int E [cm]
+        self._since_any = 0.0          # most modelled travel since either tread's last Int E [cm]
         self._modelled = [0.0, 0.0]    # modelled travel in this command [cm]
         self._counted = [0.0, 0.0]     # counted travel in this command [cm]
         self._short_sent = [False, False]  # NAV_TREAD_FAULT (counts short) sent in this command
@@ -280,6 +310,7 @@ class MotorControl(Actor):
         self._ticked = True
         self._advance_model(self._now())
         self._unticked[tread] = 0.0
+        self._since_any = 0.0
         self._counted[tread] += self._unit
         self._run[tread] += 1
         self._run[1 - tread] = 0
@@ -378,6 +409,7 @@ class MotorControl(Actor):
         self._progress = [0.0, 0.0]
         self._silent_sent = [False, False]
         self._unticked = [0.0, 0.0]
+        self._since_any = 0.0
         self._modelled = [0.0, 0.0]
         self._counted = [0.0, 0.0]
         self._short_sent = [False, False]
@@ -420,6 +452,13 @@ class MotorControl(Actor):
                 self._finish(Cmd.NAV_MOTION_DONE)
             return
         self._arrived_t = None
+        if self._both_silent():
+            if self._kind == Cmd.MOTOR_TURN and not any(self._counted):
+                # a turn that never counted: both encoders stuck, most likely (see above)
+                self.tread_faults += 1
+                self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 4))
+            self._finish(Cmd.NAV_MOTION_BLOCKED)
+            return
         if now >= self._deadline or now - self._last_progress_t >= t.blocked_after_s:
             self._finish(Cmd.NAV_MOTION_BLOCKED)
             return
@@ -446,6 +485,7 @@ class MotorControl(Actor):
             return
         self._model_t = now
         k = 1.0 - math.exp(-dt / self.tuning.motor_tau_s)
+        most = 0.0
         for tread in (0, 1):
             v0 = self._model_v[tread]
             v1 = v0 + (self._pwm[tread] * self._vmax - v0) * k
@@ -453,11 +493,36 @@ class MotorControl(Actor):
             travel = 0.5 * (abs(v0) + abs(v1)) * dt
             self._unticked[tread] += travel
             self._modelled[tread] += travel
+            most = max(most, travel)
+        self._since_any += most
+
+    def _both_silent(self) -> bool:
+        """No Int E from either tread while the model says one went ``blocked_cm``.
+
+        Why: with both encoders stuck nothing counts, so no tread is there to
+        compare with (``NAV_TREAD_FAULT`` needs one that counts); the blocked
+        timer let a rover drive a whole second unseen, 20 cm in a back-off
+        (overlapping game 2:27, the seeker 70 cm off after 8 s of blocks).
+        The model knows sooner. A rover against a wall reads the same and is
+        blocked, only sooner. Called at a control step, whose world step's
+        Int E may not have arrived yet: the last period's travel is not owed.
+        """
+        owed = self._since_any - max(abs(v) for v in self._model_v) * self.tuning.period_s
+        return owed >= self.tuning.blocked_cm
 
     def _watch_counts(self) -> None:
         """Report a tread that counts far less than it is driven while the other counts
-        about right (``NAV_TREAD_FAULT`` with bit 1 set, see the module docstring)."""
+        about right (``NAV_TREAD_FAULT`` with bit 1 set), or on the mapper both treads
+        counting short (value 6); see the module docstring."""
         t = self.tuning
+        if self._lidar and not (self._short_sent[0] or self._short_sent[1]
+                                or self._silent_sent[0] or self._silent_sent[1]) \
+                and min(self._modelled) >= t.short_after_cm \
+                and all(self._counted[i] < t.short_ratio * self._modelled[i] for i in (0, 1)):
+            self._short_sent = [True, True]
+            self.tread_faults += 1
+            self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 6))
+            return
         for tread in (0, 1):
             other = 1 - tread
             modelled, counted = self._modelled[tread], self._counted[tread]

@@ -68,7 +68,9 @@ Odometry that scan matching contradicts (why: a stuck encoder drew a round room 
     ``odo_hold_max_s``, reporting ``odometry_fault`` in its status; the fault
     cannot be seen from standing still, so it drives on after the hold. Motor
     Control's ``NAV_TREAD_FAULT`` (a driven tread that does not count) starts
-    the same hold at once, a second or more before the pose shows it.
+    the same hold at once, a second or more before the pose shows it; one
+    saying a tread, or both, count short (a slipping encoder, or a weak motor)
+    stops the motion too and holds ``short_hold_s`` (see `on_tread_fault`).
 
 Restart
     The new incarnation asks Map Management for a snapshot (MAP_GET) and Motor
@@ -189,6 +191,9 @@ class MappingOptions:
     within ``60 s``, up to ``odo_hold_max_s``."""
     odo_hold_max_s: float = 24.0
     """Longest hold for an odometry disagreement [s]."""
+    short_hold_s: float = 2.0
+    """Hold still this long after Motor Control saw a tread (or both) count short [s]:
+    about eight scan batches for scan matching to catch up with what was not counted."""
     min_gain_share: float = 0.003
     """...or fewer than this share of the cells already known (a big hall's ragged far
     edges give a few dozen cells per visit for ever). Counted per visit, not per
@@ -437,22 +442,37 @@ class MappingNav(NavBase):
         """Motor Control saw a driven tread that does not count (``NAV_TREAD_FAULT``): its
         odometry is wrong from now on, so stop at once and hold, as for a disagreement.
 
-        A tread that only counts short (bit 1) is not held for: a weak motor looks the same
-        and its odometry is right; a slipping encoder is left to scan matching's
-        re-localisation and the disagreement check."""
+        A tread (or both, bit 2) that counts short (bit 1) stops the motion too, with a
+        short hold (``short_hold_s``, not doubled): a slipping encoder makes every
+        motion turn (one tread) or go (both) further than counted, and driving on let
+        the heading get 40-130 deg off, beyond what scan matching recovers (campaign
+        games 1:125, 1:187). A weak motor reads the same and its odometry is right, so
+        the hold is short: it costs a weak motor a pause per motion, not the game."""
         now = trio.current_time()
-        if value & 2 or self.state not in ("exploring", "homing") or not self.moving \
+        if self.state not in ("exploring", "homing") or not self.moving \
                 or now < self._odo_hold_until:
             return
+        if value & 4:
+            # both silent (4) is a turn ended as blocked: that end follows, and the block
+            # handling backs off with the LIDAR keeping the pose honest meanwhile
+            if value & 2:
+                await self._odometry_hold(now, "both treads count short", self.m.short_hold_s)
+            return
         side = "right" if value & 1 else "left"
+        if value & 2:
+            await self._odometry_hold(now, f"the {side} tread counts short",
+                                      self.m.short_hold_s)
+            return
         await self._odometry_hold(now, f"the {side} tread is driven but does not count")
 
-    async def _odometry_hold(self, now: float, what: str) -> None:
-        """Stop the motor and hold still for odometry (see the module docstring)."""
+    async def _odometry_hold(self, now: float, what: str, hold: float | None = None) -> None:
+        """Stop the motor and hold still for odometry (see the module docstring); ``hold``
+        [s] given: that long, not counted as a strike."""
         m = self.m
-        self._odo_strikes = self._odo_strikes + 1 if now - self._odo_last <= 60.0 else 1
-        self._odo_last = now
-        hold = min(m.odo_hold_max_s, m.odo_hold_s * 2.0 ** (self._odo_strikes - 1))
+        if hold is None:
+            self._odo_strikes = self._odo_strikes + 1 if now - self._odo_last <= 60.0 else 1
+            self._odo_last = now
+            hold = min(m.odo_hold_max_s, m.odo_hold_s * 2.0 ** (self._odo_strikes - 1))
         self._odo_hold_until = now + hold
         self.odometry_faults += 1
         await self.stop_motor()
