@@ -104,8 +104,13 @@ class Game:
     guesses: list[Pose2] = field(default_factory=list)
     """The seeker's destinations, in order (map frame)."""
     last_reason: str = ""
-    """Reason of the last invalid_spot or not_found."""
+    """Why the game is in its phase: the reason of the invalid_spot or not_found
+    that put it there, empty in any other phase (so a phase never shows the
+    reason of an earlier one)."""
     _seeker_started: bool = False
+
+    def _enter(self, phase: Phase, reason: str = "") -> None:
+        self.phase, self.last_reason = phase, reason
 
     # -- frames ------------------------------------------------------------------
 
@@ -142,7 +147,7 @@ class Game:
     def _cmd_start_mapping(self, x, y, heading, frame) -> Result:
         if self.phase is not Phase.IDLE:
             return _refuse(f"start_mapping needs phase idle, the game is {self.phase}")
-        self.phase = Phase.MAPPING
+        self._enter(Phase.MAPPING)
         self.stopping = False
         return Result(True, sends=(Send("mapper", make_frame(ORIGIN, _pose(Pose2(0, 0, 0)))),
                                    Send("mapper", make_frame(START))))
@@ -189,7 +194,7 @@ class Game:
             return _refuse(placed)
         origin, spot = placed
         self.hide_spot = spot
-        self.phase = Phase.HIDING
+        self._enter(Phase.HIDING)
         dest = {"x": spot.x, "y": spot.y, "heading": spot.heading}
         return Result(True, sends=(Send("hider", make_frame(ORIGIN, _pose(origin))),
                                    Send("hider", make_frame(START)),
@@ -203,7 +208,7 @@ class Game:
             return _refuse(placed)
         origin, spot = placed
         self.guesses.append(spot)
-        self.phase = Phase.SEEKING
+        self._enter(Phase.SEEKING)
         dest = {"x": spot.x, "y": spot.y, "heading": None if heading is None else spot.heading}
         sends = []
         if not self._seeker_started:
@@ -228,7 +233,7 @@ class Game:
         if self.phase not in (Phase.MAPPING, Phase.MAP_READY):
             return _refuse(f"map upload ignored in phase {self.phase}")
         self.map = grid
-        self.phase = Phase.MAP_READY
+        self._enter(Phase.MAP_READY)
         self.stopping = False
         return Result(True)
 
@@ -246,15 +251,13 @@ class Game:
             return _refuse(f"{cmd} ignored in phase {self.phase}")
         if cmd == "arrived":
             self.hider_pose = pose
-            self.phase = Phase.HIDDEN
+            self._enter(Phase.HIDDEN)
         elif cmd == "invalid_spot":
-            self.last_reason = reason
-            self.phase = Phase.MAP_READY
+            self._enter(Phase.MAP_READY, reason)
         elif cmd == "found":
-            self.phase = Phase.FOUND
+            self._enter(Phase.FOUND)
         else:
-            self.last_reason = reason
-            self.phase = Phase.NOT_FOUND
+            self._enter(Phase.NOT_FOUND, reason)
         return Result(True, reason)
 
     @property

@@ -75,6 +75,19 @@ def test_invalid_spot_returns_to_map_ready_with_reason() -> None:
     assert (g.phase, g.last_reason) == (Phase.MAP_READY, "too tight")
 
 
+def test_a_reason_belongs_to_the_phase_it_caused() -> None:
+    """A not_found's reason is shown while not_found, and gone once seeking goes on and finds."""
+    g = _ready()
+    assert g.command("hide", x=20, y=30).ok and g.on_rover("hider", "arrived", Pose2(20, 30, 0)).ok
+    assert g.command("seek", x=0, y=0).ok
+    assert g.on_rover("seeker", "not_found", reason="the IR sensor saw nothing").ok
+    assert (g.phase, g.last_reason) == (Phase.NOT_FOUND, "the IR sensor saw nothing")
+    assert g.command("seek", x=20, y=30).ok
+    assert (g.phase, g.last_reason) == (Phase.SEEKING, "")
+    assert g.on_rover("seeker", "found", Pose2(20, 30, 0)).ok
+    assert (g.phase, g.last_reason) == (Phase.FOUND, "")
+
+
 def test_reports_from_wrong_role_or_phase_are_refused() -> None:
     """found from the hider, or arrived while mapping, are ignored with a reason."""
     g = _ready()
