@@ -195,6 +195,30 @@ async def test_a_tread_fault_in_a_turn_stops_it_holds_then_arrives_with_a_wider_
 
 
 @pytest.mark.trio
+async def test_both_treads_silent_in_a_turn_holds_and_doubts_the_heading_more(
+        autojump_clock) -> None:
+    """NAV_TREAD_FAULT value 4 (both silent: Motor Control ended a turn without an Int E)
+    holds like a single tread's report, but says "both" and doubts the heading by
+    ``tread_both_deg`` (the whole unseen turn), not ``tread_fault_deg``."""
+    body = Body(truth=own_truth(), speed=10.0)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, {"x": 50.0, "y": 150.0, "heading": 90.0})
+        assert await wait_for(lambda: any(c == "MOTOR_TURN" for c, _ in body.motor_log), 10.0)
+        nav = system.whereis("hider/nav").actor
+        n = len(body.motor_log)
+        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 4))
+        await trio.sleep(0.1)
+        assert nav.tread_faults == 1 and nav.moving
+        assert nav.heading_err_deg == nav.o.tread_both_deg > nav.o.tread_fault_deg
+        await trio.sleep(11.0)  # within the hold: nothing new commanded
+        assert not any(c in ("MOTOR_MOVE", "MOTOR_TURN") for c, _ in body.motor_log[n:])
+        assert "both treads do not count" in body.frames("status")[-1].data["detail"]
+        assert await wait_for(lambda: body.frames("arrived"), 60.0)
+
+
+@pytest.mark.trio
 async def test_a_tread_fault_in_a_move_ends_it_as_blocked(autojump_clock) -> None:
     """NAV_TREAD_FAULT (the left tread silent) during a straight move: a tread stalled
     against a wall reports the same, so no hold: the move ends as blocked and the
