@@ -140,6 +140,13 @@ class NavOptions:
     on while it stops; 25-40 deg in the truth log of overlapping game 2:27 (both of the
     seeker's encoders stuck). Not corrected in the turn's direction: a rover jammed
     against a wall ends the same way having hardly turned."""
+    tread_turn_fix_deg: float = 12.0
+    """A single tread silent during a turn (``NAV_TREAD_FAULT`` 0 or 1): the heading is
+    turned this much further in the turn's direction [deg]. A stuck encoder is not
+    counted while the tread drives on (the rover turned 16.5 deg more than it believed
+    in campaign game 1:11 with the encoder suffix, 28 deg in 2:27, truth logs); a
+    stalled motor reports the same having turned as counted. 12, about half the
+    first: the error left either way is under 12-16 deg, not 0 or 28."""
     tread_stop_s: float = 1.0
     """A tread fault that ends its motion as blocked waits this long before deciding [s]."""
     contact_fixes: int = 4
@@ -560,6 +567,8 @@ class NavBase(Actor):
         Value 4 (both silent, sent only for a turn that ended blocked without an Int E)
         is held for like any turn, and doubts the heading by ``tread_both_deg``, not
         ``tread_fault_deg``: nothing counted, so the whole unseen turn is error.
+        One tread silent in a turn also turns the believed heading by
+        ``tread_turn_fix_deg`` in the turn's direction (a stuck encoder's unseen turn).
 
         Why stop and hold: Motor Control ends a motion by the counts, so each
         motion driven on a faulty encoder turns the rover further off the
@@ -587,6 +596,10 @@ class NavBase(Actor):
         self.tread_faults += 1
         self.heading_err_deg += self.o.tread_both_deg if both else self.o.tread_fault_deg
         turning = self._motion.kind == "turn"
+        if turning and not value & 6:  # one tread silent in a turn (see tread_turn_fix_deg)
+            p = self.map_pose
+            fix = math.copysign(self.o.tread_turn_fix_deg, self._motion.amount)
+            self.correct_pose(Pose(p.x, p.y, p.heading_deg + fix), sideways_known=False)
         await self.stop_motor()
         if not turning or self._tread_strikes > self.o.tread_holds:  # as blocked (see above)
             # a short hold all the same: the stopped motion's last pose and end arrive
