@@ -10,7 +10,7 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.nav_common import NavMemory, NavOptions
-from actors.firmware.odometry import Pose
+from actors.firmware.odometry import Pose, angle_diff_deg
 from tests.test_nav_common import (
     Body,
     Truth,
@@ -192,6 +192,56 @@ async def test_a_tread_fault_in_a_turn_stops_it_holds_then_arrives_with_a_wider_
         assert nav.drift_cm > drift0 + 0.04 * 100.0  # more than distance alone would add
         arrived = body.frames("arrived")[0].data
         assert math.dist((arrived["x"], arrived["y"]), (50, 150)) <= 5.0
+
+
+@pytest.mark.trio
+async def test_both_treads_silent_in_a_turn_holds_and_doubts_the_heading_more(
+        autojump_clock) -> None:
+    """NAV_TREAD_FAULT value 4 (both silent: Motor Control ended a turn without an Int E)
+    holds like a single tread's report, but says "both" and doubts the heading by
+    ``tread_both_deg`` (the whole unseen turn), not ``tread_fault_deg``."""
+    body = Body(truth=own_truth(), speed=10.0)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, {"x": 50.0, "y": 150.0, "heading": 90.0})
+        assert await wait_for(lambda: any(c == "MOTOR_TURN" for c, _ in body.motor_log), 10.0)
+        nav = system.whereis("hider/nav").actor
+        n = len(body.motor_log)
+        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 4))
+        await trio.sleep(0.1)
+        assert nav.tread_faults == 1 and nav.moving
+        assert nav.heading_err_deg == nav.o.tread_both_deg > nav.o.tread_fault_deg
+        await trio.sleep(11.0)  # within the hold: nothing new commanded
+        assert not any(c in ("MOTOR_MOVE", "MOTOR_TURN") for c, _ in body.motor_log[n:])
+        assert "both treads do not count" in body.frames("status")[-1].data["detail"]
+        assert await wait_for(lambda: body.frames("arrived"), 60.0)
+
+
+@pytest.mark.trio
+async def test_one_tread_silent_in_a_turn_turns_the_believed_heading_on(autojump_clock) -> None:
+    """NAV_TREAD_FAULT value 0 (left silent) during a turn: a stuck encoder's unseen turn
+    is in the turn's direction, so the believed heading turns ``tread_turn_fix_deg``
+    further that way (the sideways uncertainty is kept); a short count does not."""
+    for value, fixed in ((0, True), (2, False)):
+        body = Body(truth=own_truth(), speed=10.0)
+        pool = BufferPool(64)
+        async with open_actor_system(seed=1) as system:
+            await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+            await begin(system, pool, {"x": 50.0, "y": 150.0, "heading": 90.0})
+            log = body.motor_log
+            assert await wait_for(lambda log=log: any(c == "MOTOR_TURN" for c, _ in log), 10.0)
+            nav = system.whereis("hider/nav").actor
+            turn = nav.last_motion.amount
+            before = nav.origin.heading_deg  # the correction turns the odometry -> map frame
+            await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, value))
+            await trio.sleep(0.1)
+            moved = angle_diff_deg(nav.origin.heading_deg, before)
+            if fixed:
+                assert moved == pytest.approx(math.copysign(nav.o.tread_turn_fix_deg, turn),
+                                              abs=0.5)
+            else:
+                assert abs(moved) < 0.5
 
 
 @pytest.mark.trio

@@ -133,6 +133,20 @@ class NavOptions:
     tread_fault_deg: float = 10.0
     """How far one tread fault may have turned the heading unseen [deg]: the fault is
     reported after about 5 cm of a tread's travel, counted at most 0.65 of it."""
+    tread_both_deg: float = 40.0
+    """How far a turn that Motor Control ended with both treads silent (``NAV_TREAD_FAULT``
+    value 4) may have turned unseen [deg]: it stops such a turn once its model says a
+    tread went 3 cm without an Int E (26 deg on the 13 cm track), and the rover coasts
+    on while it stops; 25-40 deg in the truth log of overlapping game 2:27 (both of the
+    seeker's encoders stuck). Not corrected in the turn's direction: a rover jammed
+    against a wall ends the same way having hardly turned."""
+    tread_turn_fix_deg: float = 12.0
+    """A single tread silent during a turn (``NAV_TREAD_FAULT`` 0 or 1): the heading is
+    turned this much further in the turn's direction [deg]. A stuck encoder is not
+    counted while the tread drives on (the rover turned 16.5 deg more than it believed
+    in campaign game 1:11 with the encoder suffix, 28 deg in 2:27, truth logs); a
+    stalled motor reports the same having turned as counted. 12, about half the
+    first: the error left either way is under 12-16 deg, not 0 or 28."""
     tread_stop_s: float = 1.0
     """A tread fault that ends its motion as blocked waits this long before deciding [s]."""
     contact_fixes: int = 4
@@ -548,8 +562,13 @@ class NavBase(Actor):
 
     async def on_tread_fault(self, value: int) -> None:
         """Motor Control saw a driven tread that does not count, or counts short
-        (``NAV_TREAD_FAULT``; bit 0 the tread, bit 1 short): dead reckoning is turning
-        the heading where the rover does not, or the other way round.
+        (``NAV_TREAD_FAULT``; bit 0 the tread, bit 1 short, bit 2 both): dead reckoning
+        is turning the heading where the rover does not, or the other way round.
+        Value 4 (both silent, sent only for a turn that ended blocked without an Int E)
+        is held for like any turn, and doubts the heading by ``tread_both_deg``, not
+        ``tread_fault_deg``: nothing counted, so the whole unseen turn is error.
+        One tread silent in a turn also turns the believed heading by
+        ``tread_turn_fix_deg`` in the turn's direction (a stuck encoder's unseen turn).
 
         Why stop and hold: Motor Control ends a motion by the counts, so each
         motion driven on a faulty encoder turns the rover further off the
@@ -573,9 +592,14 @@ class NavBase(Actor):
         now = trio.current_time()
         self._tread_strikes = self._tread_strikes + 1 if now - self._tread_last <= 60.0 else 1
         self._tread_last = now
+        both = bool(value & 4)
         self.tread_faults += 1
-        self.heading_err_deg += self.o.tread_fault_deg
+        self.heading_err_deg += self.o.tread_both_deg if both else self.o.tread_fault_deg
         turning = self._motion.kind == "turn"
+        if turning and not value & 6:  # one tread silent in a turn (see tread_turn_fix_deg)
+            p = self.map_pose
+            fix = math.copysign(self.o.tread_turn_fix_deg, self._motion.amount)
+            self.correct_pose(Pose(p.x, p.y, p.heading_deg + fix), sideways_known=False)
         await self.stop_motor()
         if not turning or self._tread_strikes > self.o.tread_holds:  # as blocked (see above)
             # a short hold all the same: the stopped motion's last pose and end arrive
@@ -587,9 +611,12 @@ class NavBase(Actor):
         hold = self.o.tread_hold_s * 2.0 ** (self._tread_strikes - 1)
         self._blocked, self._done = False, 0.0
         self._hold_until = now + hold
-        side = "right" if value & 1 else "left"
-        kind = "counts short" if value & 2 else "does not count"
-        await self.status(self.state, f"the {side} tread {kind}; holding {hold:.0f} s")
+        side = "both treads" if both else "the right tread" if value & 1 else "the left tread"
+        if value & 2:
+            kind = "count short" if both else "counts short"
+        else:
+            kind = "do not count" if both else "does not count"
+        await self.status(self.state, f"{side} {kind}; holding {hold:.0f} s")
 
     async def _on_motion_end(self, blocked: bool, done: float) -> None:
         if self._motion is None:
