@@ -404,3 +404,27 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
         details = [f.data.get("detail", "") for f in body.frames("status")]
         assert any(d.startswith(f"{text}; holding {hold:.0f} s") for d in details)
         assert "odometry hold over: driving on" in details
+
+
+def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -> None:
+    """A route the obstacle check refuses to drive (furniture 2: the rover turned toward
+    it, was refused and turned away for 280 s): after ``obstacle_turns`` turns away toward
+    one target the target is blacklisted and the trip ends; another target starts over."""
+    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+
+    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(obstacle_turns=3))
+    cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
+    cells.reshape(-1)[:100] = 0
+    nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
+    nav.ex.trip_known = 60
+    nav.ex.target = (462.5, -32.5)
+    assert not nav._turned_away() and not nav._turned_away()
+    nav.ex.target = (100.0, 100.0)  # another frontier: the count starts over
+    assert not nav._turned_away()
+    nav.ex.target = (462.5, -32.5)
+    assert not nav._turned_away() and not nav._turned_away()
+    assert nav.ex.blacklist == []
+    nav.ex.target = (460.0, -30.0)  # the same frontier, its target moved a little
+    assert nav._turned_away()
+    assert nav.ex.blacklist == [(460.0, -30.0)]
+    assert nav.ex.gains == [40] and nav.ex.trip_known is None  # the visit ended
