@@ -57,7 +57,9 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
     (``motor_tau_s``), so it models how far each tread should have gone since
     its last Int E. When that reaches ``silent_cm`` (2.5 interrupts) while the
     other tread counted at least ``silent_other`` interrupts in a row
-    meanwhile, it sends navigation one ``NAV_TREAD_FAULT``. Both treads silent
+    meanwhile and is that many ahead in the command (two treads slow alike
+    keep level counts, their interrupts interleaved irregularly), it sends
+    navigation one ``NAV_TREAD_FAULT``. Both treads silent
     is the blocked case above, not this one. A stalled motor on one side looks
     the same as a stuck encoder here.
 
@@ -149,7 +151,11 @@ class MotorTuning:
     silent_cm: float = 1.25
     """A tread the model says went this far since its last Int E is silent [cm]."""
     silent_other: int = 2
-    """...provided the other tread counted this many Int E in a row meanwhile."""
+    """...provided the other tread counted this many Int E in a row meanwhile, and has
+    counted this many more in the command: two treads going slow alike (two weak
+    motors at 0.3, a rover pushing against something) interleave their interrupts
+    irregularly, and one could look silent with the counts level (campaign 1:31: 51
+    false reports to the seeker, each a blocked move and 10 deg more heading doubt)."""
     short_after_cm: float = 5.0
     """Judge a tread's count against its modelled travel once this far into a command [cm]."""
     short_ratio: float = 0.65
@@ -546,8 +552,11 @@ class MotorControl(Actor):
         if not period_pending:
             self._watch_counts()
         for tread in (0, 1):
-            if self._silent_sent[tread] or self._run[1 - tread] < t.silent_other:
+            other = 1 - tread
+            if self._silent_sent[tread] or self._run[other] < t.silent_other:
                 continue
+            if self._counted[other] - self._counted[tread] < t.silent_other * self._unit:
+                continue  # counts level: slow alike (weak, pushing), interrupts interleaved
             owed = self._unticked[tread]
             if period_pending:
                 owed -= abs(self._model_v[tread]) * t.period_s
