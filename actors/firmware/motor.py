@@ -69,16 +69,18 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
     too (a slipping encoder counts about half). A weak motor on that side looks
     the same (it really goes half as far, and then its odometry is right).
 
-    Both treads counting short (mapper only): both slipping alike keep the
+    Both treads counting short: both slipping alike keep the
     treads equal, so the comparison above says nothing, yet the rover turns
     2.4 times the turn it counts (campaign game 1:187: a 75 deg turn went 229
     deg, and scan matching could not follow). Once both modelled travels
     reach ``short_after_cm`` and each tread counted under ``short_ratio`` of
     its own, the mapper's navigation gets value 6 (bit 2: both). Motor
     Control cannot tell this from two weak motors (which really go short, so
-    their odometry is right); the mapper's LIDAR can, so only the mapper's
-    navigation gets it (a hider or seeker could do nothing but hold for
-    nothing).
+    their odometry is right); the mapper's LIDAR can. A hider or seeker gets
+    it in turns only (session 5, round 2): there a slip turns the rover
+    1/ratio times the count (campaign 1:24, both encoders at 0.31: found only
+    thanks to a chance single-tread report), while two weak motors cost one
+    hold per turn.
 
     The message: ``NAV_TREAD_FAULT``, value uint32: bit 0 the tread (0 left,
     1 right), bit 1 the kind (0 silent, 1 counts short), bit 2 both treads:
@@ -518,10 +520,11 @@ class MotorControl(Actor):
 
     def _watch_counts(self) -> None:
         """Report a tread that counts far less than it is driven while the other counts
-        about right (``NAV_TREAD_FAULT`` with bit 1 set), or on the mapper both treads
-        counting short (value 6); see the module docstring."""
+        about right (``NAV_TREAD_FAULT`` with bit 1 set), or both treads counting short
+        (value 6: the mapper always, the others in turns); see the module docstring."""
         t = self.tuning
-        if self._lidar and not (self._short_sent[0] or self._short_sent[1]
+        both_wanted = self._lidar or self._kind == Cmd.MOTOR_TURN
+        if both_wanted and not (self._short_sent[0] or self._short_sent[1]
                                 or self._silent_sent[0] or self._silent_sent[1]) \
                 and min(self._modelled) >= t.short_after_cm \
                 and all(self._counted[i] < t.short_ratio * self._modelled[i] for i in (0, 1)):
