@@ -195,8 +195,9 @@ async def test_server_stop_uploads_what_is_known(autojump_clock) -> None:
 
 def test_futile_trips_count_whole_visits_and_end_exploration() -> None:
     """A trip runs until its target is reached or given up, whatever the frontiers chosen on
-    the way; after ``futile_trips`` visits that each made fewer than ``min_gain_cells``
-    cells known, exploration counts the frontiers left as not useful."""
+    the way; after ``futile_trips`` visits that together made fewer than
+    ``futile_trips * min_gain_cells`` cells known, exploration counts the frontiers left
+    as not useful."""
     from actors.firmware.nav_mapping import MappingNav, MappingOptions
 
     nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=3,
@@ -241,6 +242,21 @@ def test_the_least_useful_gain_grows_with_the_map() -> None:
     nav.ex.gains = [60, 60]
     assert nav._futile()
     nav.ex.gains = [60, 120]
+    assert not nav._futile()
+
+
+def test_one_visit_just_above_the_limit_does_not_restart_the_futile_count() -> None:
+    """The window is judged on its sum: furniture 2's visits of 21, 7, 4 and 34 cells
+    (limit 32: 34 alone is above it) are futile together, so mapping ends."""
+    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+
+    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=4))
+    cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
+    cells.reshape(-1)[:10785] = 0
+    nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
+    nav.ex.gains = [21, 7, 4, 34]
+    assert nav._futile()
+    nav.ex.gains = [21, 7, 4, 120]  # a visit that found a real opening
     assert not nav._futile()
 
 
@@ -388,3 +404,27 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
         details = [f.data.get("detail", "") for f in body.frames("status")]
         assert any(d.startswith(f"{text}; holding {hold:.0f} s") for d in details)
         assert "odometry hold over: driving on" in details
+
+
+def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -> None:
+    """A route the obstacle check refuses to drive (furniture 2: the rover turned toward
+    it, was refused and turned away for 280 s): after ``obstacle_turns`` turns away toward
+    one target the target is blacklisted and the trip ends; another target starts over."""
+    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+
+    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(obstacle_turns=3))
+    cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
+    cells.reshape(-1)[:100] = 0
+    nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
+    nav.ex.trip_known = 60
+    nav.ex.target = (462.5, -32.5)
+    assert not nav._turned_away() and not nav._turned_away()
+    nav.ex.target = (100.0, 100.0)  # another frontier: the count starts over
+    assert not nav._turned_away()
+    nav.ex.target = (462.5, -32.5)
+    assert not nav._turned_away() and not nav._turned_away()
+    assert nav.ex.blacklist == []
+    nav.ex.target = (460.0, -30.0)  # the same frontier, its target moved a little
+    assert nav._turned_away()
+    assert nav.ex.blacklist == [(460.0, -30.0)]
+    assert nav.ex.gains == [40] and nav.ex.trip_known is None  # the visit ended

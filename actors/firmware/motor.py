@@ -57,7 +57,9 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
     (``motor_tau_s``), so it models how far each tread should have gone since
     its last Int E. When that reaches ``silent_cm`` (2.5 interrupts) while the
     other tread counted at least ``silent_other`` interrupts in a row
-    meanwhile, it sends navigation one ``NAV_TREAD_FAULT``. Both treads silent
+    meanwhile and is that many ahead in the command (two treads slow alike
+    keep level counts, their interrupts interleaved irregularly), it sends
+    navigation one ``NAV_TREAD_FAULT``. Both treads silent
     is the blocked case above, not this one. A stalled motor on one side looks
     the same as a stuck encoder here.
 
@@ -67,16 +69,18 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
     too (a slipping encoder counts about half). A weak motor on that side looks
     the same (it really goes half as far, and then its odometry is right).
 
-    Both treads counting short (mapper only): both slipping alike keep the
+    Both treads counting short: both slipping alike keep the
     treads equal, so the comparison above says nothing, yet the rover turns
     2.4 times the turn it counts (campaign game 1:187: a 75 deg turn went 229
     deg, and scan matching could not follow). Once both modelled travels
     reach ``short_after_cm`` and each tread counted under ``short_ratio`` of
     its own, the mapper's navigation gets value 6 (bit 2: both). Motor
     Control cannot tell this from two weak motors (which really go short, so
-    their odometry is right); the mapper's LIDAR can, so only the mapper's
-    navigation gets it (a hider or seeker could do nothing but hold for
-    nothing).
+    their odometry is right); the mapper's LIDAR can. A hider or seeker gets
+    it in turns only (session 5, round 2): there a slip turns the rover
+    1/ratio times the count (campaign 1:24, both encoders at 0.31: found only
+    thanks to a chance single-tread report), while two weak motors cost one
+    hold per turn.
 
     The message: ``NAV_TREAD_FAULT``, value uint32: bit 0 the tread (0 left,
     1 right), bit 1 the kind (0 silent, 1 counts short), bit 2 both treads:
@@ -149,7 +153,11 @@ class MotorTuning:
     silent_cm: float = 1.25
     """A tread the model says went this far since its last Int E is silent [cm]."""
     silent_other: int = 2
-    """...provided the other tread counted this many Int E in a row meanwhile."""
+    """...provided the other tread counted this many Int E in a row meanwhile, and has
+    counted this many more in the command: two treads going slow alike (two weak
+    motors at 0.3, a rover pushing against something) interleave their interrupts
+    irregularly, and one could look silent with the counts level (campaign 1:31: 51
+    false reports to the seeker, each a blocked move and 10 deg more heading doubt)."""
     short_after_cm: float = 5.0
     """Judge a tread's count against its modelled travel once this far into a command [cm]."""
     short_ratio: float = 0.65
@@ -512,10 +520,11 @@ class MotorControl(Actor):
 
     def _watch_counts(self) -> None:
         """Report a tread that counts far less than it is driven while the other counts
-        about right (``NAV_TREAD_FAULT`` with bit 1 set), or on the mapper both treads
-        counting short (value 6); see the module docstring."""
+        about right (``NAV_TREAD_FAULT`` with bit 1 set), or both treads counting short
+        (value 6: the mapper always, the others in turns); see the module docstring."""
         t = self.tuning
-        if self._lidar and not (self._short_sent[0] or self._short_sent[1]
+        both_wanted = self._lidar or self._kind == Cmd.MOTOR_TURN
+        if both_wanted and not (self._short_sent[0] or self._short_sent[1]
                                 or self._silent_sent[0] or self._silent_sent[1]) \
                 and min(self._modelled) >= t.short_after_cm \
                 and all(self._counted[i] < t.short_ratio * self._modelled[i] for i in (0, 1)):
@@ -546,8 +555,11 @@ class MotorControl(Actor):
         if not period_pending:
             self._watch_counts()
         for tread in (0, 1):
-            if self._silent_sent[tread] or self._run[1 - tread] < t.silent_other:
+            other = 1 - tread
+            if self._silent_sent[tread] or self._run[other] < t.silent_other:
                 continue
+            if self._counted[other] - self._counted[tread] < t.silent_other * self._unit:
+                continue  # counts level: slow alike (weak, pushing), interrupts interleaved
             owed = self._unticked[tread]
             if period_pending:
                 owed -= abs(self._model_v[tread]) * t.period_s
