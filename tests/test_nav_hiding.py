@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from contextlib import asynccontextmanager
 
 import pytest
 import trio
@@ -35,6 +36,23 @@ def own_truth() -> Truth:
 async def begin(system, pool, dest) -> None:
     """What the server sends for ``hide``: origin, start, destination; then the map."""
     await send_route(system, pool, "hider", ORIGIN, dest, room_map(TRUTH_MAP))
+
+
+TURNING = {"x": 50.0, "y": 150.0, "heading": 90.0}  # its route begins with a turn
+STRAIGHT_ON = {"x": 120.0, "y": 50.0, "heading": 0.0}  # its route begins with a move
+
+
+@asynccontextmanager
+async def hider_at_first(kind: str, dest: dict, **body_kw):
+    """A hider on its way to ``dest``, caught at its first motor command ``kind``
+    (MOTOR_TURN or MOTOR_MOVE): yields the system, the fake body and the nav actor."""
+    body = Body(truth=own_truth(), **body_kw)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, dest)
+        assert await wait_for(lambda: any(c == kind for c, _ in body.motor_log), 10.0)
+        yield system, body, system.whereis("hider/nav").actor
 
 
 @pytest.mark.trio
@@ -170,13 +188,7 @@ async def test_a_tread_fault_in_a_turn_stops_it_holds_then_arrives_with_a_wider_
     """NAV_TREAD_FAULT (the right tread counts short) during a turn: MOTOR_STOP at once,
     no motion for the hold (``tread_hold_s``), then the route goes on and arrives; the
     drift estimate grows with every cm driven after the fault (the heading is doubted)."""
-    body = Body(truth=own_truth(), speed=10.0)
-    pool = BufferPool(64)
-    async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
-        await begin(system, pool, {"x": 50.0, "y": 150.0, "heading": 90.0})
-        assert await wait_for(lambda: any(c == "MOTOR_TURN" for c, _ in body.motor_log), 10.0)
-        nav = system.whereis("hider/nav").actor
+    async with hider_at_first("MOTOR_TURN", TURNING, speed=10.0) as (system, body, nav):
         drift0 = nav.drift_cm
         n = len(body.motor_log)
         await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 3))
@@ -200,13 +212,7 @@ async def test_both_treads_silent_in_a_turn_holds_and_doubts_the_heading_more(
     """NAV_TREAD_FAULT value 4 (both silent: Motor Control ended a turn without an Int E)
     holds like a single tread's report, but says "both" and doubts the heading by
     ``tread_both_deg`` (the whole unseen turn), not ``tread_fault_deg``."""
-    body = Body(truth=own_truth(), speed=10.0)
-    pool = BufferPool(64)
-    async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
-        await begin(system, pool, {"x": 50.0, "y": 150.0, "heading": 90.0})
-        assert await wait_for(lambda: any(c == "MOTOR_TURN" for c, _ in body.motor_log), 10.0)
-        nav = system.whereis("hider/nav").actor
+    async with hider_at_first("MOTOR_TURN", TURNING, speed=10.0) as (system, body, nav):
         n = len(body.motor_log)
         await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 4))
         await trio.sleep(0.1)
@@ -224,14 +230,7 @@ async def test_one_tread_silent_in_a_turn_turns_the_believed_heading_on(autojump
     is in the turn's direction, so the believed heading turns ``tread_turn_fix_deg``
     further that way (the sideways uncertainty is kept); a short count does not."""
     for value, fixed in ((0, True), (2, False)):
-        body = Body(truth=own_truth(), speed=10.0)
-        pool = BufferPool(64)
-        async with open_actor_system(seed=1) as system:
-            await system.start_supervisor(rover_spec("hider", body, pool), "hider")
-            await begin(system, pool, {"x": 50.0, "y": 150.0, "heading": 90.0})
-            log = body.motor_log
-            assert await wait_for(lambda log=log: any(c == "MOTOR_TURN" for c, _ in log), 10.0)
-            nav = system.whereis("hider/nav").actor
+        async with hider_at_first("MOTOR_TURN", TURNING, speed=10.0) as (system, body, nav):
             turn = nav.last_motion.amount
             before = nav.origin.heading_deg  # the correction turns the odometry -> map frame
             await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, value))
@@ -249,13 +248,7 @@ async def test_a_tread_fault_in_a_move_ends_it_as_blocked(autojump_clock) -> Non
     """NAV_TREAD_FAULT (the left tread silent) during a straight move: a tread stalled
     against a wall reports the same, so no hold: the move ends as blocked and the
     route backs off at once; the heading is doubted all the same."""
-    body = Body(truth=own_truth())
-    pool = BufferPool(64)
-    async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
-        await begin(system, pool, {"x": 120.0, "y": 50.0, "heading": 0.0})
-        assert await wait_for(lambda: any(c == "MOTOR_MOVE" for c, _ in body.motor_log), 10.0)
-        nav = system.whereis("hider/nav").actor
+    async with hider_at_first("MOTOR_MOVE", STRAIGHT_ON) as (system, body, nav):
         n = len(body.motor_log)
         await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 0))
         assert await wait_for(lambda: any(c == "MOTOR_MOVE" and v < 0
