@@ -315,6 +315,38 @@ async def test_a_driven_tread_that_does_not_count_is_reported_at_once(
         nursery.cancel_scope.cancel()
 
 
+FOUR = [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0), (Cmd.MOTOR_TURN, -8.0),
+        (Cmd.MOTOR_MOVE, -10.0)]  # two moves and two turns, one of them too short to judge
+
+
+async def run_commands(counts: tuple[float, float], commands: list, *, horizon: float,
+                       timeout: float = 10.0, phase: tuple[float, float] = (0.0, 0.0),
+                       **motor_kw) -> tuple[list, list]:
+    """Motor Control (as the hider's) on fake treads counting ``counts`` of their travel,
+    given ``commands`` one after another, each to its end. Returns what navigation was
+    sent and, per command, how it ended and how long it took [s]."""
+    hw = FakeHardware()
+    log: list = []
+    outcomes = []
+    async with open_actor_system(1) as system, trio.open_nursery() as nursery:
+        await system.start_supervisor(motor_tree(hw, PoseMemory(), log, **motor_kw), "hider")
+        nursery.start_soon(drive_fake_treads, hw, counts, trio.current_time() + horizon, phase)
+        for command, amount in commands:
+            t0 = trio.current_time()
+            await system.send("hider/motor", Message.float(command, amount))
+            m = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED},
+                               timeout=timeout)
+            outcomes.append((m.command, trio.current_time() - t0))
+        seen = list(log)
+        nursery.cancel_scope.cancel()
+    return seen, outcomes
+
+
+def tread_reports(log: list) -> list[int]:
+    """The NAV_TREAD_FAULT values navigation got, in order."""
+    return [int(x.value) for _, x in log if x.command == Cmd.NAV_TREAD_FAULT]
+
+
 @pytest.mark.trio
 @pytest.mark.parametrize(("counts", "tread"), [((1.0, 1.0), None), ((0.0, 0.0), None),
                                                ((1.0, 0.5), 1), ((0.45, 1.0), 0)],
@@ -325,22 +357,13 @@ async def test_a_tread_that_counts_short_is_reported_once_per_command(autojump_c
     blocked); a tread that counts about half of its travel (a slipping encoder) gives
     value 2 | tread in each command long enough to judge (its modelled travel reaches 5 cm:
     the moves and the 90 deg turn); in the 8 deg turn a tread counting 0.45 may be silent."""
-    hw = FakeHardware()
-    log: list = []
-    async with open_actor_system(1) as system, trio.open_nursery() as nursery:
-        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
-        nursery.start_soon(drive_fake_treads, hw, counts, trio.current_time() + 20.0)
-        for command, amount in [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0),
-                                (Cmd.MOTOR_TURN, -8.0), (Cmd.MOTOR_MOVE, -10.0)]:
-            await system.send("hider/motor", Message.float(command, amount))
-            await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED}, timeout=10.0)
-        reports = [int(x.value) for _, x in log if x.command == Cmd.NAV_TREAD_FAULT]
-        if tread is None:  # both silent: only the turns' value 4 (see the test below)
-            assert reports == ([4, 4] if counts == (0.0, 0.0) else [])
-        else:
-            assert {r & 1 for r in reports} == {tread}
-            assert [r for r in reports if r & 2] == [2 | tread] * 3
-        nursery.cancel_scope.cancel()
+    log, _ = await run_commands(counts, FOUR, horizon=20.0)
+    reports = tread_reports(log)
+    if tread is None:  # both silent: only the turns' value 4 (see the test below)
+        assert reports == ([4, 4] if counts == (0.0, 0.0) else [])
+    else:
+        assert {r & 1 for r in reports} == {tread}
+        assert [r for r in reports if r & 2] == [2 | tread] * 3
 
 
 @pytest.mark.trio
@@ -352,31 +375,18 @@ async def test_both_encoders_silent_block_within_a_few_cm(autojump_clock, counts
     """Both encoders stuck (nothing to compare with): NAV_MOTION_BLOCKED once the model
     says a tread went about 3 cm unseen, not after a second; treads counting 0.3 of their
     travel (a weak motor at 0.3 looks the same) and healthy ones finish every command."""
-    hw = FakeHardware()
-    log: list = []
-    async with open_actor_system(1) as system, trio.open_nursery() as nursery:
-        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
-        nursery.start_soon(drive_fake_treads, hw, counts, trio.current_time() + 60.0)
-        outcomes = []
-        for command, amount in [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0),
-                                (Cmd.MOTOR_MOVE, -10.0), (Cmd.MOTOR_TURN, -8.0)]:
-            t0 = trio.current_time()
-            await system.send("hider/motor", Message.float(command, amount))
-            m = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED},
-                               timeout=20.0)
-            outcomes.append((m.command, trio.current_time() - t0))
-        assert all((c == Cmd.NAV_MOTION_BLOCKED) == blocked for c, _ in outcomes)
-        if blocked:
-            # at 24 cm/s cruise behind an 80 ms lag, 3 cm of modelled travel is about 0.25 s;
-            # the 8 deg turn's treads have under 1 cm to go: the blocked timer (1 s) ends it
-            assert all(dt <= 0.45 for _, dt in outcomes[:3]), outcomes
-            assert 0.9 <= outcomes[3][1] <= 1.2
-        # a turn blocked without a single Int E is a tread fault too (value 4: both
-        # silent), sent before its end; moves are not (a rover against a wall)
-        both = [int(x.value) for _, x in log
-                if x.command == Cmd.NAV_TREAD_FAULT and x.value == 4]
-        assert both == ([4, 4] if blocked else [])
-        nursery.cancel_scope.cancel()
+    log, outcomes = await run_commands(counts, [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0),
+                                                (Cmd.MOTOR_MOVE, -10.0), (Cmd.MOTOR_TURN, -8.0)],
+                                       horizon=60.0, timeout=20.0)
+    assert all((c == Cmd.NAV_MOTION_BLOCKED) == blocked for c, _ in outcomes)
+    if blocked:
+        # at 24 cm/s cruise behind an 80 ms lag, 3 cm of modelled travel is about 0.25 s;
+        # the 8 deg turn's treads have under 1 cm to go: the blocked timer (1 s) ends it
+        assert all(dt <= 0.45 for _, dt in outcomes[:3]), outcomes
+        assert 0.9 <= outcomes[3][1] <= 1.2
+    # a turn blocked without a single Int E is a tread fault too (value 4: both
+    # silent), sent before its end; moves are not (a rover against a wall)
+    assert [r for r in tread_reports(log) if r == 4] == ([4, 4] if blocked else [])
 
 
 @pytest.mark.trio
@@ -389,19 +399,11 @@ async def test_both_treads_counting_alike_slowly_is_no_silent_tread(autojump_clo
     seeker got 51 false reports, each a blocked move and 10 deg more heading doubt) keep
     their counts together, however their interrupts interleave: no single tread is
     reported silent (value 0/1). Only the hider is driven, so no value 6 either."""
-    hw = FakeHardware()
-    log: list = []
-    async with open_actor_system(1) as system, trio.open_nursery() as nursery:
-        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
-        nursery.start_soon(drive_fake_treads, hw, counts, trio.current_time() + 60.0, phase)
-        for command, amount in [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0),
-                                (Cmd.MOTOR_MOVE, -10.0), (Cmd.MOTOR_TURN, -8.0),
-                                (Cmd.MOTOR_MOVE, 25.0), (Cmd.MOTOR_TURN, -45.0)]:
-            await system.send("hider/motor", Message.float(command, amount))
-            await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED}, timeout=20.0)
-        reports = [int(x.value) for _, x in log if x.command == Cmd.NAV_TREAD_FAULT]
-        assert [r for r in reports if not r & 2] == []
-        nursery.cancel_scope.cancel()
+    log, _ = await run_commands(counts, [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0),
+                                         (Cmd.MOTOR_MOVE, -10.0), (Cmd.MOTOR_TURN, -8.0),
+                                         (Cmd.MOTOR_MOVE, 25.0), (Cmd.MOTOR_TURN, -45.0)],
+                                horizon=60.0, timeout=20.0, phase=phase)
+    assert [r for r in tread_reports(log) if not r & 2] == []
 
 
 @pytest.mark.trio
@@ -416,15 +418,5 @@ async def test_both_treads_counting_short_are_reported_to_the_mapper_and_in_turn
     single-tread report with it; a hider (no LIDAR to tell a slip from two weak motors)
     gets it in the turn only (a slip there turns it 1/0.45 times the count: campaign
     1:24); one tread short is still reported as that tread."""
-    hw = FakeHardware()
-    log: list = []
-    async with open_actor_system(1) as system, trio.open_nursery() as nursery:
-        await system.start_supervisor(motor_tree(hw, PoseMemory(), log, lidar=lidar), "hider")
-        nursery.start_soon(drive_fake_treads, hw, counts, trio.current_time() + 30.0)
-        for command, amount in [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0),
-                                (Cmd.MOTOR_TURN, -8.0), (Cmd.MOTOR_MOVE, -10.0)]:
-            await system.send("hider/motor", Message.float(command, amount))
-            await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED}, timeout=10.0)
-        reports = [int(x.value) for _, x in log if x.command == Cmd.NAV_TREAD_FAULT]
-        assert [r for r in reports if r & 2] == expected
-        nursery.cancel_scope.cancel()
+    log, _ = await run_commands(counts, FOUR, horizon=30.0, lidar=lidar)
+    assert [r for r in tread_reports(log) if r & 2] == expected
