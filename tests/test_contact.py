@@ -124,3 +124,19 @@ def test_a_wall_face_across_the_heading_does_not_pin_the_sideways_position() -> 
     assert face is not None and not face.needed and face.sideways_free
     edge = locate_contact(GAP, Pose(395, 312.5, 0), side=1, **BODY)
     assert edge is not None and edge.needed and not edge.sideways_free
+
+
+def test_searching_as_far_along_as_the_drift_keeps_a_wall_end_contact_open() -> None:
+    """Dead reckoning puts the body over the corner of the gap's lower wall. Searched only
+    6 cm along the heading, a 1 cm sideways shift off the corner explains the block, and
+    navigation would take it as pinning its sideways position; searched 15 cm (as far as
+    a large drift reaches, ``NavOptions.contact_max_along_cm``), a pose further back
+    along the heading explains it as well: ambiguous, so the sideways doubt is kept
+    (campaign 1:31: the doubt was cut from 29 to 3 cm while the rover was 24 cm off)."""
+    dr = Pose(398.0, 302.0, 0.0)
+    short = locate_contact(GAP, dr, ambiguity_cm=20.0, other_shift_cm=34.0, **BODY)
+    assert short is not None and short.needed
+    assert not short.ambiguous and not short.sideways_free
+    far = locate_contact(GAP, dr, ambiguity_cm=20.0, other_shift_cm=34.0, max_along_cm=15.0,
+                         **BODY)
+    assert far is not None and far.ambiguous
