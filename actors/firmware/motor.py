@@ -524,8 +524,7 @@ class MotorControl(Actor):
         (value 6: the mapper always, the others in turns); see the module docstring."""
         t = self.tuning
         both_wanted = self._lidar or self._kind == Cmd.MOTOR_TURN
-        if both_wanted and not (self._short_sent[0] or self._short_sent[1]
-                                or self._silent_sent[0] or self._silent_sent[1]) \
+        if both_wanted and not (any(self._short_sent) or any(self._silent_sent)) \
                 and min(self._modelled) >= t.short_after_cm \
                 and all(self._counted[i] < t.short_ratio * self._modelled[i] for i in (0, 1)):
             self._short_sent = [True, True]

@@ -1105,9 +1105,9 @@ class RouteNav(NavBase):
             self._hold_until = trio.current_time() + self.o.tread_hold_s
             await self.status(self.state, f"a tread stalls; holding {self.o.tread_hold_s:.0f} s")
             return
-        m, start = self.last_motion, self.motion_from
-        if why == "blocked" and m is not None and m.kind == "move" and m.amount < 0 and \
-                start is not None and math.dist((p.x, p.y), (start.x, start.y)) < 1.0:
+        start = self._backoff_start()
+        if why == "blocked" and start is not None and \
+                math.dist((p.x, p.y), (start.x, start.y)) < 1.0:
             # a back-off that did not move: wedged behind; reversing again cannot help
             self._replan = True
             await self.after_motion(False, 0.0)
@@ -1132,12 +1132,19 @@ class RouteNav(NavBase):
         self._replan = True
         await self.command(Motion("move", -back))
 
+    def _backoff_start(self) -> Pose | None:
+        """Where the last motion started, if it was a reverse (a back-off); else None."""
+        m, start = self.last_motion, self.motion_from
+        if m is None or m.kind != "move" or m.amount >= 0:
+            return None
+        return start
+
     def _backoff_turned(self) -> bool:
         """The last motion, a reverse (a back-off), ended blocked having turned the rover
         more than ``stall_turn_deg``: one tread drives, the other does not. Backing away
         from a wall is free ground, so a turn there is no wall's doing."""
-        m, start = self.last_motion, self.motion_from
-        if m is None or m.kind != "move" or m.amount >= 0 or start is None:
+        start = self._backoff_start()
+        if start is None:
             return False
         turned = abs(angle_diff_deg(self.map_pose.heading_deg, start.heading_deg))
         return turned > self.o.stall_turn_deg
