@@ -53,7 +53,7 @@ from actors import Actor, BufferPool, Message, PoolExhausted
 from .commands import Cmd
 from .lidar import Scan
 from .occupancy import GridMap, OccupancyGrid
-from .odometry import Pose, compose, inverse
+from .odometry import Pose, angle_diff_deg, compose, inverse
 from .scan_match import (
     MatchFields,
     MatchOptions,
@@ -80,9 +80,10 @@ def _max3(values: np.ndarray) -> np.ndarray:
 
 
 def _same_pose(a: Pose, b: Pose | None) -> bool:
-    """Whether two odometry stamps are the same (within 5 mm and 0.3 deg)."""
+    """Whether two odometry stamps are the same (within 5 mm and 0.3 deg; headings
+    compared across the wrap, so 179.9 and -179.9 deg are the same)."""
     return b is not None and abs(a.x - b.x) < 0.5 and abs(a.y - b.y) < 0.5 and abs(
-        a.heading_deg - b.heading_deg) < 0.3
+        angle_diff_deg(a.heading_deg, b.heading_deg)) < 0.3
 
 
 class MapManagement(Actor):
