@@ -522,7 +522,7 @@ class Server:
                         self._flush_conn(rover.conn)
                     deadline = min(deadline, rover.session.next_deadline(now))
                 if up:
-                    deadline = min(deadline, (rover.session.stats(now).last_heard or now)
+                    deadline = min(deadline, (rover.session.last_heard or now)
                                    + rover.session.down_after_s)
             self._kick = trio.Event()
             with trio.move_on_at(max(deadline, now + 1e-3)):

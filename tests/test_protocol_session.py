@@ -149,6 +149,7 @@ def test_heartbeat_when_idle_and_link_down_after_silence() -> None:
     assert a.next_deadline(1.5) == pytest.approx(2.0)
     b.feed(a.transmit(7.0), 7.0)
     assert b.is_up(7.0)
+    assert b.last_heard == 7.0 == b.stats(9.0).last_heard  # when, not whether
 
 
 def test_stalled_link_stops_resending_and_resumes_when_peer_is_heard() -> None:

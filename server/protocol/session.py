@@ -162,6 +162,11 @@ class ReliableSession:
                 and now - self._last_heard < self.down_after_s)
 
     @property
+    def last_heard(self) -> float | None:
+        """When the peer was last heard [s], or None (cheap: the server asks every tick)."""
+        return self._last_heard
+
+    @property
     def seq_base(self) -> int:
         """Our oldest unacknowledged ``seq``, or the next one: goes in hello/welcome."""
         if self._flight:
