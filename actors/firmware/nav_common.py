@@ -1210,14 +1210,26 @@ class RouteNav(NavBase):
         on), a new series starts on the side that helped.
         """
         p = self.map_pose
-        if self._anchor is None or math.dist(self._anchor[:2], (p.x, p.y)) > \
-                self.o.probe_progress_cm:
+        if self._anchor is None or self._progress(p) > self.o.probe_progress_cm:
             self._anchor, self._nudge, self._nudges = self._last_block, None, 0
         self._sidestep = self.o.probe_sidestep
         try:
             return self._nudged_plan()
         finally:
             self._sidestep = False
+
+    def _progress(self, p: Pose) -> float:
+        """How far ``p`` lies beyond the series' anchor along the anchor's heading [cm].
+
+        Along, not straight-line: a nudge moves the block point across the heading
+        by its own offset (up to 3 x ``nudge_step_max_cm``), and a contact fix
+        moves it a few cm more; counting that as progress restarted the series
+        around the nudged point, 25 cm to the wrong side (campaign 1:39, truth
+        log: the -25 cm offset that would have passed was never tried)."""
+        assert self._anchor is not None
+        bx, by, bh = self._anchor
+        h = math.radians(bh)
+        return (p.x - bx) * math.cos(h) + (p.y - by) * math.sin(h)
 
     def correct_pose(self, target: Pose, *, sideways_known: bool = True) -> None:
         """Make the map-frame pose ``target`` by moving the origin (own frame -> map frame).
