@@ -529,6 +529,38 @@ def test_a_block_in_a_narrow_passage_probes_sideways_at_once() -> None:
     assert not nav._in_passage()  # a backoff blocked: not a scrape ahead
 
 
+def test_a_block_beside_the_anchor_continues_the_probe_series() -> None:
+    """A nudged route blocked 25 cm beside the series' anchor (and 6 cm short of it,
+    as a contact fix may leave it) is no progress: the series goes on to the next
+    offset instead of restarting around the nudged point (campaign 1:39)."""
+    nav = scraped_nav(0.0)
+    nav._last_block = (300.0, 150.0, 0.0)
+    nav.goal, nav.goal_heading = (600.0, 150.0), None
+    assert nav._probe_plan() and nav._nudge_off == 4.0
+    assert nav._probe_plan() and nav._nudge_off == -4.0
+    nav.pose = Pose(244.0, 125.0, 0.0)  # map (294, 175): 26 cm from the anchor, 25 sideways
+    nav._last_block = (294.0, 175.0, 0.0)
+    assert nav._probe_plan()
+    assert nav._anchor == (300.0, 150.0, 0.0) and nav._nudge_off == 8.0
+
+
+def test_the_doubted_heading_drifts_with_the_distance_from_where_it_arose() -> None:
+    """A heading doubted by e moves the pose off by at most e [rad] times the straight
+    distance from where the doubt arose: going 100 cm on and back adds nothing in the
+    end, however far was driven; a correction starts it afresh."""
+    nav = scraped_nav(0.0)
+    nav._forget_fault_drift()
+    nav.heading_err_deg = 10.0
+    for _ in range(5):  # probing back and forth
+        nav.pose = Pose(350.0, 100.0, 0.0)
+        assert nav.fault_drift_cm == pytest.approx(100.0 * math.radians(10.0))
+        nav.pose = Pose(250.0, 100.0, 0.0)
+        assert nav.fault_drift_cm == pytest.approx(0.0)
+    nav.pose = Pose(250.0, 300.0, 0.0)
+    nav.correct_pose(Pose(300.0, 350.0, 0.0))
+    assert nav.fault_drift_cm == 0.0
+
+
 def test_drift_grows_with_distance_driven_and_restarts_at_a_correction() -> None:
     """Moves (not turns) add to the distance since the pose was known; a contact
     correction makes it known again."""

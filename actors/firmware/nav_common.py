@@ -415,9 +415,8 @@ class NavBase(Actor):
         """Distance driven since the pose was last known (start, origin, correction) [cm]."""
         self.heading_err_deg = 0.0
         """Heading error that tread faults may have left unseen [deg] (see `on_tread_fault`)."""
-        self.fault_drift_cm = 0.0
-        """Sideways error those heading errors may have made since the pose was last
-        known [cm]: each move adds its length times the sine of ``heading_err_deg``."""
+        self._fault_base_cm = 0.0  # fault_drift_cm when the heading doubt last grew
+        self._fault_from: tuple[float, float] | None = None  # own-frame xy at that moment
         self.tread_faults = 0
         """``NAV_TREAD_FAULT`` reports acted on."""
         self._hold_until = math.inf  # holding still after a tread fault until then
@@ -549,8 +548,6 @@ class NavBase(Actor):
         self.counters["motions"] += 1
         if motion.kind == "move":
             self.driven_cm += abs(motion.amount)
-            self.fault_drift_cm += abs(motion.amount) * math.sin(
-                math.radians(min(90.0, self.heading_err_deg)))
         nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \
             else abs(motion.amount) / 90.0
         self._motion_deadline = trio.current_time() + self.o.motion_timeout_s + nominal
@@ -599,6 +596,7 @@ class NavBase(Actor):
         self._tread_last = now
         both = bool(value & 4)
         self.tread_faults += 1
+        self._fault_base_cm, self._fault_from = self.fault_drift_cm, (self.pose.x, self.pose.y)
         self.heading_err_deg += self.o.tread_both_deg if both else self.o.tread_fault_deg
         turning = self._motion.kind == "turn"
         if turning and not value & 6:  # one tread silent in a turn (see tread_turn_fix_deg)
@@ -636,6 +634,30 @@ class NavBase(Actor):
 
     async def after_motion(self, blocked: bool, done: float) -> None:
         """Hook: the motion ended (``blocked`` when the motor gave up) and the pose is fresh."""
+
+    @property
+    def fault_drift_cm(self) -> float:
+        """Sideways error the doubted heading (``heading_err_deg``) may have made since
+        the pose was last known [cm].
+
+        A heading off by e turns everything driven after it about the point where
+        it arose, so the position is off by at most e [rad] times the straight
+        distance from that point, however the rover got there. Not the distance
+        driven: a rover probing a gap goes back and forth at one place, and
+        summing each move's length times sin(e) grew the doubt by about 7 cm a
+        probe without end (campaign 1:127: one 10 deg report, 292 cm of believed
+        drift 2 m of probing later; 1:183 in session 5: 235 cm). The pose is
+        Motor Control's own-frame one, which a correction of the origin leaves
+        continuous.
+        """
+        if self._fault_from is None:
+            return self._fault_base_cm
+        moved = math.dist(self._fault_from, (self.pose.x, self.pose.y))
+        return self._fault_base_cm + moved * math.radians(min(90.0, self.heading_err_deg))
+
+    def _forget_fault_drift(self) -> None:
+        """The pose is known again: the doubted heading's sideways error starts from here."""
+        self._fault_base_cm, self._fault_from = 0.0, (self.pose.x, self.pose.y)
 
     @property
     def drift_cm(self) -> float:
@@ -694,7 +716,7 @@ class NavBase(Actor):
             self.origin = Pose(data.x, data.y, data.heading)
             self.memory.origin = (data.x, data.y, data.heading)
             self.driven_cm = 0.0
-            self.fault_drift_cm = 0.0
+            self._forget_fault_drift()
         elif cmd == "destination":
             await self.on_destination(data.x, data.y, data.heading)
 
@@ -1210,14 +1232,26 @@ class RouteNav(NavBase):
         on), a new series starts on the side that helped.
         """
         p = self.map_pose
-        if self._anchor is None or math.dist(self._anchor[:2], (p.x, p.y)) > \
-                self.o.probe_progress_cm:
+        if self._anchor is None or self._progress(p) > self.o.probe_progress_cm:
             self._anchor, self._nudge, self._nudges = self._last_block, None, 0
         self._sidestep = self.o.probe_sidestep
         try:
             return self._nudged_plan()
         finally:
             self._sidestep = False
+
+    def _progress(self, p: Pose) -> float:
+        """How far ``p`` lies beyond the series' anchor along the anchor's heading [cm].
+
+        Along, not straight-line: a nudge moves the block point across the heading
+        by its own offset (up to 3 x ``nudge_step_max_cm``), and a contact fix
+        moves it a few cm more; counting that as progress restarted the series
+        around the nudged point, 25 cm to the wrong side (campaign 1:39, truth
+        log: the -25 cm offset that would have passed was never tried)."""
+        assert self._anchor is not None
+        bx, by, bh = self._anchor
+        h = math.radians(bh)
+        return (p.x - bx) * math.cos(h) + (p.y - by) * math.sin(h)
 
     def correct_pose(self, target: Pose, *, sideways_known: bool = True) -> None:
         """Make the map-frame pose ``target`` by moving the origin (own frame -> map frame).
@@ -1232,7 +1266,7 @@ class RouteNav(NavBase):
         self.origin = origin
         if sideways_known:
             self.driven_cm = 0.0
-            self.fault_drift_cm = 0.0
+            self._forget_fault_drift()
         self.memory.origin = (origin.x, origin.y, origin.heading_deg)
 
     async def _give_up(self, reason: str) -> None:
