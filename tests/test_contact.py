@@ -140,3 +140,17 @@ def test_searching_as_far_along_as_the_drift_keeps_a_wall_end_contact_open() -> 
     far = locate_contact(GAP, dr, ambiguity_cm=20.0, other_shift_cm=34.0, max_along_cm=15.0,
                          **BODY)
     assert far is not None and far.ambiguous
+
+
+def test_a_head_on_contact_beside_a_gap_is_ambiguous_within_the_drift() -> None:
+    """Dead reckoning puts the body in the corridor's mouth, nose at the walls' face, and
+    the right side stalled: the cheapest explanation with the right side touching is
+    the upper wall's face, 11 cm up, head-on (both sides touch, so the stalled side
+    tells nothing). The lower wall's face, 15 cm down, explains it as well: with a
+    drift of 30 cm that is ambiguous, with 3 cm it is not (overlapping campaign 2:19:
+    the hider was on the lower face and was put on the upper one)."""
+    dr = Pose(240.0, 157.0, 0.0)
+    far = locate_contact(CORRIDOR, dr, side=-1, ambiguity_cm=30.0, other_shift_cm=44.0, **BODY)
+    assert far is not None and far.shift_cm > 8.0 and far.ambiguous
+    near = locate_contact(CORRIDOR, dr, side=-1, **BODY)
+    assert near is not None and near.shift_cm > 8.0 and not near.ambiguous

@@ -32,7 +32,14 @@ Method
     looked for. Why: at a gap's edge the true pose may lie beyond the
     correction window (measured: 20 cm off after 6 m of seeking); the
     cheapest candidate inside it is then the wrong edge, and acting on it
-    pushed dead reckoning further off on every block.
+    pushed dead reckoning further off on every block. The same holds for a
+    head-on contact (the whole leading edge on one wall's face) that needs a
+    sideways shift: the faces on both sides of a gap explain it, the nearer
+    one is cheapest, and when the other one is within ``ambiguity_cm`` too the
+    contact is ambiguous whatever side stalled (overlapping campaign 2:19:
+    the hider 34 cm below the corridor's mouth by a 12 deg heading error, put
+    8 cm further up onto the upper wall's face; 1:127: the seeker pushed
+    further up above the gap the same way).
 
     The stalled side comes from the heading change during a straight move: the
     tread on the touching side is held, the other one drives on, so the body
@@ -168,8 +175,9 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
     by = (-dx * sa + dy * ca) * direction
     inside = (np.abs(bx) < half_l - tol) & (np.abs(by) < half_w - tol)
     band = (bx >= half_l - tol) & (bx <= half_l + res) & (np.abs(by) <= half_w + tol)
+    band_all = band
     if side:
-        band &= (by * direction * side) > 0
+        band = band & ((by * direction * side) > 0)
     explains = ~inside.any(axis=1) & band.any(axis=1)
     ok = explains & (np.abs(S) <= max_shift_cm + 1e-9)
     if not ok.any():
@@ -179,14 +187,19 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
     cost = np.where(ok, cost, np.inf)
     best = int(np.argmin(cost))
     # the side of the body each candidate touches with: +1 left, -1 right, 0 both (head-on)
-    left = (band & (by * direction > 0)).any(axis=1)
-    right = (band & (by * direction < 0)).any(axis=1)
+    left = (band_all & (by * direction > 0)).any(axis=1)
+    right = (band_all & (by * direction < 0)).any(axis=1)
     touch = left.astype(int) - right.astype(int)
     ambiguous = False
+    sb, ub, ab = float(S[best]), float(U[best]), float(A[best])
     if side == 0 and touch[best] != 0:
         other = np.where(touch == -touch[best], any_cost, np.inf)
         ambiguous = bool(other.min() <= cost[best] + ambiguity_cm)
-    sb, ub, ab = float(S[best]), float(U[best]), float(A[best])
+    elif touch[best] == 0 and sb != 0.0:
+        # head-on against a face beside a gap: the face across the gap, shifted the
+        # other way, explains it as well (the stalled side tells nothing here)
+        other = np.where(S * sb < 0.0, any_cost, np.inf)
+        ambiguous = bool(other.min() <= cost[best] + ambiguity_cm)
     same = (np.abs(U - ub) < 1e-9) & (np.abs(A - ab) < 1e-9) & explains
     free = any(bool((same & (np.abs(S - (sb + d)) < 1e-9)).any()) for d in (free_cm, -free_cm))
     ch, sh = math.cos(pose.heading_rad), math.sin(pose.heading_rad)
