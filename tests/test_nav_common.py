@@ -544,6 +544,20 @@ def test_a_block_beside_the_anchor_continues_the_probe_series() -> None:
     assert nav._anchor == (300.0, 150.0, 0.0) and nav._nudge_off == 8.0
 
 
+def test_a_block_short_of_the_mouth_during_a_series_is_its_next_step() -> None:
+    """Dead reckoning 10 cm short of the corridor's mouth on a nudged route: no passage
+    at the body or the nose, yet with the series' anchor near the block is the next
+    probe, not an obstacle to learn (overlapping campaign 2:19); without a series, or
+    far from its anchor, it is not."""
+    nav = scraped_nav(0.0)
+    nav.pose = Pose(180.0, 112.0, 0.0)  # map (230, 162): nose 10 cm before x = 250
+    assert not nav._in_passage() and not nav._nudging_here()
+    nav._anchor, nav._nudge = (232.0, 150.0, 0.0), (0.0, 12.0, 232.0, 150.0)
+    assert nav._nudging_here()
+    nav.pose = Pose(50.0, 112.0, 0.0)  # map (100, 162): 132 cm back in the room
+    assert not nav._nudging_here()
+
+
 def test_the_doubted_heading_drifts_with_the_distance_from_where_it_arose() -> None:
     """A heading doubted by e moves the pose off by at most e [rad] times the straight
     distance from where the doubt arose: going 100 cm on and back adds nothing in the

@@ -1139,7 +1139,7 @@ class RouteNav(NavBase):
         back = self.o.backoff_cm
         if why == "blocked" and self._contact_fix():
             pass  # a mapped wall stopped it: the pose is corrected, nothing to learn
-        elif why == "blocked" and self._in_passage():
+        elif why == "blocked" and (self._in_passage() or self._nudging_here()):
             # a mapped wall on one side or the other: drift, nothing to learn; probe sideways
             self._last_block = (p.x, p.y, p.heading_deg)
             self._probe = True
@@ -1221,6 +1221,21 @@ class RouteNav(NavBase):
             if w is not None and w < self.o.probe_width_cm:
                 return True
         return False
+
+    def _nudging_here(self) -> bool:
+        """A nudge series is on and this block is within ``nudge_reach_cm`` of its anchor:
+        the nudged route met a wall again at the passage it looks for.
+
+        Why: blocked short of the mouth by dead reckoning (the nose a few cm before
+        it, or on the face beside it), the block was taken for an obstacle the map
+        does not show; learned inside a mapped wall it changed nothing, and the same
+        offset was driven again and again (overlapping campaign 2:19, truth log: the
+        +24 cm offset four times, 2 cm short of passing, until the replan limit).
+        The next offset is the search's next step."""
+        if self._nudge is None or self._anchor is None:
+            return False
+        p = self.map_pose
+        return math.dist((p.x, p.y), self._anchor[:2]) <= self.o.nudge_reach_cm
 
     def _probe_plan(self) -> bool:
         """Plan after a block in a narrow passage: the route shifted sideways at once.
