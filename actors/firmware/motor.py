@@ -167,6 +167,13 @@ class MotorTuning:
     ``short_other_ratio`` of its own."""
     short_other_ratio: float = 0.8
     """See ``short_ratio``."""
+    uneven_cm: float = 2.0
+    """In a straight move, a tread whose modelled travel exceeds its count by this much
+    more than the other's counts short too [cm]: the cross-coupling keeps the counts
+    level, so an encoder slipping at 0.8 shows only as the PWM its tread needs (25 %
+    more than the other's), while dead reckoning sees a straight line and the rover
+    turned 23 deg per 20 cm (campaign 1:38, truth log). Healthy 20 cm moves differ by
+    0.6 cm at most, an interrupt's quantum (0.5 cm) either way included."""
 
 
 class PoseMemory:
@@ -523,8 +530,7 @@ class MotorControl(Actor):
         about right (``NAV_TREAD_FAULT`` with bit 1 set), or both treads counting short
         (value 6: the mapper always, the others in turns); see the module docstring."""
         t = self.tuning
-        both_wanted = self._lidar or self._kind == Cmd.MOTOR_TURN
-        if both_wanted and not (any(self._short_sent) or any(self._silent_sent)) \
+        if not (any(self._short_sent) or any(self._silent_sent)) \
                 and min(self._modelled) >= t.short_after_cm \
                 and all(self._counted[i] < t.short_ratio * self._modelled[i] for i in (0, 1)):
             self._short_sent = [True, True]
@@ -536,8 +542,13 @@ class MotorControl(Actor):
             modelled, counted = self._modelled[tread], self._counted[tread]
             if self._short_sent[tread] or self._silent_sent[tread] or modelled < t.short_after_cm:
                 continue
-            if counted < t.short_ratio * modelled and \
-                    self._counted[other] >= t.short_other_ratio * self._modelled[other]:
+            short = counted < t.short_ratio * modelled and \
+                self._counted[other] >= t.short_other_ratio * self._modelled[other]
+            if not short and self._kind == Cmd.MOTOR_MOVE and counted > 0.0:
+                # driven further than the other for the same count (see ``uneven_cm``)
+                short = (modelled - counted) - (self._modelled[other] - self._counted[other]) \
+                    >= t.uneven_cm
+            if short:
                 self._short_sent[tread] = True
                 self.tread_faults += 1
                 self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 2 | tread))

@@ -606,7 +606,8 @@ class NavBase(Actor):
             fix = math.copysign(self.o.tread_turn_fix_deg, self._motion.amount)
             self.correct_pose(Pose(p.x, p.y, p.heading_deg + fix), sideways_known=False)
         await self.stop_motor()
-        if not turning or self._tread_strikes > self.o.tread_holds:  # as blocked (see above)
+        counts_short = bool(value & 2)
+        if (not turning and not counts_short) or self._tread_strikes > self.o.tread_holds:
             # a short hold all the same: the stopped motion's last pose and end arrive
             # meanwhile and are ignored, and the decision uses the pose at rest
             self._blocked, self._done = True, 0.0
