@@ -549,9 +549,32 @@ class MotorControl(Actor):
                 short = (modelled - counted) - (self._modelled[other] - self._counted[other]) \
                     >= t.uneven_cm
             if short:
+                if self._kind == Cmd.MOTOR_MOVE:
+                    self._split_heading()
                 self._short_sent[tread] = True
                 self.tread_faults += 1
                 self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 2 | tread))
+
+    def _split_heading(self) -> None:
+        """A tread counts short in a straight move: set the heading halfway between
+        what the counts say and what the modelled travel says.
+
+        Why: the cross-coupling holds the short-counting tread's count about an
+        interrupt or three behind the other's while it catches up, so a move stopped
+        at the report leaves the counts saying a turn toward that tread. A slipping
+        encoder (its tread really went as modelled) turned the rover the other way;
+        a weak motor (it really went as counted) turned it as counted. Motor Control
+        cannot tell the two apart; halfway bounds the error either way (campaign
+        1:38: 8-10 deg per stop, each believed the wrong way).
+        """
+        self._integrate()
+        sign = 1.0 if self._target[0] >= 0.0 else -1.0
+        counted = (self._counted[1] - self._counted[0]) * sign
+        modelled = (self._modelled[1] - self._modelled[0]) * sign
+        delta = math.degrees((modelled - counted) / self._track) / 2.0
+        p = self.memory.pose
+        self.memory.pose = Pose(p.x, p.y, p.heading_deg + delta)
+        self._pose_dirty = self._lidar_dirty = True
 
     def _watch_treads(self, period_pending: bool) -> None:
         """Report a driven tread that does not count while the other one does
