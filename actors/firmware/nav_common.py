@@ -599,8 +599,9 @@ class NavBase(Actor):
         self._tread_last = now
         both = bool(value & 4)
         self.tread_faults += 1
-        self.heading_err_deg += self.o.tread_both_deg if both else self.o.tread_fault_deg
         turning = self._motion.kind == "turn"
+        if turning or not both:  # both alike in a straight move turn nothing unseen
+            self.heading_err_deg += self.o.tread_both_deg if both else self.o.tread_fault_deg
         if turning and not value & 6:  # one tread silent in a turn (see tread_turn_fix_deg)
             p = self.map_pose
             fix = math.copysign(self.o.tread_turn_fix_deg, self._motion.amount)
