@@ -167,6 +167,12 @@ class MotorTuning:
     ``short_other_ratio`` of its own."""
     short_other_ratio: float = 0.8
     """See ``short_ratio``."""
+    both_move_ratio: float = 0.5
+    """Both treads counting short in a straight move of the hider or seeker: under this
+    share of their modelled travel (``short_ratio`` elsewhere). A rover sliding along a
+    wall it meets at an angle counts 0.55-0.65 (campaign 1:178: five reports, each a
+    hold, lost a game found without them); encoders slipping at 0.3-0.5 go 2-3 times
+    the counted distance (1:49: 60 cm per 20 cm move)."""
     push_ratio: float = 0.25
     """Both treads counting under this share of their modelled travel lately, in a move:
     pushing against something, blocked (see `MotorControl._pushing`)."""
@@ -537,9 +543,10 @@ class MotorControl(Actor):
         t = self.tuning
         if self._mark is None and min(self._modelled) >= t.short_after_cm / 2:
             self._mark = (sum(self._modelled), sum(self._counted))
+        ratio = t.short_ratio if self._kind == Cmd.MOTOR_TURN or self._lidar else t.both_move_ratio
         if not (any(self._short_sent) or any(self._silent_sent)) \
                 and min(self._modelled) >= t.short_after_cm \
-                and all(self._counted[i] < t.short_ratio * self._modelled[i] for i in (0, 1)):
+                and all(self._counted[i] < ratio * self._modelled[i] for i in (0, 1)):
             self._short_sent = [True, True]
             if self._kind == Cmd.MOTOR_MOVE and self._pushing():
                 self._finish(Cmd.NAV_MOTION_BLOCKED)
