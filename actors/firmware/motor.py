@@ -173,9 +173,11 @@ class MotorTuning:
     wall it meets at an angle counts 0.55-0.65 (campaign 1:178: five reports, each a
     hold, lost a game found without them); encoders slipping at 0.3-0.5 go 2-3 times
     the counted distance (1:49: 60 cm per 20 cm move)."""
-    push_ratio: float = 0.25
+    push_ratio: float = 0.2
     """Both treads counting under this share of their modelled travel lately, in a move:
     pushing against something, blocked (see `MotorControl._pushing`)."""
+    push_window_cm: float = 10.0
+    """"Lately": the last 10-20 cm of both treads' modelled travel together [cm]."""
     uneven_cm: float = 2.0
     """In a straight move, a tread whose modelled travel exceeds its count by this much
     more than the other's counts short too [cm]: the cross-coupling keeps the counts
@@ -252,7 +254,7 @@ class MotorControl(Actor):
         self._modelled = [0.0, 0.0]    # modelled travel in this command [cm]
         self._counted = [0.0, 0.0]     # counted travel in this command [cm]
         self._short_sent = [False, False]  # NAV_TREAD_FAULT (counts short) sent in this command
-        self._mark: tuple[float, float] | None = None  # (modelled, counted) sums halfway to a judgement
+        self._marks = [(0.0, 0.0)]     # (modelled, counted) sums every push_window_cm, last two
         self._run = [0, 0]             # Int E in a row without one from the other tread
         self._silent_sent = [False, False]  # NAV_TREAD_FAULT sent in this command
         self._pwm = (0.0, 0.0)          # the duties last set while driving
@@ -438,7 +440,7 @@ class MotorControl(Actor):
         self._modelled = [0.0, 0.0]
         self._counted = [0.0, 0.0]
         self._short_sent = [False, False]
-        self._mark = None
+        self._marks = [(0.0, 0.0)]
         self._model_v = [0.0, 0.0]
         self._run = [0, 0]
         self._model_t = now
@@ -541,8 +543,9 @@ class MotorControl(Actor):
         about right (``NAV_TREAD_FAULT`` with bit 1 set), or both treads counting short
         (value 6: the mapper always, the others in turns); see the module docstring."""
         t = self.tuning
-        if self._mark is None and min(self._modelled) >= t.short_after_cm / 2:
-            self._mark = (sum(self._modelled), sum(self._counted))
+        modelled = sum(self._modelled)
+        if modelled - self._marks[-1][0] >= t.push_window_cm:
+            self._marks = [self._marks[-1], (modelled, sum(self._counted))]
         ratio = t.short_ratio if self._kind == Cmd.MOTOR_TURN or self._lidar else t.both_move_ratio
         if not (any(self._short_sent) or any(self._silent_sent)) \
                 and min(self._modelled) >= t.short_after_cm \
@@ -580,13 +583,13 @@ class MotorControl(Actor):
         a rover that meets a wall counts right until then and next to nothing after,
         or a few % while it slides along a face it meets at an angle (campaign 1:127:
         12 %, a 20 cm move slid 37 cm unseen until navigation's timeout). Judged on
-        the travel since halfway to ``short_after_cm``; held for, a push wasted 24 s
-        and 40 deg of heading doubt (campaign 1:178).
+        the last ``push_window_cm`` to twice that of both treads' modelled travel, one
+        interrupt's quantum granted (two weak motors at 0.3 must not read as a push).
         """
-        modelled0, counted0 = self._mark or (0.0, 0.0)
+        modelled0, counted0 = self._marks[0]
         modelled = sum(self._modelled) - modelled0
         counted = sum(self._counted) - counted0
-        return counted < self.tuning.push_ratio * modelled
+        return counted + self._unit < self.tuning.push_ratio * modelled  # an interrupt's grace
 
     def _split_heading(self) -> None:
         """A tread counts short in a straight move: set the heading halfway between
