@@ -551,9 +551,11 @@ class MotorControl(Actor):
                 and min(self._modelled) >= t.short_after_cm \
                 and all(self._counted[i] < ratio * self._modelled[i] for i in (0, 1)):
             self._short_sent = [True, True]
-            if self._kind == Cmd.MOTOR_MOVE and self._pushing():
+            if self._kind == Cmd.MOTOR_MOVE and not self._lidar and self._pushing():
                 self._finish(Cmd.NAV_MOTION_BLOCKED)
                 return
+            if not self._lidar:
+                self._split_heading()
             self.tread_faults += 1
             self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 6))
             return
@@ -604,9 +606,10 @@ class MotorControl(Actor):
         1:38: 8-10 deg per stop, each believed the wrong way).
         """
         self._integrate()
-        sign = 1.0 if self._target[0] >= 0.0 else -1.0
-        counted = (self._counted[1] - self._counted[0]) * sign
-        modelled = (self._modelled[1] - self._modelled[0]) * sign
+        sl = math.copysign(1.0, self._target[0])
+        sr = math.copysign(1.0, self._target[1])
+        counted = self._counted[1] * sr - self._counted[0] * sl
+        modelled = self._modelled[1] * sr - self._modelled[0] * sl
         delta = math.degrees((modelled - counted) / self._track) / 2.0
         p = self.memory.pose
         self.memory.pose = Pose(p.x, p.y, p.heading_deg + delta)
