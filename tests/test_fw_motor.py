@@ -441,7 +441,7 @@ async def test_a_tread_driven_harder_for_level_counts_counts_short_in_a_move(
 
 @pytest.mark.trio
 async def test_both_treads_hardly_counting_lately_in_a_move_is_a_push(autojump_clock) -> None:
-    """Both treads count right, then 0.1 of their travel (a rover sliding along a wall it met
+    """Both treads count right, then 0.12 of their travel (a rover sliding along a wall it met
     at an angle: campaign 1:127, 12 %): the move ends blocked, without a value 6 (a push
     is not a fault to hold for); two slipping encoders counting 0.45 from the start are
     not a push (value 6, the move goes on to its count)."""
@@ -455,7 +455,7 @@ async def test_both_treads_hardly_counting_lately_in_a_move_is_a_push(autojump_c
             await system.send("hider/motor", Message.float(Cmd.MOTOR_MOVE, 60.0))
             await trio.sleep(0.5)
             if push:
-                counts[:] = [0.1, 0.1]
+                counts[:] = [0.12, 0.12]
             m = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED}, timeout=15.0)
             assert (m.command == Cmd.NAV_MOTION_BLOCKED) == push
             assert tread_reports(log) == ([] if push else [6])
