@@ -77,10 +77,21 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
     its own, the mapper's navigation gets value 6 (bit 2: both). Motor
     Control cannot tell this from two weak motors (which really go short, so
     their odometry is right); the mapper's LIDAR can. A hider or seeker gets
-    it in turns only (session 5, round 2): there a slip turns the rover
-    1/ratio times the count (campaign 1:24, both encoders at 0.31: found only
-    thanks to a chance single-tread report), while two weak motors cost one
-    hold per turn.
+    it in turns, and in straight moves under ``both_move_ratio`` (session 6:
+    a slip at 0.33 made each 20 cm move go 60, campaign 1:49; a rover sliding
+    along a wall counts 0.55-0.65). Two weak motors cost a hold. Both short
+    in a move while lately counting hardly at all is a push, not a fault:
+    the move ends blocked (`MotorControl._pushing`).
+
+    One tread driven harder for level counts: in a straight move the
+    cross-coupling keeps the counts level, so an encoder slipping at 0.8
+    shows only in the PWM its tread needs; a tread whose modelled travel runs
+    ``uneven_cm`` further ahead of its count than the other's counts short.
+
+    At a short count of the hider or seeker (one tread in a move, both in a
+    move or turn) the heading is set halfway between counts and model
+    (`MotorControl._split_heading`): neither a slip nor a weak motor is
+    known, and halfway bounds the error of both.
 
     The message: ``NAV_TREAD_FAULT``, value uint32: bit 0 the tread (0 left,
     1 right), bit 1 the kind (0 silent, 1 counts short), bit 2 both treads:
@@ -540,8 +551,9 @@ class MotorControl(Actor):
 
     def _watch_counts(self) -> None:
         """Report a tread that counts far less than it is driven while the other counts
-        about right (``NAV_TREAD_FAULT`` with bit 1 set), or both treads counting short
-        (value 6: the mapper always, the others in turns); see the module docstring."""
+        about right, or is driven further for the same count in a move
+        (``NAV_TREAD_FAULT`` with bit 1 set), or both treads counting short (value 6; a
+        push ends the move instead); see the module docstring."""
         t = self.tuning
         modelled = sum(self._modelled)
         if modelled - self._marks[-1][0] >= t.push_window_cm:
