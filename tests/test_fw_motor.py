@@ -408,15 +408,74 @@ async def test_both_treads_counting_alike_slowly_is_no_silent_tread(autojump_clo
 
 @pytest.mark.trio
 @pytest.mark.parametrize(("counts", "lidar", "expected"), [
-    ((0.45, 0.45), True, [6, 6, 6]), ((0.45, 0.45), False, [6]),
+    ((0.45, 0.45), True, [6, 6, 6]), ((0.45, 0.45), False, [6, 6, 6]),
+    ((0.6, 0.6), False, [6]), ((0.6, 0.6), True, [6, 6, 6]),
     ((1.0, 1.0), True, []), ((1.0, 0.45), True, [3, 3, 3])],
-    ids=["both-short-mapper", "both-short-hider", "healthy-mapper", "right-short-mapper"])
+    ids=["both-short-mapper", "both-short-hider", "both-0.6-hider", "both-0.6-mapper",
+         "healthy-mapper", "right-short-mapper"])
 async def test_both_treads_counting_short_are_reported_to_the_mapper_and_in_turns(
         autojump_clock, counts, lidar, expected) -> None:
-    """Both encoders slipping alike (each counts 0.45): the mapper's navigation gets value 6
-    once in each command long enough to judge (the moves and the 90 deg turn), and no
-    single-tread report with it; a hider (no LIDAR to tell a slip from two weak motors)
-    gets it in the turn only (a slip there turns it 1/0.45 times the count: campaign
-    1:24); one tread short is still reported as that tread."""
+    """Both encoders slipping alike (each counts 0.45): navigation gets value 6 once in
+    each command long enough to judge (the moves and the 90 deg turn), and no
+    single-tread report with it. A hider's moves are judged at 0.5, not 0.65: counting
+    0.6 (a rover sliding along a wall counts 0.55-0.65, campaign 1:178) is reported in
+    the turn only, the mapper's everywhere; one tread short is still reported as that
+    tread."""
     log, _ = await run_commands(counts, FOUR, horizon=30.0, lidar=lidar)
     assert [r for r in tread_reports(log) if r & 2] == expected
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize(("counts", "expected"), [((0.8, 1.0), {2}), ((1.0, 0.8), {3}),
+                                                  ((1.0, 1.0), set())],
+                         ids=["left-0.8", "right-0.8", "healthy"])
+async def test_a_tread_driven_harder_for_level_counts_counts_short_in_a_move(
+        autojump_clock, counts, expected) -> None:
+    """One encoder counting 0.8 (above ``short_ratio``): the cross-coupling keeps the counts
+    level, so only the PWM it needs shows it (campaign 1:38: 23 deg turned unseen per
+    20 cm). In the 40 cm move that tread is reported as counting short; healthy treads
+    are not (their modelled travel stays within the ``uneven_cm`` of each other)."""
+    log, _ = await run_commands(counts, [(Cmd.MOTOR_MOVE, 40.0)], horizon=10.0)
+    assert set(tread_reports(log)) == expected
+
+
+@pytest.mark.trio
+async def test_both_treads_hardly_counting_lately_in_a_move_is_a_push(autojump_clock) -> None:
+    """Both treads count right, then 0.12 of their travel (a rover sliding along a wall it met
+    at an angle: campaign 1:127, 12 %): the move ends blocked, without a value 6 (a push
+    is not a fault to hold for); two slipping encoders counting 0.45 from the start are
+    not a push (value 6, the move goes on to its count)."""
+    for counts, push in (([1.0, 1.0], True), ([0.45, 0.45], False)):
+        hw = FakeHardware()
+        log: list = []
+        async with open_actor_system(1) as system, trio.open_nursery() as nursery:
+            await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
+            nursery.start_soon(drive_fake_treads, hw, counts, trio.current_time() + 20.0,
+                               (0.0, 0.25))
+            await system.send("hider/motor", Message.float(Cmd.MOTOR_MOVE, 60.0))
+            await trio.sleep(0.5)
+            if push:
+                counts[:] = [0.12, 0.12]
+            m = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED}, timeout=15.0)
+            assert (m.command == Cmd.NAV_MOTION_BLOCKED) == push
+            assert tread_reports(log) == ([] if push else [6])
+            nursery.cancel_scope.cancel()
+
+
+@pytest.mark.parametrize(("target", "counted", "modelled"), [
+    ((20.0, 20.0), (7.5, 9.0), (9.2, 8.5)), ((-20.0, -20.0), (7.5, 9.0), (9.2, 8.5)),
+    ((-6.0, 6.0), (2.5, 2.5), (5.2, 5.6))], ids=["forward", "backward", "turn"])
+def test_a_short_count_sets_the_heading_halfway_between_counts_and_model(
+        target, counted, modelled) -> None:
+    """At a short-count report the heading is put halfway between what the counts and what
+    the modelled travel say: a slipping encoder (the model is right) and a weak motor
+    (the counts are right) read the same, and halfway bounds the error either way."""
+    memory = PoseMemory()
+    motor = MotorControl(FakeHardware(), memory)
+    signs = [math.copysign(1.0, t) for t in target]
+    by_counts = math.degrees((counted[1] * signs[1] - counted[0] * signs[0]) / 13.0)
+    by_model = math.degrees((modelled[1] * signs[1] - modelled[0] * signs[0]) / 13.0)
+    memory.pose = dataclasses.replace(memory.pose, heading_deg=by_counts)
+    motor._target, motor._counted, motor._modelled = target, list(counted), list(modelled)
+    motor._split_heading()
+    assert memory.pose.heading_deg == pytest.approx((by_counts + by_model) / 2, abs=1e-6)

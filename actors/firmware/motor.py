@@ -77,10 +77,21 @@ A tread that is driven but does not count (``NAV_TREAD_FAULT``)
     its own, the mapper's navigation gets value 6 (bit 2: both). Motor
     Control cannot tell this from two weak motors (which really go short, so
     their odometry is right); the mapper's LIDAR can. A hider or seeker gets
-    it in turns only (session 5, round 2): there a slip turns the rover
-    1/ratio times the count (campaign 1:24, both encoders at 0.31: found only
-    thanks to a chance single-tread report), while two weak motors cost one
-    hold per turn.
+    it in turns, and in straight moves under ``both_move_ratio`` (session 6:
+    a slip at 0.33 made each 20 cm move go 60, campaign 1:49; a rover sliding
+    along a wall counts 0.55-0.65). Two weak motors cost a hold. Both short
+    in a move while lately counting hardly at all is a push, not a fault:
+    the move ends blocked (`MotorControl._pushing`).
+
+    One tread driven harder for level counts: in a straight move the
+    cross-coupling keeps the counts level, so an encoder slipping at 0.8
+    shows only in the PWM its tread needs; a tread whose modelled travel runs
+    ``uneven_cm`` further ahead of its count than the other's counts short.
+
+    At a short count of the hider or seeker (one tread in a move, both in a
+    move or turn) the heading is set halfway between counts and model
+    (`MotorControl._split_heading`): neither a slip nor a weak motor is
+    known, and halfway bounds the error of both.
 
     The message: ``NAV_TREAD_FAULT``, value uint32: bit 0 the tread (0 left,
     1 right), bit 1 the kind (0 silent, 1 counts short), bit 2 both treads:
@@ -167,6 +178,24 @@ class MotorTuning:
     ``short_other_ratio`` of its own."""
     short_other_ratio: float = 0.8
     """See ``short_ratio``."""
+    both_move_ratio: float = 0.5
+    """Both treads counting short in a straight move of the hider or seeker: under this
+    share of their modelled travel (``short_ratio`` elsewhere). A rover sliding along a
+    wall it meets at an angle counts 0.55-0.65 (campaign 1:178: five reports, each a
+    hold, lost a game found without them); encoders slipping at 0.3-0.5 go 2-3 times
+    the counted distance (1:49: 60 cm per 20 cm move)."""
+    push_ratio: float = 0.2
+    """Both treads counting under this share of their modelled travel lately, in a move:
+    pushing against something, blocked (see `MotorControl._pushing`)."""
+    push_window_cm: float = 10.0
+    """"Lately": the last 10-20 cm of both treads' modelled travel together [cm]."""
+    uneven_cm: float = 2.0
+    """In a straight move, a tread whose modelled travel exceeds its count by this much
+    more than the other's counts short too [cm]: the cross-coupling keeps the counts
+    level, so an encoder slipping at 0.8 shows only as the PWM its tread needs (25 %
+    more than the other's), while dead reckoning sees a straight line and the rover
+    turned 23 deg per 20 cm (campaign 1:38, truth log). Healthy 20 cm moves differ by
+    0.6 cm at most, an interrupt's quantum (0.5 cm) either way included."""
 
 
 class PoseMemory:
@@ -236,6 +265,7 @@ class MotorControl(Actor):
         self._modelled = [0.0, 0.0]    # modelled travel in this command [cm]
         self._counted = [0.0, 0.0]     # counted travel in this command [cm]
         self._short_sent = [False, False]  # NAV_TREAD_FAULT (counts short) sent in this command
+        self._marks = [(0.0, 0.0)]     # (modelled, counted) sums every push_window_cm, last two
         self._run = [0, 0]             # Int E in a row without one from the other tread
         self._silent_sent = [False, False]  # NAV_TREAD_FAULT sent in this command
         self._pwm = (0.0, 0.0)          # the duties last set while driving
@@ -421,6 +451,7 @@ class MotorControl(Actor):
         self._modelled = [0.0, 0.0]
         self._counted = [0.0, 0.0]
         self._short_sent = [False, False]
+        self._marks = [(0.0, 0.0)]
         self._model_v = [0.0, 0.0]
         self._run = [0, 0]
         self._model_t = now
@@ -520,14 +551,23 @@ class MotorControl(Actor):
 
     def _watch_counts(self) -> None:
         """Report a tread that counts far less than it is driven while the other counts
-        about right (``NAV_TREAD_FAULT`` with bit 1 set), or both treads counting short
-        (value 6: the mapper always, the others in turns); see the module docstring."""
+        about right, or is driven further for the same count in a move
+        (``NAV_TREAD_FAULT`` with bit 1 set), or both treads counting short (value 6; a
+        push ends the move instead); see the module docstring."""
         t = self.tuning
-        both_wanted = self._lidar or self._kind == Cmd.MOTOR_TURN
-        if both_wanted and not (any(self._short_sent) or any(self._silent_sent)) \
+        modelled = sum(self._modelled)
+        if modelled - self._marks[-1][0] >= t.push_window_cm:
+            self._marks = [self._marks[-1], (modelled, sum(self._counted))]
+        ratio = t.short_ratio if self._kind == Cmd.MOTOR_TURN or self._lidar else t.both_move_ratio
+        if not (any(self._short_sent) or any(self._silent_sent)) \
                 and min(self._modelled) >= t.short_after_cm \
-                and all(self._counted[i] < t.short_ratio * self._modelled[i] for i in (0, 1)):
+                and all(self._counted[i] < ratio * self._modelled[i] for i in (0, 1)):
             self._short_sent = [True, True]
+            if self._kind == Cmd.MOTOR_MOVE and not self._lidar and self._pushing():
+                self._finish(Cmd.NAV_MOTION_BLOCKED)
+                return
+            if not self._lidar:
+                self._split_heading()
             self.tread_faults += 1
             self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 6))
             return
@@ -536,11 +576,56 @@ class MotorControl(Actor):
             modelled, counted = self._modelled[tread], self._counted[tread]
             if self._short_sent[tread] or self._silent_sent[tread] or modelled < t.short_after_cm:
                 continue
-            if counted < t.short_ratio * modelled and \
-                    self._counted[other] >= t.short_other_ratio * self._modelled[other]:
+            short = counted < t.short_ratio * modelled and \
+                self._counted[other] >= t.short_other_ratio * self._modelled[other]
+            if not short and self._kind == Cmd.MOTOR_MOVE and counted > 0.0:
+                # driven further than the other for the same count (see ``uneven_cm``)
+                short = (modelled - counted) - (self._modelled[other] - self._counted[other]) \
+                    >= t.uneven_cm
+            if short:
+                if self._kind == Cmd.MOTOR_MOVE:
+                    self._split_heading()
                 self._short_sent[tread] = True
                 self.tread_faults += 1
                 self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 2 | tread))
+
+    def _pushing(self) -> bool:
+        """Both treads count short in a move, and lately hardly at all: the rover pushes
+        against something (blocked), not two slipping encoders.
+
+        Why: slipping encoders count 0.3-0.8 of the travel from the moment they slip;
+        a rover that meets a wall counts right until then and next to nothing after,
+        or a few % while it slides along a face it meets at an angle (campaign 1:127:
+        12 %, a 20 cm move slid 37 cm unseen until navigation's timeout). Judged on
+        the last ``push_window_cm`` to twice that of both treads' modelled travel, one
+        interrupt's quantum granted (two weak motors at 0.3 must not read as a push).
+        """
+        modelled0, counted0 = self._marks[0]
+        modelled = sum(self._modelled) - modelled0
+        counted = sum(self._counted) - counted0
+        return counted + self._unit < self.tuning.push_ratio * modelled  # an interrupt's grace
+
+    def _split_heading(self) -> None:
+        """A tread counts short in a straight move: set the heading halfway between
+        what the counts say and what the modelled travel says.
+
+        Why: the cross-coupling holds the short-counting tread's count about an
+        interrupt or three behind the other's while it catches up, so a move stopped
+        at the report leaves the counts saying a turn toward that tread. A slipping
+        encoder (its tread really went as modelled) turned the rover the other way;
+        a weak motor (it really went as counted) turned it as counted. Motor Control
+        cannot tell the two apart; halfway bounds the error either way (campaign
+        1:38: 8-10 deg per stop, each believed the wrong way).
+        """
+        self._integrate()
+        sl = math.copysign(1.0, self._target[0])
+        sr = math.copysign(1.0, self._target[1])
+        counted = self._counted[1] * sr - self._counted[0] * sl
+        modelled = self._modelled[1] * sr - self._modelled[0] * sl
+        delta = math.degrees((modelled - counted) / self._track) / 2.0
+        p = self.memory.pose
+        self.memory.pose = Pose(p.x, p.y, p.heading_deg + delta)
+        self._pose_dirty = self._lidar_dirty = True
 
     def _watch_treads(self, period_pending: bool) -> None:
         """Report a driven tread that does not count while the other one does

@@ -147,6 +147,8 @@ class NavOptions:
     in campaign game 1:11 with the encoder suffix, 28 deg in 2:27, truth logs); a
     stalled motor reports the same having turned as counted. 12, about half the
     first: the error left either way is under 12-16 deg, not 0 or 28."""
+    tread_contact_s: float = 15.0
+    """A short count in a move this soon after a block ends it as blocked, not held [s]."""
     tread_stop_s: float = 1.0
     """A tread fault that ends its motion as blocked waits this long before deciding [s]."""
     contact_fixes: int = 4
@@ -422,6 +424,7 @@ class NavBase(Actor):
         self._hold_until = math.inf  # holding still after a tread fault until then
         self._tread_strikes = 0
         self._tread_last = -math.inf
+        self._blocked_t = -math.inf  # when a motion last ended blocked [s]
         self._xy_mm: tuple[int, int] | None = None
         self._motion: Motion | None = None
         self.last_motion: Motion | None = None
@@ -596,15 +599,19 @@ class NavBase(Actor):
         self._tread_last = now
         both = bool(value & 4)
         self.tread_faults += 1
-        self._fault_base_cm, self._fault_from = self.fault_drift_cm, (self.pose.x, self.pose.y)
-        self.heading_err_deg += self.o.tread_both_deg if both else self.o.tread_fault_deg
         turning = self._motion.kind == "turn"
+        if turning or not both:  # both alike in a straight move turn nothing unseen
+            self._fault_base_cm, self._fault_from = self.fault_drift_cm, (self.pose.x, self.pose.y)
+            self.heading_err_deg += self.o.tread_both_deg if both else self.o.tread_fault_deg
         if turning and not value & 6:  # one tread silent in a turn (see tread_turn_fix_deg)
             p = self.map_pose
             fix = math.copysign(self.o.tread_turn_fix_deg, self._motion.amount)
             self.correct_pose(Pose(p.x, p.y, p.heading_deg + fix), sideways_known=False)
         await self.stop_motor()
-        if not turning or self._tread_strikes > self.o.tread_holds:  # as blocked (see above)
+        # a short count in a move holds, unless the rover was blocked just before: in
+        # contact with a wall, scraping along it counts short as well (campaign 1:23)
+        held_move = bool(value & 2) and now - self._blocked_t > self.o.tread_contact_s
+        if (not turning and not held_move) or self._tread_strikes > self.o.tread_holds:
             # a short hold all the same: the stopped motion's last pose and end arrive
             # meanwhile and are ignored, and the decision uses the pose at rest
             self._blocked, self._done = True, 0.0
@@ -629,6 +636,7 @@ class NavBase(Actor):
         self._blocked, self._done = blocked, done
         if blocked:
             self.counters["blocked"] += 1
+            self._blocked_t = trio.current_time()
         self._pose_deadline = trio.current_time() + self.o.pose_wait_s
         await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
 
