@@ -42,7 +42,7 @@ import numpy as np
 import trio
 
 from actors import Actor, BufferPool, Message, PoolExhausted, ValueType
-from actors.firmware.clearance import passage_width, turning_radius_cm
+from actors.firmware.clearance import occupied_near, passage_width, turning_radius_cm
 from actors.firmware.commands import Cmd
 from actors.firmware.contact import locate_contact, stalled_side
 from actors.firmware.devices import HardwareSpec
@@ -595,6 +595,9 @@ class NavBase(Actor):
         if self._motion is None:
             return  # standing (or holding) already: the report is of a motion given up
         now = trio.current_time()
+        if value & 6 == 6 and self._motion.kind == "move" \
+                and now - self._blocked_t > self.o.tread_contact_s and self._wall_within_drift():
+            return  # a slide along a wall the rover may touch: the move goes on (hall 5)
         self._tread_strikes = self._tread_strikes + 1 if now - self._tread_last <= 60.0 else 1
         self._tread_last = now
         both = bool(value & 4)
@@ -627,6 +630,28 @@ class NavBase(Actor):
         else:
             kind = "do not count" if both else "does not count"
         await self.status(self.state, f"{side} {kind}; holding {hold:.0f} s")
+
+    def _wall_within_drift(self) -> bool:
+        """A mapped wall lies within the body's radius plus ``drift_cm`` of the believed
+        position: the rover may be touching it, though it believes itself clear.
+
+        Why: both treads counting short in a move read the same whether both encoders
+        slip (the rover goes 2-3 times what counts, campaign 1:49: held for) or the
+        rover slides along a wall it met at an angle (healthy hall 5: the hider 45 cm
+        from where it believed after a 7 m leg, sliding along the stage's face at 0.29;
+        three holds and a block left it 62 cm from its spot, not found). Only the
+        map and the doubt about the pose tell them apart: slipping on open floor far
+        from any wall, a slide only where a wall can be. Occupied cells' centres.
+        """
+        grid = getattr(self, "map", None)  # the server's map (RouteNav), None before it
+        if grid is None:
+            return False
+        reach = self.radius_cm + self.drift_cm
+        near = occupied_near(grid, self.map_pose, reach)
+        if near is None:
+            return False
+        px, py, _, _ = near
+        return float(np.min(np.hypot(px, py))) <= reach
 
     async def _on_motion_end(self, blocked: bool, done: float) -> None:
         if self._motion is None:
