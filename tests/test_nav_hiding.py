@@ -283,6 +283,26 @@ async def test_a_short_count_in_a_move_holds_and_both_short_adds_no_heading_doub
 
 
 @pytest.mark.trio
+async def test_both_short_in_a_move_where_a_wall_may_touch_is_a_slide_not_held(
+        autojump_clock) -> None:
+    """Value 6 in a straight move while a mapped wall lies within the body's radius
+    plus the pose's doubt (``drift_cm``): the rover may be sliding along that wall
+    (healthy hall 5), which counts short just like two slipping encoders. The move
+    is not stopped, nothing is held, the route arrives unblocked. The same report
+    with the walls beyond that reach holds (see above)."""
+    async with hider_at_first("MOTOR_MOVE", STRAIGHT_ON) as (system, body, nav):
+        nav.driven_cm = 1500.0  # a long drive: 60 cm of doubt reaches the walls 50 cm off
+        n = len(body.motor_log)
+        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 6))
+        await trio.sleep(0.1)
+        assert nav.moving and nav.heading_err_deg == 0.0
+        assert not any(c == "MOTOR_STOP" for c, _ in body.motor_log[n:])
+        assert not any("holding" in f.data.get("detail", "") for f in body.frames("status"))
+        assert await wait_for(lambda: body.frames("arrived"), 30.0)
+        assert nav.counters["blocked"] == 0
+
+
+@pytest.mark.trio
 async def test_a_tread_fault_while_standing_is_ignored(autojump_clock) -> None:
     """A report arriving after the motion ended (nothing in flight) starts no hold."""
     body = Body(truth=own_truth())
