@@ -586,6 +586,8 @@ class NavBase(Actor):
         straight move a tread scraping along a wall stalls and reports the
         same (healthy hall 3: 36 s held for nothing), so a move ends as
         blocked and the route's block handling (contact fix, back-off) follows.
+        Both treads short in a move where a mapped wall may touch the body
+        (`_wall_within_drift`) are a slide along it: nothing is stopped or held.
         The error already made is not seen:
         ``heading_err_deg`` grows by ``tread_fault_deg``, so `drift_cm` grows
         with every cm driven afterwards (the seeker's search ring widens, the
