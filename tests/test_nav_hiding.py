@@ -110,6 +110,35 @@ async def test_hider_replans_after_being_blocked(autojump_clock) -> None:
 
 
 @pytest.mark.trio
+async def test_a_map_that_never_comes_is_asked_for_again_with_a_doubling_wait(
+        autojump_clock) -> None:
+    """The map lost on the way (a corrupted chunk refused: held-out campaign game 3:184
+    waited for it 550 s): asked again after 20 s, then 40 s; once it comes the hider
+    drives, and asks no more."""
+    body = Body(truth=own_truth())
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await net(system, pool, "hider", "origin", ORIGIN)
+        await net(system, pool, "hider", "start")
+        await net(system, pool, "hider", "destination", {"x": 250.0, "y": 50.0, "heading": 90.0})
+        requests = lambda: len(body.frames("map_request"))  # noqa: E731
+        await trio.sleep(19.0)
+        assert requests() == 1
+        assert await wait_for(lambda: requests() == 2, 2.0)
+        await trio.sleep(37.0)
+        assert requests() == 2  # the second wait is 40 s
+        assert await wait_for(lambda: requests() == 3, 4.0)
+        await download(system, pool, "hider", room_map(TRUTH_MAP))
+        assert await wait_for(lambda: any(c == "MOTOR_MOVE" for c, _ in body.motor_log), 10.0)
+        nav = system.whereis("hider/nav").actor
+        held = nav.map
+        await download(system, pool, "hider", room_map(TRUTH_MAP))  # a late second answer
+        assert await wait_for(lambda: body.frames("arrived"), 120.0)
+        assert requests() == 3 and nav.map is held
+
+
+@pytest.mark.trio
 async def test_hider_nav_crash_mid_route_resumes_and_arrives(autojump_clock) -> None:
     """A navigation crash while driving: the new incarnation re-requests the map and arrives."""
     body = Body(truth=own_truth())

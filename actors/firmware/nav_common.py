@@ -151,6 +151,14 @@ class NavOptions:
     """A short count in a move this soon after a block ends it as blocked, not held [s]."""
     tread_stop_s: float = 1.0
     """A tread fault that ends its motion as blocked waits this long before deciding [s]."""
+    map_retry_s: float = 20.0
+    """Waiting for the map this long asks the server again, the wait doubling each time
+    up to ``map_retry_max_s`` [s]. A map lost on the way (a chunk corrupted on the link
+    is refused and the map never completes: held-out campaign game 3:184 waited 550 s)
+    or refused ("no map yet", "outbox full; request the map later") comes again; the
+    doubling lets a slow transfer finish before it is asked for once more."""
+    map_retry_max_s: float = 160.0
+    """See ``map_retry_s``."""
     contact_fixes: int = 4
     """Pose corrections from contacts with mapped walls per route, at most (see `contact`)."""
     contact_max_shift_cm: float = 14.0
@@ -894,13 +902,24 @@ class RouteNav(NavBase):
         self._nudge_off = 0.0  # the last sideways offset tried [cm], signed (left +)
         self._nudge_first = 1.0  # the side a series of nudges tries first
         self._sidestep = False  # the nudge in flight starts with a sidestep (`_nudged`)
+        self.map_requests = 0
+        """``map_request`` frames sent (see ``NavOptions.map_retry_s``)."""
+        self._map_wait = 0.0  # the wait before the next request [s]
+        self._map_again = math.inf  # ask again at this time, if still waiting
 
     # ------------------------------------------------------------------ server
     async def on_start_cmd(self) -> None:
         if self.map is None:
-            await self.report("map_request")
+            await self._request_map(self.o.map_retry_s)
             await self.set_state("waiting_map", "map requested")
         await self._proceed()
+
+    async def _request_map(self, wait_s: float) -> None:
+        """Ask the server for the map; ask again after ``wait_s`` if none came."""
+        self.map_requests += 1
+        self._map_wait = wait_s
+        self._map_again = trio.current_time() + wait_s
+        await self.report("map_request")
 
     async def on_stop_cmd(self) -> None:
         self.follower = None
@@ -908,6 +927,8 @@ class RouteNav(NavBase):
         await super().on_stop_cmd()
 
     async def on_map_download(self, grid: GridMap) -> None:
+        if self.map is not None and self.map_requests > 1 and self.state != "waiting_map":
+            return  # a second answer to a repeated request: keep the obstacles learned
         self.map = self.work_map = grid
         if self.state == "waiting_map":
             await self.set_state("ready", "map received")
@@ -939,6 +960,8 @@ class RouteNav(NavBase):
         """Hook: map, origin and destination are known; act on the destination."""
 
     async def on_tick(self, now: float) -> None:
+        if self.state == "waiting_map" and self.map is None and now >= self._map_again:
+            await self._request_map(min(2.0 * self._map_wait, self.o.map_retry_max_s))
         await self._proceed()
 
     # ------------------------------------------------------------------ routes
