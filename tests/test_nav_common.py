@@ -239,13 +239,18 @@ async def download(system: Any, pool: BufferPool, rover: str, grid: GridMap) -> 
     await system.send(f"{rover}/nav", Message.handle(Cmd.NAV_MAP_DOWNLOAD, pool.put(grid)))
 
 
-async def send_route(system: Any, pool: BufferPool, rover: str, origin: Any, dest: Any,
-                     grid: GridMap) -> None:
-    """What the server sends for ``hide`` / ``seek``: origin, start, destination; then,
-    once navigation asked for it, the map."""
+async def send_orders(system: Any, pool: BufferPool, rover: str, origin: Any,
+                      dest: Any) -> None:
+    """What the server sends for ``hide`` / ``seek`` at once: origin, start, destination."""
     await net(system, pool, rover, "origin", origin)
     await net(system, pool, rover, "start")
     await net(system, pool, rover, "destination", dest)
+
+
+async def send_route(system: Any, pool: BufferPool, rover: str, origin: Any, dest: Any,
+                     grid: GridMap) -> None:
+    """`send_orders`; then, once navigation asked for it, the map."""
+    await send_orders(system, pool, rover, origin, dest)
     await trio.sleep(0.5)
     await download(system, pool, rover, grid)
 

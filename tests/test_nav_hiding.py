@@ -16,9 +16,9 @@ from tests.test_nav_common import (
     Body,
     Truth,
     download,
-    net,
     room_map,
     rover_spec,
+    send_orders,
     send_route,
     wait_for,
 )
@@ -119,9 +119,7 @@ async def test_a_map_that_never_comes_is_asked_for_again_with_a_doubling_wait(
     pool = BufferPool(64)
     async with open_actor_system(seed=1) as system:
         await system.start_supervisor(rover_spec("hider", body, pool), "hider")
-        await net(system, pool, "hider", "origin", ORIGIN)
-        await net(system, pool, "hider", "start")
-        await net(system, pool, "hider", "destination", {"x": 250.0, "y": 50.0, "heading": 90.0})
+        await send_orders(system, pool, "hider", ORIGIN, {"x": 250.0, "y": 50.0, "heading": 90.0})
         requests = lambda: len(body.frames("map_request"))  # noqa: E731
         await trio.sleep(19.0)
         assert requests() == 1
@@ -166,9 +164,7 @@ async def test_hider_passes_a_gap_barely_wider_than_its_turning_disc(autojump_cl
     pool = BufferPool(64)
     async with open_actor_system(seed=1) as system:
         await system.start_supervisor(rover_spec("hider", body, pool), "hider")
-        await net(system, pool, "hider", "origin", ORIGIN)
-        await net(system, pool, "hider", "start")
-        await net(system, pool, "hider", "destination", {"x": 300.0, "y": 60.0, "heading": 270.0})
+        await send_orders(system, pool, "hider", ORIGIN, {"x": 300.0, "y": 60.0, "heading": 270.0})
         await trio.sleep(0.5)
         await download(system, pool, "hider", room_map(truth_map))
         assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
@@ -196,9 +192,7 @@ async def test_hider_finds_a_gap_its_dead_reckoning_misses_by_nudging_sideways(a
     options = NavOptions(contact_fixes=0)  # the search alone, without contact localisation
     async with open_actor_system(seed=1) as system:
         await system.start_supervisor(rover_spec("hider", body, pool, options=options), "hider")
-        await net(system, pool, "hider", "origin", ORIGIN)
-        await net(system, pool, "hider", "start")
-        await net(system, pool, "hider", "destination", {"x": 300.0, "y": 60.0, "heading": 270.0})
+        await send_orders(system, pool, "hider", ORIGIN, {"x": 300.0, "y": 60.0, "heading": 270.0})
         await trio.sleep(0.5)
         await download(system, pool, "hider", room_map(Truth(0, 0, 400, 300, boxes=map_boxes)))
         assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),

@@ -642,26 +642,9 @@ class NavBase(Actor):
         await self.status(self.state, f"{side} {kind}; holding {hold:.0f} s")
 
     def _wall_within_drift(self) -> bool:
-        """A mapped wall lies within the body's radius plus ``drift_cm`` of the believed
-        position: the rover may be touching it, though it believes itself clear.
-
-        Why: both treads counting short in a move read the same whether both encoders
-        slip (the rover goes 2-3 times what counts, campaign 1:49: held for) or the
-        rover slides along a wall it met at an angle (healthy hall 5: the hider 45 cm
-        from where it believed after a 7 m leg, sliding along the stage's face at 0.29;
-        three holds and a block left it 62 cm from its spot, not found). Only the
-        map and the doubt about the pose tell them apart: slipping on open floor far
-        from any wall, a slide only where a wall can be. Occupied cells' centres.
-        """
-        grid = getattr(self, "map", None)  # the server's map (RouteNav), None before it
-        if grid is None:
-            return False
-        reach = self.radius_cm + self.drift_cm
-        near = occupied_near(grid, self.map_pose, reach)
-        if near is None:
-            return False
-        px, py, _, _ = near
-        return float(np.min(np.hypot(px, py))) <= reach
+        """Hook: a mapped wall may touch the body (see `RouteNav._wall_within_drift`).
+        Without the server's map (the mapper) there is none to know of."""
+        return False
 
     async def _on_motion_end(self, blocked: bool, done: float) -> None:
         if self._motion is None:
@@ -1279,6 +1262,27 @@ class RouteNav(NavBase):
             if w is not None and w < self.o.probe_width_cm:
                 return True
         return False
+
+    def _wall_within_drift(self) -> bool:
+        """A mapped wall lies within the body's radius plus ``drift_cm`` of the believed
+        position: the rover may be touching it, though it believes itself clear.
+
+        Why: both treads counting short in a move read the same whether both encoders
+        slip (the rover goes 2-3 times what counts, campaign 1:49: held for) or the
+        rover slides along a wall it met at an angle (healthy hall 5: the hider 45 cm
+        from where it believed after a 7 m leg, sliding along the stage's face at 0.29;
+        three holds and a block left it 62 cm from its spot, not found). Only the
+        map and the doubt about the pose tell them apart: slipping on open floor far
+        from any wall, a slide only where a wall can be. Occupied cells' centres.
+        """
+        if self.map is None:
+            return False
+        reach = self.radius_cm + self.drift_cm
+        near = occupied_near(self.map, self.map_pose, reach)
+        if near is None:
+            return False
+        px, py, _, _ = near
+        return float(np.min(np.hypot(px, py))) <= reach
 
     def _nudging_here(self) -> bool:
         """A nudge series is on and this block is within ``nudge_reach_cm`` of its anchor:
