@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 from .protocol import (
     DESTINATION,
+    MAX_WITHIN_CM,
     ORIGIN,
     START,
     STOP,
@@ -136,12 +137,28 @@ class Game:
     # -- operator ------------------------------------------------------------------
 
     def command(self, name: str, *, x: float | None = None, y: float | None = None,
-                heading: float | None = None, frame: str = "map") -> Result:
-        """Apply an operator command; illegal ones are refused with a reason."""
+                heading: float | None = None, frame: str = "map",
+                within: float | None = None) -> Result:
+        """Apply an operator command; illegal ones are refused with a reason.
+
+        ``within`` [cm] belongs to ``seek`` only: the hider is believed within that of
+        (x, y), so the seeker searches that far round it (a wider search after a guess
+        failed); without it the seeker looks within its IR range of the point.
+        """
         if name not in COMMANDS:
             return _refuse(f"unknown command {name!r}; expected one of {', '.join(COMMANDS)}")
         if frame not in ("map", "room"):
             return _refuse(f"frame must be 'map' or 'room', got {frame!r}")
+        if within is not None:
+            if name != "seek":
+                return _refuse(f"within applies to seek only, not {name}")
+            try:
+                within = float(within)
+            except (TypeError, ValueError):
+                return _refuse(f"within must be a number of cm, got {within!r}")
+            if not 0.0 < within <= MAX_WITHIN_CM:
+                return _refuse(f"within must be in (0, {MAX_WITHIN_CM:g}] cm, got {within:g}")
+            return self._cmd_seek(x, y, heading, frame, within)
         return getattr(self, f"_cmd_{name}")(x, y, heading, frame)
 
     def _cmd_start_mapping(self, x, y, heading, frame) -> Result:
@@ -200,7 +217,7 @@ class Game:
                                    Send("hider", make_frame(START)),
                                    Send("hider", make_frame(DESTINATION, dest))))
 
-    def _cmd_seek(self, x, y, heading, frame) -> Result:
+    def _cmd_seek(self, x, y, heading, frame, within: float | None = None) -> Result:
         if self.phase not in (Phase.HIDDEN, Phase.NOT_FOUND):
             return _refuse(f"seek needs phase hidden or not_found, the game is {self.phase}")
         placed = self._origin_and_spot("seeker", "seek", x, y, heading, frame)
@@ -210,6 +227,8 @@ class Game:
         self.guesses.append(spot)
         self._enter(Phase.SEEKING)
         dest = {"x": spot.x, "y": spot.y, "heading": None if heading is None else spot.heading}
+        if within is not None:  # absent, not null: a plain guess's frame stays as it was
+            dest["within"] = within
         sends = []
         if not self._seeker_started:
             self._seeker_started = True

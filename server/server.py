@@ -183,7 +183,8 @@ class Server:
         ``seek``, ``new_game``); refused ones come back with ``ok=False`` and a reason.
 
         ``hide``/``seek`` take ``x``, ``y`` [cm], optional ``heading`` [deg] and
-        ``frame`` (``"map"``, the default, or ``"room"``).
+        ``frame`` (``"map"``, the default, or ``"room"``); ``seek`` also ``within``
+        [cm], the radius the seeker searches round the point (see `Game.command`).
         """
         await trio.lowlevel.checkpoint()
         role = _ROLE_OF_COMMAND.get(name)

@@ -644,7 +644,7 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         "outcome": "failed", "reason": "", "violations": [], "faults_fired": 0,
         "restarts": 0, "resent": 0, "dropped": 0, "sim_s": 0.0, "wall_s": 0.0, "cpu_s": 0.0,
         "trace_hash": "", "replay_hash": None, "events": {}, "baseline": None,
-        "baseline_violations": [],
+        "baseline_violations": [], "wider_search": False,
     }
     wall0 = time.perf_counter()  # wall and CPU time are measured for the report only
     cpu0 = time.process_time()
@@ -653,7 +653,8 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         out.update(outcome=report.outcome, reason=report.reason, restarts=report.restarts,
                    resent=report.resent, dropped=report.dropped, sim_s=report.sim_seconds,
                    trace_hash=report.trace_hash, violations=checks["violations"],
-                   faults_fired=checks["faults_fired"], events=checks["events"])
+                   faults_fired=checks["faults_fired"], events=checks["events"],
+                   wider_search=report.wider_search)
         if determinism:
             again, _ = _run_one(spec, wall_timeout_s, nav_factory)
             out["replay_hash"] = again.trace_hash
@@ -807,6 +808,8 @@ def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
         "games_with_violations": sum(1 for r in results if r["violations"]),
         "success_rate": (sum(1 for r in results if not _failed(r)) / games) if games else 0.0,
         "found_rate": (outcomes.get("found", 0) / games) if games else 0.0,
+        "found_by_wider_search": sum(1 for r in results
+                                     if r["outcome"] == "found" and r.get("wider_search")),
         "fault_kinds": {k: {"injected": c["injected"], "recovered": c["recovered"],
                             "failed": c["failed"], "not_reached": c["not_reached"]}
                         for k, c in sorted(per_kind.items())},

@@ -3,8 +3,11 @@
 `play_game` drives a running `SimSystem` through the game flow of DESIGN.md
 section 6 (start mapping, wait for the mapper's own completion, hide at the
 scenario's spot, seek at each guess in turn) and scores it with the metrics of
-section 8. `run_game` opens the system, plays, and returns a `GameReport`;
-it is a plain function of (scenario, seed), so a campaign worker can call it.
+section 8. When every guess came back ``not_found``, it does what an operator
+would: one wider search round the last guess (``seek ... within=``
+`Budget.wider_within_cm`), counted in ``GameReport.wider_search``. `run_game`
+opens the system, plays, and returns a `GameReport`; it is a plain function of
+(scenario, seed), so a campaign worker can call it.
 
 Like `supervisors.system`, this is wiring: it reads ground truth, but only to
 score the game (coverage, accuracy, path length), never to steer it.
@@ -41,6 +44,10 @@ class Budget:
     mapping: float = 1200.0
     hiding: float = 600.0
     seeking: float = 600.0  #: per guess
+    wider_within_cm: float | None = 120.0
+    """The wider search after the last guess failed: the hider believed within this of
+    it [cm] (None: no wider search, the game ends ``not_found``)."""
+    wider_seeking: float = 1200.0  #: for the wider search, which looks from many more points
 
 
 @dataclass
@@ -61,6 +68,8 @@ class GameReport:
     path_cm: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
     guesses: int = 0
+    wider_search: bool = False
+    """Every guess failed and the operator's wider search round the last one ran."""
     restarts: int = 0
     faults: int = 0
     dropped: int = 0
@@ -190,15 +199,21 @@ async def play_game(system: SimSystem, report: GameReport, budget: Budget) -> No
         return fail(f"hider did not hide: {phases.reason or 'timeout'}")
     t = trio.current_time()
     report.outcome = "not_found"
-    for x, y in scenario.seek_at:
+    guesses: list[tuple[float, float, float | None]] = [(x, y, None) for x, y in scenario.seek_at]
+    if guesses and budget.wider_within_cm is not None:
+        guesses.append((*guesses[-1][:2], budget.wider_within_cm))
+    for x, y, within in guesses:
         report.guesses += 1
-        result = await system.command("seek", x=x, y=y, frame="room")
+        extra = {} if within is None else {"within": within}
+        report.wider_search = within is not None
+        result = await system.command("seek", x=x, y=y, frame="room", **extra)
         if not result.ok:
             return fail(f"seek refused: {result.reason}")
-        got = await phases.until({"found", "not_found"}, budget.seeking)
+        limit = budget.seeking if within is None else budget.wider_seeking
+        got = await phases.until({"found", "not_found"}, limit)
         if got is None:
             report.phases["seeking"] = trio.current_time() - t
-            return fail(f"seeker did not report within {budget.seeking:.0f} s")
+            return fail(f"seeker did not report within {limit:.0f} s")
         if got == "found":
             report.outcome = "found"
             break

@@ -41,6 +41,29 @@ def test_happy_path_sends_the_right_frames() -> None:
     assert g.on_rover("seeker", "found", Pose2(20, 25)).ok and g.finished
 
 
+def test_a_wider_search_says_how_far_round_the_guess_and_is_bounded() -> None:
+    """``seek ... within=W`` puts W in the seeker's destination (a plain guess's frame has
+    no such field); a radius out of (0, 500] cm or on another command is refused with a
+    reason and changes nothing."""
+    g = Game(start_poses={"hider": Pose2(10, 0, 0), "seeker": Pose2(0, 10, 0)})
+    g.command("start_mapping")
+    g.on_map(MAP)
+    g.command("hide", x=20, y=30)
+    g.on_rover("hider", "arrived", Pose2(20, 30, 0))
+    r = g.command("seek", x=0, y=0)
+    assert "within" not in r.sends[-1].frame.data
+    g.on_rover("seeker", "not_found", reason="nothing")
+    for within, reason in ((0, "within must be in (0, 500] cm, got 0"),
+                           (501, "within must be in (0, 500] cm, got 501"),
+                           ("far", "within must be a number of cm, got 'far'")):
+        r = g.command("seek", x=0, y=0, within=within)
+        assert (r.ok, r.reason, g.phase) == (False, reason, Phase.NOT_FOUND)
+    assert g.command("hide", x=0, y=0, within=50).reason == "within applies to seek only, not hide"
+    r = g.command("seek", x=0, y=0, within=120)
+    assert r.ok and g.phase is Phase.SEEKING
+    assert r.sends[-1].frame.data == {"x": 0.0, "y": 0.0, "heading": None, "within": 120.0}
+
+
 @pytest.mark.parametrize(
     ("setup", "command", "kwargs", "reason"),
     [

@@ -35,6 +35,23 @@ def test_whole_game_on_the_empty_room_finds_the_hider() -> None:
     assert "report=arrived" in reports[0] and "report=found" in reports[-1]  # the last too
 
 
+def test_when_every_guess_fails_the_operator_searches_wider_round_the_last() -> None:
+    """Both guesses 130 cm from the hide spot: each is ``not_found``; the headless operator
+    then asks for a wider search round the last guess (``within`` 120 cm) and it finds the
+    hider. With the wider search off the game ends ``not_found`` after two guesses."""
+    base = load_scenario("empty")  # hide at (330, 240)
+    off = dataclasses.replace(base, seek_at=((200, 150), (200, 240)))
+    seed_trio_scheduler(1)
+    report = trio.run(lambda: run_game(off, 1), clock=virtual_clock())
+    assert (report.outcome, report.guesses, report.wider_search) == ("found", 3, True)
+    reports = [e.split("reason=")[1] for e in report.events if "report=not_found" in e]
+    assert reports == ["the IR sensor saw nothing there"] * 2  # each guess's own scan only
+    seed_trio_scheduler(1)
+    plain = trio.run(lambda: run_game(off, 1, budget=Budget(wider_within_cm=None)),
+                     clock=virtual_clock())
+    assert (plain.outcome, plain.guesses, plain.wider_search) == ("not_found", 2, False)
+
+
 def test_same_seed_gives_the_same_game_event_for_event() -> None:
     """Determinism: two runs of one scenario and seed have the same trace hash."""
     scenario = load_scenario("empty")

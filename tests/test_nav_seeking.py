@@ -8,7 +8,13 @@ import pytest
 
 from actors import BufferPool, open_actor_system
 from actors.firmware.nav_common import NavOptions, passable_at
-from actors.firmware.nav_seeking import SeekingNav, SeekingOptions, ring_reach_cm, search_ring
+from actors.firmware.nav_seeking import (
+    SeekingNav,
+    SeekingOptions,
+    ring_reach_cm,
+    search_ring,
+    search_rings,
+)
 from actors.firmware.odometry import Pose, angle_diff_deg
 from tests.test_nav_common import (
     Body,
@@ -221,3 +227,81 @@ def test_ring_points_in_walls_are_pulled_in_or_left_out() -> None:
                for q in by_wall.search_points)
     for q in nav.search_points + by_wall.search_points:
         assert passable_at(nav.map, q[0], q[1], nav.radius_cm, 0.0)
+
+
+# ============================================================================ the wider search
+
+
+@pytest.mark.parametrize("need", [150.0, 200.0, 300.0])
+def test_wider_rings_see_everything_within_the_need(need) -> None:
+    """The rings of a wider search leave no hole: every point within ``need`` of the place
+    is within reach of the place itself, of a first-ring point (scanned all round by the
+    place's scan and its own), or of a wider ring's point in its outward scan (+-100 deg
+    plus the sensor's 20)."""
+    reach = 70.0
+    rings = search_rings(need, reach, 6, 60.0, 70.0, 6)
+    assert rings[0] == search_ring(need, reach, 6, 60.0) and len(rings) >= 2
+    points = [(i, r * math.cos(2 * math.pi * k / n), r * math.sin(2 * math.pi * k / n))
+              for i, (n, r) in enumerate(rings) for k in range(n)]
+
+    def seen(x: float, y: float) -> bool:
+        if math.hypot(x, y) <= reach:
+            return True
+        for i, px, py in points:
+            if math.dist((x, y), (px, py)) > reach:
+                continue
+            out = math.degrees(math.atan2(py, px))
+            to = math.degrees(math.atan2(y - py, x - px))
+            if i == 0 or abs(angle_diff_deg(to, out)) <= 120.0:
+                return True
+        return False
+
+    for rho in range(0, int(need) + 1, 5):
+        for a in range(0, 360, 3):
+            x, y = rho * math.cos(math.radians(a)), rho * math.sin(math.radians(a))
+            assert seen(x, y), (rho, a)
+    assert search_rings(need, reach, 6, 60.0, 70.0, 1) == rings[:1]  # a plain guess: one ring
+
+
+GUESS_OFF = (100.0, 80.0)  # 165 cm from the hider: far beyond IR range of the guess
+
+
+async def _seek(dest: dict) -> Body:
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=ir_sees_hider)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
+        await begin(system, pool, dest)
+        assert await wait_for(lambda: body.frames("found") or body.frames("not_found"), 1200.0)
+    return body
+
+
+@pytest.mark.trio
+async def test_a_guess_with_within_searches_rings_round_it_and_finds(autojump_clock) -> None:
+    """The operator's wider search (``within`` 180 cm) round a guess 165 cm from the hider
+    finds it from a wider ring; the same guess without ``within`` is not found."""
+    assert math.dist(GUESS_OFF, HIDER) == pytest.approx(165.5, abs=0.1)
+    plain = await _seek({"x": GUESS_OFF[0], "y": GUESS_OFF[1]})
+    assert plain.frames("found") == []
+    wider = await _seek({"x": GUESS_OFF[0], "y": GUESS_OFF[1], "within": 180.0})
+    assert wider.frames("not_found") == []
+    f = wider.frames("found")[0].data
+    assert math.dist((f["x"], f["y"]), GUESS_OFF) > 90.0  # beyond the first ring
+    assert math.dist((f["x"], f["y"]), HIDER) < 80.0
+
+
+@pytest.mark.trio
+async def test_a_wider_search_gives_up_after_its_time(autojump_clock) -> None:
+    """Out of time (`SeekingOptions.wide_search_s`, here 1 s), the ring points left are
+    dropped: the seeker answers ``not_found`` after the first ring point."""
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=ir_sees_hider)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool,
+                                                 seeking=SeekingOptions(wide_search_s=1.0)),
+                                      "seeker")
+        await begin(system, pool, {"x": GUESS_OFF[0], "y": GUESS_OFF[1], "within": 180.0})
+        assert await wait_for(lambda: body.frames("found") or body.frames("not_found"), 1200.0)
+    assert "rings out to" in body.frames("not_found")[0].data["reason"]
+    details = [fr.data.get("detail", "") for fr in body.frames("status")]
+    assert sum(d.startswith("round the place") for d in details) == 1

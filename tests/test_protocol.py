@@ -95,7 +95,12 @@ def test_catalogue_checks_type_and_data() -> None:
 def test_make_frame_validates_and_fills_type() -> None:
     """make_frame gives the catalogue's type and rejects data outside the schema."""
     f = make_frame("destination", proto.Destination(10, 20))
-    assert f == Frame("destination", "pose", {"x": 10.0, "y": 20.0, "heading": None})
+    assert f == Frame("destination", "pose",
+                      {"x": 10.0, "y": 20.0, "heading": None, "within": None})
+    with pytest.raises(ValueError, match="does not fit its schema"):
+        make_frame("destination", {"x": 1, "y": 2, "within": 0})  # a search radius must be > 0
+    with pytest.raises(ValueError, match="does not fit its schema"):
+        make_frame("destination", {"x": 1, "y": 2, "within": proto.MAX_WITHIN_CM + 1})
     assert make_frame("start") == Frame("start", "none", None)
     with pytest.raises(ValueError, match="data of 'origin' does not fit its schema"):
         make_frame("origin", {"x": "far"})

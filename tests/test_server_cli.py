@@ -52,6 +52,10 @@ def test_operator_command_lines_parse() -> None:
                                                                  "frame": "map"})
     with pytest.raises(ValueError, match=r"usage: hide X Y \[HEADING\] \[room\|map\]"):
         cmd_serve.parse_command_line("hide 1")
+    assert cmd_serve.parse_command_line("seek 1 2 room within=120") == (
+        "seek", {"within": 120.0, "x": 1.0, "y": 2.0, "frame": "room"})
+    with pytest.raises(ValueError, match=r"within=CM must be a number"):
+        cmd_serve.parse_command_line("seek 1 2 within=far")
     assert cmd_serve.parse_origin("h1=1,2,3") == ("h1", Pose2(1.0, 2.0, 3.0))
 
 

@@ -164,7 +164,8 @@ def _print_table(s: dict[str, Any]) -> None:
     if s.get("stopped_early"):
         print(f"  stopped early ({s['stopped_early']}): {s['games']} of "
               f"{s['games_requested']} games played")
-    print(f"  found {s['found']}, not found {s['not_found']}, failed {s['failed']}; "
+    print(f"  found {s['found']} ({s.get('found_by_wider_search', 0)} by the wider search "
+          f"after every guess failed), not found {s['not_found']}, failed {s['failed']}; "
           f"games with broken invariants {s['games_with_violations']}; "
           f"success rate {100 * s['success_rate']:.1f} %; failures that fail without "
           f"their faults too {s['failures_also_without_faults']}")

@@ -71,16 +71,25 @@ def parse_command_line(line: str) -> tuple[str, dict]:
         raise ValueError("empty command")
     name, rest = words[0], words[1:]
     if name in ("hide", "seek"):
+        usage = f"usage: {name} X Y [HEADING] [room|map]"
+        if name == "seek":
+            usage += " [within=CM]"
+        kw: dict = {}
+        if name == "seek" and rest and rest[-1].startswith("within="):
+            try:
+                kw["within"] = float(rest.pop()[len("within="):])
+            except ValueError:
+                raise ValueError(f"seek: within=CM must be a number, {usage}") from None
         frame = "map"
         if rest and rest[-1] in ("room", "map"):
             frame = rest.pop()
         if len(rest) not in (2, 3):
-            raise ValueError(f"usage: {name} X Y [HEADING] [room|map]")
+            raise ValueError(usage)
         try:
             nums = [float(w) for w in rest]
         except ValueError:
             raise ValueError(f"{name}: X, Y and HEADING must be numbers, got {rest}") from None
-        kw = {"x": nums[0], "y": nums[1], "frame": frame}
+        kw.update(x=nums[0], y=nums[1], frame=frame)
         if len(nums) == 3:
             kw["heading"] = nums[2]
         return name, kw

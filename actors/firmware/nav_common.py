@@ -207,6 +207,9 @@ class NavMemory:
     origin: tuple[float, float, float] | None = None
     goal: tuple[float, float, float | None] | None = None
     """The destination not yet answered (arrived / invalid_spot / found / not_found)."""
+    within: float | None = None
+    """The destination's ``within`` [cm]: how far round it a seeker searches (None: its
+    IR range)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -744,7 +747,7 @@ class NavBase(Actor):
             self.driven_cm = 0.0
             self._forget_fault_drift()
         elif cmd == "destination":
-            await self.on_destination(data.x, data.y, data.heading)
+            await self.on_destination(data.x, data.y, data.heading, data.within)
 
     async def on_start_cmd(self) -> None:
         """Hook: the server said ``start``."""
@@ -754,8 +757,10 @@ class NavBase(Actor):
         await self.stop_motor()
         await self.set_state("idle", "stopped by the server")
 
-    async def on_destination(self, x: float, y: float, heading: float | None) -> None:
-        """Hook: a ``destination`` in the map frame [cm, deg]."""
+    async def on_destination(self, x: float, y: float, heading: float | None,
+                             within: float | None = None) -> None:
+        """Hook: a ``destination`` in the map frame [cm, deg] (``within`` [cm]: see
+        `NavMemory.within`)."""
 
     async def on_map_download(self, grid: GridMap) -> None:
         """Hook: the server's map arrived (map frame)."""
@@ -917,8 +922,10 @@ class RouteNav(NavBase):
             await self.set_state("ready", "map received")
         await self._proceed()
 
-    async def on_destination(self, x: float, y: float, heading: float | None) -> None:
+    async def on_destination(self, x: float, y: float, heading: float | None,
+                             within: float | None = None) -> None:
         self.pending = self.memory.goal = (x, y, heading)
+        self.memory.within = within
         await self._proceed()
 
     async def on_restart(self) -> None:

@@ -18,6 +18,10 @@ Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
                         --in range--> found
                         --ring over--> ``not_found {reason}``, ready for the next guess
 
+A destination with ``within`` W (the operator's wider search after a guess
+failed) searches rings round (x, y) out to W plus the seeker's drift: the ring
+above first, then wider ones (`search_rings`), innermost first.
+
 Standoff: the hider may stand at (x, y), so the seeker first stops
 ``standoff_cm`` away (centre to centre), on a passable point of the map
 (tried on rings of several radii, nearest to the seeker first), and turns to
@@ -60,7 +64,8 @@ from actors.firmware.nav_common import Motion, NavMemory, NavOptions, RouteNav, 
 from actors.firmware.occupancy import FREE
 from actors.firmware.odometry import angle_diff_deg
 
-__all__ = ["SeekingOptions", "SeekingNav", "ring_reach_cm", "search_ring"]
+__all__ = ["SeekingOptions", "SeekingNav", "ring_outer_cm", "ring_reach_cm", "search_ring",
+           "search_rings"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -108,6 +113,20 @@ class SeekingOptions:
     search_scan_deg: float = 100.0
     """From a ring point, scan outward from the place +- this [deg] (the inside is
     covered by the scan from the place itself)."""
+    wide_spacing_cm: float = 70.0
+    """Spacing of neighbouring points on the rings beyond the first of a wider search
+    (a destination's ``within``) [cm]: with ``reach_cm`` 70 each ring then sees about
+    60 cm beyond itself."""
+    wide_max_rings: int = 6
+    """Rings of a wider search, at most (the first included)."""
+    wide_scan_step_deg: float = 30.0
+    """Step of the outward scans of a wider search [deg]: with the sensor's +-20 deg a
+    30 deg step still overlaps, and the scans cost two thirds of 20 deg ones."""
+    wide_max_points: int = 72
+    """Points of a wider search, at most (each costs a drive and a scan of about 15 s)."""
+    wide_search_s: float = 800.0
+    """A wider search's rings end after this long [s] (the operator's budget for the
+    whole guess is longer: `supervisors.headless.Budget.wider_seeking`)."""
 
     def all_round_deg(self) -> tuple[float, ...]:
         """The all-round scan's headings relative to facing the place [deg]: the
@@ -121,23 +140,31 @@ class SeekingOptions:
             a += step
         return tuple(out)
 
-    def outward_deg(self) -> tuple[float, ...]:
+    def outward_deg(self, step: float | None = None) -> tuple[float, ...]:
         """The scan from a search point: headings relative to facing away from the place,
-        -``search_scan_deg`` .. +``search_scan_deg`` in ``all_round_step_deg`` steps [deg]."""
-        step = self.all_round_step_deg
+        -``search_scan_deg`` .. +``search_scan_deg`` in ``step`` (default
+        ``all_round_step_deg``) steps [deg]."""
+        step = step or self.all_round_step_deg
         k = math.floor(self.search_scan_deg / step + 1e-9)
         return tuple(step * i for i in range(-k, k + 1))
 
 
-def ring_reach_cm(ring_cm: float, reach_cm: float, points: int) -> float:
-    """How far from the centre a ring of ``points`` scan points of radius ``ring_cm`` sees
-    everything, each seeing ``reach_cm`` round itself [cm] (the worst direction is
-    midway between two points); 0 when the ring has holes next to its points."""
+def ring_outer_cm(ring_cm: float, reach_cm: float, points: int) -> float:
+    """The outer edge of the band a ring of ``points`` scan points of radius ``ring_cm``
+    sees all round, each seeing ``reach_cm`` round itself [cm] (the worst direction is
+    midway between two points); 0 when neighbouring points are too far apart to meet."""
     half = math.pi / points
     inner = reach_cm ** 2 - (ring_cm * math.sin(half)) ** 2
-    if inner <= 0 or ring_cm > reach_cm:
+    if inner <= 0:
         return 0.0
     return ring_cm * math.cos(half) + math.sqrt(inner)
+
+
+def ring_reach_cm(ring_cm: float, reach_cm: float, points: int) -> float:
+    """How far from the centre a ring of ``points`` scan points of radius ``ring_cm`` sees
+    everything [cm], with the scan from the centre (`ring_outer_cm`); 0 when the ring has
+    holes next to its points or is too wide to meet what the centre sees."""
+    return 0.0 if ring_cm > reach_cm else ring_outer_cm(ring_cm, reach_cm, points)
 
 
 def search_ring(need_cm: float, reach_cm: float, max_points: int,
@@ -156,6 +183,29 @@ def search_ring(need_cm: float, reach_cm: float, max_points: int,
                 return n, r
             r += 5.0
     return max_points, max_cm
+
+
+def search_rings(need_cm: float, reach_cm: float, max_points: int, max_cm: float,
+                 spacing_cm: float, max_rings: int) -> list[tuple[int, float]]:
+    """Rings (points, radius [cm]) that, with the place itself, see everything within
+    ``need_cm`` of the place, innermost first: `search_ring`'s ring, then rings whose
+    neighbouring points are ``spacing_cm`` apart, each laid 10 cm inside what the rings
+    before it see (its points scan outward, so it sees from about its own radius out),
+    at most ``max_rings``. Empty when the place alone sees that far."""
+    first = search_ring(need_cm, reach_cm, max_points, max_cm)
+    if first is None:
+        return []
+    rings = [first]
+    covered = ring_reach_cm(first[1], reach_cm, first[0])
+    while covered < need_cm and len(rings) < max_rings:
+        r = covered - 10.0
+        n = max(3, math.ceil(2.0 * math.pi * r / spacing_cm))
+        outer = ring_outer_cm(r, reach_cm, n)
+        if outer <= covered:  # spacing too wide for the reach: no ring adds anything
+            break
+        rings.append((n, r))
+        covered = outer
+    return rings
 
 
 class SeekingNav(RouteNav):
@@ -179,6 +229,8 @@ class SeekingNav(RouteNav):
         """Ring points still to look from (map frame [cm])."""
         self.ring_cm = 0.0
         """Radius of the search ring in progress [cm]."""
+        self.search_until = math.inf
+        """When the search in progress gives up [s] (a wider search only)."""
         self._ir_at = -math.inf
         self._scan: tuple[float, ...] = ()  # headings of the scan in progress [deg], map frame
         self._scan_index = 0
@@ -254,26 +306,29 @@ class SeekingNav(RouteNav):
 
     # ------------------------------------------------------------------ search
     def _plan_search(self) -> bool:
-        """After the scan from the place saw nothing: choose the ring to look from.
+        """After the scan from the place saw nothing: choose the ring(s) to look from.
 
         A guess within IR range has the hider's centre within ``range_cm`` of
-        it; the seeker's own dead reckoning may be ``drift_cm`` off, so what
-        must be seen is everything within ``range_cm + drift_cm`` of the place
-        as the seeker believes it. The scan from the place sees ``reach_cm``;
-        beyond that, points on a ring (`search_ring`) do.
+        it (a destination's ``within``, when given, replaces that); the seeker's
+        own dead reckoning may be ``drift_cm`` off, so what must be seen is
+        everything within ``range_cm + drift_cm`` of the place as the seeker
+        believes it. The scan from the place sees ``reach_cm``; beyond that,
+        points on a ring (`search_ring`) do, and with ``within`` wider rings
+        after it (`search_rings`).
         Points that are not passable are pulled in toward the place; points
-        from which no free cell beyond what the scan from the place saw is
-        within reach (walls, the map's edge) are left out.
+        from which no free cell beyond what was seen before is within reach
+        (walls, the map's edge) are left out.
         """
         s = self.s
         if not s.search or self.place is None or self.map is None:
             return False
         drift = self.drift_cm
-        need = s.range_cm + drift
-        chosen = search_ring(need, s.reach_cm, s.search_points, s.search_ring_max_cm)
-        if chosen is None:
+        within = self.memory.within
+        need = (s.range_cm if within is None else within) + drift
+        rings = search_rings(need, s.reach_cm, s.search_points, s.search_ring_max_cm,
+                             s.wide_spacing_cm, 1 if within is None else s.wide_max_rings)
+        if not rings:
             return False
-        n, ring = chosen
         px, py = self.place
         p = self.map_pose
         if math.dist((p.x, p.y), self.place) > 2.0 * self.o.goal_tol_cm:
@@ -282,19 +337,28 @@ class SeekingNav(RouteNav):
             first = math.radians(p.heading_deg)  # on the place: the one it faces
         seen = max(0.0, s.reach_cm - drift)
         points: list[tuple[float, float]] = []
-        for k in range(n):
-            a = first + 2.0 * math.pi * k / n
-            for r in (ring, 0.75 * ring, 0.5 * ring):
-                q = (px + r * math.cos(a), py + r * math.sin(a))
-                if passable_at(self.map, q[0], q[1], self.radius_cm, 0.0):  # turns there
-                    if self._unseen_free(q, seen, need):
-                        points.append(q)
-                    break
+        for i, (n, ring) in enumerate(rings):
+            # a point that does not fit is pulled in: the first ring toward the place,
+            # wider rings by less, or they would repeat the ring inside them
+            pulls = (ring, 0.75 * ring, 0.5 * ring) if i == 0 else (ring, ring - 20.0, ring - 40.0)
+            for k in range(n):
+                a = first + 2.0 * math.pi * k / n
+                for r in pulls:
+                    q = (px + r * math.cos(a), py + r * math.sin(a))
+                    if passable_at(self.map, q[0], q[1], self.radius_cm, 0.0):  # turns there
+                        if self._unseen_free(q, seen, need):
+                            points.append(q)
+                        break
+            if points:  # the next ring starts beside where this one ends
+                first = math.atan2(points[-1][1] - py, points[-1][0] - px)
+            seen = max(0.0, ring_outer_cm(ring, s.reach_cm, n) - drift)
+        points = points[:s.wide_max_points]
         if not points:
             return False
         self.stage = "search"
-        self.ring_cm = ring
+        self.ring_cm = rings[-1][1]
         self.search_points = points
+        self.search_until = math.inf if within is None else trio.current_time() + s.wide_search_s
         return True
 
     def _unseen_free(self, q: tuple[float, float], seen_cm: float, need_cm: float) -> bool:
@@ -324,12 +388,15 @@ class SeekingNav(RouteNav):
     async def _next_search_point(self) -> None:
         """Drive to the next ring point (then `on_arrived` scans outward); at the end of
         the ring, ``not_found``."""
+        if trio.current_time() >= self.search_until:
+            self.search_points = []  # out of time: answer while the operator still listens
         while self.search_points:
             q = self.search_points.pop(0)
             if await self.goto(q, None):
                 await self.set_state("searching", f"round the place, ring {self.ring_cm:.0f} cm")
                 return
-        await self._not_found(f"the IR sensor saw nothing there, nor on a ring of "
+        rings = "a ring of" if self.memory.within is None else "rings out to"
+        await self._not_found(f"the IR sensor saw nothing there, nor on {rings} "
                               f"{self.ring_cm:.0f} cm round it")
 
     # ------------------------------------------------------------------ IR confirmation
@@ -346,7 +413,8 @@ class SeekingNav(RouteNav):
         if self.stage == "search" and self._distance() > 2.0 * self.o.goal_tol_cm:
             # facing away from the place, swept from the end nearer the heading
             out = math.degrees(math.atan2(p.y - self.place[1], p.x - self.place[0]))
-            offsets = self.s.outward_deg()
+            wider = self.memory.within is not None
+            offsets = self.s.outward_deg(self.s.wide_scan_step_deg if wider else None)
             if abs(angle_diff_deg(out + offsets[-1], p.heading_deg)) < \
                     abs(angle_diff_deg(out + offsets[0], p.heading_deg)):
                 offsets = offsets[::-1]

@@ -26,6 +26,7 @@ from .catalogue import (
     INVALID_SPOT,
     MAP,
     MAP_REQUEST,
+    MAX_WITHIN_CM,
     NOT_FOUND,
     ORIGIN,
     POSE,
@@ -76,8 +77,8 @@ from .session import LinkStats, OutboxFull, ReliableSession
 __all__ = [
     "ACK", "ARRIVED", "CATALOGUE", "DESTINATION", "ERROR", "FOUND", "HEARTBEAT", "HELLO",
     "INVALID_SPOT", "MAP", "MAP_REQUEST", "NOT_FOUND", "ORIGIN", "POSE", "ROLES", "START",
-    "STATUS", "STOP", "WELCOME", "Destination", "ErrorInfo", "Found", "Hello", "MapChunk",
-    "Pose", "Reason", "Spec", "Status", "Welcome", "make_frame", "read_data",
+    "STATUS", "STOP", "WELCOME", "MAX_WITHIN_CM", "Destination", "ErrorInfo", "Found", "Hello",
+    "MapChunk", "Pose", "Reason", "Spec", "Status", "Welcome", "make_frame", "read_data",
     "MAX_LINE_BYTES", "MAX_SEQ", "Fault", "Frame", "FrameError", "decode_line", "encode_frame",
     "error_frame", "TOO_LONG", "LineBuffer",
     "CHUNK_B64_CHARS", "FREE", "OCCUPIED", "UNKNOWN", "MapAssembler", "MapError", "MapGrid",

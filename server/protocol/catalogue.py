@@ -43,7 +43,7 @@ __all__ = [
     "MAP_REQUEST", "MAP", "POSE", "STATUS", "DESTINATION", "ARRIVED", "INVALID_SPOT",
     "FOUND", "NOT_FOUND",
     "Hello", "Welcome", "Pose", "Destination", "Status", "Reason", "Found", "ErrorInfo",
-    "MapChunk", "Spec", "CATALOGUE", "make_frame", "read_data",
+    "MapChunk", "MAX_WITHIN_CM", "Spec", "CATALOGUE", "make_frame", "read_data",
 ]
 
 ROLES = ("mapper", "hider", "seeker")
@@ -70,6 +70,9 @@ NOT_FOUND = "not_found"
 _Id = Annotated[str, msgspec.Meta(min_length=1, max_length=32, pattern=r"^[A-Za-z0-9_.-]+$")]
 _Coord = Annotated[float, msgspec.Meta(ge=-1e6, le=1e6)]
 _Text = Annotated[str, msgspec.Meta(max_length=200)]
+
+MAX_WITHIN_CM = 500.0
+"""Largest search radius a ``destination`` may ask of a seeker [cm]: bounds its search."""
 
 
 class Hello(msgspec.Struct, frozen=True):
@@ -112,6 +115,9 @@ class Destination(msgspec.Struct, frozen=True):
     x: _Coord
     y: _Coord
     heading: _Coord | None = None
+    within: Annotated[float, msgspec.Meta(gt=0, le=MAX_WITHIN_CM)] | None = None
+    """Seeker only: the hider is believed within this of (x, y) [cm]; absent means
+    within the IR sensor's range. A seeker searches round the place that far."""
 
 
 class Status(msgspec.Struct, frozen=True):
