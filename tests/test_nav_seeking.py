@@ -305,3 +305,30 @@ async def test_a_wider_search_gives_up_after_its_time(autojump_clock) -> None:
     assert "rings out to" in body.frames("not_found")[0].data["reason"]
     details = [fr.data.get("detail", "") for fr in body.frames("status")]
     assert sum(d.startswith("round the place") for d in details) == 1
+
+
+async def _seek_lost(dest: dict) -> Body:
+    """A seeker told it starts 100 cm right of where it stands: it believes it is at the
+    guess while it is 100 cm short of it, and every ring round the guess is off too."""
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=ir_sees_hider)
+    pool = BufferPool(64)
+    wrong = {**ORIGIN, "x": ORIGIN["x"] + 100.0}
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
+        await send_route(system, pool, "seeker", wrong, dest, room_map(TRUTH_MAP))
+        assert await wait_for(lambda: body.frames("found") or body.frames("not_found"), 1200.0)
+    return body
+
+
+@pytest.mark.trio
+async def test_a_wider_search_sweeps_by_touch_when_its_pose_is_wrong(autojump_clock) -> None:
+    """The pose 100 cm off without the seeker knowing: a plain guess at the hider is not
+    found; a wider one (``within`` 40 cm, so no ring is needed) sweeps the room by touch
+    and finds it."""
+    plain = await _seek_lost({"x": HIDER[0], "y": HIDER[1]})
+    assert plain.frames("found") == []
+    wider = await _seek_lost({"x": HIDER[0], "y": HIDER[1], "within": 40.0})
+    assert wider.frames("not_found") == [], wider.frames("not_found")
+    assert wider.frames("found")
+    states = [fr.data.get("state") for fr in wider.frames("status")]
+    assert "sweeping" in states and "searching" not in states

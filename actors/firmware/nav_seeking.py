@@ -20,7 +20,12 @@ Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
 
 A destination with ``within`` W (the operator's wider search after a guess
 failed) searches rings round (x, y) out to W plus the seeker's drift: the ring
-above first, then wider ones (`search_rings`), innermost first.
+above first, then wider ones (`search_rings`), innermost first. When the rings
+saw nothing, the pose itself is in doubt (a heading lost in a turn no tread
+report showed: campaign 4:112, 3:18), and what is left of ``wide_search_s`` goes
+to a sweep by touch (`SeekingNav._sweep`): straight legs from wall to wall,
+stopping every ``sweep_step_cm`` to scan all round, turning ``sweep_turn_deg``
+where blocked; no map, no pose.
 
 Standoff: the hider may stand at (x, y), so the seeker first stops
 ``standoff_cm`` away (centre to centre), on a passable point of the map
@@ -122,6 +127,17 @@ class SeekingOptions:
     wide_scan_step_deg: float = 30.0
     """Step of the outward scans of a wider search [deg]: with the sensor's +-20 deg a
     30 deg step still overlaps, and the scans cost two thirds of 20 deg ones."""
+    sweep_step_cm: float = 110.0
+    """Leg of the sweep by touch [cm]: a little less than two scans' reach (70 cm), so
+    the discs seen from consecutive stops overlap."""
+    sweep_turn_deg: float = 137.5
+    """Turn between legs of the sweep [deg]: the golden angle, so the legs' headings
+    spread evenly round the circle, without a random generator."""
+    sweep_max_steps: int = 6
+    """Steps of one sweep leg, at most (a leg ends earlier at whatever blocks it)."""
+    doubt_rings_share: float = 0.5
+    """Share of ``wide_search_s`` the rings get when the seeker's drift exceeds the
+    destination's ``within``; the sweep by touch gets the rest."""
     wide_max_points: int = 72
     """Points of a wider search, at most (each costs a drive and a scan of about 15 s)."""
     wide_search_s: float = 800.0
@@ -231,6 +247,12 @@ class SeekingNav(RouteNav):
         """Radius of the search ring in progress [cm]."""
         self.search_until = math.inf
         """When the search in progress gives up [s] (a wider search only)."""
+        self.rings_until = math.inf
+        """When a wider search's rings give way to the sweep by touch [s]."""
+        self._sweep_turned = False  # the sweep's step in progress has turned, and drives
+        self._sweep_blocked = False  # the sweep's last step was blocked: the next leg turns
+        self._sweep_steps = 0  # steps of the sweep's leg in progress
+        self._leg_heading = 0.0  # the sweep's leg heading (map frame, as believed) [deg]
         self._ir_at = -math.inf
         self._scan: tuple[float, ...] = ()  # headings of the scan in progress [deg], map frame
         self._scan_index = 0
@@ -299,8 +321,8 @@ class SeekingNav(RouteNav):
             await self._approach()
         elif self.stage == "search":
             await self._next_search_point()
-        elif self._plan_search():
-            await self._next_search_point()
+        elif self._plan_search() or self.memory.within:
+            await self._next_search_point()  # with ``within``: the sweep, ring or not
         else:
             await self._not_found(f"cannot get near the place: {reason}")
 
@@ -324,6 +346,14 @@ class SeekingNav(RouteNav):
             return False
         drift = self.drift_cm
         within = self.memory.within
+        self.search_until = self.rings_until = math.inf
+        if within is not None:
+            now = trio.current_time()
+            self.search_until = now + s.wide_search_s
+            # a pose in more doubt than the guess: rings planned from it may all be
+            # somewhere else, and the sweep by touch gets half the time (3:18, 4:66)
+            share = s.doubt_rings_share if drift > within else 1.0
+            self.rings_until = now + share * s.wide_search_s
         need = (s.range_cm if within is None else within) + drift
         rings = search_rings(need, s.reach_cm, s.search_points, s.search_ring_max_cm,
                              s.wide_spacing_cm, 1 if within is None else s.wide_max_rings)
@@ -358,7 +388,6 @@ class SeekingNav(RouteNav):
         self.stage = "search"
         self.ring_cm = rings[-1][1]
         self.search_points = points
-        self.search_until = math.inf if within is None else trio.current_time() + s.wide_search_s
         return True
 
     def _unseen_free(self, q: tuple[float, float], seen_cm: float, need_cm: float) -> bool:
@@ -387,22 +416,55 @@ class SeekingNav(RouteNav):
 
     async def _next_search_point(self) -> None:
         """Drive to the next ring point (then `on_arrived` scans outward); at the end of
-        the ring, ``not_found``."""
-        if trio.current_time() >= self.search_until:
+        the ring, ``not_found`` -- or, in a wider search with time left, the sweep."""
+        now = trio.current_time()
+        if now >= self.rings_until:
             self.search_points = []  # out of time: answer while the operator still listens
         while self.search_points:
             q = self.search_points.pop(0)
             if await self.goto(q, None):
                 await self.set_state("searching", f"round the place, ring {self.ring_cm:.0f} cm")
                 return
+        if self.memory.within is not None and now < self.search_until < math.inf:
+            await self._sweep()
+            return
         rings = "a ring of" if self.memory.within is None else "rings out to"
+        swept = ", nor sweeping the room by touch" if self.stage == "sweep" else ""
         await self._not_found(f"the IR sensor saw nothing there, nor on {rings} "
-                              f"{self.ring_cm:.0f} cm round it")
+                              f"{self.ring_cm:.0f} cm round it{swept}")
+
+    async def _sweep(self) -> None:
+        """One step of the sweep by touch: face the leg's heading, drive ``sweep_step_cm``
+        (or until blocked), then scan all round (`_confirm`). A leg goes straight step
+        after step until a step is blocked (or ``sweep_max_steps``); the next leg turns
+        ``sweep_turn_deg`` from it.
+
+        Why: the rings are planned on the map from the pose; when they saw nothing the
+        pose may be far off (a heading lost unseen), and a rover that trusts it drives
+        into walls it thinks are metres away. Straight legs from wall to wall, turning
+        by the golden angle, cross the whole room like a billiard ball whatever the pose
+        says; short legs in random directions would wander about where they began.
+        """
+        first = self.stage != "sweep"
+        self.stage = "sweep"
+        if first or self._sweep_blocked or self._sweep_steps >= self.s.sweep_max_steps:
+            base = self.map_pose.heading_deg if first else self._leg_heading
+            self._leg_heading = base + self.s.sweep_turn_deg
+            self._sweep_steps = 0
+        self._sweep_turned = False
+        left = self.search_until - trio.current_time()
+        await self.set_state("sweeping", f"by touch, the pose in doubt ({left:.0f} s left)")
+        turn = angle_diff_deg(self._leg_heading, self.map_pose.heading_deg)
+        if abs(turn) <= self.o.heading_tol_deg:
+            await self.after_other_motion(False, 0.0)
+        else:
+            await self.command(Motion("turn", turn))
 
     # ------------------------------------------------------------------ IR confirmation
     async def _confirm(self) -> None:
         assert self.place is not None
-        where = {"close": " all round", "search": " from the search ring"}.get(self.stage, "")
+        where = {"close": " all round", "search": " from the search ring",
+                 "sweep": " all round, sweeping"}.get(self.stage, "")
         await self.set_state("confirming", "looking with the IR sensor" + where)
         await self._ir_lease(self.s.ir_lease_s)
         p = self.map_pose
@@ -410,7 +472,10 @@ class SeekingNav(RouteNav):
             base = math.degrees(math.atan2(self.place[1] - p.y, self.place[0] - p.x))
         else:
             base = p.heading_deg  # standing on the place: no bearing to it
-        if self.stage == "search" and self._distance() > 2.0 * self.o.goal_tol_cm:
+        if self.stage == "sweep":  # all round from the heading it has, the place unknown
+            step = self.s.wide_scan_step_deg
+            self._scan = tuple(p.heading_deg + step * k for k in range(round(360.0 / step)))
+        elif self.stage == "search" and self._distance() > 2.0 * self.o.goal_tol_cm:
             # facing away from the place, swept from the end nearer the heading
             out = math.degrees(math.atan2(p.y - self.place[1], p.x - self.place[0]))
             wider = self.memory.within is not None
@@ -436,10 +501,17 @@ class SeekingNav(RouteNav):
     async def after_other_motion(self, blocked: bool, done: float) -> None:
         if self.state == "confirming":
             self._start_check()
+        elif self.state == "sweeping" and not self._sweep_turned:
+            self._sweep_turned = True
+            await self.command(Motion("move", self.s.sweep_step_cm))
+        elif self.state == "sweeping":
+            self._sweep_blocked = blocked
+            self._sweep_steps += 1
+            await self._confirm()
 
     def _start_check(self) -> None:
         now = trio.current_time()
-        wait = self.s.search_ir_wait_s if self.stage == "search" else self.s.ir_wait_s
+        wait = self.s.search_ir_wait_s if self.stage in ("search", "sweep") else self.s.ir_wait_s
         self._check_from = now + self.s.settle_s
         self._check_until = now + self.s.settle_s + wait
 
@@ -470,9 +542,9 @@ class SeekingNav(RouteNav):
                 await self._face(self._scan[self._scan_index])
             elif self.stage == "standoff":
                 await self._approach()
-            elif self.stage == "close" and self._plan_search():
-                await self._next_search_point()
-            elif self.stage == "search":
+            elif self.stage == "close" and (self._plan_search() or self.memory.within):
+                await self._next_search_point()  # with ``within``: the sweep, ring or not
+            elif self.stage in ("search", "sweep"):
                 await self._next_search_point()
             else:
                 await self._not_found("the IR sensor saw nothing there")
