@@ -120,6 +120,26 @@ def test_hide_and_seek_with_the_cursor():
     drive(test, speed=None)
 
 
+def test_w_asks_for_a_wider_search_at_the_cursor():
+    """'w' once hidden seeks at the cursor with a 120 cm wider search; before that it only
+    warns."""
+
+    async def test(app, fake):
+        press(app, "w")
+        await until(lambda: any("wider search" in n for n in notes(app)), "warning")
+        assert not calls(fake, "seek_at")
+        press(app, "m")
+        await until(lambda: app.snapshot.phase == "map_ready", "map ready", timeout=20)
+        view = app.query_one(MapView)
+        view.cursor = (150.0, 130.0)
+        press(app, "enter")
+        await until(lambda: app.snapshot.phase == "hidden", "hidden", timeout=20)
+        press(app, "w")
+        await until(lambda: calls(fake, "seek_at") == [(150.0, 130.0, 120.0)], "seek_at call")
+
+    drive(test, speed=None)
+
+
 def test_refusal_shows_as_a_notification():
     """A refused command arrives as a warning notification with the system's reason."""
 

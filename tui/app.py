@@ -56,6 +56,9 @@ REFRESH_HZ_MAX_SPEED = 10.0
 TABLE_EVERY = 3
 #: Speed steps for faster / slower; None is "as fast as possible".
 SPEEDS: tuple[float | None, ...] = (1.0, 4.0, 16.0, None)
+#: A wider search (``w``): the hider believed within this of the cursor [cm] (the
+#: headless operator's `supervisors.headless.Budget.wider_within_cm`).
+WIDER_SEARCH_CM = 120.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,6 +83,9 @@ ACTIONS: tuple[UiAction, ...] = (
              footer=False),
     UiAction("enter", "confirm", "Confirm",
              "Confirm the cursor: hide spot (map ready) or seek guess (hidden / not found)"),
+    UiAction("w", "wider_search", "Wider",
+             f"Seek at the cursor with a wider search ({WIDER_SEARCH_CM:.0f} cm round it)",
+             footer=False),
     UiAction("space", "toggle_pause", "Pause", "Pause / resume simulated time"),
     UiAction("right_square_bracket", "faster", "Faster",
              "Speed up: x1, x4, x16, as fast as possible"),
@@ -353,6 +359,18 @@ class ConsoleApp(App[int]):
             self.notify(f"nothing to choose in phase {phase.replace('_', ' ')}: the cursor "
                         "picks the hide spot when the map is ready, and seek guesses once "
                         "hidden", severity="warning")
+
+    def action_wider_search(self) -> None:
+        """``w`` on the map: seek at the cursor, searching `WIDER_SEARCH_CM` round it (after
+        a guess there came back not found: the seeker's or the hider's dead reckoning may
+        be that far off)."""
+        phase = self.snapshot.phase if self.snapshot else "idle"
+        if phase not in ("hidden", "not_found"):
+            self.notify(f"a wider search is a seek guess: not in phase {phase.replace('_', ' ')}",
+                        severity="warning")
+            return
+        x, y = self.map_view.cursor
+        self._call("seek_at", x, y, WIDER_SEARCH_CM)
 
     def action_toggle_pause(self) -> None:
         if self.snapshot is not None and self.snapshot.paused:

@@ -64,8 +64,9 @@ class QueuedController:
     def hide_at(self, x_cm: float, y_cm: float, heading_deg: float) -> None:
         self._submit("hide_at", float(x_cm), float(y_cm), float(heading_deg))
 
-    def seek_at(self, x_cm: float, y_cm: float) -> None:
-        self._submit("seek_at", float(x_cm), float(y_cm))
+    def seek_at(self, x_cm: float, y_cm: float, within_cm: float | None = None) -> None:
+        wider = () if within_cm is None else (float(within_cm),)
+        self._submit("seek_at", float(x_cm), float(y_cm), *wider)
 
     def new_game(self) -> None:
         self._submit("new_game")

@@ -206,12 +206,13 @@ class FakeSystem(QueuedController):
         self._set_phase("hiding")
         return f"hider sent to ({x:.0f}, {y:.0f}) @ {heading:.0f} deg"
 
-    def _do_seek_at(self, x: float, y: float) -> str:
+    def _do_seek_at(self, x: float, y: float, within: float | None = None) -> str:
         self._need_phase("seek", "hidden", "not_found")
         self._guesses.append((x, y))
         self._send_to(self._rovers["seeker"], (x + START_CM[0], y + START_CM[1]))
         self._set_phase("seeking")
-        return f"seeker sent to ({x:.0f}, {y:.0f})"
+        wider = "" if within is None else f", searching {within:.0f} cm round it"
+        return f"seeker sent to ({x:.0f}, {y:.0f}){wider}"
 
     def _do_new_game(self) -> None:
         self._reset_game()

@@ -254,8 +254,9 @@ class LiveSystem(QueuedController):
     async def _do_hide_at(self, x: float, y: float, heading: float) -> str:
         return await self._server_command("hide", x=x, y=y, heading=heading)
 
-    async def _do_seek_at(self, x: float, y: float) -> str:
-        return await self._server_command("seek", x=x, y=y)
+    async def _do_seek_at(self, x: float, y: float, within: float | None = None) -> str:
+        wider = {} if within is None else {"within": within}
+        return await self._server_command("seek", x=x, y=y, **wider)
 
     async def _do_new_game(self) -> str:
         return await self._server_command("new_game")

@@ -425,8 +425,9 @@ class Controller(Protocol):
     def hide_at(self, x_cm: float, y_cm: float, heading_deg: float) -> None:
         """Send the hider to a spot (valid in ``map_ready``); refused when the spot is invalid."""
 
-    def seek_at(self, x_cm: float, y_cm: float) -> None:
-        """Send the seeker to look at a place (valid in ``hidden`` and ``not_found``)."""
+    def seek_at(self, x_cm: float, y_cm: float, within_cm: float | None = None) -> None:
+        """Send the seeker to look at a place (valid in ``hidden`` and ``not_found``);
+        ``within_cm`` asks for a wider search: the hider is believed within that of it."""
 
     def new_game(self) -> None:
         """Reset the game to ``idle`` (the map may be kept or re-made by the system)."""
