@@ -3,8 +3,9 @@
 `play_game` drives a running `SimSystem` through the game flow of DESIGN.md
 section 6 (start mapping, wait for the mapper's own completion, hide at the
 scenario's spot, seek at each guess in turn) and scores it with the metrics of
-section 8. When every guess came back ``not_found``, it does what an operator
-would: one wider search round the last guess (``seek ... within=``
+section 8. Where a person would try again, it does: a hider that cannot hide is
+sent once more (`Budget.hide_attempts`); when every guess came back ``not_found``,
+one wider search round the last guess (``seek ... within=``
 `Budget.wider_within_cm`), counted in ``GameReport.wider_search``. `run_game`
 opens the system, plays, and returns a `GameReport`; it is a plain function of
 (scenario, seed), so a campaign worker can call it.
@@ -44,6 +45,9 @@ class Budget:
     mapping: float = 1200.0
     hiding: float = 600.0
     seeking: float = 600.0  #: per guess
+    hide_attempts: int = 2
+    """Times the operator sends the hider to its spot when it answers that it cannot get
+    there (from where it stands, the map fetched afresh)."""
     wider_within_cm: float | None = 120.0
     """The wider search after the last guess failed: the hider believed within this of
     it [cm] (None: no wider search, the game ends ``not_found``)."""
@@ -67,6 +71,7 @@ class GameReport:
     t99_s: float | None = None
     path_cm: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
+    hide_attempts: int = 0
     guesses: int = 0
     wider_search: bool = False
     """Every guess failed and the operator's wider search round the last one ran."""
@@ -189,11 +194,16 @@ async def play_game(system: SimSystem, report: GameReport, budget: Budget) -> No
         return fail("the scenario has no [game] hide_at")
     hide = scenario.hide_at
     t = trio.current_time()
-    result = await system.command("hide", x=hide.x, y=hide.y, heading=hide.heading_deg,
-                                  frame="room")
-    if not result.ok:
-        return fail(f"hide refused: {result.reason}")
-    got = await phases.until({"hidden", "map_ready"}, budget.hiding)
+    got = None
+    while got != "hidden" and report.hide_attempts < budget.hide_attempts:
+        report.hide_attempts += 1
+        result = await system.command("hide", x=hide.x, y=hide.y, heading=hide.heading_deg,
+                                      frame="room")
+        if not result.ok:
+            return fail(f"hide refused: {result.reason}")
+        got = await phases.until({"hidden", "map_ready"}, budget.hiding)
+        if got is None:
+            break  # a hider that does not answer is not asked again
     report.phases["hiding"] = trio.current_time() - t
     if got != "hidden":
         return fail(f"hider did not hide: {phases.reason or 'timeout'}")

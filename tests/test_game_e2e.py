@@ -6,6 +6,7 @@ import dataclasses
 import json
 import math
 
+import shapely
 import trio
 
 from actors import seed_trio_scheduler, virtual_clock
@@ -50,6 +51,22 @@ def test_when_every_guess_fails_the_operator_searches_wider_round_the_last() -> 
     plain = trio.run(lambda: run_game(off, 1, budget=Budget(wider_within_cm=None)),
                      clock=virtual_clock())
     assert (plain.outcome, plain.guesses, plain.wider_search) == ("not_found", 2, False)
+
+
+def test_a_hider_that_cannot_hide_is_sent_once_more_then_the_game_fails() -> None:
+    """A spot in the middle of a 1 m box: the hider answers ``invalid_spot``; the headless
+    operator sends it again (`Budget.hide_attempts` 2), then gives up with the hider's
+    reason; with one attempt it gives up after the first answer."""
+    base = load_scenario("empty")
+    boxed = dataclasses.replace(base, obstacles=(shapely.box(170, 100, 270, 200),),
+                                hide_at=base.hide_at._replace(x=220.0, y=150.0))
+    for attempts in (2, 1):
+        seed_trio_scheduler(1)
+        report = trio.run(lambda n=attempts: run_game(boxed, 1, budget=Budget(hide_attempts=n)),
+                          clock=virtual_clock())
+        assert (report.outcome, report.hide_attempts) == ("failed", attempts)
+        assert report.reason.startswith("hider did not hide: unknown ground")
+        assert sum("report=invalid_spot" in e for e in report.events) == attempts
 
 
 def test_same_seed_gives_the_same_game_event_for_event() -> None:
