@@ -47,7 +47,7 @@ class Budget:
     seeking: float = 600.0  #: per guess
     hide_attempts: int = 2
     """Times the operator sends the hider to its spot when it answers that it cannot get
-    there (from where it stands, the map fetched afresh)."""
+    there (the hider plans again from where it stands, its count of blocks afresh)."""
     wider_within_cm: float | None = 120.0
     """The wider search after the last guess failed: the hider believed within this of
     it [cm] (None: no wider search, the game ends ``not_found``)."""
