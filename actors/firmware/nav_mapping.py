@@ -74,6 +74,10 @@ Odometry that scan matching contradicts (why: a stuck encoder drew a round room 
     the same hold at once, a second or more before the pose shows it; one
     saying a tread, or both, count short (a slipping encoder, or a weak motor)
     stops the motion too and holds ``short_hold_s`` (see `on_tread_fault`).
+    A turn that ended with both treads silent (value 4: the rover may have
+    turned tens of degrees unseen) holds as a silent tread does and tells Map
+    Management the pose is lost (``MAP_POSE_LOST``): it places no batch until
+    scan matching finds the pose again (`mapping.MapManagement`).
 
 Restart
     The new incarnation asks Map Management for a snapshot (MAP_GET) and Motor
