@@ -154,3 +154,19 @@ def test_a_head_on_contact_beside_a_gap_is_ambiguous_within_the_drift() -> None:
     assert far is not None and far.shift_cm > 8.0 and far.ambiguous
     near = locate_contact(CORRIDOR, dr, side=-1, **BODY)
     assert near is not None and near.shift_cm > 8.0 and not near.ambiguous
+
+
+def test_a_stalled_corner_at_a_gap_is_ambiguous_within_the_drift() -> None:
+    """In the gap's mouth by dead reckoning, 4.5 cm below its middle, the right tread
+    stalled: the cheapest right-side contact is the lower wall's end, 6 cm down. The
+    right front corner on the upper wall's end, 20-odd cm up (dead reckoning that far
+    below the truth), explains it as well; the stalled side does not tell the two walls
+    apart, so with a drift of 20 cm the contact is ambiguous, with 3 cm it is not
+    (held-out 3:95: the hider 20 cm above the gap was moved 11 cm down, and no later
+    offset of the probe reached the gap)."""
+    dr = Pose(394.0, 313.0, 0.0)
+    near = locate_contact(GAP, dr, side=-1, **BODY)
+    assert near is not None and near.shift_cm <= -5.0 and not near.ambiguous
+    far = locate_contact(GAP, dr, side=-1, ambiguity_cm=20.0, other_shift_cm=34.0,
+                         max_along_cm=15.0, **BODY)
+    assert far is not None and far.shift_cm == pytest.approx(near.shift_cm) and far.ambiguous

@@ -325,3 +325,72 @@ def test_an_odometry_stamp_across_the_heading_wrap_is_the_same_pose() -> None:
     assert _same_pose(Pose(10.0, 5.0, 179.9), Pose(10.2, 5.0, -179.95))
     assert not _same_pose(Pose(10.0, 5.0, 179.9), Pose(10.0, 5.0, -179.0))
     assert not _same_pose(Pose(10.0, 5.0, 0.0), None)
+
+
+@pytest.mark.trio
+async def test_a_lost_pose_places_no_batch_until_two_searches_agree(autojump_clock) -> None:
+    """After MAP_POSE_LOST (both treads driven, neither counting: the rover turned unseen)
+    the batches of a rover that turned 50 deg while odometry stood still are not placed at
+    the stale pose (held-out campaign 3:199 drew the room at every angle that way); the
+    wide search finds the heading, and only two searches in a row that agree move the
+    correction. The walls are not drawn a second time."""
+    from actors.firmware.odometry import Pose
+
+    pool, log, motor_log = BufferPool(64), [], []
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
+                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
+                                                                  warmup_scans=3))])
+    truth, turned = Pose(120.0, 80.0, 0.0), Pose(120.0, 80.0, 50.0)
+
+    def send(system, taken_at: Pose) -> None:
+        a, r = _room_scans(taken_at)
+        system.send_nowait("mapper/map", Message.handle(
+            Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
+
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):  # the reference, at the true pose
+            send(system, truth)
+        await trio.sleep(0.6)
+        mm = system.whereis("mapper/map").actor
+        before, scans = mm.grid.cells(), mm.scans
+        system.send_nowait("mapper/map", Message.uint(Cmd.MAP_POSE_LOST, 180))
+        send(system, turned)  # the first search: a candidate, not yet placed
+        await trio.sleep(0.1)
+        assert mm.scans == scans and mm.lost_scans == 1
+        assert mm.correction.heading_deg == pytest.approx(0.0, abs=1e-6)
+        for _ in range(12):  # 0.1 s apart: a search every 0.5 s
+            send(system, turned)
+            await trio.sleep(0.1)
+        assert mm.refound == 1
+        assert mm.correction.heading_deg == pytest.approx(50.0, abs=1.5)
+        assert mm.scans > scans  # placed again once found
+        assert _stray_walls(before, mm.grid.cells()) <= 3  # (2: rays 3 deg apart land elsewhere)
+
+
+@pytest.mark.trio
+async def test_without_the_lost_notice_a_standing_rover_draws_its_unseen_turn(
+        autojump_clock) -> None:
+    """The same batches without MAP_POSE_LOST: odometry stands, so after ``settle_s`` they
+    are placed at the stale heading and draw a rotated copy of the room (what the notice
+    prevents)."""
+    from actors.firmware.odometry import Pose
+
+    pool, log, motor_log = BufferPool(64), [], []
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
+                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
+                                                                  warmup_scans=3))])
+    truth, turned = Pose(120.0, 80.0, 0.0), Pose(120.0, 80.0, 50.0)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for k in range(3 + 30):
+            a, r = _room_scans(truth if k < 3 else turned)
+            system.send_nowait("mapper/map", Message.handle(
+                Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
+            await trio.sleep(0.1)
+            if k == 2:
+                before = system.whereis("mapper/map").actor.grid.cells()
+        after = system.whereis("mapper/map").actor.grid.cells()
+        assert _stray_walls(before, after) > 30  # (102)

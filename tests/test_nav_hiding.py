@@ -83,11 +83,13 @@ async def test_hider_requests_the_map_drives_round_the_wall_and_arrives(autojump
 ], ids=["inside-wall", "too-tight", "off-map"])
 async def test_invalid_spot_is_refused_with_a_reason_and_no_motion(autojump_clock, dest,
                                                                    why) -> None:
-    """An invalid spot gets ``invalid_spot`` naming why; the rover does not move."""
+    """An invalid spot gets ``invalid_spot`` naming why; the rover does not move (with
+    ``spot_shift_cm`` 0: no place near it is looked for)."""
     body = Body(truth=own_truth())
     pool = BufferPool(64)
     async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await system.start_supervisor(rover_spec("hider", body, pool,
+                                                 options=NavOptions(spot_shift_cm=0.0)), "hider")
         await begin(system, pool, dest)
         assert await wait_for(lambda: body.frames("invalid_spot"), 5.0)
         assert body.frames("invalid_spot")[0].data["reason"].startswith(why)
@@ -337,3 +339,80 @@ async def test_a_tread_fault_while_standing_is_ignored(autojump_clock) -> None:
         await trio.sleep(0.5)
         nav = system.whereis("hider/nav").actor
         assert nav.tread_faults == 0 and not nav.moving
+
+
+@pytest.mark.trio
+async def test_a_spot_inside_a_wall_moves_to_the_nearest_place_that_fits(autojump_clock) -> None:
+    """A spot on the wall's middle (its map says obstacle): the hider hides at the nearest
+    place within ``spot_shift_cm`` where it fits, reports ``arrived`` with where it is,
+    and says so in its status; a spot with nothing that fits near it is refused."""
+    body = Body(truth=own_truth())
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, {"x": 150.0, "y": 50.0, "heading": 0.0})
+        assert await wait_for(lambda: body.frames("arrived"), 120.0)
+        a = body.frames("arrived")[0].data
+        assert 20.0 <= math.dist((a["x"], a["y"]), (150, 50)) <= 30.0
+        assert a["x"] < 140.0  # this side of the wall: the nearer place is the one reached
+        assert body.frames("invalid_spot") == []
+        details = [f.data.get("detail", "") for f in body.frames("status")]
+        assert any("does not fit (obstacle" in d for d in details)
+        nav = system.whereis("hider/nav").actor
+        assert nav.near_spots(900.0, 50.0, 0.0) == []  # off the map: nothing near
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize("dest, hidden", [({"x": 70.0, "y": 50.0, "heading": 0.0}, True),
+                                          ({"x": 120.0, "y": 50.0, "heading": 0.0}, False)],
+                         ids=["20-cm-off", "70-cm-off"])
+async def test_a_hider_blocked_for_good_near_its_spot_hides_where_it_stands(
+        autojump_clock, monkeypatch, dest, hidden) -> None:
+    """Every move blocked, back-offs too (wedged by something the map does not show): the
+    route is given up after ``replan_limit`` blocks where the rover started. 20 cm from
+    the spot the hider hides where it stands (``arrived``, its own pose); 70 cm from it,
+    it refuses as before."""
+    import tests.test_nav_common as common
+
+    class WedgedMotor(common.FakeMotor):
+        async def handle(self, message: Message) -> None:
+            if message.command == Cmd.MOTOR_MOVE:
+                self.body.motor_log.append((Cmd(message.command).name, float(message.value)))
+                await trio.sleep(0.2)
+                self.ctx.send_nowait(self.nav, Message.float(Cmd.NAV_MOTION_BLOCKED, 0.0))
+                return
+            await super().handle(message)
+
+    monkeypatch.setattr(common, "FakeMotor", WedgedMotor)
+    body = Body(truth=own_truth())
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool), "hider")
+        await begin(system, pool, dest)
+        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
+                              300.0)
+        if hidden:
+            a = body.frames("arrived")[0].data
+            assert math.dist((a["x"], a["y"]), (50.0, 50.0)) <= 1.0  # where it stands
+            assert body.frames("status")[-1].data["state"] == "hidden"
+        else:
+            assert body.frames("arrived") == []
+            reason = body.frames("invalid_spot")[0].data["reason"]
+            assert reason.startswith("cannot reach the spot")
+
+
+def test_near_enough_needs_the_spot_in_sight_on_the_map(autojump_clock) -> None:
+    """Within ``hide_near_cm`` but with the wall between (on the map): not near."""
+    from actors.firmware.nav_hiding import HidingNav
+    from actors.firmware.odometry import Pose as P
+
+    nav = HidingNav(pool=BufferPool(4))
+    nav.map = room_map(TRUTH_MAP)
+    nav.origin = P(0.0, 0.0, 0.0)
+    nav.pose = P(125.0, 50.0, 0.0)  # 15 cm before the wall's face (x 140..160)
+    nav.goal = (145.0, 50.0)
+    assert not nav.near_enough()
+    nav.goal = (125.0, 75.0)
+    assert nav.near_enough()
+    nav.goal = (125.0, 90.0)
+    assert not nav.near_enough()  # 40 cm: too far

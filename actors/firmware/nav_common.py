@@ -100,6 +100,12 @@ class NavOptions:
     """Clearance kept from obstacles when planning [cm]."""
     spot_margin_cm: float = 5.0
     """Clearance all round a hiding spot, for turning [cm]."""
+    spot_shift_cm: float = 30.0
+    """A hiding spot that does not fit on the hider's map is moved to the nearest place
+    within this that does (`nav_hiding`); 0 refuses it at once [cm]."""
+    hide_near_cm: float = 30.0
+    """A hider that cannot reach its spot but stands this close to it, in the open in
+    sight of it on its map, hides where it stands (`nav_hiding`); 0 never [cm]."""
     narrow_margin_cm: float = 2.0
     """Clearance beyond half the body width in the last planning tier (narrow passages) [cm]."""
     replan_limit: int = 10
