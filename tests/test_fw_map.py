@@ -154,6 +154,23 @@ def _room_scans(pose_true, n: int = 120):
     return ray_scan(room_map(), pose_true, n)
 
 
+def _map_tree(pool: BufferPool, log: list, motor_log: list, **options) -> SupervisorSpec:
+    """Map Management (a 10 x 10 m map, ``options``) beside two recorders standing in for
+    navigation and Motor Control."""
+    return SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
+                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
+                                                                  **options))])
+
+
+def _send_room_scan(system, pool: BufferPool, odom, taken_at) -> None:
+    """A box-room scan taken at ``taken_at``, sent to Map Management as taken at ``odom``
+    (the pose odometry gives)."""
+    a, r = _room_scans(taken_at)
+    system.send_nowait("mapper/map", Message.handle(
+        Cmd.MAP_SCAN, pool.put(Scan(odom, a.astype(np.float32), r.astype(np.float32)))))
+
+
 @pytest.mark.trio
 async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_clock) -> None:
     """Odometry says 4 deg more than the truth: the scan is registered onto the walls the
@@ -206,9 +223,7 @@ async def test_a_batch_with_an_unchanged_odometry_stamp_is_matched_until_the_rov
     truth = Pose(120.0, 80.0, 0.0)
 
     def send(system, odom: Pose, taken_at: Pose) -> None:
-        a, r = _room_scans(taken_at)
-        system.send_nowait("mapper/map", Message.handle(
-            Cmd.MAP_SCAN, pool.put(Scan(odom, a.astype(np.float32), r.astype(np.float32)))))
+        _send_room_scan(system, pool, odom, taken_at)
 
     async with open_actor_system(1) as system:
         await system.start_supervisor(spec, "mapper")
@@ -337,16 +352,11 @@ async def test_a_lost_pose_places_no_batch_until_two_searches_agree(autojump_clo
     from actors.firmware.odometry import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
-    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
-                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
-                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
-                                                                  warmup_scans=3))])
+    spec = _map_tree(pool, log, motor_log, warmup_scans=3)
     truth, turned = Pose(120.0, 80.0, 0.0), Pose(120.0, 80.0, 50.0)
 
     def send(system, taken_at: Pose) -> None:
-        a, r = _room_scans(taken_at)
-        system.send_nowait("mapper/map", Message.handle(
-            Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
+        _send_room_scan(system, pool, truth, taken_at)
 
     async with open_actor_system(1) as system:
         await system.start_supervisor(spec, "mapper")
@@ -378,17 +388,12 @@ async def test_without_the_lost_notice_a_standing_rover_draws_its_unseen_turn(
     from actors.firmware.odometry import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
-    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
-                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
-                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
-                                                                  warmup_scans=3))])
+    spec = _map_tree(pool, log, motor_log, warmup_scans=3)
     truth, turned = Pose(120.0, 80.0, 0.0), Pose(120.0, 80.0, 50.0)
     async with open_actor_system(1) as system:
         await system.start_supervisor(spec, "mapper")
         for k in range(3 + 30):
-            a, r = _room_scans(truth if k < 3 else turned)
-            system.send_nowait("mapper/map", Message.handle(
-                Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
+            _send_room_scan(system, pool, truth, truth if k < 3 else turned)
             await trio.sleep(0.1)
             if k == 2:
                 before = system.whereis("mapper/map").actor.grid.cells()
