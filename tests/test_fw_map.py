@@ -399,3 +399,35 @@ async def test_without_the_lost_notice_a_standing_rover_draws_its_unseen_turn(
                 before = system.whereis("mapper/map").actor.grid.cells()
         after = system.whereis("mapper/map").actor.grid.cells()
         assert _stray_walls(before, after) > 30  # (102)
+
+
+def test_a_refused_batch_whose_guess_fits_well_starts_the_relocalisation_count_over(
+        monkeypatch) -> None:
+    """Two batches refused with a guess that fits well (0.93, 0.84: the pose is right,
+    matching found nothing better) and one blurred by a turn (0.45) are not three lost
+    batches in a row: no wide search (healthy hall game, seed 1224892982, searched there
+    and took a pose 23 deg off). Three bad fits in a row still search."""
+    from actors.firmware import mapping
+    from actors.firmware.odometry import Pose
+    from actors.firmware.scan_match import MatchResult
+
+    searches = []
+
+    def fake_relocalise(fields, pts, guess, options=None, search=None):
+        searches.append(guess)
+        return MatchResult(guess, False, 0.45, 0.45, "ambiguous", True)
+
+    monkeypatch.setattr(mapping, "relocalise", fake_relocalise)
+    mm = MapManagement(BufferPool(4), size_cm=(200, 200))
+    mm._fields = object()  # (only the fake search reads it)
+    guess, pts = Pose(10.0, 5.0, 40.0), np.zeros((50, 2))
+
+    def refused(score_guess: float) -> MatchResult:
+        return MatchResult(guess, False, score_guess, score_guess, "the match fits worse", True)
+
+    for t, fit in ((1.0, 0.93), (1.05, 0.84), (1.1, 0.45)):
+        mm._relocalise(pts, guess, refused(fit), t)
+    assert searches == []
+    for t in (1.15, 1.2):
+        mm._relocalise(pts, guess, refused(0.3), t)
+    assert len(searches) == 1
