@@ -644,7 +644,7 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         "outcome": "failed", "reason": "", "violations": [], "faults_fired": 0,
         "restarts": 0, "resent": 0, "dropped": 0, "sim_s": 0.0, "wall_s": 0.0, "cpu_s": 0.0,
         "trace_hash": "", "replay_hash": None, "events": {}, "baseline": None,
-        "baseline_violations": [], "wider_search": False,
+        "baseline_violations": [], "wider_search": False, "hide_attempts": 0,
     }
     wall0 = time.perf_counter()  # wall and CPU time are measured for the report only
     cpu0 = time.process_time()
@@ -654,7 +654,7 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
                    resent=report.resent, dropped=report.dropped, sim_s=report.sim_seconds,
                    trace_hash=report.trace_hash, violations=checks["violations"],
                    faults_fired=checks["faults_fired"], events=checks["events"],
-                   wider_search=report.wider_search)
+                   wider_search=report.wider_search, hide_attempts=report.hide_attempts)
         if determinism:
             again, _ = _run_one(spec, wall_timeout_s, nav_factory)
             out["replay_hash"] = again.trace_hash
@@ -810,6 +810,8 @@ def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
         "found_rate": (outcomes.get("found", 0) / games) if games else 0.0,
         "found_by_wider_search": sum(1 for r in results
                                      if r["outcome"] == "found" and r.get("wider_search")),
+        "found_after_second_hide": sum(1 for r in results if r["outcome"] == "found"
+                                       and r.get("hide_attempts", 0) > 1),
         "fault_kinds": {k: {"injected": c["injected"], "recovered": c["recovered"],
                             "failed": c["failed"], "not_reached": c["not_reached"]}
                         for k, c in sorted(per_kind.items())},

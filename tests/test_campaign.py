@@ -183,6 +183,18 @@ def test_summary_counts_outcomes_fault_kinds_and_failures():
     assert s["games_per_wall_minute"] == 80.0
 
 
+def test_summary_counts_games_the_operators_retries_found():
+    """Found games that needed the wider search or a second hide are counted apart; a game
+    that needed them and was still lost is not."""
+    config = CampaignConfig(5, kinds=("wifly:loss",))
+    results = [fake_worker(config.game_ref(i)) for i in range(6)]
+    results[0].update(wider_search=True)
+    results[1].update(hide_attempts=2)
+    results[2].update(wider_search=True, hide_attempts=2, outcome="not_found")
+    s = summarize(config, results, wall_s=30.0, workers=2)
+    assert (s["found_by_wider_search"], s["found_after_second_hide"]) == (1, 1)
+
+
 def test_summary_counts_faults_after_the_end_as_not_reached():
     config = CampaignConfig(5, kinds=("wifly:loss",))
     r = fake_worker(config.game_ref(0))

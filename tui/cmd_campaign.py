@@ -165,7 +165,8 @@ def _print_table(s: dict[str, Any]) -> None:
         print(f"  stopped early ({s['stopped_early']}): {s['games']} of "
               f"{s['games_requested']} games played")
     print(f"  found {s['found']} ({s.get('found_by_wider_search', 0)} by the wider search "
-          f"after every guess failed), not found {s['not_found']}, failed {s['failed']}; "
+          f"after every guess failed, {s.get('found_after_second_hide', 0)} after a second "
+          f"hide), not found {s['not_found']}, failed {s['failed']}; "
           f"games with broken invariants {s['games_with_violations']}; "
           f"success rate {100 * s['success_rate']:.1f} %; failures that fail without "
           f"their faults too {s['failures_also_without_faults']}")
