@@ -257,20 +257,29 @@ class MapManagement(Actor):
         if opts is None or self.scans < self.warmup_scans or (
                 now - self._still_since >= self.settle_s and _same_pose(odom, self._last_odom)):
             return guess  # standing still: matching again would only add its own jitter
-        if self._fields is None or (self._fields_stale and now - self._fields_at >= self.fields_s):
-            self._build_fields(opts, now)
-        assert self._fields is not None
+        fields = self._current_fields(opts, now)
         pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
-        result = match_scan(self._fields, pts, guess, opts)
+        result = match_scan(fields, pts, guess, opts)
         if not result.accepted and result.supported:
             result = self._relocalise(pts, guess, result, now)
         if not result.accepted:
             return None if result.supported else guess
+        return self._accept(result.pose, odom)
+
+    def _current_fields(self, opts: MatchOptions, now: float) -> MatchFields:
+        """The matching fields, rebuilt first when stale for ``fields_s`` (or never built)."""
+        if self._fields is None or (self._fields_stale and now - self._fields_at >= self.fields_s):
+            self._build_fields(opts, now)
+        assert self._fields is not None
+        return self._fields
+
+    def _accept(self, pose: Pose, odom: Pose) -> Pose:
+        """A batch placed at ``pose`` by matching: the correction follows it."""
         self._refused = 0
         self.matched += 1
         self._last_odom = odom
-        self.correction = compose(result.pose, inverse(odom))
-        return result.pose
+        self.correction = compose(pose, inverse(odom))
+        return pose
 
     def _refind(self, scan: Scan, guess: Pose, odom: Pose, opts: MatchOptions, now: float
                 ) -> Pose | None:
@@ -287,16 +296,13 @@ class MapManagement(Actor):
         silent in a turn) and says so; a batch that cannot be placed is dropped, as a
         refused match is (`_place`).
         """
-        if self._fields is None or (self._fields_stale and now - self._fields_at >= self.fields_s):
-            self._build_fields(opts, now)
-        assert self._fields is not None
+        fields = self._current_fields(opts, now)
         if now - self._relocalise_at < _LOST_EVERY_S:
             self.lost_scans += 1
             return None
         self._relocalise_at = now
         pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
-        wide = relocalise(self._fields, pts, guess, opts,
-                          RelocaliseOptions(turn_deg=self._lost_deg))
+        wide = relocalise(fields, pts, guess, opts, RelocaliseOptions(turn_deg=self._lost_deg))
         if not wide.accepted:
             self.lost_scans += 1
             return None
@@ -309,11 +315,7 @@ class MapManagement(Actor):
         self._lost_until = -float("inf")
         self._lost_candidate = None
         self.refound += 1
-        self._refused = 0
-        self.matched += 1
-        self._last_odom = odom
-        self.correction = compose(wide.pose, inverse(odom))
-        return wide.pose
+        return self._accept(wide.pose, odom)
 
     def _relocalise(self, pts: np.ndarray, guess: Pose, refused: MatchResult, now: float
                     ) -> MatchResult:

@@ -96,9 +96,13 @@ class HidingNav(RouteNav):
         await self.set_state("ready", f"refused ({x:.0f}, {y:.0f}): {reason}")
 
     async def on_arrived(self) -> None:
+        await self._hide_here("at the spot")
+
+    async def _hide_here(self, detail: str) -> None:
+        """Hidden where it stands: ``arrived`` with the pose it believes it has."""
         self.answered()
         await self.report("arrived", self.pose_data())
-        await self.set_state("hidden", "at the spot")
+        await self.set_state("hidden", detail)
 
     def near_enough(self) -> bool:
         """Within ``hide_near_cm`` of the goal by dead reckoning, and no occupied cell of
@@ -123,10 +127,8 @@ class HidingNav(RouteNav):
         if self.near_enough():
             assert self.goal is not None
             p = self.map_pose
-            self.answered()
-            await self.report("arrived", self.pose_data())
-            await self.set_state("hidden", f"{reason}; hiding here, "
-                                 f"{math.dist((p.x, p.y), self.goal):.0f} cm from the spot")
+            await self._hide_here(f"{reason}; hiding here, "
+                                  f"{math.dist((p.x, p.y), self.goal):.0f} cm from the spot")
             return
         reason = f"cannot reach the spot: {reason}"
         self.answered()

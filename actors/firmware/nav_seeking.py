@@ -141,8 +141,8 @@ class SeekingOptions:
     wide_max_points: int = 72
     """Points of a wider search, at most (each costs a drive and a scan of about 15 s)."""
     wide_search_s: float = 800.0
-    """A wider search's rings end after this long [s] (the operator's budget for the
-    whole guess is longer: `supervisors.headless.Budget.wider_seeking`)."""
+    """A wider search (its rings, then the sweep by touch) ends after this long [s]; the
+    operator's budget for the whole guess is longer (`headless.Budget.wider_seeking`)."""
 
     def all_round_deg(self) -> tuple[float, ...]:
         """The all-round scan's headings relative to facing the place [deg]: the
@@ -321,7 +321,7 @@ class SeekingNav(RouteNav):
             await self._approach()
         elif self.stage == "search":
             await self._next_search_point()
-        elif self._plan_search() or self.memory.within:
+        elif self._plan_search() or self.memory.within is not None:
             await self._next_search_point()  # with ``within``: the sweep, ring or not
         else:
             await self._not_found(f"cannot get near the place: {reason}")
@@ -542,7 +542,7 @@ class SeekingNav(RouteNav):
                 await self._face(self._scan[self._scan_index])
             elif self.stage == "standoff":
                 await self._approach()
-            elif self.stage == "close" and (self._plan_search() or self.memory.within):
+            elif self.stage == "close" and (self._plan_search() or self.memory.within is not None):
                 await self._next_search_point()  # with ``within``: the sweep, ring or not
             elif self.stage in ("search", "sweep"):
                 await self._next_search_point()
