@@ -7,7 +7,7 @@ are played once by a pool of one ``spawn`` worker (the baseline) and once by
 a pool of two; the figure is the ratio of games per wall minute (target
 >= 1.8 on two otherwise idle cores). Each pool is started and warmed up
 (imports done) before its clock starts. The pools get the games longest
-expected first (`supervisors.campaign.dispatch_order`), as ``hideseek
+expected first (`supervisors.harness.campaign.dispatch_order`), as ``hideseek
 campaign`` does, so the two workers finish together.
 
 The default is 24 games (three of each of the eight rooms): games differ
@@ -56,7 +56,7 @@ import os
 import time
 from typing import Any
 
-from supervisors.campaign import CampaignConfig, default_workers, run_campaign
+from supervisors.harness.campaign import CampaignConfig, default_workers, run_campaign
 
 _PROBE_KINDS = ("python", "memory", "objects")
 _STREAM_MB = 64          # probe array size per process [MB] (L2 is a few MB per core)
@@ -65,7 +65,7 @@ _OBJECTS = 1_000_000     # probe: Python objects visited in random order (~100 M
 
 def _warm(_: int) -> int:
     """Import what a game needs, so process start-up stays out of the timing."""
-    import supervisors.campaign  # noqa: F401, PLC0415
+    import supervisors.harness.campaign  # noqa: F401, PLC0415
 
     time.sleep(0.2)  # keep this worker busy so the pool hands the next warm-up to another
     return os.getpid()

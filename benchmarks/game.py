@@ -3,7 +3,7 @@
 Run as ``python -m benchmarks.game [--quick] [--scenarios a,b] [--seeds 1-5]
 [--workers W] [--budget S]``.
 
-Each game is one headless run (`supervisors.headless.play_game` on a simulated
+Each game is one headless run (`supervisors.harness.headless.play_game` on a simulated
 system in virtual time), exactly as ``hideseek run`` plays it, plus two probes
 that read ground truth for this report only (never to steer a rover):
 
@@ -100,7 +100,7 @@ def truth_map(scenario: Any) -> Any:
     side), in the mapper's start frame (start heading 0 only) [5 cm cells]."""
     import numpy as np  # noqa: PLC0415
 
-    from actors.firmware.occupancy import FREE, OCCUPIED, GridMap  # noqa: PLC0415
+    from actors.firmware.mapping.occupancy import FREE, OCCUPIED, GridMap  # noqa: PLC0415
     from world.truth import truth_raster  # noqa: PLC0415
 
     start = scenario.starts["mapper"]
@@ -117,8 +117,8 @@ def truth_map(scenario: Any) -> Any:
 def truth_nav_factory(grid: Any) -> Any:
     """A rover tree ``nav_factory``: the real hider and seeker navigation, and a stand-in
     mapping navigation that uploads ``grid`` when the server says ``start``."""
-    from actors.firmware.nav import make_nav  # noqa: PLC0415
-    from actors.firmware.nav_common import NavBase  # noqa: PLC0415
+    from actors.firmware.nav.base import NavBase  # noqa: PLC0415
+    from actors.firmware.nav.factory import make_nav  # noqa: PLC0415
 
     class TruthMapperNav(NavBase):
         """Mapping navigation stand-in: the map is ``grid``, uploaded at once."""
@@ -147,7 +147,7 @@ def play_one(job: tuple[str, int, float, bool]) -> dict[str, Any]:
 
     from actors import seed_trio_scheduler, virtual_clock  # noqa: PLC0415
     from server.store import Store  # noqa: PLC0415
-    from supervisors.headless import Budget, GameReport, finish_report, play_game  # noqa: PLC0415
+    from supervisors.harness.headless import Budget, GameReport, finish_report, play_game  # noqa: PLC0415
     from supervisors.system import open_sim_system  # noqa: PLC0415
     from world.scenario import load_scenario  # noqa: PLC0415
 

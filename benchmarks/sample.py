@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     import trio  # noqa: PLC0415
 
     from actors import seed_trio_scheduler, virtual_clock  # noqa: PLC0415
-    from supervisors.headless import run_game  # noqa: PLC0415
+    from supervisors.harness.headless import run_game  # noqa: PLC0415
     from world.scenario import load_scenario  # noqa: PLC0415
 
     own: collections.Counter[str] = collections.Counter()

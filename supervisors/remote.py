@@ -37,11 +37,10 @@ import trio
 
 from actors import ActorSystem, open_actor_system
 from server.links import LinkSpec, open_pty_cable, open_serial_stream
+from supervisors.rover import ROLES, rover_tree
 from world.scenario import Scenario
 from world.wifly import WiflyLink
 from world.world import World, run_world
-
-from .rover import ROLES, rover_tree
 
 __all__ = ["UPLINK_BYTES", "RETRY_S", "Uplink", "RemoteRover", "open_remote_rover",
            "run_remote_rover"]

@@ -16,7 +16,7 @@ Children, in start order, with queue depths and watchdog deadlines::
     ir      IrSensor          seeker    256     0.5 s     50 Hz samples
     nav     (nav_factory)     all       128     2.0 s     poses, motion, map updates, frames
 
-ISRs (`actors.firmware.isr`) are not actors: they run in the hardware's
+ISRs (`actors.firmware.drivers.isr`) are not actors: they run in the hardware's
 interrupt context and post with ``send_nowait`` into these mailboxes, which
 belong to the supervisor and survive restarts. The ISR objects are made here,
 once, so their counters (posted, dropped) survive restarts; each owning actor
@@ -52,15 +52,14 @@ from typing import Any
 
 from actors import Actor, BufferPool, Message
 from actors.firmware.commands import Cmd
-from actors.firmware.devices import RoverHardware
-from actors.firmware.ir import IrSensor
-from actors.firmware.isr import IrAdcIsr, LidarUartIsr, MotorCounterIsr, WiflyUartIsr
-from actors.firmware.lidar import LidarControl
-from actors.firmware.mapping import MapManagement
-from actors.firmware.motor import MotorControl, MotorTuning, PoseMemory
-from actors.firmware.wifly import LinkMemory, Wifly
-
-from .supervisor import Backoff, ChildSpec, SupervisorSpec
+from actors.firmware.drivers.ir import IrSensor
+from actors.firmware.drivers.isr import IrAdcIsr, LidarUartIsr, MotorCounterIsr, WiflyUartIsr
+from actors.firmware.drivers.lidar import LidarControl
+from actors.firmware.drivers.motor import MotorControl, MotorTuning, PoseMemory
+from actors.firmware.drivers.wifly import LinkMemory, Wifly
+from actors.firmware.hardware import RoverHardware
+from actors.firmware.mapping.map_management import MapManagement
+from supervisors.supervisor import Backoff, ChildSpec, SupervisorSpec
 
 __all__ = ["ROLES", "MAILBOX", "WATCHDOG_S", "IdleNav", "rover_tree"]
 
@@ -109,9 +108,9 @@ class IdleNav(Actor):
 
 
 def _default_nav_factory() -> Callable[..., Actor]:
-    """The real navigation (``actors.firmware.nav.make_nav``) when it exists."""
+    """The real navigation (``actors.firmware.nav.factory.make_nav``) when it exists."""
     try:
-        return importlib.import_module("actors.firmware.nav").make_nav
+        return importlib.import_module("actors.firmware.nav.factory").make_nav
     except (ImportError, AttributeError):
         return lambda role, *, pool, **_: IdleNav(pool)
 
@@ -138,7 +137,7 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
         rover_id: the id said in hello (default: the role).
         nav_factory: makes the navigation actor, called for every incarnation as
             ``nav_factory(role, pool=pool, spec=hardware.spec, rover_id=rover_id,
-            **nav_options)``; default ``actors.firmware.nav.make_nav`` (or an idle
+            **nav_options)``; default ``actors.firmware.nav.factory.make_nav`` (or an idle
             stand-in when it is not importable). A factory with a ``memory``
             parameter gets one ``NavMemory`` per tree (kept across restarts)
             unless ``nav_options`` brings one.
@@ -161,7 +160,7 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
     options = dict(nav_options or {})
     if "memory" not in options and _accepts(factory, "memory"):
         try:  # navigation's retained memory, made once per tree like PoseMemory
-            options["memory"] = importlib.import_module("actors.firmware.nav_common").NavMemory()
+            options["memory"] = importlib.import_module("actors.firmware.nav.base").NavMemory()
         except (ImportError, AttributeError):
             pass
 

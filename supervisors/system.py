@@ -40,11 +40,10 @@ from actors.firmware.commands import Cmd
 from server.protocol import Pose2
 from server.server import Server, ServerConfig, open_server
 from server.store import Store
+from supervisors.rover import rover_tree
 from world.faults import is_actor_fault
 from world.scenario import Scenario
 from world.world import World, run_world
-
-from .rover import rover_tree
 
 __all__ = ["ROLES", "ACTOR_FAULTS", "SimSystem", "open_sim_system", "scenario_origins",
            "FaultError"]

@@ -9,7 +9,7 @@ from collections import Counter
 
 import pytest
 
-from supervisors.campaign import (
+from supervisors.harness.campaign import (
     ACTORS_BY_ROLE,
     FAULT_LABELS,
     CampaignConfig,

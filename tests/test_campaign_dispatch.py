@@ -6,7 +6,7 @@ import heapq
 
 import pytest
 
-from supervisors.campaign import (
+from supervisors.harness.campaign import (
     ORDER_BLOCK,
     ROOM_CPU_S,
     CampaignConfig,
@@ -172,7 +172,7 @@ def _guarded(body, cpu_s: float, factor: float) -> str:
     """Run ``body`` in Trio under a `_Guard`; return what stopped it ("" if nothing)."""
     import trio  # noqa: PLC0415
 
-    from supervisors.campaign import _Guard  # noqa: PLC0415
+    from supervisors.harness.campaign import _Guard  # noqa: PLC0415
 
     fired = []
 
@@ -225,7 +225,7 @@ def test_the_guard_leaves_a_short_game_alone():
 
 
 def test_a_game_stopped_by_its_guard_is_a_harness_failure_not_a_crash():
-    from supervisors.campaign import play_campaign_game  # noqa: PLC0415
+    from supervisors.harness.campaign import play_campaign_game  # noqa: PLC0415
 
     r = play_campaign_game(CampaignConfig(1, rooms=("empty",)).game_ref(0),
                            wall_timeout_s=0.05, baseline=False)

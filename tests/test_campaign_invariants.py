@@ -14,9 +14,14 @@ import trio
 
 from actors import EventKind, Trace, virtual_clock
 from server.protocol import MapGrid, Reason, encode_frame, make_frame, map_chunks
-from supervisors import invariants as inv
-from supervisors.campaign import CampaignConfig, plan_game, play_checked, seed_game_scheduler
-from supervisors.headless import Budget, run_game
+from supervisors.harness import invariants as inv
+from supervisors.harness.campaign import (
+    CampaignConfig,
+    plan_game,
+    play_checked,
+    seed_game_scheduler,
+)
+from supervisors.harness.headless import Budget, run_game
 
 # ---------------------------------------------------------------------------- pure checks
 
@@ -218,7 +223,7 @@ def test_a_tapped_campaign_game_keeps_the_trace_hash_of_hideseek_run(mode):
 
 def test_a_campaign_game_replays_in_process_and_reproduces_through_hideseek_run(capsys):
     """Determinism: the worker's replay and `hideseek run --campaign REF` give its trace hash."""
-    from supervisors.campaign import play_campaign_game  # noqa: PLC0415
+    from supervisors.harness.campaign import play_campaign_game  # noqa: PLC0415
     from tui.cli import main  # noqa: PLC0415
 
     ref = "4:2,rooms=empty,faults=actor:hang,window=1-3,budget=6"

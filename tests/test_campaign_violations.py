@@ -17,12 +17,12 @@ import trio
 
 from actors import Actor, Message, virtual_clock
 from actors.firmware.commands import Cmd
-from actors.firmware.nav import make_nav
-from actors.firmware.occupancy import GridMap
+from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.nav.factory import make_nav
 from server.protocol import MapGrid
-from supervisors import campaign
-from supervisors import invariants as inv
-from supervisors.campaign import CampaignConfig, plan_game, play_campaign_game, play_checked
+from supervisors.harness import campaign
+from supervisors.harness import invariants as inv
+from supervisors.harness.campaign import CampaignConfig, plan_game, play_campaign_game, play_checked
 from world.scenario import load_scenario
 
 _CONFIG = CampaignConfig(3, mode="none", rooms=("empty",), mapping_budget_s=8.0)

@@ -1,13 +1,18 @@
-"""Spot clearance and obstacle-ahead tests (actors.firmware.clearance)."""
+"""Spot clearance and obstacle-ahead tests (actors.firmware.planning.clearance)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from actors.firmware.clearance import check_spot, obstacle_ahead, passage_width, turning_radius_cm
-from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
-from actors.firmware.odometry import Pose
+from actors.firmware.localisation.odometry import Pose
+from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.planning.clearance import (
+    check_spot,
+    obstacle_ahead,
+    passage_width,
+    turning_radius_cm,
+)
 
 RES = 5.0
 

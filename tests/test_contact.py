@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actors.firmware.contact import locate_contact, stalled_side
-from actors.firmware.occupancy import OCCUPIED, GridMap
-from actors.firmware.odometry import Pose
+from actors.firmware.localisation.contact import locate_contact, stalled_side
+from actors.firmware.localisation.odometry import Pose
+from actors.firmware.mapping.occupancy import OCCUPIED, GridMap
 
 BODY = {"length_cm": 20.0, "width_cm": 15.0}
 

@@ -1,4 +1,4 @@
-"""Frontier detection, clustering and choice (actors.firmware.frontier)."""
+"""Frontier detection, clustering and choice (actors.firmware.planning.frontier)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from actors.firmware.frontier import (
+from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.planning.frontier import (
     Frontier,
     FrontierWeights,
     choose_frontier,
@@ -18,7 +19,6 @@ from actors.firmware.frontier import (
     label_clusters,
     no_useful_frontier,
 )
-from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
 
 
 def test_frontier_mask_is_free_cells_next_to_unknown():

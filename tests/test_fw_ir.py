@@ -7,8 +7,8 @@ import trio
 
 from actors import Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.devices import Interrupt
-from actors.firmware.ir import IrSensor
+from actors.firmware.drivers.ir import IrSensor
+from actors.firmware.hardware import Interrupt
 from supervisors import ChildSpec, SupervisorSpec
 
 from .test_fw_motor import FakeHardware, Recorder

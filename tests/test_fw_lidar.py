@@ -10,8 +10,7 @@ import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.devices import Interrupt
-from actors.firmware.lidar import (
+from actors.firmware.drivers.lidar import (
     HealthOptions,
     LidarControl,
     LidarHealth,
@@ -19,6 +18,7 @@ from actors.firmware.lidar import (
     batch_health,
     roughness_cm,
 )
+from actors.firmware.hardware import Interrupt
 from supervisors import ChildSpec, SupervisorSpec
 
 from .test_fw_motor import FakeHardware
@@ -67,7 +67,7 @@ async def test_samples_are_stamped_with_the_pose_that_follows_them(autojump_cloc
 @pytest.mark.trio
 async def test_sample_batches_by_handle_become_one_scan_at_the_next_pose(autojump_clock) -> None:
     """LIDAR_SAMPLES handles (from the ISR's pool mode) join singles into one scan."""
-    from actors.firmware.isr import LidarSamples
+    from actors.firmware.drivers.isr import LidarSamples
 
     hw, pool, log = FakeHardware(), BufferPool(16), []
     hw.set_lidar_pwm = lambda d: None

@@ -11,9 +11,9 @@ import trio
 
 from actors import Actor, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.devices import HardwareSpec, Interrupt, encode_counter
-from actors.firmware.motor import MotorControl, PoseMemory
-from actors.firmware.odometry import angle_diff_deg
+from actors.firmware.drivers.motor import MotorControl, PoseMemory
+from actors.firmware.hardware import HardwareSpec, Interrupt, encode_counter
+from actors.firmware.localisation.odometry import angle_diff_deg
 from supervisors import ChildSpec, SupervisorSpec
 from world import World, load_scenario, run_world
 
@@ -230,7 +230,7 @@ async def test_correction_puts_navigation_in_the_map_frame_and_lidar_stays_raw(
     """MOTOR_CORRECT_XY + _HEADING: navigation's pose is correction (+) odometry, the LIDAR
     keeps the raw odometry pose, the correction is retained, MOTOR_GET_POSE hands it to the
     map, and a NOOP flood message is ignored (no restart)."""
-    from actors.firmware.odometry import Pose, compose
+    from actors.firmware.localisation.odometry import Pose, compose
 
     hw = FakeHardware()
     log: list = []

@@ -10,9 +10,9 @@ import trio
 
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.devices import Interrupt
-from actors.firmware.occupancy import GridMap
-from actors.firmware.wifly import Wifly
+from actors.firmware.drivers.wifly import Wifly
+from actors.firmware.hardware import Interrupt
+from actors.firmware.mapping.occupancy import GridMap
 from server.protocol import (
     MapAssembler,
     MapGrid,
@@ -133,7 +133,7 @@ async def test_deaf_server_then_reconnect_loses_and_duplicates_nothing(autojump_
 async def test_restart_keeps_unacknowledged_frames(autojump_clock) -> None:
     """A WiFly crash while frames are unacknowledged: the new incarnation resends them."""
     hw, pool, log = FakeHardware(), BufferPool(64), []
-    from actors.firmware.wifly import LinkMemory
+    from actors.firmware.drivers.wifly import LinkMemory
     async with trio.open_nursery() as nursery, open_actor_system(1) as system:
         server = FakeServer(hw)
         nursery.start_soon(server.run)

@@ -12,7 +12,7 @@ import trio
 from actors import seed_trio_scheduler, virtual_clock
 from benchmarks.game import play_one, truth_map, truth_nav_factory
 from server.store import Store
-from supervisors.headless import Budget, GameReport, finish_report, play_game, run_game
+from supervisors.harness.headless import Budget, GameReport, finish_report, play_game, run_game
 from supervisors.system import open_sim_system
 from tui.cli import main
 from world.scenario import ScheduledFault, load_scenario

@@ -4,8 +4,14 @@ from __future__ import annotations
 
 from actors import BufferPool, Message
 from actors.firmware.commands import Cmd
-from actors.firmware.devices import encode_counter
-from actors.firmware.isr import IrAdcIsr, IrTimerIsr, LidarUartIsr, MotorCounterIsr, WiflyUartIsr
+from actors.firmware.drivers.isr import (
+    IrAdcIsr,
+    IrTimerIsr,
+    LidarUartIsr,
+    MotorCounterIsr,
+    WiflyUartIsr,
+)
+from actors.firmware.hardware import encode_counter
 
 
 def packet(angle_cdeg: int, dist: int) -> bytes:
@@ -85,7 +91,7 @@ def test_lidar_isr_with_a_pool_posts_a_clean_run_as_one_handle() -> None:
     """DMA-style: a whole interrupt of clean frames is one LIDAR_SAMPLES handle."""
     import numpy as np
 
-    from actors.firmware.isr import LidarSamples
+    from actors.firmware.drivers.isr import LidarSamples
 
     pool = BufferPool(4)
     sink = Sink()

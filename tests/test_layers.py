@@ -41,8 +41,8 @@ def imported_modules(path: pathlib.Path) -> list[tuple[int, str]]:
 
 
 #: the modules outside tui/ that wire world, server and rovers together
-WIRING_MODULES = ("supervisors/system.py", "supervisors/headless.py",
-                  "supervisors/campaign.py", "supervisors/invariants.py",
+WIRING_MODULES = ("supervisors/system.py", "supervisors/harness/headless.py",
+                  "supervisors/harness/campaign.py", "supervisors/harness/invariants.py",
                   "supervisors/remote.py")
 
 
@@ -102,7 +102,7 @@ def test_module_respects_layer_rules(path: pathlib.Path) -> None:
         ("server", "world", False),
         ("runtime", "supervisors", False),
         ("world", "actors.mailbox", True),
-        ("world", "actors.firmware.devices", False),
+        ("world", "actors.firmware.hardware", False),
         ("supervisors", "tui.app", False),
         ("tui", "world.scenario", True),
         ("supervisors", "world.physics", False),

@@ -18,8 +18,9 @@ import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.nav import make_nav
-from actors.firmware.nav_common import (
+from actors.firmware.localisation.odometry import Pose
+from actors.firmware.mapping.occupancy import FREE, OCCUPIED, GridMap, OccupancyGrid
+from actors.firmware.nav.base import (
     Motion,
     NavMemory,
     NavOptions,
@@ -28,8 +29,7 @@ from actors.firmware.nav_common import (
     shorten,
     with_obstacle,
 )
-from actors.firmware.occupancy import FREE, OCCUPIED, GridMap, OccupancyGrid
-from actors.firmware.odometry import Pose
+from actors.firmware.nav.factory import make_nav
 from server.protocol import Frame, make_frame
 from supervisors import ChildSpec, SupervisorSpec
 

@@ -10,9 +10,9 @@ import trio
 
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.lidar import LidarHealth
-from actors.firmware.nav_mapping import MappingOptions
-from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.drivers.lidar import LidarHealth
+from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.nav.mapper import MappingOptions
 from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
 
 # own frame = map frame; the rover starts at (0, 0) in a 4.5 x 2.5 m room split by a wall
@@ -198,7 +198,7 @@ def test_futile_trips_count_whole_visits_and_end_exploration() -> None:
     the way; after ``futile_trips`` visits that together made fewer than
     ``futile_trips * min_gain_cells`` cells known, exploration counts the frontiers left
     as not useful."""
-    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+    from actors.firmware.nav.mapper import MappingNav, MappingOptions
 
     nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=3,
                                                                 min_gain_cells=30))
@@ -233,7 +233,7 @@ def test_futile_trips_count_whole_visits_and_end_exploration() -> None:
 def test_the_least_useful_gain_grows_with_the_map() -> None:
     """In a big map a visit must reveal 0.3 % of what is known to count: 60 cells of
     30000 known is futile, though more than ``min_gain_cells``."""
-    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+    from actors.firmware.nav.mapper import MappingNav, MappingOptions
 
     nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=2))
     cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
@@ -248,7 +248,7 @@ def test_the_least_useful_gain_grows_with_the_map() -> None:
 def test_one_visit_just_above_the_limit_does_not_restart_the_futile_count() -> None:
     """The window is judged on its sum: furniture 2's visits of 21, 7, 4 and 34 cells
     (limit 32: 34 alone is above it) are futile together, so mapping ends."""
-    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+    from actors.firmware.nav.mapper import MappingNav, MappingOptions
 
     nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=4))
     cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
@@ -276,7 +276,7 @@ def _walled_room(gaps: dict[str, int]) -> GridMap:
 async def test_after_futile_visits_long_frontiers_still_count(autojump_clock) -> None:
     """Futile visits dismiss short frontiers only: a long one (a big room's unseen part) is
     still chosen, and with it blacklisted nothing useful is left."""
-    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+    from actors.firmware.nav.mapper import MappingNav, MappingOptions
 
     nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=2))
     nav.grid = _walled_room({"west": 8, "east": 40})  # east: two 1 m pieces of 20 cells
@@ -298,7 +298,7 @@ async def test_after_futile_visits_long_frontiers_still_count(autojump_clock) ->
 async def test_map_stability_counts_net_growth_not_edge_flicker(autojump_clock) -> None:
     """Cells flickering between unknown and known (scan matching's jitter at rest) leave the
     map stable; the known area growing is a change."""
-    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+    from actors.firmware.nav.mapper import MappingNav, MappingOptions
 
     nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(change_cells=3,
                                                                 change_share=0.0))
@@ -415,7 +415,7 @@ def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -
     """A route the obstacle check refuses to drive (furniture 2: the rover turned toward
     it, was refused and turned away for 280 s): after ``obstacle_turns`` turns away toward
     one target the target is blacklisted and the trip ends; another target starts over."""
-    from actors.firmware.nav_mapping import MappingNav, MappingOptions
+    from actors.firmware.nav.mapper import MappingNav, MappingOptions
 
     nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(obstacle_turns=3))
     cells = np.full((40, 40), UNKNOWN, dtype=np.int8)

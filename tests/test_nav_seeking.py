@@ -7,15 +7,15 @@ import math
 import pytest
 
 from actors import BufferPool, open_actor_system
-from actors.firmware.nav_common import NavOptions, passable_at
-from actors.firmware.nav_seeking import (
+from actors.firmware.localisation.odometry import Pose, angle_diff_deg
+from actors.firmware.nav.base import NavOptions, passable_at
+from actors.firmware.nav.seeker import (
     SeekingNav,
     SeekingOptions,
     ring_reach_cm,
     search_ring,
     search_rings,
 )
-from actors.firmware.odometry import Pose, angle_diff_deg
 from tests.test_nav_common import (
     Body,
     Truth,

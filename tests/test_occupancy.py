@@ -1,12 +1,12 @@
-"""Log-odds occupancy grid and map snapshots (actors.firmware.occupancy)."""
+"""Log-odds occupancy grid and map snapshots (actors.firmware.mapping.occupancy)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap, OccupancyGrid
-from actors.firmware.odometry import Pose
+from actors.firmware.localisation.odometry import Pose
+from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap, OccupancyGrid
 
 
 def small_grid() -> OccupancyGrid:

@@ -1,4 +1,4 @@
-"""Pose algebra and dead reckoning (actors.firmware.odometry)."""
+"""Pose algebra and dead reckoning (actors.firmware.localisation.odometry)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from actors.firmware.odometry import (
+from actors.firmware.localisation.odometry import (
     ORIGIN,
     Pose,
     advance,

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from actors.firmware.devices import decode_counter
+from actors.firmware.hardware import decode_counter
 from world.geometry import footprint
 from world.scenario import load_scenario, parse_scenario
 from world.world import World

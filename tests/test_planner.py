@@ -1,4 +1,4 @@
-"""A* planning, inflation, line of sight and BFS distances (actors.firmware.planner)."""
+"""A* planning, inflation, line of sight and BFS distances (actors.firmware.planning.planner)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
-from actors.firmware.planner import (
+from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.planning.planner import (
     _astar_padded,
     astar,
     bfs_steps,

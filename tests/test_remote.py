@@ -22,7 +22,7 @@ import trio.testing
 from server.links import parse_link
 from server.server import ServerConfig, open_server
 from server.store import Store
-from supervisors.headless import Budget, GameReport, play_game
+from supervisors.harness.headless import Budget, GameReport, play_game
 from supervisors.remote import Uplink, open_remote_rover
 from supervisors.rover import IdleNav
 from supervisors.system import open_sim_system

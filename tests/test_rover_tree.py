@@ -8,7 +8,7 @@ import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.occupancy import GridMap
+from actors.firmware.mapping.occupancy import GridMap
 from server.protocol import make_frame
 from server.server import ServerConfig, open_server
 from server.store import Store
@@ -144,7 +144,7 @@ async def test_reliable_report_survives_a_link_drop_exactly_once(autojump_clock,
 def test_tree_shape_per_role() -> None:
     """Mapper has lidar+map, seeker has ir, all have wifly, motor, nav; bad role refused."""
     class HW:
-        from actors.firmware.devices import HardwareSpec
+        from actors.firmware.hardware import HardwareSpec
         spec = HardwareSpec("hider", 0.5, 13.0)
     ids = {r: [c.id for c in rover_tree(r, HW()).children] for r in ("mapper", "hider", "seeker")}
     assert ids == {"mapper": ["wifly", "motor", "lidar", "map", "nav"],

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from actors.firmware.odometry import Pose
-from actors.firmware.scan_match import (
+from actors.firmware.localisation.odometry import Pose
+from actors.firmware.mapping.scan_match import (
     MatchFields,
     MatchOptions,
     hits_to_local,

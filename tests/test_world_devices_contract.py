@@ -8,7 +8,7 @@ import struct
 import numpy as np
 import pytest
 
-from actors.firmware import devices as fw
+from actors.firmware import hardware as fw
 from world import hardware as hw
 from world import packets
 from world.params import RoverSpec
@@ -41,7 +41,7 @@ def test_lidar_packets_follow_the_datasheet() -> None:
 
 def test_lidar_packets_parse_in_the_firmware_isr() -> None:
     """The firmware's Int A ISR turns our bytes into the same (angle, distance) samples."""
-    isr_mod = pytest.importorskip("actors.firmware.isr")
+    isr_mod = pytest.importorskip("actors.firmware.drivers.isr")
     got = []
     isr = isr_mod.LidarUartIsr(got.append)
     isr(packets.encode_lidar_packets(np.array([0, 9000, 27050]), np.array([100, 402, 0])))

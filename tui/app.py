@@ -57,7 +57,7 @@ TABLE_EVERY = 3
 #: Speed steps for faster / slower; None is "as fast as possible".
 SPEEDS: tuple[float | None, ...] = (1.0, 4.0, 16.0, None)
 #: A wider search (``w``): the hider believed within this of the cursor [cm] (the
-#: headless operator's `supervisors.headless.Budget.wider_within_cm`).
+#: headless operator's `supervisors.harness.headless.Budget.wider_within_cm`).
 WIDER_SEARCH_CM = 120.0
 
 

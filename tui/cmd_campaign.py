@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from supervisors.campaign import (
+from supervisors.harness.campaign import (
     MAX_GAMES,
     MODES,
     CampaignConfig,

@@ -13,7 +13,7 @@ import time
 import trio
 
 from actors import JsonLinesRecorder, Trace, seed_trio_scheduler, virtual_clock
-from supervisors.headless import Budget, GameReport, run_game
+from supervisors.harness.headless import Budget, GameReport, run_game
 from world.scenario import ScenarioError, builtin_scenarios, generate_scenario, load_scenario
 
 
@@ -66,7 +66,7 @@ def _print_summary(r: GameReport) -> None:
 def run(args: argparse.Namespace) -> int:
     try:
         if args.campaign:
-            from supervisors.campaign import (  # noqa: PLC0415 - only when asked
+            from supervisors.harness.campaign import (  # noqa: PLC0415 - only when asked
                 game_from_ref,
                 seed_game_scheduler,
             )

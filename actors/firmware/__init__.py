@@ -14,16 +14,22 @@ The package never imports ``world``, and of ``server`` only ``server.protocol``
 (tests/test_layers.py). The supervision trees live in ``supervisors.rover``.
 """
 
-from .commands import Cmd, name_of
-from .devices import HardwareSpec, Interrupt, RoverHardware
-from .ir import IrSensor
-from .isr import IrAdcIsr, IrTimerIsr, LidarUartIsr, MotorCounterIsr, WiflyUartIsr
-from .lidar import LidarControl, Scan
-from .mapping import MapManagement
-from .motor import MotorControl, MotorTuning, PoseMemory
-from .occupancy import GridMap, OccupancyGrid
-from .odometry import Pose
-from .wifly import LinkMemory, Wifly
+from actors.firmware.commands import Cmd, name_of
+from actors.firmware.drivers.ir import IrSensor
+from actors.firmware.drivers.isr import (
+    IrAdcIsr,
+    IrTimerIsr,
+    LidarUartIsr,
+    MotorCounterIsr,
+    WiflyUartIsr,
+)
+from actors.firmware.drivers.lidar import LidarControl, Scan
+from actors.firmware.drivers.motor import MotorControl, MotorTuning, PoseMemory
+from actors.firmware.drivers.wifly import LinkMemory, Wifly
+from actors.firmware.hardware import HardwareSpec, Interrupt, RoverHardware
+from actors.firmware.localisation.odometry import Pose
+from actors.firmware.mapping.map_management import MapManagement
+from actors.firmware.mapping.occupancy import GridMap, OccupancyGrid
 
 __all__ = [
     "Cmd", "GridMap", "HardwareSpec", "Interrupt", "IrAdcIsr", "IrSensor", "IrTimerIsr",

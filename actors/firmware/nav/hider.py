@@ -35,9 +35,9 @@ from __future__ import annotations
 
 import math
 
-from actors.firmware.clearance import check_spot
-from actors.firmware.nav_common import RouteNav
-from actors.firmware.occupancy import OCCUPIED
+from actors.firmware.mapping.occupancy import OCCUPIED
+from actors.firmware.nav.base import RouteNav
+from actors.firmware.planning.clearance import check_spot
 
 __all__ = ["HidingNav"]
 

@@ -99,12 +99,12 @@ import numpy as np
 import trio
 
 from actors import BufferPool, Message
-from actors.firmware.clearance import obstacle_ahead
 from actors.firmware.commands import Cmd
-from actors.firmware.devices import HardwareSpec
-from actors.firmware.frontier import Frontier, choose_frontier, find_frontiers
-from actors.firmware.lidar import LidarHealth
-from actors.firmware.nav_common import (
+from actors.firmware.drivers.lidar import LidarHealth
+from actors.firmware.hardware import HardwareSpec
+from actors.firmware.localisation.odometry import angle_diff_deg
+from actors.firmware.mapping.occupancy import UNKNOWN, GridMap
+from actors.firmware.nav.base import (
     Motion,
     NavBase,
     NavMemory,
@@ -113,8 +113,8 @@ from actors.firmware.nav_common import (
     plan_route,
     route_points,
 )
-from actors.firmware.occupancy import UNKNOWN, GridMap
-from actors.firmware.odometry import angle_diff_deg
+from actors.firmware.planning.clearance import obstacle_ahead
+from actors.firmware.planning.frontier import Frontier, choose_frontier, find_frontiers
 
 __all__ = ["MappingOptions", "MappingNav"]
 

@@ -45,11 +45,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from actors import Actor, BufferPool, ExitReason, Message, PoolExhausted
-
-from .commands import Cmd
-from .devices import Interrupt, RoverHardware
-from .isr import LidarSamples, LidarUartIsr
-from .odometry import Pose
+from actors.firmware.commands import Cmd
+from actors.firmware.drivers.isr import LidarSamples, LidarUartIsr
+from actors.firmware.hardware import Interrupt, RoverHardware
+from actors.firmware.localisation.odometry import Pose
 
 __all__ = ["Scan", "LidarHealth", "HealthOptions", "roughness_cm", "batch_health",
            "LidarControl"]

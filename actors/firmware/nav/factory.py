@@ -13,11 +13,11 @@ rebuilds its state from its neighbours and the server (see `nav_common`).
 from __future__ import annotations
 
 from actors import Actor, BufferPool
-from actors.firmware.devices import HardwareSpec
-from actors.firmware.nav_common import NavMemory, NavOptions
-from actors.firmware.nav_hiding import HidingNav
-from actors.firmware.nav_mapping import MappingNav, MappingOptions
-from actors.firmware.nav_seeking import SeekingNav, SeekingOptions
+from actors.firmware.hardware import HardwareSpec
+from actors.firmware.nav.base import NavMemory, NavOptions
+from actors.firmware.nav.hider import HidingNav
+from actors.firmware.nav.mapper import MappingNav, MappingOptions
+from actors.firmware.nav.seeker import SeekingNav, SeekingOptions
 
 __all__ = ["make_nav", "NAV_ROLES", "NavMemory", "NavOptions"]
 

@@ -1,6 +1,6 @@
 """Invariants every campaign game must keep, and the probes that observe them.
 
-A fault campaign (`supervisors.campaign`) plays many seeded games under
+A fault campaign (`supervisors.harness.campaign`) plays many seeded games under
 faults and checks, in each, what must hold whatever went wrong:
 
 * **liveness**: the game ended (found, or not found after its guesses)

@@ -33,10 +33,9 @@ import math
 import trio
 
 from actors import Actor, ExitKind, ExitReason, Message
-
-from .commands import Cmd
-from .devices import Interrupt, RoverHardware
-from .isr import IrAdcIsr, IrTimerIsr
+from actors.firmware.commands import Cmd
+from actors.firmware.drivers.isr import IrAdcIsr, IrTimerIsr
+from actors.firmware.hardware import Interrupt, RoverHardware
 
 __all__ = ["IrSensor"]
 

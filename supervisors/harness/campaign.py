@@ -20,9 +20,9 @@ scenario chosen round-robin (its hide spot and guesses with it), or
 Playing (`play_campaign_game`, the worker entry point): a plain function of
 strings and numbers returning a JSON-able dict, so a process pool here, or
 Ray or Dask on a cluster (docs/scaling.md), can call it unchanged. It plays
-the game exactly as `supervisors.headless.run_game` does, with probes
+the game exactly as `supervisors.harness.headless.run_game` does, with probes
 attached that change nothing, then lets the system drain for a while and
-checks the invariants of `supervisors.invariants`.
+checks the invariants of `supervisors.harness.invariants`.
 
 Running (`run_campaign`): a pool of ``spawn`` worker processes, one per core
 by default, handed the games longest expected first (`dispatch_order`) so
@@ -55,6 +55,9 @@ import trio
 
 from actors import Trace, seed_trio_scheduler, virtual_clock
 from server.store import Store, StoreError
+from supervisors.harness import invariants as inv
+from supervisors.harness.headless import Budget, GameReport, finish_report, play_game
+from supervisors.system import open_sim_system
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_DEVICES
 from world.params import ROLES
 from world.scenario import (
@@ -65,10 +68,6 @@ from world.scenario import (
     generate_scenario,
     load_scenario,
 )
-
-from . import invariants as inv
-from .headless import Budget, GameReport, finish_report, play_game
-from .system import open_sim_system
 
 __all__ = [
     "FAULT_LABELS", "MODES", "CampaignError", "CampaignConfig", "GameSpec", "plan_game",
@@ -460,7 +459,7 @@ async def play_checked(spec: GameSpec, *, trace: Trace | None = None,
                        ) -> tuple[GameReport, dict[str, Any]]:
     """Play one campaign game with its probes; return the report and the checks.
 
-    The game runs as `supervisors.headless.run_game` runs it (same system,
+    The game runs as `supervisors.harness.headless.run_game` runs it (same system,
     same driver, same report), so its trace hash is the one ``hideseek run``
     gives; the probes only copy bytes and count events.
 

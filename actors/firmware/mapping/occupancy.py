@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.odometry import Pose
+from actors.firmware.localisation.odometry import Pose
 
 __all__ = [
     "UNKNOWN",

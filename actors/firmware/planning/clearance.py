@@ -28,7 +28,7 @@ Reference
 
 Frame and units
     The rover frame [cm], headings [deg] counter-clockwise from +x; grids as in
-    `actors.firmware.occupancy` (row 0 is the lowest y).
+    `actors.firmware.mapping.occupancy` (row 0 is the lowest y).
 """
 
 from __future__ import annotations
@@ -39,8 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.occupancy import OCCUPIED, UNKNOWN, GridMap, normalise_cells
-from actors.firmware.odometry import Pose, angle_diff_deg
+from actors.firmware.localisation.odometry import Pose, angle_diff_deg
+from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap, normalise_cells
 
 __all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead", "occupied_near",
            "passage_width"]

@@ -121,11 +121,10 @@ from typing import Any
 import trio
 
 from actors import Actor, ExitReason, Message, Timer
-
-from .commands import Cmd
-from .devices import Interrupt, RoverHardware, decode_counter
-from .isr import MotorCounterIsr
-from .odometry import Pose, advance, compose
+from actors.firmware.commands import Cmd
+from actors.firmware.drivers.isr import MotorCounterIsr
+from actors.firmware.hardware import Interrupt, RoverHardware, decode_counter
+from actors.firmware.localisation.odometry import Pose, advance, compose
 
 __all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
 

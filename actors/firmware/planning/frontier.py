@@ -5,7 +5,7 @@ Algorithm
        (cells outside the grid do not count as unknown).
     2. Clusters: 8-connected components of frontier cells, labelled by a
        breadth-first search; each has a size [cells] and a centroid [cm].
-    3. Reachability: a layered BFS (`actors.firmware.planner.bfs_steps`) over
+    3. Reachability: a layered BFS (`actors.firmware.planning.planner.bfs_steps`) over
        the cells where the rover's centre may be (occupied cells inflated by
        its radius plus a margin, unknown blocked) gives the step distance from
        the rover. A frontier cell is approachable from any reachable cell
@@ -30,7 +30,7 @@ Reference
 
 Frame and units
     Positions [cm] in the rover frame; sizes [cells] and [cm] as named;
-    grids as in `actors.firmware.occupancy`.
+    grids as in `actors.firmware.mapping.occupancy`.
 """
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
-from actors.firmware.planner import bfs_steps, snap_to_passable, traversable
+from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.planning.planner import bfs_steps, snap_to_passable, traversable
 
 __all__ = [
     "Frontier",

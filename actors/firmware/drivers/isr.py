@@ -16,9 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from actors import BufferPool, Message, PoolExhausted
-
-from .commands import Cmd
-from .devices import LIDAR_PACKET_SIZE, LIDAR_SYNC, RoverHardware
+from actors.firmware.commands import Cmd
+from actors.firmware.hardware import LIDAR_PACKET_SIZE, LIDAR_SYNC, RoverHardware
 
 __all__ = ["Post", "MotorCounterIsr", "LidarSamples", "LidarUartIsr", "WiflyUartIsr",
            "IrTimerIsr", "IrAdcIsr"]

@@ -48,6 +48,10 @@ import numpy as np
 import trio
 
 from actors import Actor, BufferPool, Message, PoolExhausted
+from actors.firmware.commands import Cmd
+from actors.firmware.drivers.isr import WiflyUartIsr
+from actors.firmware.hardware import Interrupt, RoverHardware
+from actors.firmware.mapping.occupancy import GridMap
 from server.protocol import (
     ERROR,
     HELLO,
@@ -65,11 +69,6 @@ from server.protocol import (
     map_chunks,
     read_data,
 )
-
-from .commands import Cmd
-from .devices import Interrupt, RoverHardware
-from .isr import WiflyUartIsr
-from .occupancy import GridMap
 
 _HANDLE_COMMANDS = frozenset((Cmd.WIFLY_RX, Cmd.WIFLY_SEND, Cmd.WIFLY_SEND_UNRELIABLE,
                               Cmd.WIFLY_SEND_MAP))

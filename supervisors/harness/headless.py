@@ -25,11 +25,10 @@ import trio
 
 from actors import Trace
 from server.store import Store
+from supervisors.system import SimSystem, open_sim_system
 from world.metrics import CoverageProbe, accuracy, coverage, path_length, t90, t99
 from world.scenario import Scenario
 from world.truth import truth_raster
-
-from .system import SimSystem, open_sim_system
 
 __all__ = ["Budget", "GameReport", "finish_report", "play_game", "run_game"]
 

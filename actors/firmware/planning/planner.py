@@ -26,7 +26,7 @@ Reference
     ``PathPlanning/AStar/a_star.py``.
 
 Frame and units
-    Grids are (row, col) = (y, x) arrays as in `actors.firmware.occupancy`;
+    Grids are (row, col) = (y, x) arrays as in `actors.firmware.mapping.occupancy`;
     positions and radii are [cm] in the rover frame, path costs [cm].
 """
 
@@ -40,7 +40,7 @@ from typing import Literal
 
 import numpy as np
 
-from actors.firmware.occupancy import OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap
 
 __all__ = [
     "Plan",

@@ -56,9 +56,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.clearance import occupied_near
-from actors.firmware.occupancy import GridMap
-from actors.firmware.odometry import Pose
+from actors.firmware.localisation.odometry import Pose
+from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.planning.clearance import occupied_near
 
 __all__ = ["Contact", "locate_contact", "stalled_side"]
 

@@ -64,10 +64,10 @@ import trio
 
 from actors import BufferPool, Message
 from actors.firmware.commands import Cmd
-from actors.firmware.devices import HardwareSpec
-from actors.firmware.nav_common import Motion, NavMemory, NavOptions, RouteNav, passable_at
-from actors.firmware.occupancy import FREE
-from actors.firmware.odometry import angle_diff_deg
+from actors.firmware.hardware import HardwareSpec
+from actors.firmware.localisation.odometry import angle_diff_deg
+from actors.firmware.mapping.occupancy import FREE
+from actors.firmware.nav.base import Motion, NavMemory, NavOptions, RouteNav, passable_at
 
 __all__ = ["SeekingOptions", "SeekingNav", "ring_outer_cm", "ring_reach_cm", "search_ring",
            "search_rings"]

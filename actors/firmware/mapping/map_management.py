@@ -50,12 +50,11 @@ import numpy as np
 import trio
 
 from actors import Actor, BufferPool, Message, PoolExhausted
-
-from .commands import Cmd
-from .lidar import Scan
-from .occupancy import GridMap, OccupancyGrid
-from .odometry import Pose, angle_diff_deg, compose, inverse
-from .scan_match import (
+from actors.firmware.commands import Cmd
+from actors.firmware.drivers.lidar import Scan
+from actors.firmware.localisation.odometry import Pose, angle_diff_deg, compose, inverse
+from actors.firmware.mapping.occupancy import GridMap, OccupancyGrid
+from actors.firmware.mapping.scan_match import (
     MatchFields,
     MatchOptions,
     MatchResult,

@@ -42,13 +42,13 @@ import numpy as np
 import trio
 
 from actors import Actor, BufferPool, Message, PoolExhausted, ValueType
-from actors.firmware.clearance import occupied_near, passage_width, turning_radius_cm
 from actors.firmware.commands import Cmd
-from actors.firmware.contact import locate_contact, stalled_side
-from actors.firmware.devices import HardwareSpec
-from actors.firmware.occupancy import OCCUPIED, GridMap
-from actors.firmware.odometry import ORIGIN, Pose, angle_diff_deg, compose, inverse
-from actors.firmware.planner import Plan, plan_path, traversable
+from actors.firmware.hardware import HardwareSpec
+from actors.firmware.localisation.contact import locate_contact, stalled_side
+from actors.firmware.localisation.odometry import ORIGIN, Pose, angle_diff_deg, compose, inverse
+from actors.firmware.mapping.occupancy import OCCUPIED, GridMap
+from actors.firmware.planning.clearance import occupied_near, passage_width, turning_radius_cm
+from actors.firmware.planning.planner import Plan, plan_path, traversable
 from server.protocol import Frame, FrameError, make_frame, read_data
 
 __all__ = [

@@ -1,0 +1,2 @@
+"""Pure planning on grid maps: paths (``planner``), the body's clearance
+(``clearance``) and exploration targets (``frontier``)."""
