@@ -27,11 +27,10 @@ Algorithm
     mean for the heading), the covariance, the radius round the mean holding
     95 % of the weight [cm] and the heading deviation holding 95 % [deg]
     (weighted quantiles: honest for a two-mode belief, where a covariance
-    ellipse is not), and the clusters: particles binned on a (``cluster_cm``,
-    ``cluster_cm``, ``cluster_deg``) lattice, neighbouring occupied bins joined
-    (``scipy.ndimage.label``, the heading axis cut at its emptiest bin), each
-    cluster with its weight, mean pose and 95 % spread. One cluster is one
-    hypothesis; after a contact at a corner there are two.
+    ellipse is not), and the clusters (`clusters`: modes of the weight
+    density, joined where the density between them does not dip), each with
+    its weight, mean pose and 95 % spread. One cluster is one hypothesis;
+    after a contact at a corner there are two.
 
 Reference
     Thrun, Burgard, Fox, *Probabilistic Robotics*, chapter 8.3 (MCL) and
@@ -47,11 +46,11 @@ Frame and units
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import generate_binary_structure, label
 
+from actors.firmware.localisation.clusters import ClusterOptions, cluster_labels
 from actors.firmware.localisation.motion_model import MotionNoise, TreadMotion, sample_motion
 from actors.firmware.localisation.odometry import Pose, compose, inverse
 
@@ -74,30 +73,20 @@ class BeliefOptions:
     """Number of particles [1]."""
     resample_ess: float = 0.5
     """Resample when the effective sample size falls under this share of the particles [1]."""
-    cluster_cm: float = 10.0
-    """Position side of the lattice the clusters are found on [cm]: particles in
-    neighbouring cells belong to one hypothesis."""
-    cluster_deg: float = 10.0
-    """Heading side of that lattice [deg]."""
+    clusters: ClusterOptions = field(default_factory=ClusterOptions)
+    """How the hypotheses are found (`clusters`)."""
     min_cluster_weight: float = 0.02
     """Clusters lighter than this share of the weight are not reported [1]."""
     max_clusters: int = 8
     """At most this many clusters are reported, heaviest first."""
-    max_lattice_cells: int = 1_000_000
-    """Bound on the cluster lattice: a belief spread wider than this allows is clustered
-    on a coarser position lattice [cells]."""
-
     def __post_init__(self) -> None:
         if not (isinstance(self.particles, int) and 1 <= self.particles <= 1_000_000):
             raise ValueError(f"particles must be an integer in 1..1000000, got "
                              f"{self.particles!r}")
         if not 0.0 <= self.resample_ess <= 1.0:
             raise ValueError(f"resample_ess must be within 0..1, got {self.resample_ess!r}")
-        if not (self.cluster_cm > 0 and 0 < self.cluster_deg <= 180):
-            raise ValueError(f"cluster_cm must be > 0 and cluster_deg in (0, 180], got "
-                             f"{self.cluster_cm!r}, {self.cluster_deg!r}")
-        if not (self.max_clusters >= 1 and self.max_lattice_cells >= 1000):
-            raise ValueError("max_clusters must be >= 1 and max_lattice_cells >= 1000")
+        if not (self.max_clusters >= 1 and 0.0 <= self.min_cluster_weight < 1.0):
+            raise ValueError("max_clusters must be >= 1 and min_cluster_weight within 0..1")
 
 
 @dataclass(frozen=True, slots=True)
@@ -324,25 +313,8 @@ class PoseBelief:
 
     def _clusters(self) -> tuple[Cluster, ...]:
         o = self.options
-        p, w = self._p, self._w
-        step_deg = o.cluster_deg
-        nh = max(1, math.ceil(360.0 / step_deg))
-        ih = np.floor((np.degrees(p[:, 2]) % 360.0) / step_deg).astype(np.int64) % nh
-        # cut the heading circle at its lightest bin, so a hypothesis across +-180 deg
-        # stays whole
-        cut = int(np.argmin(np.bincount(ih, weights=w, minlength=nh)))
-        ih = (ih - cut - 1) % nh
-        cell = o.cluster_cm
-        x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
-        span = max(float(p[:, 0].max()) - x0, float(p[:, 1].max()) - y0)
-        cell = max(cell, span / math.sqrt(o.max_lattice_cells / nh))
-        ix = np.floor((p[:, 0] - x0) / cell).astype(np.int64)
-        iy = np.floor((p[:, 1] - y0) / cell).astype(np.int64)
-        occupied = np.zeros((int(ix.max()) + 1, int(iy.max()) + 1, nh), dtype=bool)
-        occupied[ix, iy, ih] = True
-        labels, count = label(occupied, structure=generate_binary_structure(3, 3))
-        lab = labels[ix, iy, ih] - 1
-        cw = np.bincount(lab, weights=w, minlength=count)
+        lab = cluster_labels(self._p, self._w, o.clusters)
+        cw = np.bincount(lab, weights=self._w)
         order = [int(k) for k in np.argsort(-cw, kind="stable")
                  if cw[k] >= o.min_cluster_weight][:o.max_clusters]
         if not order:
@@ -350,7 +322,7 @@ class PoseBelief:
         out = []
         for k in order:  # one pass per reported cluster (at most max_clusters)
             m = lab == k
-            out.append(_cluster(p[m], w[m], float(cw[k])))
+            out.append(_cluster(self._p[m], self._w[m], float(cw[k])))
         return tuple(out)
 
 

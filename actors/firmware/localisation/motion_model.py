@@ -23,9 +23,10 @@ Algorithm
       between what was counted (a weak or stalled motor: the count is right)
       and what Motor Control's model says the tread was driven (a slipping or
       stuck encoder: the model is right), as Motor Control cannot tell the two
-      apart. When both treads are reported, one ``u`` per particle serves both
-      (two encoders slipping alike, or two motors weak alike, keep the treads
-      alike: a straight move stays straight and a turn scales as a whole).
+      apart. When both treads are reported, one ``u`` (and one draw of the
+      model's error) per particle serves both (two encoders slipping alike, or
+      two motors weak alike, keep the treads alike: a straight move stays
+      straight and a turn scales as a whole).
 
     Then the pose advances by the midpoint rule of `odometry.advance`,
     vectorised (``dtheta = (dr - dl) / w``, ``ds = (dr + dl) / 2`` along
@@ -143,12 +144,14 @@ class MotionNoise:
 
 
 def _tread_travel(counted: float, driven: float | None, report: TreadReport, u: np.ndarray,
-                  n: int, noise: MotionNoise, rng: np.random.Generator) -> np.ndarray:
-    """Sampled true travel of one tread for ``n`` particles [cm]."""
+                  z: np.ndarray, noise: MotionNoise, rng: np.random.Generator) -> np.ndarray:
+    """Sampled true travel of one tread for ``n = u.size`` particles [cm]; ``u`` places
+    it between counted and driven, ``z`` is the modelled travel's relative error draw."""
+    n = u.shape[0]
     travel = counted + rng.standard_normal(n) * (noise.encoder_sigma * math.sqrt(abs(counted)))
     if report == TreadReport.OK:
         return travel
-    far = driven * (1.0 + rng.standard_normal(n) * noise.driven_sigma)
+    far = driven * (1.0 + z * noise.driven_sigma)
     return travel + u * (far - counted)
 
 
@@ -175,13 +178,15 @@ def sample_motion(particles: np.ndarray, motion: TreadMotion, track_width_cm: fl
     if not (math.isfinite(track_width_cm) and track_width_cm > 0):
         raise ValueError(f"track_width_cm must be positive, got {track_width_cm!r}")
     n = p.shape[0]
-    u_shared = rng.random(n)
+    # the fault draws: where between counted and driven, and the model's own error;
+    # shared by the two treads when both are reported (they err alike)
+    u_left, z_left = rng.random(n), rng.standard_normal(n)
     both = motion.left != TreadReport.OK and motion.right != TreadReport.OK
-    u_right = u_shared if both else rng.random(n)
-    dl = _tread_travel(motion.left_cm, motion.driven_left_cm, motion.left, u_shared, n,
+    u_right, z_right = (u_left, z_left) if both else (rng.random(n), rng.standard_normal(n))
+    dl = _tread_travel(motion.left_cm, motion.driven_left_cm, motion.left, u_left, z_left,
                        noise, rng)
-    dr = _tread_travel(motion.right_cm, motion.driven_right_cm, motion.right, u_right, n,
-                       noise, rng)
+    dr = _tread_travel(motion.right_cm, motion.driven_right_cm, motion.right, u_right,
+                       z_right, noise, rng)
     dtheta = (dr - dl) / track_width_cm  # [rad]
     ds = 0.5 * (dr + dl)  # [cm]
     mid = p[:, 2] + 0.5 * dtheta
