@@ -118,6 +118,24 @@ class Mailbox:
             self._trace.emit(EventKind.RECEIVE, self.name, self.name, item, len(self._queue))
         return item
 
+    def take_all(self, kind: type) -> list[Any]:
+        """Take every waiting item of exactly type ``kind`` (counted as received), keeping
+        the others in order; wakes as many waiting senders as room was made.
+
+        Used at an actor's exit to fail the calls waiting in its mailbox: O(depth),
+        never on the per-message path.
+        """
+        queue = self._queue
+        taken = [item for item in queue if type(item) is kind]
+        if taken:
+            kept = [item for item in queue if type(item) is not kind]
+            queue.clear()
+            queue.extend(kept)
+            self._received += len(taken)
+            if self._senders:
+                self._senders.unpark(count=len(taken))
+        return taken
+
     async def wait(self) -> None:
         """Park the receiver until an item arrives or `poke` is called.
 

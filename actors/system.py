@@ -20,10 +20,20 @@ Sending by name (``mapper/motor``):
 * ``await cast(name, msg) -> bool`` is fire-and-forget like OTP's cast: as
   ``send``, but a name that is not registered is not an error (returns False);
 * ``await call(name, request, timeout=...)`` returns the actor's reply (the
-  return value of its ``handle``), raises `CallTimeout` or `CallFailed`.
+  return value of its ``handle``), raises `CallTimeout`, `CallFailed` (the
+  callee exited while holding or queueing the call, with its reason) or
+  `NoProc` (no such name, or it went away while the call waited).
 
-A send to an actor that is restarting lands in its mailbox: mailboxes belong
-to the cell, which outlives incarnations.
+``send``, ``send_nowait`` and ``call`` to a name that is not registered raise
+`NoProc` (an `UnknownActor`); ``cast`` returns False.
+
+Names live as long as their actor is not gone for good. A send to an actor
+that is restarting lands in its mailbox: mailboxes belong to the cell, which
+outlives incarnations. A name is unregistered (`forget`) when its supervisor
+will not start it again on its own: a temporary child that ended, a transient
+one that ended normally, a child terminated or ignored, and every child of a
+supervisor that stopped or gave up. Calls waiting in its mailbox then fail with
+`NoProc`, and senders waiting for room raise `MailboxClosed`.
 """
 
 from __future__ import annotations
@@ -36,9 +46,11 @@ from typing import Any, Protocol
 import numpy as np
 import trio
 
-from .call import CallEnvelope, CallTimeout, UnknownActor
+from .call import CallEnvelope, CallTimeout, NoProc
 from .cell import Cell, Monitor
-from .mailbox import Mailbox, MailboxStatistics
+from .clock import deadline_heap
+from .exits import NOPROC
+from .mailbox import Mailbox, MailboxClosed, MailboxStatistics
 from .timers import TimerService
 from .trace import EventKind, Trace
 
@@ -92,6 +104,7 @@ class ActorSystem:
         per timer."""
         self.roots: list[Any] = []
         """Supervisors started with `start_supervisor`, in start order."""
+        self._deadlines = deadline_heap()  # Trio's heap for call timeouts, None: a scope each
 
     # ---------------------------------------------------------------- registry
     def rng_for(self, name: str) -> np.random.Generator:
@@ -111,10 +124,12 @@ class ActorSystem:
         return cell
 
     def forget(self, name: str) -> None:
-        """Unregister ``name`` and close its mailbox (a temporary child that exited)."""
+        """Unregister ``name`` (its actor is gone for good; supervisor use): close its
+        mailbox, fail the calls waiting in it with `NoProc`. Idempotent."""
         cell = self._cells.pop(name, None)
         if cell is not None:
             cell.mailbox.close()
+            cell.fail_calls(NOPROC)
 
     def whereis(self, name: str) -> Cell | None:
         """The cell registered as ``name``, or None."""
@@ -127,14 +142,14 @@ class ActorSystem:
     def _cell(self, name: str) -> Cell:
         cell = self._cells.get(name)
         if cell is None:
-            raise UnknownActor(f"no actor registered as {name!r}")
+            raise NoProc(name)
         return cell
 
     def statistics(self, name: str) -> MailboxStatistics:
         """Counters of ``name``'s mailbox.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
         """
         return self._cell(name).mailbox.statistics()
 
@@ -143,8 +158,8 @@ class ActorSystem:
         """Put ``message`` in ``name``'s mailbox, waiting for room.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
-            MailboxClosed: the actor was removed while waiting.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
+            MailboxClosed: the actor was unregistered while waiting.
         """
         await self._cell(name).mailbox.send(message)
 
@@ -152,7 +167,7 @@ class ActorSystem:
         """Put ``message`` in ``name``'s mailbox if there is room; else drop, count, False.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
         """
         return self._cell(name).mailbox.send_nowait(message)
 
@@ -168,20 +183,35 @@ class ActorSystem:
         """Send ``request`` and wait for the reply (``handle``'s return value).
 
         The timeout [s] covers waiting for room and for the reply; a reply
-        made after it never reaches the caller.
+        made after it never reaches the caller. The call is tied to the callee's
+        life (`actors.call`): its exit fails the caller at once.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered, or was unregistered while the call waited.
             ValueError: ``timeout`` is not > 0.
             CallTimeout: no reply within ``timeout``.
-            CallFailed: the actor exited while handling the request.
+            CallFailed: the actor exited while holding or queueing the request
+                (``reason``: its exit reason).
         """
         if not timeout > 0:
             raise ValueError(f"timeout must be > 0 [s], got {timeout!r}")
-        mailbox = self._cell(name).mailbox
+        cell = self._cells.get(name)
+        if cell is None:
+            raise NoProc(name)
+        mailbox = cell.mailbox
+        deadlines = self._deadlines
+        if deadlines is not None and len(mailbox._queue) < mailbox.capacity \
+                and not mailbox._closed:
+            # the hot path: room in the mailbox, the timeout is an entry in Trio's heap
+            envelope = CallEnvelope(request, name, timeout, deadlines)
+            mailbox.send_nowait(envelope)
+            return await envelope.wait(trio.current_time() + timeout)
         with trio.move_on_after(timeout):
-            envelope = CallEnvelope(request)
-            await mailbox.send(envelope)
+            envelope = CallEnvelope(request, name, timeout)
+            try:
+                await mailbox.send(envelope)
+            except MailboxClosed:
+                raise NoProc(name) from None
             return await envelope.wait()
         raise CallTimeout(f"no reply from {name!r} within {timeout} s")
 
@@ -189,7 +219,7 @@ class ActorSystem:
         """Watch ``name``: the monitor receives a `Down` notice at every exit.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
         """
         cell = self._cell(name)
         monitor = Monitor(cell, capacity)
@@ -203,7 +233,7 @@ class ActorSystem:
         A crash injected while the actor is restarting hits its next incarnation.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
         """
         cell = self._cell(name)
         cell.crash_pending = True
@@ -215,7 +245,7 @@ class ActorSystem:
         (at once when idle); with a shorter watchdog deadline it is restarted as ``hung``.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
             ValueError: ``seconds`` is not > 0.
         """
         if not seconds > 0:
@@ -229,7 +259,7 @@ class ActorSystem:
         """``send_nowait`` ``message`` to ``name`` ``n`` times; returns how many were accepted.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
             ValueError: ``n`` < 0.
         """
         if n < 0:

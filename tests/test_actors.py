@@ -177,6 +177,9 @@ async def test_a_raising_discard_is_traced_and_the_actor_still_restarts(autojump
                                else 0)
         await system.start_supervisor(one(lambda: Broken([])))
         system.send_nowait("a", "boom")
+        with pytest.raises(CallFailed) as info:  # queued behind the crash: fails with it
+            await system.call("a", "queued", timeout=1)
+        assert info.value.reason.kind is ExitKind.CRASH
         assert await system.call("a", "alive", timeout=1) == ("reply", "alive")
     assert poison == ["'boom'", "'boom'"]
 
