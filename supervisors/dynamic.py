@@ -118,6 +118,9 @@ class DynamicSupervisor(Supervisor):
             else template.start
         async with self._serial:
             self._check_open(id or template.id)
+            bound = self.spec.max_children
+            if bound is not None and len(self._children) >= bound:
+                raise ChildError(self.name, "max_children", id or template.id)
             if id is None:
                 self._made += 1
                 while f"{template.id}-{self._made}" in self._children:
@@ -128,12 +131,6 @@ class DynamicSupervisor(Supervisor):
             spec = dataclasses.replace(template, id=child_id, start=start)
             self._admit(spec)
             return await self._add(spec)
-
-    def _admit(self, spec: ChildSpec) -> None:
-        super()._admit(spec)
-        bound = self.spec.max_children
-        if bound is not None and len(self._children) >= bound:
-            raise ChildError(self.name, "max_children", spec.id)
 
     async def restart_child(self, child_id: str) -> str | None:
         """Not supported by a dynamic supervisor (OTP: ``simple_one_for_one``).

@@ -363,7 +363,7 @@ class Supervisor:
             raise ChildError(self.name, "stopped", child_id)
 
     def _admit(self, spec: ChildSpec) -> None:
-        """Refuse a new child (already there; a bound in subclasses)."""
+        """Refuse a new child whose id is taken."""
         existing = self._children.get(spec.id)
         if existing is not None:
             running = existing.run is not None or existing.restarting
