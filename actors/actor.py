@@ -427,7 +427,7 @@ async def _serve_loop(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
     queue = mailbox._queue  # read-only peeks on the hot path
     receive = mailbox.receive_nowait
     handle = actor.handle
-    arm = guard.arm
+    arm = guard.arm if guard.watchdog is not None else None  # None: nothing to arm
     burst_mode = type(actor).handle_burst is not Actor.handle_burst
     checkpoint = trio.lowlevel.checkpoint
     while True:
@@ -457,11 +457,13 @@ async def _serve_loop(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
                     if not await _slow(cell, actor, trace, item):
                         return _hung(cell, actor, trace)
                 elif type(item) is CallEnvelope:
-                    arm()
+                    if arm is not None:
+                        arm()
                     if not item.reply(await handle(item.request)):
                         trace.emit(EventKind.LATE_REPLY, cell.name, cell.name, item, len(queue))
                 else:
-                    arm()
+                    if arm is not None:
+                        arm()
                     await handle(item)
                 n += 1
                 if cell.stop_requested or ctx._stop:

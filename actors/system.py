@@ -161,7 +161,11 @@ class ActorSystem:
             NoProc: ``name`` is not registered (an `UnknownActor`).
             MailboxClosed: the actor was unregistered while waiting.
         """
-        await self._cell(name).mailbox.send(message)
+        mailbox = self._cell(name).mailbox
+        if len(mailbox._queue) < mailbox.capacity and not mailbox._closed:
+            mailbox.send_nowait(message)  # room: no coroutine of the mailbox's to run
+        else:
+            await mailbox.send(message)
 
     def send_nowait(self, name: str, message: Any) -> bool:
         """Put ``message`` in ``name``'s mailbox if there is room; else drop, count, False.
@@ -172,11 +176,18 @@ class ActorSystem:
         return self._cell(name).mailbox.send_nowait(message)
 
     async def cast(self, name: str, message: Any) -> bool:
-        """Fire and forget: as `send`, but an unregistered or removed name returns False."""
+        """Fire and forget: as `send`, but an unregistered name returns False, also when
+        it is unregistered while waiting for room."""
         cell = self._cells.get(name)
-        if cell is None or cell.mailbox._closed:
+        if cell is None:
             return False
-        await cell.mailbox.send(message)
+        mailbox = cell.mailbox
+        if len(mailbox._queue) < mailbox.capacity and not mailbox._closed:
+            return mailbox.send_nowait(message)  # room: no coroutine of the mailbox's to run
+        try:
+            await mailbox.send(message)
+        except MailboxClosed:
+            return False
         return True
 
     async def call(self, name: str, request: Any, *, timeout: float) -> Any:
