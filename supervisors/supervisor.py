@@ -123,6 +123,7 @@ from actors import (
     ActorSystem,
     Cell,
     EventKind,
+    ExitKind,
     ExitReason,
     Ignore,
     run_actor,
@@ -219,6 +220,16 @@ class _Serial:
         self._held = True
 
     async def __aexit__(self, *exc: object) -> None:
+        self.release()
+
+    def try_acquire(self) -> bool:
+        """Take it if free (no waiting); True when taken."""
+        if self._held:
+            return False
+        self._held = True
+        return True
+
+    def release(self) -> None:
         self._held = False
         self._lot.unpark()
 
@@ -246,7 +257,7 @@ class Supervisor:
         self._stop_requested = False
         self._stop_event = trio.Event()  # set by stop(); ends a backoff wait early
         self._stopped = trio.Event()
-        self._restart_times: list[float] = []  # inside the intensity window
+        self._restart_times: deque[float] = deque()  # inside the intensity window, in order
         self._consecutive = 0  # restarts since the last quiet period (backoff)
         self._last_restart = -math.inf
         self._rng = system.rng_for(f"supervisor:{name}")
@@ -469,13 +480,59 @@ class Supervisor:
         return started
 
     async def _worker_task(self, run: _Run, *, task_status: trio.TaskStatus[Started]) -> None:
+        """Run a worker's incarnations: the first, then those restarted in place."""
         child = run.child
-        assert child.cell is not None
+        status: Any = task_status
         try:
-            run.reason = await run_actor(self.system, child.cell, child.spec.start,
-                                         init=child.spec.init, task_status=task_status)
+            while True:
+                assert child.cell is not None
+                reason = await run_actor(self.system, child.cell, child.spec.start,
+                                         init=child.spec.init, task_status=status)
+                run.reason = reason
+                if not self._restart_in_place(run, reason):
+                    return
+                status = _InPlace(self, child)
         finally:
             self._ended_run(run)
+
+    def _restart_in_place(self, run: _Run, reason: ExitReason | Ignore) -> bool:
+        """Decide a worker's restart in its own task, when nothing else is involved.
+
+        Why: a restart through the supervisor's task costs a task switch, a nursery
+        ``start`` and a new task; for the common case (``one_for_one``, no backoff,
+        a restart within the intensity, the supervisor idle) the decision and its
+        record are the same as `_handle_exit`'s, so the exited task starts the next
+        incarnation itself. The supervisor's serial lock is held until that start
+        returned, as for a restart made by the supervisor. Anything else (a stop in
+        progress, another strategy, backoff, the intensity reached, a start that
+        failed) takes the supervisor's path, which decides it again from scratch.
+
+        Returns:
+            True when the caller is to run the next incarnation now.
+        """
+        child = run.child
+        if (child.run is not run or run.stopping or not self._open or self._stop_requested
+                or type(reason) is not ExitReason or reason.kind is ExitKind.START_FAILED
+                or self.spec.strategy is not Strategy.ONE_FOR_ONE
+                or self.spec.backoff is not None
+                or not should_restart(child.spec.restart, reason)):
+            return False
+        now = trio.current_time()
+        times = self._restart_times
+        while times and now - times[0] > self.spec.period:
+            times.popleft()
+        if len(times) + 1 > self.spec.intensity or not self._serial.try_acquire():
+            return False
+        times.append(now)
+        child.last_exit = reason
+        child.restarting = True
+        child.restarts += 1
+        cell = child.cell
+        assert cell is not None
+        cell.state = ActorState.RESTARTING
+        self.system.trace.emit(EventKind.RESTART, child.name, child.name, None,
+                               cell.mailbox.depth, str(reason))
+        return True
 
     def _ended_run(self, run: _Run) -> None:
         run.done.set()
@@ -566,8 +623,9 @@ class Supervisor:
                 return AUTO_SHUTDOWN
             return None
         now = trio.current_time()
-        exceeded, self._restart_times = intensity_exceeded(
+        exceeded, window = intensity_exceeded(
             self._restart_times, now, self.spec.period, self.spec.intensity)
+        self._restart_times = deque(window)
         if exceeded:
             trace.emit(EventKind.ESCALATE, self.name or "<root>", detail=(
                 f"{len(self._restart_times)} restarts in {self.spec.period} s "
@@ -689,6 +747,27 @@ class Supervisor:
             await run.done.wait()
             self.system.trace.emit(EventKind.KILLED, child.name,
                                    detail=f"missed shutdown timeout {timeout} s")
+
+
+class _InPlace:
+    """The task status of an incarnation started in place (see
+    `Supervisor._restart_in_place`): ends the restart when its start returned."""
+
+    __slots__ = ("_sup", "_child")
+
+    def __init__(self, sup: Supervisor, child: _Child) -> None:
+        self._sup = sup
+        self._child = child
+
+    def started(self, value: Started = None) -> None:
+        child = self._child
+        child.restarting = False
+        if value is IGNORE:
+            child.run = None
+            self._sup._ended(child)  # noqa: SLF001 - the supervisor's own helper
+        elif value is not None:
+            child.last_exit = value
+        self._sup._serial.release()  # noqa: SLF001
 
 
 class _Relay:

@@ -274,6 +274,59 @@ async def test_init_hook_runs_before_on_start_for_every_incarnation(autojump_clo
             await system.start_supervisor(SupervisorSpec([child([], "a", init=broken)]))
 
 
+class Flaky(Actor):
+    """Starts per a script of outcomes: "ok", "fail" (raises) or "ignore"; "boom" crashes."""
+
+    def __init__(self, log: list, script: list) -> None:
+        self.log, self.script = log, script
+
+    async def on_start(self):
+        step = self.script.pop(0)
+        self.log.append((step, trio.current_time()))
+        if step == "fail":
+            raise RuntimeError("cannot start")
+        return IGNORE if step == "ignore" else None
+
+    async def handle(self, message):
+        raise RuntimeError("boom")
+
+
+@pytest.mark.trio
+async def test_failed_restarts_are_retried_until_the_intensity(autojump_clock) -> None:
+    """A restart whose start fails counts as another exit: retried at once while within
+    the intensity, then the supervisor gives up."""
+    log: list = []
+    spec = SupervisorSpec([ChildSpec("a", lambda: Flaky(log, script))], intensity=3)
+    script = ["ok", "fail", "fail", "ok"]
+    async with open_actor_system() as system:
+        sup = await system.start_supervisor(spec)
+        system.send_nowait("a", "x")
+        await settle()
+        assert [step for step, _ in log] == ["ok", "fail", "fail", "ok"]
+        assert sup.which_children()[0].restarts == 3 and sup.exit_reason is None
+        system.send_nowait("a", "x")  # a 4th restart within 5 s: gives up
+        await sup.wait_stopped()
+        assert sup.exit_reason == MAX_INTENSITY
+
+
+@pytest.mark.trio
+async def test_restart_that_ignores_leaves_the_child_stopped(autojump_clock) -> None:
+    """A restart whose on_start returns IGNORE: not running, no failure, name unregistered,
+    and restart_child starts it again later."""
+    log: list = []
+    script = ["ok", "ignore", "ok"]
+    async with open_actor_system() as system:
+        sup = await system.start_supervisor(
+            SupervisorSpec([ChildSpec("a", lambda: Flaky(log, script))]))
+        system.send_nowait("a", "x")
+        await settle()
+        assert [(c.state, c.restarts) for c in sup.which_children()] == [
+            (ActorState.STOPPED, 1)]
+        assert system.whereis("a") is None and sup.exit_reason is None
+        assert await sup.restart_child("a") == "a"
+        assert [step for step, _ in log] == ["ok", "ignore", "ok"]
+
+
 # ---------------------------------------------------------------- restarting state
 @pytest.mark.trio
 async def test_which_children_says_restarting_until_the_restart_started(autojump_clock):
