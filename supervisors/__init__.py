@@ -1,10 +1,10 @@
 """Supervisors: OTP-style supervision of actors (domain-free) and, in their own
 modules, the supervision trees of the rovers and the whole system.
 
-``spec`` (specs and pure rules), ``supervisor`` (the contract and the running
-supervisor) and ``dynamic`` (a supervisor of many children of one spec) depend
-only on the ``actors`` runtime; only ``system.py`` may
-wire in ``world`` and ``server`` (tests/test_layers.py).
+``spec`` (specs and pure rules), ``state`` (a supervisor's records),
+``supervisor`` (the contract and the running supervisor) and ``dynamic`` (a
+supervisor of many children of one spec) depend only on the ``actors`` runtime;
+only ``system.py`` may wire in ``world`` and ``server`` (tests/test_layers.py).
 """
 
 from .dynamic import DynamicSupervisor, DynamicSupervisorSpec

@@ -121,7 +121,6 @@ from actors import (
     SHUTDOWN,
     ActorState,
     ActorSystem,
-    Cell,
     EventKind,
     ExitKind,
     ExitReason,
@@ -147,6 +146,7 @@ from .spec import (
     intensity_exceeded,
     should_restart,
 )
+from .state import ChildRecord, Run, Serial, Started
 
 __all__ = [
     "AutoShutdown", "Backoff", "ChildCounts", "ChildError", "ChildInfo", "ChildSpec",
@@ -154,84 +154,6 @@ __all__ = [
     "TreeNode", "backoff_delay", "intensity_exceeded",
 ]
 
-Started = ExitReason | Ignore | None
-"""What starting a child gives: None (running), `IGNORE`, or the start failure."""
-
-
-# ============================================================================ state
-
-
-class _Run:
-    """One running incarnation of a child."""
-
-    __slots__ = ("child", "done", "reason", "stopping", "scope", "sup")
-
-    def __init__(self, child: _Child) -> None:
-        self.child = child
-        self.done = trio.Event()  # set when the incarnation's task ended
-        self.reason: ExitReason | Ignore | None = None  # its exit reason, once done
-        self.stopping = False  # the supervisor asked it to stop: its exit is no failure
-        self.scope: trio.CancelScope | None = None  # kill switch (supervisor children)
-        self.sup: Supervisor | None = None  # the nested supervisor (supervisor children)
-
-
-class _Child:
-    """The supervisor's record of one child."""
-
-    __slots__ = ("spec", "name", "run", "restarts", "last_exit", "cell", "sup", "restarting")
-
-    def __init__(self, spec: ChildSpec, name: str) -> None:
-        self.spec = spec
-        self.name = name
-        self.run: _Run | None = None  # None when not running (also during its restart)
-        self.restarts = 0
-        self.last_exit: ExitReason | None = None
-        self.cell: Cell | None = None  # workers: the latest registered cell (owns the mailbox)
-        self.sup: Supervisor | None = None  # supervisors: the latest incarnation
-        self.restarting = False  # from its exit until its restart's start returned
-
-    @property
-    def state(self) -> ActorState:
-        if self.restarting:
-            return ActorState.RESTARTING
-        if self.run is not None and not self.run.done.is_set():
-            if self.cell is not None:
-                return self.cell.state
-            return ActorState.RUNNING
-        return ActorState.STOPPED
-
-
-class _Serial:
-    """One holder at a time (restart handling, dynamic-children calls, the final stop).
-
-    Why not `trio.Lock`: its acquire is a checkpoint even when free, one more
-    scheduler pass on every restart. This one takes a free lock at once.
-    """
-
-    __slots__ = ("_held", "_lot")
-
-    def __init__(self) -> None:
-        self._held = False
-        self._lot = trio.lowlevel.ParkingLot()
-
-    async def __aenter__(self) -> None:
-        while self._held:
-            await self._lot.park()
-        self._held = True
-
-    async def __aexit__(self, *exc: object) -> None:
-        self.release()
-
-    def try_acquire(self) -> bool:
-        """Take it if free (no waiting); True when taken."""
-        if self._held:
-            return False
-        self._held = True
-        return True
-
-    def release(self) -> None:
-        self._held = False
-        self._lot.unpark()
 
 
 # ============================================================================ the supervisor
@@ -247,12 +169,12 @@ class Supervisor:
         self.spec = spec
         self.system = system
         self.name = name
-        self._children: dict[str, _Child] = {  # by id, in start order; temporary ones
-            c.id: _Child(c, self._child_name(c.id)) for c in spec.children}  # removed on exit
-        self._exited: deque[_Run] = deque()  # runs that ended, not yet handled
+        self._children: dict[str, ChildRecord] = {  # by id, in start order; temporary ones
+            c.id: ChildRecord(c, self._child_name(c.id)) for c in spec.children}  # removed on exit
+        self._exited: deque[Run] = deque()  # runs that ended, not yet handled
         self._nursery: trio.Nursery | None = None
         self._open = False  # accepting dynamic-children calls (between start and stop)
-        self._serial = _Serial()
+        self._serial = Serial()
         self._wakeup = trio.Event()  # set when a child exits or a stop is requested
         self._stop_requested = False
         self._stop_event = trio.Event()  # set by stop(); ends a backoff wait early
@@ -382,7 +304,7 @@ class Supervisor:
                              spec.id)
 
     async def _add(self, spec: ChildSpec) -> str | None:
-        child = _Child(spec, self._child_name(spec.id))
+        child = ChildRecord(spec, self._child_name(spec.id))
         self._children[spec.id] = child
         started = await self._start_child(child)
         if started is IGNORE:
@@ -393,13 +315,13 @@ class Supervisor:
             raise ChildError(self.name, started, spec.id)
         return child.name
 
-    def _find(self, child_id: str) -> _Child:
+    def _find(self, child_id: str) -> ChildRecord:
         child = self._children.get(child_id)
         if child is None:
             raise ChildError(self.name, "not_found", child_id)
         return child
 
-    def _find_idle(self, child_id: str) -> _Child:
+    def _find_idle(self, child_id: str) -> ChildRecord:
         child = self._find(child_id)
         if child.restarting:
             raise ChildError(self.name, "restarting", child_id)
@@ -450,7 +372,7 @@ class Supervisor:
             trace.emit(EventKind.STOP, self.name or "<root>", detail=str(reason))
             self._stopped.set()
 
-    async def _start_children(self, children: list[_Child]) -> ExitReason | None:
+    async def _start_children(self, children: list[ChildRecord]) -> ExitReason | None:
         """Start ``children`` in order; on a failure return its reason (others stay up)."""
         for child in children:
             started = await self._start_child(child)
@@ -461,9 +383,9 @@ class Supervisor:
                 return started
         return None
 
-    async def _start_child(self, child: _Child) -> Started:
+    async def _start_child(self, child: ChildRecord) -> Started:
         assert self._nursery is not None
-        run = _Run(child)
+        run = Run(child)
         spec = child.spec
         if spec.type is ChildType.WORKER:
             cell = self.system.ensure_cell(child.name, spec.mailbox)
@@ -479,7 +401,7 @@ class Supervisor:
             child.last_exit = started
         return started
 
-    async def _worker_task(self, run: _Run, *, task_status: trio.TaskStatus[Started]) -> None:
+    async def _worker_task(self, run: Run, *, task_status: trio.TaskStatus[Started]) -> None:
         """Run a worker's incarnations: the first, then those restarted in place."""
         child = run.child
         status: Any = task_status
@@ -495,7 +417,7 @@ class Supervisor:
         finally:
             self._ended_run(run)
 
-    def _restart_in_place(self, run: _Run, reason: ExitReason | Ignore) -> bool:
+    def _restart_in_place(self, run: Run, reason: ExitReason | Ignore) -> bool:
         """Decide a worker's restart in its own task, when nothing else is involved.
 
         Why: a restart through the supervisor's task costs a task switch, a nursery
@@ -534,12 +456,12 @@ class Supervisor:
                                cell.mailbox.depth, str(reason))
         return True
 
-    def _ended_run(self, run: _Run) -> None:
+    def _ended_run(self, run: Run) -> None:
         run.done.set()
         self._exited.append(run)
         self._wakeup.set()
 
-    async def _supervisor_task(self, run: _Run, *,
+    async def _supervisor_task(self, run: Run, *,
                                task_status: trio.TaskStatus[Started]) -> None:
         child = run.child
         started = False
@@ -598,7 +520,7 @@ class Supervisor:
                         if self._stop_requested:
                             return SHUTDOWN
 
-    def _take_exits(self) -> list[_Run]:
+    def _take_exits(self) -> list[Run]:
         """The runs ended so far, in their children's start order (as a scan would)."""
         ended = list(self._exited)
         self._exited.clear()
@@ -607,7 +529,7 @@ class Supervisor:
             ended.sort(key=lambda r: order.get(r.child, -1))
         return ended
 
-    async def _handle_exit(self, child: _Child, reason: ExitReason) -> ExitReason | None:
+    async def _handle_exit(self, child: ChildRecord, reason: ExitReason) -> ExitReason | None:
         """Apply restart type and strategy to one exit.
 
         Returns:
@@ -659,7 +581,7 @@ class Supervisor:
                 self._ended(c)
             elif started is not None:
                 # a failed restart counts as another exit (bounded by the intensity)
-                run = _Run(c)
+                run = Run(c)
                 run.reason = started
                 c.run = run
                 self._ended_run(run)
@@ -668,7 +590,7 @@ class Supervisor:
                 break
         return None
 
-    def _affected(self, child: _Child) -> list[_Child]:
+    def _affected(self, child: ChildRecord) -> list[ChildRecord]:
         """The children to restart for ``child``'s exit, one case per strategy."""
         strategy = self.spec.strategy
         if strategy is Strategy.ONE_FOR_ONE:
@@ -701,7 +623,7 @@ class Supervisor:
             with trio.move_on_after(delay):
                 await self._stop_event.wait()
 
-    def _ended(self, child: _Child) -> None:
+    def _ended(self, child: ChildRecord) -> None:
         """A child ended and will not be restarted: drop a temporary one (every one in a
         dynamic supervisor), unregister its name."""
         if child.spec.restart is Restart.TEMPORARY or not self._keeps_ended:
@@ -709,17 +631,17 @@ class Supervisor:
         else:
             self._forget_name(child)
 
-    def _remove(self, child: _Child) -> None:
+    def _remove(self, child: ChildRecord) -> None:
         if self._children.get(child.spec.id) is child:
             del self._children[child.spec.id]
         self._forget_name(child)
 
-    def _forget_name(self, child: _Child) -> None:
+    def _forget_name(self, child: ChildRecord) -> None:
         if child.cell is not None and self.system.whereis(child.name) is child.cell:
             self.system.forget(child.name)
 
     # ------------------------------------------------------------------ shutdown
-    async def _stop_children(self, children: list[_Child]) -> None:
+    async def _stop_children(self, children: list[ChildRecord]) -> None:
         """Stop the running ones of ``children`` in reverse order, each within its timeout."""
         for child in reversed(children):
             run = child.run
@@ -731,7 +653,7 @@ class Supervisor:
             child.run = None
             child.last_exit = run.reason if isinstance(run.reason, ExitReason) else KILLED
 
-    async def _stop_one(self, child: _Child, run: _Run) -> None:
+    async def _stop_one(self, child: ChildRecord, run: Run) -> None:
         timeout = child.spec.shutdown
         if child.cell is not None and child.spec.type is ChildType.WORKER:
             child.cell.stop_requested = True
@@ -755,7 +677,7 @@ class _InPlace:
 
     __slots__ = ("_sup", "_child")
 
-    def __init__(self, sup: Supervisor, child: _Child) -> None:
+    def __init__(self, sup: Supervisor, child: ChildRecord) -> None:
         self._sup = sup
         self._child = child
 

@@ -25,7 +25,8 @@ PUBLIC = [
     "JsonLinesRecorder", "KILLED", "MAX_INTENSITY", "Mailbox", "MailboxStatistics", "Message",
     "Monitor", "NORMAL", "PoolExhausted", "SHUTDOWN", "Timer", "Trace", "TraceEvent",
     "UnknownActor", "ValueType", "open_actor_system", "real_clock", "scaled_clock",
-    "seed_trio_scheduler", "set_rate", "virtual_clock",
+    "seed_trio_scheduler", "set_rate", "virtual_clock", "NoProc", "NOPROC", "IGNORE",
+    "AUTO_SHUTDOWN",
 ]
 
 

@@ -8,6 +8,7 @@ import pytest
 import trio
 import trio.testing
 
+import supervisors
 from actors import IGNORE, Actor, ActorState, ExitKind, NoProc, open_actor_system
 from supervisors import (
     ChildCounts,
@@ -232,3 +233,10 @@ async def test_dynamic_supervisor_nests_under_a_static_one(autojump_clock) -> No
         pool = root._children["pool"].sup
         assert await pool.start_child(log, "x") == "root/pool/w-1"
         assert await system.call("root/pool/w-1", 1, timeout=1) == ("x", 1)
+
+
+def test_supervisors_public_names_exist() -> None:
+    """The package re-exports the dynamic-children names."""
+    for name in ("AutoShutdown", "ChildCounts", "ChildError", "DynamicSupervisor",
+                 "DynamicSupervisorSpec", "Supervisor", "SupervisorSpec", "ChildSpec"):
+        assert name in supervisors.__all__ and hasattr(supervisors, name)
