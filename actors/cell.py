@@ -114,6 +114,11 @@ class Cell:
         self.supervisor = ""  # the owning supervisor's name, for reports
         self.scope: trio.CancelScope | None = None  # the running incarnation's kill switch
 
+    @property
+    def closed(self) -> bool:
+        """True once the name is unregistered (`ActorSystem.retire` or ``forget``)."""
+        return self.mailbox.closed
+
     def fail_calls(self, reason: ExitReason) -> int:
         """Fail the calls waiting in the mailbox with ``reason`` (their callers raise
         `CallFailed`, or `NoProc` for ``noproc``) and take them out; returns how many.

@@ -176,6 +176,11 @@ class Mailbox:
 
     # ---------------------------------------------------------------- reporting
     @property
+    def closed(self) -> bool:
+        """True once closed: it refuses every item for good."""
+        return self._closed
+
+    @property
     def depth(self) -> int:
         """Items waiting now."""
         return len(self._queue)

@@ -29,11 +29,19 @@ Sending by name (``mapper/motor``):
 
 Names live as long as their actor is not gone for good. A send to an actor
 that is restarting lands in its mailbox: mailboxes belong to the cell, which
-outlives incarnations. A name is unregistered (`forget`) when its supervisor
-will not start it again on its own: a temporary child that ended, a transient
-one that ended normally, a child terminated or ignored, and every child of a
+outlives incarnations. A name stops being registered when its supervisor will
+not start it again on its own: a temporary child that ended, a transient one
+that ended normally, a child terminated or ignored, and every child of a
 supervisor that stopped or gave up. Calls waiting in its mailbox then fail with
 `NoProc`, and senders waiting for room raise `MailboxClosed`.
+
+Two ways to unregister, for a bounded registry that still tells what died:
+`retire` closes the cell but keeps it readable (``whereis``, ``names``,
+``statistics``: its state, last exit and counters) while the supervisor keeps
+the child's spec, a bounded set; `forget` removes it, for children whose spec
+goes with them (temporary and dynamic ones, which come and go without bound).
+A closed cell is not registered: every sender gets `NoProc`, and the next
+start of the name makes a fresh cell.
 """
 
 from __future__ import annotations
@@ -116,7 +124,7 @@ class ActorSystem:
         """The cell registered as ``name``, made with a mailbox of ``capacity`` if new
         (supervisor use: the supervisor owns its children's mailboxes)."""
         cell = self._cells.get(name)
-        if cell is None:
+        if cell is None or cell.mailbox._closed:  # new, or retired: a fresh cell
             if not isinstance(name, str) or not name:
                 raise ValueError(f"name must be a non-empty string, got {name!r}")
             cell = Cell(name, Mailbox(name, capacity, self.trace), self.rng_for(name))
@@ -131,17 +139,26 @@ class ActorSystem:
             cell.mailbox.close()
             cell.fail_calls(NOPROC)
 
+    def retire(self, name: str) -> None:
+        """Unregister ``name`` but keep its closed cell readable (supervisor use, see the
+        module): close its mailbox, fail the calls waiting in it with `NoProc`. Idempotent."""
+        cell = self._cells.get(name)
+        if cell is not None and not cell.mailbox._closed:
+            cell.mailbox.close()
+            cell.fail_calls(NOPROC)
+
     def whereis(self, name: str) -> Cell | None:
-        """The cell registered as ``name``, or None."""
+        """The cell of ``name``, or None; a retired one too (``cell.closed``: not
+        registered, senders get `NoProc`), for post-mortems."""
         return self._cells.get(name)
 
     def names(self) -> list[str]:
-        """Registered names, in registration order."""
+        """Names with a cell (retired ones included), in registration order."""
         return list(self._cells)
 
-    def _cell(self, name: str) -> Cell:
+    def _cell(self, name: str, *, live: bool = True) -> Cell:
         cell = self._cells.get(name)
-        if cell is None:
+        if cell is None or (live and cell.mailbox._closed):
             raise NoProc(name)
         return cell
 
@@ -151,7 +168,7 @@ class ActorSystem:
         Raises:
             NoProc: ``name`` is not registered (an `UnknownActor`).
         """
-        return self._cell(name).mailbox.statistics()
+        return self._cell(name, live=False).mailbox.statistics()
 
     # ---------------------------------------------------------------- messaging
     async def send(self, name: str, message: Any) -> None:
@@ -207,7 +224,7 @@ class ActorSystem:
         if not timeout > 0:
             raise ValueError(f"timeout must be > 0 [s], got {timeout!r}")
         cell = self._cells.get(name)
-        if cell is None:
+        if cell is None or cell.mailbox._closed:
             raise NoProc(name)
         mailbox = cell.mailbox
         deadlines = self._deadlines
@@ -232,7 +249,7 @@ class ActorSystem:
         Raises:
             NoProc: ``name`` is not registered (an `UnknownActor`).
         """
-        cell = self._cell(name)
+        cell = self._cell(name, live=False)
         monitor = Monitor(cell, capacity)
         cell.monitors.append(monitor)
         return monitor
@@ -246,7 +263,7 @@ class ActorSystem:
         Raises:
             NoProc: ``name`` is not registered (an `UnknownActor`).
         """
-        cell = self._cell(name)
+        cell = self._cell(name, live=False)
         cell.crash_pending = True
         self.trace.emit(EventKind.FAULT, name, name, None, cell.mailbox.depth, "crash")
         cell.mailbox.poke()
@@ -261,7 +278,7 @@ class ActorSystem:
         """
         if not seconds > 0:
             raise ValueError(f"seconds must be > 0, got {seconds!r}")
-        cell = self._cell(name)
+        cell = self._cell(name, live=False)
         cell.hang_pending = float(seconds)
         self.trace.emit(EventKind.FAULT, name, name, None, cell.mailbox.depth, f"hang {seconds} s")
         cell.mailbox.poke()
@@ -275,7 +292,7 @@ class ActorSystem:
         """
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n!r}")
-        mailbox = self._cell(name).mailbox
+        mailbox = self._cell(name, live=False).mailbox
         self.trace.emit(EventKind.FAULT, name, name, message, mailbox.depth, f"flood {n}")
         return sum(mailbox.send_nowait(message) for _ in range(n))
 

@@ -74,7 +74,10 @@ Names and calls
     own: a temporary child ended, a transient one ended normally, a child was
     terminated, deleted or ignored, or the supervisor itself stopped or gave up
     (then every one of its workers). From then on ``call``, ``send`` and
-    ``send_nowait`` raise `actors.NoProc` and ``cast`` returns False.
+    ``send_nowait`` raise `actors.NoProc` and ``cast`` returns False. The closed
+    cell stays readable (``whereis``, ``names``, ``statistics``) while the
+    supervisor keeps the child's spec; a dropped spec (temporary, dynamic)
+    takes the name out of the registry (`actors.ActorSystem.retire`, ``forget``).
 
 Dynamic children (serialised with restarts: one runs at a time)
     ``await start_child(spec)`` adds a child at the end and starts it (its name,
@@ -366,7 +369,7 @@ class Supervisor:
             self._open = False
             self.exit_reason = reason
             for child in self._children.values():  # gone with this incarnation, for good
-                self._forget_name(child)
+                self._forget_name(child, keep=self._keeps_ended)
             if not reported:
                 task_status.started(reason)
             trace.emit(EventKind.STOP, self.name or "<root>", detail=str(reason))
@@ -634,11 +637,16 @@ class Supervisor:
     def _remove(self, child: ChildRecord) -> None:
         if self._children.get(child.spec.id) is child:
             del self._children[child.spec.id]
-        self._forget_name(child)
+        self._forget_name(child, keep=False)
 
-    def _forget_name(self, child: ChildRecord) -> None:
+    def _forget_name(self, child: ChildRecord, *, keep: bool = True) -> None:
+        """Unregister a worker's name: retired (readable) while its spec is kept,
+        forgotten with its spec (see `actors.system`)."""
         if child.cell is not None and self.system.whereis(child.name) is child.cell:
-            self.system.forget(child.name)
+            if keep:
+                self.system.retire(child.name)
+            else:
+                self.system.forget(child.name)
 
     # ------------------------------------------------------------------ shutdown
     async def _stop_children(self, children: list[ChildRecord]) -> None:
