@@ -199,8 +199,20 @@ class ActorSystem:
         if cell is None:
             return False
         mailbox = cell.mailbox
-        if len(mailbox._queue) < mailbox.capacity and not mailbox._closed:
-            return mailbox.send_nowait(message)  # room: no coroutine of the mailbox's to run
+        queue = mailbox._queue
+        n = len(queue)
+        if n < mailbox.capacity and not mailbox._closed:
+            if self.trace.per_message:
+                return mailbox.send_nowait(message)  # it traces the SEND event
+            # room: Mailbox.send_nowait's success path inline. Why: cast is the hot path
+            # of actor-to-actor traffic, and the call was a fifth of a cast's CPU.
+            queue.append(message)
+            mailbox._sent += 1
+            if n >= mailbox._high:
+                mailbox._high = n + 1
+            if mailbox._receiver is not None:
+                mailbox._wake()
+            return True
         try:
             await mailbox.send(message)
         except MailboxClosed:
