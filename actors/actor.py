@@ -76,8 +76,9 @@ class Actor:
     ctx: ActorContext
     """Set by the runtime before `on_start`: name, system, trace, rng, timers."""
 
-    async def on_start(self) -> None:
-        """Called once per incarnation before the first message; raising fails the start."""
+    async def on_start(self) -> Any:
+        """Called once per incarnation before the first message; raising fails the start,
+        returning `IGNORE` leaves the child not started without failure (OTP's ``ignore``)."""
 
     async def handle(self, message: Any) -> Any:
         """Handle one message; the return value is the reply when it came by ``call``."""
