@@ -158,7 +158,6 @@ __all__ = [
 ]
 
 
-
 # ============================================================================ the supervisor
 
 
@@ -172,8 +171,9 @@ class Supervisor:
         self.spec = spec
         self.system = system
         self.name = name
-        self._children: dict[str, ChildRecord] = {  # by id, in start order; temporary ones
-            c.id: ChildRecord(c, self._child_name(c.id)) for c in spec.children}  # removed on exit
+        # by id, in start order; a child whose spec goes (temporary, dynamic) is removed
+        self._children: dict[str, ChildRecord] = {
+            c.id: ChildRecord(c, self._child_name(c.id)) for c in spec.children}
         self._exited: deque[Run] = deque()  # runs that ended, not yet handled
         self._nursery: trio.Nursery | None = None
         self._open = False  # accepting dynamic-children calls (between start and stop)
