@@ -70,10 +70,11 @@ def test_killed_server_keeps_maps_and_marks_game_interrupted(tmp_path) -> None:
 
 
 def test_end_game_refuses_unknown_status(tmp_path) -> None:
-    """Only finished and abandoned close a game."""
+    """Only finished, stopped and interrupted close a game."""
     with Store(":memory:") as store:
         gid = store.new_game(t=0)
-        with pytest.raises(ValueError, match="status must be finished or abandoned, got 'won'"):
+        with pytest.raises(ValueError, match="status must be one of finished, stopped, "
+                                             "interrupted, got 'won'"):
             store.end_game(gid, "won", "", t=1)
 
 
