@@ -93,7 +93,8 @@ from .protocol.lines import TOO_LONG
 from .store import Store, StoreError
 
 __all__ = ["ServerConfig", "ServerEvent", "RoverView", "ServerSnapshot", "Server",
-           "open_server", "PROTOCOL_NAME", "MAX_MAP_CHUNKS"]
+           "open_server", "ids_without_token", "beyond_loopback_refusal", "PROTOCOL_NAME",
+           "MAX_MAP_CHUNKS"]
 
 PROTOCOL_NAME = "hideseek/1"
 _OUT_QUEUE = 64          # byte chunks waiting for a link's writer [chunks]
@@ -397,24 +398,13 @@ class Server:
             ValueError: a non-loopback address while some accepted id has no token.
         """
         if not is_loopback(host):
-            need = self._ids_without_token()
-            if need:
-                raise ValueError(f"refusing to listen on {host}: not loopback and {need} "
-                                 "has no rover token (give --token)")
+            refusal = beyond_loopback_refusal(host, self.config)
+            if refusal:
+                raise ValueError(refusal)
         listeners = await trio.open_tcp_listeners(port, host=host)
         for listener in listeners:
             self._nursery.start_soon(self._accept_loop, listener)
         return listeners[0].socket.getsockname()[1]
-
-    def _ids_without_token(self) -> str:
-        """Who may say hello without a token (empty when every accepted id has one)."""
-        tokens = self.config.tokens
-        if "*" in tokens:
-            return ""
-        if self.config.open_enrolment or not self.config.rovers:
-            return "every rover"
-        missing = sorted(self.config.rovers - tokens.keys())
-        return ", ".join(repr(m) for m in missing)
 
     async def _accept_loop(self, listener: trio.SocketListener) -> None:
         delay = 0.0
@@ -938,6 +928,28 @@ class Server:
                 self.dropped_events += 1
             except (trio.BrokenResourceError, trio.ClosedResourceError):
                 self._subscribers.remove(ch)
+
+
+def ids_without_token(config: ServerConfig) -> str:
+    """Who could say hello without a token under ``config``, in words; empty when every
+    accepted id has one (the condition to listen beyond loopback)."""
+    tokens = config.tokens
+    if "*" in tokens:
+        return ""
+    if config.open_enrolment:
+        return "any id (open enrolment)"
+    return ", ".join(repr(m) for m in sorted(config.rovers - tokens.keys()))
+
+
+def beyond_loopback_refusal(host: str, config: ServerConfig) -> str:
+    """Why listening on the non-loopback ``host`` is refused under ``config`` ('' if it is not)."""
+    if not config.tokens:
+        return f"refusing to listen on {host}: not loopback and no rover tokens (give --token)"
+    need = ids_without_token(config)
+    if need:
+        return (f"refusing to listen on {host}: not loopback and {need} has no token "
+                "(give --token ID=TOKEN, or a shared --token)")
+    return ""
 
 
 @contextlib.asynccontextmanager
