@@ -375,20 +375,22 @@ class Server:
                                     f"interrupted: the server stopped in phase {self.game.phase}",
                                     now)
         for kind in self._bursts.pending():
-            self._emit(kind + "s", data=self._bursts.take(kind, now))
+            self._emit(kind + "_summary", data=self._bursts.take(kind, now))
 
     # -- links ------------------------------------------------------------------------
 
     def attach_memory(self, outbound: Callable[[bytes], None], *, name: str = "memory",
-                      capacity: int = 65536, trusted: bool = True) -> MemoryLink:
+                      capacity: int = 65536, trusted: bool = True, peer: str | None = None,
+                      timed: bool = False) -> MemoryLink:
         """A link for a simulated rover in this process; the server serves it until closed.
 
-        ``trusted=False`` treats it as a link from outside (identity rules apply),
-        for tests that play an outside rover without a socket.
+        ``trusted=False`` treats it as a link from outside (identity rules apply;
+        ``peer`` and ``timed`` as for a TCP link from that address), for tests
+        that play an outside rover without a socket.
         """
         link = MemoryLink(outbound, capacity=capacity, name=name)
         self._nursery.start_soon(functools.partial(self.serve_stream, link, name,
-                                                   trusted=trusted))
+                                                   trusted=trusted, peer=peer, timed=timed))
         return link
 
     async def listen_tcp(self, host: str, port: int) -> int:
@@ -899,7 +901,7 @@ class Server:
                                    + rover.session.down_after_s)
             self._reclaim(now)
             for kind in self._bursts.due(now):
-                self._emit(kind + "s", data=self._bursts.take(kind, now))
+                self._emit(kind + "_summary", data=self._bursts.take(kind, now))
             self._kick = trio.Event()
             with trio.move_on_at(max(deadline, now + 1e-3)):
                 await self._kick.wait()
