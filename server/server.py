@@ -863,7 +863,8 @@ class Server:
         self._emit("phase", data={"phase": str(self.game.phase), "reason": self.game.last_reason})
         if self.game.phase is Phase.FOUND:
             self.store.end_game(self.game_id, "finished",
-                                f"found after {len(self.game.guesses)} guesses",
+                                f"found after {len(self.game.guesses)} "
+                                f"guess{'' if len(self.game.guesses) == 1 else 'es'}",
                                 trio.current_time())
 
     def _flush(self, rover: _Rover) -> None:
