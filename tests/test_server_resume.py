@@ -3,6 +3,7 @@ same database resumes it and it can be finished; labels say what happened."""
 
 from __future__ import annotations
 
+import functools
 import os
 import signal
 import socket
@@ -210,18 +211,19 @@ async def _tcp_rover(rover: FakeRover, port: int) -> None:
             await trio.sleep(0.2)
             continue
 
-        async def receive() -> bytes:
-            data = await stream.receive_some(4096)
-            if not data:
-                raise trio.BrokenResourceError("server closed")
-            return data
-
         rover.welcomed = False
         try:
-            await rover.run(receive, stream.send_all)
+            await rover.run(functools.partial(_receive, stream), stream.send_all)
         except* (trio.BrokenResourceError, trio.ClosedResourceError, OSError):
             pass
         await trio.sleep(0.2)
+
+
+async def _receive(stream: trio.SocketStream) -> bytes:
+    data = await stream.receive_some(4096)
+    if not data:
+        raise trio.BrokenResourceError("server closed")
+    return data
 
 
 def _serve(db: str, port: int) -> subprocess.Popen:
