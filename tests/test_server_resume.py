@@ -39,6 +39,14 @@ def _rovers() -> dict[str, FakeRover]:
             "s1": FakeRover("s1", "seeker", hider_at=Pose2(60.0, 10.0), drive_s=2.0)}
 
 
+async def _attach(server, rovers: dict[str, FakeRover], nursery) -> None:
+    """Run each rover on a new memory link to ``server``; give them a second to say hello."""
+    for r in rovers.values():
+        receive, send, _ = memory_pipe(server.attach_memory)
+        nursery.start_soon(r.run, receive, send)
+    await trio.sleep(1)
+
+
 async def _wait_phase(server, phase: str, timeout: float = 60.0) -> None:
     with trio.fail_after(timeout):
         while server.snapshot().phase != phase:
@@ -73,10 +81,7 @@ def test_killed_at_each_phase_the_game_resumes_and_can_be_finished(crash_at, tmp
         config = ServerConfig(origins=ORIGINS, rovers=IDS, resume=True)
         with Store(live) as store:
             async with open_server(store, config) as a, trio.open_nursery() as n:
-                for r in rovers.values():
-                    receive, send, _ = memory_pipe(a.attach_memory)
-                    n.start_soon(r.run, receive, send)
-                await trio.sleep(1)
+                await _attach(a, rovers, n)
                 k = 0
                 while a.snapshot().phase != crash_at:
                     await _step(a, k)
@@ -91,10 +96,7 @@ def test_killed_at_each_phase_the_game_resumes_and_can_be_finished(crash_at, tmp
             async with open_server(store, config) as b, trio.open_nursery() as n:
                 assert (b.resumed, b.game_id) == (seen["game"], seen["game"])
                 assert b.snapshot().phase == crash_at
-                for r in rovers.values():
-                    receive, send, _ = memory_pipe(b.attach_memory)
-                    n.start_soon(r.run, receive, send)
-                await trio.sleep(1)
+                await _attach(b, rovers, n)
                 while k < len(SCRIPT):
                     await _step(b, k)
                     k += 1
@@ -117,10 +119,7 @@ def test_clean_stop_new_game_and_fresh_start_are_labelled(tmp_path) -> None:
         config = ServerConfig(origins=ORIGINS, rovers=IDS, resume=True)
         with Store(db) as store:
             async with open_server(store, config) as s, trio.open_nursery() as n:
-                for r in rovers.values():
-                    receive, send, _ = memory_pipe(s.attach_memory)
-                    n.start_soon(r.run, receive, send)
-                await trio.sleep(1)
+                await _attach(s, rovers, n)
                 for k in range(len(SCRIPT)):
                     await _step(s, k)
                 assert (await s.command("new_game")).ok
@@ -155,10 +154,7 @@ def test_maps_on_a_live_database_changes_nothing_and_export_takes_the_played_map
         config = ServerConfig(origins=ORIGINS, rovers=IDS)
         with Store(db) as store:
             async with open_server(store, config) as s, trio.open_nursery() as n:
-                for r in rovers.values():
-                    receive, send, _ = memory_pipe(s.attach_memory)
-                    n.start_soon(r.run, receive, send)
-                await trio.sleep(1)
+                await _attach(s, rovers, n)
                 for k in range(4):  # hidden
                     await _step(s, k)
                 other = room_map()
