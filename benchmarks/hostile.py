@@ -17,7 +17,8 @@ bad-frame budget per link). This process then, for ``--seconds``:
 
 It reports the legit rovers' latencies (median, 95th percentile, worst), how
 many hellos went unanswered, the server's RSS before and after [MB], the
-database's growth, the fuzzer's frames/s and the holders' connection counts.
+database's growth, the fuzzer's frames/s, the holders' connection counts and
+the CPU each side used (share of one core).
 Loopback only; bounded in connections and time.
 
 Run: ``python -m benchmarks.hostile [--connections 2000] [--seconds 30]``.
@@ -50,6 +51,12 @@ def _rss_mb(pid: int) -> float:
         if line.startswith("VmRSS:"):
             return int(line.split()[1]) / 1024
     return float("nan")
+
+
+def _cpu_s(pid: int) -> float:
+    """User + system CPU time of a process [s]."""
+    fields = pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def _db_use(db: str) -> tuple[int, int]:
@@ -261,6 +268,7 @@ async def _attack(port: int, pid: int, args: argparse.Namespace) -> dict:
         await trio.sleep(5)
         q_stop.set()
     rss_before = _rss_mb(pid)
+    cpu0, own0 = _cpu_s(pid), time.process_time()
     t0 = time.perf_counter()
     async with trio.open_nursery() as n:
         n.start_soon(_rover, port, c, stop)
@@ -280,6 +288,8 @@ async def _attack(port: int, pid: int, args: argparse.Namespace) -> dict:
                 await trio.sleep(0.1)
         n.cancel_scope.cancel()
     wall = time.perf_counter() - t0
+    cpu = {"server": round((_cpu_s(pid) - cpu0) / wall, 2),
+           "attackers_and_rovers": round((time.process_time() - own0) / wall, 2)}
     await trio.sleep(2)
     return {"quiet_hello_to_welcome": _stats(quiet.welcome_ms),
             "hello_to_welcome": {**_stats(c.welcome_ms), "unanswered": c.no_welcome},
@@ -290,7 +300,8 @@ async def _attack(port: int, pid: int, args: argparse.Namespace) -> dict:
             "holders": {"tried": args.connections, "connections_opened": c.opened,
                         "open_at_end": held, "open_max_client_side": c.open_max,
                         "connect_failed": c.connect_failed},
-            "slowloris_closed": c.slow_closed, "attack_s": round(wall, 1)}
+            "slowloris_closed": c.slow_closed, "attack_s": round(wall, 1),
+            "cpu_share_of_one_core": cpu}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -52,7 +52,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import functools
-import hmac
 import math
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass, field
@@ -60,6 +59,7 @@ from typing import Any
 
 import trio
 
+from .config import ServerConfig
 from .game import Game, Phase, Result
 from .guard import BurstLog, PeerBackoff
 from .links.memory import MemoryLink
@@ -91,10 +91,10 @@ from .protocol import (
 )
 from .protocol.lines import TOO_LONG
 from .store import Store, StoreError
+from .trust import Held, admit, beyond_loopback_refusal
 
 __all__ = ["ServerConfig", "ServerEvent", "RoverView", "ServerSnapshot", "Server",
-           "open_server", "ids_without_token", "beyond_loopback_refusal", "PROTOCOL_NAME",
-           "MAX_MAP_CHUNKS"]
+           "open_server", "PROTOCOL_NAME", "MAX_MAP_CHUNKS"]
 
 PROTOCOL_NAME = "hideseek/1"
 _OUT_QUEUE = 64          # byte chunks waiting for a link's writer [chunks]
@@ -106,44 +106,6 @@ MAX_MAP_CHUNKS = 256
 """Most chunks a map may have: the download to a hider or seeker must fit a session's
 outbox at once, so a bigger upload is refused at its first chunk."""
 _ACCEPT_STARVED = (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM)
-
-
-@dataclass(frozen=True, slots=True)
-class ServerConfig:
-    """How the server is set up."""
-
-    tokens: dict[str, str] = field(default_factory=dict)
-    """Rover id -> token that rover's hello must carry; key ``*`` for every rover."""
-    origins: dict[str, Pose2] = field(default_factory=dict)
-    """Start pose in the ROOM frame [cm, deg] by rover id or by role."""
-    heartbeat_s: float = 1.0
-    down_after_s: float = 5.0
-    serial_retry_s: tuple[float, float] = (1.0, 30.0)
-    """Backoff between attempts to open a serial port: first, most [s]."""
-    rovers: frozenset[str] = frozenset()
-    """Rover ids the server was given: the only ids a TCP or serial link may say hello as."""
-    open_enrolment: bool = False
-    """Welcome any well-formed id on TCP and serial links (tokens still apply)."""
-    simulated: tuple[str, ...] = ()
-    """Roles played by simulated rovers in this process: no other link may claim them."""
-    max_connections: int = 64
-    """TCP connections held at once at most."""
-    hello_timeout_s: float = 5.0
-    """A TCP connection that has not authenticated by then is closed [s]."""
-    auth_failures: int = 5
-    """Failed hellos after which a link is closed."""
-    bad_frame_budget: float = 50.0
-    """Bad frames a TCP link may send in a burst before it is closed."""
-    bad_frame_rate: float = 5.0
-    """Bad frames per second a TCP link may send on and on [1/s]."""
-    max_sessions: int = 64
-    """Rover sessions kept at most."""
-    reclaim_after_s: float = 60.0
-    """A session whose link is gone and that plays no role is forgotten after this [s]."""
-    summary_s: float = 10.0
-    """Shortest time between two stored summaries of bad frames or auth failures [s]."""
-    resume: bool = False
-    """Play on the store's newest game when it is unfinished, instead of a new one."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -629,46 +591,22 @@ class Server:
             conn.close(f"{conn.auth_failures} failed hellos")
 
     def _admit(self, conn: _Conn, hello: Hello, now: float) -> tuple[FrameError | None, bool]:
-        """Whether ``hello`` may bind ``conn`` to its rover id: (refusal or None, by token)."""
-        cfg = self.config
-        rid = hello.id
-        if conn.rover is not None and conn.rover.id != rid:
-            return FrameError(Fault.NOT_ALLOWED, f"this link speaks for {conn.rover.id!r}; "
-                              "one rover id per link"), False
-        if conn.peer and self._backoff.blocked_for(conn.peer, now) > 0:
-            wait = self._backoff.blocked_for(conn.peer, now)
-            return FrameError(Fault.AUTH, f"too many failed hellos from {conn.peer}; "
-                              f"try again in {wait:.0f} s"), False
-        held = self._rovers.get(rid)
-        if not conn.trusted:
-            if hello.role in self._sim_roles:
-                return FrameError(Fault.AUTH, f"role {hello.role!r} is played by a simulated "
-                                  "rover"), False
-            if held is not None and held.conn is not None and held.conn.trusted:
-                return FrameError(Fault.AUTH, f"id {rid!r} is a simulated rover's"), False
-            if rid not in cfg.rovers and not cfg.open_enrolment:
-                return FrameError(Fault.AUTH, f"unknown rover id {rid!r}: the server was not "
-                                  "given it"), False
-        want = cfg.tokens.get(rid, cfg.tokens.get("*"))
-        by_token = False
-        if want is not None and not conn.trusted:
-            given = (hello.token or "").encode()
-            if not hmac.compare_digest(given, want.encode()):
-                return FrameError(Fault.AUTH, f"bad or missing token for {rid!r}"), False
-            by_token = True
-        elif want is None and conn.peer and not is_loopback(conn.peer):
-            return FrameError(Fault.AUTH, f"{rid!r} has no token and this link is not "
-                              "loopback"), False
-        if (held is not None and held.conn is not None and held.conn is not conn
-                and not by_token and not conn.trusted and held.session.is_up(now)):
-            return FrameError(Fault.AUTH, f"{rid!r} is live on another link; without a token "
-                              f"a new link may take over after {cfg.down_after_s:g} s of "
-                              "silence"), False
-        if held is None and len(self._rovers) >= cfg.max_sessions:
+        """`trust.admit` on this link and this server's sessions; then the session cap."""
+        held = self._rovers.get(hello.id)
+        facts = None
+        if held is not None and held.conn is not None:
+            facts = Held(other_link=held.conn is not conn, trusted_link=held.conn.trusted,
+                         live=held.session.is_up(now))
+        refusal, by_token = admit(
+            hello, self.config, trusted=conn.trusted, peer=conn.peer,
+            bound_id=conn.rover.id if conn.rover else None,
+            blocked_s=self._backoff.blocked_for(conn.peer, now) if conn.peer else 0.0,
+            held=facts, sim_roles=self._sim_roles)
+        if refusal is None and held is None and len(self._rovers) >= self.config.max_sessions:
             self._reclaim(now, force=True)
-            if len(self._rovers) >= cfg.max_sessions:
-                return FrameError(Fault.BUSY, "too many rover sessions; try again later"), False
-        return None, by_token
+            if len(self._rovers) >= self.config.max_sessions:
+                refusal = FrameError(Fault.BUSY, "too many rover sessions; try again later")
+        return refusal, by_token
 
     def _on_hello(self, conn: _Conn, frame: Frame, now: float) -> None:
         try:
@@ -931,28 +869,6 @@ class Server:
                 self.dropped_events += 1
             except (trio.BrokenResourceError, trio.ClosedResourceError):
                 self._subscribers.remove(ch)
-
-
-def ids_without_token(config: ServerConfig) -> str:
-    """Who could say hello without a token under ``config``, in words; empty when every
-    accepted id has one (the condition to listen beyond loopback)."""
-    tokens = config.tokens
-    if "*" in tokens:
-        return ""
-    if config.open_enrolment:
-        return "any id (open enrolment)"
-    return ", ".join(repr(m) for m in sorted(config.rovers - tokens.keys()))
-
-
-def beyond_loopback_refusal(host: str, config: ServerConfig) -> str:
-    """Why listening on the non-loopback ``host`` is refused under ``config`` ('' if it is not)."""
-    if not config.tokens:
-        return f"refusing to listen on {host}: not loopback and no rover tokens (give --token)"
-    need = ids_without_token(config)
-    if need:
-        return (f"refusing to listen on {host}: not loopback and {need} has no token "
-                "(give --token ID=TOKEN, or a shared --token)")
-    return ""
 
 
 @contextlib.asynccontextmanager

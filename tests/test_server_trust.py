@@ -194,7 +194,7 @@ def test_tokens_are_compared_in_constant_time(monkeypatch) -> None:
         calls.append((a, b))
         return real(a, b)
 
-    monkeypatch.setattr("server.server.hmac.compare_digest", spy)
+    monkeypatch.setattr("server.trust.hmac.compare_digest", spy)
 
     async def main() -> None:
         config = ServerConfig(rovers=frozenset({"h1"}), tokens={"*": "sesame"})

@@ -161,9 +161,10 @@ def format_status(snap) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from server.config import ServerConfig
     from server.links import is_loopback, parse_link
-    from server.server import ServerConfig, beyond_loopback_refusal
     from server.store import Store, StoreError
+    from server.trust import beyond_loopback_refusal
 
     try:
         tokens: dict[str, str] = {}
