@@ -748,6 +748,7 @@ class Server:
         for f in chunks:
             rover.session.send(f, reliable=True)
         self._persist(rover)
+        self._save_game()  # the download's map_id: a restarted server counts on from it
 
     # -- storage ------------------------------------------------------------------------
 
