@@ -5,7 +5,9 @@ with per-rover tokens, default limits: 64 connections, 5 s hello timeout, a
 bad-frame budget per link). This process then, for ``--seconds``:
 
 * **holders** try to keep ``--connections`` idle TCP connections open (a
-  connection the server closes is opened again);
+  connection the server closes is opened again), from 127.0.0.1 or spread over
+  ``--sources`` loopback addresses (which defeats the per-address limit, so
+  the connection cap and its eviction carry the load);
 * **slowloris**: 50 connections send one byte of a hello per second;
 * **fuzzer**: one connection (reopened when closed) sends mutated frames as
   fast as it can;
@@ -106,11 +108,11 @@ class Counters:
         self.no_welcome = 0
 
 
-async def _holder(port: int, c: Counters, stop: trio.Event) -> None:
+async def _holder(port: int, c: Counters, stop: trio.Event, source: str | None) -> None:
     """Hold one idle connection, reopening it whenever the server closes it."""
     while not stop.is_set():
         try:
-            stream = await _connect(port)
+            stream = await _connect(port, source)
         except OSError:
             c.connect_failed += 1
             await trio.sleep(0.5)
@@ -274,7 +276,9 @@ async def _attack(port: int, pid: int, args: argparse.Namespace) -> dict:
         n.start_soon(_rover, port, c, stop)
         n.start_soon(_reconnecting_rover, port, c, stop)
         for k in range(args.connections):
-            n.start_soon(_holder, port, c, stop)
+            source = f"127.1.{k % args.sources // 256}.{k % args.sources % 256 + 1}" \
+                if args.sources > 1 else None
+            n.start_soon(_holder, port, c, stop, source)
             if k % 100 == 99:
                 await trio.sleep(0.05)
         for _ in range(50):
@@ -308,9 +312,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.hostile")
     parser.add_argument("--connections", type=int, default=2000)
     parser.add_argument("--seconds", type=float, default=30.0)
+    parser.add_argument("--sources", type=int, default=1,
+                        help="loopback addresses the holders come from (127.1.x.y); 1: all "
+                             "from 127.0.0.1 (default %(default)s)")
     args = parser.parse_args(argv)
-    if not 1 <= args.connections <= 5000 or not 5 <= args.seconds <= 300:
-        parser.error("--connections must be 1..5000 and --seconds 5..300")
+    if not 1 <= args.connections <= 5000 or not 5 <= args.seconds <= 300 \
+            or not 1 <= args.sources <= 4096:
+        parser.error("--connections must be 1..5000, --seconds 5..300, --sources 1..4096")
     port = _free_port()
     with tempfile.TemporaryDirectory() as tmp:
         db = os.path.join(tmp, "hostile.db")

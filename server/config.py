@@ -29,6 +29,8 @@ class ServerConfig:
     """Roles played by simulated rovers in this process: no other link may claim them."""
     max_connections: int = 64
     """TCP connections held at once at most."""
+    max_pending_per_address: int = 16
+    """TCP connections from one address that have not said an accepted hello, at most."""
     hello_timeout_s: float = 5.0
     """A TCP connection that has not authenticated by then is closed [s]."""
     auth_failures: int = 5

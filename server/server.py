@@ -34,7 +34,9 @@ Trust (docs/protocol.md section 4 says the same to rover authors):
   address that keeps failing is blocked with a doubling backoff (`PeerBackoff`).
 
 Bounds on TCP links: at most ``max_connections`` at once (the oldest
-unauthenticated one makes room for a new one), ``hello_timeout_s`` to
+unauthenticated one makes room for a new one) and ``max_pending_per_address``
+unauthenticated ones per address (closed in the accept loop, which keeps the
+kernel's accept queue short under a flood), ``hello_timeout_s`` to
 authenticate, closed after ``down_after_s`` of silence, and a bad-frame
 budget (a token bucket) per link. Bad frames, auth failures and closes are
 counted in memory and stored as one summary per ``summary_s`` (`BurstLog`).
@@ -392,19 +394,25 @@ class Server:
                     self._starved = False
                     self._emit("accept_error", data={"error": "accepting again"})
                 delay = 0.0
-                self._nursery.start_soon(self._serve_tcp, stream)
+                self._admit_tcp(stream)
 
-    async def _serve_tcp(self, stream: trio.SocketStream) -> None:
+    def _admit_tcp(self, stream: trio.SocketStream) -> None:
+        """Serve a new TCP connection, or close it at once (cheaply, in the accept loop,
+        so a flood of connections drains the kernel's accept queue fast)."""
         try:
             peer = stream.socket.getpeername()
             addr, name = str(peer[0]), f"tcp:{peer[0]}:{peer[1]}"
         except OSError:
             addr, name = "", "tcp"
         now = trio.current_time()
+        cfg = self.config
         refuse = ""
         if addr and self._backoff.blocked_for(addr, now) > 0:
             refuse = "address blocked after failed hellos"
-        elif len(self._tcp) >= self.config.max_connections:
+        elif sum(1 for c in self._tcp if c.rover is None and c.peer == addr) \
+                >= cfg.max_pending_per_address:
+            refuse = "too many connections without hello from one address"
+        elif len(self._tcp) >= cfg.max_connections:
             oldest = next((c for c in self._tcp if c.rover is None), None)
             if oldest is None:
                 refuse = "connection cap"
@@ -413,11 +421,11 @@ class Server:
                 del self._tcp[oldest]  # its slot is free now, whatever its task does next
         if refuse:
             self._count("conn_closed", refuse, name, now)
-            with trio.CancelScope(shield=True), contextlib.suppress(Exception):
-                with trio.move_on_after(1):
-                    await stream.aclose()
+            stream.socket.close()
             return
-        await self.serve_stream(stream, name, peer=addr, timed=True)
+        conn = self._new_conn(name, peer=addr, timed=True)
+        self._tcp[conn] = None
+        self._nursery.start_soon(self._serve_conn, stream, conn)
 
     def start_serial(self, url: str, baud: int) -> None:
         """Serve a serial port; a missing or unplugged port is reported and retried."""
@@ -454,10 +462,17 @@ class Server:
         Raises:
             SerialLinkError: from a serial stream that failed (the caller retries).
         """
+        await self._serve_conn(stream, self._new_conn(link, peer=peer, trusted=trusted,
+                                                      timed=timed))
+
+    def _new_conn(self, link: str, *, peer: str | None = None, trusted: bool = False,
+                  timed: bool = False) -> _Conn:
         conn = _Conn(link, trio.current_time(), peer=peer, trusted=trusted, timed=timed)
         conn.budget = self.config.bad_frame_budget
-        if timed:
-            self._tcp[conn] = None
+        return conn
+
+    async def _serve_conn(self, stream: Any, conn: _Conn) -> None:
+        link, trusted = conn.link, conn.trusted
         try:
             async with trio.open_nursery() as nursery:
                 nursery.start_soon(self._writer, stream, conn)

@@ -56,6 +56,29 @@ def test_connection_cap_holds_and_a_legit_rover_is_still_served() -> None:
     run(main)
 
 
+def test_one_address_holds_few_connections_without_hello() -> None:
+    """Idle connections from one address beyond max_pending_per_address are closed at
+    accept; a rover from another address is served."""
+    async def main() -> None:
+        config = ServerConfig(rovers=frozenset({"h1"}), max_pending_per_address=5)
+        async with open_server(Store(":memory:"), config) as s:
+            port = await s.listen_tcp("127.0.0.1", 0)
+            idle = [await open_raw_tcp(port) for _ in range(40)]
+            await trio.sleep(0.5)
+            assert s.snapshot().connections == 5
+            assert s.snapshot().refused["conn_closed"] == 35
+            async with trio.open_nursery() as nursery:
+                h1 = FakeRover("h1", "hider")
+                await _tcp_rover(nursery, port, h1)
+                await trio.sleep(2)
+                assert h1.welcomed
+                nursery.cancel_scope.cancel()
+            for st in idle:
+                await st.aclose()
+
+    run(main)
+
+
 def test_a_connection_without_hello_is_closed_after_the_hello_timeout() -> None:
     """Slowloris: a byte a second but never a hello; closed at hello_timeout_s."""
     async def main() -> None:
