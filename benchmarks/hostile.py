@@ -2,19 +2,24 @@
 
 The server runs as its own process, configured as deployed (``--rover ID=tcp``
 with per-rover tokens, default limits: 64 connections, 5 s hello timeout, a
-bad-frame budget per link). This process then, for ``--seconds``:
+bad-frame budget per link). For ``--seconds``, this process attacks it:
 
 * **holders** try to keep ``--connections`` idle TCP connections open (a
   connection the server closes is opened again), from 127.0.0.1 or spread over
   ``--sources`` loopback addresses (which defeats the per-address limit, so
   the connection cap and its eviction carry the load);
 * **slowloris**: 50 connections send one byte of a hello per second;
-* **fuzzer**: one connection (reopened when closed) sends mutated frames as
-  fast as it can;
-* the **rover** ``h1`` (from 127.0.0.2, another loopback address) stays
+* **fuzzer** (its own process, from 127.0.0.3): one connection (reopened
+  when the server closes it) sends mutated frames as fast as it can.
+
+Meanwhile two legit rovers run in a process of their own (so the attackers'
+load does not delay them there), from 127.0.0.2, another loopback address,
+timed alone for 5 s first, then under the attack:
+
+* the **rover** ``h1`` stays
   connected, heartbeats, and sends a frame with ``seq`` every 0.2 s, timing
   each ack;
-* the **reconnecting rover** ``s1`` (from 127.0.0.2) connects, says hello and
+* the **reconnecting rover** ``s1`` connects, says hello and
   times hello -> welcome, once a second.
 
 It reports the legit rovers' latencies (median, 95th percentile, worst), how
@@ -32,6 +37,7 @@ import argparse
 import json
 import os
 import pathlib
+import re
 import socket
 import statistics
 import subprocess
@@ -46,6 +52,7 @@ from server.protocol import Frame, decode_line, encode_frame, make_frame
 
 TOKENS = {"h1": "hider-secret", "s1": "seeker-secret"}
 LEGIT_SOURCE = "127.0.0.2"
+FUZZ_SOURCE = "127.0.0.3"
 
 
 def _rss_mb(pid: int) -> float:
@@ -152,14 +159,15 @@ async def _slowloris(port: int, c: Counters, stop: trio.Event) -> None:
         await stream.aclose()
 
 
-async def _fuzzer(port: int, c: Counters, stop: trio.Event, seed: int) -> None:
+async def _fuzzer(port: int, c: Counters, stop: trio.Event, seed: int,
+                  source: str | None = None) -> None:
     rng = np.random.default_rng(seed)
     good = [encode_frame(make_frame("pose", {"x": 1.5, "y": 2, "heading": 3})),
             encode_frame(make_frame("hello", {"id": "h1", "role": "hider", "token": "no"})),
             encode_frame(Frame("map_request", "none", None, seq=4))]
     while not stop.is_set():
         try:
-            stream = await _connect(port)
+            stream = await _connect(port, source)
         except OSError:
             await trio.sleep(0.2)
             continue
@@ -260,21 +268,49 @@ def _stats(ms: list[float]) -> dict:
             "p95_ms": round(q[int(0.95 * (len(q) - 1))], 2), "max_ms": round(q[-1], 2)}
 
 
+QUIET_S = 5.0
+"""Seconds the legit rovers are timed alone before the attack starts."""
+
+
+async def _legit(port: int, seconds: float) -> dict:
+    """The legit rovers, in their own process: alone for `QUIET_S`, then under attack."""
+    quiet, c = Counters(), Counters()
+    q_stop, stop = trio.Event(), trio.Event()
+    async with trio.open_nursery() as n:
+        n.start_soon(_reconnecting_rover, port, quiet, q_stop)
+        await trio.sleep(QUIET_S)
+        q_stop.set()
+    async with trio.open_nursery() as n:
+        n.start_soon(_rover, port, c, stop)
+        n.start_soon(_reconnecting_rover, port, c, stop)
+        await trio.sleep(seconds)
+        stop.set()
+    return {"quiet_hello_to_welcome": _stats(quiet.welcome_ms),
+            "hello_to_welcome": {**_stats(c.welcome_ms), "unanswered": c.no_welcome},
+            "ack_latency": {**_stats(c.ack_ms), "unacked_at_end": c.unacked}}
+
+
+async def _fuzz(port: int, seconds: float) -> dict:
+    """The fuzzer, in its own process, from 127.0.0.3."""
+    c, stop = Counters(), trio.Event()
+    t0 = time.perf_counter()
+    async with trio.open_nursery() as n:
+        n.start_soon(_fuzzer, port, c, stop, 1, FUZZ_SOURCE)
+        await trio.sleep(seconds)
+        stop.set()
+        n.cancel_scope.cancel()
+    wall = time.perf_counter() - t0
+    return {"fuzzer": {"frames_per_s": round(c.fuzz_frames / wall), "frames": c.fuzz_frames,
+                       "connections_closed_by_server": c.fuzz_closed}}
+
+
 async def _attack(port: int, pid: int, args: argparse.Namespace) -> dict:
     c = Counters()
     stop = trio.Event()
-    quiet = Counters()
-    async with trio.open_nursery() as n:  # baseline: the legit rovers alone, 5 s
-        q_stop = trio.Event()
-        n.start_soon(_reconnecting_rover, port, quiet, q_stop)
-        await trio.sleep(5)
-        q_stop.set()
     rss_before = _rss_mb(pid)
     cpu0, own0 = _cpu_s(pid), time.process_time()
     t0 = time.perf_counter()
     async with trio.open_nursery() as n:
-        n.start_soon(_rover, port, c, stop)
-        n.start_soon(_reconnecting_rover, port, c, stop)
         for k in range(args.connections):
             source = f"127.1.{k % args.sources // 256}.{k % args.sources % 256 + 1}" \
                 if args.sources > 1 else None
@@ -283,7 +319,6 @@ async def _attack(port: int, pid: int, args: argparse.Namespace) -> dict:
                 await trio.sleep(0.05)
         for _ in range(50):
             n.start_soon(_slowloris, port, c, stop)
-        n.start_soon(_fuzzer, port, c, stop, 1)
         await trio.sleep(args.seconds - (time.perf_counter() - t0))
         held = c.open_now
         stop.set()
@@ -293,19 +328,33 @@ async def _attack(port: int, pid: int, args: argparse.Namespace) -> dict:
         n.cancel_scope.cancel()
     wall = time.perf_counter() - t0
     cpu = {"server": round((_cpu_s(pid) - cpu0) / wall, 2),
-           "attackers_and_rovers": round((time.process_time() - own0) / wall, 2)}
+           "attackers": round((time.process_time() - own0) / wall, 2)}
     await trio.sleep(2)
-    return {"quiet_hello_to_welcome": _stats(quiet.welcome_ms),
-            "hello_to_welcome": {**_stats(c.welcome_ms), "unanswered": c.no_welcome},
-            "ack_latency": {**_stats(c.ack_ms), "unacked_at_end": c.unacked},
-            "server_rss_mb": {"before": round(rss_before, 1), "after": round(_rss_mb(pid), 1)},
-            "fuzzer": {"frames_per_s": round(c.fuzz_frames / wall), "frames": c.fuzz_frames,
-                       "connections_closed_by_server": c.fuzz_closed},
-            "holders": {"tried": args.connections, "connections_opened": c.opened,
-                        "open_at_end": held, "open_max_client_side": c.open_max,
+    return {"server_rss_mb": {"before": round(rss_before, 1), "after": round(_rss_mb(pid), 1)},
+            "holders": {"tried": args.connections, "sources": args.sources,
+                        "connections_opened": c.opened, "open_at_end": held,
+                        "open_max_client_side": c.open_max,
                         "connect_failed": c.connect_failed},
             "slowloris_closed": c.slow_closed, "attack_s": round(wall, 1),
             "cpu_share_of_one_core": cpu}
+
+
+def _counted(lines: list[str]) -> dict[str, int]:
+    """What the server's log says it refused: first events plus summaries, by kind."""
+    out: dict[str, int] = {}
+    for kind in ("bad_frame", "auth_failed", "conn_closed"):
+        first = sum(1 for ln in lines if re.search(rf"\s{kind}\s", ln))
+        summed = sum(int(m.group(1)) for ln in lines
+                     if (m := re.search(rf"\s{kind}_summary\s.*\bcount=(\d+)", ln)))
+        out[kind] = first + summed
+    return out
+
+
+def _part(part: str, port: int, seconds: float) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "benchmarks.hostile", "--part", part,
+                             "--port", str(port), "--seconds", str(seconds)],
+                            stdout=subprocess.PIPE, text=True,
+                            cwd=pathlib.Path(__file__).resolve().parent.parent)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -315,7 +364,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sources", type=int, default=1,
                         help="loopback addresses the holders come from (127.1.x.y); 1: all "
                              "from 127.0.0.1 (default %(default)s)")
+    parser.add_argument("--part", choices=("legit", "fuzz"), help=argparse.SUPPRESS)
+    parser.add_argument("--port", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.part:  # the legit rovers' or the fuzzer's own process
+        part = _legit if args.part == "legit" else _fuzz
+        print(json.dumps(trio.run(part, args.port, args.seconds)))
+        return 0
     if not 1 <= args.connections <= 5000 or not 5 <= args.seconds <= 300 \
             or not 1 <= args.sources <= 4096:
         parser.error("--connections must be 1..5000, --seconds 5..300, --sources 1..4096")
@@ -336,7 +391,13 @@ def main(argv: list[str] | None = None) -> int:
                         break
                 time.sleep(0.2)
             db_before, rows_before = _db_use(db)
+            parts = [_part("legit", port, args.seconds)]
+            time.sleep(QUIET_S + 0.5)
+            parts.append(_part("fuzz", port, args.seconds))
             result = trio.run(_attack, port, server.pid, args)
+            for proc in parts:
+                out, _ = proc.communicate(timeout=60)
+                result.update(json.loads(out.strip().splitlines()[-1]))
             db_after, rows_after = _db_use(db)
             result["db"] = {"bytes_before": db_before, "bytes_after": db_after,
                             "event_rows_added": rows_after - rows_before}
@@ -348,6 +409,7 @@ def main(argv: list[str] | None = None) -> int:
         lines = pathlib.Path(tmp, "serve.log").read_text().splitlines()
         result["server_log_lines"] = len(lines)
         result["server_tracebacks"] = sum("Traceback" in ln for ln in lines)
+        result["server_counted"] = _counted(lines)
     print(json.dumps(result, indent=2))
     return 0
 
