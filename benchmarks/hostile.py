@@ -28,7 +28,8 @@ database's growth, the fuzzer's frames/s, the holders' connection counts and
 the CPU each side used (share of one core).
 Loopback only; bounded in connections and time.
 
-Run: ``python -m benchmarks.hostile [--connections 2000] [--seconds 30]``.
+Run: ``python -m benchmarks.hostile [--connections 2000] [--seconds 30]
+[--sources N] [--max-connections N]``.
 """
 
 from __future__ import annotations
@@ -332,6 +333,7 @@ async def _attack(port: int, pid: int, args: argparse.Namespace) -> dict:
     await trio.sleep(2)
     return {"server_rss_mb": {"before": round(rss_before, 1), "after": round(_rss_mb(pid), 1)},
             "holders": {"tried": args.connections, "sources": args.sources,
+                        "server_max_connections": args.max_connections,
                         "connections_opened": c.opened, "open_at_end": held,
                         "open_max_client_side": c.open_max,
                         "connect_failed": c.connect_failed},
@@ -364,6 +366,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sources", type=int, default=1,
                         help="loopback addresses the holders come from (127.1.x.y); 1: all "
                              "from 127.0.0.1 (default %(default)s)")
+    parser.add_argument("--max-connections", type=int, default=64,
+                        help="the server's --max-connections (default %(default)s)")
     parser.add_argument("--part", choices=("legit", "fuzz"), help=argparse.SUPPRESS)
     parser.add_argument("--port", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -379,7 +383,8 @@ def main(argv: list[str] | None = None) -> int:
         db = os.path.join(tmp, "hostile.db")
         cmd = [sys.executable, "-m", "tui.cli", "serve", "--db", db, "--listen",
                f"tcp:127.0.0.1:{port}", "--rover", "h1=tcp", "--rover", "s1=tcp",
-               "--no-console"] + [f"--token={k}={v}" for k, v in TOKENS.items()]
+               "--no-console", "--max-connections", str(args.max_connections)] + [
+                   f"--token={k}={v}" for k, v in TOKENS.items()]
         log = open(os.path.join(tmp, "serve.log"), "w")
         server = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
                                   cwd=pathlib.Path(__file__).resolve().parent.parent)
