@@ -392,7 +392,7 @@ class Server:
                     continue
                 if self._starved:
                     self._starved = False
-                    self._emit("accept_error", data={"error": "accepting again"})
+                    self._emit("accept_resumed", data={"detail": "descriptors free again"})
                 delay = 0.0
                 self._admit_tcp(stream)
 
