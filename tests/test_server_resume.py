@@ -240,12 +240,14 @@ def _command(proc: subprocess.Popen, line: str) -> None:
     proc.stdin.flush()
 
 
-def test_hideseek_serve_killed_with_sigkill_resumes_the_game(tmp_path) -> None:
-    """The real thing: ``hideseek serve`` killed with SIGKILL while the hider hides;
-    restarted on the same database it resumes the game, which is then won."""
+def test_hideseek_serve_killed_with_sigkill_at_every_phase_resumes_the_game(tmp_path) -> None:
+    """The real thing: one game in which ``hideseek serve`` is killed with SIGKILL in
+    every phase and restarted on the same database; each time it resumes the game in
+    that phase, the rovers reconnect over TCP, and the game is won."""
     db, port = str(tmp_path / "g.db"), _free_port()
     rovers = _rovers()
     procs: list[subprocess.Popen] = []
+    resumed: list[str] = []
 
     def phase() -> str:
         with Store(db, readonly=True) as store:
@@ -256,24 +258,33 @@ def test_hideseek_serve_killed_with_sigkill_resumes_the_game(tmp_path) -> None:
             while phase() != want:
                 await trio.sleep(0.1)
 
+    def kill_and_restart() -> None:
+        before = phase()
+        procs[-1].send_signal(signal.SIGKILL)
+        procs[-1].wait(10)
+        procs.append(_serve(db, port))
+        assert phase() == before
+        resumed.append(before)
+
+    commands = {"start_mapping": "start_mapping", "hide": "hide 60 10",
+                "seek": ["seek -20 60", "seek 55 5"]}
+
     async def main() -> None:
         async with trio.open_nursery() as n:
             procs.append(_serve(db, port))
             for r in rovers.values():
                 n.start_soon(_tcp_rover, r, port)
             await trio.sleep(1.5)
-            _command(procs[0], "start_mapping")
-            await until("map_ready")
-            _command(procs[0], "hide 60 10")
-            await until("hiding")
-            procs[0].send_signal(signal.SIGKILL)
-            procs[0].wait(10)
-            procs.append(_serve(db, port))
-            await until("hidden")
-            _command(procs[1], "seek 55 5")
-            await until("found")
-            _command(procs[1], "quit")
-            procs[1].wait(10)
+            seeks = iter(commands["seek"])
+            for name, _, want in SCRIPT:
+                kill_and_restart()  # in the phase the game is in now
+                await trio.sleep(1.5)  # the rovers reconnect
+                if name is not None:
+                    line = next(seeks) if name == "seek" else commands[name]
+                    _command(procs[-1], line)
+                await until(want)
+            _command(procs[-1], "quit")
+            procs[-1].wait(10)
             n.cancel_scope.cancel()
 
     try:
@@ -283,6 +294,9 @@ def test_hideseek_serve_killed_with_sigkill_resumes_the_game(tmp_path) -> None:
             if p.poll() is None:
                 p.kill()
             p.wait(5)
+    assert resumed == ["idle", "mapping", "map_ready", "hiding", "hidden", "seeking",
+                       "not_found", "seeking"]
     with Store(db, readonly=True) as store:
         (game,) = store.games()
-        assert (game.status, game.outcome) == ("finished", "found after 1 guess")
+        assert (game.status, game.outcome) == ("finished", "found after 2 guesses")
+        assert store.game_map(game.id).same_as(room_map())
