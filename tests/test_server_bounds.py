@@ -80,11 +80,15 @@ def test_one_address_holds_few_connections_without_hello() -> None:
 
 
 def test_a_connection_without_hello_is_closed_after_the_hello_timeout() -> None:
-    """Slowloris: a byte a second but never a hello; closed at hello_timeout_s."""
+    """Slowloris: a byte a second but never a hello; closed at hello_timeout_s while
+    a rover on another connection is served throughout."""
     async def main() -> None:
-        config = ServerConfig(hello_timeout_s=3.0)
-        async with open_server(Store(":memory:"), config) as s:
+        config = ServerConfig(rovers=frozenset({"h1"}), hello_timeout_s=3.0)
+        async with open_server(Store(":memory:"), config) as s, \
+                trio.open_nursery() as nursery:
             port = await s.listen_tcp("127.0.0.1", 0)
+            h1 = FakeRover("h1", "hider")
+            await _tcp_rover(nursery, port, h1)
             stream = await open_raw_tcp(port)
             t0 = trio.current_time()
             closed = False
@@ -94,7 +98,10 @@ def test_a_connection_without_hello_is_closed_after_the_hello_timeout() -> None:
                 if closed:
                     break
             assert closed and 2.9 <= trio.current_time() - t0 <= 4.1
-            assert s.snapshot().connections == 0
+            assert s.snapshot().connections == 1  # the rover's
+            await trio.sleep(5)
+            assert h1.welcomed and s.snapshot().rovers[0].stats.up
+            nursery.cancel_scope.cancel()
 
     run(main)
 
