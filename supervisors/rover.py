@@ -57,13 +57,11 @@ from actors.firmware.drivers.isr import IrAdcIsr, LidarUartIsr, MotorCounterIsr,
 from actors.firmware.drivers.lidar import LidarControl
 from actors.firmware.drivers.motor import MotorControl, MotorTuning, PoseMemory
 from actors.firmware.drivers.wifly import LinkMemory, Wifly
-from actors.firmware.hardware import RoverHardware
+from actors.firmware.hardware import ROLES, RoverHardware
 from actors.firmware.mapping.map_management import MapManagement
 from supervisors.supervisor import Backoff, ChildSpec, SupervisorSpec
 
-__all__ = ["ROLES", "MAILBOX", "WATCHDOG_S", "IdleNav", "rover_tree"]
-
-ROLES = ("mapper", "hider", "seeker")
+__all__ = ["MAILBOX", "WATCHDOG_S", "IdleNav", "rover_tree"]
 
 MAILBOX = {"wifly": 256, "motor": 512, "lidar": 4096, "map": 64, "ir": 256, "nav": 128}
 """Queue depth per child id [messages]."""

@@ -18,9 +18,9 @@ import contextlib
 import os
 import sys
 
-__all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_command_line"]
+from server.protocol import ROLES
 
-SIM_ROLES = ("mapper", "hider", "seeker")
+__all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_command_line"]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -123,9 +123,9 @@ def run(args: argparse.Namespace) -> int:
         sim_roles: list[str] = []
         for rid, spec in rovers:
             if spec.kind == "sim":
-                if rid not in SIM_ROLES:
+                if rid not in ROLES:
                     raise ValueError(f"--rover {rid}=sim: a simulated rover's ID is its role, "
-                                     f"one of {', '.join(SIM_ROLES)}")
+                                     f"one of {', '.join(ROLES)}")
                 if rid in sim_roles:
                     raise ValueError(f"--rover {rid}=sim given twice")
                 sim_roles.append(rid)

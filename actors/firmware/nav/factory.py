@@ -13,16 +13,13 @@ rebuilds its state from its neighbours and the server (see `nav_common`).
 from __future__ import annotations
 
 from actors import Actor, BufferPool
-from actors.firmware.hardware import HardwareSpec
+from actors.firmware.hardware import ROLES, HardwareSpec
 from actors.firmware.nav.base import NavMemory, NavOptions
 from actors.firmware.nav.hider import HidingNav
 from actors.firmware.nav.mapper import MappingNav, MappingOptions
 from actors.firmware.nav.seeker import SeekingNav, SeekingOptions
 
-__all__ = ["make_nav", "NAV_ROLES", "NavMemory", "NavOptions"]
-
-NAV_ROLES = ("mapper", "hider", "seeker")
-"""Roles `make_nav` knows."""
+__all__ = ["make_nav", "NavMemory", "NavOptions"]
 
 
 def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
@@ -46,7 +43,7 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
         seeking: the seeker's tunables (`SeekingOptions`).
 
     Raises:
-        ValueError: ``role`` is not one of `NAV_ROLES`.
+        ValueError: ``role`` is not one of `ROLES`.
     """
     if role == "mapper":
         return MappingNav(pool=pool, spec=spec, options=options, memory=memory, mapping=mapping)
@@ -54,4 +51,4 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
         return HidingNav(pool=pool, spec=spec, options=options, memory=memory)
     if role == "seeker":
         return SeekingNav(pool=pool, spec=spec, options=options, memory=memory, seeking=seeking)
-    raise ValueError(f"role must be one of {', '.join(NAV_ROLES)}, got {role!r}")
+    raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
