@@ -13,7 +13,7 @@ from actors import Actor, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.motor import MotorControl, PoseMemory
 from actors.firmware.hardware import HardwareSpec, Interrupt, encode_counter
-from actors.firmware.localisation.odometry import angle_diff_deg
+from actors.firmware.localisation.odometry import Pose, angle_diff_deg, split_heading
 from supervisors import ChildSpec, SupervisorSpec
 from world import World, load_scenario, run_world
 
@@ -470,12 +470,9 @@ def test_a_short_count_sets_the_heading_halfway_between_counts_and_model(
     """At a short-count report the heading is put halfway between what the counts and what
     the modelled travel say: a slipping encoder (the model is right) and a weak motor
     (the counts are right) read the same, and halfway bounds the error either way."""
-    memory = PoseMemory()
-    motor = MotorControl(FakeHardware(), memory)
     signs = [math.copysign(1.0, t) for t in target]
     by_counts = math.degrees((counted[1] * signs[1] - counted[0] * signs[0]) / 13.0)
     by_model = math.degrees((modelled[1] * signs[1] - modelled[0] * signs[0]) / 13.0)
-    memory.pose = dataclasses.replace(memory.pose, heading_deg=by_counts)
-    motor._target, motor._counted, motor._modelled = target, list(counted), list(modelled)
-    motor._split_heading()
-    assert memory.pose.heading_deg == pytest.approx((by_counts + by_model) / 2, abs=1e-6)
+    pose = split_heading(Pose(3.0, 4.0, by_counts), target, list(counted), list(modelled), 13.0)
+    assert (pose.x, pose.y) == (3.0, 4.0)
+    assert pose.heading_deg == pytest.approx((by_counts + by_model) / 2, abs=1e-6)

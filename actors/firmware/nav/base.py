@@ -43,6 +43,7 @@ import trio
 
 from actors import Actor, BufferPool, Message, PoolExhausted, ValueType
 from actors.firmware.commands import Cmd
+from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.contact import locate_contact, stalled_side
 from actors.firmware.localisation.odometry import ORIGIN, Pose, angle_diff_deg, compose, inverse
@@ -501,7 +502,7 @@ class NavBase(Actor):
         elif cmd == Cmd.NAV_TIMER:
             await self._on_tick()
         elif cmd == Cmd.NAV_TREAD_FAULT:
-            await self.on_tread_fault(int(message.value))
+            await self.on_tread_fault(TreadFault(int(message.value)))
         elif cmd == Cmd.NAV_NET:
             frame = self._take(message)
             if isinstance(frame, Frame):
@@ -582,11 +583,11 @@ class NavBase(Actor):
         self._hold_until = math.inf
         await self.post(self.motor, Message.uint(Cmd.MOTOR_STOP, 0))
 
-    async def on_tread_fault(self, value: int) -> None:
+    async def on_tread_fault(self, fault: TreadFault) -> None:
         """Motor Control saw a driven tread that does not count, or counts short
-        (``NAV_TREAD_FAULT``; bit 0 the tread, bit 1 short, bit 2 both): dead reckoning
+        (``NAV_TREAD_FAULT``, a `TreadFault`): dead reckoning
         is turning the heading where the rover does not, or the other way round.
-        Value 4 (both silent, sent only for a turn that ended blocked without an Int E)
+        `TreadFault.BOTH_SILENT` (sent only for a turn that ended blocked without an Int E)
         is held for like any turn, and doubts the heading by ``tread_both_deg``, not
         ``tread_fault_deg``: nothing counted, so the whole unseen turn is error.
         One tread silent in a turn also turns the believed heading by
@@ -614,25 +615,26 @@ class NavBase(Actor):
         if self._motion is None:
             return  # standing (or holding) already: the report is of a motion given up
         now = trio.current_time()
-        if value & 6 == 6 and self._motion.kind == "move" \
+        if fault == TreadFault.BOTH_SHORT and self._motion.kind == "move" \
                 and now - self._blocked_t > self.o.tread_contact_s and self._wall_within_drift():
             return  # a slide along a wall the rover may touch: the move goes on (hall 5)
         self._tread_strikes = self._tread_strikes + 1 if now - self._tread_last <= 60.0 else 1
         self._tread_last = now
-        both = bool(value & 4)
+        both = fault.both
         self.tread_faults += 1
         turning = self._motion.kind == "turn"
         if turning or not both:  # both alike in a straight move turn nothing unseen
             self._fault_base_cm, self._fault_from = self.fault_drift_cm, (self.pose.x, self.pose.y)
             self.heading_err_deg += self.o.tread_both_deg if both else self.o.tread_fault_deg
-        if turning and not value & 6:  # one tread silent in a turn (see tread_turn_fix_deg)
+        if turning and not (both or fault.counts_short):
+            # one tread silent in a turn (see tread_turn_fix_deg)
             p = self.map_pose
             fix = math.copysign(self.o.tread_turn_fix_deg, self._motion.amount)
             self.correct_pose(Pose(p.x, p.y, p.heading_deg + fix), sideways_known=False)
         await self.stop_motor()
         # a short count in a move holds, unless the rover was blocked just before: in
         # contact with a wall, scraping along it counts short as well (campaign 1:23)
-        held_move = bool(value & 2) and now - self._blocked_t > self.o.tread_contact_s
+        held_move = fault.counts_short and now - self._blocked_t > self.o.tread_contact_s
         if (not turning and not held_move) or self._tread_strikes > self.o.tread_holds:
             # a short hold all the same: the stopped motion's last pose and end arrive
             # meanwhile and are ignored, and the decision uses the pose at rest
@@ -643,8 +645,8 @@ class NavBase(Actor):
         hold = self.o.tread_hold_s * 2.0 ** (self._tread_strikes - 1)
         self._blocked, self._done = False, 0.0
         self._hold_until = now + hold
-        side = "both treads" if both else "the right tread" if value & 1 else "the left tread"
-        if value & 2:
+        side = "both treads" if both else f"the {fault.side} tread"
+        if fault.counts_short:
             kind = "count short" if both else "counts short"
         else:
             kind = "do not count" if both else "does not count"

@@ -101,6 +101,7 @@ import trio
 from actors import BufferPool, Message
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
+from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.odometry import angle_diff_deg
 from actors.firmware.mapping.occupancy import UNKNOWN, GridMap
@@ -282,7 +283,7 @@ class MappingNav(NavBase):
             await self.on_lidar_health(int(message.value))
             return None
         if isinstance(message, Message) and message.command == Cmd.NAV_TREAD_FAULT:
-            await self.on_tread_fault(int(message.value))
+            await self.on_tread_fault(TreadFault(int(message.value)))
             return None
         return await super().handle(message)
 
@@ -455,7 +456,7 @@ class MappingNav(NavBase):
         await self._odometry_hold(now, f"{what}: odometry and scan matching disagree")
         return True
 
-    async def on_tread_fault(self, value: int) -> None:
+    async def on_tread_fault(self, fault: TreadFault) -> None:
         """Motor Control saw a driven tread that does not count (``NAV_TREAD_FAULT``): its
         odometry is wrong from now on, so stop at once and hold, as for a disagreement.
 
@@ -469,8 +470,8 @@ class MappingNav(NavBase):
         if self.state not in ("exploring", "homing") or not self.moving \
                 or now < self._odo_hold_until:
             return
-        if value & 4:
-            if value & 2:
+        if fault.both:
+            if fault.counts_short:
                 await self._odometry_hold(now, "both treads count short", self.m.short_hold_s)
             else:
                 # both silent (4): a turn that ended blocked without one Int E. Backing off
@@ -481,8 +482,8 @@ class MappingNav(NavBase):
                 await self.post(self.map_name, Message.uint(Cmd.MAP_POSE_LOST,
                                                             int(self.m.blind_turn_deg)))
             return
-        side = "right" if value & 1 else "left"
-        if value & 2:
+        side = fault.side
+        if fault.counts_short:
             await self._odometry_hold(now, f"the {side} tread counts short",
                                       self.m.short_hold_s)
             return
