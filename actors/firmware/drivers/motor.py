@@ -81,6 +81,7 @@ from typing import Any
 import trio
 
 from actors import Actor, ExitReason, Message, Timer
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import MotorCounterIsr
 from actors.firmware.drivers.tread_monitor import TreadFault, TreadMonitor, TreadVerdict
@@ -190,12 +191,14 @@ class MotorControl(Actor):
             made here when None.
         lidar: also publish the pose to the rover's LIDAR actor (mapper).
         tuning: control constants.
+        addresses: the rover's actor names (default: those beside this actor's own).
     """
 
     def __init__(self, hardware: RoverHardware, memory: PoseMemory, *,
                  isr: MotorCounterIsr | None = None, lidar: bool = False,
-                 tuning: MotorTuning | None = None) -> None:
+                 tuning: MotorTuning | None = None, addresses: Addresses | None = None) -> None:
         self.hw = hardware
+        self._addresses = addresses
         self.memory = memory
         self.tuning = tuning or MotorTuning()
         self._isr = isr
@@ -228,10 +231,10 @@ class MotorControl(Actor):
     # ------------------------------------------------------------------ lifetime
     async def on_start(self) -> None:
         ctx = self.ctx
-        prefix = ctx.name.rpartition("/")[0]
-        self._nav = f"{prefix}/nav" if prefix else "nav"
-        self._lidar_name = (f"{prefix}/lidar" if prefix else "lidar") if self._lidar else None
-        self._map_name = (f"{prefix}/map" if prefix else "map") if self._lidar else None
+        names = self._addresses or Addresses.beside(ctx.name)
+        self._nav = names.nav
+        self._lidar_name = names.lidar if self._lidar else None
+        self._map_name = names.map if self._lidar else None
         if self._isr is None:
             self._isr = MotorCounterIsr(self._post)
         self.hw.attach(Interrupt.INT_E, self._isr)

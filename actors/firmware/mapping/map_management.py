@@ -49,9 +49,11 @@ import math
 import numpy as np
 import trio
 
-from actors import Actor, BufferPool, Message, PoolExhausted
+from actors import Actor, BufferPool, Message
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
+from actors.firmware.handles import post
 from actors.firmware.localisation.odometry import Pose, angle_diff_deg, compose, inverse
 from actors.firmware.mapping.occupancy import GridMap, OccupancyGrid
 from actors.firmware.mapping.scan_match import (
@@ -111,8 +113,10 @@ class MapManagement(Actor):
     def __init__(self, pool: BufferPool, *, size_cm: tuple[float, float] = (2400.0, 2400.0),
                  resolution_cm: float = 5.0, publish_s: float = 0.25,
                  restarted: bool = False, matching: MatchOptions | None = _MATCH,
-                 fields_s: float = 0.5, warmup_scans: int = 20, settle_s: float = 1.0) -> None:
+                 fields_s: float = 0.5, warmup_scans: int = 20, settle_s: float = 1.0,
+                 addresses: Addresses | None = None) -> None:
         self.pool = pool
+        self._addresses = addresses
         self.grid = OccupancyGrid(size_cm[0], size_cm[1], resolution_cm)
         self.publish_s = publish_s
         self.restarted = restarted
@@ -163,9 +167,9 @@ class MapManagement(Actor):
         self._timer_armed = False
 
     async def on_start(self) -> None:
-        prefix = self.ctx.name.rpartition("/")[0]
-        self._nav = f"{prefix}/nav" if prefix else "nav"
-        self._motor = f"{prefix}/motor" if prefix else "motor"
+        names = self._addresses or Addresses.beside(self.ctx.name)
+        self._nav = names.nav
+        self._motor = names.motor
         if self.restarted:
             self._send(self._nav, Message.uint(Cmd.NAV_MAP_LOST, 0))
             if self._send(self._motor, Message.uint(Cmd.MOTOR_GET_POSE, 0)):
@@ -410,15 +414,9 @@ class MapManagement(Actor):
     def _send_snapshot(self) -> None:
         self._changed = False
         snap = self.grid.snapshot()
-        try:
-            handle = self.pool.put(snap)
-        except PoolExhausted:
-            self.dropped_updates += 1
-            return
-        if self._send(self._nav, Message.handle(Cmd.NAV_MAP_UPDATE, handle)):
+        if post(self.pool, lambda m: self._send(self._nav, m), Cmd.NAV_MAP_UPDATE, snap):
             self.updates += 1
         else:
-            self.pool.take(handle)
             self.dropped_updates += 1
 
     def _restore(self, snap: GridMap) -> None:

@@ -42,6 +42,7 @@ import numpy as np
 import trio
 
 from actors import Actor, BufferPool, Message, PoolExhausted, ValueType
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
@@ -407,8 +408,10 @@ class NavBase(Actor):
     role = ""
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
-                 options: NavOptions | None = None, memory: NavMemory | None = None) -> None:
+                 options: NavOptions | None = None, memory: NavMemory | None = None,
+                 addresses: Addresses | None = None) -> None:
         self.pool = pool
+        self._addresses = addresses
         self.memory = memory if memory is not None else NavMemory()
         """Retained across restarts when the rover tree passes one (see `NavMemory`)."""
         self.spec = spec
@@ -459,10 +462,10 @@ class NavBase(Actor):
 
     # ------------------------------------------------------------------ names
     def _names(self) -> None:
-        prefix = self.ctx.name.rsplit("/", 1)[0] if "/" in self.ctx.name else self.role
-        self.prefix = prefix
-        self.motor = f"{prefix}/motor"
-        self.wifly = f"{prefix}/wifly"
+        self.names = self._addresses or Addresses.beside(self.ctx.name, self.role)
+        """The rover's actor names."""
+        self.motor = self.names.motor
+        self.wifly = self.names.wifly
 
     # ------------------------------------------------------------------ lifecycle
     async def on_start(self) -> None:
@@ -871,8 +874,10 @@ class RouteNav(NavBase):
     """
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
-                 options: NavOptions | None = None, memory: NavMemory | None = None) -> None:
-        super().__init__(pool=pool, spec=spec, options=options, memory=memory)
+                 options: NavOptions | None = None, memory: NavMemory | None = None,
+                 addresses: Addresses | None = None) -> None:
+        super().__init__(pool=pool, spec=spec, options=options, memory=memory,
+                         addresses=addresses)
         self.map: GridMap | None = None
         """The server's map (map frame), None until downloaded."""
         self.work_map: GridMap | None = None

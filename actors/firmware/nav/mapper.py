@@ -99,6 +99,7 @@ import numpy as np
 import trio
 
 from actors import BufferPool, Message
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
@@ -242,8 +243,10 @@ class MappingNav(NavBase):
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
-                 mapping: MappingOptions | None = None) -> None:
-        super().__init__(pool=pool, spec=spec, options=options, memory=memory)
+                 mapping: MappingOptions | None = None,
+                 addresses: Addresses | None = None) -> None:
+        super().__init__(pool=pool, spec=spec, options=options, memory=memory,
+                         addresses=addresses)
         self.m = mapping or MappingOptions()
         self.grid: GridMap | None = None
         """The latest snapshot from Map Management (kept: what navigation knows)."""
@@ -289,8 +292,8 @@ class MappingNav(NavBase):
 
     # ------------------------------------------------------------------ lifecycle
     async def on_restart(self) -> None:
-        self.map_name = f"{self.prefix}/map"
-        self.lidar = f"{self.prefix}/lidar"
+        self.map_name = self.names.map
+        self.lidar = self.names.lidar
         await self.post(self.map_name, Message.uint(Cmd.MAP_GET, 0))
         self._probe_until = trio.current_time() + self.m.probe_s
         if self.memory.started:  # the retained record says mapping was under way

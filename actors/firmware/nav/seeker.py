@@ -63,6 +63,7 @@ import numpy as np
 import trio
 
 from actors import BufferPool, Message
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.odometry import angle_diff_deg
@@ -231,8 +232,10 @@ class SeekingNav(RouteNav):
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
-                 seeking: SeekingOptions | None = None) -> None:
-        super().__init__(pool=pool, spec=spec, options=options, memory=memory)
+                 seeking: SeekingOptions | None = None,
+                 addresses: Addresses | None = None) -> None:
+        super().__init__(pool=pool, spec=spec, options=options, memory=memory,
+                         addresses=addresses)
         self.s = seeking or SeekingOptions()
         self.place: tuple[float, float] | None = None
         """Where to look (map frame [cm])."""
@@ -522,7 +525,7 @@ class SeekingNav(RouteNav):
 
     async def _ir_lease(self, seconds: float) -> None:
         """Ask the IR actor to sample for ``seconds`` [s] (0: stop now); not waiting long."""
-        name = f"{self.prefix}/ir"
+        name = self.names.ir
         if self.ctx.system.whereis(name) is not None:  # a tree without IR: nothing to ask
             await self.post(name, Message.float(Cmd.IR_LEASE, seconds))
 
