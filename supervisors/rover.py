@@ -162,7 +162,7 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
         options["addresses"] = names
     if "memory" not in options and _accepts(factory, "memory"):
         try:  # navigation's retained memory, made once per tree like PoseMemory
-            options["memory"] = importlib.import_module("actors.firmware.nav.base").NavMemory()
+            options["memory"] = importlib.import_module("actors.firmware.nav.options").NavMemory()
         except (ImportError, AttributeError):
             pass
 

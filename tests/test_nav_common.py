@@ -20,16 +20,9 @@ from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.localisation.odometry import Pose
 from actors.firmware.mapping.occupancy import FREE, OCCUPIED, GridMap, OccupancyGrid
-from actors.firmware.nav.base import (
-    Motion,
-    NavMemory,
-    NavOptions,
-    PathFollower,
-    plan_route,
-    shorten,
-    with_obstacle,
-)
 from actors.firmware.nav.factory import make_nav
+from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.route import Motion, PathFollower, plan_route, shorten, with_obstacle
 from server.protocol import Frame, make_frame
 from supervisors import ChildSpec, SupervisorSpec
 

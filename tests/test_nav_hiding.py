@@ -12,7 +12,7 @@ from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.odometry import Pose, angle_diff_deg
-from actors.firmware.nav.base import NavMemory, NavOptions
+from actors.firmware.nav.options import NavMemory, NavOptions
 from tests.test_nav_common import (
     Body,
     Truth,

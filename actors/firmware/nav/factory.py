@@ -15,9 +15,9 @@ from __future__ import annotations
 from actors import Actor, BufferPool
 from actors.firmware.addresses import Addresses
 from actors.firmware.hardware import ROLES, HardwareSpec
-from actors.firmware.nav.base import NavMemory, NavOptions
 from actors.firmware.nav.hider import HidingNav
 from actors.firmware.nav.mapper import MappingNav, MappingOptions
+from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.seeker import SeekingNav, SeekingOptions
 
 __all__ = ["make_nav", "NavMemory", "NavOptions"]

@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 
 from actors.firmware.mapping.occupancy import OCCUPIED
-from actors.firmware.nav.base import RouteNav
+from actors.firmware.nav.route_nav import RouteNav
 from actors.firmware.planning.clearance import check_spot
 
 __all__ = ["HidingNav"]

@@ -106,15 +106,9 @@ from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.odometry import angle_diff_deg
 from actors.firmware.mapping.occupancy import UNKNOWN, GridMap
-from actors.firmware.nav.base import (
-    Motion,
-    NavBase,
-    NavMemory,
-    NavOptions,
-    PathFollower,
-    plan_route,
-    route_points,
-)
+from actors.firmware.nav.base import NavBase
+from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
 from actors.firmware.planning.clearance import obstacle_ahead
 from actors.firmware.planning.frontier import Frontier, choose_frontier, find_frontiers
 

@@ -68,7 +68,9 @@ from actors.firmware.commands import Cmd
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.odometry import angle_diff_deg
 from actors.firmware.mapping.occupancy import FREE
-from actors.firmware.nav.base import Motion, NavMemory, NavOptions, RouteNav, passable_at
+from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.route import Motion, passable_at
+from actors.firmware.nav.route_nav import RouteNav
 
 __all__ = ["SeekingOptions", "SeekingNav", "ring_outer_cm", "ring_reach_cm", "search_ring",
            "search_rings"]
