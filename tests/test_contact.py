@@ -7,7 +7,7 @@ import pytest
 
 from actors.firmware.localisation.contact import locate_contact, stalled_side
 from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.occupancy import OCCUPIED, GridMap
+from actors.firmware.mapping.grid_map import OCCUPIED, GridMap
 
 BODY = {"length_cm": 20.0, "width_cm": 15.0}
 

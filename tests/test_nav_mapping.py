@@ -11,7 +11,7 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
-from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.nav.mapper import MappingOptions
 from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
 

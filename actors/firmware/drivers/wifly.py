@@ -52,7 +52,7 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import WiflyUartIsr
 from actors.firmware.hardware import Interrupt, RoverHardware
-from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.mapping.grid_map import GridMap
 from server.protocol import (
     ERROR,
     HELLO,

@@ -55,7 +55,8 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
 from actors.firmware.handles import post
 from actors.firmware.localisation.odometry import Pose, angle_diff_deg, compose, inverse
-from actors.firmware.mapping.occupancy import GridMap, OccupancyGrid
+from actors.firmware.mapping.grid_map import GridMap
+from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import (
     MatchFields,
     MatchOptions,

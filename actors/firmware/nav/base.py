@@ -45,7 +45,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.odometry import ORIGIN, Pose, compose
-from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
 from actors.firmware.planning.clearance import turning_radius_cm

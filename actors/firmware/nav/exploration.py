@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import trio
 
-from actors.firmware.mapping.occupancy import UNKNOWN
+from actors.firmware.mapping.grid_map import UNKNOWN
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
 from actors.firmware.planning.clearance import obstacle_ahead

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 
-from actors.firmware.mapping.occupancy import OCCUPIED
+from actors.firmware.mapping.grid_map import OCCUPIED
 from actors.firmware.nav.route_nav import RouteNav
 from actors.firmware.planning.clearance import check_spot
 

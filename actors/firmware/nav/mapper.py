@@ -48,7 +48,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
-from actors.firmware.mapping.occupancy import UNKNOWN, GridMap
+from actors.firmware.mapping.grid_map import UNKNOWN, GridMap
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.exploration import Exploration, ExplorationState
 from actors.firmware.nav.homing import Homing

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from actors.firmware.localisation.odometry import Pose, angle_diff_deg
-from actors.firmware.mapping.occupancy import OCCUPIED, GridMap
+from actors.firmware.mapping.grid_map import OCCUPIED, GridMap
 from actors.firmware.nav.options import NavOptions
 from actors.firmware.planning.planner import Plan, plan_path, traversable
 

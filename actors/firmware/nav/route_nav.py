@@ -15,7 +15,7 @@ from actors import BufferPool
 from actors.firmware.addresses import Addresses
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.odometry import Pose, compose, inverse
-from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.recovery import RouteRecovery

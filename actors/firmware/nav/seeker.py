@@ -67,7 +67,7 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.odometry import angle_diff_deg
-from actors.firmware.mapping.occupancy import FREE
+from actors.firmware.mapping.grid_map import FREE
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion, passable_at
 from actors.firmware.nav.route_nav import RouteNav
