@@ -122,6 +122,50 @@ def _accepts(factory: Callable[..., Any], keyword: str) -> bool:
     return keyword in params
 
 
+def _nav_options(factory: Callable[..., Actor], nav_options: dict[str, Any] | None,
+                 names: Addresses) -> dict[str, Any]:
+    """The keyword arguments navigation is made with: ``nav_options``, plus the rover's
+    names and a retained `NavMemory` where the factory takes them and none was given."""
+    options = dict(nav_options or {})
+    if "addresses" not in options and _accepts(factory, "addresses"):
+        options["addresses"] = names
+    if "memory" not in options and _accepts(factory, "memory"):
+        try:  # navigation's retained memory, made once per tree like PoseMemory
+            options["memory"] = importlib.import_module("actors.firmware.nav.options").NavMemory()
+        except (ImportError, AttributeError):
+            pass
+    return options
+
+
+class _Isrs:
+    """The rover's ISR objects: made once per tree (their counters survive restarts),
+    each posting into its owner's mailbox.
+
+    The posts learn the running system when an actor of the tree starts: `bind`
+    wraps the actor's ``on_start`` for that, until the runtime offers a start hook
+    the tree can hand in.
+    """
+
+    def __init__(self, role: str, names: Addresses, pool: BufferPool) -> None:
+        self.posts = {c: _MailboxPost(getattr(names, c)) for c in ("motor", "wifly", "lidar", "ir")}
+        self.motor = MotorCounterIsr(self.posts["motor"])
+        self.wifly = WiflyUartIsr(self.posts["wifly"], pool)
+        self.lidar = LidarUartIsr(self.posts["lidar"]) if role == "mapper" else None
+        self.ir = IrAdcIsr(self.posts["ir"]) if role == "seeker" else None
+
+    def bind(self, actor: Actor) -> Actor:
+        """Point the ISR posts at the running system when ``actor`` starts."""
+        original = actor.on_start
+        posts = self.posts
+
+        async def on_start() -> None:
+            for post in posts.values():
+                post.system = actor.ctx.system
+            await original()
+        actor.on_start = on_start  # type: ignore[method-assign]
+        return actor
+
+
 def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = None,
                nav_factory: Callable[..., Actor] | None = None,
                nav_options: dict[str, Any] | None = None, token: str | None = None,
@@ -157,43 +201,20 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
     names = Addresses.of(role)  # the tree is started under the rover's role
     pool = BufferPool(POOL_SLOTS, name=f"{role}-pool")
     factory = nav_factory or _default_nav_factory()
-    options = dict(nav_options or {})
-    if "addresses" not in options and _accepts(factory, "addresses"):
-        options["addresses"] = names
-    if "memory" not in options and _accepts(factory, "memory"):
-        try:  # navigation's retained memory, made once per tree like PoseMemory
-            options["memory"] = importlib.import_module("actors.firmware.nav.options").NavMemory()
-        except (ImportError, AttributeError):
-            pass
+    options = _nav_options(factory, nav_options, names)
 
     # retained memory (survives actor restarts; a new tree is a rover reset)
     pose_memory = PoseMemory()
     link_memory: list[LinkMemory] = []  # made lazily: LinkMemory reads Trio's clock
 
-    # ISR objects: made once (their counters survive restarts), each posting into
-    # its owner's mailbox; the post learns the system and name when the owner starts
-    posts = {c: _MailboxPost(getattr(names, c)) for c in ("motor", "wifly", "lidar", "ir")}
-    motor_isr = MotorCounterIsr(posts["motor"])
-    wifly_isr = WiflyUartIsr(posts["wifly"], pool)
-    lidar_isr = LidarUartIsr(posts["lidar"]) if role == "mapper" else None
-    ir_isr = IrAdcIsr(posts["ir"]) if role == "seeker" else None
-
-    def bind(actor: Actor) -> Actor:
-        """Point the ISR posts at the running system when the actor starts."""
-        original = actor.on_start
-
-        async def on_start() -> None:
-            for post in posts.values():
-                post.system = actor.ctx.system
-            await original()
-        actor.on_start = on_start  # type: ignore[method-assign]
-        return actor
+    isrs = _Isrs(role, names, pool)
+    bind = isrs.bind
 
     def make_wifly() -> Actor:
         if not link_memory:
             link_memory.append(LinkMemory())
         return bind(Wifly(hardware, pool, rover_id=rover_id, role=role, token=token,
-                          memory=link_memory[0], isr=wifly_isr, addresses=names))
+                          memory=link_memory[0], isr=isrs.wifly, addresses=names))
 
     map_starts = [0]
 
@@ -207,19 +228,19 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
 
     children = [
         child("wifly", make_wifly),
-        child("motor", lambda: bind(MotorControl(hardware, pose_memory, isr=motor_isr,
+        child("motor", lambda: bind(MotorControl(hardware, pose_memory, isr=isrs.motor,
                                                  lidar=role == "mapper",
                                                  tuning=motor_tuning, addresses=names))),
     ]
     if role == "mapper":
         children += [
-            child("lidar", lambda: bind(LidarControl(hardware, pool, isr=lidar_isr,
+            child("lidar", lambda: bind(LidarControl(hardware, pool, isr=isrs.lidar,
                                                      addresses=names))),
             child("map", make_map),
         ]
     if role == "seeker":
         children.append(child("ir", lambda: bind(IrSensor(hardware, rate_hz=ir_rate_hz,
-                                                          adc_isr=ir_isr, addresses=names))))
+                                                          adc_isr=isrs.ir, addresses=names))))
     children.append(child("nav", lambda: factory(role, pool=pool, spec=hardware.spec,
                                                  rover_id=rover_id, **options)))
     return SupervisorSpec(children, intensity=intensity, period=period,

@@ -224,12 +224,7 @@ def find_frontiers(
     if split_cm is not None and split_cm > 0:
         labels, count = _split_clusters(labels, max(1, round(split_cm / res)))
 
-    passable = traversable(sub, robot_radius_cm, margin_cm, "blocked")
-    start = snap_to_passable(passable, sub.world_to_cell(*rover_cm), snap_radius_cm / res)
-    if start is None:
-        steps = np.full(cells.shape, -1, dtype=np.int32)
-    else:
-        steps = bfs_steps(passable, start)
+    steps = _steps_from(sub, rover_cm, robot_radius_cm, margin_cm, snap_radius_cm)
     big = np.iinfo(np.int32).max
     reach_steps = np.where(steps >= 0, steps, big)
     near_steps = _min_filter(reach_steps, k_app)
@@ -260,6 +255,18 @@ def find_frontiers(
         out.append(Frontier(int(rows.size), (cx, cy), pts, distance, target, share, res,
                             open_share))
     return out
+
+
+def _steps_from(sub: GridMap, rover_cm: tuple[float, float], robot_radius_cm: float,
+                margin_cm: float, snap_radius_cm: float) -> np.ndarray:
+    """BFS steps from the rover's cell (snapped to a passable one) to every cell the
+    inflated map lets it reach; -1 elsewhere, and everywhere when no cell is near."""
+    passable = traversable(sub, robot_radius_cm, margin_cm, "blocked")
+    start = snap_to_passable(passable, sub.world_to_cell(*rover_cm),
+                             snap_radius_cm / sub.resolution_cm)
+    if start is None:
+        return np.full(sub.cells.shape, -1, dtype=np.int32)
+    return bfs_steps(passable, start)
 
 
 class _UnknownShare:
