@@ -36,10 +36,9 @@ Method
     head-on contact (the whole leading edge on one wall's face) that needs a
     sideways shift: the faces on both sides of a gap explain it, the nearer
     one is cheapest, and when the other one is within ``ambiguity_cm`` too the
-    contact is ambiguous whatever side stalled (overlapping campaign 2:19:
-    the hider 34 cm below the corridor's mouth by a 12 deg heading error, put
-    8 cm further up onto the upper wall's face; 1:127: the seeker pushed
-    further up above the gap the same way).
+    contact is ambiguous whatever side stalled (a hider 34 cm below a
+    corridor's mouth by a 12 deg heading error is otherwise put 8 cm further
+    up onto the upper wall's face, away from the mouth).
 
     The stalled side comes from the heading change during a straight move: the
     tread on the touching side is held, the other one drives on, so the body
@@ -81,8 +80,8 @@ class Contact:
     """The same contact shifted ``free_cm`` sideways (either way, same along and turn)
     explains the block as well: a wall's face across the heading (or beside a gap)
     measures where the rover is along its heading, not sideways, so the caller must
-    keep its sideways uncertainty (campaign game 1:111: a reset to 3 cm after such a
-    contact shrank the sideways search below the 26-30 cm the seeker was off)."""
+    keep its sideways uncertainty (a reset to 3 cm after such a contact shrinks the
+    sideways search below what the rover may be off)."""
 
     @property
     def needed(self) -> bool:

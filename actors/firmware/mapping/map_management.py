@@ -243,8 +243,8 @@ class MapManagement(Actor):
         rover's batch can carry the previous tick's stamp, and after a turn the rover
         keeps turning by up to an interrupt's worth (or swings back) unseen by its
         encoders. Placed without matching, such batches were 2-9 deg off and drew
-        walls a cell or two off (furniture 5: map accuracy 0.968 against 0.996 with
-        the matched batches alone).
+        walls a cell or two off (in a furnished room: map accuracy 0.968 against
+        0.996 with the matched batches alone).
         None for a batch that sees mapped obstacles but whose match was refused: its
         pose is in doubt, and one badly placed batch clears free space through walls
         (outside the room, where no later ray can repair it).
@@ -291,12 +291,12 @@ class MapManagement(Actor):
         search (`scan_match.relocalise`, headings within ``_lost_deg`` of the guess) finds
         where it fits; then the pose is found and matching goes on from there.
 
-        Why: both encoders stuck while the treads are driven (held-out campaign game
-        3:199, 9 s) turn the rover unseen; odometry stands still, so every batch was
-        placed unmatched at the standing pose ("the rover stands") while the rover
-        spun: each drew the room turned by a different angle, and matching later
-        locked onto that smear 180 deg off (map accuracy 0.48, the hiding spot inside
-        a phantom wall). Navigation knows it from Motor Control's report (both treads
+        Why: both encoders stuck while the treads are driven (for 9 s, say) turn the
+        rover unseen; odometry stands still, so every batch would be placed unmatched
+        at the standing pose ("the rover stands") while the rover spins: each draws
+        the room turned by a different angle, and matching later locks onto that smear 180
+        deg off (map accuracy about 0.5, hiding spots inside
+        phantom walls). Navigation knows it from Motor Control's report (both treads
         silent in a turn) and says so; a batch that cannot be placed is dropped, as a
         refused match is (`_place`).
         """
@@ -328,10 +328,10 @@ class MapManagement(Actor):
         most every ``_RELOCALISE_EVERY_S``.
 
         A refused batch whose guess fits well (``_RELOCALISE_BELOW``) says the pose is
-        right (matching only found no better fit) and starts the count over. Counting it
-        made a healthy hall game (``hall``, seed 1224892982) search after two such
-        batches and one blurred by the start of a turn (fit 0.45), and accept a pose
-        23 deg off: the rest of the map was drawn turned by 21.5 deg (accuracy 0.82).
+        right (matching only found no better fit) and starts the count over. Counting it,
+        two such batches and one blurred by the start of a turn (fit 0.45) are enough
+        to start a search in a healthy hall, which can accept a pose 23 deg off and
+        draw the rest of the map turned by that much (accuracy 0.82).
         """
         if refused.score_guess >= _RELOCALISE_BELOW:
             self._refused = 0  # a guess that fits this well is not lost

@@ -263,14 +263,14 @@ class NavBase(Actor):
 
         Why stop and hold: Motor Control ends a motion by the counts, so each
         motion driven on a faulty encoder turns the rover further off the
-        heading it believes (campaign game 1:24: 90-100 deg after an 8.8 s
-        slip). Stopping at the report keeps what one motion costs to about
-        ``tread_fault_deg``; the hold (``tread_hold_s``, doubled for a repeat
+        heading it believes (90-100 deg after a 9 s slip). Stopping at the
+        report keeps what one motion costs to about ``tread_fault_deg``; the hold
+        (``tread_hold_s``, doubled for a repeat
         within a minute, at most ``tread_holds`` in a row, then a report ends
         the motion as blocked) waits for a passing fault to clear, as nothing
         can tell that while standing still. Only turns are held for: in a
         straight move a tread scraping along a wall stalls and reports the
-        same (healthy hall 3: 36 s held for nothing), so a move ends as
+        same (holding for it costs tens of seconds for nothing), so a move ends as
         blocked and the route's block handling (contact fix, back-off) follows.
         Both treads short in a move where a mapped wall may touch the body
         (`_wall_within_drift`) are a slide along it: nothing is stopped or held.
@@ -285,7 +285,7 @@ class NavBase(Actor):
         now = trio.current_time()
         if fault == TreadFault.BOTH_SHORT and self._motion.kind == "move" \
                 and now - self._blocked_t > self.o.tread_contact_s and self._wall_within_drift():
-            return  # a slide along a wall the rover may touch: the move goes on (hall 5)
+            return  # a slide along a wall the rover may touch: the move goes on
         self._tread_strikes = self._tread_strikes + 1 if now - self._tread_last <= 60.0 else 1
         self._tread_last = now
         both = fault.both
@@ -301,7 +301,7 @@ class NavBase(Actor):
             self.correct_pose(Pose(p.x, p.y, p.heading_deg + fix), sideways_known=False)
         await self.stop_motor()
         # a short count in a move holds, unless the rover was blocked just before: in
-        # contact with a wall, scraping along it counts short as well (campaign 1:23)
+        # contact with a wall, scraping along it counts short as well
         held_move = fault.counts_short and now - self._blocked_t > self.o.tread_contact_s
         if (not turning and not held_move) or self._tread_strikes > self.o.tread_holds:
             # a short hold all the same: the stopped motion's last pose and end arrive
@@ -350,8 +350,8 @@ class NavBase(Actor):
         distance from that point, however the rover got there. Not the distance
         driven: a rover probing a gap goes back and forth at one place, and
         summing each move's length times sin(e) grew the doubt by about 7 cm a
-        probe without end (campaign 1:127: one 10 deg report, 292 cm of believed
-        drift 2 m of probing later; 1:183 in session 5: 235 cm). The pose is
+        probe without end (one 10 deg report grew to about 3 m of believed drift
+        after 2 m of probing). The pose is
         Motor Control's own-frame one, which a correction of the origin leaves
         continuous.
         """

@@ -95,7 +95,7 @@ class Exploration:
         if ex.trip_known is not None and trio.current_time() - ex.trip_started >= \
                 self.m.trip_max_s:
             # a rover that keeps switching to new frontiers on the way never ends a trip
-            # (furniture seed 3: one trip of 615 s): count it as a visit, go on
+            # (trips of ten minutes in a furnished room): count it as a visit, go on
             self._end_trip()
             ex.trip_known, ex.trip_started = self._known(), trio.current_time()
         if ex.follower is not None and ex.steps >= ex.budget:
@@ -131,9 +131,9 @@ class Exploration:
 
         Why: the route (planned with the narrowest clearance tier) can pass where the
         obstacle check refuses to drive; the rover then turned toward the route, was
-        refused, turned away and planned the same route again, for 280 s by one wall
-        in furniture 2 (three 90-s trips revealing 21, 7 and 4 cells), and turning in
-        place by a wall is where scan matching drifts."""
+        refused, turned away and planned the same route again, minutes on end by one
+        wall (90-s trips revealing a few dozen cells), and turning in place by a wall
+        is where scan matching drifts."""
         ex = self.ex
         if ex.target is None:
             return False
@@ -221,8 +221,8 @@ class Exploration:
         """Whether the last ``futile_trips`` visits together revealed too little to go on.
 
         Judged on their sum (a running window), not on each: one visit just above the
-        limit among small ones used to start the count over, and furniture 2 mapped on
-        for 90-s trips gaining 21, 7, 4 and 34 cells (limit 32)."""
+        limit among small ones would start the count over, and mapping would go on for
+        90-s trips gaining 21, 7, 4 and 34 cells (limit 32)."""
         g = self.ex.gains
         if len(g) < self.m.futile_trips:
             return False

@@ -92,9 +92,9 @@ class MappingOptions:
     """Longest hold for an odometry disagreement [s]."""
     blind_turn_deg: float = 180.0
     """After a turn that ended with both treads silent, Map Management searches this far
-    either side of dead reckoning's heading for the pose (``MAP_POSE_LOST``) [deg]: in
-    held-out campaign 3:199 one such turn went 50 deg unseen, and navigation's answer
-    (back off, turn again) spun the rover five turns in 9 s."""
+    either side of dead reckoning's heading for the pose (``MAP_POSE_LOST``) [deg]: one
+    such turn can go 50 deg unseen, and backing off and turning again on two stuck
+    encoders spins the rover several turns in a few seconds."""
     short_hold_s: float = 2.0
     """Hold still this long after Motor Control saw a tread (or both) count short [s]:
     about eight scan batches for scan matching to catch up with what was not counted."""

@@ -58,8 +58,8 @@ class NavOptions:
     nudge_step_max_cm: float = 12.0
     """Largest lateral step of that search [cm]: below the free width a 35 cm gap leaves
     a 15 cm wide body (20 cm), so the offsets tried leave no hole between them. 12, not
-    8: the seeker reached the gap 21-36 cm off in campaign games 1:23, 1:111, 1:191
-    (measured with a truth log), beyond the +-24 cm six steps of 8 reach."""
+    8: a seeker can reach a gap 21-36 cm off (measured against ground truth), beyond
+    the +-24 cm six steps of 8 reach."""
     drift_per_cm: float = 0.04
     """How far dead reckoning may be off sideways per cm driven since the pose was last
     known (start, or a contact correction) [cm/cm]: measured 10-20 cm after 3-6 m of
@@ -73,7 +73,7 @@ class NavOptions:
     doubled for a repeat within a minute: a slipping encoder or a weak motor lasts a
     few seconds to 20 s, and the small turns driven meanwhile may not be reported
     (a tread must travel about 5 cm for a short count to show) yet each turns the
-    rover tens of degrees more than it believes (campaign game 1:24)."""
+    rover tens of degrees more than it believes."""
     tread_holds: int = 2
     """Holds in a row (each report within a minute of the last), at most; a further
     report ends the motion as blocked: a tread stalled against a wall looks the same
@@ -83,16 +83,16 @@ class NavOptions:
     reported after about 5 cm of a tread's travel, counted at most 0.65 of it."""
     tread_both_deg: float = 40.0
     """How far a turn that Motor Control ended with both treads silent (``NAV_TREAD_FAULT``
-    value 4) may have turned unseen [deg]: it stops such a turn once its model says a
-    tread went 3 cm without an Int E (26 deg on the 13 cm track), and the rover coasts
-    on while it stops; 25-40 deg in the truth log of overlapping game 2:27 (both of the
-    seeker's encoders stuck). Not corrected in the turn's direction: a rover jammed
+    `TreadFault.BOTH_SILENT`) may have turned unseen [deg]: it stops such a turn once its
+    model says a tread went 3 cm without an Int E (26 deg on the 13 cm track), and the rover coasts
+    on while it stops: 25-40 deg measured against ground truth with both of a
+    seeker's encoders stuck. Not corrected in the turn's direction: a rover jammed
     against a wall ends the same way having hardly turned."""
     tread_turn_fix_deg: float = 12.0
-    """A single tread silent during a turn (``NAV_TREAD_FAULT`` 0 or 1): the heading is
+    """A single tread silent during a turn (`TreadFault.silent`): the heading is
     turned this much further in the turn's direction [deg]. A stuck encoder is not
-    counted while the tread drives on (the rover turned 16.5 deg more than it believed
-    in campaign game 1:11 with the encoder suffix, 28 deg in 2:27, truth logs); a
+    counted while the tread drives on (the rover turns 16-28 deg more than it believes,
+    measured against ground truth); a
     stalled motor reports the same having turned as counted. 12, about half the
     first: the error left either way is under 12-16 deg, not 0 or 28."""
     tread_contact_s: float = 15.0
@@ -102,7 +102,7 @@ class NavOptions:
     map_retry_s: float = 20.0
     """Waiting for the map this long asks the server again, the wait doubling each time
     up to ``map_retry_max_s`` [s]. A map lost on the way (a chunk corrupted on the link
-    is refused and the map never completes: held-out campaign game 3:184 waited 550 s)
+    is refused and the map never completes, and waiting for it could last the game)
     or refused ("no map yet", "outbox full; request the map later") comes again; the
     doubling lets a slow transfer finish before it is asked for once more."""
     map_retry_max_s: float = 160.0
@@ -117,7 +117,7 @@ class NavOptions:
     """A contact is searched along the heading as far as the drift, up to this [cm]
     (6 when the drift is smaller). With 6 alone, a block on a wall's flat face 9 cm
     further on was taken for the wall's end, and the fix cut the sideways doubt from
-    29 to 3 cm while the rover was 24 cm off (campaign 1:31, truth log)."""
+    29 to 3 cm while the rover was 24 cm off."""
     probe_width_cm: float = 40.0
     """A block where the map's passage across the heading is narrower than this probes
     sideways at once (see `RouteNav._probe_plan`) [cm]."""

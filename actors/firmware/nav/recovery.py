@@ -59,8 +59,8 @@ class RouteRecovery:
         Why: driven straight from where the back-off left it, the nudged route meets
         the passage's mouth at an angle; with a heading error of 7 deg the nose then
         hits the face before the body has moved across, or the body slides along the
-        face, which the encoders do not see (campaign game 1:111: from 26 to 60 cm off
-        within a few probes). A sidestep moves the rover across first, square to the
+        face, which the encoders do not see (from 26 to 60 cm off within a few
+        probes). A sidestep moves the rover across first, square to the
         heading of the block, so the shifted line is joined where the rover stands
         and the mouth is met head-on. Not when the rover is already on the line
         (within ``waypoint_tol_cm``) or the point is off the server's free ground.
@@ -130,7 +130,7 @@ class RouteRecovery:
         p = self.map_pose
         if why == "blocked" and self._backoff_turned():
             # a tread stalled: backing off again only spins the rover where it stands
-            # (campaign game 1:131: ten blocks in 12 s of a 16 s stall); wait for it
+            # (ten blocks in 12 s of a 16 s stall); wait for it
             self.counters["stall_holds"] += 1
             self._replan = True
             self._blocked, self._done = False, 0.0
@@ -237,10 +237,10 @@ class RouteRecovery:
         position: the rover may be touching it, though it believes itself clear.
 
         Why: both treads counting short in a move read the same whether both encoders
-        slip (the rover goes 2-3 times what counts, campaign 1:49: held for) or the
-        rover slides along a wall it met at an angle (healthy hall 5: the hider 45 cm
-        from where it believed after a 7 m leg, sliding along the stage's face at 0.29;
-        three holds and a block left it 62 cm from its spot, not found). Only the
+        slip (the rover goes 2-3 times what counts: hold) or the rover slides along a
+        wall it met at an angle (counting about 0.3 of its travel: a hider 45 cm from
+        where it believed after a 7 m leg; holding for it leaves the hider far from
+        its spot). Only the
         map and the doubt about the pose tell them apart: slipping on open floor far
         from any wall, a slide only where a wall can be. Occupied cells' centres.
         """
@@ -260,8 +260,8 @@ class RouteRecovery:
         Why: blocked short of the mouth by dead reckoning (the nose a few cm before
         it, or on the face beside it), the block was taken for an obstacle the map
         does not show; learned inside a mapped wall it changed nothing, and the same
-        offset was driven again and again (overlapping campaign 2:19, truth log: the
-        +24 cm offset four times, 2 cm short of passing, until the replan limit).
+        offset was driven again and again (the same offset four times, 2 cm short of
+        passing, until the replan limit).
         The next offset is the search's next step."""
         if self._nudge is None or self._anchor is None:
             return False
@@ -292,8 +292,8 @@ class RouteRecovery:
         Along, not straight-line: a nudge moves the block point across the heading
         by its own offset (up to 3 x ``nudge_step_max_cm``), and a contact fix
         moves it a few cm more; counting that as progress restarted the series
-        around the nudged point, 25 cm to the wrong side (campaign 1:39, truth
-        log: the -25 cm offset that would have passed was never tried)."""
+        around the nudged point, 25 cm to the wrong side, and the offset that would
+        have passed was never tried."""
         assert self._anchor is not None
         bx, by, bh = self._anchor
         h = math.radians(bh)

@@ -22,7 +22,7 @@ A destination with ``within`` W (the operator's wider search after a guess
 failed) searches rings round (x, y) out to W plus the seeker's drift: the ring
 above first, then wider ones (`search_rings`), innermost first. When the rings
 saw nothing, the pose itself is in doubt (a heading lost in a turn no tread
-report showed: campaign 4:112, 3:18), and what is left of ``wide_search_s`` goes
+report showed), and what is left of ``wide_search_s`` goes
 to a sweep by touch (`SeekingNav._sweep`): straight legs from wall to wall,
 stopping every ``sweep_step_cm`` to scan all round, turning ``sweep_turn_deg``
 where blocked; no map, no pose.
@@ -356,7 +356,7 @@ class SeekingNav(RouteNav):
             now = trio.current_time()
             self.search_until = now + s.wide_search_s
             # a pose in more doubt than the guess: rings planned from it may all be
-            # somewhere else, and the sweep by touch gets half the time (3:18, 4:66)
+            # somewhere else, and the sweep by touch gets half the time
             share = s.doubt_rings_share if drift > within else 1.0
             self.rings_until = now + share * s.wide_search_s
         need = (s.range_cm if within is None else within) + drift

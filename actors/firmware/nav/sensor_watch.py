@@ -147,12 +147,12 @@ class SensorWatch:
         """Motor Control saw a driven tread that does not count (``NAV_TREAD_FAULT``): its
         odometry is wrong from now on, so stop at once and hold, as for a disagreement.
 
-        A tread (or both, bit 2) that counts short (bit 1) stops the motion too, with a
+        A tread (or both) that counts short stops the motion too, with a
         short hold (``short_hold_s``, not doubled): a slipping encoder makes every
         motion turn (one tread) or go (both) further than counted, and driving on let
-        the heading get 40-130 deg off, beyond what scan matching recovers (campaign
-        games 1:125, 1:187). A weak motor reads the same and its odometry is right, so
-        the hold is short: it costs a weak motor a pause per motion, not the game."""
+        the heading get 40-130 deg off, beyond what scan matching recovers. A weak
+        motor reads the same and its odometry is right, so the hold is short: it costs a
+        weak motor a pause per motion, not the game."""
         now = trio.current_time()
         if self.state not in ("exploring", "homing") or not self.moving \
                 or now < self._odo_hold_until:
@@ -161,10 +161,10 @@ class SensorWatch:
             if fault.counts_short:
                 await self._odometry_hold(now, "both treads count short", self.m.short_hold_s)
             else:
-                # both silent (4): a turn that ended blocked without one Int E. Backing off
-                # and turning again drove it on blind: held-out campaign 3:199 (both
-                # encoders stuck 9 s) spun the mapper about five turns unseen in 9 s of
-                # such blocks, and the map came out at 0.48 accuracy
+                # both silent: a turn that ended blocked without one Int E. Backing off
+                # and turning again drives it on blind: with both encoders stuck for
+                # 9 s the mapper spins about five turns unseen in such blocks, and the
+                # map comes out at half accuracy
                 await self._odometry_hold(now, "both treads are driven but do not count")
                 await self.post(self.map_name, Message.uint(Cmd.MAP_POSE_LOST,
                                                             int(self.m.blind_turn_deg)))
