@@ -115,8 +115,8 @@ async def test_hider_replans_after_being_blocked(autojump_clock) -> None:
 @pytest.mark.trio
 async def test_a_map_that_never_comes_is_asked_for_again_with_a_doubling_wait(
         autojump_clock) -> None:
-    """The map lost on the way (a corrupted chunk refused: held-out campaign game 3:184
-    waited for it 550 s): asked again after 20 s, then 40 s; once it comes the hider
+    """The map lost on the way (a corrupted chunk refused, the map never completes):
+    asked again after 20 s, then 40 s; once it comes the hider
     drives, and asks no more."""
     body = Body(truth=own_truth())
     pool = BufferPool(64)
@@ -290,8 +290,8 @@ async def test_a_tread_fault_in_a_move_ends_it_as_blocked(autojump_clock) -> Non
 async def test_a_short_count_in_a_move_holds_and_both_short_adds_no_heading_doubt(
         autojump_clock) -> None:
     """A tread (value 2) or both (value 6) counting short during a straight move: a
-    slipping encoder or a weak motor, which a hold lets pass (campaign 1:49: ended as
-    blocked, each back-off on the slip went 3 times its count). MOTOR_STOP, nothing new
+    slipping encoder or a weak motor, which a hold lets pass (ended as blocked, each
+    back-off on the slip would go 3 times its count). MOTOR_STOP, nothing new
     for the hold, then the route goes on. Both alike turn nothing unseen in a straight
     move, so value 6 adds no heading doubt; one tread does."""
     for value in (2, 6):
@@ -312,9 +312,9 @@ async def test_a_short_count_in_a_move_holds_and_both_short_adds_no_heading_doub
 @pytest.mark.trio
 async def test_both_short_in_a_move_where_a_wall_may_touch_is_a_slide_not_held(
         autojump_clock) -> None:
-    """Value 6 in a straight move while a mapped wall lies within the body's radius
-    plus the pose's doubt (``drift_cm``): the rover may be sliding along that wall
-    (healthy hall 5), which counts short just like two slipping encoders. The move
+    """Both treads short in a straight move while a mapped wall lies within the body's
+    radius plus the pose's doubt (``drift_cm``): the rover may be sliding along that
+    wall, which counts short just like two slipping encoders. The move
     is not stopped, nothing is held, the route arrives unblocked. The same report
     with the walls beyond that reach holds (see above)."""
     async with hider_at_first("MOTOR_MOVE", STRAIGHT_ON) as (system, body, nav):
