@@ -18,7 +18,9 @@ protocol (firmware never imports the world); a serial bridge to a real rover's
 peripherals can implement it too. The wire formats below are the devices'
 datasheets: the device side encodes them (``world/packets.py``) and the
 firmware's ISRs decode them (``drivers/isr.py``); ``tests/test_world_devices_contract.py``
-round-trips both.
+round-trips both. Which rover a `HardwareSpec` is for is one of `ROLES`, the
+message layer's list (a rover names its role in ``hello``), re-exported here so
+that the world takes it from its one firmware import.
 
 Interrupt lines and payloads
 ----------------------------
