@@ -145,7 +145,7 @@ class MotorTuning:
     slipping at 0.3-0.5 go 2-3 times the counted distance (60 cm per 20 cm move)."""
     push_ratio: float = 0.2
     """Both treads counting under this share of their modelled travel lately, in a move:
-    pushing against something, blocked (see `MotorControl._pushing`)."""
+    pushing against something, blocked (see `tread_monitor.TreadMonitor.pushing`)."""
     push_window_cm: float = 10.0
     """"Lately": the last 10-20 cm of both treads' modelled travel together [cm]."""
     uneven_cm: float = 2.0

@@ -321,7 +321,7 @@ class NavBase(Actor):
         await self.status(self.state, f"{side} {kind}; holding {hold:.0f} s")
 
     def _wall_within_drift(self) -> bool:
-        """Hook: a mapped wall may touch the body (see `RouteNav._wall_within_drift`).
+        """Hook: a mapped wall may touch the body (see `recovery.RouteRecovery._wall_within_drift`).
         Without the server's map (the mapper) there is none to know of."""
         return False
 

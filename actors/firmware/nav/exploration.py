@@ -3,7 +3,7 @@
 Choosing where to go
     `frontier.find_frontiers` + `frontier.choose_frontier` on the latest
     NAV_MAP_UPDATE (cost trades distance against frontier size and favours less
-    explored areas; long frontiers come cut into 1 m pieces); `nav_common.plan_route`
+    explored areas; long frontiers come cut into 1 m pieces); `route.plan_route`
     for the path, trying tiers of clearance from the turning radius plus a margin
     down to half the body width (a 30 cm corridor maps 25 cm wide on a 5 cm grid);
     reachability uses the narrowest tier. A frontier whose

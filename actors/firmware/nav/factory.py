@@ -7,7 +7,7 @@
               mailbox=64)
 
 Each call makes a fresh actor (one per incarnation): a restarted navigation
-rebuilds its state from its neighbours and the server (see `nav_common`).
+rebuilds its state from its neighbours and the server (see `base`).
 """
 
 from __future__ import annotations

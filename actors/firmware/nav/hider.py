@@ -1,6 +1,6 @@
 """Hiding navigation: check the spot, drive there around obstacles, report arrival.
 
-Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
+Flow (see `route_nav.RouteNav` for map, origin and destination handling)::
 
     idle --start--> waiting_map (map_request) --map--> ready
     ready --destination--> check_spot

@@ -44,10 +44,10 @@ class NavOptions:
     """Clearance all round a hiding spot, for turning [cm]."""
     spot_shift_cm: float = 30.0
     """A hiding spot that does not fit on the hider's map is moved to the nearest place
-    within this that does (`nav_hiding`); 0 refuses it at once [cm]."""
+    within this that does (`hider`); 0 refuses it at once [cm]."""
     hide_near_cm: float = 30.0
     """A hider that cannot reach its spot but stands this close to it, in the open in
-    sight of it on its map, hides where it stands (`nav_hiding`); 0 never [cm]."""
+    sight of it on its map, hides where it stands (`hider`); 0 never [cm]."""
     narrow_margin_cm: float = 2.0
     """Clearance beyond half the body width in the last planning tier (narrow passages) [cm]."""
     replan_limit: int = 10
@@ -120,10 +120,10 @@ class NavOptions:
     29 to 3 cm while the rover was 24 cm off."""
     probe_width_cm: float = 40.0
     """A block where the map's passage across the heading is narrower than this probes
-    sideways at once (see `RouteNav._probe_plan`) [cm]."""
+    sideways at once (see `recovery.RouteRecovery._probe_plan`) [cm]."""
     probe_sidestep: bool = True
     """A probe's nudged route begins with a sidestep across the heading of the block
-    (`RouteNav._with_sidestep`)."""
+    (`recovery.RouteRecovery._with_sidestep`)."""
     probe_progress_cm: float = 25.0
     """A block this far from the last one starts a new sideways probe [cm]."""
     backoff_cm: float = 6.0
@@ -132,7 +132,7 @@ class NavOptions:
     """Reverse this far after a second block at one place: room to come back sideways [cm]."""
     stall_turn_deg: float = 8.0
     """A back-off that ends blocked having turned more than this holds ``tread_hold_s``
-    before the route goes on: a tread stalled (see `RouteNav._backoff_turned`) [deg]."""
+    before the route goes on: a tread stalled (see `recovery.RouteRecovery._backoff_turned`) [deg]."""
     settle_s: float = 1.0
     """After (re)start, no motion is commanded before this [s]: the end of a motion
     the previous incarnation commanded arrives meanwhile and is ignored."""

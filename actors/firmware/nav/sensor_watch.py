@@ -30,7 +30,7 @@ Odometry that scan matching contradicts (a stuck encoder draws the map from a wr
     A turn that ended with both treads silent (`TreadFault.BOTH_SILENT`: the rover may have
     turned tens of degrees unseen) holds as a silent tread does and tells Map
     Management the pose is lost (``MAP_POSE_LOST``): it places no batch until
-    scan matching finds the pose again (`mapping.MapManagement`).
+    scan matching finds the pose again (`map_management.MapManagement`).
 """
 
 from __future__ import annotations
