@@ -132,7 +132,8 @@ class NavOptions:
     """Reverse this far after a second block at one place: room to come back sideways [cm]."""
     stall_turn_deg: float = 8.0
     """A back-off that ends blocked having turned more than this holds ``tread_hold_s``
-    before the route goes on: a tread stalled (see `recovery.RouteRecovery._backoff_turned`) [deg]."""
+    before the route goes on: a tread stalled (see
+    `recovery.RouteRecovery._backoff_turned`) [deg]."""
     settle_s: float = 1.0
     """After (re)start, no motion is commanded before this [s]: the end of a motion
     the previous incarnation commanded arrives meanwhile and is ignored."""
