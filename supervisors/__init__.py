@@ -4,7 +4,9 @@ modules, the supervision trees of the rovers and the whole system.
 ``spec`` (specs and pure rules), ``state`` (a supervisor's records),
 ``supervisor`` (the contract and the running supervisor) and ``dynamic`` (a
 supervisor of many children of one spec) depend only on the ``actors`` runtime;
-only ``system.py`` may wire in ``world`` and ``server`` (tests/test_layers.py).
+``rover`` builds a rover's tree from the firmware; only the wiring modules
+(``system``, ``remote``, the test harness ``harness/`` and the recorder
+``recording/``) join ``world`` and ``server`` into a system (tests/test_layers.py).
 """
 
 from .dynamic import DynamicSupervisor, DynamicSupervisorSpec

@@ -37,6 +37,7 @@ from actors import (
 )
 from actors.clock import fast_instruments
 from actors.firmware.commands import Cmd
+from actors.firmware.hardware import ROLES
 from server.protocol import Pose2
 from server.server import Server, ServerConfig, open_server
 from server.store import Store
@@ -45,10 +46,9 @@ from world.faults import is_actor_fault
 from world.scenario import Scenario
 from world.world import World, run_world
 
-__all__ = ["ROLES", "ACTOR_FAULTS", "SimSystem", "open_sim_system", "scenario_origins",
+__all__ = ["ACTOR_FAULTS", "SimSystem", "open_sim_system", "scenario_origins",
            "FaultError"]
 
-ROLES = ("mapper", "hider", "seeker")
 ACTOR_FAULTS = ("crash", "hang", "flood")
 _FAULT_POLL_S = 0.05  # how often scheduled actor faults are checked [s]
 _FLOOD_DEFAULT = 100  # messages a flood fault posts when not given (world.faults.ACTOR_FAULTS)

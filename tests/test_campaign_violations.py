@@ -17,7 +17,7 @@ import trio
 
 from actors import Actor, Message, virtual_clock
 from actors.firmware.commands import Cmd
-from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.nav.factory import make_nav
 from server.protocol import MapGrid
 from supervisors.harness import campaign

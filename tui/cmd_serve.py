@@ -29,10 +29,11 @@ import contextlib
 import os
 import sys
 
+from server.protocol import ROLES
+
 __all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_command_line",
            "CONSOLE_COMMANDS", "HELP", "format_status"]
 
-SIM_ROLES = ("mapper", "hider", "seeker")
 CONSOLE_COMMANDS = ("start_mapping", "stop_mapping", "hide", "seek", "new_game", "status",
                     "help", "quit")
 """Every command the operator console takes."""
@@ -185,9 +186,9 @@ def run(args: argparse.Namespace) -> int:
         sim_roles: list[str] = []
         for rid, spec in rovers:
             if spec.kind == "sim":
-                if rid not in SIM_ROLES:
+                if rid not in ROLES:
                     raise ValueError(f"--rover {rid}=sim: a simulated rover's ID is its role, "
-                                     f"one of {', '.join(SIM_ROLES)}")
+                                     f"one of {', '.join(ROLES)}")
                 if rid in sim_roles:
                     raise ValueError(f"--rover {rid}=sim given twice")
                 sim_roles.append(rid)

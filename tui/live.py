@@ -25,10 +25,10 @@ from actors import EventKind, Message, TraceEvent
 from actors.firmware.commands import name_of
 from server.export import write_pgm, write_png
 from server.links import LinkSpec
-from server.protocol import MapGrid, Pose2, inverse
+from server.protocol import ROLES, MapGrid, Pose2, inverse
 from server.protocol import compose as compose_pose
 from server.store import Store
-from supervisors.system import ROLES, SimSystem, open_sim_system
+from supervisors.system import SimSystem, open_sim_system
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_DEVICES
 from world.scenario import Scenario
 from world.truth import truth_raster
