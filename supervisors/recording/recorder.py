@@ -13,9 +13,10 @@ scheduling (part of a game's trace hash) is untouched:
 * every message sent to a mailbox comes from a message tap
   (`actors.Trace.tap_messages`, which never changes the trace hash), and
   drops and lifecycle events from a trace subscriber;
-* time-sampled channels (poses, paths, the working map, checkpoints, the
-  server's events, faults) are sampled from the message tap when simulated time
-  has passed their next sampling instant: messages flow every few
+* time-sampled channels (poses and paths every `POSE_PERIOD_S`, the working
+  map and a checkpoint every whole second, the server's events, faults) are
+  sampled from the message tap when simulated time has passed their next
+  sampling instant: messages flow every few
   milliseconds (timers, encoder interrupts), so samples land within a few ms
   of their period, at the same instants on every run of one seed;
 * the link frames come from wrapping the two byte callbacks of each rover's
@@ -49,12 +50,10 @@ from supervisors.system import ROLES, SimSystem
 from .runinfo import RunInfo
 from .schemas import CHANNELS, FRAME, LOG_LEVELS, schema_bytes
 
-__all__ = ["Recorder", "RecordingError", "POSE_PERIOD_S", "MAP_PERIOD_S", "MAX_PER_CHANNEL"]
+__all__ = ["Recorder", "RecordingError", "POSE_PERIOD_S", "MAX_PER_CHANNEL", "checkpoint"]
 
 POSE_PERIOD_S = 0.2
 """Poses and paths are sampled this often [s simulated]."""
-MAP_PERIOD_S = 1.0
-"""The working map and the checkpoint are sampled this often [s simulated]."""
 MAX_PER_CHANNEL = 5_000_000
 """Most messages kept per channel; more are counted in the summary (``skipped``), not written."""
 _LEVELS = {EventKind.CRASH: "error", EventKind.ESCALATE: "error", EventKind.HUNG: "warning",
@@ -97,6 +96,13 @@ def log_msg(t: float, level: str, name: str, text: str) -> dict[str, Any]:
     """A ``foxglove.Log``."""
     return {"timestamp": stamp(t), "level": LOG_LEVELS[level], "message": text, "name": name,
             "file": "", "line": 0}
+
+
+def checkpoint(system: SimSystem, now: float) -> dict[str, Any]:
+    """A ``hideseek.Checkpoint`` of ``system`` now (what a fork compares)."""
+    return {"timestamp": stamp(now), "index": int(math.floor(now)),
+            "trace_hash": system.actors.trace.hexdigest(), "messages": system.messages(),
+            "phase": str(system.server.game.phase)}
 
 
 class _Lines:
@@ -167,6 +173,7 @@ class Recorder:
         self._names: dict[int, str] = {}
         self._next_pose = 0.0
         self._next_map = 0.0
+        self._next_tick = 0.0  # min(next_pose, next_map)
         self._to_map = Pose2(0.0, 0.0, 0.0)
         self._last_grid: bytes | None = None
         self._last_upload: Any = None
@@ -216,8 +223,8 @@ class Recorder:
         try:
             if system is not None:
                 now = trio.current_time()
-                self._next_pose = self._next_map = now
-                self._tick(now)
+                self._next_pose = now
+                self._tick(now, final=True)
         finally:
             for undo in reversed(self._undo):
                 undo()
@@ -253,7 +260,7 @@ class Recorder:
     def _on_message(self, time: float, kind: EventKind, queue: str, message: Any,
                     depth: int) -> None:
         """The message tap: every message sent, and the sampling clock."""
-        if time >= self._next_pose and not self._ticking:
+        if time >= self._next_tick and not self._ticking:
             self._tick(time)
         self._batch.append((time, queue, message, depth))
 
@@ -366,9 +373,10 @@ class Recorder:
             "ranges": (ranges / 100.0).round(4).tolist(), "intensities": []})
 
     # ---------------------------------------------------------------- sampling
-    def _tick(self, now: float) -> None:
-        """Sample what is due at ``now`` (never re-entered: a sample may send no message,
-        but a fault it records may emit trace events)."""
+    def _tick(self, now: float, *, final: bool = False) -> None:
+        """Sample what is due at ``now`` (never re-entered). ``final``: the last samples
+        of a stop, with no checkpoint (checkpoints are taken only at the first message at
+        or after each whole second, the instants a fork's checker uses too)."""
         system = self._system
         if system is None:
             return
@@ -380,13 +388,13 @@ class Recorder:
             if now >= self._next_pose:
                 self._next_pose = (math.floor(now / POSE_PERIOD_S) + 1) * POSE_PERIOD_S
                 self._poses(system, now)
-            if now >= self._next_map:
-                self._next_map = math.floor(now / MAP_PERIOD_S) + MAP_PERIOD_S
+            if final:
                 self._maps(system, now)
-                self._add("/checkpoints", now, {
-                    "timestamp": stamp(now), "index": int(math.floor(now / MAP_PERIOD_S)),
-                    "trace_hash": system.actors.trace.hexdigest(),
-                    "messages": system.messages(), "phase": str(system.server.game.phase)})
+            elif now >= self._next_map:
+                self._next_map = math.floor(now) + 1.0
+                self._maps(system, now)
+                self._add("/checkpoints", now, checkpoint(system, now))
+            self._next_tick = min(self._next_pose, self._next_map)
         finally:
             self._ticking = False
 
