@@ -350,9 +350,10 @@ class Recorder:
             idx = np.full(n, first) if stuck else (first + np.arange(n)) % n_rev
             ranges[idx] = dist
             state["count"] += n
-            if state["count"] >= n_rev:
+            if state["count"] >= n_rev:  # a revolution's worth of samples: one scan
                 self._scan(ranges, state["pose"])
-                state["count"], state["pose"] = 0, None
+                state["count"] -= n_rev
+                state["pose"] = pose
             return dist
 
         lidar.measure = recorded_measure
@@ -386,7 +387,8 @@ class Recorder:
             self._drain_events()
             self._record_faults(system)
             if now >= self._next_pose:
-                self._next_pose = (math.floor(now / POSE_PERIOD_S) + 1) * POSE_PERIOD_S
+                # the period's index, with a margin for 0.6 / 0.2 = 2.9999999999999996
+                self._next_pose = (math.floor(now / POSE_PERIOD_S + 1e-6) + 1) * POSE_PERIOD_S
                 self._poses(system, now)
             if final:
                 self._maps(system, now)
