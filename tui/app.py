@@ -149,6 +149,10 @@ class ConsoleApp(App[int]):
         Binding("escape", "focus_map", "Map", show=False),
     ]
 
+    actions: tuple[UiAction, ...] = ACTIONS
+    """The actions the help screen and the command palette list (a subclass with other
+    bindings names its own)."""
+
     class SnapshotArrived(Message):
         """The system published a snapshot (posted from Trio)."""
 
@@ -441,7 +445,7 @@ class ConsoleApp(App[int]):
         self.map_view.focus()
 
     def action_help(self) -> None:
-        keys = [(_KEY_NAMES.get(a.key, a.key), a.help) for a in ACTIONS] + list(MAP_KEYS)
+        keys = [(_KEY_NAMES.get(a.key, a.key), a.help) for a in self.actions] + list(MAP_KEYS)
         self.push_screen(HelpScreen(keys, intro="[b]hideseek console[/b]: keys\n"))
 
     async def action_quit(self) -> None:
@@ -451,7 +455,7 @@ class ConsoleApp(App[int]):
 
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
         yield from super().get_system_commands(screen)
-        for a in ACTIONS:
+        for a in self.actions:
             if a.action in ("quit",):
                 continue
             yield SystemCommand(a.help.split(":")[0], f"key {_KEY_NAMES.get(a.key, a.key)}",

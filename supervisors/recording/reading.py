@@ -41,6 +41,8 @@ class Recording:
     summary: dict[str, str]
     """The ``hideseek.summary`` record: the game's report fields and the channel counts
     (empty when the recording was cut short)."""
+    queues: dict[str, int] = field(default_factory=dict)
+    """Mailbox -> capacity [messages] (the ``hideseek.queues`` record)."""
     schemas: dict[str, str] = field(default_factory=dict)
     """Topic -> schema name."""
     messages: dict[str, list[tuple[float, Any]]] = field(default_factory=dict)
@@ -75,7 +77,8 @@ def read_recording(path: str | os.PathLike[str], topics: Collection[str] | None 
             run = RunInfo.from_metadata(meta["hideseek.run"],
                                         meta.get("hideseek.scenario", {}).get("toml", ""))
             rec = Recording(path, run, meta.get("hideseek.scenario", {}).get("toml", ""),
-                            meta.get("hideseek.summary", {}))
+                            meta.get("hideseek.summary", {}),
+                            {k: int(v) for k, v in meta.get("hideseek.queues", {}).items()})
             if summary is not None:
                 for ch in summary.channels.values():
                     schema = summary.schemas.get(ch.schema_id)

@@ -208,6 +208,9 @@ class Recorder:
         taps = [trace.tap_messages(self._on_message), trace.subscribe(self._on_event)]
         self._undo += [s.close for s in taps]
         self._events = system.server.subscribe(capacity=4096)
+        self._writer.add_metadata("hideseek.queues", {
+            name: str(system.actors.statistics(name).capacity)
+            for name in system.actors.names() if "/" in name})
         for role in ROLES:
             self._wrap_link(system, role)
         self._wrap_lidar(system)
@@ -455,7 +458,9 @@ class Recorder:
         grid = system.mapper_grid()
         if grid is not None:
             grid = grid.crop_known(margin_cells=_MAP_MARGIN_CELLS)
-            cells = np.asarray(grid.cells, np.int8)
+        cells = None if grid is None else np.asarray(grid.cells, np.int8)
+        # nothing known yet: no map (it would be the whole 24 m grid, unknown)
+        if grid is not None and cells is not None and (cells != -1).any():
             key = cells.tobytes() + repr((grid.origin_cm, cells.shape)).encode()
             if key != self._last_grid:
                 self._last_grid = key
