@@ -95,6 +95,8 @@ ACTIONS: tuple[UiAction, ...] = (
     UiAction("n", "new_game", "New", "Start a new game", footer=False),
     UiAction("e", "export_map", "Export", "Save the map (PGM + YAML) to the export directory",
              footer=False),
+    UiAction("R", "record", "Record",
+             "Start / stop recording the game as MCAP (hideseek replay opens it)", footer=False),
     UiAction("p", "toggle_log_pause", "Log pause", "Pause / resume the message log",
              footer=False),
     UiAction("slash", "filter_log", "Filter", "Filter the message log", footer=False),
@@ -410,6 +412,13 @@ class ConsoleApp(App[int]):
 
     def action_export_map(self) -> None:
         self._call("export_map", self.export_dir)
+
+    def action_record(self) -> None:
+        """``R``: start or stop recording, where the system can record (the live one)."""
+        if not hasattr(self.system, "record"):
+            self.notify("this system cannot be recorded", severity="warning")
+            return
+        self._call("record", None)
 
     def action_faults(self) -> None:
         snap = self.snapshot
