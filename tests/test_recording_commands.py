@@ -1,7 +1,9 @@
-"""Recording from the console: ``R`` and ``hideseek play --record`` (tui/live.py)."""
+"""Recording from the command line and the console: ``hideseek play --record``, ``R``
+(tui/live.py), ``hideseek campaign --record-failures``."""
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 from typing import Any
 
@@ -9,8 +11,10 @@ import pytest
 import trio
 from textual import events
 
+from supervisors.harness.campaign import game_from_ref, play_campaign_game
 from supervisors.recording.fork import ForkError, plan_fork
 from supervisors.recording.reading import read_recording
+from tui import cmd_campaign
 from tui.app import ConsoleApp
 from tui.fake import FakeSystem
 from tui.live import LiveSystem
@@ -85,3 +89,40 @@ def test_the_record_key_on_a_system_that_cannot_record_says_so() -> None:
                 await asyncio.sleep(0.02)
 
     asyncio.run(go())
+
+
+def _failing_worker(ref: str, **kwargs: Any) -> dict[str, Any]:
+    """A real campaign game, declared failed (so --record-failures has one to record)."""
+    result = play_campaign_game(ref, **kwargs)
+    result["outcome"], result["reason"] = "failed", "declared failed by the test"
+    return result
+
+
+def test_campaign_record_failures_records_each_failed_game_as_it_was(
+        tmp_path: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--record-failures DIR`` plays each failed game again by its reference, recorded;
+    the recording is the campaign's game (same trace hash) and rebuilds its faults."""
+    parser = argparse.ArgumentParser()
+    cmd_campaign.add_arguments(parser)
+    folder = tmp_path / "failed"
+    args = parser.parse_args(["-n", "1", "--workers", "0", "--scenarios", "empty",
+                              "--replay-every", "0", "--out", str(tmp_path / "c.sqlite"),
+                              "--no-progress", "--record-failures", str(folder)])
+    assert cmd_campaign.run(args, worker=_failing_worker) == 1
+    out = capsys.readouterr().out
+    assert f"game 0: {folder / 'game-0.mcap'} (" in out and "the campaign's game)" in out
+    rec = read_recording(folder / "game-0.mcap", topics=["/faults"])
+    assert rec.run.scenario_ref.startswith("campaign:1:0")
+    assert rec.run.scenario().faults == game_from_ref(rec.run.scenario_ref[9:])[0].faults
+
+
+def test_campaign_record_failures_into_a_file_is_bad_input(
+        tmp_path: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    """A --record-failures path that is a file: exit 2 before any game."""
+    parser = argparse.ArgumentParser()
+    cmd_campaign.add_arguments(parser)
+    (tmp_path / "f").write_text("x")
+    args = parser.parse_args(["-n", "1", "--workers", "0", "--out", str(tmp_path / "c.sqlite"),
+                              "--record-failures", str(tmp_path / "f")])
+    assert cmd_campaign.run(args, worker=_failing_worker) == 2
+    assert capsys.readouterr().err.startswith("hideseek campaign: --record-failures")
