@@ -12,14 +12,18 @@ from textual import events
 from textual.widgets import Input
 
 from actors import seed_trio_scheduler, virtual_clock
-from supervisors.harness.headless import run_game
+from supervisors.harness.headless import Budget, run_game
 from supervisors.recording import Recorder, RunInfo
+from supervisors.recording.fork import ForkDiverged
 from supervisors.recording.reading import read_recording
 from supervisors.recording.runinfo import scenario_text
 from tui.cli import main
 from tui.replay import ReplayIndex, ReplaySystem
 from tui.replay.app import ReplayApp
+from tui.replay.fork_live import ForkConsoleApp, ForkLiveSystem
 from tui.replay.seek_dialog import SeekDialog, parse_seek
+from tui.snapshot import Snapshot
+from tui.widgets import FaultDialog
 from world.scenario import load_scenario
 
 TIMEOUT_S = 10.0
@@ -135,3 +139,85 @@ def test_cli_replay_of_a_missing_file_is_bad_input(tmp_path: Any,
     assert main(["replay", str(tmp_path / "none.mcap")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("hideseek replay:")
+
+
+def _run_fork(live: ForkLiveSystem) -> list[Snapshot]:
+    """Run a fork's Trio side as the console would, alone, until its first snapshot."""
+    snaps: list[Snapshot] = []
+
+    async def main() -> None:
+        send, receive = trio.open_memory_channel[None](1)
+        send.send_nowait(None)  # the console's first request, answered once at T
+        async with trio.open_nursery() as nursery:
+            def publish(item: Any) -> None:
+                if isinstance(item, Snapshot):
+                    snaps.append(item)
+                    nursery.cancel_scope.cancel()
+            nursery.start_soon(live.run, publish, receive)
+
+    try:
+        trio.run(main, clock=live.clock)
+    except BaseExceptionGroup as group:  # this test's nursery: the system's one error
+        (error,) = group.exceptions
+        raise error from None
+    return snaps
+
+
+def test_a_fork_into_the_live_console_follows_the_recording_to_its_time(
+        recording: Any) -> None:
+    """The console's fork plays the recorded game to T (every second checked), then stands
+    paused at T with the fault catalogue offered."""
+    rec, _ = recording
+    live = ForkLiveSystem(rec, 30.0, log_messages=False)
+    snaps = _run_fork(live)
+    assert live.checker.compared == 30 and live.checker.diverged is None
+    (snap,) = snaps
+    assert 30.0 <= snap.time_s < 30.1 and snap.paused and snap.speed == 1.0
+    assert snap.phase == "mapping" and snap.catalogue
+    assert any("forked" in e.text for e in snap.timeline)
+
+
+def test_a_fork_into_the_console_that_leaves_the_recording_stops(tmp_path: Any) -> None:
+    """A recording that does not make its game (another seed in its metadata): ForkDiverged."""
+    scenario = load_scenario("empty")
+    path = tmp_path / "wrong.mcap"
+    recorder = Recorder(path, RunInfo.for_scenario(scenario, 2),
+                        scenario_toml=scenario_text(scenario))
+    seed_trio_scheduler(1)
+    trio.run(lambda: run_game(scenario, 1, budget=Budget(mapping=6.0), observers=[recorder]),
+             clock=virtual_clock())
+    live = ForkLiveSystem(read_recording(path), 5.0, log_messages=False)
+    with pytest.raises(ForkDiverged, match="left the recording"):
+        _run_fork(live)
+
+
+def test_the_fork_key_closes_the_replay_with_its_time(recording: Any) -> None:
+    """``F`` in the replay: the app ends, naming the time to fork at."""
+    rec, _ = recording
+    app = ReplayApp(ReplaySystem(rec, paused=True, at=42.0))
+
+    async def go() -> None:
+        async with app.run_test(size=(120, 40)):
+            await until(lambda: app.snapshot is not None, "the first snapshot")
+            press(app, "F")
+            await until(lambda: app.fork_at is not None, "the fork request")
+
+    asyncio.run(go())
+    assert app.fork_at == pytest.approx(42.0)
+
+
+def test_the_forked_console_opens_the_fault_dialog_at_the_fork(recording: Any) -> None:
+    """In the console (Trio as Textual's guest): the fork follows the recording to T, then
+    the fault dialog is open."""
+    rec, _ = recording
+    live = ForkLiveSystem(rec, 20.0, log_messages=False)
+    app = ForkConsoleApp(live)
+
+    async def go() -> None:
+        async with app.run_test(size=(120, 40)):
+            await until(lambda: isinstance(app.screen, FaultDialog) or app.system_error,
+                        "the fault dialog")
+            assert app.system_error is None
+            assert live.checker.compared == 20 and app.snapshot.paused
+
+    asyncio.run(go())

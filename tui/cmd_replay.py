@@ -1,5 +1,11 @@
 """``hideseek replay FILE.mcap``: open a recording in the console (nothing is simulated).
 
+``F`` in the replay forks the game at the time shown: the replay closes, the
+recorded game is played again to that time (checked against the recording),
+and the live console opens there with the fault dialog. Exit status: 0, or 1
+when the forked system stopped with an error, 2 bad input, 3 the fork left its
+recording before its time.
+
 Textual is imported only when the command runs.
 """
 
@@ -31,4 +37,27 @@ def run(args: argparse.Namespace) -> int:
         return 2
     app = ReplayApp(system)
     app.run()
-    return 0
+    if app.fork_at is None:
+        return 0
+    return _fork(system.rec, app.fork_at)
+
+
+def _fork(rec, at_s: float) -> int:
+    """The live console on the game forked at ``at_s``."""
+    from supervisors.recording.fork import ForkDiverged, ForkError
+    from tui.replay.fork_live import ForkConsoleApp, ForkLiveSystem
+    from world.scenario import ScenarioError
+
+    try:
+        system = ForkLiveSystem(rec, at_s)
+    except (ForkError, ScenarioError) as exc:
+        print(f"hideseek replay: {exc}", file=sys.stderr)
+        return 2
+    app = ForkConsoleApp(system)
+    app.run()
+    error = app.system_error
+    if error is None:
+        return 0
+    print(f"hideseek replay: the forked system stopped: {type(error).__name__}: {error}",
+          file=sys.stderr)
+    return 3 if isinstance(error, ForkDiverged) else 1

@@ -166,6 +166,7 @@ class LiveSystem(QueuedController):
             async with open_sim_system(self.scenario, seed=self.seed, store=store,
                                        roles=roles) as system:
                 self._system = system
+                await self._prelude(system)
                 if self._record_path:
                     try:
                         self._do_record(self._record_path)
@@ -188,6 +189,10 @@ class LiveSystem(QueuedController):
                 finally:
                     if self._recorder is not None:  # the file is complete when the console ends
                         self._recorder.stop()
+
+    async def _prelude(self, system: SimSystem) -> None:
+        """Runs on the opened system before the console's own tasks start (a fork plays
+        the recorded game to its time here: nothing of the console may run before)."""
 
     async def _attach_remote(self, system: SimSystem) -> None:
         """Serve the attached rovers' links (a failure to listen ends the system)."""

@@ -29,6 +29,8 @@ REPLAY_ACTIONS: tuple[UiAction, ...] = (
              footer=False),
     UiAction("t", "seek", "Seek", "Go to a time, or to the next event of a kind"),
     UiAction("n", "next_event", "Next", "Go to the next event (of the kind last sought)"),
+    UiAction("F", "fork", "Fork",
+             "Fork here: the recorded game to this time, then the live console (fault dialog)"),
     UiAction("1", "tab('queues')", "Queues", "Show queue traffic", footer=False),
     UiAction("2", "tab('log')", "Log", "Show the message log", footer=False),
     UiAction("3", "tab('tree')", "Tree", "Show the supervision tree", footer=False),
@@ -67,6 +69,8 @@ class ReplayApp(ConsoleApp):
         self.replay = system
         self._kind: str | None = None  # the event kind ``n`` goes to (None: any)
         self._shown_t: float | None = None
+        self.fork_at: float | None = None
+        """Set by ``F``: fork the game at this time once the replay has closed."""
 
     def show(self, snap: Snapshot) -> None:
         """Redraw; a jump back in time starts the log and the timeline again."""
@@ -99,3 +103,13 @@ class ReplayApp(ConsoleApp):
 
     def action_next_event(self) -> None:
         self.replay.next_event(self._kind)
+
+    async def action_fork(self) -> None:
+        """``F``: close the replay and fork at its time (``hideseek replay`` opens the live
+        console next)."""
+        if self.replay.rec.run.operator != "headless":
+            self.notify("recorded from the console: a person's choices cannot be played "
+                        "again", severity="warning")
+            return
+        self.fork_at = self.snapshot.time_s if self.snapshot else self.replay.time_s
+        await self.action_quit()
