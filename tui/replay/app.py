@@ -55,13 +55,10 @@ class ReplayApp(ConsoleApp):
 
     TITLE = "hideseek replay"
     inherit_bindings = False
-    BINDINGS = [
-        Binding(a.key, a.action, a.label, show=a.footer, key_display=_NAMES.get(a.key))
-        for a in REPLAY_ACTIONS
-    ] + [
-        Binding("ctrl+c", "quit", "Quit", show=False, priority=True),
-        Binding("escape", "focus_map", "Map", show=False),
-    ]
+    BINDINGS = [Binding(a.key, a.action, a.label, show=a.footer,
+                        key_display=_NAMES.get(a.key)) for a in REPLAY_ACTIONS]
+    BINDINGS += [b for b in ConsoleApp.BINDINGS  # ctrl+c, escape: as in the console
+                 if isinstance(b, Binding) and b.key in ("ctrl+c", "escape")]
     actions = REPLAY_ACTIONS
 
     def __init__(self, system: ReplaySystem, **kwargs: object) -> None:
