@@ -407,8 +407,8 @@ def test_a_refused_batch_whose_guess_fits_well_starts_the_relocalisation_count_o
     matching found nothing better) and one blurred by a turn (0.45) are not three lost
     batches in a row: no wide search (healthy hall game, seed 1224892982, searched there
     and took a pose 23 deg off). Three bad fits in a row still search."""
-    from actors.firmware.mapping import map_management as mapping
     from actors.firmware.localisation.odometry import Pose
+    from actors.firmware.mapping import map_management as mapping
     from actors.firmware.mapping.scan_match import MatchResult
 
     searches = []
