@@ -72,6 +72,9 @@ def test_the_replay_console_seeks_steps_and_goes_to_the_next_event(recording: An
     app = ReplayApp(system)
     mapped = report.phases["mapping"]
 
+    def dialog() -> bool:
+        return isinstance(app.screen, SeekDialog) and bool(app.screen.query(Input))
+
     def at(t: float) -> Callable[[], bool]:
         return lambda: app.snapshot is not None and abs(app.snapshot.time_s - t) < 1e-6
 
@@ -80,7 +83,7 @@ def test_the_replay_console_seeks_steps_and_goes_to_the_next_event(recording: An
             await until(lambda: app.snapshot is not None, "the first snapshot")
             assert app.snapshot.phase == "idle" and app.snapshot.paused
             press(app, "t")
-            await until(lambda: isinstance(app.screen, SeekDialog), "the seek dialog")
+            await until(dialog, "the seek dialog")
             app.screen.query_one(Input).value = "100"
             await pilot.press("enter")
             await until(at(100.0), "t = 100 s")
@@ -89,7 +92,7 @@ def test_the_replay_console_seeks_steps_and_goes_to_the_next_event(recording: An
             await until(at(99.0), "a step back to 99 s")
             await pilot.pause()
             press(app, "t")
-            await until(lambda: isinstance(app.screen, SeekDialog), "the seek dialog again")
+            await until(dialog, "the seek dialog again")
             app.screen.query_one(Input).value = "5"
             await pilot.press("enter")
             await until(at(5.0), "t = 5 s")
@@ -98,7 +101,7 @@ def test_the_replay_console_seeks_steps_and_goes_to_the_next_event(recording: An
             assert app.snapshot.phase == "hiding" and app.snapshot.time_s == pytest.approx(
                 mapped, abs=0.5)
             press(app, "t")
-            await until(lambda: isinstance(app.screen, SeekDialog), "the seek dialog, kinds")
+            await until(dialog, "the seek dialog, kinds")
             app.screen.query_one(Input).value = "phase"
             target = ix.next_event(app.snapshot.time_s, "phase")
             await pilot.press("enter")
@@ -198,9 +201,11 @@ def test_the_forked_console_opens_the_fault_dialog_at_the_fork(recording: Any) -
     app = ForkConsoleApp(live)
 
     async def go() -> None:
-        async with app.run_test(size=(120, 40)):
-            await until(lambda: isinstance(app.screen, FaultDialog) or app.system_error,
+        async with app.run_test(size=(120, 40)) as pilot:
+            await until(lambda: (isinstance(app.screen, FaultDialog)
+                                 and app.screen.query("Select")) or app.system_error,
                         "the fault dialog", timeout=120.0)  # 20 s of a game, on a busy machine
+            await pilot.pause()
             assert app.system_error is None
             assert live.checker.compared == 20 and app.snapshot.paused
 
