@@ -214,3 +214,17 @@ def test_cli_fork_of_a_missing_file_is_bad_input(tmp_path: Any,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot read" in err[0]
     assert main(["run", "--scenario", SCENARIO, "--fork-at", "5"]) == 2
+
+
+def test_recording_does_not_change_a_game_with_a_crash_and_a_restart(recorded: Any,
+                                                                     faulted: Any) -> None:
+    """The faulted fork, played again unrecorded, has the recorded fork's trace hash."""
+    report, _ = fork_game(recorded[2], 60.0, faults=[("mapper/nav", "crash", 0.0)])
+    assert report.trace_hash == faulted[0].trace_hash and report.restarts >= 1
+
+
+def test_the_package_exports_its_public_names() -> None:
+    """Every name in supervisors.recording.__all__ exists."""
+    import supervisors.recording as recording  # noqa: PLC0415
+
+    assert all(hasattr(recording, name) for name in recording.__all__)
