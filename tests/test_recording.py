@@ -197,6 +197,8 @@ def test_fork_refuses_what_it_cannot_do(recorded: Any) -> None:
     with pytest.raises(ForkError, match="--hide: the recorded game sent the hider at"):
         plan_fork(rec, 150.0, hide=(100.0, 100.0, 0.0))
     assert plan_fork(rec, 10.0, hide=(100.0, 100.0, 0.0)).hide_at == (100.0, 100.0, 0.0)
+    with pytest.raises(ForkError, match="--fault: .*bogus"):
+        plan_fork(rec, 10.0, faults=[("mapper/lidar", "bogus", 5.0)])
 
 
 def test_reading_a_file_that_is_not_a_recording_fails_clearly(tmp_path: Any) -> None:

@@ -13,6 +13,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from supervisors.recording.reading import Recording
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     return _fork(system.rec, app.fork_at)
 
 
-def _fork(rec, at_s: float) -> int:
+def _fork(rec: Recording, at_s: float) -> int:
     """The live console on the game forked at ``at_s``."""
     from supervisors.recording.fork import ForkDiverged, ForkError
     from tui.replay.fork_live import ForkConsoleApp, ForkLiveSystem

@@ -14,12 +14,22 @@ import argparse
 import json
 import sys
 import time
+from typing import TYPE_CHECKING
 
 import trio
 
 from actors import JsonLinesRecorder, Trace, seed_trio_scheduler, virtual_clock
 from supervisors.harness.headless import Budget, GameReport, run_game
-from world.scenario import ScenarioError, builtin_scenarios, generate_scenario, load_scenario
+from world.scenario import (
+    Scenario,
+    ScenarioError,
+    builtin_scenarios,
+    generate_scenario,
+    load_scenario,
+)
+
+if TYPE_CHECKING:
+    from supervisors.recording import Recorder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -146,7 +156,7 @@ def _fork(args: argparse.Namespace) -> int:
     return 0 if report.outcome == "found" else 1
 
 
-def _recorder(args: argparse.Namespace, scenario):
+def _recorder(args: argparse.Namespace, scenario: Scenario) -> Recorder | None:
     """The ``--record`` observer, or None (raises RecordingError when the file cannot be made)."""
     if not args.record:
         return None

@@ -32,6 +32,7 @@ import trio
 from actors import EventKind, seed_trio_scheduler, virtual_clock
 from supervisors.harness.headless import Budget, GameReport, run_game
 from supervisors.system import SimSystem
+from world.faults import check_fault
 from world.scenario import ScenarioError, ScheduledFault
 
 from .reading import Recording, read_recording
@@ -129,8 +130,9 @@ def plan_fork(rec: Recording, at_s: float, *,
         seek: guesses (room frame [cm]) instead of the scenario's.
 
     Raises:
-        ForkError: ``at_s`` outside the recording, a console recording, or a hide spot or
-            guesses given after the recorded game already sent the hider or the seeker.
+        ForkError: ``at_s`` outside the recording, a console recording, a fault that does
+            not fit its target, or a hide spot or guesses given after the recorded game
+            already sent the hider or the seeker.
     """
     if rec.run.operator != "headless":
         raise ForkError(f"{rec.path}: recorded from the console: a person's choices cannot be "
@@ -144,10 +146,15 @@ def plan_fork(rec: Recording, at_s: float, *,
             raise ForkError(f"--{name}: the recorded game sent the "
                             f"{'hider' if name == 'hide' else 'seeker'} at t={sent:.1f} s, "
                             f"before --fork-at {at_s:g}: fork earlier")
-    extra = tuple(ScheduledFault(at_s, target, kind, float(duration))
-                  for target, kind, duration in faults)
+    extra = []
+    for target, kind, duration in faults:
+        try:
+            params = check_fault(target, kind, float(duration), {})
+        except ValueError as exc:
+            raise ForkError(f"--fault: {exc}") from None
+        extra.append(ScheduledFault(at_s, target, kind, float(duration), params))
     return dataclasses.replace(
-        rec.run, code=code_version(), extra_faults=rec.run.extra_faults + extra,
+        rec.run, code=code_version(), extra_faults=rec.run.extra_faults + tuple(extra),
         hide_at=hide if hide is not None else rec.run.hide_at,
         seek_at=tuple(seek) if seek is not None else rec.run.seek_at)
 
