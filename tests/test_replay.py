@@ -57,6 +57,20 @@ def test_the_index_tells_the_game_at_any_time(recording: Any) -> None:
     assert len(log) == 200 and log[-1].time_s <= mapped / 2
 
 
+def test_the_replay_shows_the_hide_spot_and_guesses_in_the_map_frame(recording: Any) -> None:
+    """The headless operator's room-frame choices, moved into the map frame."""
+    rec, _ = recording
+    scenario = load_scenario("empty")
+    start, hide = scenario.starts["mapper"], scenario.hide_at
+    assert start.heading_deg == 0.0  # so the map frame is the room frame moved by the start
+    spot, guesses = ReplaySystem(rec).index.commands(rec.end_s)
+    assert spot is not None
+    assert (spot.x_cm, spot.y_cm, spot.heading_deg) == pytest.approx(
+        (hide.x - start.x, hide.y - start.y, hide.heading_deg))
+    assert guesses[0] == pytest.approx((scenario.seek_at[0][0] - start.x,
+                                        scenario.seek_at[0][1] - start.y))
+
+
 def test_parse_seek_takes_a_time_or_an_event_kind() -> None:
     """``120``, ``120 s`` and ``fault`` are understood; anything else is refused clearly."""
     assert parse_seek("120") == 120.0 == parse_seek("120 s")

@@ -88,16 +88,16 @@ class ReplayIndex:
 
     Args:
         rec: a recording read whole (`read_recording` with every topic).
-        map_from_room: a function taking a room-frame point [cm] to the map frame,
-            for the hide spot and guesses (the headless operator gives them in the room
-            frame); None: shown as given.
+        map_from_room: a function taking a room-frame pose (x, y [cm], heading [deg])
+            to the map frame, for the hide spot and guesses (the headless operator gives
+            them in the room frame); None: shown as given.
     """
 
     def __init__(self, rec: Recording, map_from_room: Any = None) -> None:
         self.rec = rec
         self.start_s = rec.start_s
         self.end_s = rec.end_s
-        self._to_map = map_from_room or (lambda x, y: (x, y))
+        self._to_map = map_from_room or (lambda x, y, h: (x, y, h))
         self._grids = rec.topic("/map/working") + rec.topic("/map/uploaded")
         self._grids.sort(key=lambda item: item[0])
         self._grid_t = _times(self._grids)
@@ -219,11 +219,11 @@ class ReplayIndex:
             kv = dict(_KV.findall(log["message"]))
             if kv.get("command") not in ("hide", "seek") or "x" not in kv:
                 continue
-            x, y = float(kv["x"]), float(kv["y"])
+            x, y, h = float(kv["x"]), float(kv["y"]), float(kv.get("heading", 0.0))
             if kv.get("frame") == "room":
-                x, y = self._to_map(x, y)
+                x, y, h = self._to_map(x, y, h)
             if kv["command"] == "hide":
-                hide = Pose(x, y, float(kv.get("heading", 0.0)))
+                hide = Pose(x, y, h)
             else:
                 guesses.append((x, y))
         return hide, tuple(guesses)

@@ -37,9 +37,9 @@ def _map_from_room(rec: Recording) -> Any:
         return None
     to_map = inverse(Pose2(start.x, start.y, start.heading_deg))
 
-    def convert(x: float, y: float) -> tuple[float, float]:
-        p = compose(to_map, Pose2(x, y, 0.0))
-        return p.x, p.y
+    def convert(x: float, y: float, heading: float = 0.0) -> tuple[float, float, float]:
+        p = compose(to_map, Pose2(x, y, heading))
+        return p.x, p.y, p.heading
     return convert
 
 
