@@ -46,7 +46,7 @@ REPLAY_ACTIONS: tuple[UiAction, ...] = (
 _NAMES = {**_KEY_NAMES, "full_stop": ".", "comma": ","}
 
 
-class ReplayApp(ConsoleApp):
+class ReplayApp(ConsoleApp, inherit_bindings=False):
     """The console replaying a recording (see the module docstring).
 
     Args:
@@ -54,7 +54,6 @@ class ReplayApp(ConsoleApp):
     """
 
     TITLE = "hideseek replay"
-    inherit_bindings = False
     BINDINGS = [Binding(a.key, a.action, a.label, show=a.footer,
                         key_display=_NAMES.get(a.key)) for a in REPLAY_ACTIONS]
     BINDINGS += [b for b in ConsoleApp.BINDINGS  # ctrl+c, escape: as in the console
