@@ -207,6 +207,14 @@ def test_the_fork_key_closes_the_replay_with_its_time(recording: Any) -> None:
     assert app.fork_at == pytest.approx(42.0)
 
 
+def test_the_replay_offers_none_of_the_games_commands() -> None:
+    """The replay's keys are its own: no mapping, hide, seek or fault keys from the console."""
+    actions = {b.action for bindings in ReplayApp._merge_bindings().key_to_bindings.values()
+               for b in bindings}
+    assert {"toggle_pause", "seek", "next_event", "fork", "quit"} <= actions
+    assert not actions & {"start_mapping", "confirm", "faults", "new_game", "record"}
+
+
 def test_the_forked_console_opens_the_fault_dialog_at_the_fork(recording: Any) -> None:
     """In the console (Trio as Textual's guest): the fork follows the recording to T, then
     the fault dialog is open."""
