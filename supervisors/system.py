@@ -252,7 +252,9 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
     async with contextlib.AsyncExitStack() as stack:
         if server is None:
             server = await stack.enter_async_context(
-                open_server(store, ServerConfig(origins=scenario_origins(scenario))))
+                open_server(store, ServerConfig(
+                    origins=scenario_origins(scenario), simulated=tuple(roles),
+                    rovers=frozenset(ROLES) - set(roles))))  # attached rovers: id = role
         memories = []
         for role in roles:
             link = world.wifly_link(role)
