@@ -74,6 +74,8 @@ class SimSystem:
     _world_origin: list[float] = field(default_factory=lambda: [0.0])
     """[Trio time at which the world's time was 0 [s]], set as the world starts stepping."""
     _actor_fault_ids: int = 0
+    memory_links: dict[str, Any] = field(default_factory=dict)
+    """Role -> the server's `MemoryLink` to that simulated rover (for recorders)."""
 
     def world_lag(self) -> float:
         """How far the world's stepping is behind Trio's clock [s] (about 0 when it keeps up).
@@ -272,6 +274,7 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
                 trees[role] = await actors.start_supervisor(spec, role)
             system = SimSystem(scenario, seed, world, server, actors, trees, fault_log,
                                origin)
+            system.memory_links = dict(zip(roles, memories, strict=True))
             nursery.start_soon(_watch_scheduled_actor_faults, system)
             try:
                 yield system

@@ -81,6 +81,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="SQLite file for the results (default hideseek-campaign.sqlite; "
                              "':memory:' to keep none)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    parser.add_argument("--record-failures", metavar="DIR",
+                        help="after the campaign, play each failed game again recorded as "
+                             "DIR/game-I.mcap (open with hideseek replay)")
 
 
 def code_version() -> str | None:
@@ -201,6 +204,45 @@ def _print_table(s: dict[str, Any]) -> None:
         print(f"    reproduce: {f['reproduce']}")
 
 
+def _record_dir(path: str) -> Path:
+    """The ``--record-failures`` folder, made if missing.
+
+    Raises:
+        CampaignError: it cannot be made (a file of that name, no permission).
+    """
+    folder = Path(path)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CampaignError(f"--record-failures {path!r}: {exc.strerror or exc}") from None
+    return folder
+
+
+def _record_failures(folder: str, failures: list[dict[str, Any]], results: list[dict[str, Any]],
+                     *, out: TextIO) -> None:
+    """Play each failed game again by its campaign reference, recorded (the path of
+    ``hideseek run --campaign REF --record FILE``); say whether it is the same game."""
+    from supervisors.harness.campaign import game_from_ref  # noqa: PLC0415
+    from supervisors.recording.play import record_game  # noqa: PLC0415
+    from supervisors.recording.recorder import RecordingError  # noqa: PLC0415
+
+    by_index = {r["index"]: r for r in results}
+    print(f"\nrecording {len(failures)} failed game(s) into {folder} ...", file=out, flush=True)
+    for f in failures:
+        r = by_index[f["index"]]
+        path = Path(folder) / f"game-{f['index']}.mcap"
+        try:
+            scenario, seed, budget = game_from_ref(r["ref"])
+            report = record_game(scenario, seed, path, budget_s=budget, campaign=r["ref"])
+        except (CampaignError, RecordingError) as exc:
+            print(f"  game {f['index']}: not recorded: {exc}", file=out)
+            continue
+        same = "the campaign's game" if report.trace_hash == r.get("trace_hash") else (
+            f"NOT the campaign's game (trace hash {report.trace_hash}, campaign "
+            f"{r.get('trace_hash')})")
+        print(f"  game {f['index']}: {path} ({report.outcome}; {same})", file=out)
+
+
 def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
     """Run the campaign the options describe; ``worker`` is for tests."""
     try:
@@ -218,6 +260,8 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
         if args.max_wall is not None and not 0 < args.max_wall <= 1e6:
             raise CampaignError(f"--max-wall must be within (0, 1e6] minutes, "
                                 f"got {args.max_wall}")
+        if args.record_failures:
+            _record_dir(args.record_failures)
         store = CampaignStore(args.out)
     except CampaignError as exc:
         print(f"hideseek campaign: {exc}", file=sys.stderr)
@@ -261,6 +305,9 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
         print(json.dumps(summary))
     else:
         _print_table(summary)
+    if args.record_failures and summary["failures"]:
+        _record_failures(args.record_failures, summary["failures"], results,
+                         out=sys.stderr if args.json else sys.stdout)
     if len(results) < games:
         return 130
     return 1 if summary["failures"] else 0
