@@ -172,7 +172,7 @@ def _guarded(body, cpu_s: float, factor: float) -> str:
     """Run ``body`` in Trio under a `_Guard`; return what stopped it ("" if nothing)."""
     import trio  # noqa: PLC0415
 
-    from supervisors.harness.campaign import _Guard  # noqa: PLC0415
+    from supervisors.harness.campaign.play import _Guard  # noqa: PLC0415
 
     fired = []
 
