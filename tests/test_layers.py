@@ -43,7 +43,8 @@ def imported_modules(path: pathlib.Path) -> list[tuple[int, str]]:
 #: the modules outside tui/ that wire world, server and rovers together
 #: (a path ending in "/" names every module of that package)
 WIRING_MODULES = ("supervisors/system.py", "supervisors/harness/headless.py",
-                  "supervisors/harness/campaign/", "supervisors/harness/invariants.py",
+                  "supervisors/harness/campaign/", "supervisors/harness/shrink/",
+                  "supervisors/harness/invariants.py",
                   "supervisors/remote.py")
 
 

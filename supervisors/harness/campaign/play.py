@@ -27,8 +27,9 @@ from server.store import Store, StoreError
 from supervisors.harness import invariants as inv
 from supervisors.harness.campaign.plan import GameSpec, plan_game
 from supervisors.harness.campaign.refs import parse_game_ref
-from supervisors.harness.headless import GameReport, finish_report, play_game
+from supervisors.harness.headless import Budget, GameReport, finish_report, play_game
 from supervisors.system import open_sim_system
+from world.scenario import Scenario
 
 _DRAIN_S = 30.0             # simulated time allowed after the game for in-flight frames [s]
 _DRAIN_POLL_S = 0.5
@@ -72,12 +73,26 @@ async def play_checked(spec: GameSpec, *, trace: Trace | None = None,
                        ) -> tuple[GameReport, dict[str, Any]]:
     """Play one campaign game with its probes; return the report and the checks.
 
+    `play_checked_scenario` with the game's room and faults, run seed and budget.
+    """
+    return await play_checked_scenario(spec.scenario(), spec.run_seed, spec.config.budget(),
+                                       trace=trace, drain_s=drain_s, nav_factory=nav_factory)
+
+
+async def play_checked_scenario(scenario: Scenario, run_seed: int, budget: Budget, *,
+                                trace: Trace | None = None, drain_s: float = _DRAIN_S,
+                                nav_factory: Callable[..., Any] | None = None
+                                ) -> tuple[GameReport, dict[str, Any]]:
+    """Play a scenario (faults included) with the campaign's probes; return report and checks.
+
     The game runs as `supervisors.harness.headless.run_game` runs it (same system,
     same driver, same report), so its trace hash is the one ``hideseek run``
     gives; the probes only copy bytes and count events.
 
     Args:
-        spec: the game.
+        scenario: the room with its fault schedule.
+        run_seed: the seed the game runs with.
+        budget: the simulated-time limits.
         trace: the trace hub (a new one by default).
         drain_s: simulated time allowed after the game for in-flight frames
             and restarting actors [s].
@@ -88,11 +103,9 @@ async def play_checked(spec: GameSpec, *, trace: Trace | None = None,
         (report, checks) where checks has ``violations`` (list of str),
         ``faults_fired`` and the event counts.
     """
-    scenario = spec.scenario()
-    report = GameReport(scenario.name, spec.run_seed)
-    budget = spec.config.budget()
+    report = GameReport(scenario.name, run_seed)
     with Store(":memory:") as store:
-        async with open_sim_system(scenario, seed=spec.run_seed, store=store,
+        async with open_sim_system(scenario, seed=run_seed, store=store,
                                    trace=trace, nav_factory=nav_factory) as system:
             probe = inv.DeliveryProbe.install(system, trio.current_time)
             counts = inv.TraceCounts(system.actors.trace)
@@ -185,8 +198,25 @@ class _Guard:
 
 def _run_one(spec: GameSpec, wall_timeout_s: float | None,
              nav_factory: Callable[..., Any] | None = None) -> tuple[GameReport, dict]:
-    """Play a game in a fresh Trio run on a virtual clock, cancelled by a `_Guard`."""
-    seed_game_scheduler(spec.run_seed)
+    """Play a campaign game in a fresh Trio run (`run_checked`)."""
+    return run_checked(spec.scenario(), spec.run_seed, spec.config.budget(), wall_timeout_s,
+                       nav_factory)
+
+
+def run_checked(scenario: Scenario, run_seed: int, budget: Budget,
+                wall_timeout_s: float | None,
+                nav_factory: Callable[..., Any] | None = None
+                ) -> tuple[GameReport, dict[str, Any]]:
+    """Play a scenario in a fresh Trio run on a virtual clock, cancelled by a `_Guard`.
+
+    Trio's scheduling is seeded from ``run_seed`` first (`seed_game_scheduler`),
+    so the same arguments give the same game (trace hash) in any process.
+
+    Raises:
+        TimeoutError: the guard stopped the play (``wall_timeout_s``, see
+            `play_campaign_game`); anything the game raised.
+    """
+    seed_game_scheduler(run_seed)
     guards: list[_Guard] = []
 
     async def main() -> tuple[GameReport, dict]:
@@ -194,7 +224,8 @@ def _run_one(spec: GameSpec, wall_timeout_s: float | None,
             if wall_timeout_s is not None:
                 guards.append(_Guard(wall_timeout_s, trio.lowlevel.current_trio_token(),
                                      scope.cancel))
-            return await play_checked(spec, nav_factory=nav_factory)
+            return await play_checked_scenario(scenario, run_seed, budget,
+                                               nav_factory=nav_factory)
         raise TimeoutError("game stopped by the guard after "
                            + (guards[0].fired if guards else "a cancellation"))
 
