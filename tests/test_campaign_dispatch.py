@@ -105,7 +105,7 @@ class _RecordingPool:
 
     def imap_unordered(self, func, jobs, chunksize=1):
         for job in jobs:
-            self.refs.append(job[1])
+            self.refs.append(job[1][0])  # job: (entry point, (ref,), options)
             yield func(job)
 
 

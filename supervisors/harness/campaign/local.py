@@ -13,15 +13,16 @@ import os
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
-#: one job: (entry point, game reference, replay for determinism, guard [s])
-Job = tuple[Callable[..., dict[str, Any]], str, bool, float | None]
-_RECYCLE_EVERY = 100        # games a worker process plays before it is replaced
+#: one job: (module-level entry point, positional arguments, keyword arguments)
+Job = tuple[Callable[..., dict[str, Any]], tuple[Any, ...], dict[str, Any]]
+#: games a worker process plays before it is replaced (the Ray engine's ``max_calls`` too)
+RECYCLE_EVERY = 100
 
 
 def call(job: Job) -> dict[str, Any]:
-    """Play one job (the pool's task; module-level, so ``spawn`` workers can unpickle it)."""
-    worker, ref, determinism, wall_timeout_s = job
-    return worker(ref, determinism=determinism, wall_timeout_s=wall_timeout_s)
+    """Run one job (an engine's task; module-level, so workers can unpickle it by name)."""
+    fn, args, kwargs = job
+    return fn(*args, **kwargs)
 
 
 def default_workers() -> int:
@@ -32,16 +33,42 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def play_in_pool(jobs: Iterable[Job], workers: int, *, pool: Any = None
-                 ) -> Iterator[dict[str, Any]]:
-    """Play ``jobs`` on ``workers`` processes (or on ``pool``); yield results as they finish.
+class LocalEngine:
+    """Jobs on a pool of local ``spawn`` processes, results as they finish.
 
-    Closing the generator stops the pool it started: games in flight are
-    abandoned.
+    Args:
+        workers: worker processes (>= 1).
+        pool: an already started ``multiprocessing`` pool to use instead
+            (``workers`` then only reports its size); benchmarks pass a
+            warmed-up one.
     """
-    if pool is not None:
-        yield from pool.imap_unordered(call, jobs, chunksize=1)
-        return
-    ctx = multiprocessing.get_context("spawn")
-    with ctx.Pool(workers, maxtasksperchild=_RECYCLE_EVERY) as started:
-        yield from started.imap_unordered(call, jobs, chunksize=1)
+
+    name = "local"
+
+    def __init__(self, workers: int, *, pool: Any = None) -> None:
+        self.workers, self._pool = workers, pool
+
+    def map(self, jobs: Iterable[Job], *,
+            lost: Callable[[Job, BaseException], dict[str, Any]] | None = None
+            ) -> Iterator[dict[str, Any]]:
+        """Run ``jobs``; yield each result as it finishes.
+
+        ``lost`` is the Ray engine's (a pool whose worker dies fails the
+        ``multiprocessing`` way). Closing the generator stops the pool it
+        started: jobs in flight are abandoned.
+        """
+        if self._pool is not None:
+            yield from self._pool.imap_unordered(call, jobs, chunksize=1)
+            return
+        ctx = multiprocessing.get_context("spawn")
+        with ctx.Pool(self.workers, maxtasksperchild=RECYCLE_EVERY) as started:
+            yield from started.imap_unordered(call, jobs, chunksize=1)
+
+    def close(self) -> None:
+        """Nothing to release: each `map` owns its pool."""
+
+    def __enter__(self) -> LocalEngine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

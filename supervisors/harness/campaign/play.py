@@ -295,6 +295,18 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
     return out
 
 
+def lost_result(ref: str, why: str) -> dict[str, Any]:
+    """The result of a game an engine could not play (its worker died every time it tried).
+
+    A failure with a ``harness.worker_lost`` violation, so the summary shows it
+    with the command that plays it alone.
+    """
+    out = _blank_result(plan_game(*parse_game_ref(ref)))
+    out["violations"] = [f"harness.worker_lost: {why}"]
+    out["reason"] = why
+    return out
+
+
 def _blank_result(spec: GameSpec) -> dict[str, Any]:
     """The result of a game not (yet) played: what is known from its plan alone."""
     return {

@@ -17,6 +17,8 @@ from supervisors.harness.shrink.ddmin import ddmin
 from supervisors.harness.shrink.game import (
     play_scenario,
     shrink_campaign_game,
+    shrink_failure,
+    shrink_failures,
     shrink_game,
     with_faults,
 )
@@ -35,6 +37,6 @@ from supervisors.harness.shrink.toml import scenario_toml
 
 __all__ = [
     "ddmin", "shrink_schedule", "shrink_game", "shrink_campaign_game", "play_scenario",
-    "with_faults", "scenario_toml", "describe", "Failure", "Played", "ShrinkError",
-    "ShrinkOutcome", "MILDER", "DEFAULT_MAX_RUNS", "DEFAULT_RESOLUTION_S",
+    "with_faults", "shrink_failure", "shrink_failures", "scenario_toml", "describe", "Failure",
+    "Played", "ShrinkError", "ShrinkOutcome", "MILDER", "DEFAULT_MAX_RUNS", "DEFAULT_RESOLUTION_S",
 ]

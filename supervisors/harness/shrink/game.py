@@ -12,18 +12,20 @@ point an engine calls (strings and numbers in, a JSON-able dict out), as
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any
 
+from supervisors.harness.campaign.local import call
 from supervisors.harness.campaign.plan import plan_game
 from supervisors.harness.campaign.play import run_checked
-from supervisors.harness.campaign.refs import parse_game_ref
+from supervisors.harness.campaign.refs import CampaignError, parse_game_ref
 from supervisors.harness.headless import Budget
 from supervisors.harness.shrink.schedule import (
     DEFAULT_MAX_RUNS,
     DEFAULT_RESOLUTION_S,
     Failure,
     Played,
+    ShrinkError,
     describe,
     shrink_schedule,
 )
@@ -137,3 +139,38 @@ def shrink_campaign_game(ref: str, *, max_runs: int = DEFAULT_MAX_RUNS,
     out["index"] = index
     out["ref"] = spec.ref
     return out
+
+
+def shrink_failure(ref: str, **options: Any) -> dict[str, Any]:
+    """`shrink_campaign_game` as an engine job: never raises for a game that cannot shrink.
+
+    A game that does not fail when played again (it should: games are
+    deterministic) or a bad reference gives ``{"ref", "index", "error"}``.
+    """
+    try:
+        return shrink_campaign_game(ref, **options)
+    except (ShrinkError, CampaignError) as exc:
+        return {"ref": ref, "index": parse_game_ref(ref)[1] if ":" in ref else None,
+                "error": str(exc)}
+
+
+def shrink_failures(results: Iterable[dict[str, Any]], *, engine: Any = None,
+                    max_runs: int = DEFAULT_MAX_RUNS,
+                    resolution_s: float = DEFAULT_RESOLUTION_S,
+                    wall_timeout_s: float | None = 600.0) -> Iterator[dict[str, Any]]:
+    """Shrink each failed campaign game that had faults; yield the reports as they finish.
+
+    Each shrink is one job on ``engine`` (an engine of
+    `supervisors.harness.campaign.engines`, the same the games ran on), so the
+    failures shrink in parallel; with no engine, one after another here.
+    """
+    options = {"max_runs": max_runs, "resolution_s": resolution_s,
+               "wall_timeout_s": wall_timeout_s}
+    jobs = [(shrink_failure, (r["ref"],), options) for r in sorted(results, key=lambda r:
+            r["index"]) if r["faults"] and (r["outcome"] != "found" or r["violations"])]
+    if engine is None:
+        yield from (call(job) for job in jobs)
+        return
+    yield from engine.map(jobs, lost=lambda job, exc: {
+        "ref": job[1][0], "index": parse_game_ref(job[1][0])[1],
+        "error": f"worker lost: {type(exc).__name__}"})
