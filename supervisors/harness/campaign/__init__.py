@@ -13,8 +13,9 @@ The package, bottom up (each module imports only those above it):
 - `dispatch`: which game to start first (longest expected first);
 - `play`: one game with its probes and invariant checks
   (`play_campaign_game`, the worker entry point every engine calls);
-- `local`: the local process pool; `run`: `run_campaign`, which orders the
-  games and hands them to an engine;
+- `local` and `cluster`: the engines, a local process pool and Ray
+  (`engines.open_engine` makes one by name);
+- `run`: `run_campaign`, which orders the games and hands them to an engine;
 - `summary` and `store`: the JSON summary and the SQLite results.
 
 The names below are the package's promise; everything else is importable
@@ -27,6 +28,7 @@ from supervisors.harness.campaign.dispatch import (
     dispatch_order,
     expected_cpu_s,
 )
+from supervisors.harness.campaign.engines import ENGINES, open_engine
 from supervisors.harness.campaign.local import default_workers
 from supervisors.harness.campaign.plan import (
     ACTORS_BY_ROLE,
@@ -58,5 +60,5 @@ __all__ = [
     "parse_game_ref", "game_from_ref", "select_kinds", "play_campaign_game", "play_checked",
     "run_campaign", "summarize", "CampaignStore", "ACTORS_BY_ROLE", "default_workers",
     "MAX_GAMES", "seed_game_scheduler", "ROOM_CPU_S", "ORDER_BLOCK", "expected_cpu_s",
-    "dispatch_order", "WALL_GUARD_FACTOR",
+    "dispatch_order", "WALL_GUARD_FACTOR", "ENGINES", "open_engine",
 ]
