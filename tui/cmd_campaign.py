@@ -242,7 +242,7 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
     progress = Progress(games, sys.stderr, enabled=not args.no_progress)
     if not args.json:
         print(f"campaign seed {config.seed}: {games} games, {config.mode} faults, "
-              f"{workers} workers ...", flush=True)
+              f"{engine.workers if engine else workers} workers ...", flush=True)
     results = []
     stopped = None
     code_at_start = code_version()
