@@ -89,6 +89,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "CPUs; needs pip install 'hideseek[cluster]')")
     parser.add_argument("--address", default=None, metavar="ADDR",
                         help="the Ray cluster to join: HOST:PORT, ray://HOST:PORT or auto")
+    parser.add_argument("--swarm", action="store_true",
+                        help="swarm testing: each game draws its own subset of the fault kinds "
+                             "and its own device parameters (link speed, sensor noise)")
     parser.add_argument("--shrink", action="store_true",
                         help="shrink each failure's faults to what it needs, in parallel on "
                              "the same engine, and write each as a scenario file")
@@ -126,6 +129,7 @@ def config_from_args(args: argparse.Namespace) -> CampaignConfig:
     kw: dict[str, Any] = {"seed": args.seed, "mode": args.mode,
                           "kinds": select_kinds(args.faults),
                           "mapping_budget_s": args.budget, "generated": args.generated}
+    kw["swarm"] = args.swarm
     if args.scenarios:
         kw["rooms"] = tuple(s.strip() for s in args.scenarios.split(",") if s.strip())
     if args.window:

@@ -51,6 +51,16 @@ _DRAW: dict[str, tuple[tuple[float, float], dict[str, tuple[float, float]]]] = {
 }
 _DEFAULT_DRAW = ((2.0, 20.0), {})
 _MAX_OVERLAP = 3            # faults at most per game in overlapping mode
+#: swarm mode: device parameters each game draws, name -> (low, high) drawn uniformly, in the
+#: field's units (world/params.py: noise [cm], odometry slip, IR noise [ADC counts], link
+#: speed [bytes/s] and latency [s]); the defaults lie inside each range
+SWARM_DEVICES: dict[str, tuple[float, float]] = {
+    "lidar_noise_cm": (0.2, 2.0),
+    "slip_sigma": (0.01, 0.05),
+    "ir_noise": (10.0, 60.0),
+    "wifly_bytes_s": (2880.0, 11520.0),
+    "wifly_latency_s": (0.002, 0.05),
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,6 +76,10 @@ class GameSpec:
     faults: tuple[ScheduledFault, ...]
     labels: tuple[str, ...]
     """The fault label of each fault, same order."""
+    devices: tuple[tuple[str, float], ...] = ()
+    """Device parameters this game overrides (swarm mode), as (name, value) pairs."""
+    kinds: tuple[str, ...] = ()
+    """The fault labels this game drew from (swarm mode: its own subset; else the campaign's)."""
 
     @property
     def ref(self) -> str:
@@ -81,6 +95,8 @@ class GameSpec:
         """The room with this game's fault schedule."""
         base = (generate_scenario(self.config.seed, self.index) if self.room == "generated"
                 else load_scenario(self.room))
+        if self.devices:
+            base = dataclasses.replace(base, devices={**base.devices, **dict(self.devices)})
         return dataclasses.replace(base, faults=tuple(sorted(
             base.faults + self.faults, key=lambda f: f.at_s)))
 
@@ -117,20 +133,39 @@ def plan_game(config: CampaignConfig, index: int) -> GameSpec:
         raise CampaignError(f"game index must be within 0..{MAX_GAMES - 1}, got {index!r}")
     rng = np.random.default_rng([config.seed, index])
     run_seed = int(rng.integers(1, 2**31 - 1))
+    kinds, devices = _swarm(rng, config.kinds) if config.swarm else (config.kinds, ())
     if config.mode == "single":
         n = 1
     elif config.mode == "overlapping":
         n = int(rng.integers(0, _MAX_OVERLAP + 1))
     else:
         n = 0
-    labels = tuple(config.kinds[int(rng.integers(len(config.kinds)))] for _ in range(n))
+    labels = tuple(kinds[int(rng.integers(len(kinds)))] for _ in range(n))
     faults = tuple(_draw_fault(rng, lab, config.window_s) for lab in labels)
     if config.generated:
         room = "generated"
     else:
         names = config.room_names()
         room = names[index % len(names)]
-    return GameSpec(config, index, run_seed, room, faults, labels)
+    return GameSpec(config, index, run_seed, room, faults, labels, devices, kinds)
+
+
+def _swarm(rng: np.random.Generator, kinds: tuple[str, ...]
+           ) -> tuple[tuple[str, ...], tuple[tuple[str, float], ...]]:
+    """A swarm game's own fault kinds (each kept with probability 1/2, at least one) and
+    device parameters (`SWARM_DEVICES`).
+
+    Swarm testing (Groce et al., ISSTA 2012): a fixed mix of every kind lets
+    the kinds mask each other, while games that each leave some out reach
+    more distinct failures. Drawn only in swarm mode, after the run seed,
+    so other campaigns' games stay as they were.
+    """
+    kept = tuple(k for k, keep in zip(kinds, rng.random(len(kinds)) < 0.5, strict=True)
+                 if keep)
+    chosen = kept or (kinds[int(rng.integers(len(kinds)))],)
+    devices = tuple((name, round(float(rng.uniform(lo, hi)), 4))
+                    for name, (lo, hi) in SWARM_DEVICES.items())
+    return chosen, devices
 
 
 def game_from_ref(ref: str) -> tuple[Scenario, int, float]:

@@ -319,6 +319,7 @@ def _blank_result(spec: GameSpec) -> dict[str, Any]:
         "restarts": 0, "resent": 0, "dropped": 0, "sim_s": 0.0, "wall_s": 0.0, "cpu_s": 0.0,
         "trace_hash": "", "replay_hash": None, "events": {}, "baseline": None,
         "baseline_violations": [], "wider_search": False, "hide_attempts": 0,
+        "devices": dict(spec.devices),
     }
 
 

@@ -77,6 +77,9 @@ class CampaignConfig:
     """Simulated time range in which faults start [s]."""
     mapping_budget_s: float = 1200.0
     """Simulated time allowed for mapping [s] (as ``hideseek run --budget``)."""
+    swarm: bool = False
+    """Swarm testing: each game draws its own subset of ``kinds`` and its own device
+    parameters (link speed, sensor noise) from its seed (`supervisors.harness.campaign.plan`)."""
     _builtins: tuple[str, ...] = field(default=(), init=False, repr=False, compare=False)
     """Every built-in room, read once here (reading them parses each file)."""
 
@@ -98,6 +101,8 @@ class CampaignConfig:
         lo, hi = self.window_s
         if not 0 <= lo <= hi or not math.isfinite(hi):
             raise CampaignError(f"fault window must be 0 <= start <= end, got {lo}-{hi}")
+        if not isinstance(self.swarm, bool):
+            raise CampaignError(f"swarm must be True or False, got {self.swarm!r}")
         if not 0 < self.mapping_budget_s <= 1e6:
             raise CampaignError(f"mapping budget must be within (0, 1e6] s, "
                                 f"got {self.mapping_budget_s!r}")
@@ -126,11 +131,15 @@ class CampaignConfig:
             parts.append(f"window={self.window_s[0]:g}-{self.window_s[1]:g}")
         if self.mapping_budget_s != default.mapping_budget_s:
             parts.append(f"budget={self.mapping_budget_s:g}")
+        if self.swarm:
+            parts.append("swarm=on")
         return ",".join(parts)
 
 
 def parse_game_ref(text: str) -> tuple[CampaignConfig, int]:
-    """Read a game reference ``S:i[,mode=..][,rooms=..][,faults=..][,window=A-B][,budget=..]``.
+    """Read a game reference ``S:i[,mode=..][,rooms=..][,faults=..][,window=A-B][,budget=..]...``.
+
+    Options: ``mode``, ``rooms``, ``faults``, ``window``, ``budget``, ``swarm`` (``on``).
 
     Raises:
         CampaignError: malformed reference or bad option.
@@ -164,9 +173,14 @@ def parse_game_ref(text: str) -> tuple[CampaignConfig, int]:
                 kw["window_s"] = (float(lo), float(hi))
             elif key == "budget":
                 kw["mapping_budget_s"] = float(value)
+            elif key == "swarm" and value in ("on", "off"):
+                kw["swarm"] = value == "on"
+            elif key == "swarm":
+                raise CampaignError(f"game reference option swarm must be on or off, "
+                                    f"got {value!r}")
             else:
                 raise CampaignError(f"unknown game reference option {key!r} (options: mode, "
-                                    "rooms, faults, window, budget)")
+                                    "rooms, faults, window, budget, swarm)")
         except ValueError as exc:
             if isinstance(exc, CampaignError):
                 raise
