@@ -158,11 +158,14 @@ class OccupancyField:
         return self.sample_xy(np.stack([np.asarray(x, dtype=np.float64),
                                         np.asarray(y, dtype=np.float64)]))
 
-    def sample_xy(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def sample_xy(self, xy: np.ndarray, out: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """`sample` of points stacked as rows x and y, (2, n) [cm]; ``xy`` is overwritten.
 
         Both axes go through each numpy call at once: with about a hundred hits
-        per scan the calls' overhead, not the arithmetic, is the cost.
+        per scan the calls' overhead, not the arithmetic, is the cost. With ``out``
+        (3, n), the value and the gradient are written into its rows (and returned
+        as views of them).
         """
         inv = 1.0 / self.resolution_cm
         # cell centres are the interpolation nodes: to node units, clamped to the crop
@@ -179,9 +182,12 @@ class OccupancyField:
         b = self._up_right[i] - v10
         top = v00 + a * fx
         vert = v10 + b * fx - top
-        val = top + vert * fy
-        dx = (a + (b - a) * fy) * inv
-        dy = vert * inv
+        if out is None:
+            return top + vert * fy, (a + (b - a) * fy) * inv, vert * inv
+        val, dx, dy = out[0], out[1], out[2]
+        np.add(top, vert * fy, out=val)
+        np.multiply(a + (b - a) * fy, inv, out=dx)
+        np.multiply(vert, inv, out=dy)
         return val, dx, dy
 
 
@@ -220,30 +226,32 @@ def _gauss_newton(field: OccupancyField, pts: np.ndarray, pose: np.ndarray, gues
                   iterations: int, damping: float, prior: np.ndarray) -> np.ndarray:
     """Damped Gauss-Newton with a quadratic pull ``prior`` (diagonal) toward ``guess``.
 
-    The normal equations are summed with dot products and solved in closed form: with
-    about a hundred hits the numpy call overhead, not the arithmetic, is the cost.
+    Each iteration is a few stacked products: the hits go to the map frame as one
+    (2, 3) x (3, n) product, the field writes its value and gradient into the rows of
+    one (4, n) array ``jr`` that then holds the Jacobian rows (d/dx, d/dy, d/dtheta)
+    and the residual, and ``jr[1:] @ jr.T`` is the normal matrix and the gradient at
+    once; the 3 x 3 system is solved in closed form. With about a hundred hits the
+    numpy call overhead, not the arithmetic, is the cost.
     """
     x, y, th = (float(v) for v in pose)
     gx0, gy0, gth0 = (float(v) for v in guess)
-    px, py = pts[:, 0], pts[:, 1]
-    p = np.stack([px, py])  # the hits as rows x, y
-    q = np.stack([-py, px])  # turned a quarter: c p + s q is the hits rotated by theta
+    n = len(pts)
+    hom = np.ones((3, n))  # the hits as rows x, y, 1 (homogeneous)
+    hom[:2] = pts.T
+    jr = np.empty((4, n))  # rows: residual (after the field's value), d/dx, d/dy, d/dtheta
+    r, mx, my, dth = jr
     lx, ly, lth = (float(v) for v in prior)
-    dot = np.dot
     for _ in range(iterations):
         c, s = math.cos(th), math.sin(th)
-        rot = c * p + s * q  # the hits rotated, relative to the rover
-        rx, ry = rot[0], rot[1]
-        m, mx, my = field.sample_xy(rot + np.array([[x], [y]]))
-        dth = my * rx - mx * ry
-        r = 1.0 - m
-        hxx, hxy, hxt = dot(mx, mx), dot(mx, my), dot(mx, dth)
-        hyy, hyt, htt = dot(my, my), dot(my, dth), dot(dth, dth)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0]]) @ hom  # the hits rotated, rover-relative
+        field.sample_xy(rot + np.array([[x], [y]]), out=jr[:3])
+        np.subtract(my * rot[0], mx * rot[1], out=dth)
+        np.subtract(1.0, r, out=r)
+        (gx, hxx, hxy, hxt), (gy, _, hyy, hyt), (gt, _, _, htt) = (jr[1:] @ jr.T).tolist()
         h = [[hxx * (1 + damping) + lx + 1e-9, hxy, hxt],
              [hxy, hyy * (1 + damping) + ly + 1e-9, hyt],
              [hxt, hyt, htt * (1 + damping) + lth + 1e-9]]
-        g = [dot(mx, r) - lx * (x - gx0), dot(my, r) - ly * (y - gy0),
-             dot(dth, r) - lth * (th - gth0)]
+        g = [gx - lx * (x - gx0), gy - ly * (y - gy0), gt - lth * (th - gth0)]
         step = _solve3(h, g)
         if step is None or not all(math.isfinite(v) for v in step):
             break
