@@ -201,11 +201,12 @@ def hits_to_local(angles_deg: np.ndarray, ranges_cm: np.ndarray, options: MatchO
     return np.column_stack([r * np.cos(a), r * np.sin(a)])
 
 
-def _to_map(pts: np.ndarray, x: float, y: float, theta: float
-            ) -> tuple[np.ndarray, np.ndarray, float, float]:
-    c, s = math.cos(theta), math.sin(theta)
-    px, py = pts[:, 0], pts[:, 1]
-    return x + c * px - s * py, y + s * px + c * py, c, s
+def _homogeneous(pts: np.ndarray) -> np.ndarray:
+    """Hits (n, 2) as the rows x, y, 1 of a (3, n) array: a pose's (2, 3) matrix
+    ``[[c, -s, x], [s, c, y]]`` times it puts them in the map frame in one product."""
+    hom = np.ones((3, len(pts)))
+    hom[:2] = pts.T
+    return hom
 
 
 def _solve3(h: list[list[float]], g: list[float]) -> tuple[float, float, float] | None:
@@ -222,23 +223,21 @@ def _solve3(h: list[list[float]], g: list[float]) -> tuple[float, float, float] 
     return x0, x1, x2
 
 
-def _gauss_newton(field: OccupancyField, pts: np.ndarray, pose: np.ndarray, guess: np.ndarray,
+def _gauss_newton(field: OccupancyField, hom: np.ndarray, pose: np.ndarray, guess: np.ndarray,
                   iterations: int, damping: float, prior: np.ndarray) -> np.ndarray:
     """Damped Gauss-Newton with a quadratic pull ``prior`` (diagonal) toward ``guess``.
 
-    Each iteration is a few stacked products: the hits go to the map frame as one
-    (2, 3) x (3, n) product, the field writes its value and gradient into the rows of
-    one (4, n) array ``jr`` that then holds the Jacobian rows (d/dx, d/dy, d/dtheta)
-    and the residual, and ``jr[1:] @ jr.T`` is the normal matrix and the gradient at
-    once; the 3 x 3 system is solved in closed form. With about a hundred hits the
-    numpy call overhead, not the arithmetic, is the cost.
+    Each iteration is a few stacked products: the hits (``hom``, see `_homogeneous`)
+    are turned as one (2, 3) x (3, n) product; the field writes its value and gradient
+    into the rows of one (4, n) array ``jr`` that then holds the residual and the
+    Jacobian rows (d/dx, d/dy, d/dtheta), and ``jr[1:] @ jr.T`` is the normal matrix
+    and the gradient at once; the 3 x 3 system is solved in closed form. With about a
+    hundred hits the numpy call overhead, not the arithmetic, is the cost.
     """
     x, y, th = (float(v) for v in pose)
     gx0, gy0, gth0 = (float(v) for v in guess)
-    n = len(pts)
-    hom = np.ones((3, n))  # the hits as rows x, y, 1 (homogeneous)
-    hom[:2] = pts.T
-    jr = np.empty((4, n))  # rows: residual (after the field's value), d/dx, d/dy, d/dtheta
+    jr = np.empty((4, hom.shape[1]))  # rows: the residual (first the field's value), d/dx,
+    # d/dy, d/dtheta
     r, mx, my, dth = jr
     lx, ly, lth = (float(v) for v in prior)
     for _ in range(iterations):
@@ -282,13 +281,15 @@ class MatchFields:
         self.narrow = OccupancyField(occ, origin_cm, resolution_cm, o.blur_narrow)
 
 
-def _score(fields: MatchFields, pts: np.ndarray, x: float, y: float, theta: float
+def _score(fields: MatchFields, hom: np.ndarray, x: float, y: float, theta: float
            ) -> tuple[float, float]:
-    """How well the hits placed at (x, y, theta) fit the map: the mean of the narrow
-    field, and the share of hits on a mapped obstacle (field above 0.25)."""
-    wx, wy, _, _ = _to_map(pts, x, y, theta)
-    m, _, _ = fields.narrow.sample(wx, wy)
-    return float(m.mean()), float(np.count_nonzero(m > 0.25)) / len(pts)
+    """How well the hits (``hom``, see `_homogeneous`) placed at (x, y, theta) fit the map:
+    the mean of the narrow field, and the share of hits on a mapped obstacle (field above
+    0.25)."""
+    c, s = math.cos(theta), math.sin(theta)
+    m, _, _ = fields.narrow.sample_xy(np.array([[c, -s, x], [s, c, y]]) @ hom)
+    n = m.size
+    return float(m.sum()) / n, float(np.count_nonzero(m > 0.25)) / n
 
 
 def _prior(pts: np.ndarray, o: MatchOptions) -> np.ndarray:
@@ -298,12 +299,12 @@ def _prior(pts: np.ndarray, o: MatchOptions) -> np.ndarray:
     return np.array([a, a, a * float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2))])
 
 
-def _fit(fields: MatchFields, pts: np.ndarray, start: np.ndarray, prior: np.ndarray,
+def _fit(fields: MatchFields, hom: np.ndarray, start: np.ndarray, prior: np.ndarray,
          o: MatchOptions) -> tuple[np.ndarray, float, float]:
     """Gauss-Newton from ``start`` (wide, then narrow); the pose, its score and support."""
-    est = _gauss_newton(fields.wide, pts, start, start, o.iterations, o.damping, prior)
-    est = _gauss_newton(fields.narrow, pts, est, start, o.iterations, o.damping, prior)
-    return (est, *_score(fields, pts, est[0], est[1], est[2]))
+    est = _gauss_newton(fields.wide, hom, start, start, o.iterations, o.damping, prior)
+    est = _gauss_newton(fields.narrow, hom, est, start, o.iterations, o.damping, prior)
+    return (est, *_score(fields, hom, est[0], est[1], est[2]))
 
 
 def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
@@ -326,9 +327,10 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
     if fields.empty:
         return MatchResult(guess, False, 0.0, 0.0, "no mapped obstacle to match against")
     theta0 = guess.heading_rad
-    score0, support0 = _score(fields, pts, guess.x, guess.y, theta0)
+    hom = _homogeneous(pts)
+    score0, support0 = _score(fields, hom, guess.x, guess.y, theta0)
     start = np.array([guess.x, guess.y, theta0])
-    est, score1, support1 = _fit(fields, pts, start, _prior(pts, o), o)
+    est, score1, support1 = _fit(fields, hom, start, _prior(pts, o), o)
     shift = math.hypot(est[0] - guess.x, est[1] - guess.y)
     turn = abs(math.degrees(est[2] - theta0))
     if max(support0, support1) < o.min_support:
@@ -391,20 +393,21 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     if len(pts) < o.min_points or fields.empty:
         return MatchResult(guess, False, 0.0, 0.0, "too few hits or nothing mapped")
     theta0 = guess.heading_rad
-    score0, _ = _score(fields, pts, guess.x, guess.y, theta0)
+    hom = _homogeneous(pts)
+    score0, _ = _score(fields, hom, guess.x, guess.y, theta0)
     prior = _prior(pts, o)
     n = int(r.turn_deg // r.step_deg)
     fits = []
     for k in range(-n, n + 1):
         start = np.array([guess.x, guess.y, theta0 + math.radians(k * r.step_deg)])
-        est, score, support = _fit(fields, pts, start, prior, o)
+        est, score, support = _fit(fields, hom, start, prior, o)
         if math.hypot(est[0] - guess.x, est[1] - guess.y) <= r.max_shift_cm:
             fits.append((score, support, est))
     if not fits:
         return MatchResult(guess, False, score0, score0, "no fit near the guess", True)
     score, support, est = max(fits, key=lambda f: f[0])
     # the pull toward each start biases its fit: polish the winner from where it ended
-    est, score, support = _fit(fields, pts, est, prior, o)
+    est, score, support = _fit(fields, hom, est, prior, o)
     rivals = [f[0] for f in fits
               if abs(math.degrees(f[2][2] - est[2])) > 2.0 * r.step_deg]
     rival = max(rivals, default=0.0)
