@@ -8,12 +8,20 @@ An actor handles one message at a time from its bounded mailbox::
 
 Life of one incarnation (run by its supervisor through `run_actor`):
 
-1. the factory makes the actor, ``ctx`` is attached, ``on_start()`` runs; a
-   failure here is a failed start (the supervisor's start fails);
+1. the factory makes the actor, ``ctx`` is attached, the child spec's ``init``
+   hook (if any) and then ``on_start()`` run; a failure here is a failed start
+   (the supervisor's start fails); `IGNORE` returned by the factory, the hook or
+   ``on_start`` means "do not start" (OTP's ``ignore``): no failure, no exit;
 2. the loop drains bursts: every waiting message is taken with
    ``receive_nowait`` and handled in turn, with one checkpoint per burst;
 3. on exit ``on_stop(reason)`` runs (not after ``killed``), the actor's timers
-   are cancelled and monitors get a `Down` notice.
+   are cancelled, every call it held or that waits in its mailbox fails with
+   the exit reason (`CallFailed`) and monitors get a `Down` notice.
+
+Self-chosen exits: ``ctx.stop()`` ends the incarnation with ``normal`` after the
+current message, ``ctx.stop("shutdown")`` with ``shutdown`` and
+``ctx.stop("shutdown", term)`` with OTP's ``{shutdown, term}``; the supervisor
+applies the child's restart type to it as to any exit.
 
 Replies: the value ``handle`` returns is the reply to a ``call``; for other
 messages it is ignored.
@@ -45,7 +53,7 @@ import trio
 from .call import CallEnvelope, CallFailed
 from .cell import ActorState, Cell, Monitor
 from .clock import HeapEntry, deadline_heap, sleep
-from .exits import HUNG, KILLED, NORMAL, SHUTDOWN, ExitReason
+from .exits import HUNG, IGNORE, KILLED, SHUTDOWN, ExitKind, ExitReason, Ignore
 from .timers import TaskTimer, Timer
 from .trace import EventKind, Trace
 
@@ -68,8 +76,9 @@ class Actor:
     ctx: ActorContext
     """Set by the runtime before `on_start`: name, system, trace, rng, timers."""
 
-    async def on_start(self) -> None:
-        """Called once per incarnation before the first message; raising fails the start."""
+    async def on_start(self) -> Any:
+        """Called once per incarnation before the first message; raising fails the start,
+        returning `IGNORE` leaves the child not started without failure (OTP's ``ignore``)."""
 
     async def handle(self, message: Any) -> Any:
         """Handle one message; the return value is the reply when it came by ``call``."""
@@ -113,7 +122,7 @@ class ActorContext:
         self._cell = cell
         self._timers: trio.Nursery | None = None  # set while the incarnation runs
         self._live_timers: dict[Timer | TaskTimer, None] = {}  # running timers, in start order
-        self._stop = False
+        self._stop: ExitReason | None = None  # the exit the actor chose, once it chose one
 
     # ---------------------------------------------------------------- messaging
     async def send(self, name: str, message: Any) -> None:
@@ -141,9 +150,25 @@ class ActorContext:
         """Messages waiting in this actor's mailbox."""
         return self._cell.mailbox.depth
 
-    def stop(self) -> None:
-        """Exit with reason ``normal`` after the current message."""
-        self._stop = True
+    def stop(self, kind: str = "normal", term: object = None) -> None:
+        """End this incarnation after the current message, with a reason of its choice.
+
+        ``stop()`` exits ``normal``, ``stop("shutdown")`` exits ``shutdown`` and
+        ``stop("shutdown", term)`` exits OTP's ``{shutdown, term}`` (kind ``shutdown``,
+        detail ``str(term)``). The supervisor applies the restart type: a
+        ``permanent`` child is restarted, a ``transient`` or ``temporary`` one is not.
+        To exit abnormally, raise.
+
+        Raises:
+            ValueError: ``kind`` is not ``normal`` or ``shutdown``, or a term with ``normal``.
+        """
+        if kind == ExitKind.NORMAL and term is None:
+            self._stop = ExitReason(ExitKind.NORMAL)
+        elif kind == ExitKind.SHUTDOWN:
+            self._stop = ExitReason.shutdown(term)
+        else:
+            raise ValueError(f"stop kind must be normal or shutdown (a term only with "
+                             f"shutdown), got {kind!r} with term {term!r}")
 
     # ---------------------------------------------------------------- timers
     def start_timer(self, delay: float, message: Any, *,
@@ -200,21 +225,26 @@ class ActorContext:
 
 # ---------------------------------------------------------------------- running one incarnation
 async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
-                    task_status: trio.TaskStatus[ExitReason | None] = trio.TASK_STATUS_IGNORED,
-                    ) -> ExitReason:
+                    init: Callable[[Actor], Any] | None = None,
+                    task_status: trio.TaskStatus[ExitReason | Ignore | None]
+                    = trio.TASK_STATUS_IGNORED) -> ExitReason | Ignore:
     """Run one incarnation of the actor registered as ``cell`` (runtime/supervisor use).
 
-    Reports ``task_status.started(None)`` once ``on_start`` succeeded, or
+    ``init(actor)`` (sync or async, optional) runs after ``ctx`` is attached and
+    before ``on_start``: the per-child start hook of a `ChildSpec`.
+
+    Reports ``task_status.started(None)`` once ``on_start`` succeeded,
+    ``started(IGNORE)`` when a start hook returned `IGNORE`, or
     ``started(reason)`` with a ``start_failed``/``killed`` reason when the start
     failed, so ``await nursery.start(run_actor, ...)`` returns None on success.
     ``cell.scope`` is the incarnation's kill switch (cancel it: reason ``killed``).
 
     Returns:
-        The exit reason.
+        The exit reason (`IGNORE` when ignored).
     """
     trace = system.trace
     started = False
-    reason: ExitReason = KILLED
+    reason: ExitReason | Ignore = KILLED
     ctx: ActorContext | None = None
     cell.state = ActorState.STARTING
     cell.stop_requested = False
@@ -224,13 +254,26 @@ async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
             async with trio.open_nursery() as timers:
                 try:
                     actor = factory()
+                    if actor is IGNORE:
+                        reason = IGNORE
+                        return reason
                     if not isinstance(actor, Actor):
                         raise TypeError(f"the factory must return an Actor, got {actor!r}")
                     ctx = ActorContext(system, cell)
                     ctx._timers = timers
                     actor.ctx = ctx
                     cell.actor = actor
-                    await actor.on_start()
+                    if init is not None:
+                        hooked = init(actor)
+                        if hasattr(hooked, "__await__"):
+                            hooked = await hooked
+                        if hooked is IGNORE:
+                            reason = IGNORE
+                    if reason is not IGNORE and await actor.on_start() is IGNORE:
+                        reason = IGNORE
+                    if reason is IGNORE:
+                        timers.cancel_scope.cancel()
+                        return reason
                 except Exception as exc:
                     reason = ExitReason.start_failed(f"{type(exc).__name__}: {exc}")
                     timers.cancel_scope.cancel()
@@ -242,6 +285,7 @@ async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
                 reason = await _serve_safely(cell, actor, ctx, trace, system.max_burst)
                 timers.cancel_scope.cancel()
             ctx._timers = None
+            cell.fail_calls(reason)  # calls left in the mailbox: fail them now, not after on_stop
             try:
                 await actor.on_stop(reason)
             except Exception as exc:
@@ -255,9 +299,12 @@ async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
             ctx._cancel_timers()  # timers stop with the incarnation, however it ended
         cell.scope = None
         cell.actor = None
-        cell.current = None
+        if cell.current is not None:  # killed while handling: its callers learn it now
+            _fail_held(cell, reason)
         cell.state = ActorState.STOPPED
-        cell.last_exit = reason
+        if type(reason) is ExitReason:
+            cell.last_exit = reason
+            cell.fail_calls(reason)
         if not started:
             task_status.started(reason)
         else:
@@ -275,6 +322,14 @@ async def _serve_safely(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trac
         trace.emit(EventKind.CRASH, cell.name, cell.name, None, cell.mailbox.depth, reason.detail)
         _drop_poison(cell, actor, trace, reason)
         return reason
+
+
+def _fail_held(cell: Cell, reason: Any) -> None:
+    """Fail the calls in the message (or burst) the incarnation held when it ended."""
+    held, cell.current = cell.current, None
+    for item in held if isinstance(held, list) else (held,):
+        if type(item) is CallEnvelope:
+            item.fail(CallFailed(cell.name, reason if type(reason) is ExitReason else KILLED))
 
 
 def _drop_poison(cell: Cell, actor: Actor, trace: Trace, reason: ExitReason) -> None:
@@ -373,14 +428,14 @@ async def _serve_loop(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
     queue = mailbox._queue  # read-only peeks on the hot path
     receive = mailbox.receive_nowait
     handle = actor.handle
-    arm = guard.arm
+    arm = guard.arm if guard.watchdog is not None else None  # None: nothing to arm
     burst_mode = type(actor).handle_burst is not Actor.handle_burst
     checkpoint = trio.lowlevel.checkpoint
     while True:
         if cell.stop_requested:
             return SHUTDOWN
         if ctx._stop:
-            return NORMAL
+            return ctx._stop
         if cell.crash_pending or cell.hang_pending:
             guard.disarm()
             if not await _slow(cell, actor, trace, None):
@@ -403,11 +458,13 @@ async def _serve_loop(cell: Cell, actor: Actor, ctx: ActorContext, trace: Trace,
                     if not await _slow(cell, actor, trace, item):
                         return _hung(cell, actor, trace)
                 elif type(item) is CallEnvelope:
-                    arm()
+                    if arm is not None:
+                        arm()
                     if not item.reply(await handle(item.request)):
                         trace.emit(EventKind.LATE_REPLY, cell.name, cell.name, item, len(queue))
                 else:
-                    arm()
+                    if arm is not None:
+                        arm()
                     await handle(item)
                 n += 1
                 if cell.stop_requested or ctx._stop:

@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import trio
 
-from .exits import ExitReason
+from .call import CallEnvelope, CallFailed, NoProc
+from .exits import NOPROC, ExitReason
 from .mailbox import Mailbox
 
 if TYPE_CHECKING:
@@ -112,6 +113,24 @@ class Cell:
         self.current: Any = None  # the message (or burst) being handled, for poison reports
         self.supervisor = ""  # the owning supervisor's name, for reports
         self.scope: trio.CancelScope | None = None  # the running incarnation's kill switch
+
+    @property
+    def closed(self) -> bool:
+        """True once the name is unregistered (`ActorSystem.retire` or ``forget``)."""
+        return self.mailbox.closed
+
+    def fail_calls(self, reason: ExitReason) -> int:
+        """Fail the calls waiting in the mailbox with ``reason`` (their callers raise
+        `CallFailed`, or `NoProc` for ``noproc``) and take them out; returns how many.
+
+        Called when the incarnation that would have answered them exits, and when the
+        name is unregistered: a call is tied to its callee's life, as in OTP.
+        """
+        calls = self.mailbox.take_all(CallEnvelope)
+        for envelope in calls:
+            envelope.fail(NoProc(self.name) if reason is NOPROC
+                          else CallFailed(self.name, reason))
+        return len(calls)
 
     def notify_down(self, reason: ExitReason) -> None:
         """Deliver a `Down` notice to every monitor."""

@@ -56,7 +56,7 @@ class Mailbox:
     """
 
     __slots__ = ("name", "capacity", "_queue", "_receiver", "_senders", "_trace", "_sent",
-                 "_received", "_dropped", "_high", "_closed")
+                 "_received", "_dropped", "_high", "_closed", "_waiting")
 
     def __init__(self, name: str, capacity: int, trace: Trace) -> None:
         if isinstance(capacity, bool) or not isinstance(capacity, int):
@@ -71,18 +71,22 @@ class Mailbox:
         self._trace = trace
         self._sent = self._received = self._dropped = self._high = 0
         self._closed = False
+        # the lot's own dict of parked senders, read per message: its truth is the lot's,
+        # without the lot's Python-level __bool__ (Trio never replaces the dict)
+        self._waiting: Any = getattr(self._senders, "_parked", self._senders)
 
     # ---------------------------------------------------------------- sending
     def send_nowait(self, item: Any) -> bool:
         """Append ``item`` if there is room; else drop it, count it and return False."""
         queue = self._queue
-        if len(queue) >= self.capacity or self._closed:
+        n = len(queue)
+        if n >= self.capacity or self._closed:
             self._dropped += 1
-            self._trace.emit(EventKind.DROP, self.name, self.name, item, len(queue))
+            self._trace.emit(EventKind.DROP, self.name, self.name, item, n)
             return False
         queue.append(item)
         self._sent += 1
-        n = len(queue)
+        n += 1
         if n > self._high:
             self._high = n
         if self._receiver is not None:
@@ -112,11 +116,29 @@ class Mailbox:
         """Take the oldest item (the mailbox must not be empty: check `depth`)."""
         item = self._queue.popleft()
         self._received += 1
-        if self._senders:
+        if self._waiting:
             self._senders.unpark()
         if self._trace.per_message_receive:
             self._trace.emit(EventKind.RECEIVE, self.name, self.name, item, len(self._queue))
         return item
+
+    def take_all(self, kind: type) -> list[Any]:
+        """Take every waiting item of exactly type ``kind`` (counted as received), keeping
+        the others in order; wakes as many waiting senders as room was made.
+
+        Used at an actor's exit to fail the calls waiting in its mailbox: O(depth),
+        never on the per-message path.
+        """
+        queue = self._queue
+        taken = [item for item in queue if type(item) is kind]
+        if taken:
+            kept = [item for item in queue if type(item) is not kind]
+            queue.clear()
+            queue.extend(kept)
+            self._received += len(taken)
+            if self._waiting:
+                self._senders.unpark(count=len(taken))
+        return taken
 
     async def wait(self) -> None:
         """Park the receiver until an item arrives or `poke` is called.
@@ -153,6 +175,11 @@ class Mailbox:
         self._senders.unpark_all()
 
     # ---------------------------------------------------------------- reporting
+    @property
+    def closed(self) -> bool:
+        """True once closed: it refuses every item for good."""
+        return self._closed
+
     @property
     def depth(self) -> int:
         """Items waiting now."""

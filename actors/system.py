@@ -20,10 +20,28 @@ Sending by name (``mapper/motor``):
 * ``await cast(name, msg) -> bool`` is fire-and-forget like OTP's cast: as
   ``send``, but a name that is not registered is not an error (returns False);
 * ``await call(name, request, timeout=...)`` returns the actor's reply (the
-  return value of its ``handle``), raises `CallTimeout` or `CallFailed`.
+  return value of its ``handle``), raises `CallTimeout`, `CallFailed` (the
+  callee exited while holding or queueing the call, with its reason) or
+  `NoProc` (no such name, or it went away while the call waited).
 
-A send to an actor that is restarting lands in its mailbox: mailboxes belong
-to the cell, which outlives incarnations.
+``send``, ``send_nowait`` and ``call`` to a name that is not registered raise
+`NoProc` (an `UnknownActor`); ``cast`` returns False.
+
+Names live as long as their actor is not gone for good. A send to an actor
+that is restarting lands in its mailbox: mailboxes belong to the cell, which
+outlives incarnations. A name stops being registered when its supervisor will
+not start it again on its own: a temporary child that ended, a transient one
+that ended normally, a child terminated or ignored, and every child of a
+supervisor that stopped or gave up. Calls waiting in its mailbox then fail with
+`NoProc`, and senders waiting for room raise `MailboxClosed`.
+
+Two ways to unregister, for a bounded registry that still tells what died:
+`retire` closes the cell but keeps it readable (``whereis``, ``names``,
+``statistics``: its state, last exit and counters) while the supervisor keeps
+the child's spec, a bounded set; `forget` removes it, for children whose spec
+goes with them (temporary and dynamic ones, which come and go without bound).
+A closed cell is not registered: every sender gets `NoProc`, and the next
+start of the name makes a fresh cell.
 """
 
 from __future__ import annotations
@@ -36,9 +54,11 @@ from typing import Any, Protocol
 import numpy as np
 import trio
 
-from .call import CallEnvelope, CallTimeout, UnknownActor
+from .call import CallEnvelope, CallTimeout, NoProc
 from .cell import Cell, Monitor
-from .mailbox import Mailbox, MailboxStatistics
+from .clock import deadline_heap
+from .exits import NOPROC
+from .mailbox import Mailbox, MailboxClosed, MailboxStatistics
 from .timers import TimerService
 from .trace import EventKind, Trace
 
@@ -92,6 +112,7 @@ class ActorSystem:
         per timer."""
         self.roots: list[Any] = []
         """Supervisors started with `start_supervisor`, in start order."""
+        self._deadlines = deadline_heap()  # Trio's heap for call timeouts, None: a scope each
 
     # ---------------------------------------------------------------- registry
     def rng_for(self, name: str) -> np.random.Generator:
@@ -103,7 +124,7 @@ class ActorSystem:
         """The cell registered as ``name``, made with a mailbox of ``capacity`` if new
         (supervisor use: the supervisor owns its children's mailboxes)."""
         cell = self._cells.get(name)
-        if cell is None:
+        if cell is None or cell.mailbox._closed:  # new, or retired: a fresh cell
             if not isinstance(name, str) or not name:
                 raise ValueError(f"name must be a non-empty string, got {name!r}")
             cell = Cell(name, Mailbox(name, capacity, self.trace), self.rng_for(name))
@@ -111,77 +132,126 @@ class ActorSystem:
         return cell
 
     def forget(self, name: str) -> None:
-        """Unregister ``name`` and close its mailbox (a temporary child that exited)."""
+        """Unregister ``name`` (its actor is gone for good; supervisor use): close its
+        mailbox, fail the calls waiting in it with `NoProc`. Idempotent."""
         cell = self._cells.pop(name, None)
         if cell is not None:
             cell.mailbox.close()
+            cell.fail_calls(NOPROC)
+
+    def retire(self, name: str) -> None:
+        """Unregister ``name`` but keep its closed cell readable (supervisor use, see the
+        module): close its mailbox, fail the calls waiting in it with `NoProc`. Idempotent."""
+        cell = self._cells.get(name)
+        if cell is not None and not cell.mailbox._closed:
+            cell.mailbox.close()
+            cell.fail_calls(NOPROC)
 
     def whereis(self, name: str) -> Cell | None:
-        """The cell registered as ``name``, or None."""
+        """The cell of ``name``, or None; a retired one too (``cell.closed``: not
+        registered, senders get `NoProc`), for post-mortems."""
         return self._cells.get(name)
 
     def names(self) -> list[str]:
-        """Registered names, in registration order."""
+        """Names with a cell (retired ones included), in registration order."""
         return list(self._cells)
 
-    def _cell(self, name: str) -> Cell:
+    def _cell(self, name: str, *, live: bool = True) -> Cell:
         cell = self._cells.get(name)
-        if cell is None:
-            raise UnknownActor(f"no actor registered as {name!r}")
+        if cell is None or (live and cell.mailbox._closed):
+            raise NoProc(name)
         return cell
 
     def statistics(self, name: str) -> MailboxStatistics:
         """Counters of ``name``'s mailbox.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
         """
-        return self._cell(name).mailbox.statistics()
+        return self._cell(name, live=False).mailbox.statistics()
 
     # ---------------------------------------------------------------- messaging
     async def send(self, name: str, message: Any) -> None:
         """Put ``message`` in ``name``'s mailbox, waiting for room.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
-            MailboxClosed: the actor was removed while waiting.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
+            MailboxClosed: the actor was unregistered while waiting.
         """
-        await self._cell(name).mailbox.send(message)
+        mailbox = self._cell(name).mailbox
+        if len(mailbox._queue) < mailbox.capacity and not mailbox._closed:
+            mailbox.send_nowait(message)  # room: no coroutine of the mailbox's to run
+        else:
+            await mailbox.send(message)
 
     def send_nowait(self, name: str, message: Any) -> bool:
         """Put ``message`` in ``name``'s mailbox if there is room; else drop, count, False.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
         """
         return self._cell(name).mailbox.send_nowait(message)
 
     async def cast(self, name: str, message: Any) -> bool:
-        """Fire and forget: as `send`, but an unregistered or removed name returns False."""
+        """Fire and forget: as `send`, but an unregistered name returns False, also when
+        it is unregistered while waiting for room."""
         cell = self._cells.get(name)
-        if cell is None or cell.mailbox._closed:
+        if cell is None:
             return False
-        await cell.mailbox.send(message)
+        mailbox = cell.mailbox
+        queue = mailbox._queue
+        n = len(queue)
+        if n < mailbox.capacity and not mailbox._closed:
+            if self.trace.per_message:
+                return mailbox.send_nowait(message)  # it traces the SEND event
+            # room: Mailbox.send_nowait's success path inline. Why: cast is the hot path
+            # of actor-to-actor traffic, and the call was a fifth of a cast's CPU.
+            queue.append(message)
+            mailbox._sent += 1
+            if n >= mailbox._high:
+                mailbox._high = n + 1
+            if mailbox._receiver is not None:
+                mailbox._wake()
+            return True
+        try:
+            await mailbox.send(message)
+        except MailboxClosed:
+            return False
         return True
 
     async def call(self, name: str, request: Any, *, timeout: float) -> Any:
         """Send ``request`` and wait for the reply (``handle``'s return value).
 
         The timeout [s] covers waiting for room and for the reply; a reply
-        made after it never reaches the caller.
+        made after it never reaches the caller. The call is tied to the callee's
+        life (`actors.call`): its exit fails the caller at once.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered, or was unregistered while the call waited.
             ValueError: ``timeout`` is not > 0.
             CallTimeout: no reply within ``timeout``.
-            CallFailed: the actor exited while handling the request.
+            CallFailed: the actor exited while holding or queueing the request
+                (``reason``: its exit reason).
         """
         if not timeout > 0:
             raise ValueError(f"timeout must be > 0 [s], got {timeout!r}")
-        mailbox = self._cell(name).mailbox
+        cell = self._cells.get(name)
+        if cell is None or cell.mailbox._closed:
+            raise NoProc(name)
+        mailbox = cell.mailbox
+        deadlines = self._deadlines
+        if deadlines is not None and len(mailbox._queue) < mailbox.capacity \
+                and not mailbox._closed:
+            # the hot path: room in the mailbox, the timeout is an entry in Trio's heap
+            envelope = CallEnvelope(request, name, timeout, deadlines)
+            mailbox.send_nowait(envelope)
+            return await envelope.wait(trio.current_time() + timeout)
         with trio.move_on_after(timeout):
-            envelope = CallEnvelope(request)
-            await mailbox.send(envelope)
+            envelope = CallEnvelope(request, name, timeout)
+            try:
+                await mailbox.send(envelope)
+            except MailboxClosed:
+                raise NoProc(name) from None
             return await envelope.wait()
         raise CallTimeout(f"no reply from {name!r} within {timeout} s")
 
@@ -189,9 +259,9 @@ class ActorSystem:
         """Watch ``name``: the monitor receives a `Down` notice at every exit.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
         """
-        cell = self._cell(name)
+        cell = self._cell(name, live=False)
         monitor = Monitor(cell, capacity)
         cell.monitors.append(monitor)
         return monitor
@@ -203,9 +273,9 @@ class ActorSystem:
         A crash injected while the actor is restarting hits its next incarnation.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
         """
-        cell = self._cell(name)
+        cell = self._cell(name, live=False)
         cell.crash_pending = True
         self.trace.emit(EventKind.FAULT, name, name, None, cell.mailbox.depth, "crash")
         cell.mailbox.poke()
@@ -215,12 +285,12 @@ class ActorSystem:
         (at once when idle); with a shorter watchdog deadline it is restarted as ``hung``.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
             ValueError: ``seconds`` is not > 0.
         """
         if not seconds > 0:
             raise ValueError(f"seconds must be > 0, got {seconds!r}")
-        cell = self._cell(name)
+        cell = self._cell(name, live=False)
         cell.hang_pending = float(seconds)
         self.trace.emit(EventKind.FAULT, name, name, None, cell.mailbox.depth, f"hang {seconds} s")
         cell.mailbox.poke()
@@ -229,12 +299,12 @@ class ActorSystem:
         """``send_nowait`` ``message`` to ``name`` ``n`` times; returns how many were accepted.
 
         Raises:
-            UnknownActor: ``name`` is not registered.
+            NoProc: ``name`` is not registered (an `UnknownActor`).
             ValueError: ``n`` < 0.
         """
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n!r}")
-        mailbox = self._cell(name).mailbox
+        mailbox = self._cell(name, live=False).mailbox
         self.trace.emit(EventKind.FAULT, name, name, message, mailbox.depth, f"flood {n}")
         return sum(mailbox.send_nowait(message) for _ in range(n))
 

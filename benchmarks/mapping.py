@@ -33,7 +33,8 @@ import time
 import numpy as np
 
 from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap, OccupancyGrid
+from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import MatchFields, MatchOptions, hits_to_local, match_scan
 from actors.firmware.planning.frontier import find_frontiers
 from actors.firmware.planning.planner import astar, plan_path, traversable

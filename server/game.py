@@ -212,7 +212,7 @@ class Game:
         origin, spot = placed
         self.hide_spot = spot
         self._enter(Phase.HIDING)
-        dest = {"x": spot.x, "y": spot.y, "heading": spot.heading}
+        dest = {"x": spot.x, "y": spot.y, "heading": None if heading is None else spot.heading}
         return Result(True, sends=(Send("hider", make_frame(ORIGIN, _pose(origin))),
                                    Send("hider", make_frame(START)),
                                    Send("hider", make_frame(DESTINATION, dest))))
@@ -278,6 +278,39 @@ class Game:
         else:
             self._enter(Phase.NOT_FOUND, reason)
         return Result(True, reason)
+
+    # -- storage -----------------------------------------------------------------------
+
+    def state(self) -> dict:
+        """What the game holds besides its phase and map, as JSON-ready values (for storage)."""
+        def pose(p: Pose2 | None) -> list[float] | None:
+            return None if p is None else [p.x, p.y, p.heading]
+
+        return {"stopping": self.stopping, "hide_spot": pose(self.hide_spot),
+                "hider_pose": pose(self.hider_pose), "guesses": [pose(g) for g in self.guesses],
+                "last_reason": self.last_reason, "seeker_started": self._seeker_started}
+
+    @classmethod
+    def restored(cls, start_poses: Mapping[str, Pose2], phase: str, state: dict,
+                 grid: MapGrid | None) -> Game:
+        """The game as `state` and the stored phase and map describe it.
+
+        Raises:
+            ValueError: an unknown phase, or a phase past mapping without a map.
+        """
+        def pose(v) -> Pose2 | None:
+            return None if v is None else Pose2(*(float(x) for x in v))
+
+        game = cls(start_poses=start_poses, phase=Phase(phase), map=grid,
+                   stopping=bool(state.get("stopping", False)),
+                   hide_spot=pose(state.get("hide_spot")),
+                   hider_pose=pose(state.get("hider_pose")),
+                   guesses=[p for p in map(pose, state.get("guesses", [])) if p is not None],
+                   last_reason=str(state.get("last_reason", "")))
+        game._seeker_started = bool(state.get("seeker_started", False))
+        if grid is None and game.phase not in (Phase.IDLE, Phase.MAPPING):
+            raise ValueError(f"a game in phase {phase} needs its map")
+        return game
 
     @property
     def finished(self) -> bool:

@@ -36,8 +36,9 @@ import numpy as np
 import trio
 
 from actors import ActorSystem, open_actor_system
+from actors.firmware.hardware import ROLES
 from server.links import LinkSpec, open_pty_cable, open_serial_stream
-from supervisors.rover import ROLES, rover_tree
+from supervisors.rover import rover_tree
 from world.scenario import Scenario
 from world.wifly import WiflyLink
 from world.world import World, run_world

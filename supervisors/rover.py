@@ -2,8 +2,8 @@
 
 ``rover_tree(role, hardware)`` returns a `SupervisorSpec`; start it under the
 rover's role (``system.start_supervisor(spec, "mapper")``) so its workers
-register as ``mapper/motor``, ``mapper/wifly`` ... (the actors find their
-neighbours from that prefix).
+register as ``mapper/motor``, ``mapper/wifly`` ...; each actor is handed the
+rover's `Addresses` record of those names, so none spells a neighbour's name.
 
 Children, in start order, with queue depths and watchdog deadlines::
 
@@ -50,20 +50,19 @@ import inspect
 from collections.abc import Callable
 from typing import Any
 
-from actors import Actor, BufferPool, Message
+from actors import Actor, BufferPool, Message, ValueType
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.ir import IrSensor
 from actors.firmware.drivers.isr import IrAdcIsr, LidarUartIsr, MotorCounterIsr, WiflyUartIsr
 from actors.firmware.drivers.lidar import LidarControl
 from actors.firmware.drivers.motor import MotorControl, MotorTuning, PoseMemory
 from actors.firmware.drivers.wifly import LinkMemory, Wifly
-from actors.firmware.hardware import RoverHardware
+from actors.firmware.hardware import ROLES, RoverHardware
 from actors.firmware.mapping.map_management import MapManagement
 from supervisors.supervisor import Backoff, ChildSpec, SupervisorSpec
 
-__all__ = ["ROLES", "MAILBOX", "WATCHDOG_S", "IdleNav", "rover_tree"]
-
-ROLES = ("mapper", "hider", "seeker")
+__all__ = ["MAILBOX", "WATCHDOG_S", "IdleNav", "rover_tree"]
 
 MAILBOX = {"wifly": 256, "motor": 512, "lidar": 4096, "map": 64, "ir": 256, "nav": 128}
 """Queue depth per child id [messages]."""
@@ -80,9 +79,9 @@ class _MailboxPost:
 
     __slots__ = ("system", "name")
 
-    def __init__(self) -> None:
+    def __init__(self, name: str) -> None:
         self.system: Any = None
-        self.name = ""
+        self.name = name
 
     def __call__(self, message: Message) -> bool:
         if self.system is None:
@@ -102,8 +101,8 @@ class IdleNav(Actor):
         self.pool = pool
 
     async def handle(self, message: Any) -> None:
-        if isinstance(message, Message) and message.type == 4 and message.command in (
-                Cmd.NAV_MAP_UPDATE, Cmd.NAV_NET, Cmd.NAV_MAP_DOWNLOAD):
+        if isinstance(message, Message) and message.type == ValueType.HANDLE \
+                and message.command in (Cmd.NAV_MAP_UPDATE, Cmd.NAV_NET, Cmd.NAV_MAP_DOWNLOAD):
             self.pool.take(int(message.value))
 
 
@@ -121,6 +120,50 @@ def _accepts(factory: Callable[..., Any], keyword: str) -> bool:
     except (TypeError, ValueError):
         return False
     return keyword in params
+
+
+def _nav_options(factory: Callable[..., Actor], nav_options: dict[str, Any] | None,
+                 names: Addresses) -> dict[str, Any]:
+    """The keyword arguments navigation is made with: ``nav_options``, plus the rover's
+    names and a retained `NavMemory` where the factory takes them and none was given."""
+    options = dict(nav_options or {})
+    if "addresses" not in options and _accepts(factory, "addresses"):
+        options["addresses"] = names
+    if "memory" not in options and _accepts(factory, "memory"):
+        try:  # navigation's retained memory, made once per tree like PoseMemory
+            options["memory"] = importlib.import_module("actors.firmware.nav.options").NavMemory()
+        except (ImportError, AttributeError):
+            pass
+    return options
+
+
+class _Isrs:
+    """The rover's ISR objects: made once per tree (their counters survive restarts),
+    each posting into its owner's mailbox.
+
+    The posts learn the running system when an actor of the tree starts: `bind`
+    wraps the actor's ``on_start`` for that, until the runtime offers a start hook
+    the tree can hand in.
+    """
+
+    def __init__(self, role: str, names: Addresses, pool: BufferPool) -> None:
+        self.posts = {c: _MailboxPost(getattr(names, c)) for c in ("motor", "wifly", "lidar", "ir")}
+        self.motor = MotorCounterIsr(self.posts["motor"])
+        self.wifly = WiflyUartIsr(self.posts["wifly"], pool)
+        self.lidar = LidarUartIsr(self.posts["lidar"]) if role == "mapper" else None
+        self.ir = IrAdcIsr(self.posts["ir"]) if role == "seeker" else None
+
+    def bind(self, actor: Actor) -> Actor:
+        """Point the ISR posts at the running system when ``actor`` starts."""
+        original = actor.on_start
+        posts = self.posts
+
+        async def on_start() -> None:
+            for post in posts.values():
+                post.system = actor.ctx.system
+            await original()
+        actor.on_start = on_start  # type: ignore[method-assign]
+        return actor
 
 
 def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = None,
@@ -155,69 +198,49 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
     if role not in ROLES:
         raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
     rover_id = rover_id or role
+    names = Addresses.of(role)  # the tree is started under the rover's role
     pool = BufferPool(POOL_SLOTS, name=f"{role}-pool")
     factory = nav_factory or _default_nav_factory()
-    options = dict(nav_options or {})
-    if "memory" not in options and _accepts(factory, "memory"):
-        try:  # navigation's retained memory, made once per tree like PoseMemory
-            options["memory"] = importlib.import_module("actors.firmware.nav.base").NavMemory()
-        except (ImportError, AttributeError):
-            pass
+    options = _nav_options(factory, nav_options, names)
 
     # retained memory (survives actor restarts; a new tree is a rover reset)
     pose_memory = PoseMemory()
     link_memory: list[LinkMemory] = []  # made lazily: LinkMemory reads Trio's clock
 
-    # ISR objects: made once (their counters survive restarts), each posting into
-    # its owner's mailbox; the post learns the system and name when the owner starts
-    posts = {c: _MailboxPost() for c in ("motor", "wifly", "lidar", "ir")}
-    motor_isr = MotorCounterIsr(posts["motor"])
-    wifly_isr = WiflyUartIsr(posts["wifly"], pool)
-    lidar_isr = LidarUartIsr(posts["lidar"]) if role == "mapper" else None
-    ir_isr = IrAdcIsr(posts["ir"]) if role == "seeker" else None
-
-    def bind(actor: Actor) -> Actor:
-        """Point the ISR posts at the running system when the actor starts."""
-        original = actor.on_start
-
-        async def on_start() -> None:
-            prefix = actor.ctx.name.rpartition("/")[0]
-            for child_id, post in posts.items():
-                post.system = actor.ctx.system
-                post.name = f"{prefix}/{child_id}" if prefix else child_id
-            await original()
-        actor.on_start = on_start  # type: ignore[method-assign]
-        return actor
+    isrs = _Isrs(role, names, pool)
+    bind = isrs.bind
 
     def make_wifly() -> Actor:
         if not link_memory:
             link_memory.append(LinkMemory())
         return bind(Wifly(hardware, pool, rover_id=rover_id, role=role, token=token,
-                          memory=link_memory[0], isr=wifly_isr))
+                          memory=link_memory[0], isr=isrs.wifly, addresses=names))
 
     map_starts = [0]
 
     def make_map() -> Actor:
         map_starts[0] += 1
-        return bind(MapManagement(pool, size_cm=map_size_cm, restarted=map_starts[0] > 1))
+        return bind(MapManagement(pool, size_cm=map_size_cm, restarted=map_starts[0] > 1,
+                                  addresses=names))
 
     def child(cid: str, start: Callable[[], Actor]) -> ChildSpec:
         return ChildSpec(cid, start, mailbox=MAILBOX[cid], watchdog=WATCHDOG_S[cid])
 
     children = [
         child("wifly", make_wifly),
-        child("motor", lambda: bind(MotorControl(hardware, pose_memory, isr=motor_isr,
+        child("motor", lambda: bind(MotorControl(hardware, pose_memory, isr=isrs.motor,
                                                  lidar=role == "mapper",
-                                                 tuning=motor_tuning))),
+                                                 tuning=motor_tuning, addresses=names))),
     ]
     if role == "mapper":
         children += [
-            child("lidar", lambda: bind(LidarControl(hardware, pool, isr=lidar_isr))),
+            child("lidar", lambda: bind(LidarControl(hardware, pool, isr=isrs.lidar,
+                                                     addresses=names))),
             child("map", make_map),
         ]
     if role == "seeker":
         children.append(child("ir", lambda: bind(IrSensor(hardware, rate_hz=ir_rate_hz,
-                                                          adc_isr=ir_isr))))
+                                                          adc_isr=isrs.ir, addresses=names))))
     children.append(child("nav", lambda: factory(role, pool=pool, spec=hardware.spec,
                                                  rover_id=rover_id, **options)))
     return SupervisorSpec(children, intensity=intensity, period=period,

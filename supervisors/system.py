@@ -37,6 +37,7 @@ from actors import (
 )
 from actors.clock import fast_instruments
 from actors.firmware.commands import Cmd
+from actors.firmware.hardware import ROLES
 from server.protocol import Pose2
 from server.server import Server, ServerConfig, open_server
 from server.store import Store
@@ -45,10 +46,9 @@ from world.faults import is_actor_fault
 from world.scenario import Scenario
 from world.world import World, run_world
 
-__all__ = ["ROLES", "ACTOR_FAULTS", "SimSystem", "open_sim_system", "scenario_origins",
+__all__ = ["ACTOR_FAULTS", "SimSystem", "open_sim_system", "scenario_origins",
            "FaultError"]
 
-ROLES = ("mapper", "hider", "seeker")
 ACTOR_FAULTS = ("crash", "hang", "flood")
 _FAULT_POLL_S = 0.05  # how often scheduled actor faults are checked [s]
 _FLOOD_DEFAULT = 100  # messages a flood fault posts when not given (world.faults.ACTOR_FAULTS)
@@ -74,6 +74,8 @@ class SimSystem:
     _world_origin: list[float] = field(default_factory=lambda: [0.0])
     """[Trio time at which the world's time was 0 [s]], set as the world starts stepping."""
     _actor_fault_ids: int = 0
+    memory_links: dict[str, Any] = field(default_factory=dict)
+    """Role -> the server's `MemoryLink` to that simulated rover (for recorders)."""
 
     def world_lag(self) -> float:
         """How far the world's stepping is behind Trio's clock [s] (about 0 when it keeps up).
@@ -250,7 +252,9 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
     async with contextlib.AsyncExitStack() as stack:
         if server is None:
             server = await stack.enter_async_context(
-                open_server(store, ServerConfig(origins=scenario_origins(scenario))))
+                open_server(store, ServerConfig(
+                    origins=scenario_origins(scenario), simulated=tuple(roles),
+                    rovers=frozenset(ROLES) - set(roles))))  # attached rovers: id = role
         memories = []
         for role in roles:
             link = world.wifly_link(role)
@@ -270,6 +274,7 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
                 trees[role] = await actors.start_supervisor(spec, role)
             system = SimSystem(scenario, seed, world, server, actors, trees, fault_log,
                                origin)
+            system.memory_links = dict(zip(roles, memories, strict=True))
             nursery.start_soon(_watch_scheduled_actor_faults, system)
             try:
                 yield system

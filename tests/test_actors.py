@@ -25,7 +25,8 @@ PUBLIC = [
     "JsonLinesRecorder", "KILLED", "MAX_INTENSITY", "Mailbox", "MailboxStatistics", "Message",
     "Monitor", "NORMAL", "PoolExhausted", "SHUTDOWN", "Timer", "Trace", "TraceEvent",
     "UnknownActor", "ValueType", "open_actor_system", "real_clock", "scaled_clock",
-    "seed_trio_scheduler", "set_rate", "virtual_clock",
+    "seed_trio_scheduler", "set_rate", "virtual_clock", "NoProc", "NOPROC", "IGNORE",
+    "AUTO_SHUTDOWN",
 ]
 
 
@@ -177,6 +178,9 @@ async def test_a_raising_discard_is_traced_and_the_actor_still_restarts(autojump
                                else 0)
         await system.start_supervisor(one(lambda: Broken([])))
         system.send_nowait("a", "boom")
+        with pytest.raises(CallFailed) as info:  # queued behind the crash: fails with it
+            await system.call("a", "queued", timeout=1)
+        assert info.value.reason.kind is ExitKind.CRASH
         assert await system.call("a", "alive", timeout=1) == ("reply", "alive")
     assert poison == ["'boom'", "'boom'"]
 

@@ -411,3 +411,9 @@ def test_code_version_names_this_checkout():
     assert version is not None
     head = version.removesuffix("-dirty")
     assert len(head) == 12 and all(c in "0123456789abcdef" for c in head)
+
+
+def test_the_campaign_package_exports_its_public_names():
+    from supervisors.harness import campaign  # noqa: PLC0415
+
+    assert all(hasattr(campaign, name) for name in campaign.__all__)

@@ -105,7 +105,7 @@ class _RecordingPool:
 
     def imap_unordered(self, func, jobs, chunksize=1):
         for job in jobs:
-            self.refs.append(job[1])
+            self.refs.append(job[1][0])  # job: (entry point, (ref,), options)
             yield func(job)
 
 
@@ -172,7 +172,7 @@ def _guarded(body, cpu_s: float, factor: float) -> str:
     """Run ``body`` in Trio under a `_Guard`; return what stopped it ("" if nothing)."""
     import trio  # noqa: PLC0415
 
-    from supervisors.harness.campaign import _Guard  # noqa: PLC0415
+    from supervisors.harness.campaign.play import _Guard  # noqa: PLC0415
 
     fired = []
 

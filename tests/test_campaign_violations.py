@@ -17,12 +17,13 @@ import trio
 
 from actors import Actor, Message, virtual_clock
 from actors.firmware.commands import Cmd
-from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.nav.factory import make_nav
 from server.protocol import MapGrid
 from supervisors.harness import campaign
 from supervisors.harness import invariants as inv
 from supervisors.harness.campaign import CampaignConfig, plan_game, play_campaign_game, play_checked
+from supervisors.harness.campaign import play as campaign_play
 from world.scenario import load_scenario
 
 _CONFIG = CampaignConfig(3, mode="none", rooms=("empty",), mapping_budget_s=8.0)
@@ -166,7 +167,7 @@ def test_no_loss_names_a_frame_delivered_twice(monkeypatch):
 
 def test_no_loss_names_a_stored_map_that_differs_from_the_uploaded_one(monkeypatch):
     """A store that changed one cell of the mapper's map breaks no-loss."""
-    real = campaign._stored_map
+    real = campaign_play._stored_map
 
     def tampered(system, store):
         grid = real(system, store)
@@ -174,7 +175,7 @@ def test_no_loss_names_a_stored_map_that_differs_from_the_uploaded_one(monkeypat
         cells[0, 0] = 100 if cells[0, 0] != 100 else 0
         return MapGrid(cells, grid.resolution_cm, grid.origin_cm)
 
-    monkeypatch.setattr(campaign, "_stored_map", tampered)
+    monkeypatch.setattr(campaign_play, "_stored_map", tampered)
     _, violations = _play(uploading)
     assert "no_loss.map: stored map differs from the uploaded one: 1 cells" in violations
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planning.clearance import (
     check_spot,
     obstacle_ahead,

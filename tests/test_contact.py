@@ -7,7 +7,7 @@ import pytest
 
 from actors.firmware.localisation.contact import locate_contact, stalled_side
 from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.occupancy import OCCUPIED, GridMap
+from actors.firmware.mapping.grid_map import OCCUPIED, GridMap
 
 BODY = {"length_cm": 20.0, "width_cm": 15.0}
 
@@ -132,7 +132,7 @@ def test_searching_as_far_along_as_the_drift_keeps_a_wall_end_contact_open() -> 
     navigation would take it as pinning its sideways position; searched 15 cm (as far as
     a large drift reaches, ``NavOptions.contact_max_along_cm``), a pose further back
     along the heading explains it as well: ambiguous, so the sideways doubt is kept
-    (campaign 1:31: the doubt was cut from 29 to 3 cm while the rover was 24 cm off)."""
+    (cutting it would leave 3 cm of doubt with the rover 24 cm off)."""
     dr = Pose(398.0, 302.0, 0.0)
     short = locate_contact(GAP, dr, ambiguity_cm=20.0, other_shift_cm=34.0, **BODY)
     assert short is not None and short.needed
@@ -147,8 +147,8 @@ def test_a_head_on_contact_beside_a_gap_is_ambiguous_within_the_drift() -> None:
     the right side stalled: the cheapest explanation with the right side touching is
     the upper wall's face, 11 cm up, head-on (both sides touch, so the stalled side
     tells nothing). The lower wall's face, 15 cm down, explains it as well: with a
-    drift of 30 cm that is ambiguous, with 3 cm it is not (overlapping campaign 2:19:
-    the hider was on the lower face and was put on the upper one)."""
+    drift of 30 cm that is ambiguous, with 3 cm it is not (a hider on the
+    lower face must not be put on the upper one)."""
     dr = Pose(240.0, 157.0, 0.0)
     far = locate_contact(CORRIDOR, dr, side=-1, ambiguity_cm=30.0, other_shift_cm=44.0, **BODY)
     assert far is not None and far.shift_cm > 8.0 and far.ambiguous
@@ -162,8 +162,7 @@ def test_a_stalled_corner_at_a_gap_is_ambiguous_within_the_drift() -> None:
     right front corner on the upper wall's end, 20-odd cm up (dead reckoning that far
     below the truth), explains it as well; the stalled side does not tell the two walls
     apart, so with a drift of 20 cm the contact is ambiguous, with 3 cm it is not
-    (held-out 3:95: the hider 20 cm above the gap was moved 11 cm down, and no later
-    offset of the probe reached the gap)."""
+    (moved 11 cm the wrong way, no later offset of the probe would reach the gap)."""
     dr = Pose(394.0, 313.0, 0.0)
     near = locate_contact(GAP, dr, side=-1, **BODY)
     assert near is not None and near.shift_cm <= -5.0 and not near.ambiguous

@@ -7,10 +7,9 @@ import struct
 import numpy as np
 import pytest
 
-from actors.firmware.hardware import decode_counter
+from actors.firmware.hardware import ROLES, decode_counter
 from supervisors.rover import rover_tree
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_ACTORS, check_fault
-from world.params import ROLES
 from world.scenario import ScenarioError, parse_scenario
 from world.world import World
 

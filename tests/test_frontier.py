@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planning.frontier import (
     Frontier,
     FrontierWeights,

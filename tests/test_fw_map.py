@@ -9,8 +9,8 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
+from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.mapping.map_management import MapManagement
-from actors.firmware.mapping.occupancy import GridMap
 from supervisors import ChildSpec, SupervisorSpec
 
 from .test_fw_lidar import Recorder
@@ -81,8 +81,8 @@ async def test_restarted_map_says_lost_and_restores_from_a_snapshot(autojump_clo
 
 @pytest.mark.trio
 async def test_flood_of_noops_costs_dropped_messages_not_restarts(autojump_clock) -> None:
-    """Regression (campaign): flooding ``mapper/map`` with NOOPs while the LIDAR streams scans
-    made every NOOP a crash, and the restart storm made the supervisor give up. Now the
+    """Flooding ``mapper/map`` with NOOPs while the LIDAR streams scans costs queue slots,
+    not crashes: a crash per NOOP would make the supervisor give up. The
     flood only fills the queue: the LIDAR drops (and frees) the scans that do not fit, the
     map is never restarted, no pool slot leaks, and scans integrate again afterwards."""
     from actors.firmware.drivers.lidar import LidarControl
@@ -307,7 +307,7 @@ async def test_restarted_map_takes_the_correction_back_from_motor(autojump_clock
 @pytest.mark.trio
 async def test_flooding_the_map_mid_game_costs_drops_and_mapping_still_completes(
         autojump_clock) -> None:
-    """The campaign's case end to end: mapping the empty room, ``mapper/map`` flooded with
+    """End to end: mapping the empty room, ``mapper/map`` flooded with
     NOOPs twice; no actor restarts, the flood shows as drops, the mapper finishes and
     uploads its map by itself."""
     from server.store import Store
@@ -346,7 +346,7 @@ def test_an_odometry_stamp_across_the_heading_wrap_is_the_same_pose() -> None:
 async def test_a_lost_pose_places_no_batch_until_two_searches_agree(autojump_clock) -> None:
     """After MAP_POSE_LOST (both treads driven, neither counting: the rover turned unseen)
     the batches of a rover that turned 50 deg while odometry stood still are not placed at
-    the stale pose (held-out campaign 3:199 drew the room at every angle that way); the
+    the stale pose (which would draw the room at every angle); the
     wide search finds the heading, and only two searches in a row that agree move the
     correction. The walls are not drawn a second time."""
     from actors.firmware.localisation.odometry import Pose
@@ -405,10 +405,10 @@ def test_a_refused_batch_whose_guess_fits_well_starts_the_relocalisation_count_o
         monkeypatch) -> None:
     """Two batches refused with a guess that fits well (0.93, 0.84: the pose is right,
     matching found nothing better) and one blurred by a turn (0.45) are not three lost
-    batches in a row: no wide search (healthy hall game, seed 1224892982, searched there
-    and took a pose 23 deg off). Three bad fits in a row still search."""
-    from actors.firmware.mapping import map_management as mapping
+    batches in a row: no wide search (which could take a pose 23 deg off in a healthy
+    hall). Three bad fits in a row still search."""
     from actors.firmware.localisation.odometry import Pose
+    from actors.firmware.mapping import map_management as mapping
     from actors.firmware.mapping.scan_match import MatchResult
 
     searches = []

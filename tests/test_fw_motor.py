@@ -13,7 +13,7 @@ from actors import Actor, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.motor import MotorControl, PoseMemory
 from actors.firmware.hardware import HardwareSpec, Interrupt, encode_counter
-from actors.firmware.localisation.odometry import angle_diff_deg
+from actors.firmware.localisation.odometry import Pose, angle_diff_deg, split_heading
 from supervisors import ChildSpec, SupervisorSpec
 from world import World, load_scenario, run_world
 
@@ -395,8 +395,8 @@ async def test_both_encoders_silent_block_within_a_few_cm(autojump_clock, counts
 async def test_both_treads_counting_alike_slowly_is_no_silent_tread(autojump_clock, counts,
                                                                     phase) -> None:
     """Both treads counting 0.3 of their modelled travel (two weak motors at 0.3, within
-    the campaign's range) or 0.7 (a rover pushing against something: campaign 1:31's
-    seeker got 51 false reports, each a blocked move and 10 deg more heading doubt) keep
+    the faults' range) or 0.7 (a rover pushing against something: each false report
+    costs a blocked move and 10 deg more heading doubt) keep
     their counts together, however their interrupts interleave: no single tread is
     reported silent (value 0/1). Only the hider is driven, so no value 6 either."""
     log, _ = await run_commands(counts, [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0),
@@ -418,7 +418,7 @@ async def test_both_treads_counting_short_are_reported_to_the_mapper_and_in_turn
     """Both encoders slipping alike (each counts 0.45): navigation gets value 6 once in
     each command long enough to judge (the moves and the 90 deg turn), and no
     single-tread report with it. A hider's moves are judged at 0.5, not 0.65: counting
-    0.6 (a rover sliding along a wall counts 0.55-0.65, campaign 1:178) is reported in
+    0.6 (a rover sliding along a wall counts 0.55-0.65) is reported in
     the turn only, the mapper's everywhere; one tread short is still reported as that
     tread."""
     log, _ = await run_commands(counts, FOUR, horizon=30.0, lidar=lidar)
@@ -432,8 +432,8 @@ async def test_both_treads_counting_short_are_reported_to_the_mapper_and_in_turn
 async def test_a_tread_driven_harder_for_level_counts_counts_short_in_a_move(
         autojump_clock, counts, expected) -> None:
     """One encoder counting 0.8 (above ``short_ratio``): the cross-coupling keeps the counts
-    level, so only the PWM it needs shows it (campaign 1:38: 23 deg turned unseen per
-    20 cm). In the 40 cm move that tread is reported as counting short; healthy treads
+    level, so only the PWM it needs shows it (23 deg turned unseen per 20 cm). In the 40 cm
+    move that tread is reported as counting short; healthy treads
     are not (their modelled travel stays within the ``uneven_cm`` of each other)."""
     log, _ = await run_commands(counts, [(Cmd.MOTOR_MOVE, 40.0)], horizon=10.0)
     assert set(tread_reports(log)) == expected
@@ -442,7 +442,7 @@ async def test_a_tread_driven_harder_for_level_counts_counts_short_in_a_move(
 @pytest.mark.trio
 async def test_both_treads_hardly_counting_lately_in_a_move_is_a_push(autojump_clock) -> None:
     """Both treads count right, then 0.12 of their travel (a rover sliding along a wall it met
-    at an angle: campaign 1:127, 12 %): the move ends blocked, without a value 6 (a push
+    at an angle): the move ends blocked, without a value 6 (a push
     is not a fault to hold for); two slipping encoders counting 0.45 from the start are
     not a push (value 6, the move goes on to its count)."""
     for counts, push in (([1.0, 1.0], True), ([0.45, 0.45], False)):
@@ -470,12 +470,9 @@ def test_a_short_count_sets_the_heading_halfway_between_counts_and_model(
     """At a short-count report the heading is put halfway between what the counts and what
     the modelled travel say: a slipping encoder (the model is right) and a weak motor
     (the counts are right) read the same, and halfway bounds the error either way."""
-    memory = PoseMemory()
-    motor = MotorControl(FakeHardware(), memory)
     signs = [math.copysign(1.0, t) for t in target]
     by_counts = math.degrees((counted[1] * signs[1] - counted[0] * signs[0]) / 13.0)
     by_model = math.degrees((modelled[1] * signs[1] - modelled[0] * signs[0]) / 13.0)
-    memory.pose = dataclasses.replace(memory.pose, heading_deg=by_counts)
-    motor._target, motor._counted, motor._modelled = target, list(counted), list(modelled)
-    motor._split_heading()
-    assert memory.pose.heading_deg == pytest.approx((by_counts + by_model) / 2, abs=1e-6)
+    pose = split_heading(Pose(3.0, 4.0, by_counts), target, list(counted), list(modelled), 13.0)
+    assert (pose.x, pose.y) == (3.0, 4.0)
+    assert pose.heading_deg == pytest.approx((by_counts + by_model) / 2, abs=1e-6)

@@ -12,7 +12,7 @@ from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.wifly import Wifly
 from actors.firmware.hardware import Interrupt
-from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.mapping.grid_map import GridMap
 from server.protocol import (
     MapAssembler,
     MapGrid,

@@ -40,14 +40,44 @@ def imported_modules(path: pathlib.Path) -> list[tuple[int, str]]:
     return found
 
 
-#: the modules outside tui/ that wire world, server and rovers together
-WIRING_MODULES = ("supervisors/system.py", "supervisors/harness/headless.py",
-                  "supervisors/harness/campaign.py", "supervisors/harness/invariants.py",
-                  "supervisors/remote.py")
+#: the modules outside tui/ that join world and server into a system: the
+#: simulated system tree, the remote-rover wiring, the test harness and the
+#: recorder (a module, or every module under a package path ending in ``/``)
+WIRING = ("supervisors/system.py", "supervisors/remote.py", "supervisors/harness/",
+          "supervisors/recording/")
+
+#: the one firmware module the world may import: the device contract it implements
+DEVICE_CONTRACT = "actors.firmware.hardware"
+
+#: the supervisors modules that are domain-free: they import the actor runtime
+#: (and ``supervisors.supervisor``) only
+DOMAIN_FREE_SUPERVISORS = ("supervisors/__init__.py", "supervisors/supervisor.py",
+                           "supervisors/spec.py", "supervisors/state.py", "supervisors/dynamic.py")
+"""The OTP supervisor itself: domain-free, it imports the actor runtime and its own modules only."""
 
 
-def violation(layer: str, module: str, wiring: bool = False) -> str | None:
-    """Why ``layer`` may not import ``module``, or None when it may."""
+def _is_domain_free_supervisor(module: str) -> bool:
+    """Whether ``module`` is (a name in) one of `DOMAIN_FREE_SUPERVISORS`."""
+    parts = module.split(".")
+    return any(f"{'/'.join(parts[:n])}.py" in DOMAIN_FREE_SUPERVISORS for n in (2, 3)) or (
+        module == "supervisors")
+
+
+def is_wiring(rel: str) -> bool:
+    """Whether the file at repository path ``rel`` is one of the `WIRING` modules."""
+    return any(rel == w or (w.endswith("/") and rel.startswith(w)) for w in WIRING)
+
+
+def violation(layer: str, module: str, wiring: bool = False,
+              domain_free: bool = False) -> str | None:
+    """Why ``layer`` may not import ``module``, or None when it may.
+
+    Args:
+        layer: the importing file's layer (`layer_of`).
+        module: the absolute module name imported.
+        wiring: the importing file is one of the `WIRING` modules.
+        domain_free: the importing file is one of `DOMAIN_FREE_SUPERVISORS`.
+    """
     top = module.split(".")[0]
     if top not in PACKAGES:
         return None
@@ -58,8 +88,8 @@ def violation(layer: str, module: str, wiring: bool = False) -> str | None:
     if layer == "runtime" and target != "runtime":
         return "the actor runtime imports nothing of the project"
     if layer == "firmware":
-        if target == "world":
-            return "firmware never imports world"
+        if target in ("world", "supervisors"):
+            return f"firmware never imports {target}"
         if target == "server" and not (
             module == "server" or module == "server.protocol"
             or module.startswith("server.protocol.")
@@ -67,10 +97,17 @@ def violation(layer: str, module: str, wiring: bool = False) -> str | None:
             return "firmware imports of server are only the pure codec server.protocol"
     if layer == "server" and target in ("world", "firmware", "supervisors"):
         return f"the server never imports {target}"
-    if layer == "world" and target in ("firmware", "server", "supervisors"):
-        return f"the world never imports {target}"
-    if layer == "supervisors" and target in ("world", "server") and not wiring:
-        return f"only {' and '.join(WIRING_MODULES)} wire {target} into the system"
+    if layer == "world":
+        if target in ("server", "supervisors"):
+            return f"the world never imports {target}"
+        if target == "firmware" and not (module == DEVICE_CONTRACT
+                                         or module.startswith(DEVICE_CONTRACT + ".")):
+            return f"of the firmware the world imports only the device contract {DEVICE_CONTRACT}"
+    if layer == "supervisors":
+        if domain_free and target != "runtime" and not _is_domain_free_supervisor(module):
+            return "the supervisor itself is domain-free: it imports the actor runtime only"
+        if target in ("world", "server") and not wiring:
+            return f"only {', '.join(WIRING)} join {target} into a system"
     return None
 
 
@@ -86,8 +123,8 @@ def test_module_respects_layer_rules(path: pathlib.Path) -> None:
     for lineno, module in imported_modules(path):
         if module in ("server", "actors"):  # bare package: judged by its imported names
             continue
-        wiring = str(path.relative_to(ROOT)) in WIRING_MODULES
-        why = violation(layer, module, wiring)
+        rel = path.relative_to(ROOT).as_posix()
+        why = violation(layer, module, is_wiring(rel), rel in DOMAIN_FREE_SUPERVISORS)
         if why:
             bad.append(f"{path.relative_to(ROOT)}:{lineno} imports {module}: {why}")
     assert not bad, "\n".join(bad)
@@ -102,12 +139,42 @@ def test_module_respects_layer_rules(path: pathlib.Path) -> None:
         ("server", "world", False),
         ("runtime", "supervisors", False),
         ("world", "actors.mailbox", True),
-        ("world", "actors.firmware.hardware", False),
+        ("world", "actors.firmware.hardware", True),
+        ("world", "actors.firmware", False),
+        ("world", "actors.firmware.drivers.isr", False),
+        ("world", "actors.firmware.hardwarex", False),
+        ("world", "server.protocol", False),
+        ("firmware", "supervisors.rover", False),
         ("supervisors", "tui.app", False),
         ("tui", "world.scenario", True),
         ("supervisors", "world.physics", False),
+        ("supervisors", "server.store", False),
+        ("supervisors", "actors.firmware.drivers.motor", True),
     ],
 )
 def test_rule_checker_itself(layer: str, module: str, allowed: bool) -> None:
     """The checker flags what the rules forbid and lets pass what they allow."""
     assert (violation(layer, module) is None) is allowed
+
+
+@pytest.mark.parametrize(
+    ("rel", "wiring"),
+    [
+        ("supervisors/system.py", True),
+        ("supervisors/remote.py", True),
+        ("supervisors/harness/headless.py", True),
+        ("supervisors/recording/mcap.py", True),
+        ("supervisors/rover.py", False),
+        ("supervisors/supervisor.py", False),
+        ("supervisors/systemx.py", False),
+    ],
+)
+def test_only_the_named_wiring_modules_join_world_and_server(rel: str, wiring: bool) -> None:
+    """The wiring allowance names its modules; the rover tree is not one of them."""
+    assert is_wiring(rel) is wiring
+    assert (violation("supervisors", "world.world", is_wiring(rel)) is None) is wiring
+
+
+def test_the_supervisor_itself_imports_only_the_runtime() -> None:
+    assert violation("supervisors", "actors.mailbox", domain_free=True) is None
+    assert violation("supervisors", "actors.firmware.commands", domain_free=True) is not None

@@ -94,7 +94,7 @@ def test_non_loopback_listen_without_tokens_is_refused() -> None:
 def test_tcp_rover_says_hello_and_gets_welcome() -> None:
     """A rover connecting over TCP loopback is welcomed and kept up by heartbeats."""
     async def main() -> None:
-        async with open_server(Store(":memory:")) as server:
+        async with open_server(Store(":memory:"), ServerConfig(rovers=frozenset({"m1"}))) as server:
             port = await server.listen_tcp("127.0.0.1", 0)
             stream = await trio.open_tcp_stream("127.0.0.1", port)
             rover = FakeRover("m1", "mapper")
@@ -164,7 +164,8 @@ def test_whole_game_with_mapper_on_pty_serial_and_others_in_memory() -> None:
     origins = {"mapper": Pose2(0, 0, 0), "hider": Pose2(0, 0, 0), "seeker": Pose2(0, 0, 0)}
 
     async def main() -> None:
-        async with open_server(store, ServerConfig(origins=origins)) as server:
+        config = ServerConfig(origins=origins, rovers=frozenset({"m1"}))
+        async with open_server(store, config) as server:
             server.start_serial(path, 115200)
             pty = trio.lowlevel.FdStream(os.dup(master))
             mapper = FakeRover("m1", "mapper")

@@ -97,3 +97,87 @@ def test_capacity_checked() -> None:
     with pytest.raises(ValueError, match="capacity must be >= 1, got 0"):
         Mailbox("m", 0, Trace())
     assert "sent=0" in repr(Mailbox("m", 1, Trace()))
+
+
+@pytest.mark.trio
+async def test_take_all_takes_one_type_in_order_and_wakes_senders(autojump_clock) -> None:
+    """take_all removes the items of one type (counted as received), keeps the others in
+    order, and lets as many blocked senders in as it made room for."""
+    box = Mailbox("m", 4, Trace())
+    for item in (1, "a", 2, "b"):
+        box.send_nowait(item)
+    done = []
+
+    async def sender(item: object) -> None:
+        await box.send(item)
+        done.append(item)
+
+    async with trio.open_nursery() as nursery:
+        for item in ("c", "d", "e"):
+            nursery.start_soon(sender, item)
+        await trio.testing.wait_all_tasks_blocked()
+        assert box.take_all(str) == ["a", "b"]
+        await trio.testing.wait_all_tasks_blocked()
+        assert len(done) == 2  # room for two: the third sender still waits
+        assert box.take_all(int) == [1, 2]
+    assert box.statistics().received == 4
+    assert box.depth == 3
+
+
+@pytest.mark.trio
+async def test_cast_counts_like_send_and_waits_when_full(autojump_clock) -> None:
+    """A cast into room counts sent and high water as send_nowait does; into a full
+    mailbox it waits for room; to a name retired while waiting it returns False."""
+    from actors import Actor, open_actor_system
+    from supervisors import ChildSpec, SupervisorSpec
+
+    class Slow(Actor):
+        async def handle(self, message):
+            await trio.sleep(1)
+
+    async with open_actor_system() as system:
+        await system.start_supervisor(SupervisorSpec([ChildSpec("a", Slow, mailbox=2)]))
+        assert await system.cast("a", 1) and await system.cast("a", 2)
+        await trio.testing.wait_all_tasks_blocked()  # a takes 1: depth 1
+        assert await system.cast("a", 3)
+        stats = system.statistics("a")
+        assert (stats.sent, stats.high_water, stats.depth) == (3, 2, 2)
+        results = []
+
+        async def caster() -> None:
+            results.append(await system.cast("a", 4))
+        async with trio.open_nursery() as nursery:
+            nursery.start_soon(caster)
+            await trio.testing.wait_all_tasks_blocked()
+            assert results == []  # waiting for room
+            system.retire("a")
+        assert results == [False]
+
+
+@pytest.mark.trio
+async def test_call_into_a_full_mailbox_waits_then_times_out(autojump_clock) -> None:
+    """A call that first waits for room keeps one timeout for both waits."""
+    from actors import Actor, CallTimeout, open_actor_system
+    from supervisors import ChildSpec, SupervisorSpec
+
+    class Slow(Actor):
+        async def handle(self, message):
+            await trio.sleep(10)
+            return message
+
+    async with open_actor_system() as system:
+        await system.start_supervisor(SupervisorSpec([ChildSpec("a", Slow, mailbox=1)]))
+        system.send_nowait("a", "busy")
+        await trio.testing.wait_all_tasks_blocked()
+        system.send_nowait("a", "queued")  # full now
+        with pytest.raises(CallTimeout, match="no reply from 'a' within 3 s"):
+            await system.call("a", "x", timeout=3)
+        assert trio.current_time() == 3.0
+
+
+def test_benchmark_baselines_run() -> None:
+    """The hand-written baselines of benchmarks.mailbox measure something."""
+    from benchmarks.mailbox import batched_channel, hand_restart_latency
+
+    assert trio.run(batched_channel, 100) > 0
+    assert len(trio.run(hand_restart_latency, 3)) == 3

@@ -19,17 +19,11 @@ import trio
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.occupancy import FREE, OCCUPIED, GridMap, OccupancyGrid
-from actors.firmware.nav.base import (
-    Motion,
-    NavMemory,
-    NavOptions,
-    PathFollower,
-    plan_route,
-    shorten,
-    with_obstacle,
-)
+from actors.firmware.mapping.grid_map import FREE, OCCUPIED, GridMap
+from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.nav.factory import make_nav
+from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.route import Motion, PathFollower, plan_route, shorten, with_obstacle
 from server.protocol import Frame, make_frame
 from supervisors import ChildSpec, SupervisorSpec
 
@@ -537,7 +531,7 @@ def test_a_block_in_a_narrow_passage_probes_sideways_at_once() -> None:
 def test_a_block_beside_the_anchor_continues_the_probe_series() -> None:
     """A nudged route blocked 25 cm beside the series' anchor (and 6 cm short of it,
     as a contact fix may leave it) is no progress: the series goes on to the next
-    offset instead of restarting around the nudged point (campaign 1:39)."""
+    offset instead of restarting around the nudged point."""
     nav = scraped_nav(0.0)
     nav._last_block = (300.0, 150.0, 0.0)
     nav.goal, nav.goal_heading = (600.0, 150.0), None
@@ -552,7 +546,7 @@ def test_a_block_beside_the_anchor_continues_the_probe_series() -> None:
 def test_a_block_short_of_the_mouth_during_a_series_is_its_next_step() -> None:
     """Dead reckoning 10 cm short of the corridor's mouth on a nudged route: no passage
     at the body or the nose, yet with the series' anchor near the block is the next
-    probe, not an obstacle to learn (overlapping campaign 2:19); without a series, or
+    probe, not an obstacle to learn; without a series, or
     far from its anchor, it is not."""
     nav = scraped_nav(0.0)
     nav.pose = Pose(180.0, 112.0, 0.0)  # map (230, 162): nose 10 cm before x = 250
@@ -639,8 +633,8 @@ def test_a_gap_edge_contact_is_acted_on_only_while_the_drift_is_small() -> None:
 @pytest.mark.trio
 async def test_a_back_off_that_turns_while_blocked_holds_instead_of_backing_off_again(
         autojump_clock) -> None:
-    """A back-off ends blocked having turned 25 deg: one tread stalls (campaign game 1:131
-    spent ten blocks in 12 s of a 16 s stall spinning on the spot), so the route holds
+    """A back-off ends blocked having turned 25 deg: one tread stalls (backing off again
+    only spins the rover on the spot), so the route holds
     ``tread_hold_s`` and replans after it; a back-off blocked without turning (the rear
     against something) backs off again at once."""
     said: list[str | None] = []
@@ -670,8 +664,8 @@ async def test_a_back_off_that_turns_while_blocked_holds_instead_of_backing_off_
 @pytest.mark.trio
 async def test_a_back_off_that_did_not_move_replans_instead_of_reversing_again(
         autojump_clock) -> None:
-    """Wedged: a back-off ended blocked without moving (campaign game 1:103: six reverses
-    in a row stuck diagonally in the gap, the route given up). The route is planned
+    """Wedged: a back-off ended blocked without moving (reversing again and again leaves
+    the rover stuck diagonally in a gap). The route is planned
     again from where the rover stands and driven on, not reversed once more; a back-off
     that moved before its block backs off again as before."""
     sent: list[Motion] = []

@@ -10,8 +10,9 @@ import trio
 
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
+from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.odometry import Pose, angle_diff_deg
-from actors.firmware.nav.base import NavMemory, NavOptions
+from actors.firmware.nav.options import NavMemory, NavOptions
 from tests.test_nav_common import (
     Body,
     Truth,
@@ -114,8 +115,8 @@ async def test_hider_replans_after_being_blocked(autojump_clock) -> None:
 @pytest.mark.trio
 async def test_a_map_that_never_comes_is_asked_for_again_with_a_doubling_wait(
         autojump_clock) -> None:
-    """The map lost on the way (a corrupted chunk refused: held-out campaign game 3:184
-    waited for it 550 s): asked again after 20 s, then 40 s; once it comes the hider
+    """The map lost on the way (a corrupted chunk refused, the map never completes):
+    asked again after 20 s, then 40 s; once it comes the hider
     drives, and asks no more."""
     body = Body(truth=own_truth())
     pool = BufferPool(64)
@@ -216,7 +217,7 @@ async def test_a_tread_fault_in_a_turn_stops_it_holds_then_arrives_with_a_wider_
     async with hider_at_first("MOTOR_TURN", TURNING, speed=10.0) as (system, body, nav):
         drift0 = nav.drift_cm
         n = len(body.motor_log)
-        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 3))
+        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, int(TreadFault.short(1))))
         await trio.sleep(0.1)
         assert nav.tread_faults == 1 and nav.moving
         await trio.sleep(11.0)  # within the 12 s hold: nothing new commanded
@@ -239,7 +240,8 @@ async def test_both_treads_silent_in_a_turn_holds_and_doubts_the_heading_more(
     ``tread_both_deg`` (the whole unseen turn), not ``tread_fault_deg``."""
     async with hider_at_first("MOTOR_TURN", TURNING, speed=10.0) as (system, body, nav):
         n = len(body.motor_log)
-        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 4))
+        await system.send("hider/nav",
+                          Message.uint(Cmd.NAV_TREAD_FAULT, int(TreadFault.BOTH_SILENT)))
         await trio.sleep(0.1)
         assert nav.tread_faults == 1 and nav.moving
         assert nav.heading_err_deg == nav.o.tread_both_deg > nav.o.tread_fault_deg
@@ -276,7 +278,7 @@ async def test_a_tread_fault_in_a_move_ends_it_as_blocked(autojump_clock) -> Non
     see below.)"""
     async with hider_at_first("MOTOR_MOVE", STRAIGHT_ON) as (system, body, nav):
         n = len(body.motor_log)
-        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 0))
+        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, int(TreadFault.silent(0))))
         assert await wait_for(lambda: any(c == "MOTOR_MOVE" and v < 0
                                           for c, v in body.motor_log[n:]), 4.0)
         assert body.motor_log[n][0] == "MOTOR_STOP"
@@ -288,8 +290,8 @@ async def test_a_tread_fault_in_a_move_ends_it_as_blocked(autojump_clock) -> Non
 async def test_a_short_count_in_a_move_holds_and_both_short_adds_no_heading_doubt(
         autojump_clock) -> None:
     """A tread (value 2) or both (value 6) counting short during a straight move: a
-    slipping encoder or a weak motor, which a hold lets pass (campaign 1:49: ended as
-    blocked, each back-off on the slip went 3 times its count). MOTOR_STOP, nothing new
+    slipping encoder or a weak motor, which a hold lets pass (ended as blocked, each
+    back-off on the slip would go 3 times its count). MOTOR_STOP, nothing new
     for the hold, then the route goes on. Both alike turn nothing unseen in a straight
     move, so value 6 adds no heading doubt; one tread does."""
     for value in (2, 6):
@@ -310,15 +312,16 @@ async def test_a_short_count_in_a_move_holds_and_both_short_adds_no_heading_doub
 @pytest.mark.trio
 async def test_both_short_in_a_move_where_a_wall_may_touch_is_a_slide_not_held(
         autojump_clock) -> None:
-    """Value 6 in a straight move while a mapped wall lies within the body's radius
-    plus the pose's doubt (``drift_cm``): the rover may be sliding along that wall
-    (healthy hall 5), which counts short just like two slipping encoders. The move
+    """Both treads short in a straight move while a mapped wall lies within the body's
+    radius plus the pose's doubt (``drift_cm``): the rover may be sliding along that
+    wall, which counts short just like two slipping encoders. The move
     is not stopped, nothing is held, the route arrives unblocked. The same report
     with the walls beyond that reach holds (see above)."""
     async with hider_at_first("MOTOR_MOVE", STRAIGHT_ON) as (system, body, nav):
         nav.driven_cm = 1500.0  # a long drive: 60 cm of doubt reaches the walls 50 cm off
         n = len(body.motor_log)
-        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 6))
+        await system.send("hider/nav",
+                          Message.uint(Cmd.NAV_TREAD_FAULT, int(TreadFault.BOTH_SHORT)))
         await trio.sleep(0.1)
         assert nav.moving and nav.heading_err_deg == 0.0
         assert not any(c == "MOTOR_STOP" for c, _ in body.motor_log[n:])
@@ -335,7 +338,7 @@ async def test_a_tread_fault_while_standing_is_ignored(autojump_clock) -> None:
     async with open_actor_system(seed=1) as system:
         await system.start_supervisor(rover_spec("hider", body, pool), "hider")
         await trio.sleep(2.0)
-        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, 0))
+        await system.send("hider/nav", Message.uint(Cmd.NAV_TREAD_FAULT, int(TreadFault.silent(0))))
         await trio.sleep(0.5)
         nav = system.whereis("hider/nav").actor
         assert nav.tread_faults == 0 and not nav.moving

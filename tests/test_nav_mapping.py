@@ -11,7 +11,7 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
-from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.nav.mapper import MappingOptions
 from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
 
@@ -246,7 +246,7 @@ def test_the_least_useful_gain_grows_with_the_map() -> None:
 
 
 def test_one_visit_just_above_the_limit_does_not_restart_the_futile_count() -> None:
-    """The window is judged on its sum: furniture 2's visits of 21, 7, 4 and 34 cells
+    """The window is judged on its sum: visits of 21, 7, 4 and 34 cells
     (limit 32: 34 alone is above it) are futile together, so mapping ends."""
     from actors.firmware.nav.mapper import MappingNav, MappingOptions
 
@@ -412,8 +412,8 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
 
 
 def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -> None:
-    """A route the obstacle check refuses to drive (furniture 2: the rover turned toward
-    it, was refused and turned away for 280 s): after ``obstacle_turns`` turns away toward
+    """A route the obstacle check refuses to drive (the rover would turn toward it, be
+    refused and turn away for minutes): after ``obstacle_turns`` turns away toward
     one target the target is blacklisted and the trip ends; another target starts over."""
     from actors.firmware.nav.mapper import MappingNav, MappingOptions
 

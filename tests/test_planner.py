@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planning.planner import (
     _astar_padded,
     astar,

@@ -95,7 +95,7 @@ def test_rover_reconnects_after_the_server_restarts() -> None:
     lines: list[str] = []
 
     async def serve_until_hello(store: Store) -> None:
-        async with open_server(store, ServerConfig()) as server:
+        async with open_server(store, ServerConfig(rovers=frozenset({"seeker"}))) as server:
             events = server.subscribe()
             await server.listen_tcp("127.0.0.1", port)
             async for e in events:
@@ -124,7 +124,7 @@ def test_pty_link_gives_a_path_the_server_opens_as_a_serial_port() -> None:
     async def main() -> None:
         scenario = load_scenario("empty")
         with Store(":memory:") as store:
-            async with open_server(store, ServerConfig()) as server, \
+            async with open_server(store, ServerConfig(rovers=frozenset({"hider"}))) as server, \
                     open_remote_rover(scenario, "hider", parse_link("pty"), report=lines.append,
                                       nav_factory=_idle_nav) as rover:
                 assert rover.pty_path.startswith("/dev/")

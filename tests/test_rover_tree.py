@@ -8,7 +8,7 @@ import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.mapping.grid_map import GridMap
 from server.protocol import make_frame
 from server.server import ServerConfig, open_server
 from server.store import Store

@@ -95,10 +95,10 @@ def test_commands_refused_without_rover_and_with_bad_arguments() -> None:
     run(main)
 
 
-async def _raw_client(server):
+async def _raw_client(server, *, trusted: bool = True):
     """A raw session on a memory link: returns (session, link, inbox)."""
     inbox: list[bytes] = []
-    link = server.attach_memory(inbox.append)
+    link = server.attach_memory(inbox.append, trusted=trusted)
     return ReliableSession(), link, inbox
 
 
@@ -111,9 +111,9 @@ def _lines(inbox: list[bytes]) -> list:
 def test_bad_frames_are_answered_and_link_stays_up() -> None:
     """Garbage, frames before hello, wrong tokens and server-only cmds each get an error."""
     async def main() -> None:
-        config = ServerConfig(tokens={"*": "sesame"})
+        config = ServerConfig(tokens={"*": "sesame"}, rovers=frozenset({"m1"}))
         async with open_server(Store(":memory:"), config) as server:
-            _, link, inbox = await _raw_client(server)
+            _, link, inbox = await _raw_client(server, trusted=False)
             link.feed(b"not json\n")
             link.feed(b'{"cmd":"pose","type":"pose","data":{"x":1,"y":2}}\n')
             link.feed(b'{"cmd":"hello","type":"rover","data":{"id":"m1","role":"mapper"}}\n')

@@ -67,7 +67,9 @@ def test_maps_lists_and_export_writes_files(tmp_path, capsys) -> None:
         store.save_map(MapGrid(np.zeros((3, 4), np.int8), 5.0, (0.0, 0.0)), game_id=gid, t=1)
     assert cmd_maps.run(_args(cmd_maps, "maps", ["--db", str(db)])) == 0
     out = capsys.readouterr().out
-    assert "    1 interrupted  idle          1" in out and "4x3" in out
+    # read-only: the game a (here: still open) server plays is not marked interrupted
+    assert "    1 running      idle           1    1" in out and "4x3" in out
+    assert out.rstrip().endswith("played")
     out_dir = tmp_path / "out"
     for fmt, names in (("pgm", ["game1.pgm", "game1.yaml"]), ("png", ["game1.png"])):
         args = _args(cmd_maps, "export-map", ["1", "--format", fmt, "--out", str(out_dir),

@@ -70,10 +70,11 @@ def test_killed_server_keeps_maps_and_marks_game_interrupted(tmp_path) -> None:
 
 
 def test_end_game_refuses_unknown_status(tmp_path) -> None:
-    """Only finished and abandoned close a game."""
+    """Only finished, stopped and interrupted close a game."""
     with Store(":memory:") as store:
         gid = store.new_game(t=0)
-        with pytest.raises(ValueError, match="status must be finished or abandoned, got 'won'"):
+        with pytest.raises(ValueError, match="status must be one of finished, stopped, "
+                                             "interrupted, got 'won'"):
             store.end_game(gid, "won", "", t=1)
 
 
@@ -83,3 +84,51 @@ def test_unreadable_file_gives_store_error(tmp_path) -> None:
     bad.write_bytes(b"this is not sqlite" * 100)
     with pytest.raises(StoreError, match="cannot open database"):
         Store(bad)
+
+
+OLD_SCHEMA = """
+CREATE TABLE runs (id INTEGER PRIMARY KEY, label TEXT NOT NULL DEFAULT '');
+CREATE TABLE games (id INTEGER PRIMARY KEY, run_id INTEGER NOT NULL, status TEXT NOT NULL,
+    phase TEXT NOT NULL, outcome TEXT NOT NULL DEFAULT '', started_t REAL NOT NULL,
+    ended_t REAL);
+CREATE TABLE maps (id INTEGER PRIMARY KEY, game_id INTEGER, t REAL NOT NULL,
+    nx INTEGER NOT NULL, ny INTEGER NOT NULL, resolution_cm REAL NOT NULL,
+    origin_x_cm REAL NOT NULL, origin_y_cm REAL NOT NULL, cells BLOB NOT NULL);
+INSERT INTO runs (label) VALUES ('');
+INSERT INTO games (run_id, status, phase, started_t) VALUES (1, 'finished', 'found', 0);
+INSERT INTO maps (game_id, t, nx, ny, resolution_cm, origin_x_cm, origin_y_cm, cells)
+    VALUES (1, 1.0, 2, 1, 5.0, 0.0, 0.0, X'0064');
+"""
+
+
+def test_a_file_of_the_older_schema_reads_read_only_and_migrates(tmp_path) -> None:
+    """Read-only, an older file's games and maps read (its last upload is the game's
+    map); opened read-write it gains the new columns and keeps its rows."""
+    import sqlite3
+
+    db = tmp_path / "old.db"
+    con = sqlite3.connect(db)
+    con.executescript(OLD_SCHEMA)
+    con.close()
+    with Store(db, readonly=True) as store:
+        (game,) = store.games()
+        assert (game.status, game.map_id) == ("finished", None)
+        assert store.game_map(1).cells.tolist() == [[0, 100]]
+        assert store.maps()[0].accepted
+    with Store(db) as store:
+        assert store.game(1).phase == "found"
+        store.save_map(MapGrid(np.zeros((1, 2), np.int8), 5.0, (0.0, 0.0)), game_id=1, t=2.0,
+                       accepted=False, note="ignored")
+        assert [m.accepted for m in store.maps()] == [True, False]
+
+
+def test_read_only_store_refuses_writes_and_leaves_running_games(tmp_path) -> None:
+    """A read-only open neither recovers nor records a run; writing through it fails."""
+    db = tmp_path / "live.db"
+    with Store(db) as live:
+        gid = live.new_game(t=0.0)
+        with Store(db, readonly=True) as ro:
+            assert ro.games()[0].status == "running" and ro.interrupted == []
+            with pytest.raises(Exception, match="readonly"):
+                ro.new_game(t=1.0)
+        assert live.game(gid).status == "running"

@@ -1,35 +1,49 @@
-"""The world's device encoders agree with the firmware's datasheet definitions."""
+"""The world's devices and the firmware agree on the device contract.
+
+The contract (``actors/firmware/hardware.py``) is written once; these tests
+round-trip what the world's devices produce through the firmware's ISRs.
+"""
 
 from __future__ import annotations
 
-import dataclasses
 import struct
 
 import numpy as np
-import pytest
 
+from actors import Message
 from actors.firmware import hardware as fw
-from world import hardware as hw
+from actors.firmware.commands import Cmd
+from actors.firmware.drivers.isr import LidarUartIsr, MotorCounterIsr
 from world import packets
-from world.params import RoverSpec
+from world.drive import Tread
+from world.params import DeviceParams, rover_spec
 from world.scenario import load_scenario
 from world.world import World
 
 
-def test_counter_payloads_decode_on_the_firmware_side() -> None:
-    for tread in (packets.TREAD_LEFT, packets.TREAD_RIGHT):
+def test_counter_payloads_round_trip() -> None:
+    """Every Int E payload the contract encodes decodes to the same tread and direction."""
+    for tread in (fw.TREAD_LEFT, fw.TREAD_RIGHT):
         for forward in (True, False):
-            assert fw.decode_counter(packets.encode_counter(tread, forward)) == (tread, forward)
-            assert packets.encode_counter(tread, forward) == fw.encode_counter(tread, forward)
+            assert fw.decode_counter(fw.encode_counter(tread, forward)) == (tread, forward)
+
+
+def test_a_tread_driven_backwards_posts_backward_counts_to_the_motor() -> None:
+    """The world's tread raises Int E with payloads the firmware's ISR turns into motor messages."""
+    got: list[Message] = []
+    isr = MotorCounterIsr(lambda m: got.append(m) is None)
+    tread = Tread(fw.TREAD_RIGHT)
+    for payload in tread.encode(-12.0, ticks_per_cm=8.0, per_interrupt=4):
+        isr(payload)
+    assert len(got) == 24 and all(m.command == Cmd.MOTOR_TICK for m in got)
+    assert {fw.decode_counter(m.value) for m in got} == {(fw.TREAD_RIGHT, False)}
 
 
 def test_lidar_packets_follow_the_datasheet() -> None:
-    """Sync, little-endian angle and distance, XOR checksum, as firmware documents."""
-    assert packets.LIDAR_SYNC == fw.LIDAR_SYNC
-    assert packets.LIDAR_PACKET_SIZE == fw.LIDAR_PACKET_SIZE
+    """Sync, little-endian angle and distance, XOR checksum, as the contract documents."""
     data = packets.encode_lidar_packets(np.array([0, 12345, 35999, 36100]),
                                         np.array([0, 402, 65535, 70000]))
-    frames = [data[i:i + 6] for i in range(0, len(data), 6)]
+    frames = [data[i:i + fw.LIDAR_PACKET_SIZE] for i in range(0, len(data), fw.LIDAR_PACKET_SIZE)]
     decoded = []
     for f in frames:
         sync, angle, dist, check = struct.unpack("<BHHB", f)
@@ -40,30 +54,25 @@ def test_lidar_packets_follow_the_datasheet() -> None:
 
 
 def test_lidar_packets_parse_in_the_firmware_isr() -> None:
-    """The firmware's Int A ISR turns our bytes into the same (angle, distance) samples."""
-    isr_mod = pytest.importorskip("actors.firmware.drivers.isr")
-    got = []
-    isr = isr_mod.LidarUartIsr(got.append)
+    """The firmware's Int A ISR turns the world's bytes back into the same samples."""
+    got: list[Message] = []
+    isr = LidarUartIsr(lambda m: got.append(m) is None)
     isr(packets.encode_lidar_packets(np.array([0, 9000, 27050]), np.array([100, 402, 0])))
     assert len(got) == 3
 
 
-def test_spec_has_the_firmware_spec_fields() -> None:
-    ours = [f.name for f in dataclasses.fields(RoverSpec)]
-    theirs = [f.name for f in dataclasses.fields(fw.HardwareSpec)]
-    assert ours == theirs
-    fw.HardwareSpec(**dataclasses.asdict(RoverSpec("mapper", 0.5, 13.0)))
-
-
-def test_interrupt_lines_match() -> None:
-    assert (hw.INT_A, hw.INT_B, hw.INT_C, hw.INT_D, hw.INT_E) == tuple(fw.Interrupt)
+def test_the_world_builds_the_firmware_spec() -> None:
+    """The world hands each rover the contract's own `HardwareSpec`, from its device parameters."""
+    spec = rover_spec("seeker", DeviceParams(ticks_per_cm=10.0, ticks_per_interrupt=5))
+    assert isinstance(spec, fw.HardwareSpec)
+    assert (spec.role, spec.cm_per_interrupt) == ("seeker", 0.5)
 
 
 def test_sim_hardware_is_a_rover_hardware() -> None:
     world = World(load_scenario("empty"), np.random.default_rng(0))
-    for role in ("mapper", "hider", "seeker"):
+    for role in fw.ROLES:
         h = world.hardware(role)
         assert isinstance(h, fw.RoverHardware)
         assert h.spec.role == role and h.spec.cm_per_interrupt == 0.5
-        h.attach(fw.Interrupt.INT_E, lambda p: None)  # the firmware's enum works as a line
+        h.attach(fw.Interrupt.INT_E, lambda p: None)
         assert fw.Interrupt.INT_E in h.handlers

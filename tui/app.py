@@ -95,6 +95,8 @@ ACTIONS: tuple[UiAction, ...] = (
     UiAction("n", "new_game", "New", "Start a new game", footer=False),
     UiAction("e", "export_map", "Export", "Save the map (PGM + YAML) to the export directory",
              footer=False),
+    UiAction("R", "record", "Record",
+             "Start / stop recording the game as MCAP (hideseek replay opens it)", footer=False),
     UiAction("p", "toggle_log_pause", "Log pause", "Pause / resume the message log",
              footer=False),
     UiAction("slash", "filter_log", "Filter", "Filter the message log", footer=False),
@@ -148,6 +150,10 @@ class ConsoleApp(App[int]):
         Binding("ctrl+c", "quit", "Quit", show=False, priority=True),
         Binding("escape", "focus_map", "Map", show=False),
     ]
+
+    actions: tuple[UiAction, ...] = ACTIONS
+    """The actions the help screen and the command palette list (a subclass with other
+    bindings names its own)."""
 
     class SnapshotArrived(Message):
         """The system published a snapshot (posted from Trio)."""
@@ -407,6 +413,13 @@ class ConsoleApp(App[int]):
     def action_export_map(self) -> None:
         self._call("export_map", self.export_dir)
 
+    def action_record(self) -> None:
+        """``R``: start or stop recording, where the system can record (the live one)."""
+        if not hasattr(self.system, "record"):
+            self.notify("this system cannot be recorded", severity="warning")
+            return
+        self._call("record", None)
+
     def action_faults(self) -> None:
         snap = self.snapshot
         if snap is None or not snap.catalogue:
@@ -441,7 +454,7 @@ class ConsoleApp(App[int]):
         self.map_view.focus()
 
     def action_help(self) -> None:
-        keys = [(_KEY_NAMES.get(a.key, a.key), a.help) for a in ACTIONS] + list(MAP_KEYS)
+        keys = [(_KEY_NAMES.get(a.key, a.key), a.help) for a in self.actions] + list(MAP_KEYS)
         self.push_screen(HelpScreen(keys, intro="[b]hideseek console[/b]: keys\n"))
 
     async def action_quit(self) -> None:
@@ -451,7 +464,7 @@ class ConsoleApp(App[int]):
 
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
         yield from super().get_system_commands(screen)
-        for a in ACTIONS:
+        for a in self.actions:
             if a.action in ("quit",):
                 continue
             yield SystemCommand(a.help.split(":")[0], f"key {_KEY_NAMES.get(a.key, a.key)}",

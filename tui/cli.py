@@ -22,6 +22,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "rover": ("tui.cmd_rover", "one simulated rover as its own process, over TCP or serial"),
     "play": ("tui.cmd_play", "the terminal console: watch, steer and break a game"),
     "campaign": ("tui.cmd_campaign", "many seeded games under random faults, invariants checked"),
+    "replay": ("tui.cmd_replay", "open a recording (.mcap) in the console: pause, step, seek"),
+    "shrink": ("tui.cmd_shrink", "a failing game's faults shrunk to what the failure needs"),
 }
 
 

@@ -35,6 +35,8 @@ from supervisors.harness.campaign import (
     select_kinds,
     summarize,
 )
+from supervisors.harness.campaign.engines import ENGINES, open_engine
+from supervisors.harness.shrink import DEFAULT_MAX_RUNS, shrink_failures
 from world.scenario import builtin_scenarios
 
 _BAR = 30  # progress bar width [characters]
@@ -81,6 +83,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="SQLite file for the results (default hideseek-campaign.sqlite; "
                              "':memory:' to keep none)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    parser.add_argument("--record-failures", metavar="DIR",
+                        help="after the campaign, play each failed game again recorded as "
+                             "DIR/game-I.mcap (open with hideseek replay)")
+    parser.add_argument("--engine", choices=ENGINES, default="local",
+                        help="where games run: local (a process pool, default) or ray (a Ray "
+                             "cluster with --address, else a local Ray instance of --workers "
+                             "CPUs; needs pip install 'hideseek[cluster]')")
+    parser.add_argument("--address", default=None, metavar="ADDR",
+                        help="the Ray cluster to join: HOST:PORT, ray://HOST:PORT or auto")
+    parser.add_argument("--swarm", action="store_true",
+                        help="swarm testing: each game draws its own subset of the fault kinds "
+                             "and its own device parameters (link speed, sensor noise)")
+    parser.add_argument("--shrink", action="store_true",
+                        help="shrink each failure's faults to what it needs, in parallel on "
+                             "the same engine, and write each as a scenario file")
+    parser.add_argument("--shrink-dir", default="hideseek-shrunk", metavar="DIR",
+                        help="folder for the shrunk scenario files (default hideseek-shrunk)")
+    parser.add_argument("--shrink-runs", type=int, default=DEFAULT_MAX_RUNS, metavar="N",
+                        help=f"games each shrink may play (default {DEFAULT_MAX_RUNS})")
 
 
 def code_version() -> str | None:
@@ -111,6 +132,7 @@ def config_from_args(args: argparse.Namespace) -> CampaignConfig:
     kw: dict[str, Any] = {"seed": args.seed, "mode": args.mode,
                           "kinds": select_kinds(args.faults),
                           "mapping_budget_s": args.budget, "generated": args.generated}
+    kw["swarm"] = args.swarm
     if args.scenarios:
         kw["rooms"] = tuple(s.strip() for s in args.scenarios.split(",") if s.strip())
     if args.window:
@@ -201,6 +223,45 @@ def _print_table(s: dict[str, Any]) -> None:
         print(f"    reproduce: {f['reproduce']}")
 
 
+def _record_dir(path: str) -> Path:
+    """The ``--record-failures`` folder, made if missing.
+
+    Raises:
+        CampaignError: it cannot be made (a file of that name, no permission).
+    """
+    folder = Path(path)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CampaignError(f"--record-failures {path!r}: {exc.strerror or exc}") from None
+    return folder
+
+
+def _record_failures(folder: str, failures: list[dict[str, Any]], results: list[dict[str, Any]],
+                     *, out: TextIO) -> None:
+    """Play each failed game again by its campaign reference, recorded (the path of
+    ``hideseek run --campaign REF --record FILE``); say whether it is the same game."""
+    from supervisors.harness.campaign import game_from_ref  # noqa: PLC0415
+    from supervisors.recording.play import record_game  # noqa: PLC0415
+    from supervisors.recording.recorder import RecordingError  # noqa: PLC0415
+
+    by_index = {r["index"]: r for r in results}
+    print(f"\nrecording {len(failures)} failed game(s) into {folder} ...", file=out, flush=True)
+    for f in failures:
+        r = by_index[f["index"]]
+        path = Path(folder) / f"game-{f['index']}.mcap"
+        try:
+            scenario, seed, budget = game_from_ref(r["ref"])
+            report = record_game(scenario, seed, path, budget_s=budget, campaign=r["ref"])
+        except (CampaignError, RecordingError) as exc:
+            print(f"  game {f['index']}: not recorded: {exc}", file=out)
+            continue
+        same = "the campaign's game" if report.trace_hash == r.get("trace_hash") else (
+            f"NOT the campaign's game (trace hash {report.trace_hash}, campaign "
+            f"{r.get('trace_hash')})")
+        print(f"  game {f['index']}: {path} ({report.outcome}; {same})", file=out)
+
+
 def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
     """Run the campaign the options describe; ``worker`` is for tests."""
     try:
@@ -218,6 +279,9 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
         if args.max_wall is not None and not 0 < args.max_wall <= 1e6:
             raise CampaignError(f"--max-wall must be within (0, 1e6] minutes, "
                                 f"got {args.max_wall}")
+        if args.record_failures:
+            _record_dir(args.record_failures)
+        engine = _open_engine(args, workers)
         store = CampaignStore(args.out)
     except CampaignError as exc:
         print(f"hideseek campaign: {exc}", file=sys.stderr)
@@ -226,7 +290,7 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
     progress = Progress(games, sys.stderr, enabled=not args.no_progress)
     if not args.json:
         print(f"campaign seed {config.seed}: {games} games, {config.mode} faults, "
-              f"{workers} workers ...", flush=True)
+              f"{engine.workers if engine else workers} workers ...", flush=True)
     results = []
     stopped = None
     code_at_start = code_version()
@@ -234,7 +298,8 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
     with store:
         cid = store.new_campaign(config, time.time())
         playing = run_campaign(config, games, workers=workers, worker=worker,
-                               determinism_every=replay_every, wall_timeout_s=args.timeout)
+                               determinism_every=replay_every, wall_timeout_s=args.timeout,
+                               engine=engine)
         try:
             for r in playing:
                 results.append(r)
@@ -252,15 +317,75 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
             print(f"\nhideseek campaign: {stopped} after {len(results)} of {games} games",
                   file=sys.stderr)
         summary = summarize(config, results, wall_s=time.perf_counter() - wall0,
-                            workers=workers)
+                            workers=engine.workers if engine else workers)
         summary["games_requested"] = games
         summary["stopped_early"] = stopped
         summary["code"] = {"at_start": code_at_start, "at_end": code_version()}
+        summary["engine"] = args.engine
+        if args.shrink and not stopped:
+            summary["shrunk"] = _shrink(args, results, engine)
         store.finish(cid, summary)
+    if engine is not None:
+        engine.close()
     if args.json:
         print(json.dumps(summary))
     else:
         _print_table(summary)
+        _print_shrunk(summary.get("shrunk"))
+    if args.record_failures and summary["failures"]:
+        _record_failures(args.record_failures, summary["failures"], results,
+                         out=sys.stderr if args.json else sys.stdout)
     if len(results) < games:
         return 130
     return 1 if summary["failures"] else 0
+
+
+def _open_engine(args: argparse.Namespace, workers: int) -> Any:
+    """The engine ``--engine`` names (None: the local pool ``run_campaign`` starts itself).
+
+    Raises:
+        CampaignError: Ray missing or unreachable, an address without ``--engine ray``,
+            a bad ``--shrink-runs``.
+    """
+    if not 1 <= args.shrink_runs <= 10_000:
+        raise CampaignError(f"--shrink-runs must be within 1..10000, got {args.shrink_runs}")
+    if args.engine == "local" and not args.address:
+        return None
+    return open_engine(args.engine, workers=workers or None, address=args.address)
+
+
+def _shrink(args: argparse.Namespace, results: list[dict[str, Any]], engine: Any
+            ) -> list[dict[str, Any]]:
+    """Shrink the failures on the campaign's engine; write each file; the reports, by index."""
+    workers = engine.workers if engine else args.workers
+    local = None if engine or workers == 0 else open_engine(
+        "local", workers=min(workers or default_workers(), max(len(results), 1)))
+    folder = Path(args.shrink_dir)
+    out = []
+    for r in shrink_failures(results, engine=engine or local, max_runs=args.shrink_runs,
+                             wall_timeout_s=args.timeout):
+        if "toml" in r:
+            path = folder / f"campaign-{args.seed}-{r['index']}.toml"
+            try:
+                folder.mkdir(parents=True, exist_ok=True)
+                path.write_text(r.pop("toml"), encoding="utf-8")
+                r["file"] = str(path)
+            except OSError as exc:
+                r["error"] = f"cannot write {path}: {exc}"
+        out.append(r)
+    return sorted(out, key=lambda r: r.get("index") or 0)
+
+
+def _print_shrunk(shrunk: list[dict[str, Any]] | None) -> None:
+    """Each shrunk failure: its schedule before and after, and the file that reproduces it."""
+    for r in shrunk or []:
+        what = r.get("error") or (
+            f"{len(r['original'])} faults -> {len(r['shrunk'])} in {r['runs']} runs"
+            + (" (ran out of runs)" if r["exhausted"] else ""))
+        print(f"\n  SHRUNK {r['ref']}: {what}")
+        if "error" in r:
+            continue
+        for line in r["shrunk"] or ["(no fault: it fails without them)"]:
+            print(f"    needs: {line}")
+        verdict = "fails the same way" if r["reproduces"] else "DOES NOT fail the same way"
+        print(f"    {verdict}: {r['reproduce'].replace('FILE', r.get('file', 'FILE'))}")

@@ -1,6 +1,10 @@
 """``hideseek maps`` lists stored games and maps; ``hideseek export-map GAME`` exports one.
 
 Both subcommands live here; `add_arguments` tells them apart by the parser's name.
+Both open the database read-only, so they are safe on a live server's file and
+never change a game it plays. ``export-map GAME`` writes the map the game
+played on (the last upload it accepted); uploads the game ignored are listed
+apart by ``maps`` and can be exported with ``--map ID``.
 """
 
 from __future__ import annotations
@@ -16,6 +20,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="SQLite database (default %(default)s)")
     if parser.prog.endswith("export-map"):
         parser.add_argument("game", type=int, metavar="GAME", help="game id (see 'maps')")
+        parser.add_argument("--map", type=int, default=None, metavar="ID", dest="map_id",
+                            help="export this stored map of the game instead of the one it "
+                                 "played on (see 'maps')")
         parser.add_argument("--format", choices=("pgm", "png"), default="pgm",
                             help="pgm (+ map_server YAML) or png (default %(default)s)")
         parser.add_argument("--out", default=".", metavar="DIR",
@@ -34,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"hideseek: no database {args.db} (give --db FILE)", file=sys.stderr)
         return 2
     try:
-        store = Store(args.db)
+        store = Store(args.db, readonly=True)
     except StoreError as exc:
         print(f"hideseek: {exc}", file=sys.stderr)
         return 2
@@ -49,16 +56,20 @@ def run(args: argparse.Namespace) -> int:
 def _list(store) -> int:
     games = store.games()
     maps = store.maps()
-    print(f"{'game':>5} {'status':<12} {'phase':<10} {'maps':>4}  outcome")
+    print(f"{'game':>5} {'status':<12} {'phase':<10} {'map':>5} {'maps':>4}  outcome")
     for g in games:
         n = sum(m.game_id == g.id for m in maps)
-        print(f"{g.id:>5} {g.status:<12} {g.phase:<10} {n:>4}  {g.outcome}")
+        played = g.map_id if g.map_id is not None else "-"
+        print(f"{g.id:>5} {g.status:<12} {g.phase:<10} {played:>5} {n:>4}  {g.outcome}")
     print()
-    print(f"{'map':>5} {'game':>5} {'size [cells]':>12} {'res [cm]':>8}  origin [cm]")
+    played_ids = {g.map_id for g in games}
+    print(f"{'map':>5} {'game':>5} {'size [cells]':>12} {'res [cm]':>8}  {'origin [cm]':<16} use")
     for m in maps:
+        use = ("played" if m.id in played_ids else "replaced" if m.accepted
+               else f"ignored: {m.note}")
         print(f"{m.id:>5} {m.game_id if m.game_id is not None else '-':>5} "
               f"{f'{m.nx}x{m.ny}':>12} {m.resolution_cm:>8g}  "
-              f"({m.origin_cm[0]:g}, {m.origin_cm[1]:g})")
+              f"{f'({m.origin_cm[0]:g}, {m.origin_cm[1]:g})':<16} {use}")
     return 0
 
 
@@ -67,11 +78,19 @@ def _export(store, args) -> int:
     from server.store import StoreError
 
     try:
-        grid = store.latest_map_of_game(args.game)
+        if args.map_id is None:
+            map_id = store.game_map_id(args.game)
+        else:
+            map_id = args.map_id
+            owner = next((m.game_id for m in store.maps() if m.id == map_id), None)
+            if owner != args.game:
+                raise StoreError(f"map {map_id} is not one of game {args.game}'s "
+                                 "(see 'hideseek maps')")
+        grid = store.load_map(map_id)
     except StoreError as exc:
         print(f"hideseek export-map: {exc}", file=sys.stderr)
         return 2
-    name = f"game{args.game}"
+    name = f"game{args.game}" if args.map_id is None else f"game{args.game}-map{map_id}"
     try:
         if args.format == "pgm":
             paths = write_pgm(grid, args.out, name)

@@ -44,6 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run the built-in fake system (the console's demo and test double)")
     parser.add_argument("--speed", choices=list(SPEED_CHOICES), default="1",
                         help="initial speed of simulated time (default: %(default)s)")
+    parser.add_argument("--record", metavar="FILE.mcap",
+                        help="record the game from the start (R in the console starts and "
+                             "stops recording)")
     parser.add_argument("--export-dir", default=".", metavar="DIR",
                         help="where the export key saves maps (default: current directory)")
 
@@ -75,6 +78,9 @@ def _links(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     from tui.app import ConsoleApp
 
+    if args.record and args.fake:
+        print("hideseek play: --record needs the real system, not --fake", file=sys.stderr)
+        return 2
     if args.rover and args.fake:
         print("hideseek play: --rover needs the real system, not --fake", file=sys.stderr)
         return 2
@@ -91,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
             remote, listen = _links(args)
             scenario = load_scenario(args.scenario)
             system = LiveSystem(scenario, seed=args.seed, speed=SPEED_CHOICES[args.speed],
-                                db=args.db, remote=remote, listen=listen)
+                                db=args.db, remote=remote, listen=listen,
+                                record=args.record)
         except (ScenarioError, OSError, ValueError) as exc:
             print(f"hideseek play: {exc}", file=sys.stderr)
             return 2

@@ -13,7 +13,7 @@ import argparse
 import signal
 import sys
 
-ROLES = ("mapper", "hider", "seeker")
+from server.protocol import ROLES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

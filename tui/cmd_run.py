@@ -1,6 +1,11 @@
 """``hideseek run``: one whole game, headless, in virtual time.
 
-Exit status: 0 the hider was found, 1 it was not (or the game failed), 2 bad input.
+Exit status: 0 the hider was found, 1 it was not (or the game failed), 2 bad input,
+3 a fork (``--replay FILE --fork-at T``) left its recording before T.
+
+``--record FILE.mcap`` records the game (docs/recording.md); ``--replay FILE.mcap
+--fork-at T`` plays a recorded game again to T, checking it, then on with the
+changes given (``--fault``, ``--hide``, ``--seek``).
 """
 
 from __future__ import annotations
@@ -9,12 +14,22 @@ import argparse
 import json
 import sys
 import time
+from typing import TYPE_CHECKING
 
 import trio
 
 from actors import JsonLinesRecorder, Trace, seed_trio_scheduler, virtual_clock
 from supervisors.harness.headless import Budget, GameReport, run_game
-from world.scenario import ScenarioError, builtin_scenarios, generate_scenario, load_scenario
+from world.scenario import (
+    Scenario,
+    ScenarioError,
+    builtin_scenarios,
+    generate_scenario,
+    load_scenario,
+)
+
+if TYPE_CHECKING:
+    from supervisors.recording import Recorder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,6 +47,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trace", metavar="FILE", help="record the trace as JSON lines")
     parser.add_argument("--budget", type=float, default=1200.0,
                         help="simulated seconds allowed for mapping (default 1200)")
+    parser.add_argument("--record", metavar="FILE.mcap",
+                        help="record the game as MCAP (open it in Foxglove or with "
+                             "`hideseek replay`)")
+    fork = parser.add_argument_group("fork a recording")
+    fork.add_argument("--replay", metavar="FILE.mcap",
+                      help="the recorded game to play again (scenario, seed and budget "
+                           "come from it)")
+    fork.add_argument("--fork-at", type=float, metavar="T",
+                      help="simulated time [s] where the game goes its own way")
+    fork.add_argument("--fault", nargs="+", action="append", default=[],
+                      metavar="TARGET KIND [DURATION]",
+                      help="inject a fault at T (repeatable), e.g. --fault mapper/lidar dead 20")
+    fork.add_argument("--hide", metavar="X,Y[,H]", help="another hide spot (room frame cm, deg)")
+    fork.add_argument("--seek", metavar="X,Y", action="append",
+                      help="a seek guess instead of the scenario's (room frame cm; repeatable)")
 
 
 def _scenario(args: argparse.Namespace):
@@ -63,7 +93,88 @@ def _print_summary(r: GameReport) -> None:
     print(f"  trace hash {r.trace_hash}")
 
 
+def _numbers(text: str, name: str, counts: tuple[int, ...]) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in counts:
+        form = "X,Y" if counts == (2,) else "X,Y[,H]"
+        raise ValueError(f"--{name} must be {form} in cm, got {text!r}")
+    return values
+
+
+def _fork_faults(raw: list[list[str]]) -> list[tuple[str, str, float]]:
+    out = []
+    for items in raw:
+        if len(items) not in (2, 3):
+            raise ValueError(f"--fault takes TARGET KIND [DURATION], got {' '.join(items)!r}")
+        try:
+            duration = float(items[2]) if len(items) == 3 else 0.0
+        except ValueError:
+            raise ValueError(f"--fault duration must be seconds, got {items[2]!r}") from None
+        out.append((items[0], items[1], duration))
+    return out
+
+
+def _fork(args: argparse.Namespace) -> int:
+    """``--replay FILE --fork-at T``: play the recording again to T, then with the changes."""
+    from supervisors.recording.fork import ForkDiverged, ForkError, fork_game  # noqa: PLC0415
+    from supervisors.recording.reading import RecordingReadError  # noqa: PLC0415
+    from supervisors.recording.recorder import RecordingError  # noqa: PLC0415
+
+    try:
+        if args.fork_at is None:
+            raise ValueError("--replay needs --fork-at T (the simulated time to fork at)")
+        faults = _fork_faults(args.fault)
+        hide = None
+        if args.hide:
+            h = _numbers(args.hide, "hide", (2, 3))
+            hide = (h[0], h[1], h[2] if len(h) == 3 else 0.0)
+        seek = [_numbers(g, "seek", (2,)) for g in args.seek] if args.seek else None
+        if not args.json:
+            print(f"forking {args.replay} at {args.fork_at:g} s ...", flush=True)
+        wall0 = time.perf_counter()
+        report, checker = fork_game(args.replay, args.fork_at, faults=faults, hide=hide,
+                                    seek=seek, record=args.record)
+    except (ValueError, RecordingReadError, ForkError, RecordingError) as exc:
+        print(f"hideseek run: {exc}", file=sys.stderr)
+        return 2
+    except ForkDiverged as exc:
+        print(f"hideseek run: fork stopped: {exc}", file=sys.stderr)
+        return 3
+    report.wall_seconds = time.perf_counter() - wall0
+    report.real_time_factor = report.sim_seconds / max(report.wall_seconds, 1e-9)
+    if args.json:
+        print(json.dumps({**report.to_json(), "fork_checkpoints": checker.compared}))
+    else:
+        print(f"  followed the recording to {args.fork_at:g} s "
+              f"({checker.compared} checkpoints equal)")
+        for line in report.events:
+            print("  " + line)
+        _print_summary(report)
+    return 0 if report.outcome == "found" else 1
+
+
+def _recorder(args: argparse.Namespace, scenario: Scenario) -> Recorder | None:
+    """The ``--record`` observer, or None (raises RecordingError when the file cannot be made)."""
+    if not args.record:
+        return None
+    from supervisors.recording import Recorder, RunInfo  # noqa: PLC0415 - only when asked
+    from supervisors.recording.runinfo import scenario_text  # noqa: PLC0415
+
+    info = RunInfo.for_scenario(scenario, args.seed, budget_s=args.budget,
+                                campaign=args.campaign)
+    return Recorder(args.record, info, scenario_toml=scenario_text(scenario))
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.replay:
+        return _fork(args)
+    if args.fork_at is not None or args.fault or args.hide or args.seek:
+        print("hideseek run: --fork-at, --fault, --hide and --seek fork a recording: "
+              "give --replay FILE.mcap", file=sys.stderr)
+        return 2
     try:
         if args.campaign:
             from supervisors.harness.campaign import (  # noqa: PLC0415 - only when asked
@@ -87,12 +198,19 @@ def run(args: argparse.Namespace) -> int:
             return 2
         trace.subscribe(JsonLinesRecorder(trace_file))
     budget = Budget(mapping=args.budget)
+    try:
+        recorder = _recorder(args, scenario)
+    except RuntimeError as exc:  # RecordingError: the file cannot be made
+        print(f"hideseek run: {exc}", file=sys.stderr)
+        return 2
     if not args.json:
         print(f"running {scenario.name} (seed {args.seed}) in virtual time ...", flush=True)
     seed_trio_scheduler(args.seed)
     wall0 = time.perf_counter()  # wall time is measured for the report only
     report = trio.run(lambda: run_game(scenario, args.seed, db=args.db, budget=budget,
-                                       trace=trace), clock=virtual_clock())
+                                       trace=trace,
+                                       observers=[recorder] if recorder else []),
+                      clock=virtual_clock())
     report.wall_seconds = time.perf_counter() - wall0
     report.real_time_factor = report.sim_seconds / max(report.wall_seconds, 1e-9)
     if trace_file is not None:

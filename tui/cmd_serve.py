@@ -3,12 +3,23 @@
 Rovers attach over TCP (``--rover ID=tcp``: they connect to ``--listen``),
 serial (``--rover ID=serial:PORT,BAUD``) or are simulated in this process
 (``--rover ROLE=sim``: the ``--scenario`` room, in real time, in-memory link).
+Only the ids given with ``--rover`` may say hello over TCP or serial, unless
+``--open-enrolment``; beyond loopback every such id needs a ``--token``.
 
-Operator commands are read from standard input, one per line::
+The server plays on the database's newest game when it is unfinished (a
+server stopped or killed mid-game resumes it; rovers reconnect and resync);
+``--fresh-game`` starts a new one instead.
 
-    start_mapping | stop_mapping | new_game | status
+Operator commands are read from standard input, one per line (a prompt with
+line editing and history when it is a terminal)::
+
+    start_mapping | stop_mapping | new_game | status | help | quit
     hide X Y [HEADING] [room|map]      (cm, deg; map frame unless "room")
-    seek X Y [HEADING] [room|map]
+    seek X Y [HEADING] [room|map] [within=CM]
+
+End of input (Ctrl-D) or ``quit`` stops the server as Ctrl-C does: the game
+is kept, to be resumed by the next start. ``--no-console`` ignores standard
+input (a server run unattended).
 """
 
 from __future__ import annotations
@@ -18,9 +29,25 @@ import contextlib
 import os
 import sys
 
-__all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_command_line"]
+from server.protocol import ROLES
 
-SIM_ROLES = ("mapper", "hider", "seeker")
+__all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_command_line",
+           "CONSOLE_COMMANDS", "HELP", "format_status"]
+
+CONSOLE_COMMANDS = ("start_mapping", "stop_mapping", "hide", "seek", "new_game", "status",
+                    "help", "quit")
+"""Every command the operator console takes."""
+HELP = """\
+  start_mapping                      the mapper explores the room
+  stop_mapping                       the mapper stops and uploads what it has
+  hide X Y [HEADING] [room|map]      send the hider there (cm, deg; map frame unless room)
+  seek X Y [HEADING] [room|map] [within=CM]
+                                     send the seeker to look there (within: search radius)
+  new_game                           end this game (stopped by the operator), start another
+  status                             game phase and each rover's link
+  help                               this list
+  quit                               stop the server (as Ctrl-C or Ctrl-D); the game resumes
+                                     at the next start"""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,12 +55,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="where rovers connect over TCP (default %(default)s); 'none' to "
                              "not listen")
     parser.add_argument("--rover", action="append", default=[], metavar="ID=LINK",
-                        help="a rover and its link: serial:PORT,BAUD, tcp or sim (repeatable)")
+                        help="a rover and its link: serial:PORT,BAUD, tcp or sim (repeatable); "
+                             "only these ids may say hello over TCP or serial")
     parser.add_argument("--db", default="hideseek.db", metavar="FILE",
                         help="SQLite database for games, maps and events (default %(default)s)")
     parser.add_argument("--token", action="append", default=[], metavar="[ID=]TOKEN",
                         help="token rovers must give in hello; ID=TOKEN for one rover "
-                             "(repeatable). Required to listen on a non-loopback address")
+                             "(repeatable). Beyond loopback every accepted id needs one")
+    parser.add_argument("--open-enrolment", action="store_true",
+                        help="welcome any rover id over TCP and serial, not only the --rover "
+                             "ids (tokens still apply)")
+    parser.add_argument("--fresh-game", action="store_true",
+                        help="start a new game even when the database's newest game is "
+                             "unfinished (by default it is resumed)")
+    parser.add_argument("--max-connections", type=int, default=64, metavar="N",
+                        help="TCP connections held at once at most (default %(default)s)")
+    parser.add_argument("--no-console", action="store_true",
+                        help="ignore standard input (no operator commands; stop with a signal)")
     parser.add_argument("--origin", action="append", default=[], metavar="ID=X,Y,HEADING",
                         help="a rover's start pose in the room frame [cm, cm, deg] (repeatable)")
     parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
@@ -70,6 +108,8 @@ def parse_command_line(line: str) -> tuple[str, dict]:
     if not words:
         raise ValueError("empty command")
     name, rest = words[0], words[1:]
+    if name not in CONSOLE_COMMANDS:
+        raise ValueError(f"unknown command {name!r}; commands: {', '.join(CONSOLE_COMMANDS)}")
     if name in ("hide", "seek"):
         usage = f"usage: {name} X Y [HEADING] [room|map]"
         if name == "seek":
@@ -98,10 +138,34 @@ def parse_command_line(line: str) -> tuple[str, dict]:
     return name, {}
 
 
+def format_status(snap) -> str:
+    """A server snapshot as lines for people: the game, then one row per rover."""
+    head = f"game {snap.game_id}: {snap.phase}" + (f" ({snap.reason})" if snap.reason else "")
+    lines = [head]
+    if snap.rovers:
+        lines.append(f"  {'rover':<12} {'role':<7} {'link':<24} {'up':<4} {'rtt':>8} "
+                     f"{'in':>6} {'out':>6} {'lost':>5} {'resent':>6} {'bad':>5}")
+    for r in snap.rovers:
+        st = r.stats
+        rtt = f"{st.rtt_s * 1000:.0f} ms" if st.rtt_s is not None else "-"
+        lines.append(f"  {r.id:<12} {r.role:<7} {(r.link or '(none)'):<24} "
+                     f"{'yes' if st.up else 'no':<4} {rtt:>8} {st.frames_in:>6} "
+                     f"{st.frames_out:>6} {st.lost:>5} {st.resent:>6} {st.bad_frames:>5}")
+    if not snap.rovers:
+        lines.append("  no rover has said hello yet")
+    refused = getattr(snap, "refused", {}) or {}
+    lines.append(f"  tcp connections {getattr(snap, 'connections', 0)}; refused since start: "
+                 f"{refused.get('bad_frame', 0)} bad frames, "
+                 f"{refused.get('auth_failed', 0)} failed hellos, "
+                 f"{refused.get('conn_closed', 0)} links closed")
+    return "\n".join(lines)
+
+
 def run(args: argparse.Namespace) -> int:
+    from server.config import ServerConfig
     from server.links import is_loopback, parse_link
-    from server.server import ServerConfig
     from server.store import Store, StoreError
+    from server.trust import beyond_loopback_refusal
 
     try:
         tokens: dict[str, str] = {}
@@ -117,15 +181,14 @@ def run(args: argparse.Namespace) -> int:
         listen = None if args.listen == "none" else parse_link(args.listen)
         if listen is not None and listen.kind != "tcp_listen":
             raise ValueError(f"--listen must be tcp:HOST:PORT or none, got {args.listen!r}")
-        if listen is not None and not is_loopback(listen.host) and not tokens:
-            raise ValueError(f"refusing to listen on {listen.host}: not loopback and no rover "
-                             "tokens (give --token)")
+        if args.max_connections < 1:
+            raise ValueError(f"--max-connections must be at least 1, got {args.max_connections}")
         sim_roles: list[str] = []
         for rid, spec in rovers:
             if spec.kind == "sim":
-                if rid not in SIM_ROLES:
+                if rid not in ROLES:
                     raise ValueError(f"--rover {rid}=sim: a simulated rover's ID is its role, "
-                                     f"one of {', '.join(SIM_ROLES)}")
+                                     f"one of {', '.join(ROLES)}")
                 if rid in sim_roles:
                     raise ValueError(f"--rover {rid}=sim given twice")
                 sim_roles.append(rid)
@@ -133,6 +196,15 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError(f"--rover {rid}: a rover's link is serial:PORT,BAUD, tcp or sim")
         if any(spec.kind == "tcp" for _, spec in rovers) and listen is None:
             raise ValueError("a rover on tcp needs --listen")
+        config = ServerConfig(
+            tokens=tokens, origins=origins,
+            rovers=frozenset(rid for rid, spec in rovers if spec.kind != "sim"),
+            open_enrolment=args.open_enrolment, simulated=tuple(sim_roles),
+            max_connections=args.max_connections, resume=not args.fresh_game)
+        if listen is not None and not is_loopback(listen.host):
+            refusal = beyond_loopback_refusal(listen.host, config)
+            if refusal:
+                raise ValueError(refusal)
         scenario = None
         if sim_roles:
             from supervisors.system import scenario_origins
@@ -142,17 +214,16 @@ def run(args: argparse.Namespace) -> int:
                 scenario = load_scenario(args.scenario)
             except ScenarioError as exc:
                 raise ValueError(str(exc)) from None
-            origins = {**scenario_origins(scenario), **origins}
+            config = _with_origins(config, {**scenario_origins(scenario), **origins})
         store = Store(args.db)
     except (ValueError, StoreError, OSError) as exc:
         print(f"hideseek serve: {exc}", file=sys.stderr)
         return 2
     import trio
 
-    config = ServerConfig(tokens=tokens, origins=origins)
     sim = (scenario, args.seed, tuple(sim_roles)) if sim_roles else None
     try:
-        trio.run(_serve, store, config, listen, rovers, sim)
+        trio.run(_serve, store, config, listen, rovers, sim, not args.no_console)
     except KeyboardInterrupt:
         return 0
     except (OSError, ValueError, BaseExceptionGroup) as exc:
@@ -168,20 +239,48 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _with_origins(config, origins):
+    import dataclasses
+
+    return dataclasses.replace(config, origins=origins)
+
+
 def _first_leaf(exc: BaseException) -> BaseException:
     while isinstance(exc, BaseExceptionGroup):
         exc = exc.exceptions[0]
     return exc
 
 
-async def _serve(store, config, listen, rovers, sim=None) -> None:
+def _banner(server, store) -> list[str]:
+    """What the operator reads first: which game is played, and who may join."""
+    lines = []
+    if server.resumed is not None:
+        game = store.game(server.resumed)
+        how = ("killed or crashed" if server.resumed in store.interrupted
+               else "stopped")
+        lines.append(f"resuming game {game.id} in phase {game.phase} (its server {how}); "
+                     "rovers reconnect and resync. --fresh-game starts a new one")
+    else:
+        lines.append(f"game {server.game_id}: new")
+    cfg = server.config
+    if cfg.open_enrolment:
+        lines.append("open enrolment: any rover id may say hello")
+    elif cfg.rovers:
+        lines.append(f"rovers accepted over tcp/serial: {', '.join(sorted(cfg.rovers))}")
+    else:
+        lines.append("no rover ids given (--rover ID=tcp|serial:...): rovers from outside "
+                     "are refused; --open-enrolment welcomes any id")
+    return lines
+
+
+async def _serve(store, config, listen, rovers, sim=None, console: bool = True) -> None:
     import trio
 
     from server.server import open_server
 
-    if store.interrupted:
-        print(f"games interrupted by an earlier crash: {store.interrupted}", flush=True)
     async with open_server(store, config) as server, contextlib.AsyncExitStack() as stack:
+        for line in _banner(server, store):
+            print(line, flush=True)
         if sim is not None:
             from supervisors.system import open_sim_system
 
@@ -198,17 +297,61 @@ async def _serve(store, config, listen, rovers, sim=None) -> None:
             if spec.kind == "serial":
                 server.start_serial(spec.url, spec.baud)
                 print(f"rover {rid}: serial {spec.url} at {spec.baud} baud", flush=True)
-        print("commands: start_mapping, stop_mapping, hide X Y [H] [room], seek X Y [H] "
-              "[room], new_game, status", flush=True)
+        if console:
+            print("commands: start_mapping, stop_mapping, hide X Y [H] [room], seek X Y [H] "
+                  "[room] [within=CM], new_game, status, help, quit", flush=True)
         t0 = trio.current_time()
         async with trio.open_nursery() as nursery:
-            nursery.start_soon(_read_commands, server)
+            if console:
+                nursery.start_soon(_console, server, nursery.cancel_scope)
             async for event in events:
                 if event.kind != "pose":
                     print(event.format(t0), flush=True)
 
 
-async def _read_commands(server) -> None:
+async def _console(server, stop) -> None:
+    """Operator commands until end of input or ``quit``, then stop the server."""
+    lines = _tty_lines() if sys.stdin.isatty() else _pipe_lines()
+    async for line in lines:
+        if not line:
+            continue
+        if line in ("quit", "exit"):
+            break
+        if line == "help":
+            print(HELP, flush=True)
+            continue
+        if line == "status":
+            print(format_status(server.snapshot()), flush=True)
+            continue
+        try:
+            name, kw = parse_command_line(line)
+        except ValueError as exc:
+            print(f"? {exc}", flush=True)
+            continue
+        result = await server.command(name, **kw)
+        print("ok" if result.ok else f"refused: {result.reason}", flush=True)
+    else:
+        print("end of input: stopping the server", flush=True)
+    stop.cancel()
+
+
+async def _tty_lines():
+    """Lines typed at a terminal, with a prompt, line editing and history (readline)."""
+    import trio
+
+    with contextlib.suppress(ImportError):
+        import readline  # noqa: F401  (input() then edits lines and keeps history)
+    while True:
+        try:
+            line = await trio.to_thread.run_sync(input, "hideseek> ", abandon_on_cancel=True)
+        except EOFError:
+            print(flush=True)
+            return
+        yield line.strip()
+
+
+async def _pipe_lines():
+    """Lines from a pipe or file on standard input, each at most 1024 bytes."""
     import trio
 
     try:
@@ -220,27 +363,11 @@ async def _read_commands(server) -> None:
         while True:
             data = await stdin.receive_some(1024)
             if not data:
+                if buf.strip():
+                    yield buf.decode("utf-8", "replace").strip()
                 return
             buf += data
             *lines, buf = buf.split(b"\n")
             buf = buf[-1024:]
             for raw in lines:
-                line = raw.decode("utf-8", "replace").strip()
-                if not line:
-                    continue
-                if line == "status":
-                    s = server.snapshot()
-                    print(f"game {s.game_id} phase {s.phase} {s.reason}", flush=True)
-                    for r in s.rovers:
-                        st = r.stats
-                        print(f"  {r.id} {r.role} {r.link} up={st.up} in={st.frames_in} "
-                              f"out={st.frames_out} lost={st.lost} resent={st.resent} "
-                              f"bad={st.bad_frames} rtt={st.rtt_s}", flush=True)
-                    continue
-                try:
-                    name, kw = parse_command_line(line)
-                except ValueError as exc:
-                    print(f"? {exc}", flush=True)
-                    continue
-                result = await server.command(name, **kw)
-                print("ok" if result.ok else f"refused: {result.reason}", flush=True)
+                yield raw.decode("utf-8", "replace").strip()

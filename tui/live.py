@@ -25,10 +25,12 @@ from actors import EventKind, Message, TraceEvent
 from actors.firmware.commands import name_of
 from server.export import write_pgm, write_png
 from server.links import LinkSpec
-from server.protocol import MapGrid, Pose2, inverse
+from server.protocol import ROLES, MapGrid, Pose2, inverse
 from server.protocol import compose as compose_pose
 from server.store import Store
-from supervisors.system import ROLES, SimSystem, open_sim_system
+from supervisors.recording import Recorder, RecordingError, RunInfo
+from supervisors.recording.runinfo import scenario_text
+from supervisors.system import SimSystem, open_sim_system
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_DEVICES
 from world.scenario import Scenario
 from world.truth import truth_raster
@@ -97,6 +99,8 @@ class LiveSystem(QueuedController):
             time only: a real rover cannot be paused or sped up, so speed and
             pause are refused.
         listen: where rovers on ``tcp`` connect.
+        record: record the game from the start into this ``.mcap`` file (`record`
+            starts and stops recording later).
 
     Raises:
         ValueError: a remote role that is not mapper, hider or seeker, a link
@@ -106,7 +110,7 @@ class LiveSystem(QueuedController):
     def __init__(self, scenario: Scenario, *, seed: int = 1, speed: float | None = 1.0,
                  db: str = ":memory:", log_messages: bool = True,
                  remote: dict[str, LinkSpec] | None = None,
-                 listen: LinkSpec | None = None) -> None:
+                 listen: LinkSpec | None = None, record: str | None = None) -> None:
         remote = dict(remote or {})
         for role, spec in remote.items():
             if role not in ROLES:
@@ -148,6 +152,8 @@ class LiveSystem(QueuedController):
         self._warned_behind = False
         self._snapshots = 0  # snapshots built
         self._tables: tuple[Any, Any, Any] | None = None  # (queues, tree, catalogue)
+        self._record_path = record
+        self._recorder: Recorder | None = None
 
     # -- Trio side ----------------------------------------------------------------------
     async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
@@ -160,6 +166,12 @@ class LiveSystem(QueuedController):
             async with open_sim_system(self.scenario, seed=self.seed, store=store,
                                        roles=roles) as system:
                 self._system = system
+                await self._prelude(system)
+                if self._record_path:
+                    try:
+                        self._do_record(self._record_path)
+                    except ValueError as exc:  # the console runs on, unrecorded
+                        self._event("game", f"cannot record: {exc}")
                 trace = system.actors.trace
                 trace.subscribe(self._on_trace)  # lifecycle events and drops
                 if self._log_messages:
@@ -167,12 +179,20 @@ class LiveSystem(QueuedController):
                 events = system.server.subscribe()
                 self._event("game", f"{self.scenario.name}: system started (seed {self.seed})")
                 await self._attach_remote(system)
-                async with trio.open_nursery() as nursery:
-                    nursery.start_soon(self._command_loop)
-                    nursery.start_soon(self._server_events, events)
-                    async for _ in requests:  # the console's refresh: wall-clock paced
-                        self._keep_up(system)
-                        publish(self.snapshot())
+                try:
+                    async with trio.open_nursery() as nursery:
+                        nursery.start_soon(self._command_loop)
+                        nursery.start_soon(self._server_events, events)
+                        async for _ in requests:  # the console's refresh: wall-clock paced
+                            self._keep_up(system)
+                            publish(self.snapshot())
+                finally:
+                    if self._recorder is not None:  # the file is complete when the console ends
+                        self._recorder.stop()
+
+    async def _prelude(self, system: SimSystem) -> None:
+        """Runs on the opened system before the console's own tasks start (a fork plays
+        the recorded game to its time here: nothing of the console may run before)."""
 
     async def _attach_remote(self, system: SimSystem) -> None:
         """Serve the attached rovers' links (a failure to listen ends the system)."""
@@ -299,6 +319,36 @@ class LiveSystem(QueuedController):
         png = write_png(grid, out, name)
         self._event("export", f"map saved: {pgm.name}, {yaml.name}, {png.name}")
         return f"{pgm}, {yaml}, {png}"
+
+    # -- recording ----------------------------------------------------------------------
+    def record(self, path: str | None = None) -> None:
+        """Start recording the game as MCAP into ``path`` (None: a name of its own in the
+        working directory), or stop the recording in progress. Queued like every command."""
+        self._submit("record", path)
+
+    def _do_record(self, path: str | None) -> str:
+        assert self._system is not None
+        if self._recorder is not None:
+            rec, self._recorder = self._recorder, None
+            rec.stop()
+            self._event("game", f"recording saved: {rec.path}")
+            return f"saved {rec.path}"
+        path = path or (f"hideseek-{self.scenario.name}-seed{self.seed}-"
+                        f"{trio.current_time():.0f}s.mcap")
+        info = RunInfo.for_scenario(self.scenario, self.seed, operator="console")
+        try:
+            recorder = Recorder(path, info, scenario_toml=scenario_text(self.scenario))
+        except RecordingError as exc:
+            raise ValueError(str(exc)) from None
+        recorder.start(self._system)
+        self._recorder = recorder
+        self._event("game", f"recording to {path}")
+        return f"recording to {path}"
+
+    @property
+    def recording(self) -> str | None:
+        """The file being recorded to, or None."""
+        return None if self._recorder is None else self._recorder.path
 
     # -- events -------------------------------------------------------------------------
     def _event(self, kind: str, text: str) -> None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-from world.packets import encode_counter
+from actors.firmware.hardware import encode_counter
 
 #: at most this many Int E per tread per tick (bounds a runaway encoder)
 MAX_COUNTER_EVENTS_PER_TICK = 1000

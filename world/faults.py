@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from world.params import ROLES
+from actors.firmware.hardware import ROLES
 
 #: device -> kind -> {parameter: default}
 DEVICE_FAULTS: dict[str, dict[str, dict[str, float]]] = {

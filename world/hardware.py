@@ -1,7 +1,7 @@
 """One simulated rover's hardware as firmware sees it (the ISR boundary).
 
-`SimRoverHardware` implements the firmware's ``RoverHardware`` protocol
-structurally: device commands are its methods, device events are the
+`SimRoverHardware` implements the device contract's ``RoverHardware`` protocol
+(``actors/firmware/hardware.py``): device commands are its methods, device events are the
 interrupt handlers attached with `attach`, which the world calls synchronously
 from `World.step` in tick batches (handlers must not block: they post with
 ``send_nowait`` and return). An exception from a handler propagates out of
@@ -11,19 +11,14 @@ from `World.step` in tick batches (handlers must not block: they post with
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any
 
+from actors.firmware.hardware import Handler, HardwareSpec, Interrupt
 from world.ir import IrSensor
 from world.lidar import Lidar
-from world.params import RoverSpec
 from world.wifly import WiflyLink
 
-#: interrupt lines (values of the firmware's ``Interrupt`` enum)
-INT_A, INT_B, INT_C, INT_D, INT_E = 0xA, 0xB, 0xC, 0xD, 0xE
-LINES = (INT_A, INT_B, INT_C, INT_D, INT_E)
-
-Handler = Callable[[Any], None]
+_LINES = frozenset(Interrupt)
 
 
 def _duty(name: str, value: Any, low: float) -> float:
@@ -36,11 +31,11 @@ class SimRoverHardware:
     """Device commands and interrupt attachment of one simulated rover.
 
     Attributes:
-        spec: calibration constants for firmware (fields as firmware's ``HardwareSpec``).
+        spec: calibration constants the rover's firmware is built with.
         role: ``mapper``, ``hider`` or ``seeker``.
     """
 
-    def __init__(self, role: str, spec: RoverSpec, treads: tuple, link: WiflyLink,
+    def __init__(self, role: str, spec: HardwareSpec, treads: tuple, link: WiflyLink,
                  lidar: Lidar | None, ir: IrSensor | None) -> None:
         self.role = role
         self.spec = spec
@@ -57,7 +52,7 @@ class SimRoverHardware:
             ValueError: ``line`` is not one of Int A..E.
             TypeError: ``handler`` is not callable.
         """
-        if line not in LINES:
+        if line not in _LINES:
             raise ValueError(f"interrupt line must be one of 0xA..0xE, got {line!r}")
         if handler is None:
             self.handlers.pop(int(line), None)

@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from world.packets import LIDAR_PACKET_SIZE, LidarFramer
+from actors.firmware.hardware import LIDAR_PACKET_SIZE
+from world.packets import LidarFramer
 from world.params import DeviceParams
 from world.raycast import TWO_PI, FanCaster
 

@@ -1,31 +1,16 @@
-"""Device-side encoders of the wire formats firmware decodes.
+"""Device-side encoder of Data Packet A, vectorised for the simulated LIDAR.
 
-Copies of the datasheet formats in ``actors/firmware/devices.py`` (the world
-may not import firmware); ``tests/test_world_devices_contract.py`` checks both
-sides agree.
-
-Data Packet A (LIDAR UART, 6 bytes, little-endian)::
-
-    0xA5 | angle u16 [0.01 deg, 0..35999] | distance u16 [cm] | checksum u8
-
-``checksum`` is the XOR of the four payload bytes.
-
-Int E payload: bit 0 is the tread (0 left, 1 right), bit 1 set when backwards.
+The format (sync byte, little-endian angle and distance, XOR checksum) is
+defined once, in the device contract ``actors/firmware/hardware.py``;
+``tests/test_world_devices_contract.py`` checks that what is encoded here
+decodes in the firmware's ISR.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-LIDAR_SYNC = 0xA5
-LIDAR_PACKET_SIZE = 6
-TREAD_LEFT = 0
-TREAD_RIGHT = 1
-
-
-def encode_counter(tread: int, forward: bool) -> int:
-    """Int E payload for one counter interrupt of ``tread``."""
-    return (tread & 1) | (0 if forward else 2)
+from actors.firmware.hardware import LIDAR_PACKET_SIZE, LIDAR_SYNC
 
 
 def encode_lidar_packets(angles_centideg: np.ndarray, distances_cm: np.ndarray) -> bytes:

@@ -1,9 +1,8 @@
 """Device parameters of the simulated rovers, with documented defaults.
 
 Every field can be overridden per scenario in its ``[devices]`` table (same
-names). `RoverSpec` mirrors the firmware's ``HardwareSpec`` field for field:
-the world may not import firmware, so it carries its own copy and a test checks
-that the field names agree.
+names). `rover_spec` turns them into the device contract's ``HardwareSpec``,
+the calibration record a rover's firmware is built with.
 """
 
 from __future__ import annotations
@@ -11,6 +10,11 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from typing import Any
+
+from actors.firmware.hardware import ROLES, HardwareSpec
+
+__all__ = ["DeviceParams", "LIMITS", "POSITIVE", "ROLES", "rover_spec"]
+"""``ROLES`` is the contract's list, re-exported: the world steps the rovers in its order."""
 
 #: parameters that divide or size something: 0 is refused
 POSITIVE = frozenset({
@@ -110,23 +114,7 @@ class DeviceParams:
         return self.ticks_per_interrupt / self.ticks_per_cm
 
 
-@dataclass(frozen=True, slots=True)
-class RoverSpec:
-    """Calibration constants handed to firmware; same fields as firmware's ``HardwareSpec``."""
-
-    role: str
-    cm_per_interrupt: float
-    track_width_cm: float
-    length_cm: float = 20.0
-    width_cm: float = 15.0
-    max_speed_cm_s: float = 30.0
-
-    @classmethod
-    def from_params(cls, role: str, p: DeviceParams) -> RoverSpec:
-        """The spec a rover's firmware is built with, from the device parameters."""
-        return cls(role, p.cm_per_interrupt, p.track_width_cm, p.length_cm, p.width_cm,
-                   p.max_speed_cm_s)
-
-
-ROLES = ("mapper", "hider", "seeker")
-"""The three rover roles, in the order the world steps them."""
+def rover_spec(role: str, p: DeviceParams) -> HardwareSpec:
+    """The calibration record a rover's firmware is built with, from the device parameters."""
+    return HardwareSpec(role, p.cm_per_interrupt, p.track_width_cm, p.length_cm, p.width_cm,
+                        p.max_speed_cm_s)

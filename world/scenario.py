@@ -19,9 +19,10 @@ from typing import Any
 
 import shapely
 
+from actors.firmware.hardware import ROLES
 from world.faults import check_fault, is_actor_fault
 from world.geometry import Pose, circle, footprint, room_polygon
-from world.params import ROLES, DeviceParams
+from world.params import DeviceParams
 
 __all__ = [
     "Scenario", "ScenarioError", "ScheduledFault", "load_scenario", "builtin_scenarios",

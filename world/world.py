@@ -22,13 +22,14 @@ import numpy as np
 import trio
 
 from actors.clock import sleep_until
+from actors.firmware.hardware import Interrupt
 from world.drive import Tread, lag_alpha
 from world.faults import Fault, FaultBook, check_fault, is_actor_fault
 from world.geometry import Pose, boundary_segments, room_segments
-from world.hardware import INT_A, INT_B, INT_C, INT_D, INT_E, SimRoverHardware
+from world.hardware import SimRoverHardware
 from world.ir import IrSensor, to_adc
 from world.lidar import Lidar
-from world.params import ROLES, RoverSpec
+from world.params import ROLES, rover_spec
 from world.physics import DEFAULT_SUBSTEP_S, Physics
 from world.raycast import FanCaster, fan_may_hit_disc
 from world.scenario import Scenario, ScheduledFault
@@ -80,7 +81,7 @@ class World:
         self.lidar = Lidar(p)
         self.ir = IrSensor(p)
         self._hw = {
-            r: SimRoverHardware(r, RoverSpec.from_params(r, p), self.treads[r], self.links[r],
+            r: SimRoverHardware(r, rover_spec(r, p), self.treads[r], self.links[r],
                                 self.lidar if r == "mapper" else None,
                                 self.ir if r == "seeker" else None)
             for r in ROLES
@@ -203,7 +204,7 @@ class World:
         mid = a0 + da / 2
         ds = (x1 - x0) * math.cos(mid) + (y1 - y0) * math.sin(mid)
         half = da * self.params.track_width_cm / 2
-        handler = self._hw[role].handlers.get(INT_E)
+        handler = self._hw[role].handlers.get(Interrupt.INT_E)
         p = self.params
         left, right = self.treads[role]
         travel_l = (ds - half) * slip_l
@@ -241,7 +242,7 @@ class World:
         if faults and faults.find("mapper", "lidar", "garbage"):
             frames = self.rng.integers(0, 256, len(frames), dtype=np.uint8).tobytes()
         frames = lidar.uart(frames, dt)
-        handler = self._hw["mapper"].handlers.get(INT_A)
+        handler = self._hw["mapper"].handlers.get(Interrupt.INT_A)
         if frames and handler:
             handler(frames)
 
@@ -265,7 +266,7 @@ class World:
         hw = self._hw["seeker"]
         self._adc_complete(hw)
         for _ in range(self.ir.timer_events(dt)):
-            h = hw.handlers.get(INT_D)
+            h = hw.handlers.get(Interrupt.INT_D)
             if h:
                 h(None)
             self._adc_complete(hw)
@@ -281,7 +282,7 @@ class World:
             value = 4095
         elif self._faults.find("seeker", "ir", "stuck_low"):
             value = 0
-        h = hw.handlers.get(INT_C)
+        h = hw.handlers.get(Interrupt.INT_C)
         if h:
             h(to_adc(value))
 
@@ -303,7 +304,7 @@ class World:
         rate = p.wifly_bytes_s
         down = link.down.tick(now, dt, rate, latency, loss, corrupt, self.rng)
         up = link.up.tick(now, dt, rate, latency, loss, corrupt, self.rng)
-        h = self._hw[role].handlers.get(INT_B)
+        h = self._hw[role].handlers.get(Interrupt.INT_B)
         if h:
             for chunk in down:
                 h(chunk)

@@ -118,7 +118,7 @@ class Cmd(enum.IntEnum):
     MAP_POSE_LOST = 0x0405
     """From navigation: odometry missed a motion (both treads driven, neither counting), so
     the heading may be off by up to value uint32 [deg]; place no batch until scan
-    matching finds the pose again (`mapping.MapManagement`)."""
+    matching finds the pose again (`map_management.MapManagement`)."""
 
     # -- WiFly queue -------------------------------------------------------
     WIFLY_RX = 0x0500

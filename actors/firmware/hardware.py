@@ -12,11 +12,15 @@ on the rover's microcontroller reaches its peripherals:
   Handlers are ISRs: they must not block, so they post to a mailbox with
   `send_nowait` and return.
 
-The simulated world (`world/`) implements this protocol structurally (it never
-imports this module, and firmware never imports the world); so can a serial
-bridge to a real rover's peripherals. The wire formats below are the devices'
-datasheets: the device side encodes them and the firmware's ISR decodes them,
-each in its own code, and a test checks that both agree.
+This module is the one written copy of the contract. The simulated world
+(`world/`) imports it, and nothing else of the firmware, to implement the
+protocol (firmware never imports the world); a serial bridge to a real rover's
+peripherals can implement it too. The wire formats below are the devices'
+datasheets: the device side encodes them (``world/packets.py``) and the
+firmware's ISRs decode them (``drivers/isr.py``); ``tests/test_world_devices_contract.py``
+round-trips both. Which rover a `HardwareSpec` is for is one of `ROLES`, the
+message layer's list (a rover names its role in ``hello``), re-exported here so
+that the world takes it from its one firmware import.
 
 Interrupt lines and payloads
 ----------------------------
@@ -53,10 +57,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
+# the role names are the message layer's (a rover names its role in ``hello``)
+from server.protocol.catalogue import ROLES
+
 __all__ = [
+    "ROLES",
     "Interrupt",
     "RoverHardware",
     "HardwareSpec",
+    "Handler",
     "LIDAR_SYNC",
     "LIDAR_PACKET_SIZE",
     "TREAD_LEFT",
@@ -102,7 +111,7 @@ class HardwareSpec:
     """
 
     role: str
-    """``mapper``, ``hider`` or ``seeker``."""
+    """One of `ROLES` (``mapper``, ``hider`` or ``seeker``)."""
     cm_per_interrupt: float
     """Tread distance per Int E [cm]."""
     track_width_cm: float
@@ -116,6 +125,7 @@ class HardwareSpec:
 
 
 Handler = Callable[[Any], None]
+"""An ISR: called synchronously with the line's payload; must not block."""
 
 
 @runtime_checkable

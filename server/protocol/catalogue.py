@@ -245,7 +245,11 @@ def read_data(frame: Frame) -> Any:
                          f"type of {frame.cmd!r} must be {spec.type!r}, got {frame.type!r}")
     if spec.payload is None:
         return None
+    data = frame.data
+    if spec.payload in (Pose, Found) and isinstance(data, dict) and "heading" in data \
+            and data["heading"] is None:
+        data = {k: v for k, v in data.items() if k != "heading"}  # null means absent
     try:
-        return msgspec.convert(frame.data, spec.payload)
+        return msgspec.convert(data, spec.payload)
     except msgspec.ValidationError as exc:
         raise FrameError(Fault.BAD_DATA, f"data of {frame.cmd!r}: {exc}") from None

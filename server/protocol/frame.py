@@ -15,6 +15,8 @@ Unknown extra fields are ignored (forward compatibility).
 
 from __future__ import annotations
 
+import json
+import math
 from typing import Annotated, Any
 
 import msgspec
@@ -126,9 +128,42 @@ def decode_line(line: bytes) -> Frame:
     try:
         return _decoder.decode(line)
     except msgspec.ValidationError as exc:
-        raise FrameError(Fault.BAD_FRAME, str(exc)) from None
+        raise _diagnose(line) or FrameError(Fault.BAD_FRAME, str(exc)) from None
     except msgspec.DecodeError as exc:
-        raise FrameError(Fault.NOT_JSON, str(exc)) from None
+        raise _diagnose(line) or FrameError(Fault.NOT_JSON, str(exc)) from None
+
+
+def _diagnose(line: bytes) -> FrameError | None:
+    """Name the field of a line JSON rejects for a number or a string it cannot hold.
+
+    NaN, Infinity and numbers beyond a double (``1e400``) are not JSON numbers,
+    and a lone UTF-16 surrogate escape (``"\\ud800"``) is not a character;
+    msgspec reports them without naming the field. Python's parser accepts
+    all of them, so it finds the field (only on the error path).
+    """
+    found: list[str] = []
+
+    def walk(value: Any, path: str) -> None:
+        if found:
+            return
+        if isinstance(value, float) and not math.isfinite(value):
+            found.append(f"{path}: {value} is not a finite JSON number (NaN, Infinity and "
+                         "numbers beyond ±1.8e308 are refused)")
+        elif isinstance(value, str) and any(0xD800 <= ord(c) <= 0xDFFF for c in value):
+            found.append(f"{path}: a lone UTF-16 surrogate escape (\\ud800-\\udfff without "
+                         "its pair) is not a character; send UTF-8 text")
+        elif isinstance(value, dict):
+            for k, v in value.items():
+                walk(v, f"{path}.{k}")
+        elif isinstance(value, list):
+            for i, v in enumerate(value):
+                walk(v, f"{path}[{i}]")
+
+    try:
+        walk(json.loads(line), "$")
+    except (ValueError, RecursionError):
+        return None
+    return FrameError(Fault.BAD_DATA, found[0]) if found else None
 
 
 def error_frame(fault: str, detail: str, *, cmd: str | None = None,

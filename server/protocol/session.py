@@ -221,6 +221,17 @@ class ReliableSession:
                 self._c["dropped"] += 1
             self._unreliable.append(frame)
 
+    def pending(self) -> list[Frame]:
+        """Reliable frames not yet acknowledged, oldest first (in flight, then queued),
+        without ``seq``/``ack``: what a restarted owner must send again."""
+        return ([Frame(f.frame.cmd, f.frame.type, f.frame.data) for f in self._flight.values()]
+                + list(self._outbox))
+
+    @property
+    def pending_mark(self) -> tuple[int, int]:
+        """(oldest unacknowledged ``seq``, frames pending): changes exactly when `pending` does."""
+        return self.seq_base, len(self._flight) + len(self._outbox)
+
     def outbox_room(self) -> int:
         """Reliable frames that `send` accepts now without `OutboxFull`."""
         return self.outbox_limit - len(self._outbox)
@@ -256,14 +267,17 @@ class ReliableSession:
                 stamped = Frame(frame.cmd, frame.type, frame.data, seq=seq)
                 self._flight[seq] = _InFlight(stamped, now, now + self._backoff(1), 1)
                 out.append(stamped)
+        bare_ack = False
         if not out:
             if self._ack_due:
                 out.append(Frame(ACK, "ack", None))
+                bare_ack = True
             elif self._last_sent is None or now - self._last_sent >= self.heartbeat_s:
                 out.append(Frame(HEARTBEAT, "beat", None))
         if not out:
             return b""
-        ack = self.ack_value if self._rx_next > 1 else None
+        # an ack frame always says its ack (0 before anything arrived in order)
+        ack = self.ack_value if self._rx_next > 1 or bare_ack else None
         lines = []
         for f in out:
             lines.append(encode_frame(Frame(f.cmd, f.type, f.data, seq=f.seq, ack=ack)))

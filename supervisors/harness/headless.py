@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import trio
 
@@ -30,7 +31,7 @@ from world.metrics import CoverageProbe, accuracy, coverage, path_length, t90, t
 from world.scenario import Scenario
 from world.truth import truth_raster
 
-__all__ = ["Budget", "GameReport", "finish_report", "play_game", "run_game"]
+__all__ = ["Budget", "GameReport", "RunObserver", "finish_report", "play_game", "run_game"]
 
 _PROBE_S = 1.0  # how often coverage and the mapper's true pose are sampled [s]
 _HELLO_TIMEOUT_S = 30.0
@@ -87,6 +88,17 @@ class GameReport:
         d = asdict(self)
         d.pop("events")
         return d
+
+
+class RunObserver(Protocol):
+    """Watches a `run_game` (a recorder, a fork's checker). Both calls are synchronous:
+    an observer must not add tasks or wait, so the game it watches is the same game."""
+
+    def started(self, system: SimSystem) -> None:
+        """The system is open, the game not begun."""
+
+    def finished(self, system: SimSystem, report: GameReport) -> None:
+        """The game is over (or failed, or was cancelled); ``report`` is filled in."""
 
 
 class _Phases:
@@ -258,18 +270,25 @@ def finish_report(report: GameReport, system: SimSystem, t_start: float) -> None
 
 
 async def run_game(scenario: Scenario, seed: int, *, db: str = ":memory:",
-                   budget: Budget | None = None, trace: Trace | None = None) -> GameReport:
+                   budget: Budget | None = None, trace: Trace | None = None,
+                   observers: Sequence[RunObserver] = ()) -> GameReport:
     """Open a simulated system for ``scenario`` and ``seed``, play it, return the report.
 
     Run it under a virtual clock (`actors.virtual_clock`) to go as fast as the CPU allows.
+    ``observers`` are told when the system is open and when the game is over (also
+    when it failed or was cancelled).
     """
     report = GameReport(scenario.name, seed)
     budget = budget or Budget()
     with Store(db) as store:
         async with open_sim_system(scenario, seed=seed, store=store, trace=trace) as system:
             t_start = trio.current_time()
+            for observer in observers:
+                observer.started(system)
             try:
                 await play_game(system, report, budget)
             finally:
                 finish_report(report, system, t_start)
+                for observer in observers:
+                    observer.finished(system, report)
     return report

@@ -360,7 +360,7 @@ def check_honesty(roots: dict[str, Any], allowed: dict[str, Any]) -> list[Violat
     calibration record it is built with.
 
     A frozen world record is accepted only when its type is the type of an
-    allowed frozen record (a copy of the hardware's ``RoverSpec`` is fine; the
+    allowed frozen record (the rover's ``HardwareSpec`` is the contract's own type; the
     frozen `Scenario`, which is the room's ground truth, is not). The walk
     follows containers and instance attributes (not functions, bound methods
     or modules: the simulated link hands the server a bound write method,

@@ -263,6 +263,12 @@ class MessageLog(Vertical):
         self._shown_seq = 0
         self._show_new()
 
+    def reset(self) -> None:
+        """Forget every line (a replay that jumped back starts its log again)."""
+        self.history.clear()
+        self.last_seq = 0
+        self._rebuild()
+
     def shown_text(self) -> list[str]:
         """The plain text of the lines the log holds now (for tests)."""
         return [format_line(line).plain for line in self.query_one(LogView).rows]

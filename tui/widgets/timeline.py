@@ -52,3 +52,9 @@ class Timeline(RichLog):
         """Write the events kept while hidden."""
         while self._pending:
             self.write(format_event(self._pending.popleft()))
+
+    def reset(self) -> None:
+        """Forget every event (a replay that jumped back starts its timeline again)."""
+        self.clear()
+        self._pending.clear()
+        self.last_seq = 0

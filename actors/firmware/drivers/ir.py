@@ -33,6 +33,7 @@ import math
 import trio
 
 from actors import Actor, ExitKind, ExitReason, Message
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import IrAdcIsr, IrTimerIsr
 from actors.firmware.hardware import Interrupt, RoverHardware
@@ -61,7 +62,8 @@ class IrSensor(Actor):
 
     def __init__(self, hardware: RoverHardware, *, rate_hz: float = 50.0, high: int = 2200,
                  low: int = 1800, consecutive: int = 3, adc_isr: IrAdcIsr | None = None,
-                 always_on: bool = False) -> None:
+                 always_on: bool = False, addresses: Addresses | None = None) -> None:
+        self._addresses = addresses
         if not 0 <= low < high <= 4095:
             raise ValueError(f"need 0 <= low < high <= 4095, got low={low!r} high={high!r}")
         if consecutive < 1:
@@ -83,8 +85,7 @@ class IrSensor(Actor):
         self._until = -math.inf  # the lease's end [s]
 
     async def on_start(self) -> None:
-        prefix = self.ctx.name.rpartition("/")[0]
-        self._nav = f"{prefix}/nav" if prefix else "nav"
+        self._nav = (self._addresses or Addresses.beside(self.ctx.name)).nav
         if self._adc_isr is None:
             self._adc_isr = IrAdcIsr(self._post)
         self.hw.attach(Interrupt.INT_D, IrTimerIsr(self.hw))

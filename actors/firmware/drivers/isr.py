@@ -15,8 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors import BufferPool, Message, PoolExhausted
+from actors import BufferPool, Message
 from actors.firmware.commands import Cmd
+from actors.firmware.handles import post
 from actors.firmware.hardware import LIDAR_PACKET_SIZE, LIDAR_SYNC, RoverHardware
 
 __all__ = ["Post", "MotorCounterIsr", "LidarSamples", "LidarUartIsr", "WiflyUartIsr",
@@ -127,16 +128,10 @@ class LidarUartIsr(_Isr):
                 and a.max() < 36000 and d.max() <= 32767):
             return False
         count = len(f)
-        try:
-            handle = self._pool.put(LidarSamples((a // 10).astype(np.int32),  # type: ignore[union-attr]
-                                                 d.astype(np.int32)))
-        except PoolExhausted:
-            self.dropped += count
-            return True
-        if self._post(Message.handle(Cmd.LIDAR_SAMPLES, handle)):
+        samples = LidarSamples((a // 10).astype(np.int32), d.astype(np.int32))
+        if post(self._pool, self._post, Cmd.LIDAR_SAMPLES, samples):  # type: ignore[arg-type]
             self.posted += count
         else:
-            self._pool.take(handle)  # type: ignore[union-attr]
             self.dropped += count
         return True
 
@@ -149,15 +144,9 @@ class WiflyUartIsr(_Isr):
         self._pool = pool
 
     def __call__(self, data: bytes) -> None:
-        try:
-            handle = self._pool.put(bytes(data))
-        except PoolExhausted:
-            self.dropped += 1
-            return
-        if self._post(Message.handle(Cmd.WIFLY_RX, handle)):
+        if post(self._pool, self._post, Cmd.WIFLY_RX, bytes(data)):
             self.posted += 1
         else:
-            self._pool.take(handle)  # the queue refused it: free the buffer again
             self.dropped += 1
 
 

@@ -44,9 +44,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors import Actor, BufferPool, ExitReason, Message, PoolExhausted
+from actors import Actor, BufferPool, ExitReason, Message
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import LidarSamples, LidarUartIsr
+from actors.firmware.handles import post
 from actors.firmware.hardware import Interrupt, RoverHardware
 from actors.firmware.localisation.odometry import Pose
 
@@ -190,8 +192,10 @@ class LidarControl(Actor):
 
     def __init__(self, hardware: RoverHardware, pool: BufferPool, *,
                  isr: LidarUartIsr | None = None, max_pending: int = 4096,
-                 health: HealthOptions = _DEFAULT_HEALTH) -> None:
+                 health: HealthOptions = _DEFAULT_HEALTH,
+                 addresses: Addresses | None = None) -> None:
         self.hw = hardware
+        self._addresses = addresses
         self.pool = pool
         self._isr = isr
         self.max_pending = max_pending
@@ -218,14 +222,14 @@ class LidarControl(Actor):
         self._bad_frames_seen = 0  # the ISR's bad frame count at the last flush
 
     async def on_start(self) -> None:
-        prefix = self.ctx.name.rpartition("/")[0]
-        self._map = f"{prefix}/map" if prefix else "map"
-        motor = f"{prefix}/motor" if prefix else "motor"
+        names = self._addresses or Addresses.beside(self.ctx.name)
+        self._map = names.map
+        motor = names.motor
         if self._isr is None:
             self._isr = LidarUartIsr(self._post)
         self._isr.use_pool(self.pool)  # whole interrupts by handle: one message, not ~100
         self._bad_frames_seen = self._isr.bad_frames
-        self._nav = f"{prefix}/nav" if prefix else "nav"
+        self._nav = names.nav
         self.hw.attach(Interrupt.INT_A, self._isr)
         if self.ctx.system.whereis(motor) is not None:
             self._send(motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
@@ -309,15 +313,9 @@ class LidarControl(Actor):
             self.withheld += 1
             return
         scan = Scan(Pose(self._xy[0], self._xy[1], self._heading), angles, ranges)
-        try:
-            handle = self.pool.put(scan)
-        except PoolExhausted:
-            self.dropped_scans += 1
-            return
-        if self._send(self._map, Message.handle(Cmd.MAP_SCAN, handle)):
+        if post(self.pool, lambda m: self._send(self._map, m), Cmd.MAP_SCAN, scan):
             self.scans += 1
         else:
-            self.pool.take(handle)
             self.dropped_scans += 1
 
     def _healthy(self, angles: np.ndarray, ranges: np.ndarray) -> bool:

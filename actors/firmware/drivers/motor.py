@@ -1,4 +1,4 @@
-"""Motor Control: Command A with closed-loop PWM on both treads, and dead reckoning.
+"""Motor Control: Command A with closed-loop PWM on both treads.
 
 The seed's Motor Control thread. Navigation sends Command A (``MOTOR_MOVE``
 [cm], ``MOTOR_TURN`` [deg], ``MOTOR_STOP``); the motor counter ISR (Int E)
@@ -20,21 +20,21 @@ Control law (per control period, per tread)
 Blocked
     A command whose treads do not count ends with ``NAV_MOTION_BLOCKED``: after
     ``blocked_after_s`` without an Int E, or sooner, once the lagged model of
-    the treads (below) says one went ``blocked_cm`` since either tread's last
-    Int E. Both encoders stuck look exactly like a rover against a wall, and
-    nothing counts to compare with; the model bounds what the rover drives
-    unseen to about 3 cm instead of a second's travel (see `_both_silent`).
-    A turn ended so without a single Int E is also reported as
-    ``NAV_TREAD_FAULT`` value 4 (both silent) just before: a rover pressed
-    against a wall still turns a little before it jams, and navigation's
-    answer to a blocked turn (back off, turn again) is what drove the seeker
-    of overlapping game 2:27 70 cm and 110 deg off unseen; a tread fault
-    during a turn holds instead (nav_common).
+    the treads (`tread_monitor.TreadMonitor.both_silent`) says one went
+    ``blocked_cm`` since either tread's last Int E. Both encoders stuck look
+    exactly like a rover against a wall, and nothing counts to compare with;
+    the model bounds what the rover drives unseen to about 3 cm instead of a
+    second's travel. A turn ended so without a single Int E is also reported
+    as ``NAV_TREAD_FAULT`` `TreadFault.BOTH_SILENT` just before: a rover
+    pressed against a wall still turns a little before it jams, while backing
+    off and turning again on two stuck encoders drives the rover on unseen;
+    navigation holds instead for a tread fault during a turn.
 
 Dead reckoning
-    This actor owns the pose: every tread increment goes through
-    `odometry.advance` with the track width from the hardware spec. The pose is
-    published (``NAV_POSE_XY`` [mm] + ``NAV_POSE_HEADING`` [deg] to navigation;
+    This actor owns the pose: every tread increment goes through an
+    `odometry.Odometer` (one `odometry.advance` step per burst of Int E, with
+    the track width from the hardware spec). The pose is published
+    (``NAV_POSE_XY`` [mm] + ``NAV_POSE_HEADING`` [deg] to navigation;
     ``LIDAR_POSE_XY`` [cm] + ``LIDAR_POSE_HEADING`` to the LIDAR on the mapper)
     when it changed, at most once per control period, and at once on
     ``MOTOR_GET_POSE``.
@@ -48,57 +48,17 @@ Map frame (mapper)
     applies its own latest correction. The correction is retained like the
     pose, and handed back to a restarted Map Management on ``MOTOR_GET_POSE``.
 
-A tread that is driven but does not count (``NAV_TREAD_FAULT``)
-    Why: a stuck encoder makes dead reckoning see a turn where the rover goes
-    straight (or a spin where it turns a little); navigation's check against
-    scan matching came about 1.3 s late, with the heading already 6 deg off
-    (round, campaign game 1:22). Motor Control knows sooner: it drives the
-    tread, and the motors follow their PWM with a first-order lag
-    (``motor_tau_s``), so it models how far each tread should have gone since
-    its last Int E. When that reaches ``silent_cm`` (2.5 interrupts) while the
-    other tread counted at least ``silent_other`` interrupts in a row
-    meanwhile and is that many ahead in the command (two treads slow alike
-    keep level counts, their interrupts interleaved irregularly), it sends
-    navigation one ``NAV_TREAD_FAULT``. Both treads silent
-    is the blocked case above, not this one. A stalled motor on one side looks
-    the same as a stuck encoder here.
-
-    A tread that counts short: once a tread's modelled travel in the command
-    reaches ``short_after_cm``, a count under ``short_ratio`` of it while the
-    other tread counts at least ``short_other_ratio`` of its own is reported
-    too (a slipping encoder counts about half). A weak motor on that side looks
-    the same (it really goes half as far, and then its odometry is right).
-
-    Both treads counting short: both slipping alike keep the
-    treads equal, so the comparison above says nothing, yet the rover turns
-    2.4 times the turn it counts (campaign game 1:187: a 75 deg turn went 229
-    deg, and scan matching could not follow). Once both modelled travels
-    reach ``short_after_cm`` and each tread counted under ``short_ratio`` of
-    its own, the mapper's navigation gets value 6 (bit 2: both). Motor
-    Control cannot tell this from two weak motors (which really go short, so
-    their odometry is right); the mapper's LIDAR can. A hider or seeker gets
-    it in turns, and in straight moves under ``both_move_ratio`` (session 6:
-    a slip at 0.33 made each 20 cm move go 60, campaign 1:49; a rover sliding
-    along a wall counts 0.55-0.65). Two weak motors cost a hold. Both short
-    in a move while lately counting hardly at all is a push, not a fault:
-    the move ends blocked (`MotorControl._pushing`).
-
-    One tread driven harder for level counts: in a straight move the
-    cross-coupling keeps the counts level, so an encoder slipping at 0.8
-    shows only in the PWM its tread needs; a tread whose modelled travel runs
-    ``uneven_cm`` further ahead of its count than the other's counts short.
-
-    At a short count of the hider or seeker (one tread in a move, both in a
-    move or turn) the heading is set halfway between counts and model
-    (`MotorControl._split_heading`): neither a slip nor a weak motor is
-    known, and halfway bounds the error of both.
-
-    The message: ``NAV_TREAD_FAULT``, value uint32: bit 0 the tread (0 left,
-    1 right), bit 1 the kind (0 silent, 1 counts short), bit 2 both treads:
-    0/1 left/right silent, 2/3 left/right short, 4 both silent (a turn,
-    see Blocked), 6 both short. At most one of
-    each per tread per command (short is not sent after silent). The command
-    goes on: navigation decides (the mapper stops and holds).
+Tread faults (``NAV_TREAD_FAULT``)
+    A `tread_monitor.TreadMonitor` models how far each driven tread should
+    have gone and finds a tread that is driven but does not count, or counts
+    short, or both counting short (see that module). Motor Control sends each
+    finding as a `tread_monitor.TreadFault`; the command goes on (navigation
+    decides: the mapper stops and holds). At a short count of the hider or
+    seeker (one tread in a move, both in a move or turn) the heading is first
+    set halfway between counts and model (`odometry.split_heading`): neither a
+    slip nor a weak motor is known, and halfway bounds the error of both. Both
+    short in a move while lately counting hardly at all is a push: the move
+    ends blocked.
 
 Restarts
     The pose lives in a `PoseMemory` made by the rover tree: the model of a
@@ -121,10 +81,12 @@ from typing import Any
 import trio
 
 from actors import Actor, ExitReason, Message, Timer
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import MotorCounterIsr
+from actors.firmware.drivers.tread_monitor import TreadFault, TreadMonitor, TreadVerdict
 from actors.firmware.hardware import Interrupt, RoverHardware, decode_counter
-from actors.firmware.localisation.odometry import Pose, advance, compose
+from actors.firmware.localisation.odometry import Odometer, Pose, compose, split_heading
 
 __all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
 
@@ -166,26 +128,24 @@ class MotorTuning:
     """...provided the other tread counted this many Int E in a row meanwhile, and has
     counted this many more in the command: two treads going slow alike (two weak
     motors at 0.3, a rover pushing against something) interleave their interrupts
-    irregularly, and one could look silent with the counts level (campaign 1:31: 51
-    false reports to the seeker, each a blocked move and 10 deg more heading doubt)."""
+    irregularly, and one could look silent with the counts level (each false report
+    costs the seeker a blocked move and more heading doubt)."""
     short_after_cm: float = 5.0
     """Judge a tread's count against its modelled travel once this far into a command [cm]."""
     short_ratio: float = 0.65
     """A tread that counted less than this share of its modelled travel counts short
-    (healthy: 0.77 or more after 6 cm in furniture seed 3; a slipping encoder about
-    0.45), provided the other counted at least
-    ``short_other_ratio`` of its own."""
+    (a healthy tread counts 0.77 or more after 6 cm; a slipping encoder about 0.45),
+    provided the other counted at least ``short_other_ratio`` of its own."""
     short_other_ratio: float = 0.8
     """See ``short_ratio``."""
     both_move_ratio: float = 0.5
     """Both treads counting short in a straight move of the hider or seeker: under this
     share of their modelled travel (``short_ratio`` elsewhere). A rover sliding along a
-    wall it meets at an angle counts 0.55-0.65 (campaign 1:178: five reports, each a
-    hold, lost a game found without them); encoders slipping at 0.3-0.5 go 2-3 times
-    the counted distance (1:49: 60 cm per 20 cm move)."""
+    wall it meets at an angle counts 0.55-0.65 (each report costs a hold); encoders
+    slipping at 0.3-0.5 go 2-3 times the counted distance (60 cm per 20 cm move)."""
     push_ratio: float = 0.2
     """Both treads counting under this share of their modelled travel lately, in a move:
-    pushing against something, blocked (see `MotorControl._pushing`)."""
+    pushing against something, blocked (see `tread_monitor.TreadMonitor.pushing`)."""
     push_window_cm: float = 10.0
     """"Lately": the last 10-20 cm of both treads' modelled travel together [cm]."""
     uneven_cm: float = 2.0
@@ -193,8 +153,8 @@ class MotorTuning:
     more than the other's counts short too [cm]: the cross-coupling keeps the counts
     level, so an encoder slipping at 0.8 shows only as the PWM its tread needs (25 %
     more than the other's), while dead reckoning sees a straight line and the rover
-    turned 23 deg per 20 cm (campaign 1:38, truth log). Healthy 20 cm moves differ by
-    0.6 cm at most, an interrupt's quantum (0.5 cm) either way included."""
+    turns about 23 deg per 20 cm. Healthy 20 cm moves differ by 0.6 cm at most, an
+    interrupt's quantum (0.5 cm) either way included."""
 
 
 class PoseMemory:
@@ -231,12 +191,14 @@ class MotorControl(Actor):
             made here when None.
         lidar: also publish the pose to the rover's LIDAR actor (mapper).
         tuning: control constants.
+        addresses: the rover's actor names (default: those beside this actor's own).
     """
 
     def __init__(self, hardware: RoverHardware, memory: PoseMemory, *,
                  isr: MotorCounterIsr | None = None, lidar: bool = False,
-                 tuning: MotorTuning | None = None) -> None:
+                 tuning: MotorTuning | None = None, addresses: Addresses | None = None) -> None:
         self.hw = hardware
+        self._addresses = addresses
         self.memory = memory
         self.tuning = tuning or MotorTuning()
         self._isr = isr
@@ -256,19 +218,8 @@ class MotorControl(Actor):
         self._pose_dirty = True
         self._lidar_dirty = False
         self._outcome: Message | None = None  # a DONE/BLOCKED report navigation refused
-        self._pending = [0.0, 0.0]  # tread travel not yet integrated into the pose [cm]
-        # the silent-tread check (see the module docstring), per tread
-        self._model_v = [0.0, 0.0]     # modelled tread speed (lagged PWM) [cm/s]
-        self._unticked = [0.0, 0.0]    # modelled travel since the tread's last Int E [cm]
-        self._since_any = 0.0          # most modelled travel since either tread's last Int E [cm]
-        self._modelled = [0.0, 0.0]    # modelled travel in this command [cm]
-        self._counted = [0.0, 0.0]     # counted travel in this command [cm]
-        self._short_sent = [False, False]  # NAV_TREAD_FAULT (counts short) sent in this command
-        self._marks = [(0.0, 0.0)]     # (modelled, counted) sums every push_window_cm, last two
-        self._run = [0, 0]             # Int E in a row without one from the other tread
-        self._silent_sent = [False, False]  # NAV_TREAD_FAULT sent in this command
-        self._pwm = (0.0, 0.0)          # the duties last set while driving
-        self._model_t = 0.0             # when the model was last advanced [s]
+        self._odometer = Odometer(self._unit, self._track)
+        self._monitor = TreadMonitor(self.tuning, self._unit, self._vmax, mapper=lidar)
         self._ticked = False            # an Int E was in the burst being handled
         self.tread_faults = 0
         """NAV_TREAD_FAULT reports sent (this incarnation)."""
@@ -280,10 +231,10 @@ class MotorControl(Actor):
     # ------------------------------------------------------------------ lifetime
     async def on_start(self) -> None:
         ctx = self.ctx
-        prefix = ctx.name.rpartition("/")[0]
-        self._nav = f"{prefix}/nav" if prefix else "nav"
-        self._lidar_name = (f"{prefix}/lidar" if prefix else "lidar") if self._lidar else None
-        self._map_name = (f"{prefix}/map" if prefix else "map") if self._lidar else None
+        names = self._addresses or Addresses.beside(ctx.name)
+        self._nav = names.nav
+        self._lidar_name = names.lidar if self._lidar else None
+        self._map_name = names.map if self._lidar else None
         if self._isr is None:
             self._isr = MotorCounterIsr(self._post)
         self.hw.attach(Interrupt.INT_E, self._isr)
@@ -342,26 +293,17 @@ class MotorControl(Actor):
     # ------------------------------------------------------------------ dead reckoning
     def _tick(self, payload: int) -> None:
         tread, forward = decode_counter(payload)
-        d = self._unit if forward else -self._unit
-        self._pending[tread] += d
+        d = self._odometer.count(tread, forward)
         self._ticked = True
-        self._advance_model(self._now())
-        self._unticked[tread] = 0.0
-        self._since_any = 0.0
-        self._counted[tread] += self._unit
-        self._run[tread] += 1
-        self._run[1 - tread] = 0
+        self._monitor.tick(tread, self._now())
         if self._kind is not None:
             self._progress[tread] += d
             self._last_progress_t = self._now()
 
     def _integrate(self) -> None:
-        # One odometry step per batch of ticks: integrating each tread's tick
-        # alone would zigzag the heading by a tick's angle and drift sideways.
-        left, right = self._pending
-        if left or right:
-            self._pending = [0.0, 0.0]
-            self.memory.pose = advance(self.memory.pose, left, right, self._track)
+        pose = self._odometer.integrate(self.memory.pose)
+        if pose is not None:
+            self.memory.pose = pose
             self._pose_dirty = self._lidar_dirty = True
 
     async def handle_burst(self, messages: list[Message]) -> None:
@@ -444,16 +386,7 @@ class MotorControl(Actor):
         now = self._now()
         self._kind = kind
         self._progress = [0.0, 0.0]
-        self._silent_sent = [False, False]
-        self._unticked = [0.0, 0.0]
-        self._since_any = 0.0
-        self._modelled = [0.0, 0.0]
-        self._counted = [0.0, 0.0]
-        self._short_sent = [False, False]
-        self._marks = [(0.0, 0.0)]
-        self._model_v = [0.0, 0.0]
-        self._run = [0, 0]
-        self._model_t = now
+        self._monitor.begin(now)
         self._started_t = self._last_progress_t = now
         self._arrived_t = None
         cruise = self._vmax * self.tuning.cruise_fraction
@@ -476,7 +409,7 @@ class MotorControl(Actor):
 
     def _drive(self, now: float) -> None:
         t = self.tuning
-        self._advance_model(now)
+        self._monitor.advance(now)
         self._watch_treads(period_pending=True)
         pl, pr = self._progress
         tl, tr = self._target
@@ -490,11 +423,12 @@ class MotorControl(Actor):
                 self._finish(Cmd.NAV_MOTION_DONE)
             return
         self._arrived_t = None
-        if self._both_silent():
-            if self._kind == Cmd.MOTOR_TURN and not any(self._counted):
+        if self._monitor.both_silent():
+            if self._kind == Cmd.MOTOR_TURN and not any(self._monitor.counted):
                 # a turn that never counted: both encoders stuck, most likely (see above)
                 self.tread_faults += 1
-                self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 4))
+                self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT,
+                                                   int(TreadFault.BOTH_SILENT)))
             self._finish(Cmd.NAV_MOTION_BLOCKED)
             return
         if now >= self._deadline or now - self._last_progress_t >= t.blocked_after_s:
@@ -513,143 +447,30 @@ class MotorControl(Actor):
         self._set_pwm(self._duty(vl), self._duty(vr))
 
     def _set_pwm(self, left: float, right: float) -> None:
-        self._pwm = (left, right)
+        self._monitor.pwm = (left, right)
         self.hw.set_tread_pwm(left, right)
 
-    def _advance_model(self, now: float) -> None:
-        """Advance the lagged tread model to ``now`` (travel since each tread's last Int E)."""
-        dt = now - self._model_t
-        if dt <= 0.0:
-            return
-        self._model_t = now
-        k = 1.0 - math.exp(-dt / self.tuning.motor_tau_s)
-        most = 0.0
-        for tread in (0, 1):
-            v0 = self._model_v[tread]
-            v1 = v0 + (self._pwm[tread] * self._vmax - v0) * k
-            self._model_v[tread] = v1
-            travel = 0.5 * (abs(v0) + abs(v1)) * dt
-            self._unticked[tread] += travel
-            self._modelled[tread] += travel
-            most = max(most, travel)
-        self._since_any += most
-
-    def _both_silent(self) -> bool:
-        """No Int E from either tread while the model says one went ``blocked_cm``.
-
-        Why: with both encoders stuck nothing counts, so no tread is there to
-        compare with (``NAV_TREAD_FAULT`` needs one that counts); the blocked
-        timer let a rover drive a whole second unseen, 20 cm in a back-off
-        (overlapping game 2:27, the seeker 70 cm off after 8 s of blocks).
-        The model knows sooner. A rover against a wall reads the same and is
-        blocked, only sooner. Called at a control step, whose world step's
-        Int E may not have arrived yet: the last period's travel is not owed.
-        """
-        owed = self._since_any - max(abs(v) for v in self._model_v) * self.tuning.period_s
-        return owed >= self.tuning.blocked_cm
-
-    def _watch_counts(self) -> None:
-        """Report a tread that counts far less than it is driven while the other counts
-        about right, or is driven further for the same count in a move
-        (``NAV_TREAD_FAULT`` with bit 1 set), or both treads counting short (value 6; a
-        push ends the move instead); see the module docstring."""
-        t = self.tuning
-        modelled = sum(self._modelled)
-        if modelled - self._marks[-1][0] >= t.push_window_cm:
-            self._marks = [self._marks[-1], (modelled, sum(self._counted))]
-        ratio = t.short_ratio if self._kind == Cmd.MOTOR_TURN or self._lidar else t.both_move_ratio
-        if not (any(self._short_sent) or any(self._silent_sent)) \
-                and min(self._modelled) >= t.short_after_cm \
-                and all(self._counted[i] < ratio * self._modelled[i] for i in (0, 1)):
-            self._short_sent = [True, True]
-            if self._kind == Cmd.MOTOR_MOVE and not self._lidar and self._pushing():
-                self._finish(Cmd.NAV_MOTION_BLOCKED)
-                return
-            if not self._lidar:
-                self._split_heading()
-            self.tread_faults += 1
-            self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 6))
-            return
-        for tread in (0, 1):
-            other = 1 - tread
-            modelled, counted = self._modelled[tread], self._counted[tread]
-            if self._short_sent[tread] or self._silent_sent[tread] or modelled < t.short_after_cm:
-                continue
-            short = counted < t.short_ratio * modelled and \
-                self._counted[other] >= t.short_other_ratio * self._modelled[other]
-            if not short and self._kind == Cmd.MOTOR_MOVE and counted > 0.0:
-                # driven further than the other for the same count (see ``uneven_cm``)
-                short = (modelled - counted) - (self._modelled[other] - self._counted[other]) \
-                    >= t.uneven_cm
-            if short:
-                if self._kind == Cmd.MOTOR_MOVE:
-                    self._split_heading()
-                self._short_sent[tread] = True
-                self.tread_faults += 1
-                self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, 2 | tread))
-
-    def _pushing(self) -> bool:
-        """Both treads count short in a move, and lately hardly at all: the rover pushes
-        against something (blocked), not two slipping encoders.
-
-        Why: slipping encoders count 0.3-0.8 of the travel from the moment they slip;
-        a rover that meets a wall counts right until then and next to nothing after,
-        or a few % while it slides along a face it meets at an angle (campaign 1:127:
-        12 %, a 20 cm move slid 37 cm unseen until navigation's timeout). Judged on
-        the last ``push_window_cm`` to twice that of both treads' modelled travel, one
-        interrupt's quantum granted (two weak motors at 0.3 must not read as a push).
-        """
-        modelled0, counted0 = self._marks[0]
-        modelled = sum(self._modelled) - modelled0
-        counted = sum(self._counted) - counted0
-        return counted + self._unit < self.tuning.push_ratio * modelled  # an interrupt's grace
-
-    def _split_heading(self) -> None:
-        """A tread counts short in a straight move: set the heading halfway between
-        what the counts say and what the modelled travel says.
-
-        Why: the cross-coupling holds the short-counting tread's count about an
-        interrupt or three behind the other's while it catches up, so a move stopped
-        at the report leaves the counts saying a turn toward that tread. A slipping
-        encoder (its tread really went as modelled) turned the rover the other way;
-        a weak motor (it really went as counted) turned it as counted. Motor Control
-        cannot tell the two apart; halfway bounds the error either way (campaign
-        1:38: 8-10 deg per stop, each believed the wrong way).
-        """
-        self._integrate()
-        sl = math.copysign(1.0, self._target[0])
-        sr = math.copysign(1.0, self._target[1])
-        counted = self._counted[1] * sr - self._counted[0] * sl
-        modelled = self._modelled[1] * sr - self._modelled[0] * sl
-        delta = math.degrees((modelled - counted) / self._track) / 2.0
-        p = self.memory.pose
-        self.memory.pose = Pose(p.x, p.y, p.heading_deg + delta)
-        self._pose_dirty = self._lidar_dirty = True
-
     def _watch_treads(self, period_pending: bool) -> None:
-        """Report a driven tread that does not count while the other one does
-        (``NAV_TREAD_FAULT``, see the module docstring).
+        """Act on the tread monitor's findings of this step, in order: report each tread
+        fault (after splitting the heading where the monitor says so), end a push blocked.
 
         The encoders of one world step arrive together, so at a control step whose
         step's Int E may not have arrived yet (``period_pending``) the last period's
-        modelled travel does not count against the tread.
+        modelled travel does not count against a tread.
         """
-        t = self.tuning
-        if not period_pending:
-            self._watch_counts()
-        for tread in (0, 1):
-            other = 1 - tread
-            if self._silent_sent[tread] or self._run[other] < t.silent_other:
+        moving = self._kind == Cmd.MOTOR_MOVE
+        for verdict, fault in self._monitor.watch(moving, period_pending):
+            if verdict is TreadVerdict.PUSH:
+                self._finish(Cmd.NAV_MOTION_BLOCKED)
                 continue
-            if self._counted[other] - self._counted[tread] < t.silent_other * self._unit:
-                continue  # counts level: slow alike (weak, pushing), interrupts interleaved
-            owed = self._unticked[tread]
-            if period_pending:
-                owed -= abs(self._model_v[tread]) * t.period_s
-            if owed >= t.silent_cm:
-                self._silent_sent[tread] = True
-                self.tread_faults += 1
-                self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, tread))
+            if verdict is TreadVerdict.FAULT_SPLIT:
+                self._integrate()
+                self.memory.pose = split_heading(self.memory.pose, self._target,
+                                                 self._monitor.counted, self._monitor.modelled,
+                                                 self._track)
+                self._pose_dirty = self._lidar_dirty = True
+            self.tread_faults += 1
+            self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, int(fault)))
 
     def _speed(self, remaining: float, cruise: float) -> float:
         t = self.tuning

@@ -48,10 +48,11 @@ import numpy as np
 import trio
 
 from actors import Actor, BufferPool, Message, PoolExhausted
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import WiflyUartIsr
 from actors.firmware.hardware import Interrupt, RoverHardware
-from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.mapping.grid_map import GridMap
 from server.protocol import (
     ERROR,
     HELLO,
@@ -123,7 +124,8 @@ class Wifly(Actor):
                  memory: LinkMemory | None = None, token: str | None = None,
                  isr: WiflyUartIsr | None = None, tick_s: float = 0.1, hello_s: float = 1.0,
                  hello_max_s: float = 8.0, max_backlog: int = 4096,
-                 max_to_nav: int = 256) -> None:
+                 max_to_nav: int = 256, addresses: Addresses | None = None) -> None:
+        self._addresses = addresses
         # check the hello once here: a bad id is a configuration error, not a crash loop
         make_frame(HELLO, {"id": rover_id, "role": role, "token": token})
         self.hw = hardware
@@ -146,8 +148,7 @@ class Wifly(Actor):
 
     # ------------------------------------------------------------------ lifetime
     async def on_start(self) -> None:
-        prefix = self.ctx.name.rpartition("/")[0]
-        self._nav = f"{prefix}/nav" if prefix else "nav"
+        self._nav = (self._addresses or Addresses.beside(self.ctx.name)).nav
         if self.memory is None:
             self.memory = LinkMemory()
         self._to_nav = self.memory.to_nav

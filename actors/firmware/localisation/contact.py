@@ -36,10 +36,9 @@ Method
     head-on contact (the whole leading edge on one wall's face) that needs a
     sideways shift: the faces on both sides of a gap explain it, the nearer
     one is cheapest, and when the other one is within ``ambiguity_cm`` too the
-    contact is ambiguous whatever side stalled (overlapping campaign 2:19:
-    the hider 34 cm below the corridor's mouth by a 12 deg heading error, put
-    8 cm further up onto the upper wall's face; 1:127: the seeker pushed
-    further up above the gap the same way).
+    contact is ambiguous whatever side stalled (a hider 34 cm below a
+    corridor's mouth by a 12 deg heading error is otherwise put 8 cm further
+    up onto the upper wall's face, away from the mouth).
 
     The stalled side comes from the heading change during a straight move: the
     tread on the touching side is held, the other one drives on, so the body
@@ -57,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.occupancy import GridMap
+from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.planning.clearance import occupied_near
 
 __all__ = ["Contact", "locate_contact", "stalled_side"]
@@ -81,8 +80,8 @@ class Contact:
     """The same contact shifted ``free_cm`` sideways (either way, same along and turn)
     explains the block as well: a wall's face across the heading (or beside a gap)
     measures where the rover is along its heading, not sideways, so the caller must
-    keep its sideways uncertainty (campaign game 1:111: a reset to 3 cm after such a
-    contact shrank the sideways search below the 26-30 cm the seeker was off)."""
+    keep its sideways uncertainty (a reset to 3 cm after such a contact shrinks the
+    sideways search below what the rover may be off)."""
 
     @property
     def needed(self) -> bool:
@@ -161,9 +160,42 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
         return None
     _, _, fx, fy = near  # occupied cells in the dead-reckoned body frame [cm]
 
-    s = _grid_axis(wide, shift_step_cm)
-    u = _grid_axis(max_along_cm, along_step_cm)
-    a = _grid_axis(max_turn_deg, turn_step_deg)
+    S, U, A, inside, band_all, by = _candidate_bodies(
+        fx, fy, _grid_axis(wide, shift_step_cm), _grid_axis(max_along_cm, along_step_cm),
+        _grid_axis(max_turn_deg, turn_step_deg), half_l, half_w, tol, res, direction)
+    band = band_all
+    if side:
+        band = band & ((by * direction * side) > 0)
+    explains = ~inside.any(axis=1) & band.any(axis=1)
+    ok = explains & (np.abs(S) <= max_shift_cm + 1e-9)
+    if not ok.any():
+        return None
+    cost = np.abs(S) + along_weight * np.abs(U) + turn_weight * np.abs(A)
+    any_cost = np.where(explains, cost, np.inf)
+    cost = np.where(ok, cost, np.inf)
+    best = int(np.argmin(cost))
+    sb, ub, ab = float(S[best]), float(U[best]), float(A[best])
+    ambiguous = _ambiguous(S, by, band_all, direction, side, best, cost, any_cost, res,
+                           ambiguity_cm)
+    same = (np.abs(U - ub) < 1e-9) & (np.abs(A - ab) < 1e-9) & explains
+    free = any(bool((same & (np.abs(S - (sb + d)) < 1e-9)).any()) for d in (free_cm, -free_cm))
+    ch, sh = math.cos(pose.heading_rad), math.sin(pose.heading_rad)
+    x = pose.x + ub * ch - sb * sh
+    y = pose.y + ub * sh + sb * ch
+    return Contact(Pose(x, y, pose.heading_deg + ab), sb, ub, ab, ambiguous, free)
+
+
+def _candidate_bodies(fx: np.ndarray, fy: np.ndarray, s: np.ndarray, u: np.ndarray,
+                      a: np.ndarray, half_l: float, half_w: float, tol: float, res: float,
+                      direction: int) -> tuple[np.ndarray, ...]:
+    """Every candidate body pose (sideways shift ``S``, along ``U``, turn ``A``, flattened)
+    and, per candidate and occupied point, whether the point lies inside the body
+    (``inside``), in the band just ahead of its front face (``band``), and its sideways
+    coordinate in the candidate's frame (``by``).
+
+    Returns:
+        ``(S, U, A, inside, band, by)``.
+    """
     S, U, A = np.meshgrid(s, u, a, indexing="ij")
     S, U, A = S.ravel(), U.ravel(), A.ravel()
     ar = np.radians(A)
@@ -175,39 +207,31 @@ def locate_contact(grid: GridMap, pose: Pose, *, length_cm: float, width_cm: flo
     by = (-dx * sa + dy * ca) * direction
     inside = (np.abs(bx) < half_l - tol) & (np.abs(by) < half_w - tol)
     band = (bx >= half_l - tol) & (bx <= half_l + res) & (np.abs(by) <= half_w + tol)
-    band_all = band
-    if side:
-        band = band & ((by * direction * side) > 0)
-    explains = ~inside.any(axis=1) & band.any(axis=1)
-    ok = explains & (np.abs(S) <= max_shift_cm + 1e-9)
-    if not ok.any():
-        return None
-    cost = np.abs(S) + along_weight * np.abs(U) + turn_weight * np.abs(A)
-    any_cost = np.where(explains, cost, np.inf)
-    cost = np.where(ok, cost, np.inf)
-    best = int(np.argmin(cost))
+    return S, U, A, inside, band, by
+
+
+def _ambiguous(S: np.ndarray, by: np.ndarray, band_all: np.ndarray, direction: int,
+               side: int, best: int, cost: np.ndarray, any_cost: np.ndarray, res: float,
+               ambiguity_cm: float) -> bool:
+    """Whether an explanation on the other side costs within ``ambiguity_cm`` of the best.
+
+    With the stalled side unknown, the other side is the one the body touches with.
+    Head-on against a face beside a gap, the face across the gap, shifted the other
+    way, explains the block as well (the stalled side tells nothing here). So does a
+    corner: the stalled side's front corner meets the near wall's end or, shifted the
+    other way, the far wall's end; a fix toward the wrong wall makes every later
+    sideways offset miss the gap. A shift within a cell is never ambiguous: that small
+    a fix cannot push the pose to the wrong wall.
+    """
     # the side of the body each candidate touches with: +1 left, -1 right, 0 both (head-on)
     left = (band_all & (by * direction > 0)).any(axis=1)
     right = (band_all & (by * direction < 0)).any(axis=1)
     touch = left.astype(int) - right.astype(int)
-    ambiguous = False
-    sb, ub, ab = float(S[best]), float(U[best]), float(A[best])
+    sb = float(S[best])
     if side == 0 and touch[best] != 0:
         other = np.where(touch == -touch[best], any_cost, np.inf)
-        ambiguous = bool(other.min() <= cost[best] + ambiguity_cm)
-    elif (touch[best] == 0 and sb != 0.0) or (side != 0 and abs(sb) > res):
-        # head-on against a face beside a gap: the face across the gap, shifted the
-        # other way, explains it as well (the stalled side tells nothing here). So does
-        # a corner: the stalled side's front corner meets the near wall's end or, shifted
-        # the other way, the far wall's end (held-out 3:95: right stalled, the hider 20 cm
-        # above the gap on the upper wall's end; the fix moved it 11 cm down, the wrong
-        # way, and every later offset missed the gap). Not for a shift within a cell:
-        # that small a fix cannot push the pose to the wrong wall
+        return bool(other.min() <= cost[best] + ambiguity_cm)
+    if (touch[best] == 0 and sb != 0.0) or (side != 0 and abs(sb) > res):
         other = np.where(S * sb < 0.0, any_cost, np.inf)
-        ambiguous = bool(other.min() <= cost[best] + ambiguity_cm)
-    same = (np.abs(U - ub) < 1e-9) & (np.abs(A - ab) < 1e-9) & explains
-    free = any(bool((same & (np.abs(S - (sb + d)) < 1e-9)).any()) for d in (free_cm, -free_cm))
-    ch, sh = math.cos(pose.heading_rad), math.sin(pose.heading_rad)
-    x = pose.x + ub * ch - sb * sh
-    y = pose.y + ub * sh + sb * ch
-    return Contact(Pose(x, y, pose.heading_deg + ab), sb, ub, ab, ambiguous, free)
+        return bool(other.min() <= cost[best] + ambiguity_cm)
+    return False

@@ -36,6 +36,8 @@ __all__ = [
     "inverse",
     "relative",
     "advance",
+    "Odometer",
+    "split_heading",
 ]
 
 
@@ -163,3 +165,59 @@ def advance(pose: Pose, d_left_cm: float, d_right_cm: float, track_width_cm: flo
         pose.y + ds * math.sin(mid),
         pose.heading_deg + math.degrees(dtheta),
     )
+
+
+class Odometer:
+    """Tread increments counted since the last integration step, and that step.
+
+    Why one step per batch: integrating each tread's Int E alone would zigzag
+    the heading by one interrupt's angle and drift sideways; Motor Control
+    integrates once per burst of interrupts (one world step's worth).
+
+    Args:
+        unit_cm: tread travel per Int E [cm].
+        track_width_cm: distance between the treads' contact lines [cm].
+    """
+
+    __slots__ = ("unit_cm", "track_width_cm", "pending")
+
+    def __init__(self, unit_cm: float, track_width_cm: float) -> None:
+        self.unit_cm = unit_cm
+        self.track_width_cm = track_width_cm
+        self.pending = [0.0, 0.0]
+        """Signed tread travel not yet integrated, left and right [cm]."""
+
+    def count(self, tread: int, forward: bool) -> float:
+        """One Int E of ``tread`` (0 left, 1 right); returns its signed travel [cm]."""
+        d = self.unit_cm if forward else -self.unit_cm
+        self.pending[tread] += d
+        return d
+
+    def integrate(self, pose: Pose) -> Pose | None:
+        """``pose`` advanced by the pending travel (which is then cleared), or None when
+        nothing is pending."""
+        left, right = self.pending
+        if left or right:
+            self.pending = [0.0, 0.0]
+            return advance(pose, left, right, self.track_width_cm)
+        return None
+
+
+def split_heading(pose: Pose, target: tuple[float, float], counted: list[float],
+                  modelled: list[float], track_width_cm: float) -> Pose:
+    """``pose`` with its heading set halfway between what the treads' counts say and
+    what their modelled travel says, for a command with per-tread ``target`` [cm].
+
+    Why: when a tread counts short in a straight move, the cross-coupling holds its
+    count an interrupt or three behind the other's while it catches up, so a move
+    stopped there leaves the counts saying a turn toward that tread. A slipping
+    encoder (its tread really went as modelled) turned the rover the other way; a
+    weak motor (it really went as counted) turned it as counted. Nothing on board
+    tells the two apart; halfway bounds the error either way.
+    """
+    sl = math.copysign(1.0, target[0])
+    sr = math.copysign(1.0, target[1])
+    counted_turn = counted[1] * sr - counted[0] * sl
+    modelled_turn = modelled[1] * sr - modelled[0] * sl
+    delta = math.degrees((modelled_turn - counted_turn) / track_width_cm) / 2.0
+    return Pose(pose.x, pose.y, pose.heading_deg + delta)

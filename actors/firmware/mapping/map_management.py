@@ -49,11 +49,14 @@ import math
 import numpy as np
 import trio
 
-from actors import Actor, BufferPool, Message, PoolExhausted
+from actors import Actor, BufferPool, Message
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
+from actors.firmware.handles import post
 from actors.firmware.localisation.odometry import Pose, angle_diff_deg, compose, inverse
-from actors.firmware.mapping.occupancy import GridMap, OccupancyGrid
+from actors.firmware.mapping.grid_map import GridMap
+from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import (
     MatchFields,
     MatchOptions,
@@ -111,8 +114,10 @@ class MapManagement(Actor):
     def __init__(self, pool: BufferPool, *, size_cm: tuple[float, float] = (2400.0, 2400.0),
                  resolution_cm: float = 5.0, publish_s: float = 0.25,
                  restarted: bool = False, matching: MatchOptions | None = _MATCH,
-                 fields_s: float = 0.5, warmup_scans: int = 20, settle_s: float = 1.0) -> None:
+                 fields_s: float = 0.5, warmup_scans: int = 20, settle_s: float = 1.0,
+                 addresses: Addresses | None = None) -> None:
         self.pool = pool
+        self._addresses = addresses
         self.grid = OccupancyGrid(size_cm[0], size_cm[1], resolution_cm)
         self.publish_s = publish_s
         self.restarted = restarted
@@ -163,9 +168,9 @@ class MapManagement(Actor):
         self._timer_armed = False
 
     async def on_start(self) -> None:
-        prefix = self.ctx.name.rpartition("/")[0]
-        self._nav = f"{prefix}/nav" if prefix else "nav"
-        self._motor = f"{prefix}/motor" if prefix else "motor"
+        names = self._addresses or Addresses.beside(self.ctx.name)
+        self._nav = names.nav
+        self._motor = names.motor
         if self.restarted:
             self._send(self._nav, Message.uint(Cmd.NAV_MAP_LOST, 0))
             if self._send(self._motor, Message.uint(Cmd.MOTOR_GET_POSE, 0)):
@@ -238,8 +243,8 @@ class MapManagement(Actor):
         rover's batch can carry the previous tick's stamp, and after a turn the rover
         keeps turning by up to an interrupt's worth (or swings back) unseen by its
         encoders. Placed without matching, such batches were 2-9 deg off and drew
-        walls a cell or two off (furniture 5: map accuracy 0.968 against 0.996 with
-        the matched batches alone).
+        walls a cell or two off (in a furnished room: map accuracy 0.968 against
+        0.996 with the matched batches alone).
         None for a batch that sees mapped obstacles but whose match was refused: its
         pose is in doubt, and one badly placed batch clears free space through walls
         (outside the room, where no later ray can repair it).
@@ -286,12 +291,12 @@ class MapManagement(Actor):
         search (`scan_match.relocalise`, headings within ``_lost_deg`` of the guess) finds
         where it fits; then the pose is found and matching goes on from there.
 
-        Why: both encoders stuck while the treads are driven (held-out campaign game
-        3:199, 9 s) turn the rover unseen; odometry stands still, so every batch was
-        placed unmatched at the standing pose ("the rover stands") while the rover
-        spun: each drew the room turned by a different angle, and matching later
-        locked onto that smear 180 deg off (map accuracy 0.48, the hiding spot inside
-        a phantom wall). Navigation knows it from Motor Control's report (both treads
+        Why: both encoders stuck while the treads are driven (for 9 s, say) turn the
+        rover unseen; odometry stands still, so every batch would be placed unmatched
+        at the standing pose ("the rover stands") while the rover spins: each draws
+        the room turned by a different angle, and matching later locks onto that smear 180
+        deg off (map accuracy about 0.5, hiding spots inside
+        phantom walls). Navigation knows it from Motor Control's report (both treads
         silent in a turn) and says so; a batch that cannot be placed is dropped, as a
         refused match is (`_place`).
         """
@@ -323,10 +328,10 @@ class MapManagement(Actor):
         most every ``_RELOCALISE_EVERY_S``.
 
         A refused batch whose guess fits well (``_RELOCALISE_BELOW``) says the pose is
-        right (matching only found no better fit) and starts the count over. Counting it
-        made a healthy hall game (``hall``, seed 1224892982) search after two such
-        batches and one blurred by the start of a turn (fit 0.45), and accept a pose
-        23 deg off: the rest of the map was drawn turned by 21.5 deg (accuracy 0.82).
+        right (matching only found no better fit) and starts the count over. Counting it,
+        two such batches and one blurred by the start of a turn (fit 0.45) are enough
+        to start a search in a healthy hall, which can accept a pose 23 deg off and
+        draw the rest of the map turned by that much (accuracy 0.82).
         """
         if refused.score_guess >= _RELOCALISE_BELOW:
             self._refused = 0  # a guess that fits this well is not lost
@@ -410,15 +415,9 @@ class MapManagement(Actor):
     def _send_snapshot(self) -> None:
         self._changed = False
         snap = self.grid.snapshot()
-        try:
-            handle = self.pool.put(snap)
-        except PoolExhausted:
-            self.dropped_updates += 1
-            return
-        if self._send(self._nav, Message.handle(Cmd.NAV_MAP_UPDATE, handle)):
+        if post(self.pool, lambda m: self._send(self._nav, m), Cmd.NAV_MAP_UPDATE, snap):
             self.updates += 1
         else:
-            self.pool.take(handle)
             self.dropped_updates += 1
 
     def _restore(self, snap: GridMap) -> None:

@@ -28,7 +28,7 @@ Frame and units
     oy)`` is the lower-left corner of cell ``[0, 0]``: row 0 is the lowest
     ``y`` (an image viewer shows the map upside down; exporters flip it).
 
-Cell values of a snapshot (`GridMap.cells`, int8)
+Cell values of a snapshot (`grid_map.GridMap`)
     ``-1`` unknown, ``0`` free, ``100`` occupied. A cell is free when its
     log-odds are below ``free_threshold`` and occupied above
     ``occ_threshold`` (defaults -0.4 and +0.4, i.e. p < 0.40 and p > 0.60);
@@ -46,36 +46,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from actors.firmware.localisation.odometry import Pose
+from actors.firmware.mapping.grid_map import (
+    FREE,
+    OCCUPIED,
+    UNKNOWN,
+    GridMap,
+    cell_to_world,
+    check_origin,
+    check_resolution,
+    normalise_cells,
+    world_to_cell,
+)
 
 __all__ = [
-    "UNKNOWN",
-    "FREE",
-    "OCCUPIED",
     "LogOddsModel",
-    "GridMap",
     "OccupancyGrid",
 ]
-
-UNKNOWN = -1
-"""Cell value: never observed, or evidence too mixed to tell."""
-FREE = 0
-"""Cell value: observed free."""
-OCCUPIED = 100
-"""Cell value: observed occupied."""
-
-
-def world_to_cell(origin_cm: tuple[float, float], resolution_cm: float,
-                  x: float, y: float) -> tuple[int, int]:
-    """(row, col) of the cell holding point (x, y) [cm] of a grid placed at ``origin_cm``."""
-    ox, oy = origin_cm
-    return math.floor((y - oy) / resolution_cm), math.floor((x - ox) / resolution_cm)
-
-
-def cell_to_world(origin_cm: tuple[float, float], resolution_cm: float,
-                  row: float, col: float) -> tuple[float, float]:
-    """Centre (x, y) [cm] of cell (row, col) of a grid placed at ``origin_cm``."""
-    ox, oy = origin_cm
-    return ox + (col + 0.5) * resolution_cm, oy + (row + 0.5) * resolution_cm
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,126 +105,6 @@ class LogOddsModel:
         if not (self.max_range_cm > 0 and 0 < self.ray_step <= 1):
             raise ValueError(f"max_range_cm must be > 0 and ray_step in (0, 1], got "
                              f"{self.max_range_cm}, {self.ray_step}")
-
-
-def _check_resolution(resolution_cm: float) -> float:
-    if not (isinstance(resolution_cm, int | float) and math.isfinite(resolution_cm)
-            and resolution_cm > 0):
-        raise ValueError(f"resolution_cm must be a positive number, got {resolution_cm!r}")
-    return float(resolution_cm)
-
-
-def _check_origin(origin_cm: tuple[float, float]) -> tuple[float, float]:
-    try:
-        ox, oy = (float(v) for v in origin_cm)
-    except (TypeError, ValueError):
-        raise ValueError(f"origin_cm must be a pair of numbers, got {origin_cm!r}") from None
-    if not (math.isfinite(ox) and math.isfinite(oy)):
-        raise ValueError(f"origin_cm must be finite, got {origin_cm!r}")
-    return ox, oy
-
-
-def normalise_cells(cells: np.ndarray) -> np.ndarray:
-    """Map cell values to the snapshot convention -1 / 0 / 100.
-
-    Accepts the map_server-like convention of a received map: -1 unknown,
-    0..49 free, 50..100 occupied.
-
-    Raises:
-        ValueError: if ``cells`` is not a non-empty 2-D integer array or holds a
-            value outside -1..100.
-    """
-    arr = np.asarray(cells)
-    if arr.ndim != 2 or arr.size == 0:
-        raise ValueError(f"cells must be a non-empty 2-D array, got shape {arr.shape}")
-    if not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(f"cells must hold integers, got dtype {arr.dtype}")
-    bad = (arr < -1) | (arr > 100)
-    if bad.any():
-        r, c = np.argwhere(bad)[0]
-        raise ValueError(f"cells must hold -1..100, got {int(arr[r, c])} at [{r}, {c}]")
-    out = np.full(arr.shape, UNKNOWN, dtype=np.int8)
-    out[(arr >= 0) & (arr < 50)] = FREE
-    out[arr >= 50] = OCCUPIED
-    return out
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class GridMap:
-    """An immutable map snapshot: cells, resolution and where cell [0, 0] is.
-
-    This is what Map Management publishes and uploads, what hiding and seeking
-    navigation receive, and what the planner, frontier search and clearance
-    check read. ``cells`` is read-only.
-    """
-
-    cells: np.ndarray
-    """int8 (ny, nx): -1 unknown, 0 free, 100 occupied; row 0 is the lowest y."""
-    resolution_cm: float = 5.0
-    """Cell side [cm]."""
-    origin_cm: tuple[float, float] = (0.0, 0.0)
-    """Lower-left corner of cell [0, 0] in the rover frame [cm]."""
-
-    def __post_init__(self) -> None:
-        cells = self.cells
-        if not (isinstance(cells, np.ndarray) and cells.dtype == np.int8 and cells.ndim == 2
-                and not cells.flags.writeable):
-            cells = normalise_cells(cells)
-            cells.flags.writeable = False
-        object.__setattr__(self, "cells", cells)
-        object.__setattr__(self, "resolution_cm", _check_resolution(self.resolution_cm))
-        object.__setattr__(self, "origin_cm", _check_origin(self.origin_cm))
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """(ny, nx) [cells]."""
-        return self.cells.shape  # type: ignore[return-value]
-
-    def world_to_cell(self, x: float, y: float) -> tuple[int, int]:
-        """(row, col) of the cell holding point (x, y) [cm]; may lie outside the grid."""
-        return world_to_cell(self.origin_cm, self.resolution_cm, x, y)
-
-    def cell_to_world(self, row: float, col: float) -> tuple[float, float]:
-        """Centre (x, y) [cm] of cell (row, col)."""
-        return cell_to_world(self.origin_cm, self.resolution_cm, row, col)
-
-    def contains(self, row: int, col: int) -> bool:
-        """Whether (row, col) is a cell of this grid."""
-        ny, nx = self.cells.shape
-        return 0 <= row < ny and 0 <= col < nx
-
-    def known_bounds(self) -> tuple[int, int, int, int] | None:
-        """Half-open box ``(row0, row1, col0, col1)`` of the known cells, or None."""
-        known = self.cells != UNKNOWN
-        rows = np.flatnonzero(known.any(axis=1))
-        if rows.size == 0:
-            return None
-        cols = np.flatnonzero(known.any(axis=0))
-        return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
-
-    def crop(self, row0: int, row1: int, col0: int, col1: int) -> GridMap:
-        """The sub-map of rows [row0, row1) and columns [col0, col1), clipped to the grid."""
-        ny, nx = self.cells.shape
-        row0, row1 = max(0, row0), min(ny, row1)
-        col0, col1 = max(0, col0), min(nx, col1)
-        if row0 >= row1 or col0 >= col1:
-            raise ValueError(f"crop box is empty: rows [{row0}, {row1}) cols [{col0}, {col1})")
-        ox, oy = self.origin_cm
-        sub = self.cells[row0:row1, col0:col1]
-        return GridMap(sub, self.resolution_cm,
-                       (ox + col0 * self.resolution_cm, oy + row0 * self.resolution_cm))
-
-    def crop_known(self, margin_cells: int = 1) -> GridMap:
-        """The smallest sub-map holding every known cell plus a margin of unknown ones.
-
-        An all-unknown map crops to itself.
-        """
-        box = self.known_bounds()
-        if box is None:
-            return self
-        r0, r1, c0, c1 = box
-        m = max(0, int(margin_cells))
-        return self.crop(r0 - m, r1 + m, c0 - m, c1 + m)
 
 
 def _grazing_shortening(angles_deg: np.ndarray, ranges_cm: np.ndarray, has_hit: np.ndarray,
@@ -297,7 +163,7 @@ class OccupancyGrid:
         origin_cm: tuple[float, float] | None = None,
         model: LogOddsModel | None = None,
     ) -> None:
-        self.resolution_cm = _check_resolution(resolution_cm)
+        self.resolution_cm = check_resolution(resolution_cm)
         """Cell side [cm]."""
         for name, v in (("width_cm", width_cm), ("height_cm", height_cm)):
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
@@ -308,7 +174,7 @@ class OccupancyGrid:
             raise ValueError(f"grid of {nx} x {ny} cells is too large (limit 2**24 cells)")
         if origin_cm is None:
             origin_cm = (-0.5 * nx * self.resolution_cm, -0.5 * ny * self.resolution_cm)
-        self.origin_cm = _check_origin(origin_cm)
+        self.origin_cm = check_origin(origin_cm)
         """Lower-left corner of cell [0, 0] in the rover frame [cm]."""
         self.model = model or LogOddsModel()
         """Sensor model and thresholds."""
@@ -347,7 +213,7 @@ class OccupancyGrid:
         """
         norm = normalise_cells(cells)
         ny, nx = norm.shape
-        res = _check_resolution(resolution_cm)
+        res = check_resolution(resolution_cm)
         grid = cls(nx * res, ny * res, res, origin_cm=origin_cm, model=model)
         lo = grid._log_odds
         lo[norm == FREE] = grid.model.l_min
@@ -389,20 +255,11 @@ class OccupancyGrid:
             ValueError: if the arrays differ in shape, are not 1-D, or hold a
                 non-finite angle or a negative or non-finite range.
         """
-        angles = np.asarray(angles_deg, dtype=np.float64)
-        ranges = np.asarray(ranges_cm, dtype=np.float64)
-        if angles.ndim != 1 or angles.shape != ranges.shape:
-            raise ValueError(f"angles_deg and ranges_cm must be 1-D of one length, got "
-                             f"{angles.shape} and {ranges.shape}")
+        angles, ranges = _check_batch(angles_deg, ranges_cm)
         if angles.size == 0:
             return 0
-        if not np.isfinite(angles).all():
-            raise ValueError("angles_deg must be finite")
-        if not (np.isfinite(ranges).all() and (ranges >= 0).all()):
-            raise ValueError("ranges_cm must be finite and >= 0")
         m = self.model
         res = self.resolution_cm
-        ny, nx = self._log_odds.shape
         ox, oy = self.origin_cm
 
         has_hit = (ranges > 0) & (ranges <= m.max_range_cm)
@@ -412,14 +269,43 @@ class OccupancyGrid:
         # ray origin and geometry in cell units
         px, py = (pose.x - ox) / res, (pose.y - oy) / res
         length_c = length / res
-        step = m.ray_step
 
-        # free samples: t = 0, step, 2 step, ... strictly before the ray's end, which is
-        # pulled back on rays that graze their surface (see `_grazing_shortening`)
+        # free samples: strictly before the ray's end, which is pulled back on rays
+        # that graze their surface (see `_grazing_shortening`)
         free_c = length_c
         if m.grazing_margin_cells > 0 and angles.size > 1:
             free_c = length_c - _grazing_shortening(angles, ranges, has_hit, res,
                                                     m.grazing_margin_cells)
+        free_flat = self._free_samples(px, py, cos, sin, free_c)
+
+        hx = px + cos[has_hit] * length_c[has_hit]  # hits [cells]
+        hy = py + sin[has_hit] * length_c[has_hit]
+        # np.unique's result (sorted, distinct) without its overhead (17 -> 5 us per batch)
+        hit_idx = np.sort(self._inside(np.floor(hy).astype(np.int64),
+                                       np.floor(hx).astype(np.int64)))
+        if hit_idx.size > 1:
+            hit_idx = hit_idx[np.concatenate(([True], hit_idx[1:] != hit_idx[:-1]))]
+        free_idx = self._distinct(free_flat)
+        if hit_idx.size:  # a cell hit by a ray of the batch is not also cleared by another
+            mark = self._mark
+            mark[hit_idx] = True
+            free_idx = free_idx[~mark[free_idx]]
+            mark[hit_idx] = False
+
+        changed = self._update(free_idx, hit_idx)
+        self._splat_hits(hx, hy)
+
+        self.batches += 1
+        self.rays += int(angles.size)
+        self.changed_total += changed
+        return changed
+
+    def _free_samples(self, px: float, py: float, cos: np.ndarray, sin: np.ndarray,
+                      free_c: np.ndarray) -> np.ndarray:
+        """Flat indices (in the grid, with repeats) of the samples of every ray at
+        t = 0, step, 2 step, ... strictly before its free length ``free_c`` [cells],
+        from the ray origin (``px``, ``py``) [cells] along (``cos``, ``sin``)."""
+        step = self.model.ray_step
         n_samples = np.ceil(np.maximum(free_c, 0.0) / step).astype(np.int64)
         total = int(n_samples.sum())
         # sample k of its ray at t = k step; each ray's cos and sin repeated per sample
@@ -436,22 +322,12 @@ class OccupancyGrid:
         y += py
         fc = np.floor(x, out=x).astype(np.int64)
         fr = np.floor(y, out=y).astype(np.int64)
-        free_flat = self._inside(fr, fc)
+        return self._inside(fr, fc)
 
-        hx = px + cos[has_hit] * length_c[has_hit]  # hits [cells]
-        hy = py + sin[has_hit] * length_c[has_hit]
-        # np.unique's result (sorted, distinct) without its overhead (17 -> 5 us per batch)
-        hit_idx = np.sort(self._inside(np.floor(hy).astype(np.int64),
-                                       np.floor(hx).astype(np.int64)))
-        if hit_idx.size > 1:
-            hit_idx = hit_idx[np.concatenate(([True], hit_idx[1:] != hit_idx[:-1]))]
-        free_idx = self._distinct(free_flat)
-        if hit_idx.size:  # a cell hit by a ray of the batch is not also cleared by another
-            mark = self._mark
-            mark[hit_idx] = True
-            free_idx = free_idx[~mark[free_idx]]
-            mark[hit_idx] = False
-
+    def _update(self, free_idx: np.ndarray, hit_idx: np.ndarray) -> int:
+        """Add ``l_free`` to the cells ``free_idx`` and ``l_occ`` to ``hit_idx`` (flat,
+        each distinct), clamped; returns how many cells changed class."""
+        m = self.model
         # one gather, the update, one scatter (every index is distinct)
         flat = self._log_odds.reshape(-1)
         n_free = free_idx.size
@@ -467,11 +343,6 @@ class OccupancyGrid:
         changed = int(np.count_nonzero(moved))
         if changed:
             self._set_classes(idx[moved], now_free[moved], now_occ[moved])
-        self._splat_hits(hx, hy)
-
-        self.batches += 1
-        self.rays += int(angles.size)
-        self.changed_total += changed
         return changed
 
     def _distinct(self, flat_idx: np.ndarray) -> np.ndarray:
@@ -612,3 +483,24 @@ class OccupancyGrid:
         ny, nx = self._log_odds.shape
         return (f"<OccupancyGrid {nx}x{ny} @ {self.resolution_cm:g} cm, origin "
                 f"{self.origin_cm}, batches={self.batches}, known={self.known_count()}>")
+
+
+def _check_batch(angles_deg: np.ndarray, ranges_cm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A batch's angles and ranges as float64 arrays.
+
+    Raises:
+        ValueError: the arrays differ in shape, are not 1-D, or hold a non-finite
+            angle or a negative or non-finite range.
+    """
+    angles = np.asarray(angles_deg, dtype=np.float64)
+    ranges = np.asarray(ranges_cm, dtype=np.float64)
+    if angles.ndim != 1 or angles.shape != ranges.shape:
+        raise ValueError(f"angles_deg and ranges_cm must be 1-D of one length, got "
+                         f"{angles.shape} and {ranges.shape}")
+    if angles.size == 0:
+        return angles, ranges
+    if not np.isfinite(angles).all():
+        raise ValueError("angles_deg must be finite")
+    if not (np.isfinite(ranges).all() and (ranges >= 0).all()):
+        raise ValueError("ranges_cm must be finite and >= 0")
+    return angles, ranges

@@ -7,51 +7,53 @@
               mailbox=64)
 
 Each call makes a fresh actor (one per incarnation): a restarted navigation
-rebuilds its state from its neighbours and the server (see `nav_common`).
+rebuilds its state from its neighbours and the server (see `base`).
 """
 
 from __future__ import annotations
 
 from actors import Actor, BufferPool
-from actors.firmware.hardware import HardwareSpec
-from actors.firmware.nav.base import NavMemory, NavOptions
+from actors.firmware.addresses import Addresses
+from actors.firmware.hardware import ROLES, HardwareSpec
 from actors.firmware.nav.hider import HidingNav
 from actors.firmware.nav.mapper import MappingNav, MappingOptions
+from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.seeker import SeekingNav, SeekingOptions
 
-__all__ = ["make_nav", "NAV_ROLES", "NavMemory", "NavOptions"]
-
-NAV_ROLES = ("mapper", "hider", "seeker")
-"""Roles `make_nav` knows."""
+__all__ = ["make_nav", "NavMemory", "NavOptions"]
 
 
 def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
              rover_id: str | None = None, options: NavOptions | None = None,
              memory: NavMemory | None = None,
              mapping: MappingOptions | None = None,
-             seeking: SeekingOptions | None = None) -> Actor:
+             seeking: SeekingOptions | None = None,
+             addresses: Addresses | None = None) -> Actor:
     """The navigation actor of ``role``.
 
     Args:
         role: ``mapper``, ``hider`` or ``seeker``.
         pool: the rover's buffer pool (frames, maps and scans travel by handle).
         spec: the rover's calibration constants (body size for clearance).
-        rover_id: the rover's id (accepted for the rover tree's calling convention;
-            navigation addresses its neighbours by its own registered name).
+        rover_id: the rover's id (accepted for the rover tree's calling convention).
         options: common tunables (`NavOptions`).
         memory: the retained record of the server's instructions, made once by the
             rover tree and passed to every incarnation (`NavMemory`); None keeps
             nothing across restarts.
         mapping: the mapper's tunables (`MappingOptions`).
         seeking: the seeker's tunables (`SeekingOptions`).
+        addresses: the rover's actor names (default: those beside the actor's own).
 
     Raises:
-        ValueError: ``role`` is not one of `NAV_ROLES`.
+        ValueError: ``role`` is not one of `ROLES`.
     """
     if role == "mapper":
-        return MappingNav(pool=pool, spec=spec, options=options, memory=memory, mapping=mapping)
+        return MappingNav(pool=pool, spec=spec, options=options, memory=memory, mapping=mapping,
+                          addresses=addresses)
     if role == "hider":
-        return HidingNav(pool=pool, spec=spec, options=options, memory=memory)
+        return HidingNav(pool=pool, spec=spec, options=options, memory=memory,
+                         addresses=addresses)
     if role == "seeker":
-        return SeekingNav(pool=pool, spec=spec, options=options, memory=memory, seeking=seeking)
-    raise ValueError(f"role must be one of {', '.join(NAV_ROLES)}, got {role!r}")
+        return SeekingNav(pool=pool, spec=spec, options=options, memory=memory, seeking=seeking,
+                          addresses=addresses)
+    raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")

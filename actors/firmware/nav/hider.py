@@ -1,6 +1,6 @@
 """Hiding navigation: check the spot, drive there around obstacles, report arrival.
 
-Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
+Flow (see `route_nav.RouteNav` for map, origin and destination handling)::
 
     idle --start--> waiting_map (map_request) --map--> ready
     ready --destination--> check_spot
@@ -14,13 +14,13 @@ by the body turning in place, plus ``spot_margin_cm``, must touch no occupied
 and no unknown cell. The route ends within ``goal_tol_cm`` of the spot and
 ``heading_tol_deg`` of the heading, by dead reckoning.
 
-Near enough (session 7)
+Near enough
     The map is the mapper's, made by dead reckoning and scan matching; a spot a
     few cm from a wall can fall on a wall cell, or next to a few unmapped cells,
-    though the rover fits there (campaign 1:125: "32 unmapped cells within 12.5
-    cm"; held-out 3:199: "obstacle 0.0 cm from the spot" on a smeared map). And a
+    though the rover fits there ("32 unmapped cells within 12.5 cm", "obstacle
+    0.0 cm from the spot" on a smeared map). And a
     hider that reached its spot's surroundings may be stopped a few cm short by
-    its own dead-reckoning error. Both used to end the game unhidden. A spot that
+    its own dead-reckoning error. Neither must end the game unhidden. A spot that
     does not fit moves to the nearest place within ``spot_shift_cm`` that does
     (and can be planned to); a hider blocked for good within ``hide_near_cm`` of
     its spot, with nothing mapped between, hides where it stands. Either way
@@ -35,8 +35,8 @@ from __future__ import annotations
 
 import math
 
-from actors.firmware.mapping.occupancy import OCCUPIED
-from actors.firmware.nav.base import RouteNav
+from actors.firmware.mapping.grid_map import OCCUPIED
+from actors.firmware.nav.route_nav import RouteNav
 from actors.firmware.planning.clearance import check_spot
 
 __all__ = ["HidingNav"]

@@ -1,6 +1,7 @@
 """Seeking navigation: look from near the place, then from the place itself, with the IR sensor.
 
-Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
+Flow (see `route_nav.RouteNav` for map, origin and destination handling; the search
+rings and the sweep are in `search`)::
 
     ready --destination (x, y)--> driving to a standoff point, facing (x, y)
         --arrived, or blocked within ``near_cm`` of (x, y)--> confirming (standoff scan)
@@ -18,15 +19,6 @@ Flow (see `nav_common.RouteNav` for map, origin and destination handling)::
                         --in range--> found
                         --ring over--> ``not_found {reason}``, ready for the next guess
 
-A destination with ``within`` W (the operator's wider search after a guess
-failed) searches rings round (x, y) out to W plus the seeker's drift: the ring
-above first, then wider ones (`search_rings`), innermost first. When the rings
-saw nothing, the pose itself is in doubt (a heading lost in a turn no tread
-report showed: campaign 4:112, 3:18), and what is left of ``wide_search_s`` goes
-to a sweep by touch (`SeekingNav._sweep`): straight legs from wall to wall,
-stopping every ``sweep_step_cm`` to scan all round, turning ``sweep_turn_deg``
-where blocked; no map, no pose.
-
 Standoff: the hider may stand at (x, y), so the seeker first stops
 ``standoff_cm`` away (centre to centre), on a passable point of the map
 (tried on rings of several radii, nearest to the seeker first), and turns to
@@ -40,13 +32,6 @@ the range minus half the body length from the hider's centre). Steps of
 20 [deg] keep a hider close by inside the +-20 [deg] field of view as seen
 from the nose, not just from the centre.
 
-Why the ring (`SeekingNav._plan_search`): the seeker stands where dead
-reckoning says; after metres of driving that may be tens of cm from the
-place, and a hider within IR range of the place may then be beyond what the
-scan from it sees. The ring is sized by the seeker's drift estimate
-(`NavBase.drift_cm`) so that its scans see everything within IR range of the
-place plus that drift.
-
 IR on demand: while confirming, navigation holds a lease on the IR actor's
 sampling (`Cmd.IR_LEASE`, renewed every tick for ``ir_lease_s``) and ends it
 when it answers, so the IR timer runs only while the seeker looks.
@@ -59,18 +44,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
 import trio
 
 from actors import BufferPool, Message
+from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.odometry import angle_diff_deg
-from actors.firmware.mapping.occupancy import FREE
-from actors.firmware.nav.base import Motion, NavMemory, NavOptions, RouteNav, passable_at
+from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.route import Motion, passable_at
+from actors.firmware.nav.route_nav import RouteNav
+from actors.firmware.nav.search import Search
 
-__all__ = ["SeekingOptions", "SeekingNav", "ring_outer_cm", "ring_reach_cm", "search_ring",
-           "search_rings"]
+__all__ = ["SeekingOptions", "SeekingNav"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,7 +85,7 @@ class SeekingOptions:
     """How long each IR lease keeps the sensor sampling [s]; renewed every navigation tick
     while confirming, so it outlasts a few missed ticks."""
     search: bool = True
-    """After the all-round scan saw nothing, search around the place (see `search_ring`)."""
+    """After the all-round scan saw nothing, search around the place (see `search.search_ring`)."""
     range_cm: float = 60.0
     """A guess "within IR range" has the hider's centre this close to it [cm]."""
     reach_cm: float = 70.0
@@ -108,7 +94,7 @@ class SeekingOptions:
     hider's body is 7.5-10 cm deep; a few cm are left for the scan's 20 deg steps."""
     search_points: int = 6
     """Points of the search ring around the place, at most (fewer when they see far
-    enough: `search_ring`)."""
+    enough: `search.search_ring`)."""
     search_ring_max_cm: float = 60.0
     """Largest radius of the search ring [cm] (with 6 points it covers 115 cm)."""
     search_ir_wait_s: float = 0.8
@@ -165,74 +151,17 @@ class SeekingOptions:
         return tuple(step * i for i in range(-k, k + 1))
 
 
-def ring_outer_cm(ring_cm: float, reach_cm: float, points: int) -> float:
-    """The outer edge of the band a ring of ``points`` scan points of radius ``ring_cm``
-    sees all round, each seeing ``reach_cm`` round itself [cm] (the worst direction is
-    midway between two points); 0 when neighbouring points are too far apart to meet."""
-    half = math.pi / points
-    inner = reach_cm ** 2 - (ring_cm * math.sin(half)) ** 2
-    if inner <= 0:
-        return 0.0
-    return ring_cm * math.cos(half) + math.sqrt(inner)
-
-
-def ring_reach_cm(ring_cm: float, reach_cm: float, points: int) -> float:
-    """How far from the centre a ring of ``points`` scan points of radius ``ring_cm`` sees
-    everything [cm], with the scan from the centre (`ring_outer_cm`); 0 when the ring has
-    holes next to its points or is too wide to meet what the centre sees."""
-    return 0.0 if ring_cm > reach_cm else ring_outer_cm(ring_cm, reach_cm, points)
-
-
-def search_ring(need_cm: float, reach_cm: float, max_points: int,
-                max_cm: float) -> tuple[int, float] | None:
-    """The cheapest ring that, with the place itself, sees everything within ``need_cm``
-    of the place: the fewest points (3 .. ``max_points``), then the smallest radius
-    (20 cm and up in 5 cm steps, at most ``max_cm``) [cm]. None when the scan from the
-    place alone sees that far; the widest ring (``max_points``, ``max_cm``) when none
-    does."""
-    if need_cm <= reach_cm:
-        return None
-    for n in range(3, max_points + 1):
-        r = 20.0  # a smaller ring sees hardly more than the place itself, at the same cost
-        while r <= max_cm:
-            if ring_reach_cm(r, reach_cm, n) >= need_cm:
-                return n, r
-            r += 5.0
-    return max_points, max_cm
-
-
-def search_rings(need_cm: float, reach_cm: float, max_points: int, max_cm: float,
-                 spacing_cm: float, max_rings: int) -> list[tuple[int, float]]:
-    """Rings (points, radius [cm]) that, with the place itself, see everything within
-    ``need_cm`` of the place, innermost first: `search_ring`'s ring, then rings whose
-    neighbouring points are ``spacing_cm`` apart, each laid 10 cm inside what the rings
-    before it see (its points scan outward, so it sees from about its own radius out),
-    at most ``max_rings``. Empty when the place alone sees that far."""
-    first = search_ring(need_cm, reach_cm, max_points, max_cm)
-    if first is None:
-        return []
-    rings = [first]
-    covered = ring_reach_cm(first[1], reach_cm, first[0])
-    while covered < need_cm and len(rings) < max_rings:
-        r = covered - 10.0
-        n = max(3, math.ceil(2.0 * math.pi * r / spacing_cm))
-        outer = ring_outer_cm(r, reach_cm, n)
-        if outer <= covered:  # spacing too wide for the reach: no ring adds anything
-            break
-        rings.append((n, r))
-        covered = outer
-    return rings
-
-
-class SeekingNav(RouteNav):
+class SeekingNav(Search, RouteNav):
     """The seeker's navigation actor (registered as ``seeker/nav``)."""
 
     role = "seeker"
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
-                 seeking: SeekingOptions | None = None) -> None:
-        super().__init__(pool=pool, spec=spec, options=options, memory=memory)
+                 seeking: SeekingOptions | None = None,
+                 addresses: Addresses | None = None) -> None:
+        super().__init__(pool=pool, spec=spec, options=options, memory=memory,
+                         addresses=addresses)
         self.s = seeking or SeekingOptions()
         self.place: tuple[float, float] | None = None
         """Where to look (map frame [cm])."""
@@ -326,140 +255,6 @@ class SeekingNav(RouteNav):
         else:
             await self._not_found(f"cannot get near the place: {reason}")
 
-    # ------------------------------------------------------------------ search
-    def _plan_search(self) -> bool:
-        """After the scan from the place saw nothing: choose the ring(s) to look from.
-
-        A guess within IR range has the hider's centre within ``range_cm`` of
-        it (a destination's ``within``, when given, replaces that); the seeker's
-        own dead reckoning may be ``drift_cm`` off, so what must be seen is
-        everything within ``range_cm + drift_cm`` of the place as the seeker
-        believes it. The scan from the place sees ``reach_cm``; beyond that,
-        points on a ring (`search_ring`) do, and with ``within`` wider rings
-        after it (`search_rings`).
-        Points that are not passable are pulled in toward the place; points
-        from which no free cell beyond what was seen before is within reach
-        (walls, the map's edge) are left out.
-        """
-        s = self.s
-        if not s.search or self.place is None or self.map is None:
-            return False
-        drift = self.drift_cm
-        within = self.memory.within
-        self.search_until = self.rings_until = math.inf
-        if within is not None:
-            now = trio.current_time()
-            self.search_until = now + s.wide_search_s
-            # a pose in more doubt than the guess: rings planned from it may all be
-            # somewhere else, and the sweep by touch gets half the time (3:18, 4:66)
-            share = s.doubt_rings_share if drift > within else 1.0
-            self.rings_until = now + share * s.wide_search_s
-        need = (s.range_cm if within is None else within) + drift
-        rings = search_rings(need, s.reach_cm, s.search_points, s.search_ring_max_cm,
-                             s.wide_spacing_cm, 1 if within is None else s.wide_max_rings)
-        if not rings:
-            return False
-        px, py = self.place
-        p = self.map_pose
-        if math.dist((p.x, p.y), self.place) > 2.0 * self.o.goal_tol_cm:
-            first = math.atan2(p.y - py, p.x - px)  # nearest the seeker first
-        else:
-            first = math.radians(p.heading_deg)  # on the place: the one it faces
-        seen = max(0.0, s.reach_cm - drift)
-        points: list[tuple[float, float]] = []
-        for i, (n, ring) in enumerate(rings):
-            # a point that does not fit is pulled in: the first ring toward the place,
-            # wider rings by less, or they would repeat the ring inside them
-            pulls = (ring, 0.75 * ring, 0.5 * ring) if i == 0 else (ring, ring - 20.0, ring - 40.0)
-            for k in range(n):
-                a = first + 2.0 * math.pi * k / n
-                for r in pulls:
-                    q = (px + r * math.cos(a), py + r * math.sin(a))
-                    if passable_at(self.map, q[0], q[1], self.radius_cm, 0.0):  # turns there
-                        if self._unseen_free(q, seen, need):
-                            points.append(q)
-                        break
-            if points:  # the next ring starts beside where this one ends
-                first = math.atan2(points[-1][1] - py, points[-1][0] - px)
-            seen = max(0.0, ring_outer_cm(ring, s.reach_cm, n) - drift)
-        points = points[:s.wide_max_points]
-        if not points:
-            return False
-        self.stage = "search"
-        self.ring_cm = rings[-1][1]
-        self.search_points = points
-        return True
-
-    def _unseen_free(self, q: tuple[float, float], seen_cm: float, need_cm: float) -> bool:
-        """Whether a free cell of the map lies within ``reach_cm`` of ``q``, farther than
-        ``seen_cm`` from the place and within ``need_cm`` of it [cm]."""
-        assert self.map is not None and self.place is not None
-        g = self.map
-        px, py = self.place
-        reach = self.s.reach_cm
-        res = g.resolution_cm
-        r0, c0 = g.world_to_cell(q[0] - reach, q[1] - reach)
-        r1, c1 = g.world_to_cell(q[0] + reach, q[1] + reach)
-        ny, nx = g.shape
-        r0, c0, r1, c1 = max(0, r0), max(0, c0), min(ny, r1 + 1), min(nx, c1 + 1)
-        if r0 >= r1 or c0 >= c1:
-            return False
-        cells = np.asarray(g.cells)[r0:r1, c0:c1]
-        ox, oy = g.origin_cm
-        ys = oy + (np.arange(r0, r1) + 0.5) * res
-        xs = ox + (np.arange(c0, c1) + 0.5) * res
-        X, Y = np.meshgrid(xs, ys)
-        dp = np.hypot(X - px, Y - py)
-        mask = (cells == FREE) & (np.hypot(X - q[0], Y - q[1]) <= reach) & \
-            (dp > seen_cm) & (dp <= need_cm)
-        return bool(mask.any())
-
-    async def _next_search_point(self) -> None:
-        """Drive to the next ring point (then `on_arrived` scans outward); at the end of
-        the ring, ``not_found`` -- or, in a wider search with time left, the sweep."""
-        now = trio.current_time()
-        if now >= self.rings_until:
-            self.search_points = []  # out of time: answer while the operator still listens
-        while self.search_points:
-            q = self.search_points.pop(0)
-            if await self.goto(q, None):
-                await self.set_state("searching", f"round the place, ring {self.ring_cm:.0f} cm")
-                return
-        if self.memory.within is not None and now < self.search_until < math.inf:
-            await self._sweep()
-            return
-        rings = "a ring of" if self.memory.within is None else "rings out to"
-        swept = ", nor sweeping the room by touch" if self.stage == "sweep" else ""
-        await self._not_found(f"the IR sensor saw nothing there, nor on {rings} "
-                              f"{self.ring_cm:.0f} cm round it{swept}")
-
-    async def _sweep(self) -> None:
-        """One step of the sweep by touch: face the leg's heading, drive ``sweep_step_cm``
-        (or until blocked), then scan all round (`_confirm`). A leg goes straight step
-        after step until a step is blocked (or ``sweep_max_steps``); the next leg turns
-        ``sweep_turn_deg`` from it.
-
-        Why: the rings are planned on the map from the pose; when they saw nothing the
-        pose may be far off (a heading lost unseen), and a rover that trusts it drives
-        into walls it thinks are metres away. Straight legs from wall to wall, turning
-        by the golden angle, cross the whole room like a billiard ball whatever the pose
-        says; short legs in random directions would wander about where they began.
-        """
-        first = self.stage != "sweep"
-        self.stage = "sweep"
-        if first or self._sweep_blocked or self._sweep_steps >= self.s.sweep_max_steps:
-            base = self.map_pose.heading_deg if first else self._leg_heading
-            self._leg_heading = base + self.s.sweep_turn_deg
-            self._sweep_steps = 0
-        self._sweep_turned = False
-        left = self.search_until - trio.current_time()
-        await self.set_state("sweeping", f"by touch, the pose in doubt ({left:.0f} s left)")
-        turn = angle_diff_deg(self._leg_heading, self.map_pose.heading_deg)
-        if abs(turn) <= self.o.heading_tol_deg:
-            await self.after_other_motion(False, 0.0)
-        else:
-            await self.command(Motion("turn", turn))
-
     # ------------------------------------------------------------------ IR confirmation
     async def _confirm(self) -> None:
         assert self.place is not None
@@ -522,7 +317,7 @@ class SeekingNav(RouteNav):
 
     async def _ir_lease(self, seconds: float) -> None:
         """Ask the IR actor to sample for ``seconds`` [s] (0: stop now); not waiting long."""
-        name = f"{self.prefix}/ir"
+        name = self.names.ir
         if self.ctx.system.whereis(name) is not None:  # a tree without IR: nothing to ask
             await self.post(name, Message.float(Cmd.IR_LEASE, seconds))
 

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from actors.firmware.localisation.odometry import Pose, angle_diff_deg
-from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap, normalise_cells
+from actors.firmware.mapping.grid_map import OCCUPIED, UNKNOWN, GridMap, normalise_cells
 
 __all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead", "occupied_near",
            "passage_width"]

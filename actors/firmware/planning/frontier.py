@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planning.planner import bfs_steps, snap_to_passable, traversable
 
 __all__ = [
@@ -224,21 +224,11 @@ def find_frontiers(
     if split_cm is not None and split_cm > 0:
         labels, count = _split_clusters(labels, max(1, round(split_cm / res)))
 
-    passable = traversable(sub, robot_radius_cm, margin_cm, "blocked")
-    start = snap_to_passable(passable, sub.world_to_cell(*rover_cm), snap_radius_cm / res)
-    if start is None:
-        steps = np.full(cells.shape, -1, dtype=np.int32)
-    else:
-        steps = bfs_steps(passable, start)
+    steps = _steps_from(sub, rover_cm, robot_radius_cm, margin_cm, snap_radius_cm)
     big = np.iinfo(np.int32).max
     reach_steps = np.where(steps >= 0, steps, big)
     near_steps = _min_filter(reach_steps, k_app)
-
-    # unknown share: integral image over the crop padded with unknown
-    k_exp = max(1, math.ceil(explore_radius_cm / res))
-    unknown = np.pad(cells == UNKNOWN, k_exp, constant_values=True).astype(np.int32)
-    integral = np.pad(unknown.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
-    area = (2 * k_exp + 1) ** 2
+    share_of = _UnknownShare(cells, max(1, math.ceil(explore_radius_cm / res)))
 
     k_open = max(1, math.ceil(open_cm / res))
     near_occ = _min_filter(-(cells == OCCUPIED).astype(np.int32), k_open) < 0
@@ -259,29 +249,70 @@ def find_frontiers(
         cx, cy = (float(v) for v in pts.mean(axis=0))
         cr, cc = min(max(int((cy - oy) // res), 0), ny - 1), min(max(int((cx - ox) // res), 0),
                                                                  nx - 1)
-        r0, c0 = cr, cc  # window [cr - k, cr + k] in the padded integral image
-        total = (integral[r0 + 2 * k_exp + 1, c0 + 2 * k_exp + 1] - integral[r0, c0 + 2 * k_exp + 1]
-                 - integral[r0 + 2 * k_exp + 1, c0] + integral[r0, c0])
-        share = float(total) / area
-
-        near = near_steps[rows, cols]
-        j = int(np.argmin(near))
-        target = None
-        distance = math.inf
-        if near[j] < big:
-            fr, fc = int(rows[j]), int(cols[j])
-            wr0, wr1 = max(0, fr - k_app), min(ny, fr + k_app + 1)
-            wc0, wc1 = max(0, fc - k_app), min(nx, fc + k_app + 1)
-            rr, cc_ = np.nonzero(steps[wr0:wr1, wc0:wc1] >= 0)
-            d2 = (rr + wr0 - fr) ** 2 + (cc_ + wc0 - fc) ** 2
-            b = int(np.argmin(d2))
-            tr, tc = int(rr[b] + wr0), int(cc_[b] + wc0)
-            target = sub.cell_to_world(tr, tc)
-            distance = float(steps[tr, tc]) * res
+        share = share_of(cr, cc)
+        target, distance = _approach(sub, steps, near_steps[rows, cols], rows, cols, k_app, big)
         open_share = 1.0 - float(np.count_nonzero(near_occ[rows, cols])) / rows.size
         out.append(Frontier(int(rows.size), (cx, cy), pts, distance, target, share, res,
                             open_share))
     return out
+
+
+def _steps_from(sub: GridMap, rover_cm: tuple[float, float], robot_radius_cm: float,
+                margin_cm: float, snap_radius_cm: float) -> np.ndarray:
+    """BFS steps from the rover's cell (snapped to a passable one) to every cell the
+    inflated map lets it reach; -1 elsewhere, and everywhere when no cell is near."""
+    passable = traversable(sub, robot_radius_cm, margin_cm, "blocked")
+    start = snap_to_passable(passable, sub.world_to_cell(*rover_cm),
+                             snap_radius_cm / sub.resolution_cm)
+    if start is None:
+        return np.full(sub.cells.shape, -1, dtype=np.int32)
+    return bfs_steps(passable, start)
+
+
+class _UnknownShare:
+    """Share of unknown cells in the window of half-side ``k`` cells around a cell, from
+    an integral image over the cells padded with unknown."""
+
+    def __init__(self, cells: np.ndarray, k: int) -> None:
+        unknown = np.pad(cells == UNKNOWN, k, constant_values=True).astype(np.int32)
+        self._integral = np.pad(unknown.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+        self._area = (2 * k + 1) ** 2
+        self._k = k
+
+    def __call__(self, cr: int, cc: int) -> float:
+        integral, k_exp = self._integral, self._k
+        r0, c0 = cr, cc  # window [cr - k, cr + k] in the padded integral image
+        total = (integral[r0 + 2 * k_exp + 1, c0 + 2 * k_exp + 1] - integral[r0, c0 + 2 * k_exp + 1]
+                 - integral[r0 + 2 * k_exp + 1, c0] + integral[r0, c0])
+        return float(total) / self._area
+
+
+def _approach(sub: GridMap, steps: np.ndarray, near: np.ndarray, rows: np.ndarray,
+              cols: np.ndarray, k_app: int, big: int
+              ) -> tuple[tuple[float, float] | None, float]:
+    """The reachable cell within ``k_app`` of the cluster's nearest-reached cell, and its
+    path length [cm]; (None, inf) when no cell of the cluster can be approached.
+
+    Args:
+        sub: the map crop the search ran on.
+        steps: BFS steps from the rover per cell, -1 unreachable.
+        near: per cluster cell, the fewest steps to a cell within ``k_app`` (``big``: none).
+        rows, cols: the cluster's cells.
+        k_app: approach distance [cells].
+        big: the "none" value of ``near``.
+    """
+    j = int(np.argmin(near))
+    if not near[j] < big:
+        return None, math.inf
+    ny, nx = steps.shape
+    fr, fc = int(rows[j]), int(cols[j])
+    wr0, wr1 = max(0, fr - k_app), min(ny, fr + k_app + 1)
+    wc0, wc1 = max(0, fc - k_app), min(nx, fc + k_app + 1)
+    rr, cc_ = np.nonzero(steps[wr0:wr1, wc0:wc1] >= 0)
+    d2 = (rr + wr0 - fr) ** 2 + (cc_ + wc0 - fc) ** 2
+    b = int(np.argmin(d2))
+    tr, tc = int(rr[b] + wr0), int(cc_[b] + wc0)
+    return sub.cell_to_world(tr, tc), float(steps[tr, tc]) * sub.resolution_cm
 
 
 def frontier_cost(frontier: Frontier, weights: FrontierWeights | None = None) -> float:

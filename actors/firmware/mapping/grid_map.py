@@ -1,0 +1,162 @@
+"""The map snapshot every reader of a map uses: `GridMap`, and its cell convention.
+
+Cell values (`GridMap.cells`, int8)
+    ``-1`` unknown, ``0`` free, ``100`` occupied; row 0 is the lowest ``y``.
+    Cell ``[row, col]`` covers ``x`` in ``[ox + col * res, ox + (col + 1) * res)``
+    and ``y`` in ``[oy + row * res, oy + (row + 1) * res)``, where ``origin_cm =
+    (ox, oy)`` is the lower-left corner of cell ``[0, 0]``.
+
+Map Management publishes and uploads a `GridMap`; navigation, the planner,
+frontier search and the clearance check read one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["UNKNOWN", "FREE", "OCCUPIED", "GridMap", "normalise_cells", "world_to_cell",
+           "cell_to_world", "check_resolution", "check_origin"]
+
+UNKNOWN = -1
+"""Cell value: never observed, or evidence too mixed to tell."""
+FREE = 0
+"""Cell value: observed free."""
+OCCUPIED = 100
+"""Cell value: observed occupied."""
+
+
+def world_to_cell(origin_cm: tuple[float, float], resolution_cm: float,
+                  x: float, y: float) -> tuple[int, int]:
+    """(row, col) of the cell holding point (x, y) [cm] of a grid placed at ``origin_cm``."""
+    ox, oy = origin_cm
+    return math.floor((y - oy) / resolution_cm), math.floor((x - ox) / resolution_cm)
+
+
+def cell_to_world(origin_cm: tuple[float, float], resolution_cm: float,
+                  row: float, col: float) -> tuple[float, float]:
+    """Centre (x, y) [cm] of cell (row, col) of a grid placed at ``origin_cm``."""
+    ox, oy = origin_cm
+    return ox + (col + 0.5) * resolution_cm, oy + (row + 0.5) * resolution_cm
+
+
+def check_resolution(resolution_cm: float) -> float:
+    if not (isinstance(resolution_cm, int | float) and math.isfinite(resolution_cm)
+            and resolution_cm > 0):
+        raise ValueError(f"resolution_cm must be a positive number, got {resolution_cm!r}")
+    return float(resolution_cm)
+
+
+def check_origin(origin_cm: tuple[float, float]) -> tuple[float, float]:
+    try:
+        ox, oy = (float(v) for v in origin_cm)
+    except (TypeError, ValueError):
+        raise ValueError(f"origin_cm must be a pair of numbers, got {origin_cm!r}") from None
+    if not (math.isfinite(ox) and math.isfinite(oy)):
+        raise ValueError(f"origin_cm must be finite, got {origin_cm!r}")
+    return ox, oy
+
+
+def normalise_cells(cells: np.ndarray) -> np.ndarray:
+    """Map cell values to the snapshot convention -1 / 0 / 100.
+
+    Accepts the map_server-like convention of a received map: -1 unknown,
+    0..49 free, 50..100 occupied.
+
+    Raises:
+        ValueError: if ``cells`` is not a non-empty 2-D integer array or holds a
+            value outside -1..100.
+    """
+    arr = np.asarray(cells)
+    if arr.ndim != 2 or arr.size == 0:
+        raise ValueError(f"cells must be a non-empty 2-D array, got shape {arr.shape}")
+    if not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"cells must hold integers, got dtype {arr.dtype}")
+    bad = (arr < -1) | (arr > 100)
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise ValueError(f"cells must hold -1..100, got {int(arr[r, c])} at [{r}, {c}]")
+    out = np.full(arr.shape, UNKNOWN, dtype=np.int8)
+    out[(arr >= 0) & (arr < 50)] = FREE
+    out[arr >= 50] = OCCUPIED
+    return out
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class GridMap:
+    """An immutable map snapshot: cells, resolution and where cell [0, 0] is.
+
+    This is what Map Management publishes and uploads, what hiding and seeking
+    navigation receive, and what the planner, frontier search and clearance
+    check read. ``cells`` is read-only.
+    """
+
+    cells: np.ndarray
+    """int8 (ny, nx): -1 unknown, 0 free, 100 occupied; row 0 is the lowest y."""
+    resolution_cm: float = 5.0
+    """Cell side [cm]."""
+    origin_cm: tuple[float, float] = (0.0, 0.0)
+    """Lower-left corner of cell [0, 0] in the rover frame [cm]."""
+
+    def __post_init__(self) -> None:
+        cells = self.cells
+        if not (isinstance(cells, np.ndarray) and cells.dtype == np.int8 and cells.ndim == 2
+                and not cells.flags.writeable):
+            cells = normalise_cells(cells)
+            cells.flags.writeable = False
+        object.__setattr__(self, "cells", cells)
+        object.__setattr__(self, "resolution_cm", check_resolution(self.resolution_cm))
+        object.__setattr__(self, "origin_cm", check_origin(self.origin_cm))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(ny, nx) [cells]."""
+        return self.cells.shape  # type: ignore[return-value]
+
+    def world_to_cell(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) of the cell holding point (x, y) [cm]; may lie outside the grid."""
+        return world_to_cell(self.origin_cm, self.resolution_cm, x, y)
+
+    def cell_to_world(self, row: float, col: float) -> tuple[float, float]:
+        """Centre (x, y) [cm] of cell (row, col)."""
+        return cell_to_world(self.origin_cm, self.resolution_cm, row, col)
+
+    def contains(self, row: int, col: int) -> bool:
+        """Whether (row, col) is a cell of this grid."""
+        ny, nx = self.cells.shape
+        return 0 <= row < ny and 0 <= col < nx
+
+    def known_bounds(self) -> tuple[int, int, int, int] | None:
+        """Half-open box ``(row0, row1, col0, col1)`` of the known cells, or None."""
+        known = self.cells != UNKNOWN
+        rows = np.flatnonzero(known.any(axis=1))
+        if rows.size == 0:
+            return None
+        cols = np.flatnonzero(known.any(axis=0))
+        return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+
+    def crop(self, row0: int, row1: int, col0: int, col1: int) -> GridMap:
+        """The sub-map of rows [row0, row1) and columns [col0, col1), clipped to the grid."""
+        ny, nx = self.cells.shape
+        row0, row1 = max(0, row0), min(ny, row1)
+        col0, col1 = max(0, col0), min(nx, col1)
+        if row0 >= row1 or col0 >= col1:
+            raise ValueError(f"crop box is empty: rows [{row0}, {row1}) cols [{col0}, {col1})")
+        ox, oy = self.origin_cm
+        sub = self.cells[row0:row1, col0:col1]
+        return GridMap(sub, self.resolution_cm,
+                       (ox + col0 * self.resolution_cm, oy + row0 * self.resolution_cm))
+
+    def crop_known(self, margin_cells: int = 1) -> GridMap:
+        """The smallest sub-map holding every known cell plus a margin of unknown ones.
+
+        An all-unknown map crops to itself.
+        """
+        box = self.known_bounds()
+        if box is None:
+            return self
+        r0, r1, c0, c1 = box
+        m = max(0, int(margin_cells))
+        return self.crop(r0 - m, r1 + m, c0 - m, c1 + m)

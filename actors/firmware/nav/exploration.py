@@ -1,0 +1,278 @@
+"""The mapper's exploration: where to go next, and the route there.
+
+Choosing where to go
+    `frontier.find_frontiers` + `frontier.choose_frontier` on the latest
+    NAV_MAP_UPDATE (cost trades distance against frontier size and favours less
+    explored areas; long frontiers come cut into 1 m pieces); `route.plan_route`
+    for the path, trying tiers of clearance from the turning radius plus a margin
+    down to half the body width (a 30 cm corridor maps 25 cm wide on a 5 cm grid);
+    reachability uses the narrowest tier. A frontier whose
+    target cannot be planned to, which blocks the rover twice, which takes more
+    ADP steps than its route deserves, or which is chosen again after being
+    reached, is blacklisted (by its target point [cm], which survives
+    map growth).
+
+Obstacles ahead
+    Before each straight move, `clearance.obstacle_ahead` looks ``move +
+    stop_cm`` ahead on the map: the move is shortened to stop ``stop_cm``
+    (20 cm: inside the seed's 15-30 cm) before the obstacle, and when that
+    leaves nothing to drive the rover turns away from it and chooses again;
+    after ``obstacle_turns`` such turns toward one target without a move between,
+    the target is blacklisted (the route passes where the rover will not drive).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import trio
+
+from actors.firmware.mapping.grid_map import UNKNOWN
+from actors.firmware.nav.mapping_options import MappingOptions
+from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
+from actors.firmware.planning.clearance import obstacle_ahead
+from actors.firmware.planning.frontier import Frontier, choose_frontier, find_frontiers
+
+__all__ = ["Exploration", "ExplorationState"]
+
+
+@dataclass
+class ExplorationState:
+    """Exploration state of one incarnation."""
+
+    follower: PathFollower | None = None
+    target: tuple[float, float] | None = None
+    steps: int = 0  # ADP steps toward the current target
+    budget: int = 0  # most steps it deserves
+    blocks: int = 0  # blocked motions toward the current target
+    blacklist: list[tuple[float, float]] = field(default_factory=list)
+    reached: list[tuple[float, float]] = field(default_factory=list)  # targets arrived at
+    no_frontier: bool = False  # the last decision found nothing useful to explore
+    trip_known: int | None = None  # known cells when the current trip began
+    trip_started: float = 0.0  # trio time the current trip began [s]
+    gains: list[int] = field(default_factory=list)  # cells each recent trip made known
+    turned_away: int = 0  # turns away from an obstacle toward this target, no move between
+    turned_target: tuple[float, float] | None = None  # the target they were toward
+
+
+class Exploration:
+    """Frontier exploration (a mixin of `mapper.MappingNav`, working on its state)."""
+
+    m: MappingOptions
+    ex: ExplorationState
+
+    async def after_motion(self, blocked: bool, done: float) -> None:
+        if self.state == "homing":
+            if not self.holding:
+                await self._after_home_motion(blocked)
+            return
+        if self.state != "exploring" or self.holding:
+            return
+        if blocked:
+            self.ex.blocks += 1
+            if self.ex.blocks >= 2 and self.ex.target is not None:
+                self._blacklist(self.ex.target)
+            self.ex.follower = None
+            last = self.last_motion
+            if last is not None and last.kind == "move" and last.amount < 0:
+                await self.command(Motion("turn", 90.0))  # cannot back off either: turn
+            else:
+                await self.command(Motion("move", -self.o.backoff_cm))
+            return
+        await self.decide()
+
+    async def decide(self) -> None:
+        """One ADP decision: keep or choose a frontier, then command one motion."""
+        if self.state != "exploring" or self.moving or self.grid is None or self.holding:
+            return
+        if not self.can_move:
+            self._wait_map = True  # the tick tries again
+            return
+        ex = self.ex
+        pose = self.pose
+        if ex.trip_known is not None and trio.current_time() - ex.trip_started >= \
+                self.m.trip_max_s:
+            # a rover that keeps switching to new frontiers on the way never ends a trip
+            # (trips of ten minutes in a furnished room): count it as a visit, go on
+            self._end_trip()
+            ex.trip_known, ex.trip_started = self._known(), trio.current_time()
+        if ex.follower is not None and ex.steps >= ex.budget:
+            self._blacklist(ex.target)  # no progress worth the route
+            ex.follower = None
+        if ex.follower is None or ex.steps % self.m.rechoose_steps == 0:
+            if not self._choose(keep=ex.follower is not None):
+                return
+        assert ex.follower is not None
+        motion = ex.follower.next_motion(pose)
+        if motion is None or (ex.target is not None
+                              and math.dist((pose.x, pose.y), ex.target) <= self.m.reach_cm):
+            if ex.target is not None:
+                ex.reached.append(ex.target)
+                self._end_trip()
+            ex.follower = None
+            self._wait_map = True  # look again once the map shows what is seen from here
+            return
+        if motion.kind == "move":
+            motion = self._mind_the_obstacle(motion)
+            if motion.kind == "turn":
+                ex.follower = None
+                if self._turned_away():
+                    return
+            else:
+                ex.turned_away = 0
+        ex.steps += 1
+        await self.command(motion)
+
+    def _turned_away(self) -> bool:
+        """Count a turn away from an obstacle; True (target blacklisted, decide again
+        at the next tick) after ``obstacle_turns`` toward one target without a move.
+
+        Why: the route (planned with the narrowest clearance tier) can pass where the
+        obstacle check refuses to drive; the rover then turned toward the route, was
+        refused, turned away and planned the same route again, minutes on end by one
+        wall (90-s trips revealing a few dozen cells), and turning in place by a wall
+        is where scan matching drifts."""
+        ex = self.ex
+        if ex.target is None:
+            return False
+        if ex.turned_target is not None and math.dist(ex.target, ex.turned_target) <= 40.0:
+            ex.turned_away += 1
+        else:
+            ex.turned_away, ex.turned_target = 1, ex.target
+        if ex.turned_away < self.m.obstacle_turns:
+            return False
+        ex.turned_away, ex.turned_target = 0, None
+        self._blacklist(ex.target)
+        self._wait_map = True
+        return True
+
+    def _mind_the_obstacle(self, motion: Motion) -> Motion:
+        """Shorten a move to stop ``stop_cm`` before an obstacle, or turn away from it."""
+        assert self.grid is not None
+        look = motion.amount + self.m.stop_cm
+        ob = obstacle_ahead(self.grid, self.pose, look, half_angle_deg=20.0,
+                            half_width_cm=0.5 * self.width_cm + 2.5)
+        if ob is None:
+            return motion
+        room = ob.forward_cm - self.m.stop_cm
+        if room >= 2.0:
+            return Motion("move", min(motion.amount, room))
+        # turn away: to the side opposite the obstacle's bearing
+        return Motion("turn", -90.0 if ob.bearing_deg >= 0 else 90.0)
+
+    def _choose(self, *, keep: bool) -> bool:
+        """Choose a frontier and a route to it; False (and ``no_frontier``) when none."""
+        assert self.grid is not None
+        ex = self.ex
+        pose = self.pose
+        # after futile visits only long frontiers in the open still count (what an obstacle
+        # hid in a big room), and each is blacklisted once reached (below), so this ends
+        futile = self._futile()
+        min_size = self.m.futile_min_cells if futile else self.m.min_frontier_cells
+        # reachability with the narrowest tier the rover can drive (a corridor barely wider
+        # than the body); the route itself tries the roomier tiers first
+        radius, margin = self._tiers()[-1]
+        frontiers = find_frontiers(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
+                                   margin_cm=margin, approach_cm=self.m.approach_cm)
+        if futile:
+            frontiers = [f for f in frontiers if f.open_share >= self.m.futile_open_share]
+        for _ in range(self.m.max_choices):
+            f = choose_frontier(frontiers, min_size_cells=min_size,
+                                blacklist=ex.blacklist, blacklist_radius_cm=self.m.approach_cm)
+            if f is None:
+                ex.no_frontier = True
+                ex.follower = None
+                return False
+            ex.no_frontier = False
+            assert f.target_cm is not None
+            if keep and ex.target is not None and math.dist(f.target_cm, ex.target) <= 40.0:
+                return True  # still the same frontier: keep the route
+            if any(math.dist(f.target_cm, r) <= self.m.reach_cm * 2 for r in ex.reached):
+                self._blacklist(f.target_cm)  # reached and still a frontier: cannot be seen
+                continue
+            if self._route_to(f):
+                return True
+            self._blacklist(f.target_cm)
+        ex.follower = None
+        self._wait_map = True
+        return False
+
+    def _tiers(self) -> list[tuple[float, float]]:
+        """(radius, margin) to plan with, roomiest first [cm]: turning radius plus margin,
+        turning radius alone, half the body width plus the narrow margin (a corridor the
+        rover fits through driving straight; the tiers of hiding and seeking), and half
+        the body width alone: on a 5 cm grid a 30 cm corridor whose walls lie on cell
+        edges maps 25 cm wide, and only this tier still finds the way through it (a
+        scrape on the way is a blocked motion, and the route is replanned)."""
+        r, m = self.radius_cm, self.o.plan_margin_cm
+        half = 0.5 * self.width_cm
+        out: list[tuple[float, float]] = []
+        for t in ((r, m), (r, 0.0), (half, self.o.narrow_margin_cm), (half, 0.0)):
+            if t not in out and t[0] + t[1] <= r + m:
+                out.append(t)
+        return out
+
+    def _min_gain(self, known: int) -> float:
+        return max(self.m.min_gain_cells, self.m.min_gain_share * known)
+
+    def _futile(self) -> bool:
+        """Whether the last ``futile_trips`` visits together revealed too little to go on.
+
+        Judged on their sum (a running window), not on each: one visit just above the
+        limit among small ones would start the count over, and mapping would go on for
+        90-s trips gaining 21, 7, 4 and 34 cells (limit 32)."""
+        g = self.ex.gains
+        if len(g) < self.m.futile_trips:
+            return False
+        least = self._min_gain(self._known() if self.grid is not None else 0)
+        return sum(g[-self.m.futile_trips:]) < least * self.m.futile_trips
+
+    def _known(self) -> int:
+        assert self.grid is not None
+        return int(np.count_nonzero(self.grid.cells != UNKNOWN))
+
+    def _route_to(self, f: Frontier) -> bool:
+        assert self.grid is not None and f.target_cm is not None
+        pose = self.pose
+        plan = None
+        for radius, margin in self._tiers():
+            plan = plan_route(self.grid, (pose.x, pose.y), f.target_cm, radius_cm=radius,
+                              margin_cm=margin)
+            if plan is not None:
+                break
+        if plan is None:
+            return False
+        ex = self.ex
+        if ex.trip_known is None:  # a trip runs until a target is reached or given up
+            ex.trip_known = self._known()
+            ex.trip_started = trio.current_time()
+        ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
+        ex.target = f.target_cm
+        ex.steps = 0
+        ex.blocks = 0
+        ex.budget = ex.follower.budget(pose)
+        return True
+
+    def _end_trip(self) -> None:
+        """A target was reached or given up: record what the trip made known.
+
+        Switching to another frontier on the way (the map grew) does not end a trip,
+        so a trip's gain is that of a whole visit, not of a few steps."""
+        ex = self.ex
+        if ex.trip_known is not None and self.grid is not None:
+            ex.gains.append(self._known() - ex.trip_known)
+            del ex.gains[:-self.m.futile_trips]
+        ex.trip_known = None
+
+    def _blacklist(self, point: tuple[float, float] | None) -> None:
+        if point is None:
+            return
+        if point == self.ex.target:
+            self._end_trip()
+        bl = self.ex.blacklist
+        bl.append(point)
+        if len(bl) > self.m.blacklist:
+            del bl[0]
+

@@ -1,0 +1,191 @@
+"""The mapper's watch on its sensors: it holds still while the LIDAR or the
+odometry cannot be trusted, since a map drawn from them would be wrong.
+
+A faulty LIDAR (a map drawn while it fails has phantom or missing obstacles)
+    LIDAR Control withholds the scans of a sensor it judges faulty and says so
+    (``NAV_LIDAR_HEALTH``: garbled, stuck, noisy); a dead one sends nothing, which
+    shows here as a scan count that stops rising for ``lidar_silent_s`` while
+    the LIDAR should be scanning. Either way navigation holds still (MOTOR_STOP;
+    driving blind is what distorted the maps: no obstacle check, no scan matching)
+    and reports ``lidar_fault`` in its status. It goes on once the verdict is
+    healthy again and scans are counted again, with a fresh route and a fresh
+    stable window; a fault that outlasts ``lidar_pause_s`` is driven through
+    (once per ``lidar_pause_s``): the budget, not the fault, ends mapping.
+
+Odometry that scan matching contradicts (a stuck encoder draws the map from a wrong pose)
+    A tread whose encoder stops counting while it is driven makes the rover
+    spin or veer where dead reckoning sees it stand or go straight; scan
+    matching drags the pose after it, batch by batch, and the map is drawn
+    from a wrong pose. Navigation sees the contradiction in its map-frame pose:
+    an in-place turn that moved it more than ``odo_turn_shift_cm``, or a
+    straight move that turned it more than ``odo_move_turn_deg``. It stops the
+    motor at once and holds still (the LIDAR scanning, so matching can settle
+    the pose) for ``odo_hold_s``, doubled for each repeat within a minute up to
+    ``odo_hold_max_s``, reporting ``odometry_fault`` in its status; the fault
+    cannot be seen from standing still, so it drives on after the hold. Motor
+    Control's ``NAV_TREAD_FAULT`` (a driven tread that does not count) starts
+    the same hold at once, a second or more before the pose shows it; one
+    saying a tread, or both, count short (a slipping encoder, or a weak motor)
+    stops the motion too and holds ``short_hold_s`` (see `on_tread_fault`).
+    A turn that ended with both treads silent (`TreadFault.BOTH_SILENT`: the rover may have
+    turned tens of degrees unseen) holds as a silent tread does and tells Map
+    Management the pose is lost (``MAP_POSE_LOST``): it places no batch until
+    scan matching finds the pose again (`map_management.MapManagement`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import trio
+
+from actors import Message
+from actors.firmware.commands import Cmd
+from actors.firmware.drivers.lidar import LidarHealth
+from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.localisation.odometry import angle_diff_deg
+from actors.firmware.nav.mapping_options import MappingOptions
+
+__all__ = ["SensorWatch"]
+
+
+class SensorWatch:
+    """The mapper's sensor holds (a mixin of `mapper.MappingNav`, working on its state)."""
+
+    m: MappingOptions
+
+    async def on_lidar_health(self, value: int) -> None:
+        """LIDAR Control's verdict changed (``NAV_LIDAR_HEALTH``): hold still at once."""
+        try:
+            self._lidar_verdict = LidarHealth(value)
+        except ValueError:
+            self.counters["bad_frames"] += 1
+            return
+        await self._lidar_watch(trio.current_time())
+
+    async def _lidar_watch(self, now: float) -> bool:
+        """Begin or end holding still for a faulty LIDAR; True while holding.
+
+        See "A faulty LIDAR" in the module docstring."""
+        if self.state not in ("scanning", "exploring", "homing"):
+            self.lidar_fault = None
+            return False
+        m = self.m
+        silent = now - self._scan_rise_at >= m.lidar_silent_s
+        if self.lidar_fault is None:
+            fault = self._lidar_verdict if self._lidar_verdict != LidarHealth.OK else (
+                LidarHealth.SILENT if silent else None)
+            if fault is None or now < self._pause_off_until:
+                return False
+            self.lidar_fault = fault
+            self.lidar_faults += 1
+            self._pause_started = now
+            self._scans_at_pause = self.scans
+            if self.moving:
+                await self.stop_motor()
+            await self.status("lidar_fault",
+                              f"LIDAR {fault.name.lower()}: holding still until it recovers")
+            return True
+        healthy = (self._lidar_verdict == LidarHealth.OK and not silent
+                   and self.scans > self._scans_at_pause)
+        if not healthy and now - self._pause_started < m.lidar_pause_s:
+            return True
+        if healthy:
+            why = f"LIDAR recovered after {now - self._pause_started:.1f} s"
+        else:
+            why = f"LIDAR still faulty after {m.lidar_pause_s:.0f} s: driving on"
+            self._pause_off_until = now + m.lidar_pause_s
+        self.lidar_fault = None
+        # what was planned before may have been planned on a map the fault spoiled
+        self._changed_at, self._scans_at_change = now, self.scans
+        self.ex.follower = None
+        self._wait_map = True
+        self._last_wait_decide = -math.inf
+        await self.status(self.state, why)
+        return False
+
+    @property
+    def holding(self) -> bool:
+        """Holding still: the LIDAR is faulty, or odometry was contradicted lately."""
+        return self.lidar_fault is not None or trio.current_time() < self._odo_hold_until
+
+    async def _odometry_watch(self, now: float) -> bool:
+        """Stop and hold when the motion in flight contradicts odometry; True while holding.
+
+        See "Odometry that scan matching contradicts" in the module docstring."""
+        m = self.m
+        if self.state not in ("exploring", "homing"):
+            return False
+        if self._odo_hold_until > -math.inf and now >= self._odo_hold_until:
+            self._odo_hold_until = -math.inf
+            self._changed_at, self._scans_at_change = now, self.scans
+            self.ex.follower = None
+            self._wait_map = True
+            self._last_wait_decide = -math.inf
+            await self.status(self.state, "odometry hold over: driving on")
+            return False
+        if now < self._odo_hold_until:
+            return True
+        motion, start = self.last_motion, self.motion_from
+        if not self.moving or motion is None or start is None:
+            return False
+        p = self.map_pose
+        if motion.kind == "turn":
+            off = math.hypot(p.x - start.x, p.y - start.y)
+            if off <= m.odo_turn_shift_cm:
+                return False
+            what = f"a turn moved the pose {off:.0f} cm"
+        else:
+            turned = abs(angle_diff_deg(p.heading_deg, start.heading_deg))
+            if turned <= m.odo_move_turn_deg:
+                return False
+            what = f"a straight move turned the pose {turned:.0f} deg"
+        await self._odometry_hold(now, f"{what}: odometry and scan matching disagree")
+        return True
+
+    async def on_tread_fault(self, fault: TreadFault) -> None:
+        """Motor Control saw a driven tread that does not count (``NAV_TREAD_FAULT``): its
+        odometry is wrong from now on, so stop at once and hold, as for a disagreement.
+
+        A tread (or both) that counts short stops the motion too, with a
+        short hold (``short_hold_s``, not doubled): a slipping encoder makes every
+        motion turn (one tread) or go (both) further than counted, and driving on let
+        the heading get 40-130 deg off, beyond what scan matching recovers. A weak
+        motor reads the same and its odometry is right, so the hold is short: it costs a
+        weak motor a pause per motion, not the game."""
+        now = trio.current_time()
+        if self.state not in ("exploring", "homing") or not self.moving \
+                or now < self._odo_hold_until:
+            return
+        if fault.both:
+            if fault.counts_short:
+                await self._odometry_hold(now, "both treads count short", self.m.short_hold_s)
+            else:
+                # both silent: a turn that ended blocked without one Int E. Backing off
+                # and turning again drives it on blind: with both encoders stuck for
+                # 9 s the mapper spins about five turns unseen in such blocks, and the
+                # map comes out at half accuracy
+                await self._odometry_hold(now, "both treads are driven but do not count")
+                await self.post(self.map_name, Message.uint(Cmd.MAP_POSE_LOST,
+                                                            int(self.m.blind_turn_deg)))
+            return
+        side = fault.side
+        if fault.counts_short:
+            await self._odometry_hold(now, f"the {side} tread counts short",
+                                      self.m.short_hold_s)
+            return
+        await self._odometry_hold(now, f"the {side} tread is driven but does not count")
+
+    async def _odometry_hold(self, now: float, what: str, hold: float | None = None) -> None:
+        """Stop the motor and hold still for odometry (see the module docstring); ``hold``
+        [s] given: that long, not counted as a strike."""
+        m = self.m
+        if hold is None:
+            self._odo_strikes = self._odo_strikes + 1 if now - self._odo_last <= 60.0 else 1
+            self._odo_last = now
+            hold = min(m.odo_hold_max_s, m.odo_hold_s * 2.0 ** (self._odo_strikes - 1))
+        self._odo_hold_until = now + hold
+        self.odometry_faults += 1
+        await self.stop_motor()
+        await self.status("odometry_fault", f"{what}; holding {hold:.0f} s")
+

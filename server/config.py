@@ -1,0 +1,49 @@
+"""How a game server is set up: `ServerConfig` (identity, limits, storage)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .protocol import Pose2
+
+__all__ = ["ServerConfig"]
+
+
+@dataclass(frozen=True, slots=True)
+class ServerConfig:
+    """How the server is set up."""
+
+    tokens: dict[str, str] = field(default_factory=dict)
+    """Rover id -> token that rover's hello must carry; key ``*`` for every rover."""
+    origins: dict[str, Pose2] = field(default_factory=dict)
+    """Start pose in the ROOM frame [cm, deg] by rover id or by role."""
+    heartbeat_s: float = 1.0
+    down_after_s: float = 5.0
+    serial_retry_s: tuple[float, float] = (1.0, 30.0)
+    """Backoff between attempts to open a serial port: first, most [s]."""
+    rovers: frozenset[str] = frozenset()
+    """Rover ids the server was given: the only ids a TCP or serial link may say hello as."""
+    open_enrolment: bool = False
+    """Welcome any well-formed id on TCP and serial links (tokens still apply)."""
+    simulated: tuple[str, ...] = ()
+    """Roles played by simulated rovers in this process: no other link may claim them."""
+    max_connections: int = 64
+    """TCP connections held at once at most."""
+    max_pending_per_address: int = 16
+    """TCP connections from one address that have not said an accepted hello, at most."""
+    hello_timeout_s: float = 5.0
+    """A TCP connection that has not authenticated by then is closed [s]."""
+    auth_failures: int = 5
+    """Failed hellos after which a link is closed."""
+    bad_frame_budget: float = 50.0
+    """Bad frames a TCP link may send in a burst before it is closed."""
+    bad_frame_rate: float = 5.0
+    """Bad frames per second a TCP link may send on and on [1/s]."""
+    max_sessions: int = 64
+    """Rover sessions kept at most."""
+    reclaim_after_s: float = 60.0
+    """A session whose link is gone and that plays no role is forgotten after this [s]."""
+    summary_s: float = 10.0
+    """Shortest time between two stored summaries of bad frames or auth failures [s]."""
+    resume: bool = False
+    """Play on the store's newest game when it is unfinished, instead of a new one."""

@@ -1,0 +1,62 @@
+"""The tread monitor alone: findings from counts and a modelled lag, no actors."""
+
+from __future__ import annotations
+
+from actors.firmware.drivers.motor import MotorTuning
+from actors.firmware.drivers.tread_monitor import TreadFault, TreadMonitor, TreadVerdict
+
+
+def drive(monitor: TreadMonitor, seconds: float, counts: tuple[float, float],
+          moving: bool = True) -> list[tuple[TreadVerdict, TreadFault]]:
+    """Drive both treads at full PWM for ``seconds``; each tread counts the given share
+    of its modelled travel. Returns every finding, control step by control step."""
+    found = []
+    t, owed = 0.0, [0.0, 0.0]
+    monitor.begin(0.0)
+    monitor.pwm = (1.0, 1.0) if moving else (-1.0, 1.0)
+    while t < seconds:
+        t += 0.05
+        before = list(monitor.modelled)
+        monitor.advance(t)
+        for tread in (0, 1):
+            owed[tread] += (monitor.modelled[tread] - before[tread]) * counts[tread]
+            while owed[tread] >= 0.5:
+                owed[tread] -= 0.5
+                monitor.tick(tread, t)
+        found += monitor.watch(moving, period_pending=False)
+    return found
+
+
+def monitor(mapper: bool = False) -> TreadMonitor:
+    return TreadMonitor(MotorTuning(), 0.5, 30.0, mapper=mapper)
+
+
+def test_healthy_treads_give_no_finding() -> None:
+    assert drive(monitor(), 2.0, (1.0, 1.0)) == []
+
+
+def test_a_tread_that_never_counts_is_silent() -> None:
+    assert drive(monitor(), 1.0, (0.0, 1.0)) == [(TreadVerdict.FAULT, TreadFault.silent(0))]
+
+
+def test_a_tread_counting_half_in_a_move_counts_short_and_splits_the_heading() -> None:
+    found = drive(monitor(), 2.0, (1.0, 0.45))
+    assert found == [(TreadVerdict.FAULT_SPLIT, TreadFault.short(1))]
+
+
+def test_both_counting_short_is_one_finding_for_the_mapper() -> None:
+    assert drive(monitor(mapper=True), 2.0, (0.4, 0.4)) == [
+        (TreadVerdict.FAULT, TreadFault.BOTH_SHORT)]
+
+
+def test_both_hardly_counting_in_a_move_is_a_push() -> None:
+    verdicts = [v for v, _ in drive(monitor(), 2.0, (0.05, 0.05))]
+    assert TreadVerdict.PUSH in verdicts
+
+
+def test_tread_fault_names_read_as_the_payload_bits() -> None:
+    assert [int(TreadFault.silent(0)), int(TreadFault.silent(1)), int(TreadFault.short(0)),
+            int(TreadFault.short(1)), int(TreadFault.BOTH_SILENT), int(TreadFault.BOTH_SHORT)] \
+        == [0, 1, 2, 3, 4, 6]
+    assert TreadFault(3).side == "right" and TreadFault(3).counts_short
+    assert TreadFault(6).both and TreadFault(4).side == "both" and not TreadFault(4).counts_short
