@@ -188,8 +188,9 @@ def play_one(job: tuple[str, int, float, bool]) -> dict[str, Any]:
                 if g.hider_pose is None:
                     probe.pop("true_hider", None)
                 elif g.hide_spot is not None:
-                    probe["dr_hider"] = (g.hider_pose.x, g.hider_pose.y, g.hider_pose.heading)
-                    probe["dr_spot"] = (g.hide_spot.x, g.hide_spot.y, g.hide_spot.heading)
+                    h, s = g.hider_pose, g.hide_spot
+                    probe["dr_hider"] = (h.x, h.y, h.heading_deg)
+                    probe["dr_spot"] = (s.x, s.y, s.heading_deg)
 
     seed_trio_scheduler(seed)
     wall0 = time.perf_counter()

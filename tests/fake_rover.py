@@ -25,7 +25,7 @@ from server.protocol import (
     Frame,
     MapAssembler,
     MapGrid,
-    Pose2,
+    Pose,
     ReliableSession,
     make_frame,
     map_chunks,
@@ -47,7 +47,7 @@ class FakeRover:
 
     def __init__(self, rid: str, role: str, *, token: str | None = None,
                  room: MapGrid | None = None, map_after_s: float = 5.0,
-                 hider_at: Pose2 | None = None, found_within_cm: float = 40.0,
+                 hider_at: Pose | None = None, found_within_cm: float = 40.0,
                  drive_s: float = 3.0) -> None:
         self.id, self.role, self.token = rid, role, token
         self.room = room or room_map()
@@ -60,7 +60,7 @@ class FakeRover:
         self.received: list[Frame] = []
         """Every frame delivered by the session, in order."""
         self.map: MapGrid | None = None
-        self.origin: Pose2 | None = None
+        self.origin: Pose | None = None
         self._assembler = MapAssembler()
         self._destination: dict | None = None
         self._action_at = math.inf
@@ -117,7 +117,7 @@ class FakeRover:
         elif frame.cmd == "error" and body.detail == "send hello first":
             self.welcomed = False
         elif frame.cmd == "origin":
-            self.origin = Pose2(body.x, body.y, body.heading)
+            self.origin = Pose(body.x, body.y, body.heading)
         elif frame.cmd == "start":
             self.session.send(make_frame("status", {"state": "started"}))
             self.session.send(make_frame("pose", {"x": 0, "y": 0, "heading": 0}))

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actors.firmware.localisation.odometry import Pose
 from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planning.clearance import (
     check_spot,
@@ -13,6 +12,7 @@ from actors.firmware.planning.clearance import (
     passage_width,
     turning_radius_cm,
 )
+from server.protocol.pose import Pose
 
 RES = 5.0
 

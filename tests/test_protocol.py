@@ -24,7 +24,7 @@ from server.protocol import (
     MapChunk,
     MapError,
     MapGrid,
-    Pose2,
+    Pose,
     compose,
     decode_line,
     encode_frame,
@@ -79,7 +79,8 @@ def test_encode_refuses_overlong_frame() -> None:
 
 def test_catalogue_checks_type_and_data() -> None:
     """read_data refuses unknown cmds, wrong types and data that breaks the schema."""
-    assert read_data(Frame("pose", "pose", {"x": 1, "y": 2, "heading": 90})) == proto.Pose(1, 2, 90)
+    assert read_data(Frame("pose", "pose", {"x": 1, "y": 2, "heading": 90})) \
+        == proto.PoseData(1, 2, 90)
     with pytest.raises(FrameError) as e1:
         read_data(Frame("dance", "none", None))
     assert (e1.value.fault, e1.value.detail) == (Fault.UNKNOWN_CMD, "unknown cmd 'dance'")
@@ -268,10 +269,10 @@ def test_run_coding_round_trips(codes: list[int]) -> None:
 
 def test_compose_and_inverse() -> None:
     """A pose composed with its inverse is the identity; composition rotates then shifts."""
-    a = Pose2(100.0, 50.0, 90.0)
-    p = compose(a, Pose2(10.0, 0.0, 0.0))
-    assert p.x == pytest.approx(100.0) and p.y == pytest.approx(60.0) and p.heading == 90.0
+    a = Pose(100.0, 50.0, 90.0)
+    p = compose(a, Pose(10.0, 0.0, 0.0))
+    assert p.x == pytest.approx(100.0) and p.y == pytest.approx(60.0) and p.heading_deg == 90.0
     z = compose(a, inverse(a))
-    assert max(abs(z.x), abs(z.y), abs(z.heading)) < 1e-9
+    assert max(abs(z.x), abs(z.y), abs(z.heading_deg)) < 1e-9
     assert proto.wrap_deg(270.0) == -90.0 and proto.wrap_deg(-180.0) == 180.0
     assert math.isclose(proto.relative(a, p).x, 10.0)

@@ -45,7 +45,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.localisation.odometry import Pose
 from actors.firmware.mapping.grid_map import (
     FREE,
     OCCUPIED,
@@ -57,6 +56,7 @@ from actors.firmware.mapping.grid_map import (
     normalise_cells,
     world_to_cell,
 )
+from server.protocol.pose import Pose
 
 __all__ = [
     "LogOddsModel",

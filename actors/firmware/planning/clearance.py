@@ -39,8 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.localisation.odometry import Pose, angle_diff_deg
 from actors.firmware.mapping.grid_map import OCCUPIED, UNKNOWN, GridMap, normalise_cells
+from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead", "occupied_near",
            "passage_width"]
