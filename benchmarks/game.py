@@ -100,7 +100,7 @@ def truth_map(scenario: Any) -> Any:
     side), in the mapper's start frame (start heading 0 only) [5 cm cells]."""
     import numpy as np  # noqa: PLC0415
 
-    from actors.firmware.mapping.grid_map import FREE, OCCUPIED, GridMap  # noqa: PLC0415
+    from server.protocol.grid_map import FREE, OCCUPIED, GridMap  # noqa: PLC0415
     from world.truth import truth_raster  # noqa: PLC0415
 
     start = scenario.starts["mapper"]

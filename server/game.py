@@ -32,7 +32,7 @@ from .protocol import (
     STOP,
     ZERO_POSE,
     Frame,
-    MapGrid,
+    GridMap,
     Pose,
     compose,
     inverse,
@@ -95,7 +95,7 @@ class Game:
 
     start_poses: Mapping[str, Pose] = field(default_factory=dict)
     phase: Phase = Phase.IDLE
-    map: MapGrid | None = None
+    map: GridMap | None = None
     """The mapper's last uploaded map, None before the first."""
     stopping: bool = False
     """Stop was sent to the mapper; its map upload will end mapping."""
@@ -252,7 +252,7 @@ class Game:
 
     # -- rovers ------------------------------------------------------------------------
 
-    def on_map(self, grid: MapGrid) -> Result:
+    def on_map(self, grid: GridMap) -> Result:
         """The mapper uploaded a complete map."""
         if self.phase not in (Phase.MAPPING, Phase.MAP_READY):
             return _refuse(f"map upload ignored in phase {self.phase}")
@@ -297,7 +297,7 @@ class Game:
 
     @classmethod
     def restored(cls, start_poses: Mapping[str, Pose], phase: str, state: dict,
-                 grid: MapGrid | None) -> Game:
+                 grid: GridMap | None) -> Game:
         """The game as `state` and the stored phase and map describe it.
 
         Raises:

@@ -77,12 +77,12 @@ from .protocol import (
     Fault,
     Frame,
     FrameError,
+    GridMap,
     Hello,
     LineBuffer,
     LinkStats,
     MapAssembler,
     MapError,
-    MapGrid,
     OutboxFull,
     Pose,
     ReliableSession,
@@ -153,7 +153,7 @@ class ServerSnapshot:
     phase: str
     reason: str
     rovers: tuple[RoverView, ...]
-    map: MapGrid | None
+    map: GridMap | None
     hide_spot: Pose | None
     guesses: tuple[Pose, ...]
     dropped_events: int

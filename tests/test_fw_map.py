@@ -9,8 +9,8 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
-from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.mapping.map_management import MapManagement
+from server.protocol.grid_map import GridMap
 from supervisors import ChildSpec, SupervisorSpec
 
 from .test_fw_lidar import Recorder

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from server.game import Game, Phase
-from server.protocol import MapGrid, Pose
+from server.protocol import GridMap, Pose
 
-MAP = MapGrid(np.zeros((20, 20), dtype=np.int8), 10.0, (-100.0, -100.0))
+MAP = GridMap(np.zeros((20, 20), dtype=np.int8), 10.0, (-100.0, -100.0))
 
 
 def _ready(**poses) -> Game:

@@ -18,12 +18,12 @@ import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.mapping.grid_map import FREE, OCCUPIED, GridMap
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, shorten, with_obstacle
 from server.protocol import Frame, make_frame
+from server.protocol.grid_map import FREE, OCCUPIED, GridMap
 from server.protocol.pose import Pose
 from supervisors import ChildSpec, SupervisorSpec
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.mapping.occupancy import OccupancyGrid
+from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from server.protocol.pose import Pose
 
 

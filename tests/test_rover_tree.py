@@ -8,8 +8,8 @@ import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.mapping.grid_map import GridMap
 from server.protocol import make_frame
+from server.protocol.grid_map import GridMap
 from server.server import ServerConfig, open_server
 from server.store import Store
 from supervisors.rover import MAILBOX, rover_tree

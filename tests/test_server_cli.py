@@ -7,7 +7,7 @@ import argparse
 import numpy as np
 import pytest
 
-from server.protocol import MapGrid, Pose
+from server.protocol import GridMap, Pose
 from server.store import Store
 from tui import cmd_maps, cmd_serve
 
@@ -64,7 +64,7 @@ def test_maps_lists_and_export_writes_files(tmp_path, capsys) -> None:
     db = tmp_path / "g.db"
     with Store(db) as store:
         gid = store.new_game(t=0)
-        store.save_map(MapGrid(np.zeros((3, 4), np.int8), 5.0, (0.0, 0.0)), game_id=gid, t=1)
+        store.save_map(GridMap(np.zeros((3, 4), np.int8), 5.0, (0.0, 0.0)), game_id=gid, t=1)
     assert cmd_maps.run(_args(cmd_maps, "maps", ["--db", str(db)])) == 0
     out = capsys.readouterr().out
     # read-only: the game a (here: still open) server plays is not marked interrupted

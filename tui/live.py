@@ -25,7 +25,7 @@ from actors import EventKind, Message, TraceEvent
 from actors.firmware.commands import name_of
 from server.export import write_pgm, write_png
 from server.links import LinkSpec
-from server.protocol import ROLES, MapGrid, inverse
+from server.protocol import ROLES, GridMap, inverse
 from server.protocol import Pose as FramePose
 from server.protocol import compose as compose_pose
 from server.store import Store
@@ -290,7 +290,7 @@ class LiveSystem(QueuedController):
             snap = self._system.mapper_grid()
             if snap is None:
                 raise ValueError("there is no map yet: start mapping first")
-            grid = MapGrid(np.asarray(snap.cells, np.int8), snap.resolution_cm,
+            grid = GridMap(np.asarray(snap.cells, np.int8), snap.resolution_cm,
                            tuple(snap.origin_cm))
         out = pathlib.Path(directory).expanduser()
         if not out.is_dir():

@@ -6,7 +6,8 @@ Layering (lower modules never import higher ones)::
     lines      byte stream -> lines, bounded
     catalogue  every cmd: type, payload schema, direction, reliability
     pose       THE pose type and angle algebra (room, map, rover frames)
-    mapcodec   occupancy grid <-> numbered chunks, assembler
+    grid_map   THE map type (GridMap), its cell convention and its two classifications
+    mapcodec   GridMap <-> numbered chunks, assembler
     session    reliable delivery: seq, cumulative ack, resend, liveness, stats
 
 Imported by the server and by the rovers' firmware (the only server module the
@@ -58,19 +59,18 @@ from .frame import (
     encode_frame,
     error_frame,
 )
-from .lines import TOO_LONG, LineBuffer
-from .mapcodec import (
-    CHUNK_B64_CHARS,
+from .grid_map import (
     FREE,
+    FREE_MAX,
     OCCUPIED,
+    OCCUPIED_MIN,
+    OCCUPIED_SPLIT,
     UNKNOWN,
-    MapAssembler,
+    GridMap,
     MapError,
-    MapGrid,
-    decode_runs,
-    encode_runs,
-    map_chunks,
 )
+from .lines import TOO_LONG, LineBuffer
+from .mapcodec import CHUNK_B64_CHARS, MapAssembler, decode_runs, encode_runs, map_chunks
 from .pose import ZERO_POSE, Pose, angle_diff_deg, compose, inverse, relative, wrap_deg
 from .session import LinkStats, OutboxFull, ReliableSession
 
@@ -81,7 +81,8 @@ __all__ = [
     "MapChunk", "PoseData", "Reason", "Spec", "Status", "Welcome", "make_frame", "read_data",
     "MAX_LINE_BYTES", "MAX_SEQ", "Fault", "Frame", "FrameError", "decode_line", "encode_frame",
     "error_frame", "TOO_LONG", "LineBuffer",
-    "CHUNK_B64_CHARS", "FREE", "OCCUPIED", "UNKNOWN", "MapAssembler", "MapError", "MapGrid",
+    "FREE", "FREE_MAX", "OCCUPIED", "OCCUPIED_MIN", "OCCUPIED_SPLIT", "UNKNOWN", "GridMap",
+    "MapError", "CHUNK_B64_CHARS", "MapAssembler",
     "decode_runs", "encode_runs", "map_chunks",
     "Pose", "ZERO_POSE", "angle_diff_deg", "compose", "inverse", "relative", "wrap_deg",
     "LinkStats", "OutboxFull", "ReliableSession",

@@ -44,12 +44,12 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
-from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
 from actors.firmware.nav.tread_faults import TreadFaults
 from actors.firmware.planning.clearance import turning_radius_cm
 from server.protocol import Frame, FrameError, make_frame, read_data
+from server.protocol.grid_map import GridMap
 from server.protocol.pose import ZERO_POSE, Pose, compose
 
 __all__ = ["NavBase"]
