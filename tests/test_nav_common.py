@@ -589,6 +589,31 @@ async def test_a_block_in_a_narrow_passage_probes_sideways_at_once(autojump_cloc
 
 
 @pytest.mark.trio
+@pytest.mark.parametrize("sidestep", [True, False], ids=["sidestep", "no-sidestep"])
+async def test_a_probe_sidesteps_across_before_joining_the_shifted_line(autojump_clock,
+                                                                        sidestep) -> None:
+    """Blocked a third time at the same place, the probe shifts 8 cm left: the route
+    begins with a sidestep square to the heading of the block (a quarter turn left, a
+    few cm across, a quarter turn back), then drives on along the shifted line. A shift
+    within the waypoint tolerance (the first, 4 cm) needs none, nor a route with
+    ``probe_sidestep`` off: it joins the shifted line at a slant."""
+    blocks = Blocks((250.0, 0.0), (250.0, 0.0), (250.0, 0.0))
+    body = await drive_corridor(blocks, options=NavOptions(probe_sidestep=sidestep),
+                                after_s=4.0)
+    first = [v for _, c, v in motions_after(body, 0, blocks) if c == "MOTOR_TURN"][0]
+    assert 0.0 < first < 45.0
+    third = motions_after(body, 2, blocks)
+    if not sidestep:
+        assert 0.0 < next(v for _, c, v in third if c == "MOTOR_TURN") < 45.0
+        return
+    (_, c0, back), (_, c1, left), (_, c2, across), (_, c3, right) = third[:4]
+    assert (c0, c1, c2, c3) == ("MOTOR_MOVE", "MOTOR_TURN", "MOTOR_MOVE", "MOTOR_TURN")
+    assert back < 0 and 80.0 < left < 100.0 and 4.0 < across < 12.0 and -100.0 < right < -80.0
+    on_line = [y for x, y, h in poses_after(body, 2, blocks) if x > 300.0]
+    assert on_line and max(on_line) - min(on_line) < 1.0 and min(on_line) > 155.0
+
+
+@pytest.mark.trio
 async def test_a_back_off_that_turns_while_blocked_holds_instead_of_backing_off_again(
         autojump_clock) -> None:
     """A back-off ends blocked having turned 25 deg: one tread stalls (backing off again
@@ -754,23 +779,6 @@ def test_a_gap_edge_contact_is_acted_on_only_while_the_drift_is_small() -> None:
     assert not nav._contact_fix()
     assert nav.map_pose == Pose(395.0, 312.5, 0.0)
     assert nav._in_passage()
-
-
-def test_a_probe_sidesteps_across_before_joining_the_shifted_line() -> None:
-    """Backed off to (300, 150) after a block at (320, 150) heading +x, probing 10 cm to
-    the right: the route starts with the point beside the rover on the shifted line
-    (a sidestep square to the heading), then the shifted waypoint near the block;
-    a shift within the waypoint tolerance needs no sidestep, nor a route without it."""
-    nav = scraped_nav(0.0)
-    nav._last_block = nav._anchor = (320.0, 150.0, 0.0)
-    nav._nudge, nav._nudge_off = (0.0, -10.0, 320.0, 150.0), -10.0
-    pts = [(340.0, 150.0), (600.0, 150.0)]
-    assert nav._nudged(pts) == [(340.0, 140.0), (600.0, 150.0)]  # no sidestep asked
-    nav._sidestep = True
-    out = nav._nudged(pts)
-    assert [q for p in out for q in p] == pytest.approx([300.0, 140.0, 340.0, 140.0, 600.0, 150.0])
-    nav._nudge, nav._nudge_off = (0.0, -4.0, 320.0, 150.0), -4.0
-    assert nav._nudged(pts) == [(340.0, 146.0), (600.0, 150.0)]
 
 
 def test_a_contact_that_measures_only_along_the_heading_keeps_the_drift() -> None:
