@@ -420,9 +420,9 @@ def test_nudge_shifts_only_waypoints_near_the_block_and_never_the_goal() -> None
     assert nav._nudged([(240.0, 150.0)]) == [(240.0, 150.0)]  # the goal itself stays
 
 
-def test_nudge_in_a_long_corridor_inserts_a_shifted_point_ahead() -> None:
-    """No waypoint near the block (mid-corridor): a point 50 cm ahead, shifted, comes first;
-    a shift into the corridor's wall (20 cm off its axis) is refused (None)."""
+def test_a_nudge_into_the_corridor_wall_or_backwards_is_refused() -> None:
+    """A shift into the corridor's wall (20 cm off its axis) is refused (None); a route
+    whose goal lies behind the block is left as it is."""
     pts = [(420.0, 150.0), (500.0, 60.0)]
     assert nudging_nav((250.0, 150.0, 0.0), -6.0)._nudged(pts) == [(300.0, 144.0), *pts]
     assert nudging_nav((250.0, 150.0, 0.0), 20.0)._nudged(pts) is None
@@ -586,6 +586,24 @@ async def test_a_block_in_a_narrow_passage_probes_sideways_at_once(autojump_cloc
 
     assert [math.copysign(1.0, first_turn(k)) for k in range(3)] == [1.0, -1.0, -1.0]
     assert all(y < 149.0 for x, y, _ in poses_after(body, 2, blocks) if x > 360.0)
+
+
+@pytest.mark.trio
+async def test_a_nudge_mid_corridor_drives_to_a_shifted_point_ahead_first(
+        autojump_clock) -> None:
+    """Blocked mid-corridor with no waypoint near the block: after the back-off the rover
+    drives to the point 50 cm ahead of the block, shifted 4 cm left, and then on to the
+    goal along the corridor."""
+    blocks = Blocks((250.0, 0.0))
+    body = await drive_corridor(blocks, after_s=6.0)
+    motions = [(c, v) for _, c, v in motions_after(body, 0, blocks)]
+    assert motions[0] == ("MOTOR_MOVE", -6.0) and motions[1][0] == "MOTOR_TURN"
+    leg = motions[2:2 + [c for c, _ in motions[2:]].index("MOTOR_TURN")]
+    assert sum(v for _, v in leg) == pytest.approx(math.dist((294.0, 149.3), (350.0, 153.4)),
+                                                   abs=1.0)  # one straight leg to it
+    track = poses_after(body, 0, blocks)
+    assert any(abs(x - 350.0) < 1.0 and abs(y - 153.4) < 0.5 for x, y, _ in track)
+    assert track[-1][0] > 400.0
 
 
 @pytest.mark.trio
