@@ -15,7 +15,7 @@ import pytest
 import trio
 import trio.testing
 
-from server.protocol import Pose
+from server.protocol import GridMap, Pose
 from server.server import ServerConfig, open_server
 from server.store import Store
 from tests.fake_rover import FakeRover, memory_pipe, room_map
@@ -157,8 +157,10 @@ def test_maps_on_a_live_database_changes_nothing_and_export_takes_the_played_map
                 await _attach(s, rovers, n)
                 for k in range(4):  # hidden
                     await _step(s, k)
-                other = room_map()
-                other.cells[5:8, 5:8] = 100
+                base = room_map()
+                cells = base.cells.copy()
+                cells[5:8, 5:8] = 100
+                other = GridMap(cells, base.resolution_cm, base.origin_cm)
                 rovers["m1"].room = other
                 rovers["m1"]._act("upload")  # the game is past mapping: ignored
                 await trio.sleep(3)
