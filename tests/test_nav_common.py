@@ -607,6 +607,27 @@ async def test_a_nudge_mid_corridor_drives_to_a_shifted_point_ahead_first(
 
 
 @pytest.mark.trio
+@pytest.mark.parametrize(("drift_per_cm", "across"), [(0.04, None), (0.08, (7.0, 9.5)),
+                                                     (0.2, (11.7, 12.3))])
+async def test_the_more_drift_the_wider_the_probe_steps(autojump_clock, drift_per_cm,
+                                                         across) -> None:
+    """About 3 m driven to the block: with the default drift per cm (12 cm) the first probe
+    steps 4 cm (joined at a slant, no sidestep); with twice that drift it steps a third
+    of the drift, about 8 cm (a sidestep across); with more, at most
+    ``nudge_step_max_cm``, 12 cm."""
+    blocks = Blocks((250.0, 0.0))
+    body = await drive_corridor(blocks, options=NavOptions(drift_per_cm=drift_per_cm),
+                                after_s=4.0)
+    motions = [(c, v) for _, c, v in motions_after(body, 0, blocks)]
+    assert motions[0] == ("MOTOR_MOVE", -6.0)
+    if across is None:
+        assert motions[1][0] == "MOTOR_TURN" and 0.0 < motions[1][1] < 45.0
+        return
+    assert motions[1] == ("MOTOR_TURN", pytest.approx(90.0, abs=5.0))
+    assert motions[2][0] == "MOTOR_MOVE" and across[0] < motions[2][1] < across[1]
+
+
+@pytest.mark.trio
 @pytest.mark.parametrize("sidestep", [True, False], ids=["sidestep", "no-sidestep"])
 async def test_a_probe_sidesteps_across_before_joining_the_shifted_line(autojump_clock,
                                                                         sidestep) -> None:
@@ -754,21 +775,14 @@ def test_drift_grows_with_distance_driven_and_restarts_at_a_correction() -> None
     assert nav.driven_cm == 0.0 and nav.drift_cm == 3.0
 
 
-def test_after_a_long_drive_nudges_are_wider_and_may_enter_a_mapped_wall() -> None:
-    """5 m driven (20 cm of drift): the search steps 6.7 cm at a time, not 4, and a 20 cm
-    shift into the corridor's wall, refused right after the start, is tried: dead
-    reckoning may be that far off."""
+def test_after_a_long_drive_a_nudge_may_enter_a_mapped_wall() -> None:
+    """5 m driven (20 cm of drift): a 20 cm shift into the corridor's wall, refused right
+    after the start, is tried: dead reckoning may be that far off."""
     pts = [(420.0, 150.0), (500.0, 60.0)]
     nav = nudging_nav((250.0, 150.0, 0.0), 20.0)
     assert nav._nudged(pts) is None
     nav.driven_cm = 500.0
     assert nav._nudged(pts) == [(300.0, 170.0), *pts]
-    nav = scraped_nav(0.0)
-    nav.driven_cm = 500.0
-    nav._last_block = (300.0, 150.0, 0.0)
-    nav.goal, nav.goal_heading = (600.0, 150.0), None
-    assert nav._probe_plan()
-    assert nav._nudge_off == pytest.approx(20.0 / 3.0)
 
 
 def gap_blocked_nav(driven_cm: float) -> Any:
