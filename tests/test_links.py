@@ -10,7 +10,7 @@ import trio
 import trio.testing
 
 from server.links import MemoryLink, is_loopback, parse_link
-from server.protocol import Pose2, decode_line, encode_frame, make_frame
+from server.protocol import Pose, decode_line, encode_frame, make_frame
 from server.server import ServerConfig, open_server
 from server.store import Store
 from tests.fake_rover import FakeRover, memory_pipe
@@ -161,7 +161,7 @@ def test_whole_game_with_mapper_on_pty_serial_and_others_in_memory() -> None:
     tty.setraw(slave)
     path = os.ttyname(slave)
     store = Store(":memory:")
-    origins = {"mapper": Pose2(0, 0, 0), "hider": Pose2(0, 0, 0), "seeker": Pose2(0, 0, 0)}
+    origins = {"mapper": Pose(0, 0, 0), "hider": Pose(0, 0, 0), "seeker": Pose(0, 0, 0)}
 
     async def main() -> None:
         config = ServerConfig(origins=origins, rovers=frozenset({"m1"}))
@@ -170,7 +170,7 @@ def test_whole_game_with_mapper_on_pty_serial_and_others_in_memory() -> None:
             pty = trio.lowlevel.FdStream(os.dup(master))
             mapper = FakeRover("m1", "mapper")
             hider = FakeRover("h1", "hider")
-            seeker = FakeRover("s1", "seeker", hider_at=Pose2(60.0, 10.0))
+            seeker = FakeRover("s1", "seeker", hider_at=Pose(60.0, 10.0))
             async with trio.open_nursery() as nursery:
                 nursery.start_soon(mapper.run, lambda: pty.receive_some(4096), pty.send_all)
                 for r in (hider, seeker):

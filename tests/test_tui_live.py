@@ -10,7 +10,7 @@ import trio
 import trio.testing
 
 from server.links import parse_link
-from server.protocol import Pose2, inverse
+from server.protocol import Pose, inverse
 from server.protocol import compose as compose_pose
 from tui.live import LiveSystem
 from tui.snapshot import FREE, OCCUPIED, GridView
@@ -45,10 +45,10 @@ def test_truth_overlay_puts_an_obstacle_on_the_mappers_cell_for_it(tmp_path, hea
     scenario = _one_cell_room(tmp_path, heading)
     live = LiveSystem(scenario)
     s = scenario.starts["mapper"]
-    live._mapper_room = Pose2(s.x, s.y, s.heading_deg)
+    live._mapper_room = Pose(s.x, s.y, s.heading_deg)
     res, origin = 5.0, (-400.0, -400.0)
     cells = np.full((160, 160), FREE, np.int8)
-    centre = compose_pose(inverse(live._mapper_room), Pose2(202.5, 152.5, 0.0))  # map frame
+    centre = compose_pose(inverse(live._mapper_room), Pose(202.5, 152.5, 0.0))  # map frame
     row = math.floor((centre.y - origin[1]) / res)
     col = math.floor((centre.x - origin[0]) / res)
     cells[row, col] = OCCUPIED

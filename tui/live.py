@@ -25,7 +25,8 @@ from actors import EventKind, Message, TraceEvent
 from actors.firmware.commands import name_of
 from server.export import write_pgm, write_png
 from server.links import LinkSpec
-from server.protocol import ROLES, MapGrid, Pose2, inverse
+from server.protocol import ROLES, GridMap, inverse
+from server.protocol import Pose as FramePose
 from server.protocol import compose as compose_pose
 from server.store import Store
 from supervisors.recording import Recorder, RecordingError, RunInfo
@@ -148,7 +149,7 @@ class LiveSystem(QueuedController):
         self._truth: GridView | None = None
         self._truth_raster: Any = None
         self._truth_key: tuple | None = None
-        self._mapper_room = Pose2(0, 0, 0)
+        self._mapper_room = FramePose(0, 0, 0)
         self._warned_behind = False
         self._snapshots = 0  # snapshots built
         self._tables: tuple[Any, Any, Any] | None = None  # (queues, tree, catalogue)
@@ -160,7 +161,7 @@ class LiveSystem(QueuedController):
         """Run the simulated system until cancelled (see `tui.snapshot.System.run`)."""
         self._publish = publish
         s = self.scenario.starts["mapper"]
-        self._mapper_room = Pose2(s.x, s.y, s.heading_deg)
+        self._mapper_room = FramePose(s.x, s.y, s.heading_deg)
         roles = tuple(r for r in ROLES if r not in self.remote)
         with Store(self._db) as store:
             async with open_sim_system(self.scenario, seed=self.seed, store=store,
@@ -309,7 +310,7 @@ class LiveSystem(QueuedController):
             snap = self._system.mapper_grid()
             if snap is None:
                 raise ValueError("there is no map yet: start mapping first")
-            grid = MapGrid(np.asarray(snap.cells, np.int8), snap.resolution_cm,
+            grid = GridMap(np.asarray(snap.cells, np.int8), snap.resolution_cm,
                            tuple(snap.origin_cm))
         out = pathlib.Path(directory).expanduser()
         if not out.is_dir():
@@ -458,7 +459,7 @@ class LiveSystem(QueuedController):
             ys = y0 + (np.arange(ny) + 0.5) * r
             mx, my = np.meshgrid(xs, ys)
             m = self._mapper_room
-            h = math.radians(m.heading)
+            h = math.radians(m.heading_deg)
             rx = m.x + math.cos(h) * mx - math.sin(h) * my
             ry = m.y + math.sin(h) * mx + math.cos(h) * my
             col = np.floor(rx / truth.resolution_cm).astype(int)
@@ -483,7 +484,7 @@ class LiveSystem(QueuedController):
                                      link=view.link if view else self.remote[role].text))
                 continue
             t = system.world.true_pose(role)
-            true = compose_pose(to_map, Pose2(t.x, t.y, t.heading_deg))
+            true = compose_pose(to_map, FramePose(t.x, t.y, t.heading_deg))
             out.append(RoverView(role, role, _pose(view.pose if view else None), _pose(true),
                                  link=view.link if view else "memory"))
         return tuple(out)
@@ -543,5 +544,5 @@ class LiveSystem(QueuedController):
         return tuple(out)
 
 
-def _pose(p: Pose2 | None) -> Pose | None:
-    return None if p is None else Pose(p.x, p.y, p.heading)
+def _pose(p: FramePose | None) -> Pose | None:
+    return None if p is None else Pose(p.x, p.y, p.heading_deg)
