@@ -242,24 +242,42 @@ class ConsoleApp(App[int]):
                             f"got {type(item).__name__}")
 
     def _tick(self) -> None:
-        """Ask for the next snapshot unless one is still on its way."""
+        """Ask for the next snapshot unless one is still on its way (or build it here,
+        for a system that offers ``host_snapshot``)."""
         if self._requests is None or self._guest.finished:
+            return
+        host_snapshot = getattr(self.system, "host_snapshot", None)
+        if host_snapshot is not None:
+            if self._skip_frame():
+                return
+            try:
+                snap = host_snapshot()
+            except Exception as exc:  # a bug in a snapshot must not kill the UI
+                self.notify(f"{type(exc).__name__}: {exc}", title="snapshot", severity="error")
+                return
+            self.on_console_app_snapshot_arrived(self.SnapshotArrived(snap))
             return
         if self._awaiting and self._awaiting < 2 * self.refresh_hz:
             self._awaiting += 1
             return
-        snap = self.snapshot
-        if snap is not None and snap.speed is None and not snap.paused:
-            # as fast as possible: fewer frames, more simulation (credit per tick)
-            self._credit += min(1.0, REFRESH_HZ_MAX_SPEED / self.refresh_hz)
-            if self._credit < 1.0:
-                return
-            self._credit -= 1.0
+        if self._skip_frame():
+            return
         try:
             self._requests.send_nowait(None)
         except (trio.WouldBlock, trio.ClosedResourceError, trio.BrokenResourceError):
             pass
         self._awaiting = 1
+
+    def _skip_frame(self) -> bool:
+        """At "as fast as possible", fewer frames (every frame drawn is simulation not
+        run): a credit per tick."""
+        snap = self.snapshot
+        if snap is not None and snap.speed is None and not snap.paused:
+            self._credit += min(1.0, REFRESH_HZ_MAX_SPEED / self.refresh_hz)
+            if self._credit < 1.0:
+                return True
+            self._credit -= 1.0
+        return False
 
     async def on_unmount(self) -> None:
         await self._guest.stop()
@@ -293,6 +311,8 @@ class ConsoleApp(App[int]):
             self.system_error = result.error
             self.notify(f"{type(result.error).__name__}: {result.error}",
                         title="the system stopped", severity="error", timeout=30)
+        elif getattr(self.system, "auto", False):
+            self.exit(0)  # an auto game ended by itself: the command prints its report
 
     def show(self, snap: Snapshot) -> None:
         """Redraw every panel from a snapshot."""

@@ -28,12 +28,14 @@ from server.links import LinkSpec
 from server.protocol import MapGrid, Pose2, inverse
 from server.protocol import compose as compose_pose
 from server.store import Store
+from supervisors.harness.headless import Budget, GameReport, finish_report, play_game
 from supervisors.system import ROLES, SimSystem, open_sim_system
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_DEVICES
 from world.scenario import Scenario
 from world.truth import truth_raster
 
 from .controller import QueuedController
+from .governor import GovernedClock
 from .snapshot import (
     MAX_LOG_LINES,
     MAX_TIMELINE,
@@ -54,8 +56,6 @@ from .snapshot import (
 __all__ = ["LiveSystem"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
-LAG_MAX_S = 0.5  # the world this far behind the clock: hold the clock [s]
-LAG_RESUME_S = 0.1  # ... until it is at most this far behind [s]
 #: Mailbox statistics, the supervision tree and the fault catalogue are rebuilt on
 #: every this many snapshots (the console draws those tables at a third of its rate).
 TABLES_EVERY = 3
@@ -97,6 +97,16 @@ class LiveSystem(QueuedController):
             time only: a real rover cannot be paused or sped up, so speed and
             pause are refused.
         listen: where rovers on ``tcp`` connect.
+        auto: play the headless operator's game by itself
+            (`supervisors.harness.headless.play_game`: start mapping, hide at the
+            scenario's spot, its guesses, the same retries) and end when it ends,
+            with `report` filled; operator commands are then refused.
+        budget: the auto game's time limits (`Budget`'s defaults when None).
+
+    Without remote rovers the system runs on a `GovernedClock`: the headless
+    game's virtual clock, released to the wall clock at the chosen speed, so
+    every speed plays the same game (with ``auto``: the same trace hash as
+    ``hideseek run``).
 
     Raises:
         ValueError: a remote role that is not mapper, hider or seeker, a link
@@ -106,7 +116,8 @@ class LiveSystem(QueuedController):
     def __init__(self, scenario: Scenario, *, seed: int = 1, speed: float | None = 1.0,
                  db: str = ":memory:", log_messages: bool = True,
                  remote: dict[str, LinkSpec] | None = None,
-                 listen: LinkSpec | None = None) -> None:
+                 listen: LinkSpec | None = None, auto: bool = False,
+                 budget: Budget | None = None) -> None:
         remote = dict(remote or {})
         for role, spec in remote.items():
             if role not in ROLES:
@@ -118,9 +129,17 @@ class LiveSystem(QueuedController):
         if any(spec.kind == "tcp" for spec in remote.values()) and (
                 listen is None or listen.kind != "tcp_listen"):
             raise ValueError("a rover on tcp needs --listen tcp:HOST:PORT")
+        if remote and auto:
+            raise ValueError("--auto plays the simulated game: no --rover with it")
         if remote:
-            speed = 1.0  # a real rover lives in real time
-        super().__init__(speed=speed, capacity=COMMAND_CAPACITY)
+            speed = 1.0  # a real rover lives in real time: a clock running at x1
+        super().__init__(speed=speed, capacity=COMMAND_CAPACITY, governed=not remote)
+        self.auto = auto
+        """Playing the headless operator's game by itself (see the class docstring)."""
+        self.budget = budget or Budget()
+        self.report: GameReport | None = None
+        """The auto game's report, once it has ended (what ``hideseek run`` prints)."""
+        self._server_events: trio.MemoryReceiveChannel | None = None
         self.remote = remote
         """Role -> link of the rovers not simulated here."""
         self.listen = listen
@@ -145,13 +164,18 @@ class LiveSystem(QueuedController):
         self._truth_raster: Any = None
         self._truth_key: tuple | None = None
         self._mapper_room = Pose2(0, 0, 0)
-        self._warned_behind = False
         self._snapshots = 0  # snapshots built
         self._tables: tuple[Any, Any, Any] | None = None  # (queues, tree, catalogue)
 
     # -- Trio side ----------------------------------------------------------------------
     async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
-        """Run the simulated system until cancelled (see `tui.snapshot.System.run`)."""
+        """Run the simulated system until cancelled, or with ``auto`` until the game ends
+        (see `tui.snapshot.System.run`).
+
+        The console's snapshots are built by `host_snapshot` on the console's side,
+        so ``requests`` is not read: no task of the console wakes inside Trio, and
+        the game's order of events is the headless game's (same trace hash).
+        """
         self._publish = publish
         s = self.scenario.starts["mapper"]
         self._mapper_room = Pose2(s.x, s.y, s.heading_deg)
@@ -159,20 +183,25 @@ class LiveSystem(QueuedController):
         with Store(self._db) as store:
             async with open_sim_system(self.scenario, seed=self.seed, store=store,
                                        roles=roles) as system:
+                t_start = trio.current_time()
                 self._system = system
                 trace = system.actors.trace
                 trace.subscribe(self._on_trace)  # lifecycle events and drops
                 if self._log_messages:
                     trace.tap_messages(self._on_message)  # every send, cheaply
-                events = system.server.subscribe()
+                self._server_events = system.server.subscribe()
                 self._event("game", f"{self.scenario.name}: system started (seed {self.seed})")
+                if self.auto:
+                    self._event("game", "auto play: the scenario's hide spot and guesses")
+                    report = GameReport(self.scenario.name, self.seed)
+                    try:
+                        await play_game(system, report, self.budget)
+                    finally:
+                        finish_report(report, system, t_start)
+                    self.report = report
+                    return
                 await self._attach_remote(system)
-                async with trio.open_nursery() as nursery:
-                    nursery.start_soon(self._command_loop)
-                    nursery.start_soon(self._server_events, events)
-                    async for _ in requests:  # the console's refresh: wall-clock paced
-                        self._keep_up(system)
-                        publish(self.snapshot())
+                await self._command_loop()
 
     async def _attach_remote(self, system: SimSystem) -> None:
         """Serve the attached rovers' links (a failure to listen ends the system)."""
@@ -190,37 +219,15 @@ class LiveSystem(QueuedController):
             self._event("game", "the map shows once the mapper uploads it (its working map "
                                 "is on the rover)")
 
-    def _keep_up(self, system: SimSystem) -> None:
-        """Hold the clock while the world is behind it (a governor; see `SimSystem.world_lag`).
-
-        At x16 a slow machine steps the world slower than the clock runs: the
-        firmware and the server keep time by the clock, the bytes between them
-        move only as the world steps, so heartbeats went missing and links were
-        shown down. Freezing the clock (rate 0) while the world is more than
-        `LAG_MAX_S` behind lets it catch up; the rate comes back at the next
-        refresh once it has. Simulated time then runs as fast as the machine
-        allows, below the chosen speed, and the panel says "behind".
-        """
-        if self._paused or self._speed is None:
-            self._behind = False
-            return
-        lag = system.world_lag()
-        if not self._behind and lag > LAG_MAX_S:
-            self._behind = True
-            self.clock.rate = 0.0
-            if not self._warned_behind:
-                self._warned_behind = True
-                self._event("game", f"the machine cannot keep up with x{self._speed:g}: "
-                                    "simulated time runs slower")
-        elif self._behind and lag <= LAG_RESUME_S:
-            self._behind = False
-            self.clock.rate = float(self._speed)
-
-    def _apply_clock(self) -> None:
-        self._behind = False
-        super()._apply_clock()
-
     # -- commands (in Trio); raise ValueError to refuse ----------------------------------
+    def _submit(self, name: str, *args: Any) -> None:
+        if self.auto:  # the game is the headless operator's: nothing may change it
+            self.calls.append((name, args))
+            self._result(name, "refused", "auto play: the scenario chooses; pause, speed "
+                                          "and the views are yours")
+            return
+        super()._submit(name, *args)
+
     def _real_time_only(self) -> None:
         if self.remote:
             raise ValueError(f"{', '.join(self.remote)} attached over a link: simulated time "
@@ -303,7 +310,8 @@ class LiveSystem(QueuedController):
     # -- events -------------------------------------------------------------------------
     def _event(self, kind: str, text: str) -> None:
         self._event_seq += 1
-        self._timeline.append(TimelineEvent(self._event_seq, trio.current_time(), kind, text))
+        self._timeline.append(TimelineEvent(self._event_seq, self.clock.current_time(), kind,
+                                            text))
 
     def _on_message(self, time: float, kind: EventKind, queue: str, message: Any,
                     depth: int) -> None:
@@ -346,8 +354,15 @@ class LiveSystem(QueuedController):
         self._decoded_seq = self._log_seq
         return tuple(self._log)
 
-    async def _server_events(self, events: trio.MemoryReceiveChannel) -> None:
-        async for e in events:
+    def _drain_server_events(self) -> None:
+        """The server's events since the last snapshot, into the timeline (on the console's
+        side: the channel only buffers, so no task wakes for it)."""
+        events = self._server_events
+        while events is not None:
+            try:
+                e = events.receive_nowait()
+            except (trio.WouldBlock, trio.EndOfChannel, trio.ClosedResourceError):
+                return
             if e.kind == "phase":
                 self._event("phase", f"phase {e.data.get('phase')}"
                             + (f": {e.data['reason']}" if e.data.get("reason") else ""))
@@ -358,11 +373,18 @@ class LiveSystem(QueuedController):
                 self._event("game", f"{e.kind} {e.rover} {body}".strip())
 
     # -- snapshot -----------------------------------------------------------------------
+    def host_snapshot(self) -> Snapshot:
+        """A snapshot built on the console's side of the thread, between two of Trio's
+        batches (see `tui.snapshot`): the game never sees the console look."""
+        self._drain_server_events()
+        return self.snapshot()
+
     def snapshot(self) -> Snapshot:
         """A whole picture of the system now (its queues, tree and fault catalogue as of
         at most `TABLES_EVERY` - 1 snapshots ago)."""
         system = self._system
-        now = trio.current_time()
+        now = self.clock.current_time()
+        reached = self.clock.reached() if isinstance(self.clock, GovernedClock) else None
         if system is None:
             return Snapshot(now, self._speed, self._paused, self.scenario.name, self.seed, "idle")
         server = system.server.snapshot()
@@ -373,7 +395,8 @@ class LiveSystem(QueuedController):
         self._snapshots += 1
         queues, tree, catalogue = self._tables
         return Snapshot(
-            time_s=now, speed=self._speed, paused=self._paused, scenario=self.scenario.name,
+            time_s=now, speed=self._speed, paused=self._paused, speed_reached=reached,
+            scenario=self.scenario.name,
             seed=self.seed, phase=server.phase, guesses=len(server.guesses), map=grid,
             truth=self._truth_view(grid), rovers=self._rovers(system, server),
             hide_spot=_pose(server.hide_spot),
