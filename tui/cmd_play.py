@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 SPEED_CHOICES = {"1": 1.0, "4": 4.0, "16": 16.0, "max": None}
 
@@ -46,6 +47,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="initial speed of simulated time (default: %(default)s)")
     parser.add_argument("--export-dir", default=".", metavar="DIR",
                         help="where the export key saves maps (default: current directory)")
+    parser.add_argument("--auto", action="store_true",
+                        help="play the headless operator's game by itself (start mapping, the "
+                             "scenario's hide spot and guesses), then leave the console and "
+                             "print what `hideseek run` prints")
+    parser.add_argument("--json", action="store_true",
+                        help="with --auto: print one JSON object, as `hideseek run --json`")
+    parser.add_argument("--budget", type=float, default=1200.0, metavar="S",
+                        help="with --auto: simulated seconds allowed for mapping (default 1200)")
 
 
 def _links(args: argparse.Namespace):
@@ -78,12 +87,23 @@ def run(args: argparse.Namespace) -> int:
     if args.rover and args.fake:
         print("hideseek play: --rover needs the real system, not --fake", file=sys.stderr)
         return 2
+    if (args.json or args.auto) and args.fake:
+        print("hideseek play: --auto plays the simulated game, not --fake", file=sys.stderr)
+        return 2
+    if args.json and not args.auto:
+        print("hideseek play: --json goes with --auto (the report of the auto game)",
+              file=sys.stderr)
+        return 2
+    if not args.budget > 0:
+        print(f"hideseek play: --budget must be > 0 s, got {args.budget:g}", file=sys.stderr)
+        return 2
     if args.fake:
         from tui.fake import FakeSystem
 
         system = FakeSystem(seed=args.seed, scenario=args.scenario,
                             speed=SPEED_CHOICES[args.speed])
     else:
+        from supervisors.harness.headless import Budget
         from tui.live import LiveSystem
         from world.scenario import ScenarioError, load_scenario
 
@@ -91,14 +111,31 @@ def run(args: argparse.Namespace) -> int:
             remote, listen = _links(args)
             scenario = load_scenario(args.scenario)
             system = LiveSystem(scenario, seed=args.seed, speed=SPEED_CHOICES[args.speed],
-                                db=args.db, remote=remote, listen=listen)
+                                db=args.db, remote=remote, listen=listen, auto=args.auto,
+                                budget=Budget(mapping=args.budget))
         except (ScenarioError, OSError, ValueError) as exc:
             print(f"hideseek play: {exc}", file=sys.stderr)
             return 2
     app = ConsoleApp(system, export_dir=args.export_dir)
+    wall0 = time.perf_counter()  # wall time for the auto game's report only
     app.run()
     if app.system_error is not None:
         print(f"hideseek play: the system stopped: {type(app.system_error).__name__}: "
               f"{app.system_error}", file=sys.stderr)
         return 1
+    if args.auto:
+        return _auto_report(system, time.perf_counter() - wall0, as_json=args.json)
     return 0
+
+
+def _auto_report(system, wall_s: float, *, as_json: bool) -> int:
+    """Print the auto game's report as ``hideseek run`` does (nothing if it was quit early)."""
+    from tui.cmd_run import print_report
+
+    report = system.report
+    if report is None:
+        print("hideseek play: quit before the game ended: no report", file=sys.stderr)
+        return 0
+    report.wall_seconds = wall_s
+    report.real_time_factor = report.sim_seconds / max(wall_s, 1e-9)
+    return print_report(report, as_json=as_json)

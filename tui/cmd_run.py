@@ -44,7 +44,8 @@ def _scenario(args: argparse.Namespace):
     return load_scenario(args.scenario)
 
 
-def _print_summary(r: GameReport) -> None:
+def print_summary(r: GameReport) -> None:
+    """The human-readable summary of a game (also `hideseek play --auto`'s)."""
     def pct(v: float | None) -> str:
         return "-" if v is None else f"{100 * v:.1f} %"
 
@@ -97,10 +98,16 @@ def run(args: argparse.Namespace) -> int:
     report.real_time_factor = report.sim_seconds / max(report.wall_seconds, 1e-9)
     if trace_file is not None:
         trace_file.close()
-    if args.json:
+    return print_report(report, as_json=args.json)
+
+
+def print_report(report: GameReport, *, as_json: bool) -> int:
+    """Print a finished game as ``hideseek run`` does (one JSON object, or its events and
+    a summary); returns the exit status: 0 the hider was found, else 1."""
+    if as_json:
         print(json.dumps(report.to_json()))
     else:
         for line in report.events:
             print("  " + line)
-        _print_summary(report)
+        print_summary(report)
     return 0 if report.outcome == "found" else 1
