@@ -438,7 +438,8 @@ class ConsoleApp(App[int]):
         if request is None:
             return
         if request.action == "inject":
-            self._call("inject_fault", request.target, request.kind, request.duration_s, {})
+            self._call("inject_fault", request.target, request.kind, request.duration_s,
+                       request.params)
         elif request.target == "*":
             for fault in self.snapshot.faults if self.snapshot else ():
                 self._call("clear_fault", fault.id)

@@ -503,18 +503,21 @@ class LiveSystem(QueuedController):
         return tuple(out)
 
     def _catalogue(self, system: SimSystem) -> tuple[FaultTarget, ...]:
-        out = []
+        """Every target with every fault the catalogue has for it: a device and the
+        actor that drives it share a name (``mapper/lidar``) and so one entry."""
+        kinds: dict[str, dict[str, dict[str, float]]] = {}
         for role in ROLES:
             if role in self.remote:
                 continue
-            for device, kinds in DEVICE_FAULTS.items():
+            for device, device_kinds in DEVICE_FAULTS.items():
                 if role in ROLE_DEVICES.get(device, ROLES):
-                    out.append(FaultTarget(f"{role}/{device}", tuple(kinds)))
+                    kinds[f"{role}/{device}"] = dict(device_kinds)
         for name in system.actors.names():
-            if "/" in name:
-                out.append(FaultTarget(name, tuple(ACTOR_FAULTS)))
-        return tuple(out)
-
+            if "/" in name and name.split("/")[0] not in self.remote:
+                kinds.setdefault(name, {}).update(ACTOR_FAULTS)
+        return tuple(FaultTarget(target, tuple(by_kind),
+                                 {k: dict(p) for k, p in by_kind.items() if p})
+                     for target, by_kind in kinds.items())
 
 def _pose(p: Pose2 | None) -> Pose | None:
     return None if p is None else Pose(p.x, p.y, p.heading)
