@@ -18,9 +18,11 @@ closes, so the process exits with status 0 and no traceback.
 
 from __future__ import annotations
 
+import asyncio
 import functools
 import gc
-from collections.abc import Iterable
+import signal
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import outcome
@@ -121,6 +123,27 @@ MAP_KEYS: tuple[tuple[str, str], ...] = (
 
 _KEY_NAMES = {"right_square_bracket": "]", "left_square_bracket": "[", "question_mark": "?",
               "slash": "/"}
+
+
+def _has_os_error(exc: BaseException) -> bool:
+    if isinstance(exc, BaseExceptionGroup):
+        return any(_has_os_error(e) for e in exc.exceptions)
+    return isinstance(exc, OSError)
+
+
+def _on_signals(quit_: Callable[[], object]) -> tuple[signal.Signals, ...]:
+    """SIGTERM and SIGINT quit the console as ``q`` does (the system stopped, status 0):
+    handled by the asyncio loop, so neither interrupts Textual or Trio mid-step. Returns
+    the signals handled (none outside the main thread, where asyncio cannot)."""
+    loop = asyncio.get_running_loop()
+    done = []
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        try:
+            loop.add_signal_handler(sig, quit_)
+        except (NotImplementedError, RuntimeError, ValueError):
+            continue
+        done.append(sig)
+    return tuple(done)
 
 
 class ConsoleApp(App[int]):
@@ -224,6 +247,13 @@ class ConsoleApp(App[int]):
         self.map_view.focus()
         self._guest.start(self._trio_main, clock=self.system.clock)
         self.set_interval(1.0 / self.refresh_hz, self._tick)
+        self._signals = _on_signals(lambda: self.call_next(self.action_quit))
+
+    def _remove_signal_handlers(self) -> None:
+        loop = asyncio.get_running_loop()
+        for sig in getattr(self, "_signals", ()):
+            loop.remove_signal_handler(sig)
+        self._signals = ()
 
     async def _trio_main(self) -> None:
         send, receive = trio.open_memory_channel[None](1)
@@ -280,6 +310,7 @@ class ConsoleApp(App[int]):
         return False
 
     async def on_unmount(self) -> None:
+        self._remove_signal_handlers()
         await self._guest.stop()
 
     # -- from the system -----------------------------------------------------
@@ -309,6 +340,9 @@ class ConsoleApp(App[int]):
         result = message.result
         if isinstance(result, outcome.Error):
             self.system_error = result.error
+            if _has_os_error(result.error):  # the system could not open a port or device:
+                self.exit(1)  # the command prints it as one line
+                return
             self.notify(f"{type(result.error).__name__}: {result.error}",
                         title="the system stopped", severity="error", timeout=30)
         elif getattr(self.system, "auto", False):

@@ -35,6 +35,7 @@ from supervisors.harness.campaign import (
     select_kinds,
     summarize,
 )
+from tui import args as args_
 from world.scenario import builtin_scenarios
 
 _BAR = 30  # progress bar width [characters]
@@ -45,7 +46,8 @@ _CAUSES = {"faults": "the faults (found, every invariant kept, without them)",
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-n", "--games", type=int, default=None, metavar="N",
                         help="games to play (default 200, or 6 with --quick)")
-    parser.add_argument("--seed", type=int, default=1, help="the campaign's seed S (default 1)")
+    parser.add_argument("--seed", type=args_.seed, default=1,
+                        help="the campaign's seed S (default 1)")
     parser.add_argument("--workers", type=int, default=None, metavar="W",
                         help=f"worker processes (default one per core: {default_workers()}; "
                              "0 plays in this process)")
@@ -64,7 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(0 to 3), none")
     parser.add_argument("--window", default=None, metavar="A-B",
                         help="simulated seconds in which faults start (default 5-240)")
-    parser.add_argument("--budget", type=float, default=1200.0,
+    parser.add_argument("--budget", type=args_.positive_seconds, default=1200.0,
                         help="simulated seconds allowed for mapping (default 1200)")
     parser.add_argument("--replay-every", type=int, default=10, metavar="K",
                         help="replay every K-th game to check determinism (0: never; default 10)")
@@ -77,7 +79,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a handful of games (6) with no replays beyond the first")
     parser.add_argument("--json", action="store_true",
                         help="print one JSON summary on stdout (progress stays on stderr)")
-    parser.add_argument("--out", default="hideseek-campaign.sqlite", metavar="FILE",
+    parser.add_argument("--out", type=args_.sqlite_file, default="hideseek-campaign.sqlite",
+                        metavar="FILE",
                         help="SQLite file for the results (default hideseek-campaign.sqlite; "
                              "':memory:' to keep none)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
@@ -256,11 +259,16 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
         summary["games_requested"] = games
         summary["stopped_early"] = stopped
         summary["code"] = {"at_start": code_at_start, "at_end": code_version()}
+        summary["out"] = args.out
         store.finish(cid, summary)
     if args.json:
         print(json.dumps(summary))
     else:
         _print_table(summary)
+        if args.out != ":memory:":
+            print(f"  results stored in {args.out} (campaign {cid}; --out FILE to choose)")
+    if stopped == "interrupted":
+        return 0  # Ctrl-C or SIGTERM: a clean stop, the games played so far are stored
     if len(results) < games:
         return 130
     return 1 if summary["failures"] else 0

@@ -13,6 +13,8 @@ import argparse
 import sys
 import time
 
+from tui import args as args_
+
 SPEED_CHOICES = {"1": 1.0, "4": 4.0, "16": 16.0, "max": None}
 
 
@@ -31,8 +33,8 @@ def rover_link(text: str) -> tuple[str, str]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
                         help="built-in scenario name or TOML file (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of the run (default: 1)")
-    parser.add_argument("--db", default=":memory:", metavar="FILE",
+    parser.add_argument("--seed", type=args_.seed, default=1, help="seed of the run (default: 1)")
+    parser.add_argument("--db", type=args_.sqlite_file, default=":memory:", metavar="FILE",
                         help="SQLite file for the server's games and maps (default: in memory)")
     parser.add_argument("--rover", type=rover_link, action="append", default=[],
                         metavar="ID=LINK",
@@ -53,7 +55,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "print what `hideseek run` prints")
     parser.add_argument("--json", action="store_true",
                         help="with --auto: print one JSON object, as `hideseek run --json`")
-    parser.add_argument("--budget", type=float, default=1200.0, metavar="S",
+    parser.add_argument("--budget", type=args_.positive_seconds, default=1200.0, metavar="S",
                         help="with --auto: simulated seconds allowed for mapping (default 1200)")
 
 
@@ -120,6 +122,13 @@ def run(args: argparse.Namespace) -> int:
     wall0 = time.perf_counter()  # wall time for the auto game's report only
     app.run()
     if app.system_error is not None:
+        from tui.cmd_rover import leaves
+        from tui.live import ListenError
+
+        busy = [e for e in leaves(app.system_error) if isinstance(e, ListenError)]
+        if busy:
+            print(f"hideseek play: {busy[0]}", file=sys.stderr)
+            return 2
         print(f"hideseek play: the system stopped: {type(app.system_error).__name__}: "
               f"{app.system_error}", file=sys.stderr)
         return 1

@@ -14,6 +14,7 @@ import trio
 
 from actors import JsonLinesRecorder, Trace, seed_trio_scheduler, virtual_clock
 from supervisors.harness.headless import Budget, GameReport, run_game
+from tui import args as args_
 from world.scenario import ScenarioError, builtin_scenarios, generate_scenario, load_scenario
 
 
@@ -23,14 +24,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default: furniture)")
     parser.add_argument("--generated", metavar="SEED:INDEX",
                         help="a procedurally generated room instead of --scenario")
-    parser.add_argument("--seed", type=int, default=1, help="the run's seed (default 1)")
+    parser.add_argument("--seed", type=args_.seed, default=1, help="the run's seed (default 1)")
     parser.add_argument("--campaign", metavar="S:I[,...]",
                         help="game I of fault campaign S, as `hideseek campaign` printed it "
                              "(room, faults, seed and budget all come from it)")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    parser.add_argument("--db", default=":memory:", help="SQLite file for the server's store")
+    parser.add_argument("--db", type=args_.sqlite_file, default=":memory:",
+                        help="SQLite file for the server's store")
     parser.add_argument("--trace", metavar="FILE", help="record the trace as JSON lines")
-    parser.add_argument("--budget", type=float, default=1200.0,
+    parser.add_argument("--budget", type=args_.positive_seconds, default=1200.0,
                         help="simulated seconds allowed for mapping (default 1200)")
 
 

@@ -53,7 +53,7 @@ from .snapshot import (
     TreeNode,
 )
 
-__all__ = ["LiveSystem"]
+__all__ = ["LiveSystem", "ListenError"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
 #: Mailbox statistics, the supervision tree and the fault catalogue are rebuilt on
@@ -63,6 +63,10 @@ _MAP_MARGIN_CELLS = 20  # unknown border shown around the known map [cells]
 _MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?,.*?value=([^)]+)\)")
 _LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
               EventKind.FAULT, EventKind.KILLED, EventKind.POISON}
+
+
+class ListenError(OSError):
+    """Raised by `LiveSystem.run` when the address for attached rovers cannot be served."""
 
 
 def _decode(message: str) -> str:
@@ -207,7 +211,11 @@ class LiveSystem(QueuedController):
         """Serve the attached rovers' links (a failure to listen ends the system)."""
         if any(spec.kind == "tcp" for spec in self.remote.values()):
             assert self.listen is not None
-            port = await system.server.listen_tcp(self.listen.host, self.listen.port)
+            try:
+                port = await system.server.listen_tcp(self.listen.host, self.listen.port)
+            except OSError as exc:  # a busy port: one line naming it (hideseek play, exit 2)
+                raise ListenError(f"cannot listen on {self.listen.text}: "
+                                  f"{exc.strerror or exc}") from None
             self._event("link", f"listening for rovers on tcp:{self.listen.host}:{port}")
         for role, spec in self.remote.items():
             if spec.kind == "serial":
