@@ -89,10 +89,9 @@ class GovernedClock(trio.abc.Clock):
             return 0.0
         now = self._wall()
         released = self._anchor_vt + (now - self._anchor_wall) * self._rate
-        if released - self._vt > MAX_DEBT_S * self._rate:  # the machine fell behind
-            self._anchor_vt, self._anchor_wall = self._vt, now - MAX_DEBT_S
-            released = self._vt + MAX_DEBT_S * self._rate
         if deadline <= released:
+            if released - deadline > MAX_DEBT_S * self._rate:  # the machine fell behind:
+                self._anchor_vt, self._anchor_wall = deadline, now - MAX_DEBT_S  # forget it
             self._vt = deadline
             return 0.0
         return min((deadline - released) / self._rate, POLL_S)
