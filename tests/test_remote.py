@@ -189,9 +189,11 @@ def _rover_args(argv: list[str]) -> argparse.Namespace:
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--link", "tcp"], "--link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, got 'tcp'"),
-        (["--link", "sim"], "--link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, got 'sim'"),
-        (["--link", "serial:/dev/x"], "serial link must be serial:PORT,BAUD, got 'serial:/dev/x'"),
+        (["--link", "tcp"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, serial:PORT[,BAUD] "
+                            "or pty, got 'tcp'"),
+        (["--link", "sim"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, serial:PORT[,BAUD] "
+                            "or pty, got 'sim'"),
+        (["--link", "serial:"], "serial link must be serial:PORT[,BAUD], got 'serial:'"),
         (["--link", "pty", "--speed", "0"], "--speed must be within 0..1000, got 0"),
         (["--link", "pty", "--scenario", "nowhere"],
          "nowhere: no such scenario file or built-in name (built-ins: empty, furniture, "

@@ -39,7 +39,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rover", type=rover_link, action="append", default=[],
                         metavar="ID=LINK",
                         help="attach a rover over a link instead of simulating it here: "
-                             "ROLE=serial:PORT,BAUD or ROLE=tcp (it connects to --listen); "
+                             "ROLE=serial:PORT[,BAUD] or ROLE=/dev/ttyUSB0[,BAUD] (115200 "
+                             "by default), ROLE=tcp (it connects to --listen), or "
+                             "ROLE=tcp:HOST:PORT (it listens there: the server connects); "
                              "then time runs at x1 only (repeatable)")
     parser.add_argument("--listen", default="tcp:127.0.0.1:7878", metavar="tcp:HOST:PORT",
                         help="where rovers on tcp connect (default %(default)s; loopback only)")
@@ -75,7 +77,7 @@ def _links(args: argparse.Namespace):
     listen = None
     if any(spec.kind == "tcp" for spec in remote.values()):
         listen = parse_link(args.listen)
-        if listen.kind != "tcp_listen":
+        if listen.kind not in ("tcp_listen", "tcp_in"):
             raise ValueError(f"--listen must be tcp:HOST:PORT, got {args.listen!r}")
         if not is_loopback(listen.host):
             raise ValueError(f"refusing to listen on {listen.host}: the console has no rover "

@@ -20,9 +20,10 @@ ROLES = ("mapper", "hider", "seeker")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--role", required=True, choices=ROLES, help="which rover this is")
     parser.add_argument("--link", required=True, metavar="LINK",
-                        help="tcp:HOST:PORT (connect to the server), serial:PORT,BAUD (a port "
-                             "or pyserial URL), or pty (make a pty pair and print the path "
-                             "the server must open)")
+                        help="tcp:HOST:PORT (connect to the server), tcpin:HOST:PORT (wait "
+                             "there for the server to connect), serial:PORT[,BAUD] or a device "
+                             "path (a port or pyserial URL; 115200 baud by default), or pty "
+                             "(make a pty pair and print the path the server must open)")
     parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
                         help="built-in scenario name or TOML file (default: %(default)s)")
     parser.add_argument("--seed", type=args_.seed, default=1,
@@ -40,9 +41,9 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         link = parse_link(args.link)
-        if link.kind not in ("tcp_listen", "serial", "pty"):
-            raise ValueError(f"--link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, "
-                             f"got {args.link!r}")
+        if link.kind not in ("tcp_listen", "tcp_in", "serial", "pty"):
+            raise ValueError(f"--link must be tcp:HOST:PORT, tcpin:HOST:PORT, "
+                             f"serial:PORT[,BAUD] or pty, got {args.link!r}")
         if not args.speed > 0 or args.speed > 1000:
             raise ValueError(f"--speed must be within 0..1000, got {args.speed:g}")
         scenario = load_scenario(args.scenario)

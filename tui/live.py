@@ -25,6 +25,7 @@ from actors import EventKind, Message, TraceEvent
 from actors.firmware.commands import name_of
 from server.export import write_pgm, write_png
 from server.links import LinkSpec
+from server.links.spec import DEFAULT_BAUD
 from server.protocol import MapGrid, Pose2, inverse
 from server.protocol import compose as compose_pose
 from server.store import Store
@@ -127,11 +128,12 @@ class LiveSystem(QueuedController):
             if role not in ROLES:
                 raise ValueError(f"--rover {role}: the ID of an attached rover is its role, "
                                  f"one of {', '.join(ROLES)}")
-            if spec.kind not in ("serial", "tcp"):
-                raise ValueError(f"--rover {role}: a rover's link is serial:PORT,BAUD or tcp, "
-                                 f"got {spec.text!r}")
+            if spec.kind not in ("serial", "tcp", "tcp_listen"):
+                raise ValueError(f"--rover {role}: a rover's link is serial:PORT[,BAUD], a "
+                                 f"device path, tcp (it connects in) or tcp:HOST:PORT (the "
+                                 f"server connects to it there), got {spec.text!r}")
         if any(spec.kind == "tcp" for spec in remote.values()) and (
-                listen is None or listen.kind != "tcp_listen"):
+                listen is None or listen.kind not in ("tcp_listen", "tcp_in")):
             raise ValueError("a rover on tcp needs --listen tcp:HOST:PORT")
         if remote and auto:
             raise ValueError("--auto plays the simulated game: no --rover with it")
@@ -220,6 +222,9 @@ class LiveSystem(QueuedController):
         for role, spec in self.remote.items():
             if spec.kind == "serial":
                 system.server.start_serial(spec.url, spec.baud)
+            elif spec.kind == "tcp_listen":  # a rover listening on TCP: connect out to it
+                # (pyserial's socket:// URL: the serial link's reconnecting loop serves it)
+                system.server.start_serial(f"socket://{spec.host}:{spec.port}", DEFAULT_BAUD)
             self._event("link", f"{role}: waiting for the rover on {spec.text}")
         if self.remote:
             self._event("game", "a real rover is attached: real time only (x1)")
