@@ -80,3 +80,13 @@ def test_signal_stops_a_retrying_rover_cleanly(sig) -> None:
     assert "stopped" in out
     assert "Traceback" not in err and "Bad file descriptor" not in out + err
     assert len((out + err).splitlines()) < 10
+
+
+def test_ports_lists_serial_ports_as_json() -> None:
+    import json
+
+    p = hideseek("ports", "--json")
+    assert p.returncode == 0
+    rows = json.loads(p.stdout)
+    assert isinstance(rows, list)
+    assert all({"device", "description", "hwid"} <= set(r) for r in rows)

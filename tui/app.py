@@ -22,6 +22,7 @@ import asyncio
 import functools
 import gc
 import signal
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
@@ -54,6 +55,11 @@ __all__ = ["ConsoleApp", "ACTIONS", "SPEEDS", "REFRESH_HZ", "UiAction"]
 REFRESH_HZ = 15.0
 #: ... and at "as fast as possible", where every frame drawn is simulation not run.
 REFRESH_HZ_MAX_SPEED = 10.0
+#: At "as fast as possible", frames are drawn only while the console's share of the
+#: thread's time stays below this (the simulation keeps the rest, however loaded the
+#: machine), and at least once per `MAX_FRAME_GAP_S`.
+UI_SHARE_MAX_SPEED = 0.06
+MAX_FRAME_GAP_S = 1.0
 #: The queue table and the tree are redrawn on every this many snapshots.
 TABLE_EVERY = 3
 #: Speed steps for faster / slower; None is "as fast as possible".
@@ -212,6 +218,7 @@ class ConsoleApp(App[int]):
         self._requests: trio.MemorySendChannel[None] | None = None
         self._awaiting = 0  # ticks since the outstanding request, 0 = none outstanding
         self._credit = 0.0  # frames owed at a reduced refresh rate
+        self._last_frame = (0.0, 0.0)  # (wall [s], guest's busy_s) at the last frame drawn
         self._panel_phase = ""  # phase the game panel shows
         self._asked_speed: tuple[int, int] | None = None  # (SPEEDS index, snapshots_shown)
         # Held, not queried: App.query_one searches the *current* screen, which is a
@@ -300,13 +307,21 @@ class ConsoleApp(App[int]):
 
     def _skip_frame(self) -> bool:
         """At "as fast as possible", fewer frames (every frame drawn is simulation not
-        run): a credit per tick."""
+        run): a credit per tick, and no frame while the console's share of the time since
+        the last one is above `UI_SHARE_MAX_SPEED` (Trio's batches are the rest)."""
         snap = self.snapshot
-        if snap is not None and snap.speed is None and not snap.paused:
-            self._credit += min(1.0, REFRESH_HZ_MAX_SPEED / self.refresh_hz)
-            if self._credit < 1.0:
-                return True
-            self._credit -= 1.0
+        if snap is None or snap.speed is not None or snap.paused:
+            return False
+        self._credit = min(1.0, self._credit + REFRESH_HZ_MAX_SPEED / self.refresh_hz)
+        if self._credit < 1.0:
+            return True
+        now, busy = time.perf_counter(), self._guest.busy_s
+        t0, busy0 = self._last_frame
+        elapsed = now - t0
+        if elapsed < MAX_FRAME_GAP_S and elapsed - (busy - busy0) > UI_SHARE_MAX_SPEED * elapsed:
+            return True
+        self._credit -= 1.0
+        self._last_frame = (now, busy)
         return False
 
     async def on_unmount(self) -> None:

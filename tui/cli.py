@@ -24,6 +24,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "rover": ("tui.cmd_rover", "one simulated rover as its own process, over TCP or serial"),
     "play": ("tui.cmd_play", "the terminal console: watch, steer and break a game"),
     "campaign": ("tui.cmd_campaign", "many seeded games under random faults, invariants checked"),
+    "ports": ("tui.cmd_ports", "list the serial ports a rover may be attached to"),
 }
 
 
