@@ -320,7 +320,10 @@ def test_command_palette_offers_every_action():
         titles = {c.title for c in app.get_system_commands(app.screen)}
         for expected in ("Start mapping", "Stop mapping early and use the map as it is",
                          "Inject or clear a fault (target, kind, duration)",
-                         "Pause / resume simulated time", "Start a new game"):
+                         "Pause simulated time (not with an attached rover)",
+                         "Resume simulated time", "Start a new game",
+                         "Save a screenshot (SVG, and PNG where cairosvg is installed) to the "
+                         "export directory"):
             assert expected in titles
 
     drive(test, speed=1.0)

@@ -74,8 +74,12 @@ def test_attached_rover_links_are_checked() -> None:
         LiveSystem(scenario, remote={"m1": parse_link("tcp")})
     with pytest.raises(ValueError, match="a rover on tcp needs --listen tcp:HOST:PORT"):
         LiveSystem(scenario, remote={"mapper": parse_link("tcp")})
-    with pytest.raises(ValueError, match="a rover's link is serial:PORT,BAUD or tcp, got 'sim'"):
+    with pytest.raises(ValueError, match=r"a rover's link is serial:PORT\[,BAUD\], .*got 'sim'"):
         LiveSystem(scenario, remote={"mapper": parse_link("sim")})
+    with pytest.raises(ValueError, match="--auto plays the simulated game"):
+        LiveSystem(scenario, remote={"mapper": parse_link("/dev/ttyUSB0")}, auto=True)
+    live = LiveSystem(scenario, remote={"mapper": parse_link("tcp:10.0.0.2:2000")})
+    assert live.remote["mapper"].kind == "tcp_listen"  # the console connects out to it
 
 
 def test_with_an_attached_rover_time_is_real_and_speed_is_refused() -> None:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import asyncio
 import functools
 import gc
+import pathlib
 import signal
 import time
 from collections.abc import Callable, Iterable
@@ -94,15 +95,20 @@ ACTIONS: tuple[UiAction, ...] = (
     UiAction("w", "wider_search", "Wider",
              f"Seek at the cursor with a wider search ({WIDER_SEARCH_CM:.0f} cm round it)",
              footer=False),
-    UiAction("space", "toggle_pause", "Pause", "Pause / resume simulated time"),
+    UiAction("space", "pause", "Pause", "Pause simulated time (not with an attached rover)"),
+    UiAction("space", "resume", "Resume", "Resume simulated time"),
     UiAction("right_square_bracket", "faster", "Faster",
-             "Speed up: x1, x4, x16, as fast as possible"),
+             "Speed up: x1, x4, x16, as fast as possible (the same game at every speed; "
+             "not with an attached rover)"),
     UiAction("left_square_bracket", "slower", "Slower", "Slow down", footer=False),
     UiAction("f", "faults", "Faults", "Inject or clear a fault (target, kind, duration)"),
     UiAction("g", "toggle_truth", "Truth", "Toggle the ground-truth overlay (simulated rooms)"),
     UiAction("n", "new_game", "New", "Start a new game", footer=False),
-    UiAction("e", "export_map", "Export", "Save the map (PGM + YAML) to the export directory",
-             footer=False),
+    UiAction("e", "export_map", "Export",
+             "Save the map (PGM + YAML, PNG) to the export directory", footer=False),
+    UiAction("s", "screenshot", "Shot",
+             "Save a screenshot (SVG, and PNG where cairosvg is installed) to the export "
+             "directory", footer=False),
     UiAction("p", "toggle_log_pause", "Log pause", "Pause / resume the message log",
              footer=False),
     UiAction("slash", "filter_log", "Filter", "Filter the message log", footer=False),
@@ -114,6 +120,16 @@ ACTIONS: tuple[UiAction, ...] = (
     UiAction("question_mark", "help", "Help", "Show every key"),
     UiAction("q", "quit", "Quit", "Quit (also ctrl+c)"),
 )
+
+#: Actions -> the controller commands they send (a key is greyed when all are refused).
+_ACTION_COMMANDS: dict[str, tuple[str, ...]] = {
+    "pause": ("pause",), "resume": ("resume",), "toggle_pause": ("pause", "resume"),
+    "faster": ("set_speed",), "slower": ("set_speed",),
+    "start_mapping": ("start_mapping",), "stop_mapping": ("stop_mapping",),
+    "confirm": ("hide_at", "seek_at"), "wider_search": ("seek_at",),
+    "new_game": ("new_game",), "faults": ("inject_fault", "clear_fault"),
+    "export_map": ("export_map",),
+}
 
 #: Keys of the map itself (focused by default), for the help screen.
 MAP_KEYS: tuple[tuple[str, str], ...] = (
@@ -365,7 +381,10 @@ class ConsoleApp(App[int]):
 
     def show(self, snap: Snapshot) -> None:
         """Redraw every panel from a snapshot."""
+        old = self.snapshot
         self.snapshot = snap
+        if old is None or (old.paused, old.refused) != (snap.paused, snap.refused):
+            self.refresh_bindings()  # Pause / Resume, greyed keys
         if not (self.map_view.is_attached and self.message_log.is_mounted):
             return  # before compose finished, or after the screen went away
         self.snapshots_shown += 1
@@ -447,6 +466,49 @@ class ConsoleApp(App[int]):
         else:
             self._call("pause")
 
+    def action_pause(self) -> None:
+        self._call("pause")
+
+    def action_resume(self) -> None:
+        self._call("resume")
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """Footer and keys follow the state: ``space`` is Pause or Resume; keys whose
+        commands the system refuses whatever the phase are greyed (None: shown, not run)."""
+        snap = self.snapshot
+        if snap is None:
+            return True
+        if action == "pause" and snap.paused:
+            return False
+        if action == "resume" and not snap.paused:
+            return False
+        commands = _ACTION_COMMANDS.get(action, ())
+        if commands and all(c in snap.refused for c in commands):
+            return None
+        return True
+
+    def action_screenshot(self, filename: str | None = None, path: str | None = None) -> None:
+        """Save an SVG of the screen (and a PNG where cairosvg is installed) into ``path``
+        (the export directory by default) and say where."""
+        folder = pathlib.Path(path or self.export_dir).expanduser()
+        try:
+            if not folder.is_dir():
+                raise OSError(f"no directory {folder}")
+            svg = pathlib.Path(self.save_screenshot(filename, str(folder)))
+        except OSError as exc:
+            self.notify(str(exc), title="screenshot: error", severity="error")
+            return
+        saved = [str(svg)]
+        try:
+            import cairosvg  # noqa: PLC0415 - optional: PNG only where it is installed
+        except ImportError:
+            pass
+        else:
+            png = svg.with_suffix(".png")
+            cairosvg.svg2png(url=str(svg), write_to=str(png))
+            saved.append(str(png))
+        self.notify(", ".join(saved), title="screenshot saved", timeout=5)
+
     def _speed_index(self) -> int:
         asked = self._asked_speed
         if asked is not None and self.snapshots_shown - asked[1] < 3:
@@ -520,7 +582,9 @@ class ConsoleApp(App[int]):
         self.exit(0)
 
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
-        yield from super().get_system_commands(screen)
+        for command in super().get_system_commands(screen):
+            if command.title != "Screenshot":  # Textual's writes to ~/Downloads: ours below
+                yield command
         for a in ACTIONS:
             if a.action in ("quit",):
                 continue

@@ -57,6 +57,11 @@ from .snapshot import (
 __all__ = ["LiveSystem", "ListenError"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
+PNG_SCALE = 4  # exported PNG: pixels per map cell edge (5 cm cells: 80 px per metre)
+#: Commands an auto game refuses (the scenario chooses), and those an attached rover does.
+AUTO_REFUSED = ("start_mapping", "stop_mapping", "hide_at", "seek_at", "new_game",
+                "inject_fault", "clear_fault", "export_map")
+REAL_TIME_REFUSED = ("pause", "resume", "set_speed")
 #: Mailbox statistics, the supervision tree and the fault catalogue are rebuilt on
 #: every this many snapshots (the console draws those tables at a third of its rate).
 TABLES_EVERY = 3
@@ -316,7 +321,7 @@ class LiveSystem(QueuedController):
             raise ValueError(f"export directory {directory!r} does not exist")
         name = f"map-{self.scenario.name}-seed{self.seed}-{trio.current_time():.0f}s"
         pgm, yaml = write_pgm(grid, out, name)
-        png = write_png(grid, out, name)
+        png = write_png(grid, out, name, scale=PNG_SCALE)
         self._event("export", f"map saved: {pgm.name}, {yaml.name}, {png.name}")
         return f"{pgm}, {yaml}, {png}"
 
@@ -414,6 +419,8 @@ class LiveSystem(QueuedController):
             truth=self._truth_view(grid), rovers=self._rovers(system, server),
             hide_spot=_pose(server.hide_spot),
             seek_guesses=tuple((g.x, g.y) for g in server.guesses),
+            refused=(AUTO_REFUSED if self.auto else ()) + (REAL_TIME_REFUSED if self.remote
+                                                            else ()),
             queues=queues, log=self._log_lines(), tree=tree, links=self._links(server),
             timeline=tuple(self._timeline), faults=self._faults(system), catalogue=catalogue)
 
@@ -470,7 +477,11 @@ class LiveSystem(QueuedController):
                 continue
             t = system.world.true_pose(role)
             true = compose_pose(to_map, Pose2(t.x, t.y, t.heading_deg))
-            out.append(RoverView(role, role, _pose(view.pose if view else None), _pose(true),
+            pose = view.pose if view is not None and view.pose is not None else None
+            if pose is None:  # before its first report: where the operator placed it
+                start = self.scenario.starts[role]
+                pose = compose_pose(to_map, Pose2(start.x, start.y, start.heading_deg))
+            out.append(RoverView(role, role, _pose(pose), _pose(true),
                                  link=view.link if view else "memory"))
         return tuple(out)
 

@@ -372,6 +372,9 @@ class Snapshot:
     """Faults in force now."""
     catalogue: tuple[FaultTarget, ...] = ()
     """Fault targets and kinds the system accepts (for the fault dialog)."""
+    refused: tuple[str, ...] = ()
+    """`Controller` methods refused whatever the phase (a rover attached: ``pause``,
+    ``resume``, ``set_speed``; an auto game: the game commands); their keys are greyed."""
 
     def __post_init__(self) -> None:
         _check(self.phase in PHASES,
