@@ -68,8 +68,10 @@ def game_lines(snap: Snapshot | None) -> list[Text]:
         else:
             line.append("up ", style="green")
             line.append("?" if ln.rtt_ms is None else f"{ln.rtt_ms:.0f}ms")
-            if ln.lost or ln.resent or ln.bad_frames:
-                line.append(f" lost {ln.lost} re {ln.resent} bad {ln.bad_frames}", "yellow")
+            counts = [f"{name} {n}" for name, n in (("lost", ln.lost), ("re", ln.resent),
+                                                      ("bad", ln.bad_frames)) if n]
+            if counts:  # only what is not zero: the whole line fits at 120 columns
+                line.append(" " + " ".join(counts), "yellow")
         lines.append(line)
     return lines
 
