@@ -490,7 +490,7 @@ class ConsoleApp(App[int]):
     def action_screenshot(self, filename: str | None = None, path: str | None = None) -> None:
         """Save an SVG of the screen (and a PNG where cairosvg is installed) into ``path``
         (the export directory by default) and say where."""
-        folder = pathlib.Path(path or self.export_dir).expanduser()
+        folder = pathlib.Path(path or self.export_dir).expanduser().resolve()
         try:
             if not folder.is_dir():
                 raise OSError(f"no directory {folder}")
