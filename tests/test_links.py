@@ -48,7 +48,6 @@ def test_parse_link_accepts_the_documented_forms(text: str, kind: str, fields: d
         ("/dev/ttyUSB0", "serial", ("/dev/ttyUSB0", 115200)),
         ("serial:/dev/ttyUSB0", "serial", ("/dev/ttyUSB0", 115200)),
         ("COM3,9600", "serial", ("COM3", 9600)),
-        ("udp:10.0.0.2:2000", "udp", ("10.0.0.2", 2000)),
         ("tcpin:0.0.0.0:7000", "tcp_in", ("0.0.0.0", 7000)),
         ("tcp:10.0.0.2:23", "tcp_listen", ("10.0.0.2", 23)),
     ],
@@ -63,10 +62,10 @@ def test_link_strings_as_mavproxy_users_type_them(text: str, kind: str, where: t
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("ttyUSB0", "link must be tcp:HOST:PORT, tcpin:HOST:PORT, tcp, udp:HOST:PORT, "
-                    "serial:PORT[,BAUD], a device path[,BAUD], sim or pty, got 'ttyUSB0'"),
+        ("ttyUSB0", "link must be tcp:HOST:PORT, tcpin:HOST:PORT, tcp, serial:PORT[,BAUD], "
+                    "a device path[,BAUD], sim or pty, got 'ttyUSB0'"),
         ("serial:", "serial link must be serial:PORT[,BAUD], got 'serial:'"),
-        ("udp:5", "udp link must be udp:HOST:PORT, got 'udp:5'"),
+        ("tcpin:5", "tcpin link must be tcpin:HOST:PORT, got 'tcpin:5'"),
         ("serial:/dev/ttyUSB0,fast", "serial baud must be a number, got 'fast' in "
                                      "'serial:/dev/ttyUSB0,fast'"),
         ("serial:/dev/ttyUSB0,10", "serial baud must be 50..4000000, got 10"),

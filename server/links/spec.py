@@ -12,7 +12,6 @@ string                             meaning
                                    rover waits for the server)
 ``tcp``                            (``--rover ID=tcp``) this rover connects in,
                                    to ``--listen``
-``udp:192.168.1.20:2000``          a rover that speaks UDP at that address
 ``serial:/dev/ttyUSB0,115200``     a serial port and baud rate
 ``serial:/dev/ttyUSB0``            ... at 115200 baud
 ``/dev/ttyUSB0,57600``, ``COM3``   a bare device path, with or without a baud
@@ -30,8 +29,8 @@ from dataclasses import dataclass
 
 __all__ = ["LinkSpec", "parse_link", "is_loopback", "DEFAULT_BAUD"]
 
-_KINDS = ("tcp:HOST:PORT, tcpin:HOST:PORT, tcp, udp:HOST:PORT, serial:PORT[,BAUD], "
-          "a device path[,BAUD], sim or pty")
+_KINDS = ("tcp:HOST:PORT, tcpin:HOST:PORT, tcp, serial:PORT[,BAUD], a device path[,BAUD], "
+          "sim or pty")
 #: Baud rate of a serial link given without one (the WiFly module's default) [bit/s].
 DEFAULT_BAUD = 115200
 
@@ -42,7 +41,7 @@ class LinkSpec:
 
     kind: str
     """``tcp_listen`` (a TCP address, ``tcp:``), ``tcp_in`` (listen, ``tcpin:``), ``tcp``,
-    ``udp``, ``serial``, ``sim`` or ``pty``."""
+    ``serial``, ``sim`` or ``pty``."""
     text: str
     """The string as given."""
     host: str = ""
@@ -61,7 +60,7 @@ def parse_link(text: str) -> LinkSpec:
     t = text.strip()
     if t in ("tcp", "sim", "pty"):
         return LinkSpec(t, text)
-    for prefix, kind in (("tcp:", "tcp_listen"), ("tcpin:", "tcp_in"), ("udp:", "udp")):
+    for prefix, kind in (("tcp:", "tcp_listen"), ("tcpin:", "tcp_in")):
         if t.startswith(prefix):
             host, sep, port_s = t[len(prefix):].rpartition(":")
             if not sep or not host:
