@@ -46,7 +46,7 @@ _CAUSES = {"faults": "the faults (found, every invariant kept, without them)",
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-n", "--games", type=int, default=None, metavar="N",
                         help="games to play (default 200, or 6 with --quick)")
-    parser.add_argument("--seed", type=args_.seed, default=1,
+    parser.add_argument("--seed", type=int, default=1,  # checked by the campaign's config
                         help="the campaign's seed S (default 1)")
     parser.add_argument("--workers", type=int, default=None, metavar="W",
                         help=f"worker processes (default one per core: {default_workers()}; "
