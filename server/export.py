@@ -38,9 +38,17 @@ def pgm_bytes(grid: GridMap) -> bytes:
     return b"P5\n%d %d\n255\n" % (nx, ny) + img.tobytes()
 
 
-def png_bytes(grid: GridMap) -> bytes:
-    """The map as an 8-bit greyscale PNG file."""
+def png_bytes(grid: GridMap, scale: int = 1) -> bytes:
+    """The map as an 8-bit greyscale PNG file, ``scale`` x ``scale`` pixels per cell.
+
+    Raises:
+        ValueError: ``scale`` is not within 1..32.
+    """
+    if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 32:
+        raise ValueError(f"scale must be an integer within 1..32, got {scale!r}")
     img = map_image(grid)
+    if scale > 1:
+        img = np.repeat(np.repeat(img, scale, axis=0), scale, axis=1)
     ny, nx = img.shape
     raw = b"".join(b"\x00" + img[i].tobytes() for i in range(ny))  # filter 0 per row
 
@@ -73,10 +81,11 @@ def write_pgm(grid: GridMap, out_dir: pathlib.Path | str, name: str) -> tuple[pa
     return pgm, yml
 
 
-def write_png(grid: GridMap, out_dir: pathlib.Path | str, name: str) -> pathlib.Path:
-    """Write ``name.png`` into ``out_dir``; return its path."""
+def write_png(grid: GridMap, out_dir: pathlib.Path | str, name: str,
+              scale: int = 1) -> pathlib.Path:
+    """Write ``name.png`` into ``out_dir`` (``scale`` pixels per cell edge); return its path."""
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{name}.png"
-    path.write_bytes(png_bytes(grid))
+    path.write_bytes(png_bytes(grid, scale))
     return path

@@ -42,12 +42,30 @@ def test_parse_link_accepts_the_documented_forms(text: str, kind: str, fields: d
 
 
 @pytest.mark.parametrize(
+    ("text", "kind", "where"),
+    [
+        ("/dev/ttyUSB0,57600", "serial", ("/dev/ttyUSB0", 57600)),
+        ("/dev/ttyUSB0", "serial", ("/dev/ttyUSB0", 115200)),
+        ("serial:/dev/ttyUSB0", "serial", ("/dev/ttyUSB0", 115200)),
+        ("COM3,9600", "serial", ("COM3", 9600)),
+        ("tcpin:0.0.0.0:7000", "tcp_in", ("0.0.0.0", 7000)),
+        ("tcp:10.0.0.2:23", "tcp_listen", ("10.0.0.2", 23)),
+    ],
+)
+def test_link_strings_as_mavproxy_users_type_them(text: str, kind: str, where: tuple) -> None:
+    spec = parse_link(text)
+    assert spec.kind == kind
+    got = (spec.url, spec.baud) if kind == "serial" else (spec.host, spec.port)
+    assert got == where
+
+
+@pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("udp:1.2.3.4:5", "link must be tcp:HOST:PORT, tcp, serial:PORT,BAUD, sim or pty, got "
-                          "'udp:1.2.3.4:5'"),
-        ("serial:/dev/ttyUSB0", "serial link must be serial:PORT,BAUD, got "
-                                "'serial:/dev/ttyUSB0'"),
+        ("ttyUSB0", "link must be tcp:HOST:PORT, tcpin:HOST:PORT, tcp, serial:PORT[,BAUD], "
+                    "a device path[,BAUD], sim or pty, got 'ttyUSB0'"),
+        ("serial:", "serial link must be serial:PORT[,BAUD], got 'serial:'"),
+        ("tcpin:5", "tcpin link must be tcpin:HOST:PORT, got 'tcpin:5'"),
         ("serial:/dev/ttyUSB0,fast", "serial baud must be a number, got 'fast' in "
                                      "'serial:/dev/ttyUSB0,fast'"),
         ("serial:/dev/ttyUSB0,10", "serial baud must be 50..4000000, got 10"),

@@ -435,7 +435,8 @@ class Recorder:
             t = system.world.true_pose(role)
             p = compose(self._to_map, Pose(t.x, t.y, t.heading_deg))
             self._add(f"/{role}/pose/true", now,
-                      {"timestamp": ts, "frame_id": FRAME, "pose": pose_msg(p.x, p.y, p.heading_deg)})
+                      {"timestamp": ts, "frame_id": FRAME,
+                       "pose": pose_msg(p.x, p.y, p.heading_deg)})
             cell = system.actors.whereis(f"{role}/nav")
             nav = cell.actor if cell is not None else None
             if nav is None or getattr(nav, "origin", None) is None:
