@@ -15,7 +15,7 @@ import math
 import trio
 
 from actors.firmware.drivers.tread_monitor import TreadFault
-from actors.firmware.localisation.odometry import Pose
+from server.protocol.pose import Pose
 
 __all__ = ["TreadFaults"]
 
