@@ -447,8 +447,8 @@ class Server:
             delay = first
             try:
                 await self.serve_stream(stream, name)
-            except SerialLinkError as exc:
-                self._emit("link_error", data={"link": name, "error": str(exc),
+            except* SerialLinkError as failed:  # raised by the reader or the writer task
+                self._emit("link_error", data={"link": name, "error": str(failed.exceptions[0]),
                                                "retry_s": delay})
             await trio.sleep(delay)
 

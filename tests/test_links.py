@@ -173,6 +173,48 @@ def test_missing_serial_port_is_reported_and_retried() -> None:
     run(main)
 
 
+def test_a_serial_port_unplugged_mid_stream_is_reported_and_reopened(monkeypatch) -> None:
+    """A port that fails while the server reads it (the device unplugged) gives one
+    link_error naming why, the server stays up and opens the port again."""
+    from server import server as server_module
+    from server.links.serial import SerialLinkError
+
+    opened: list[str] = []
+
+    class UnpluggedStream:
+        async def receive_some(self, _max: int) -> bytes:
+            await trio.sleep(0.1)
+            raise SerialLinkError("serial port /dev/ttyFAKE failed: device unplugged")
+
+        async def send_all(self, _data: bytes) -> None:
+            await trio.sleep(0)
+
+        async def aclose(self) -> None:
+            await trio.sleep(0)
+
+    def fake_open(url: str, baud: int) -> UnpluggedStream:
+        opened.append(url)
+        return UnpluggedStream()
+
+    monkeypatch.setattr(server_module, "open_serial_stream", fake_open)
+
+    async def main() -> None:
+        config = ServerConfig(serial_retry_s=(1.0, 4.0))
+        async with open_server(Store(":memory:"), config) as server:
+            events = server.subscribe()
+            server.start_serial("/dev/ttyFAKE", 115200)
+            got = []
+            with trio.move_on_after(3):
+                while True:
+                    got.append(await events.receive())
+            errors = [e for e in got if e.kind == "link_error"]
+            assert errors and errors[0].data["error"].endswith("device unplugged")
+            assert len(opened) >= 2  # opened again after the retry delay
+            assert server.snapshot() is not None  # the server is still serving
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
+
+
 def test_whole_game_with_mapper_on_pty_serial_and_others_in_memory() -> None:
     """A full game where the mapper talks over a pty serial link at 115200 baud."""
     master, slave = os.openpty()

@@ -127,7 +127,7 @@ def test_rover_on_tcpin_waits_for_a_server_that_connects_out_and_then_says_conne
     async def main() -> None:
         scenario = load_scenario("empty")
         with Store(":memory:") as store:
-            async with open_server(store, ServerConfig()) as server, \
+            async with open_server(store, ServerConfig(rovers=frozenset({"hider"}))) as server, \
                     open_remote_rover(scenario, "hider", parse_link(f"tcpin:127.0.0.1:{port}"),
                                       report=lines.append, nav_factory=_idle_nav):
                 await trio.sleep(0.5)

@@ -143,18 +143,18 @@ def test_cli_replay_of_a_missing_file_is_bad_input(tmp_path: Any,
 
 
 def _run_fork(live: ForkLiveSystem) -> list[Snapshot]:
-    """Run a fork's Trio side as the console would, alone, until its first snapshot."""
+    """Run a fork's Trio side as the console would, alone, until it stands paused at its
+    time; then take one snapshot from the console's side (`LiveSystem.host_snapshot`)."""
     snaps: list[Snapshot] = []
 
     async def main() -> None:
         send, receive = trio.open_memory_channel[None](1)
-        send.send_nowait(None)  # the console's first request, answered once at T
         async with trio.open_nursery() as nursery:
-            def publish(item: Any) -> None:
-                if isinstance(item, Snapshot):
-                    snaps.append(item)
-                    nursery.cancel_scope.cancel()
-            nursery.start_soon(live.run, publish, receive)
+            nursery.start_soon(live.run, lambda item: None, receive)
+            while not live.clock.paused:  # the fork pauses once it has reached its time
+                await trio.testing.wait_all_tasks_blocked()
+            snaps.append(live.host_snapshot())
+            nursery.cancel_scope.cancel()
 
     try:
         trio.run(main, clock=live.clock)

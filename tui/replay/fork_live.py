@@ -55,6 +55,7 @@ class ForkLiveSystem(LiveSystem):
             {int(c["index"]): (c["trace_hash"], int(c["messages"]))
              for _, c in rec.topic("/checkpoints")}, at_s, recorded_code=rec.run.code)
         self.source = rec.path
+        self.reached = False  # the fork has played the recorded game to its time
 
     async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
         """`LiveSystem.run`; a divergence ends it with `ForkDiverged` itself (not inside
@@ -79,6 +80,7 @@ class ForkLiveSystem(LiveSystem):
             raise ForkDiverged(checker.diverged)
         self._speed, self._paused = 1.0, True
         self._apply_clock()
+        self.reached = True
         self._event("game", f"forked {self.source} at {trio.current_time():.1f} s "
                             f"({checker.compared} seconds checked): yours from here, paused")
 
@@ -99,6 +101,7 @@ class ForkConsoleApp(ConsoleApp):
 
     def show(self, snap: Snapshot) -> None:
         super().show(snap)
-        if not self._dialog_shown and snap.catalogue and len(self.screen_stack) == 1:
+        if (not self._dialog_shown and self.fork.reached and snap.paused and snap.catalogue
+                and len(self.screen_stack) == 1):
             self._dialog_shown = True
             self.push_screen(FaultDialog(snap.catalogue, snap.faults), self._fault_chosen)
