@@ -18,6 +18,8 @@ import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
+from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.localisation.belief import PoseBelief
 from actors.firmware.localisation.odometry import Pose
 from actors.firmware.mapping.grid_map import FREE, OCCUPIED, GridMap
 from actors.firmware.mapping.occupancy import OccupancyGrid
@@ -458,10 +460,19 @@ def test_a_corridor_mapped_20_cm_wide_is_planned_at_the_body_width() -> None:
     assert found == [False, False, False, True]
 
 
-def scraped_nav(yaw_deg: float, **options: Any) -> Any:
+def believe(nav: Any, sigma_cm: float, sigma_deg: float = 2.0) -> Any:
+    """Give ``nav`` a pose belief round its map pose (as after some driving)."""
+    nav.pose_known = True
+    nav.belief = PoseBelief.around(nav.map_pose, nav._rng, sigma_cm=sigma_cm,
+                                   sigma_deg=sigma_deg)
+    nav._belief_odom, nav._spread = nav.pose, None
+    return nav
+
+
+def scraped_nav(yaw_deg: float, sigma_cm: float = 4.0, **options: Any) -> Any:
     """A hider navigation (not started) mid-corridor by dead reckoning (map (300, 150) @ 0,
     own frame (250, 100) @ 0), whose last forward move ended blocked after yawing
-    ``yaw_deg``."""
+    ``yaw_deg``; its belief is ``sigma_cm`` wide round that pose."""
     nav = make_nav("hider", pool=BufferPool(4), options=NavOptions(**options))
     nav.map = nav.work_map = room_map(
         Truth(0, 0, 700, 300, boxes=((250, 0, 200, 135), (250, 165, 200, 135))))
@@ -469,40 +480,50 @@ def scraped_nav(yaw_deg: float, **options: Any) -> Any:
     nav.pose = Pose(250.0, 100.0, yaw_deg)
     nav.last_motion = Motion("move", 20.0)
     nav.motion_from = Pose(280.0, 150.0, 0.0)
-    return nav
+    return believe(nav, sigma_cm)
 
 
 def test_a_scrape_moves_the_pose_to_the_wall_on_the_stalled_side() -> None:
     """Yawed left while blocked: the left side touches the corridor's wall at y = 165, so
-    the map pose moves left (the origin changes; Motor Control's pose does not) and the
-    retained memory keeps the corrected origin."""
+    the belief (and the map pose read from it) moves left (the origin changes; Motor
+    Control's pose does not) and the retained memory keeps the corrected origin."""
     nav = scraped_nav(3.0)
     assert nav._contact_fix()
     p = nav.map_pose
-    assert 154.0 <= p.y <= 162.0 and p.x == pytest.approx(300.0, abs=3.0)
+    assert 153.0 <= p.y <= 162.0 and p.x == pytest.approx(300.0, abs=4.0)
     assert nav.pose == Pose(250.0, 100.0, 3.0)
     assert nav.memory.origin == pytest.approx((nav.origin.x, nav.origin.y,
                                                nav.origin.heading_deg))
     assert nav.counters["contacts"] == 1
 
 
-def test_no_correction_when_the_side_is_unknown_or_the_budget_is_spent() -> None:
-    """No yaw: left and right explain the block alike (no correction); with the
-    corrections used up, or the sideways budget too small, none either."""
-    assert not scraped_nav(0.0)._contact_fix()
-    assert not scraped_nav(3.0, contact_fixes=0)._contact_fix()
-    assert not scraped_nav(3.0, contact_max_shift_cm=3.0)._contact_fix()
+def test_a_contact_either_side_explains_is_kept_as_two_hypotheses() -> None:
+    """No yaw: the left side on the upper wall and the right side on the lower wall
+    explain the block alike. The belief keeps both (its weight each side of the
+    corridor's axis, little on it) instead of discarding the contact; a stalled turn
+    says nothing."""
+    nav = scraped_nav(0.0, sigma_cm=5.0)
+    nav._contact_fix()
+    y, w = nav.belief.particles[:, 1], nav.belief.weights
+    assert float(w[y < 146.0].sum()) > 0.25 and float(w[y > 154.0].sum()) > 0.25
+    assert float(w[abs(y - 150.0) < 2.0].sum()) < 0.15
+    assert nav.counters["contacts"] == 1
     nav = scraped_nav(3.0)
     nav.last_motion = Motion("turn", 20.0)
-    assert not nav._contact_fix()  # a turn that stalled says nothing about the side walls
+    assert not nav._contact_fix() and nav.counters["contacts"] == 0
 
 
-def test_correct_pose_sets_the_map_pose_exactly() -> None:
-    nav = scraped_nav(10.0)
-    target = Pose(310.0, 140.0, 5.0)
-    nav.correct_pose(target)
-    p = nav.map_pose
-    assert (p.x, p.y, p.heading_deg) == pytest.approx((310.0, 140.0, 5.0))
+def test_a_block_the_map_does_not_explain_leaves_the_belief_alone() -> None:
+    """Blocked in the open room, far from any wall within the belief: something the map
+    does not show stopped it (another rover), so the contact is not used."""
+    nav = scraped_nav(3.0)
+    nav.pose = Pose(100.0, 100.0, 3.0)  # map (150, 150): the open room
+    believe(nav, 4.0)
+    before = nav.map_pose
+    assert not nav._contact_fix()
+    after = nav.map_pose
+    assert (after.x, after.y) == pytest.approx((before.x, before.y), abs=1.0)
+    assert nav.counters["contacts"] == 0
 
 
 def test_a_block_in_a_narrow_passage_probes_sideways_at_once() -> None:
@@ -557,55 +578,57 @@ def test_a_block_short_of_the_mouth_during_a_series_is_its_next_step() -> None:
     assert not nav._nudging_here()
 
 
-def test_the_doubted_heading_drifts_with_the_distance_from_where_it_arose() -> None:
-    """A heading doubted by e moves the pose off by at most e [rad] times the straight
-    distance from where the doubt arose: going 100 cm on and back adds nothing in the
-    end, however far was driven; a correction starts it afresh."""
-    nav = scraped_nav(0.0)
-    nav._forget_fault_drift()
-    nav.heading_err_deg = 10.0
-    for _ in range(5):  # probing back and forth
-        nav.pose = Pose(350.0, 100.0, 0.0)
-        assert nav.fault_drift_cm == pytest.approx(100.0 * math.radians(10.0))
-        nav.pose = Pose(250.0, 100.0, 0.0)
-        assert nav.fault_drift_cm == pytest.approx(0.0)
-    nav.pose = Pose(250.0, 300.0, 0.0)
-    nav.correct_pose(Pose(300.0, 350.0, 0.0))
-    assert nav.fault_drift_cm == 0.0
-
-
-def test_drift_grows_with_distance_driven_and_restarts_at_a_correction() -> None:
-    """Moves (not turns) add to the distance since the pose was known; a contact
-    correction makes it known again."""
-    nav = scraped_nav(0.0)
-    assert nav.drift_cm == 3.0  # the floor
-    nav.driven_cm = 500.0
-    assert nav.drift_cm == pytest.approx(500.0 * nav.o.drift_per_cm)
-    nav.correct_pose(Pose(300.0, 150.0, 0.0))
-    assert nav.driven_cm == 0.0 and nav.drift_cm == 3.0
+def test_the_doubt_grows_with_driving_and_more_with_a_tread_report() -> None:
+    """The belief's 95 % radius (``drift_cm``) grows as Motor Control's pose moves on;
+    the same counts with the left tread reported short (it counted 4 cm of 20 driven)
+    widen it far more: that tread's travel is anywhere between its count and its drive,
+    and the heading doubt follows over the track width, with no degrees added by hand."""
+    def driven(report: bool) -> float:
+        nav = scraped_nav(0.0, sigma_cm=1.0)
+        nav.pose = Pose(100.0, 100.0, 0.0)  # map (150, 150): the open room
+        believe(nav, 1.0, 1.0)
+        start = nav.drift_cm
+        nav.last_motion = Motion("move", 20.0)
+        if report:
+            nav.note_tread_fault(TreadFault.short(0))
+        dtheta = (20.0 - 4.0) / nav.spec.track_width_cm if nav.spec else 16.0 / 13.0
+        ds = 12.0
+        x, y = 100.0 + ds * math.cos(dtheta / 2), 100.0 + ds * math.sin(dtheta / 2)
+        nav.pose = Pose(x, y, math.degrees(dtheta))
+        nav.track_belief()
+        for _ in range(4):
+            nav.last_motion = Motion("move", 20.0)
+            x, y = x + 20.0 * math.cos(dtheta), y + 20.0 * math.sin(dtheta)
+            nav.pose = Pose(x, y, math.degrees(dtheta))
+            nav.track_belief()
+        return nav.drift_cm - start
+    healthy, reported = driven(False), driven(True)
+    assert healthy > 0.0
+    assert reported > healthy + 10.0
 
 
 def test_after_a_long_drive_nudges_are_wider_and_may_enter_a_mapped_wall() -> None:
-    """5 m driven (20 cm of drift): the search steps 6.7 cm at a time, not 4, and a 20 cm
-    shift into the corridor's wall, refused right after the start, is tried: dead
-    reckoning may be that far off."""
+    """A belief 20-25 cm wide (95 %): the search steps a third of that at a time, not 4,
+    and a 20 cm shift into the corridor's wall, refused while the belief is narrow, is
+    tried: the pose may be that far off."""
     pts = [(420.0, 150.0), (500.0, 60.0)]
-    nav = nudging_nav((250.0, 150.0, 0.0), 20.0)
+    nav = believe(nudging_nav((250.0, 150.0, 0.0), 20.0), 1.0)
     assert nav._nudged(pts) is None
-    nav.driven_cm = 500.0
+    believe(nav, 10.0)
+    assert nav.drift_cm > 20.0
     assert nav._nudged(pts) == [(300.0, 170.0), *pts]
-    nav = scraped_nav(0.0)
-    nav.driven_cm = 500.0
+    nav = scraped_nav(0.0, sigma_cm=8.0)
     nav._last_block = (300.0, 150.0, 0.0)
     nav.goal, nav.goal_heading = (600.0, 150.0), None
     assert nav._probe_plan()
-    assert nav._nudge_off == pytest.approx(20.0 / 3.0)
+    assert 12.0 < nav.drift_cm < 36.0
+    assert nav._nudge_off == pytest.approx(nav.drift_cm / 3.0)
 
 
-def gap_blocked_nav(driven_cm: float) -> Any:
+def gap_blocked_nav(sigma_cm: float) -> Any:
     """A hider navigation (not started) stopped 5 cm into the gap of a 15 cm wall at x 400
-    (gap y 300..335) by dead reckoning, 5 cm above its lower edge, after ``driven_cm``
-    of driving: only the lower edge explains it within 14 cm; the upper wall's face
+    (gap y 300..335) by dead reckoning, 5 cm above its lower edge, with a belief
+    ``sigma_cm`` wide: the lower edge explains the stop nearby; the upper wall's face
     does 20 cm up."""
     nav = make_nav("hider", pool=BufferPool(4))
     nav.map = nav.work_map = room_map(
@@ -614,19 +637,19 @@ def gap_blocked_nav(driven_cm: float) -> Any:
     nav.pose = Pose(395.0, 312.5, 0.0)
     nav.last_motion = Motion("move", 20.0)
     nav.motion_from = Pose(375.0, 312.5, 0.0)
-    nav.driven_cm = driven_cm
-    return nav
+    return believe(nav, sigma_cm)
 
 
-def test_a_gap_edge_contact_is_acted_on_only_while_the_drift_is_small() -> None:
-    """Right after the start the lower edge is the only likely explanation: the pose
-    moves down. After 6 m (24 cm of drift) the upper face is as likely: no correction
-    (the passage is probed sideways instead)."""
-    nav = gap_blocked_nav(0.0)
+def test_a_gap_edge_contact_moves_the_belief_to_the_edge_and_keeps_the_far_face() -> None:
+    """A narrow belief: the lower edge is the only likely explanation, the pose moves
+    down. A wide one (after a long drive): the upper face explains it too, and the
+    belief keeps that hypothesis beside the lower edge's."""
+    nav = gap_blocked_nav(3.0)
     assert nav._contact_fix() and nav.map_pose.y < 312.5
-    nav = gap_blocked_nav(600.0)
-    assert not nav._contact_fix()
-    assert nav.map_pose == Pose(395.0, 312.5, 0.0)
+    nav = gap_blocked_nav(12.0)
+    nav._contact_fix()
+    ys = [c.pose.y for c in nav.spread.clusters]
+    assert any(y < 305.0 for y in ys) and any(y > 318.0 for y in ys)
     assert nav._in_passage()
 
 
@@ -702,16 +725,3 @@ def test_a_probe_sidesteps_across_before_joining_the_shifted_line() -> None:
     assert [q for p in out for q in p] == pytest.approx([300.0, 140.0, 340.0, 140.0, 600.0, 150.0])
     nav._nudge, nav._nudge_off = (0.0, -4.0, 320.0, 150.0), -4.0
     assert nav._nudged(pts) == [(340.0, 146.0), (600.0, 150.0)]
-
-
-def test_a_contact_that_measures_only_along_the_heading_keeps_the_drift() -> None:
-    """A correction whose sideways position is not known (a wall's face across the
-    heading) moves the pose but keeps the distance driven, so the drift (and the
-    sideways search it sizes) stays; a full correction restarts it."""
-    nav = scraped_nav(0.0)
-    nav.driven_cm = 500.0
-    nav.correct_pose(Pose(296.0, 150.0, 0.0), sideways_known=False)
-    assert nav.map_pose.x == pytest.approx(296.0)
-    assert nav.drift_cm == pytest.approx(500.0 * nav.o.drift_per_cm)
-    nav.correct_pose(Pose(296.0, 150.0, 0.0))
-    assert nav.drift_cm == 3.0
