@@ -53,11 +53,17 @@ from actors.firmware.localisation.free_space_model import (
     FreeSpaceOptions,
     free_space_log_likelihood,
 )
-from actors.firmware.localisation.motion_model import MotionNoise, TreadMotion, TreadReport
+from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
 from actors.firmware.localisation.odometry import Pose, angle_diff_deg, compose, inverse
 from actors.firmware.mapping.grid_map import GridMap
 
 __all__ = ["BeliefTracking", "tread_motion"]
+
+START_SIGMA_CM = 1.0
+"""Standard deviation of x and y of the belief at the server's ``origin`` [cm]: the
+rover stands where the server placed it, to within its placement."""
+START_SIGMA_DEG = 1.0
+"""Standard deviation of the heading of the belief at the server's ``origin`` [deg]."""
 
 
 def tread_motion(before: Pose, after: Pose, track_width_cm: float) -> tuple[float, float]:
@@ -76,8 +82,6 @@ class BeliefTracking:
     def _init_belief(self) -> None:
         self.belief: PoseBelief | None = None
         """The pose belief (map frame); None until origin and pose are known."""
-        self.noise = MotionNoise()
-        """Noise levels of the tread motion model."""
         self._rng = np.random.default_rng(zlib.crc32(f"belief:{self.role}".encode()))
         self._belief_odom: Pose | None = None  # own-frame pose the belief was last moved to
         self._reports = [TreadReport.OK, TreadReport.OK]  # tread reports since then
@@ -132,7 +136,8 @@ class BeliefTracking:
         if self.origin is None or not self.pose_known:
             return
         if self.belief is None or self._belief_odom is None:
-            self.belief = PoseBelief.around(self.map_pose, self._rng)
+            self.belief = PoseBelief.around(self.map_pose, self._rng, sigma_cm=START_SIGMA_CM,
+                                             sigma_deg=START_SIGMA_DEG)
             self._belief_odom, self._spread = self.pose, None
             return
         self._predict()
@@ -153,7 +158,7 @@ class BeliefTracking:
         if self._reports != [TreadReport.OK, TreadReport.OK]:
             driven = self._driven(left, right, w)
         motion = TreadMotion(left, right, driven[0], driven[1], *self._reports)
-        self.belief.predict(motion, w, self.noise, self._rng)
+        self.belief.predict(motion, w, self.o.motion, self._rng)
         self._belief_odom, self._spread = self.pose, None
         self._reports = [TreadReport.OK, TreadReport.OK]
 

@@ -3,7 +3,9 @@ instructions (`NavMemory`) that survives a navigation restart."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+
+from actors.firmware.localisation.motion_model import MotionNoise
 
 __all__ = ["NavOptions", "NavMemory"]
 
@@ -107,6 +109,8 @@ class NavOptions:
     the previous incarnation commanded arrives meanwhile and is ignored."""
     outbox: int = 16
     """Reports waiting for room in the pool or WiFly's mailbox, at most."""
+    motion: MotionNoise = field(default_factory=MotionNoise)
+    """Noise levels of the pose belief's tread motion model (`belief_tracking`)."""
 
 
 @dataclass(slots=True)
