@@ -239,6 +239,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
 
     async def on_origin(self) -> None:
         self.forget_belief()
+        self.track_belief()  # a new belief round the origin, if the pose is known
 
     def on_pose_at_rest(self) -> None:
         self.track_belief()
