@@ -1,4 +1,4 @@
-"""Whole games on every built-in scenario: the figures of issue 4's targets.
+"""Whole games on every built-in scenario: map quality, the hider's error and speed.
 
 Run as ``python -m benchmarks.game [--quick] [--scenarios a,b] [--seeds 1-5]
 [--workers W] [--budget S]``.

@@ -1,4 +1,4 @@
-"""What recording costs a game: speed and file size (issue 21's limits).
+"""What recording costs a game, in speed and file size, against unrecorded plays.
 
 Run as ``python -m benchmarks.recording [--scenario furniture] [--seed 1] [--rounds 2]``.
 

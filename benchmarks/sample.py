@@ -1,4 +1,4 @@
-"""Statistical CPU profile of one headless game (where the CPU goes, issue 4).
+"""Statistical CPU profile of one headless game: where the CPU goes.
 
 Run as ``python -m benchmarks.sample --scenario hall --seed 1 [--every-ms 2] [--top 40]``.
 

@@ -1,4 +1,4 @@
-"""OTP supervisor semantics: one test per rule of issue 2 (numbered as there)."""
+"""OTP supervisor semantics: one test per rule of the contract in `supervisors.supervisor`."""
 
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ from supervisors.harness.campaign.plan import GameSpec, plan_game
 from supervisors.harness.campaign.refs import CampaignConfig
 
 #: a game's expected CPU time per built-in room [s] (whole campaign game, one core; games of
-#: campaigns 1 and 2 at commit f1f70c4, rounded: docs/scaling.md "Dispatch order"); only the
+#: measured on whole campaigns, rounded: docs/scaling.md "Dispatch order"); only the
 #: dispatch order reads it, so a stale figure costs the pool some balance at the end, never
 #: a different result
 ROOM_CPU_S: dict[str, float] = {
