@@ -383,8 +383,8 @@ class _Guard(HeapEntry):
     scope goes through Trio's bookkeeping (a context manager, twice per message
     at a new instant, about 4 % of a game). When the deadline is due, Trio's expiry
     pass calls `_cancel` with its reason, which cancels the scope at that moment,
-    as the scope's own deadline would have. Without the heap (guest mode, another
-    Trio) the scope's deadline is moved as before.
+    as the scope's own deadline would have. Without the heap (another Trio) the
+    scope's deadline is moved as before.
     """
 
     __slots__ = ("scope", "watchdog", "since")

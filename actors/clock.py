@@ -114,11 +114,14 @@ def set_rate_soon(token: trio.lowlevel.TrioToken, clock: MockClock, rate: float)
 
 def deadline_heap() -> object | None:
     """Trio's heap of deadlines (`Deadlines`) of the running loop, or None where the
-    shortcuts that use it are off: another Trio version, or guest mode (the console),
-    where a change of the next deadline must also wake the host loop."""
+    shortcuts that use it are off (another Trio version).
+
+    Guest mode (the console) uses it too: Trio wakes a sleeping guest run when a
+    deadline changes because the host may change one between batches, but a sleep
+    enters its deadline from inside a batch, after which Trio computes its next
+    timeout anyway."""
     try:
-        runner = GLOBAL_RUN_CONTEXT.runner
-        return None if runner.is_guest else runner.deadlines
+        return GLOBAL_RUN_CONTEXT.runner.deadlines
     except AttributeError:
         return None
 
@@ -223,9 +226,9 @@ async def sleep_until(deadline: float) -> None:
     pass wakes it with a plain value, at the moment it would have cancelled the
     scope (so in the same scheduler batch: the same game, same trace hash). A
     cancellation from outside (a timer cancelled, an actor killed) raises
-    ``Cancelled`` as before. Without Trio's internals (another Trio version), in
-    guest mode (the console) and for a deadline already due, a cancel scope does
-    it, still without the exception when its own deadline fires.
+    ``Cancelled`` as before. Without Trio's internals (another Trio version) and
+    for a deadline already due, a cancel scope does it, still without the
+    exception when its own deadline fires.
 
     Raises:
         ValueError: ``deadline`` is NaN.

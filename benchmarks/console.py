@@ -2,9 +2,11 @@
 and key-to-actor latency.
 
 Run as ``python -m benchmarks.console [--quick] [--live SCENARIO] [--tab TAB]``.
-Both throughput runs use the fake system (`tui.fake.FakeSystem`), or with
-``--live`` the simulated system (`tui.live.LiveSystem`), at "as fast as
-possible" with the same script (map the room, start a new game, map again ...);
+Both throughput runs use the fake system (`tui.fake.FakeSystem`) with the same
+script (map the room, start a new game, map again ...), or with ``--live`` the
+simulated system (`tui.live.LiveSystem`) playing the headless game by itself
+(``hideseek play --auto``: the same game, event for event, on both sides), at
+"as fast as possible";
 the headless run is the baseline measured in the same process. "Attached" is
 the console in Textual's headless driver at 120x40 showing tab ``TAB`` (queues
 by default): it lays out and renders every frame but writes to no terminal, so
@@ -141,8 +143,8 @@ def live_system(scenario: str, stretch: tuple[float, float] = LIVE_STRETCH):
     from world.scenario import load_scenario
 
     loaded = load_scenario(scenario)
-    return lambda: Timed(Scripted(LiveSystem(loaded, seed=1, speed=None, db=":memory:"),
-                                  300.0), stretch)
+    return lambda: Timed(LiveSystem(loaded, seed=1, speed=None, db=":memory:", auto=True),
+                         stretch)
 
 
 def headless(make=fake_system) -> tuple[float, float]:

@@ -100,7 +100,7 @@ def truth_map(scenario: Any) -> Any:
     side), in the mapper's start frame (start heading 0 only) [5 cm cells]."""
     import numpy as np  # noqa: PLC0415
 
-    from actors.firmware.mapping.grid_map import FREE, OCCUPIED, GridMap  # noqa: PLC0415
+    from server.protocol.grid_map import FREE, OCCUPIED, GridMap  # noqa: PLC0415
     from world.truth import truth_raster  # noqa: PLC0415
 
     start = scenario.starts["mapper"]
@@ -188,8 +188,9 @@ def play_one(job: tuple[str, int, float, bool]) -> dict[str, Any]:
                 if g.hider_pose is None:
                     probe.pop("true_hider", None)
                 elif g.hide_spot is not None:
-                    probe["dr_hider"] = (g.hider_pose.x, g.hider_pose.y, g.hider_pose.heading)
-                    probe["dr_spot"] = (g.hide_spot.x, g.hide_spot.y, g.hide_spot.heading)
+                    h, s = g.hider_pose, g.hide_spot
+                    probe["dr_hider"] = (h.x, h.y, h.heading_deg)
+                    probe["dr_spot"] = (s.x, s.y, s.heading_deg)
 
     seed_trio_scheduler(seed)
     wall0 = time.perf_counter()

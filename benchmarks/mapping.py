@@ -32,12 +32,12 @@ import time
 
 import numpy as np
 
-from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import MatchFields, MatchOptions, hits_to_local, match_scan
 from actors.firmware.planning.frontier import find_frontiers
 from actors.firmware.planning.planner import astar, plan_path, traversable
+from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
+from server.protocol.pose import Pose
 
 ROOM = (-300.0, 700.0, -200.0, 600.0)  # x0, x1, y0, y1 [cm]: a 10 m x 8 m hall
 

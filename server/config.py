@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .protocol import Pose2
+from .protocol import Pose
 
 __all__ = ["ServerConfig"]
 
@@ -15,8 +15,9 @@ class ServerConfig:
 
     tokens: dict[str, str] = field(default_factory=dict)
     """Rover id -> token that rover's hello must carry; key ``*`` for every rover."""
-    origins: dict[str, Pose2] = field(default_factory=dict)
-    """Start pose in the ROOM frame [cm, deg] by rover id or by role."""
+    origins: dict[str, Pose] = field(default_factory=dict)
+    """Start pose in the ROOM frame [cm, deg] by rover id or by role; an ``(x, y, heading)``
+    sequence is taken as the `Pose` it spells."""
     heartbeat_s: float = 1.0
     down_after_s: float = 5.0
     serial_retry_s: tuple[float, float] = (1.0, 30.0)
@@ -47,3 +48,7 @@ class ServerConfig:
     """Shortest time between two stored summaries of bad frames or auth failures [s]."""
     resume: bool = False
     """Play on the store's newest game when it is unfinished, instead of a new one."""
+
+    def __post_init__(self) -> None:
+        origins = {rid: p if isinstance(p, Pose) else Pose(*p) for rid, p in self.origins.items()}
+        object.__setattr__(self, "origins", origins)

@@ -15,7 +15,7 @@ import zlib
 
 import numpy as np
 
-from .protocol import MapGrid
+from .protocol import GridMap
 
 __all__ = ["FREE_PIXEL", "OCCUPIED_PIXEL", "UNKNOWN_PIXEL", "map_image", "write_pgm",
            "write_png", "png_bytes", "pgm_bytes"]
@@ -25,22 +25,30 @@ OCCUPIED_PIXEL = 0
 UNKNOWN_PIXEL = 205
 
 
-def map_image(grid: MapGrid) -> np.ndarray:
+def map_image(grid: GridMap) -> np.ndarray:
     """Grey pixels (uint8, shape (ny, nx)) with the top row the highest y."""
     lut = np.array([UNKNOWN_PIXEL, FREE_PIXEL, OCCUPIED_PIXEL], dtype=np.uint8)
     return lut[grid.codes()][::-1].copy()
 
 
-def pgm_bytes(grid: MapGrid) -> bytes:
+def pgm_bytes(grid: GridMap) -> bytes:
     """The map as a binary PGM (P5) file."""
     img = map_image(grid)
     ny, nx = img.shape
     return b"P5\n%d %d\n255\n" % (nx, ny) + img.tobytes()
 
 
-def png_bytes(grid: MapGrid) -> bytes:
-    """The map as an 8-bit greyscale PNG file."""
+def png_bytes(grid: GridMap, scale: int = 1) -> bytes:
+    """The map as an 8-bit greyscale PNG file, ``scale`` x ``scale`` pixels per cell.
+
+    Raises:
+        ValueError: ``scale`` is not within 1..32.
+    """
+    if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 32:
+        raise ValueError(f"scale must be an integer within 1..32, got {scale!r}")
     img = map_image(grid)
+    if scale > 1:
+        img = np.repeat(np.repeat(img, scale, axis=0), scale, axis=1)
     ny, nx = img.shape
     raw = b"".join(b"\x00" + img[i].tobytes() for i in range(ny))  # filter 0 per row
 
@@ -53,7 +61,7 @@ def png_bytes(grid: MapGrid) -> bytes:
             + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
 
 
-def write_pgm(grid: MapGrid, out_dir: pathlib.Path | str, name: str) -> tuple[pathlib.Path,
+def write_pgm(grid: GridMap, out_dir: pathlib.Path | str, name: str) -> tuple[pathlib.Path,
                                                                              pathlib.Path]:
     """Write ``name.pgm`` and ``name.yaml`` into ``out_dir``; return both paths."""
     out = pathlib.Path(out_dir)
@@ -73,10 +81,11 @@ def write_pgm(grid: MapGrid, out_dir: pathlib.Path | str, name: str) -> tuple[pa
     return pgm, yml
 
 
-def write_png(grid: MapGrid, out_dir: pathlib.Path | str, name: str) -> pathlib.Path:
-    """Write ``name.png`` into ``out_dir``; return its path."""
+def write_png(grid: GridMap, out_dir: pathlib.Path | str, name: str,
+              scale: int = 1) -> pathlib.Path:
+    """Write ``name.png`` into ``out_dir`` (``scale`` pixels per cell edge); return its path."""
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{name}.png"
-    path.write_bytes(png_bytes(grid))
+    path.write_bytes(png_bytes(grid, scale))
     return path

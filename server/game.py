@@ -30,9 +30,10 @@ from .protocol import (
     ORIGIN,
     START,
     STOP,
+    ZERO_POSE,
     Frame,
-    MapGrid,
-    Pose2,
+    GridMap,
+    Pose,
     compose,
     inverse,
     make_frame,
@@ -92,17 +93,17 @@ class Game:
             mapper pose means the map frame is the room frame.
     """
 
-    start_poses: Mapping[str, Pose2] = field(default_factory=dict)
+    start_poses: Mapping[str, Pose] = field(default_factory=dict)
     phase: Phase = Phase.IDLE
-    map: MapGrid | None = None
+    map: GridMap | None = None
     """The mapper's last uploaded map, None before the first."""
     stopping: bool = False
     """Stop was sent to the mapper; its map upload will end mapping."""
-    hide_spot: Pose2 | None = None
+    hide_spot: Pose | None = None
     """Where the hider was sent (map frame)."""
-    hider_pose: Pose2 | None = None
+    hider_pose: Pose | None = None
     """Where the hider reported arriving (map frame)."""
-    guesses: list[Pose2] = field(default_factory=list)
+    guesses: list[Pose] = field(default_factory=list)
     """The seeker's destinations, in order (map frame)."""
     last_reason: str = ""
     """Why the game is in its phase: the reason of the invalid_spot or not_found
@@ -115,24 +116,24 @@ class Game:
 
     # -- frames ------------------------------------------------------------------
 
-    def mapper_room_pose(self) -> Pose2:
+    def mapper_room_pose(self) -> Pose:
         """The mapper's start pose in the room frame (identity when not configured)."""
-        return Pose2(*self.start_poses.get("mapper", Pose2(0.0, 0.0, 0.0)))
+        return self.start_poses.get("mapper", ZERO_POSE)
 
-    def room_to_map(self, p: Pose2) -> Pose2:
+    def room_to_map(self, p: Pose) -> Pose:
         """A room-frame pose in the map frame."""
         return compose(inverse(self.mapper_room_pose()), p)
 
-    def map_to_room(self, p: Pose2) -> Pose2:
+    def map_to_room(self, p: Pose) -> Pose:
         """A map-frame pose in the room frame."""
         return compose(self.mapper_room_pose(), p)
 
-    def origin_of(self, role: str) -> Pose2 | None:
+    def origin_of(self, role: str) -> Pose | None:
         """The start pose of ``role`` in the map frame, None when not configured."""
         if role == "mapper":
-            return Pose2(0.0, 0.0, 0.0)
+            return ZERO_POSE
         p = self.start_poses.get(role)
-        return None if p is None else self.room_to_map(Pose2(*p))
+        return None if p is None else self.room_to_map(p)
 
     # -- operator ------------------------------------------------------------------
 
@@ -166,7 +167,7 @@ class Game:
             return _refuse(f"start_mapping needs phase idle, the game is {self.phase}")
         self._enter(Phase.MAPPING)
         self.stopping = False
-        return Result(True, sends=(Send("mapper", make_frame(ORIGIN, _pose(Pose2(0, 0, 0)))),
+        return Result(True, sends=(Send("mapper", make_frame(ORIGIN, MAP_FRAME_ORIGIN)),
                                    Send("mapper", make_frame(START))))
 
     def _cmd_stop_mapping(self, x, y, heading, frame) -> Result:
@@ -178,10 +179,14 @@ class Game:
         return Result(True, "stop sent; waiting for the mapper's map",
                       (Send("mapper", make_frame(STOP)),))
 
-    def _spot(self, x, y, heading, frame, what: str) -> Pose2 | str:
+    def _spot(self, x, y, heading, frame, what: str) -> Pose | str:
         if x is None or y is None:
             return f"{what} needs x and y [cm]"
-        p = Pose2(float(x), float(y), float(heading or 0.0))
+        try:
+            p = Pose(float(x), float(y), float(heading or 0.0))
+        except (TypeError, ValueError):
+            return (f"{what} needs finite numbers for x, y and heading, "
+                    f"got {x!r}, {y!r}, {heading!r}")
         if frame == "room":
             p = self.room_to_map(p)
         if self.map is not None:
@@ -193,7 +198,7 @@ class Game:
         return p
 
     def _origin_and_spot(self, role: str, what: str, x, y, heading,
-                         frame) -> tuple[Pose2, Pose2] | str:
+                         frame) -> tuple[Pose, Pose] | str:
         """The rover's start pose and the checked spot, or the reason to refuse."""
         origin = self.origin_of(role)
         if origin is None:
@@ -212,7 +217,7 @@ class Game:
         origin, spot = placed
         self.hide_spot = spot
         self._enter(Phase.HIDING)
-        dest = {"x": spot.x, "y": spot.y, "heading": None if heading is None else spot.heading}
+        dest = {"x": spot.x, "y": spot.y, "heading": None if heading is None else spot.heading_deg}
         return Result(True, sends=(Send("hider", make_frame(ORIGIN, _pose(origin))),
                                    Send("hider", make_frame(START)),
                                    Send("hider", make_frame(DESTINATION, dest))))
@@ -226,7 +231,7 @@ class Game:
         origin, spot = placed
         self.guesses.append(spot)
         self._enter(Phase.SEEKING)
-        dest = {"x": spot.x, "y": spot.y, "heading": None if heading is None else spot.heading}
+        dest = {"x": spot.x, "y": spot.y, "heading": None if heading is None else spot.heading_deg}
         if within is not None:  # absent, not null: a plain guess's frame stays as it was
             dest["within"] = within
         sends = []
@@ -247,7 +252,7 @@ class Game:
 
     # -- rovers ------------------------------------------------------------------------
 
-    def on_map(self, grid: MapGrid) -> Result:
+    def on_map(self, grid: GridMap) -> Result:
         """The mapper uploaded a complete map."""
         if self.phase not in (Phase.MAPPING, Phase.MAP_READY):
             return _refuse(f"map upload ignored in phase {self.phase}")
@@ -256,7 +261,7 @@ class Game:
         self.stopping = False
         return Result(True)
 
-    def on_rover(self, role: str, cmd: str, pose: Pose2 | None = None,
+    def on_rover(self, role: str, cmd: str, pose: Pose | None = None,
                  reason: str = "") -> Result:
         """A rover reported ``arrived``, ``invalid_spot``, ``found`` or ``not_found``."""
         expect = {"arrived": ("hider", Phase.HIDING), "invalid_spot": ("hider", Phase.HIDING),
@@ -283,23 +288,23 @@ class Game:
 
     def state(self) -> dict:
         """What the game holds besides its phase and map, as JSON-ready values (for storage)."""
-        def pose(p: Pose2 | None) -> list[float] | None:
-            return None if p is None else [p.x, p.y, p.heading]
+        def pose(p: Pose | None) -> list[float] | None:
+            return None if p is None else [p.x, p.y, p.heading_deg]
 
         return {"stopping": self.stopping, "hide_spot": pose(self.hide_spot),
                 "hider_pose": pose(self.hider_pose), "guesses": [pose(g) for g in self.guesses],
                 "last_reason": self.last_reason, "seeker_started": self._seeker_started}
 
     @classmethod
-    def restored(cls, start_poses: Mapping[str, Pose2], phase: str, state: dict,
-                 grid: MapGrid | None) -> Game:
+    def restored(cls, start_poses: Mapping[str, Pose], phase: str, state: dict,
+                 grid: GridMap | None) -> Game:
         """The game as `state` and the stored phase and map describe it.
 
         Raises:
             ValueError: an unknown phase, or a phase past mapping without a map.
         """
-        def pose(v) -> Pose2 | None:
-            return None if v is None else Pose2(*(float(x) for x in v))
+        def pose(v) -> Pose | None:
+            return None if v is None else Pose(*(float(x) for x in v))
 
         game = cls(start_poses=start_poses, phase=Phase(phase), map=grid,
                    stopping=bool(state.get("stopping", False)),
@@ -318,5 +323,11 @@ class Game:
         return self.phase is Phase.FOUND
 
 
-def _pose(p: Pose2) -> dict:
-    return {"x": p.x, "y": p.y, "heading": p.heading}
+def _pose(p: Pose) -> dict:
+    """A pose as the wire's ``pose`` payload."""
+    return {"x": p.x, "y": p.y, "heading": p.heading_deg}
+
+
+MAP_FRAME_ORIGIN = {"x": 0, "y": 0, "heading": 0}
+"""The mapper's ``origin`` payload: its start pose is the map frame's origin by
+definition, written as the exact integers 0."""

@@ -77,14 +77,14 @@ from .protocol import (
     Fault,
     Frame,
     FrameError,
+    GridMap,
     Hello,
     LineBuffer,
     LinkStats,
     MapAssembler,
     MapError,
-    MapGrid,
     OutboxFull,
-    Pose2,
+    Pose,
     ReliableSession,
     decode_line,
     make_frame,
@@ -139,7 +139,7 @@ class RoverView:
     role: str
     link: str
     stats: LinkStats
-    pose: Pose2 | None
+    pose: Pose | None
     """Last reported pose (map frame)."""
     status: dict[str, Any]
 
@@ -153,9 +153,9 @@ class ServerSnapshot:
     phase: str
     reason: str
     rovers: tuple[RoverView, ...]
-    map: MapGrid | None
-    hide_spot: Pose2 | None
-    guesses: tuple[Pose2, ...]
+    map: GridMap | None
+    hide_spot: Pose | None
+    guesses: tuple[Pose, ...]
     dropped_events: int
     connections: int = 0
     """TCP connections open now."""
@@ -204,7 +204,7 @@ class _Rover:
         self.conn: _Conn | None = None
         self.row: int | None = None    # rover_sessions row of the current binding
         self.up_reported = False
-        self.pose: Pose2 | None = None
+        self.pose: Pose | None = None
         self.status: dict[str, Any] = {}
         self.assembler = MapAssembler()
         self.stored: tuple[int, tuple[int, int]] | None = None  # (game, pending mark) on disk
@@ -221,7 +221,7 @@ class Server:
         self._rovers: dict[str, _Rover] = {}
         self._role: dict[str, str] = {}         # role -> rover id (last hello wins)
         self._sim_roles: set[str] = set(config.simulated)
-        self._start_poses: dict[str, Pose2] = {}
+        self._start_poses: dict[str, Pose] = {}
         self._subscribers: list[trio.MemorySendChannel[ServerEvent]] = []
         self._frame_observers: list[Callable[[str, str, Frame], None]] = []
         self.dropped_events = 0
@@ -261,7 +261,7 @@ class Server:
             self._restore_pending(rover, pending)
             origin = self.config.origins.get(rid, self.config.origins.get(role))
             if origin is not None:
-                self._start_poses[role] = Pose2(*origin)
+                self._start_poses[role] = origin
         self._emit("resumed", data={"game": row.id, "phase": str(game.phase)})
 
     # -- operator API -----------------------------------------------------------------
@@ -656,7 +656,7 @@ class Server:
         self._role[hello.role] = hello.id
         origin = self.config.origins.get(hello.id, self.config.origins.get(hello.role))
         if origin is not None:
-            self._start_poses[hello.role] = Pose2(*origin)
+            self._start_poses[hello.role] = origin
         rover.session.reset_peer(hello.seq_base)
         rover.session.receive(frame, now)
         rover.session.send(make_frame(WELCOME, {
@@ -689,7 +689,7 @@ class Server:
             return
         cmd = frame.cmd
         if cmd == "pose":
-            rover.pose = Pose2(payload.x, payload.y, payload.heading)
+            rover.pose = Pose(payload.x, payload.y, payload.heading)
             self._emit("pose", rover.id, {"x": payload.x, "y": payload.y,
                                           "heading": payload.heading}, log=False)
         elif cmd == "status":
@@ -702,13 +702,13 @@ class Server:
         elif cmd == MAP:
             self._on_map_chunk(rover, frame, payload, now)
         elif cmd in ("arrived", "invalid_spot", "found", "not_found"):
-            pose = (Pose2(payload.x, payload.y, payload.heading)
+            pose = (Pose(payload.x, payload.y, payload.heading)
                     if hasattr(payload, "x") else None)
             reason = getattr(payload, "reason", "")
             result = self.game.on_rover(rover.role, cmd, pose, reason)
             data: dict[str, Any] = {"report": cmd, "ok": result.ok, "reason": result.reason}
             if pose is not None:
-                data.update(x=pose.x, y=pose.y, heading=pose.heading)
+                data.update(x=pose.x, y=pose.y, heading=pose.heading_deg)
             self._emit("report", rover.id, data)
             if result.ok:
                 self._apply(result)

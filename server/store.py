@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from .protocol import MapGrid
+from .protocol import GridMap
 
 __all__ = ["Store", "GameRow", "MapRow", "StoreError", "STATUSES"]
 
@@ -237,7 +237,7 @@ class Store:
 
     # -- maps -------------------------------------------------------------------------
 
-    def save_map(self, grid: MapGrid, *, game_id: int | None, t: float, accepted: bool = True,
+    def save_map(self, grid: GridMap, *, game_id: int | None, t: float, accepted: bool = True,
                  note: str = "") -> int:
         """Store a map (cells as int8 bytes); return its id.
 
@@ -266,7 +266,7 @@ class Store:
         return [MapRow(r[0], r[1], r[2], r[3], r[4], r[5], (r[6], r[7]),
                        bool(1 if r[8] is None else r[8]), r[9] or "") for r in rows]
 
-    def load_map(self, map_id: int) -> MapGrid:
+    def load_map(self, map_id: int) -> GridMap:
         """A stored map. Raises StoreError when there is no such map."""
         r = self._db.execute("SELECT nx, ny, resolution_cm, origin_x_cm, origin_y_cm, cells "
                              "FROM maps WHERE id = ?", (map_id,)).fetchone()
@@ -274,9 +274,9 @@ class Store:
             raise StoreError(f"no map {map_id} in {self.path}")
         nx, ny, res, ox, oy, blob = r
         cells = np.frombuffer(blob, dtype=np.int8).reshape(ny, nx).copy()
-        return MapGrid(cells, res, (ox, oy))
+        return GridMap(cells, res, (ox, oy))
 
-    def latest_map_of_game(self, game_id: int) -> MapGrid:
+    def latest_map_of_game(self, game_id: int) -> GridMap:
         """The last map stored for a game, accepted or not. Raises StoreError when it has none."""
         r = self._db.execute("SELECT id FROM maps WHERE game_id = ? ORDER BY id DESC LIMIT 1",
                              (game_id,)).fetchone()
@@ -299,7 +299,7 @@ class Store:
         more = f" ({ignored} upload(s) it ignored; see 'hideseek maps')" if ignored else ""
         raise StoreError(f"game {game_id} has no map{more}")
 
-    def game_map(self, game_id: int) -> MapGrid:
+    def game_map(self, game_id: int) -> GridMap:
         """The map a game played on. Raises StoreError when it has none."""
         return self.load_map(self.game_map_id(game_id))
 

@@ -28,6 +28,7 @@ scenario are not injected here (device faults are, by the world).
 from __future__ import annotations
 
 import contextlib
+import functools
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from typing import Any
@@ -139,13 +140,22 @@ async def _open_stream(spec: LinkSpec) -> Any:
         return await trio.open_tcp_stream(spec.host, spec.port)
     if spec.kind == "serial":
         return open_serial_stream(spec.url, spec.baud)
+    if spec.kind == "tcp_in":  # the rover listens; the server connects out to it
+        listeners = await trio.open_tcp_listeners(spec.port, host=spec.host or None)
+        try:
+            return await listeners[0].accept()
+        finally:
+            for listener in listeners:
+                await listener.aclose()
     raise OSError(f"a rover's link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, "
                   f"got {spec.text!r}")
 
 
-async def _pump(stream: Any, link: WiflyLink, rover: RemoteRover) -> str:
-    """Move bytes both ways until the stream ends; returns why it ended."""
+async def _pump(stream: Any, link: WiflyLink, rover: RemoteRover, on_answer: Any) -> str:
+    """Move bytes both ways until the stream ends; returns why it ended. ``on_answer()`` is
+    called once, when the first bytes from the server arrive (a peer is there)."""
     why = "closed by the other end"
+    answered = False
 
     async def writer() -> None:
         while True:
@@ -161,6 +171,9 @@ async def _pump(stream: Any, link: WiflyLink, rover: RemoteRover) -> str:
                 if not data:
                     break
                 rover.bytes_in += len(data)
+                if not answered:
+                    answered = True
+                    on_answer()
                 link.server_write(data)
         finally:
             nursery.cancel_scope.cancel()
@@ -195,9 +208,10 @@ async def _keep_connected(rover: RemoteRover, link: WiflyLink, report: Report,
                 continue
         rover.connects += 1
         rover.uplink.connected = True
-        report(f"connected to {rover.pty_path or spec.text}")
-        try:
-            why = await _pump(stream, link, rover)
+        where = rover.pty_path or spec.text
+        try:  # "connected" once the server answers: an open port or socket is no server yet
+            why = await _pump(stream, link, rover,
+                              functools.partial(report, f"connected to {where}"))
         except (OSError, trio.BrokenResourceError, trio.ClosedResourceError,
                 BaseExceptionGroup) as exc:
             if isinstance(exc, BaseExceptionGroup) and not exc.subgroup(
@@ -248,7 +262,7 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
     """
     if role not in ROLES:
         raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
-    if link.kind not in ("tcp_listen", "serial", "pty"):
+    if link.kind not in ("tcp_listen", "tcp_in", "serial", "pty"):
         raise ValueError(f"a rover's link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, "
                          f"got {link.text!r}")
     first, most = retry_s

@@ -141,9 +141,8 @@ class _Isrs:
     """The rover's ISR objects: made once per tree (their counters survive restarts),
     each posting into its owner's mailbox.
 
-    The posts learn the running system when an actor of the tree starts: `bind`
-    wraps the actor's ``on_start`` for that, until the runtime offers a start hook
-    the tree can hand in.
+    The posts learn the running system from `attach`, the ``init`` hook of every
+    driver's child spec, which runs on each incarnation before the actor's ``on_start``.
     """
 
     def __init__(self, role: str, names: Addresses, pool: BufferPool) -> None:
@@ -153,17 +152,10 @@ class _Isrs:
         self.lidar = LidarUartIsr(self.posts["lidar"]) if role == "mapper" else None
         self.ir = IrAdcIsr(self.posts["ir"]) if role == "seeker" else None
 
-    def bind(self, actor: Actor) -> Actor:
-        """Point the ISR posts at the running system when ``actor`` starts."""
-        original = actor.on_start
-        posts = self.posts
-
-        async def on_start() -> None:
-            for post in posts.values():
-                post.system = actor.ctx.system
-            await original()
-        actor.on_start = on_start  # type: ignore[method-assign]
-        return actor
+    def attach(self, actor: Actor) -> None:
+        """Point the ISR posts at the system ``actor`` runs in (a child spec's ``init``)."""
+        for post in self.posts.values():
+            post.system = actor.ctx.system
 
 
 def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = None,
@@ -208,40 +200,40 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
     link_memory: list[LinkMemory] = []  # made lazily: LinkMemory reads Trio's clock
 
     isrs = _Isrs(role, names, pool)
-    bind = isrs.bind
 
     def make_wifly() -> Actor:
         if not link_memory:
             link_memory.append(LinkMemory())
-        return bind(Wifly(hardware, pool, rover_id=rover_id, role=role, token=token,
-                          memory=link_memory[0], isr=isrs.wifly, addresses=names))
+        return Wifly(hardware, pool, rover_id=rover_id, role=role, token=token,
+                     memory=link_memory[0], isr=isrs.wifly, addresses=names)
 
     map_starts = [0]
 
     def make_map() -> Actor:
         map_starts[0] += 1
-        return bind(MapManagement(pool, size_cm=map_size_cm, restarted=map_starts[0] > 1,
-                                  addresses=names))
+        return MapManagement(pool, size_cm=map_size_cm, restarted=map_starts[0] > 1,
+                             addresses=names)
 
-    def child(cid: str, start: Callable[[], Actor]) -> ChildSpec:
-        return ChildSpec(cid, start, mailbox=MAILBOX[cid], watchdog=WATCHDOG_S[cid])
+    def child(cid: str, start: Callable[[], Actor], *, driver: bool = True) -> ChildSpec:
+        return ChildSpec(cid, start, mailbox=MAILBOX[cid], watchdog=WATCHDOG_S[cid],
+                         init=isrs.attach if driver else None)
 
     children = [
         child("wifly", make_wifly),
-        child("motor", lambda: bind(MotorControl(hardware, pose_memory, isr=isrs.motor,
-                                                 lidar=role == "mapper",
-                                                 tuning=motor_tuning, addresses=names))),
+        child("motor", lambda: MotorControl(hardware, pose_memory, isr=isrs.motor,
+                                            lidar=role == "mapper",
+                                            tuning=motor_tuning, addresses=names)),
     ]
     if role == "mapper":
         children += [
-            child("lidar", lambda: bind(LidarControl(hardware, pool, isr=isrs.lidar,
-                                                     addresses=names))),
+            child("lidar", lambda: LidarControl(hardware, pool, isr=isrs.lidar,
+                                                addresses=names)),
             child("map", make_map),
         ]
     if role == "seeker":
-        children.append(child("ir", lambda: bind(IrSensor(hardware, rate_hz=ir_rate_hz,
-                                                          adc_isr=isrs.ir, addresses=names))))
+        children.append(child("ir", lambda: IrSensor(hardware, rate_hz=ir_rate_hz,
+                                                     adc_isr=isrs.ir, addresses=names)))
     children.append(child("nav", lambda: factory(role, pool=pool, spec=hardware.spec,
-                                                 rover_id=rover_id, **options)))
+                                                 rover_id=rover_id, **options), driver=False))
     return SupervisorSpec(children, intensity=intensity, period=period,
                           backoff=Backoff(min=0.05, max=1.0, jitter=0.1, reset_after=10.0))

@@ -38,7 +38,7 @@ from actors import (
 from actors.clock import fast_instruments
 from actors.firmware.commands import Cmd
 from actors.firmware.hardware import ROLES
-from server.protocol import Pose2
+from server.protocol import Pose
 from server.server import Server, ServerConfig, open_server
 from server.store import Store
 from supervisors.rover import rover_tree
@@ -201,9 +201,9 @@ async def _run_world(world: World, origin: list[float]) -> None:
     await run_world(world)
 
 
-def scenario_origins(scenario: Scenario) -> dict[str, Pose2]:
+def scenario_origins(scenario: Scenario) -> dict[str, Pose]:
     """Each role's start pose in the room frame [cm, deg]: the server's ``origins``."""
-    return {role: Pose2(p.x, p.y, p.heading_deg) for role, p in scenario.starts.items()}
+    return {role: Pose(p.x, p.y, p.heading_deg) for role, p in scenario.starts.items()}
 
 
 def _world_events(trace: Trace, log: list[dict[str, Any]]) -> Callable[[str, str, dict], None]:

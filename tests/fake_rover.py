@@ -23,9 +23,9 @@ import trio
 
 from server.protocol import (
     Frame,
+    GridMap,
     MapAssembler,
-    MapGrid,
-    Pose2,
+    Pose,
     ReliableSession,
     make_frame,
     map_chunks,
@@ -33,21 +33,21 @@ from server.protocol import (
 )
 
 
-def room_map() -> MapGrid:
+def room_map() -> GridMap:
     """A 2 m x 1.5 m room at 5 cm, walls around, a box in the middle; map frame at (-50, -25)."""
     cells = np.zeros((30, 40), dtype=np.int8)
     cells[0, :] = cells[-1, :] = cells[:, 0] = cells[:, -1] = 100
     cells[12:18, 18:22] = 100
     cells[25:29, 30:39] = -1
-    return MapGrid(cells, 5.0, (-50.0, -25.0))
+    return GridMap(cells, 5.0, (-50.0, -25.0))
 
 
 class FakeRover:
     """One scripted rover (see the module docstring)."""
 
     def __init__(self, rid: str, role: str, *, token: str | None = None,
-                 room: MapGrid | None = None, map_after_s: float = 5.0,
-                 hider_at: Pose2 | None = None, found_within_cm: float = 40.0,
+                 room: GridMap | None = None, map_after_s: float = 5.0,
+                 hider_at: Pose | None = None, found_within_cm: float = 40.0,
                  drive_s: float = 3.0) -> None:
         self.id, self.role, self.token = rid, role, token
         self.room = room or room_map()
@@ -59,8 +59,8 @@ class FakeRover:
         self.welcomed = False
         self.received: list[Frame] = []
         """Every frame delivered by the session, in order."""
-        self.map: MapGrid | None = None
-        self.origin: Pose2 | None = None
+        self.map: GridMap | None = None
+        self.origin: Pose | None = None
         self._assembler = MapAssembler()
         self._destination: dict | None = None
         self._action_at = math.inf
@@ -117,7 +117,7 @@ class FakeRover:
         elif frame.cmd == "error" and body.detail == "send hello first":
             self.welcomed = False
         elif frame.cmd == "origin":
-            self.origin = Pose2(body.x, body.y, body.heading)
+            self.origin = Pose(body.x, body.y, body.heading)
         elif frame.cmd == "start":
             self.session.send(make_frame("status", {"state": "started"}))
             self.session.send(make_frame("pose", {"x": 0, "y": 0, "heading": 0}))

@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from actors.firmware.localisation.odometry import Pose
 from actors.firmware.mapping.occupancy import FREE, OCCUPIED, UNKNOWN, GridMap
+from server.protocol.pose import Pose
 
 RES = 5.0
 """Cell side of every test room [cm]."""

@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from actors import BufferPool
-from actors.firmware.localisation.odometry import Pose, advance
+from actors.firmware.localisation.odometry import advance
 from actors.firmware.nav.belief_tracking import tread_motion
 from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.route import Motion
-from tests.test_nav_common import scraped_nav
+from server.protocol.pose import Pose
+from tests.test_nav_recovery import scraped_nav
 
 
 @pytest.mark.parametrize("left, right", [(10.0, 10.0), (-6.0, 6.0), (3.0, 12.0), (-8.0, -2.0)])

@@ -13,7 +13,7 @@ import pytest
 import trio
 
 from actors import EventKind, Trace, virtual_clock
-from server.protocol import MapGrid, Reason, encode_frame, make_frame, map_chunks
+from server.protocol import GridMap, Reason, encode_frame, make_frame, map_chunks
 from supervisors.harness import invariants as inv
 from supervisors.harness.campaign import (
     CampaignConfig,
@@ -71,7 +71,7 @@ def test_exactly_once_lets_late_frames_be_in_flight():
 
 
 def _grid(cells, res=5.0, origin=(0.0, 0.0)):
-    return MapGrid(np.array(cells, dtype=np.int8), res, origin)
+    return GridMap(np.array(cells, dtype=np.int8), res, origin)
 
 
 def test_maps_equal_compares_cells_and_placement():
@@ -175,7 +175,7 @@ def test_delivery_probe_assembles_the_map_as_it_left_the_rover():
     probe = inv.DeliveryProbe(lambda: 0.0)
     tap = probe.taps.setdefault("mapper", inv._RoleTap())
     cells = np.random.default_rng(1).choice(np.array([-1, 0, 100], dtype=np.int8), (40, 60))
-    grid = MapGrid(cells, 5.0, (-100.0, -50.0))
+    grid = GridMap(cells, 5.0, (-100.0, -50.0))
     frames = map_chunks(grid, 1)
     assert len(frames) > 1
     for k, f in enumerate(frames, start=10):

@@ -17,9 +17,8 @@ import trio
 
 from actors import Actor, Message, virtual_clock
 from actors.firmware.commands import Cmd
-from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.nav.factory import make_nav
-from server.protocol import MapGrid
+from server.protocol import GridMap
 from supervisors.harness import campaign
 from supervisors.harness import invariants as inv
 from supervisors.harness.campaign import CampaignConfig, plan_game, play_campaign_game, play_checked
@@ -173,7 +172,7 @@ def test_no_loss_names_a_stored_map_that_differs_from_the_uploaded_one(monkeypat
         grid = real(system, store)
         cells = np.array(grid.cells)
         cells[0, 0] = 100 if cells[0, 0] != 100 else 0
-        return MapGrid(cells, grid.resolution_cm, grid.origin_cm)
+        return GridMap(cells, grid.resolution_cm, grid.origin_cm)
 
     monkeypatch.setattr(campaign_play, "_stored_map", tampered)
     _, violations = _play(uploading)

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planning.clearance import (
     check_spot,
     obstacle_ahead,
     passage_width,
     turning_radius_cm,
 )
+from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
+from server.protocol.pose import Pose
 
 RES = 5.0
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from actors.firmware.localisation.contact import locate_contact, stalled_side
-from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.grid_map import OCCUPIED, GridMap
+from server.protocol.grid_map import OCCUPIED, GridMap
+from server.protocol.pose import Pose
 
 BODY = {"length_cm": 20.0, "width_cm": 15.0}
 

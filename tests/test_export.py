@@ -8,9 +8,9 @@ import zlib
 import numpy as np
 
 from server.export import png_bytes, write_pgm, write_png
-from server.protocol import MapGrid
+from server.protocol import GridMap
 
-GRID = MapGrid(np.array([[0, 100, -1], [0, 0, 100]], dtype=np.int8), 5.0, (-100.0, 50.0))
+GRID = GridMap(np.array([[0, 100, -1], [0, 0, 100]], dtype=np.int8), 5.0, (-100.0, 50.0))
 
 
 def test_pgm_is_map_server_convention(tmp_path) -> None:

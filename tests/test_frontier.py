@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planning.frontier import (
     Frontier,
     FrontierWeights,
@@ -19,6 +18,7 @@ from actors.firmware.planning.frontier import (
     label_clusters,
     no_useful_frontier,
 )
+from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 
 
 def test_frontier_mask_is_free_cells_next_to_unknown():

@@ -9,15 +9,15 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
-from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.mapping.map_management import MapManagement
+from server.protocol.grid_map import GridMap
 from supervisors import ChildSpec, SupervisorSpec
 
 from .test_fw_lidar import Recorder
 
 
 def ring_scan(n: int = 360, r: float = 100.0) -> Scan:
-    from actors.firmware.localisation.odometry import Pose
+    from server.protocol.pose import Pose
     return Scan(Pose(), np.arange(n, dtype=np.float32) * (360 / n),
                 np.full(n, r, dtype=np.float32))
 
@@ -176,7 +176,7 @@ async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_cloc
     """Odometry says 4 deg more than the truth: the scan is registered onto the walls the
     reference scans drew, the correction (about -4 deg) goes to Motor Control, and the wall
     stays one band thick instead of being drawn twice."""
-    from actors.firmware.localisation.odometry import Pose
+    from server.protocol.pose import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
     spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
@@ -213,7 +213,7 @@ async def test_a_batch_with_an_unchanged_odometry_stamp_is_matched_until_the_rov
     """A turning rover's batch can carry the previous stamp (no Int E in its tick): it is
     matched onto the walls, not placed at the old pose; only after ``settle_s`` of
     unchanged odometry are batches placed unmatched (the rover stands)."""
-    from actors.firmware.localisation.odometry import Pose
+    from server.protocol.pose import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
     spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
@@ -256,7 +256,7 @@ async def test_a_batch_with_an_unchanged_odometry_stamp_is_matched_until_the_rov
 async def test_without_matching_a_heading_error_draws_a_second_wall(autojump_clock) -> None:
     """The same scans with matching off: the map grows a rotated copy of the walls (the
     failure the matching prevents)."""
-    from actors.firmware.localisation.odometry import Pose
+    from server.protocol.pose import Pose
 
     pool, log = BufferPool(64), []
     spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
@@ -280,7 +280,7 @@ async def test_without_matching_a_heading_error_draws_a_second_wall(autojump_clo
 async def test_restarted_map_takes_the_correction_back_from_motor(autojump_clock) -> None:
     """A restarted Map Management asks Motor Control (MOTOR_GET_POSE), drops scans until
     MAP_CORRECTION_* arrives, then uses that correction."""
-    from actors.firmware.localisation.odometry import Pose
+    from server.protocol.pose import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
     spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
@@ -334,8 +334,8 @@ async def test_flooding_the_map_mid_game_costs_drops_and_mapping_still_completes
 def test_an_odometry_stamp_across_the_heading_wrap_is_the_same_pose() -> None:
     """179.9 and -179.95 deg are 0.15 deg apart: a rover standing there stands (it was
     read as moved, so its batches were matched again for nothing)."""
-    from actors.firmware.localisation.odometry import Pose
     from actors.firmware.mapping.map_management import _same_pose
+    from server.protocol.pose import Pose
 
     assert _same_pose(Pose(10.0, 5.0, 179.9), Pose(10.2, 5.0, -179.95))
     assert not _same_pose(Pose(10.0, 5.0, 179.9), Pose(10.0, 5.0, -179.0))
@@ -349,7 +349,7 @@ async def test_a_lost_pose_places_no_batch_until_two_searches_agree(autojump_clo
     the stale pose (which would draw the room at every angle); the
     wide search finds the heading, and only two searches in a row that agree move the
     correction. The walls are not drawn a second time."""
-    from actors.firmware.localisation.odometry import Pose
+    from server.protocol.pose import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
     spec = _map_tree(pool, log, motor_log, warmup_scans=3)
@@ -385,7 +385,7 @@ async def test_without_the_lost_notice_a_standing_rover_draws_its_unseen_turn(
     """The same batches without MAP_POSE_LOST: odometry stands, so after ``settle_s`` they
     are placed at the stale heading and draw a rotated copy of the room (what the notice
     prevents)."""
-    from actors.firmware.localisation.odometry import Pose
+    from server.protocol.pose import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
     spec = _map_tree(pool, log, motor_log, warmup_scans=3)
@@ -407,9 +407,9 @@ def test_a_refused_batch_whose_guess_fits_well_starts_the_relocalisation_count_o
     matching found nothing better) and one blurred by a turn (0.45) are not three lost
     batches in a row: no wide search (which could take a pose 23 deg off in a healthy
     hall). Three bad fits in a row still search."""
-    from actors.firmware.localisation.odometry import Pose
     from actors.firmware.mapping import map_management as mapping
     from actors.firmware.mapping.scan_match import MatchResult
+    from server.protocol.pose import Pose
 
     searches = []
 

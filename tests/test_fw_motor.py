@@ -13,7 +13,8 @@ from actors import Actor, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.motor import MotorControl, PoseMemory
 from actors.firmware.hardware import HardwareSpec, Interrupt, encode_counter
-from actors.firmware.localisation.odometry import Pose, angle_diff_deg, split_heading
+from actors.firmware.localisation.odometry import split_heading
+from server.protocol.pose import Pose, angle_diff_deg
 from supervisors import ChildSpec, SupervisorSpec
 from world import World, load_scenario, run_world
 
@@ -230,7 +231,7 @@ async def test_correction_puts_navigation_in_the_map_frame_and_lidar_stays_raw(
     """MOTOR_CORRECT_XY + _HEADING: navigation's pose is correction (+) odometry, the LIDAR
     keeps the raw odometry pose, the correction is retained, MOTOR_GET_POSE hands it to the
     map, and a NOOP flood message is ignored (no restart)."""
-    from actors.firmware.localisation.odometry import Pose, compose
+    from server.protocol.pose import Pose, compose
 
     hw = FakeHardware()
     log: list = []

@@ -12,10 +12,9 @@ from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.wifly import Wifly
 from actors.firmware.hardware import Interrupt
-from actors.firmware.mapping.grid_map import GridMap
 from server.protocol import (
+    GridMap,
     MapAssembler,
-    MapGrid,
     ReliableSession,
     make_frame,
     map_chunks,
@@ -95,7 +94,7 @@ async def test_hello_welcome_frames_and_map_download(autojump_clock) -> None:
         cells = np.zeros((40, 60), dtype=np.int8)
         cells[0, :] = 100
         cells[5:9, 5:9] = -1
-        for f in map_chunks(MapGrid(cells, 5.0, (-10.0, -20.0)), map_id=7):
+        for f in map_chunks(GridMap(cells, 5.0, (-10.0, -20.0)), map_id=7):
             server.session.send(f, reliable=True)
         await trio.sleep(3.0)
         frames = [p for c, p in log if c == Cmd.NAV_NET]

@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from server.game import Game, Phase
-from server.protocol import MapGrid, Pose2
+from server.protocol import GridMap, Pose
 
-MAP = MapGrid(np.zeros((20, 20), dtype=np.int8), 10.0, (-100.0, -100.0))
+MAP = GridMap(np.zeros((20, 20), dtype=np.int8), 10.0, (-100.0, -100.0))
 
 
 def _ready(**poses) -> Game:
-    g = Game(start_poses=poses or {"mapper": Pose2(0, 0, 0), "hider": Pose2(10, 0, 0),
-                                   "seeker": Pose2(0, 10, 0)})
+    g = Game(start_poses=poses or {"mapper": Pose(0, 0, 0), "hider": Pose(10, 0, 0),
+                                   "seeker": Pose(0, 10, 0)})
     assert g.command("start_mapping").ok
     assert g.on_map(MAP).ok
     return g
@@ -21,7 +21,7 @@ def _ready(**poses) -> Game:
 
 def test_happy_path_sends_the_right_frames() -> None:
     """Each transition sends exactly the frames the protocol describes, to the right role."""
-    g = Game(start_poses={"hider": Pose2(10, 0, 0), "seeker": Pose2(0, 10, 0)})
+    g = Game(start_poses={"hider": Pose(10, 0, 0), "seeker": Pose(0, 10, 0)})
     r = g.command("start_mapping")
     assert [(s.role, s.frame.cmd) for s in r.sends] == [("mapper", "origin"), ("mapper", "start")]
     r = g.command("stop_mapping")
@@ -31,25 +31,25 @@ def test_happy_path_sends_the_right_frames() -> None:
     assert [(s.role, s.frame.cmd) for s in r.sends] == [
         ("hider", "origin"), ("hider", "start"), ("hider", "destination")]
     assert r.sends[2].frame.data == {"x": 20.0, "y": 30.0, "heading": 90.0}
-    assert g.on_rover("hider", "arrived", Pose2(20, 30, 90)).ok and g.phase is Phase.HIDDEN
+    assert g.on_rover("hider", "arrived", Pose(20, 30, 90)).ok and g.phase is Phase.HIDDEN
     r = g.command("seek", x=0, y=0)
     assert [s.frame.cmd for s in r.sends] == ["origin", "start", "destination"]
     assert r.sends[2].frame.data["heading"] is None
     assert g.on_rover("seeker", "not_found", reason="nothing").ok
     r = g.command("seek", x=20, y=30)
     assert [s.frame.cmd for s in r.sends] == ["destination"]  # seeker already started
-    assert g.on_rover("seeker", "found", Pose2(20, 25)).ok and g.finished
+    assert g.on_rover("seeker", "found", Pose(20, 25)).ok and g.finished
 
 
 def test_a_wider_search_says_how_far_round_the_guess_and_is_bounded() -> None:
     """``seek ... within=W`` puts W in the seeker's destination (a plain guess's frame has
     no such field); a radius out of (0, 500] cm or on another command is refused with a
     reason and changes nothing."""
-    g = Game(start_poses={"hider": Pose2(10, 0, 0), "seeker": Pose2(0, 10, 0)})
+    g = Game(start_poses={"hider": Pose(10, 0, 0), "seeker": Pose(0, 10, 0)})
     g.command("start_mapping")
     g.on_map(MAP)
     g.command("hide", x=20, y=30)
-    g.on_rover("hider", "arrived", Pose2(20, 30, 0))
+    g.on_rover("hider", "arrived", Pose(20, 30, 0))
     r = g.command("seek", x=0, y=0)
     assert "within" not in r.sends[-1].frame.data
     g.on_rover("seeker", "not_found", reason="nothing")
@@ -82,7 +82,7 @@ def test_a_wider_search_says_how_far_round_the_guess_and_is_bounded() -> None:
 )
 def test_illegal_commands_are_refused_with_reason(setup, command, kwargs, reason) -> None:
     """A command outside its phase or with bad arguments is refused and changes nothing."""
-    g = Game() if setup == "idle" else (_ready(mapper=Pose2(0, 0, 0)) if setup == "nohider"
+    g = Game() if setup == "idle" else (_ready(mapper=Pose(0, 0, 0)) if setup == "nohider"
                                         else _ready())
     before = g.phase
     r = g.command(command, **kwargs)
@@ -101,13 +101,13 @@ def test_invalid_spot_returns_to_map_ready_with_reason() -> None:
 def test_a_reason_belongs_to_the_phase_it_caused() -> None:
     """A not_found's reason is shown while not_found, and gone once seeking goes on and finds."""
     g = _ready()
-    assert g.command("hide", x=20, y=30).ok and g.on_rover("hider", "arrived", Pose2(20, 30, 0)).ok
+    assert g.command("hide", x=20, y=30).ok and g.on_rover("hider", "arrived", Pose(20, 30, 0)).ok
     assert g.command("seek", x=0, y=0).ok
     assert g.on_rover("seeker", "not_found", reason="the IR sensor saw nothing").ok
     assert (g.phase, g.last_reason) == (Phase.NOT_FOUND, "the IR sensor saw nothing")
     assert g.command("seek", x=20, y=30).ok
     assert (g.phase, g.last_reason) == (Phase.SEEKING, "")
-    assert g.on_rover("seeker", "found", Pose2(20, 30, 0)).ok
+    assert g.on_rover("seeker", "found", Pose(20, 30, 0)).ok
     assert (g.phase, g.last_reason) == (Phase.FOUND, "")
 
 
@@ -120,11 +120,11 @@ def test_reports_from_wrong_role_or_phase_are_refused() -> None:
 
 def test_room_frame_spots_are_converted_to_map_frame() -> None:
     """With the mapper at (100, 0) facing +y, room (100, 50) is map (50, 0)."""
-    g = _ready(mapper=Pose2(100, 0, 90), hider=Pose2(100, 0, 90))
+    g = _ready(mapper=Pose(100, 0, 90), hider=Pose(100, 0, 90))
     r = g.command("hide", x=100, y=50, heading=90, frame="room")
     d = r.sends[2].frame.data
     assert (round(d["x"], 6), round(d["y"], 6), d["heading"]) == (50.0, 0.0, 0.0)
-    assert g.origin_of("hider") == Pose2(0.0, 0.0, 0.0)
+    assert g.origin_of("hider") == Pose(0.0, 0.0, 0.0)
 
 
 def test_new_game_stops_the_busy_rover_and_resets() -> None:

@@ -186,7 +186,7 @@ def test_hider_through_the_gap_and_seeker_find_it_on_a_true_map() -> None:
     reported = seen["reported"]  # map frame = room frame shifted by the mapper's start
     start = scenario.starts["mapper"]
     assert math.dist((reported.x + start.x, reported.y + start.y), (spot.x, spot.y)) <= 5.0
-    assert abs((reported.heading - spot.heading_deg + 180) % 360 - 180) <= 5.0
+    assert abs((reported.heading_deg - spot.heading_deg + 180) % 360 - 180) <= 5.0
     true = seen["true"]
     assert true.x > 415.0  # really behind the wall, in the alcove
     assert math.dist((true.x, true.y), (spot.x, spot.y)) <= 40.0  # dead-reckoning drift

@@ -10,7 +10,7 @@ import trio
 import trio.testing
 
 from server.links import MemoryLink, is_loopback, parse_link
-from server.protocol import Pose2, decode_line, encode_frame, make_frame
+from server.protocol import Pose, decode_line, encode_frame, make_frame
 from server.server import ServerConfig, open_server
 from server.store import Store
 from tests.fake_rover import FakeRover, memory_pipe
@@ -42,12 +42,30 @@ def test_parse_link_accepts_the_documented_forms(text: str, kind: str, fields: d
 
 
 @pytest.mark.parametrize(
+    ("text", "kind", "where"),
+    [
+        ("/dev/ttyUSB0,57600", "serial", ("/dev/ttyUSB0", 57600)),
+        ("/dev/ttyUSB0", "serial", ("/dev/ttyUSB0", 115200)),
+        ("serial:/dev/ttyUSB0", "serial", ("/dev/ttyUSB0", 115200)),
+        ("COM3,9600", "serial", ("COM3", 9600)),
+        ("tcpin:0.0.0.0:7000", "tcp_in", ("0.0.0.0", 7000)),
+        ("tcp:10.0.0.2:23", "tcp_listen", ("10.0.0.2", 23)),
+    ],
+)
+def test_link_strings_as_mavproxy_users_type_them(text: str, kind: str, where: tuple) -> None:
+    spec = parse_link(text)
+    assert spec.kind == kind
+    got = (spec.url, spec.baud) if kind == "serial" else (spec.host, spec.port)
+    assert got == where
+
+
+@pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("udp:1.2.3.4:5", "link must be tcp:HOST:PORT, tcp, serial:PORT,BAUD, sim or pty, got "
-                          "'udp:1.2.3.4:5'"),
-        ("serial:/dev/ttyUSB0", "serial link must be serial:PORT,BAUD, got "
-                                "'serial:/dev/ttyUSB0'"),
+        ("ttyUSB0", "link must be tcp:HOST:PORT, tcpin:HOST:PORT, tcp, serial:PORT[,BAUD], "
+                    "a device path[,BAUD], sim or pty, got 'ttyUSB0'"),
+        ("serial:", "serial link must be serial:PORT[,BAUD], got 'serial:'"),
+        ("tcpin:5", "tcpin link must be tcpin:HOST:PORT, got 'tcpin:5'"),
         ("serial:/dev/ttyUSB0,fast", "serial baud must be a number, got 'fast' in "
                                      "'serial:/dev/ttyUSB0,fast'"),
         ("serial:/dev/ttyUSB0,10", "serial baud must be 50..4000000, got 10"),
@@ -161,7 +179,7 @@ def test_whole_game_with_mapper_on_pty_serial_and_others_in_memory() -> None:
     tty.setraw(slave)
     path = os.ttyname(slave)
     store = Store(":memory:")
-    origins = {"mapper": Pose2(0, 0, 0), "hider": Pose2(0, 0, 0), "seeker": Pose2(0, 0, 0)}
+    origins = {"mapper": Pose(0, 0, 0), "hider": Pose(0, 0, 0), "seeker": Pose(0, 0, 0)}
 
     async def main() -> None:
         config = ServerConfig(origins=origins, rovers=frozenset({"m1"}))
@@ -170,7 +188,7 @@ def test_whole_game_with_mapper_on_pty_serial_and_others_in_memory() -> None:
             pty = trio.lowlevel.FdStream(os.dup(master))
             mapper = FakeRover("m1", "mapper")
             hider = FakeRover("h1", "hider")
-            seeker = FakeRover("s1", "seeker", hider_at=Pose2(60.0, 10.0))
+            seeker = FakeRover("s1", "seeker", hider_at=Pose(60.0, 10.0))
             async with trio.open_nursery() as nursery:
                 nursery.start_soon(mapper.run, lambda: pty.receive_some(4096), pty.send_all)
                 for r in (hider, seeker):

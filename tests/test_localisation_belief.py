@@ -20,8 +20,9 @@ from actors.firmware.localisation.contact_model import contact_log_likelihood
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import free_space_log_likelihood
 from actors.firmware.localisation.motion_model import MotionNoise, TreadMotion, TreadReport
-from actors.firmware.localisation.odometry import Pose, advance, compose
+from actors.firmware.localisation.odometry import advance
 from actors.firmware.localisation.scan_likelihood import hits_to_points, scan_log_likelihood
+from server.protocol.pose import Pose, compose
 from tests.localisation_rooms import cast, room, turn_treads
 
 W = 13.0  # track width [cm]

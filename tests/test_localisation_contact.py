@@ -20,7 +20,7 @@ from actors.firmware.localisation.free_space_model import (
     inside_obstacle,
 )
 from actors.firmware.localisation.motion_model import MotionNoise, TreadMotion
-from actors.firmware.localisation.odometry import Pose
+from server.protocol.pose import Pose
 from tests.localisation_rooms import room, turn_treads
 
 W = 13.0  # track width [cm]

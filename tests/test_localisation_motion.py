@@ -14,7 +14,8 @@ from actors.firmware.localisation.motion_model import (
     reports_from_value,
     sample_motion,
 )
-from actors.firmware.localisation.odometry import Pose, advance
+from actors.firmware.localisation.odometry import advance
+from server.protocol.pose import Pose
 
 W = 13.0  # track width [cm]
 N = 20000

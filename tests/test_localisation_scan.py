@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from actors.firmware.localisation.distance_field import DistanceField
-from actors.firmware.localisation.odometry import Pose
 from actors.firmware.localisation.scan_likelihood import (
     FitVerdict,
     ScanOptions,
@@ -17,6 +16,7 @@ from actors.firmware.localisation.scan_likelihood import (
     judge_fit,
     scan_log_likelihood,
 )
+from server.protocol.pose import Pose
 from tests.localisation_rooms import cast, room
 
 ROOM = room(300.0, 200.0, (180.0, 60.0, 40.0, 30.0), (40.0, 140.0, 60.0, 20.0))

@@ -11,9 +11,9 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.tread_monitor import TreadFault
-from actors.firmware.localisation.odometry import Pose
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
+from server.protocol.pose import Pose
 from tests.test_nav_common import (
     Body,
     Truth,
@@ -21,11 +21,11 @@ from tests.test_nav_common import (
     download,
     room_map,
     rover_spec,
-    scraped_nav,
     send_orders,
     send_route,
     wait_for,
 )
+from tests.test_nav_recovery import scraped_nav
 
 # the hider starts at (50, 50) @ 0 in the map frame; its own frame starts at (0, 0)
 ORIGIN = {"x": 50.0, "y": 50.0, "heading": 0.0}
@@ -434,8 +434,8 @@ async def test_a_hider_blocked_for_good_near_its_spot_hides_where_it_stands(
 
 def test_near_enough_needs_the_spot_in_sight_on_the_map(autojump_clock) -> None:
     """Within ``hide_near_cm`` but with the wall between (on the map): not near."""
-    from actors.firmware.localisation.odometry import Pose as P
     from actors.firmware.nav.hider import HidingNav
+    from server.protocol.pose import Pose as P
 
     nav = HidingNav(pool=BufferPool(4))
     nav.map = room_map(TRUTH_MAP)

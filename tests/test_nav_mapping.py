@@ -11,8 +11,8 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
-from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.nav.mapper import MappingOptions
+from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
 
 # own frame = map frame; the rover starts at (0, 0) in a 4.5 x 2.5 m room split by a wall

@@ -8,11 +8,11 @@ import pytest
 
 from actors import BufferPool, open_actor_system
 from actors.firmware.localisation.motion_model import MotionNoise
-from actors.firmware.localisation.odometry import Pose, angle_diff_deg
 from actors.firmware.nav.options import NavOptions
 from actors.firmware.nav.route import passable_at
 from actors.firmware.nav.search import ring_reach_cm, search_ring, search_rings
 from actors.firmware.nav.seeker import SeekingNav, SeekingOptions
+from server.protocol.pose import Pose, angle_diff_deg
 from tests.test_nav_common import (
     Body,
     Truth,

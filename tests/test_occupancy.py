@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.mapping.occupancy import OccupancyGrid
+from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
+from server.protocol.pose import Pose
 
 
 def small_grid() -> OccupancyGrid:

@@ -10,7 +10,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planning.planner import (
     _astar_padded,
     astar,
@@ -22,6 +21,7 @@ from actors.firmware.planning.planner import (
     snap_to_passable,
     traversable,
 )
+from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 
 
 def room(ny: int = 40, nx: int = 60) -> np.ndarray:

@@ -19,12 +19,12 @@ from server.protocol import (
     Fault,
     Frame,
     FrameError,
+    GridMap,
     LineBuffer,
     MapAssembler,
     MapChunk,
     MapError,
-    MapGrid,
-    Pose2,
+    Pose,
     compose,
     decode_line,
     encode_frame,
@@ -79,7 +79,8 @@ def test_encode_refuses_overlong_frame() -> None:
 
 def test_catalogue_checks_type_and_data() -> None:
     """read_data refuses unknown cmds, wrong types and data that breaks the schema."""
-    assert read_data(Frame("pose", "pose", {"x": 1, "y": 2, "heading": 90})) == proto.Pose(1, 2, 90)
+    assert read_data(Frame("pose", "pose", {"x": 1, "y": 2, "heading": 90})) \
+        == proto.PoseData(1, 2, 90)
     with pytest.raises(FrameError) as e1:
         read_data(Frame("dance", "none", None))
     assert (e1.value.fault, e1.value.detail) == (Fault.UNKNOWN_CMD, "unknown cmd 'dance'")
@@ -180,13 +181,13 @@ def test_mutated_valid_frames_are_handled(pos: int, byte: int) -> None:
 # -- map codec -----------------------------------------------------------------------
 
 
-def _room_map(ny: int = 160, nx: int = 200) -> MapGrid:
+def _room_map(ny: int = 160, nx: int = 200) -> GridMap:
     cells = np.full((ny, nx), -1, dtype=np.int8)
     cells[10:150, 10:190] = 0
     cells[10, 10:190] = 100
     cells[149, 10:190] = 100
     cells[60:80, 90:110] = 100
-    return MapGrid(cells, 5.0, (-50.0, -25.0))
+    return GridMap(cells, 5.0, (-50.0, -25.0))
 
 
 def test_map_round_trips_through_chunks() -> None:
@@ -203,7 +204,7 @@ def test_map_round_trips_through_chunks() -> None:
 def test_map_chunk_lines_stay_under_one_kib_with_any_seq() -> None:
     """Even with the largest seq and ack, every chunk line fits MAX_LINE_BYTES."""
     rng = np.random.default_rng(1)
-    noisy = MapGrid(rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(300, 300)), 2.5,
+    noisy = GridMap(rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(300, 300)), 2.5,
                     (-123456.5, -654321.25))
     frames = map_chunks(noisy, map_id=2**31 - 1)
     assert len(frames) > 10
@@ -213,17 +214,42 @@ def test_map_chunk_lines_stay_under_one_kib_with_any_seq() -> None:
     assert len(frames[0].data["b64"]) == CHUNK_B64_CHARS
 
 
-def test_map_codec_classifies_probabilities() -> None:
-    """Occupancy percentages become free, unknown or occupied by the thresholds."""
-    grid = MapGrid(np.array([[-1, 0, 19, 20, 64, 65, 100]], dtype=np.int8), 5.0, (0.0, 0.0))
-    assert grid.normalised().cells.tolist() == [[-1, 0, 0, -1, -1, 100, 100]]
+def test_percentages_are_classified_by_the_rule_named() -> None:
+    """map_server's rule (the protocol's for a map of percentages) leaves 20..64 unknown;
+    the occupancy split the constructor applies decides every observed cell at 50."""
+    pct = np.array([[-1, 0, 19, 20, 49, 50, 64, 65, 100]], dtype=np.int8)
+    assert GridMap.from_percentages(pct).cells.tolist() == [
+        [-1, 0, 0, -1, -1, -1, -1, 100, 100]]
+    assert GridMap(pct).cells.tolist() == [[-1, 0, 0, 0, 0, 100, 100, 100, 100]]
+    assert GridMap(pct).codes().tolist() == [[0, 1, 1, 1, 1, 2, 2, 2, 2]]
+
+
+def test_a_map_of_three_classes_is_the_same_under_both_rules() -> None:
+    """A map that already holds -1 / 0 / 100 (every map that crossed the wire) is
+    unchanged by either classification."""
+    cells = _room_map().cells
+    assert np.array_equal(GridMap.split(cells), cells)
+    assert np.array_equal(GridMap.trinary(cells), cells)
+
+
+def test_a_malformed_map_is_a_map_error_naming_the_fault() -> None:
+    """Out-of-range cells, a bad resolution or origin and an oversized grid each raise
+    MapError (a ValueError) saying what is wrong."""
+    with pytest.raises(MapError, match=r"cells must hold -1..100, got 101 at \[0, 1\]"):
+        GridMap(np.array([[0, 101]]))
+    with pytest.raises(MapError, match="resolution_cm must be a positive number"):
+        GridMap(np.zeros((2, 2), np.int8), 0.0)
+    with pytest.raises(MapError, match="origin_cm must be finite"):
+        GridMap(np.zeros((2, 2), np.int8), 5.0, (float("nan"), 0.0))
+    with pytest.raises(MapError, match="cells must be a non-empty 2-D array"):
+        GridMap(np.zeros((0, 3), np.int8))
 
 
 def test_assembler_reports_missing_and_restarts_on_new_map() -> None:
     """Missing chunks are listed; a chunk of another map discards the old pieces."""
-    frames = map_chunks(_room_map(300, 300).normalised(), map_id=1)
+    frames = map_chunks(_room_map(300, 300), map_id=1)
     rng = np.random.default_rng(0)
-    noisy = MapGrid(rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(100, 100)), 5, (0, 0))
+    noisy = GridMap(rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(100, 100)), 5, (0, 0))
     frames = map_chunks(noisy, map_id=1)
     asm = MapAssembler()
     chunks = [msgspec.convert(f.data, MapChunk) for f in frames]
@@ -268,10 +294,10 @@ def test_run_coding_round_trips(codes: list[int]) -> None:
 
 def test_compose_and_inverse() -> None:
     """A pose composed with its inverse is the identity; composition rotates then shifts."""
-    a = Pose2(100.0, 50.0, 90.0)
-    p = compose(a, Pose2(10.0, 0.0, 0.0))
-    assert p.x == pytest.approx(100.0) and p.y == pytest.approx(60.0) and p.heading == 90.0
+    a = Pose(100.0, 50.0, 90.0)
+    p = compose(a, Pose(10.0, 0.0, 0.0))
+    assert p.x == pytest.approx(100.0) and p.y == pytest.approx(60.0) and p.heading_deg == 90.0
     z = compose(a, inverse(a))
-    assert max(abs(z.x), abs(z.y), abs(z.heading)) < 1e-9
+    assert max(abs(z.x), abs(z.y), abs(z.heading_deg)) < 1e-9
     assert proto.wrap_deg(270.0) == -90.0 and proto.wrap_deg(-180.0) == 180.0
     assert math.isclose(proto.relative(a, p).x, 10.0)

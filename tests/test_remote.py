@@ -117,6 +117,36 @@ def test_rover_reconnects_after_the_server_restarts() -> None:
     assert any(ln.startswith(f"lost the server at tcp:127.0.0.1:{port}: ") for ln in lines)
 
 
+def test_rover_on_tcpin_waits_for_a_server_that_connects_out_and_then_says_connected() -> None:
+    """``--link tcpin:HOST:PORT``: the rover listens; the server connects out to it (the
+    console's ``--rover ROLE=tcp:HOST:PORT``, pyserial's ``socket://``); "connected" is
+    said only once the server has answered."""
+    port = _free_port()
+    lines: list[str] = []
+
+    async def main() -> None:
+        scenario = load_scenario("empty")
+        with Store(":memory:") as store:
+            async with open_server(store, ServerConfig()) as server, \
+                    open_remote_rover(scenario, "hider", parse_link(f"tcpin:127.0.0.1:{port}"),
+                                      report=lines.append, nav_factory=_idle_nav):
+                await trio.sleep(0.5)
+                assert not any("connected" in ln for ln in lines)  # nobody answered yet
+                events = server.subscribe()
+                server.start_serial(f"socket://127.0.0.1:{port}", 115200)
+                with trio.fail_after(20):
+                    async for e in events:
+                        if e.kind == "hello":
+                            assert e.rover == "hider"
+                            break
+                with trio.fail_after(5):
+                    while not any("connected" in ln for ln in lines):
+                        await trio.sleep(0.1)
+
+    trio.run(main)  # real time: the server's serial link reads the socket in a thread
+    assert f"connected to tcpin:127.0.0.1:{port}" in lines
+
+
 def test_pty_link_gives_a_path_the_server_opens_as_a_serial_port() -> None:
     """``--link pty``: the rover reports a device path; the server's serial link reaches it."""
     lines: list[str] = []
@@ -189,9 +219,11 @@ def _rover_args(argv: list[str]) -> argparse.Namespace:
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--link", "tcp"], "--link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, got 'tcp'"),
-        (["--link", "sim"], "--link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, got 'sim'"),
-        (["--link", "serial:/dev/x"], "serial link must be serial:PORT,BAUD, got 'serial:/dev/x'"),
+        (["--link", "tcp"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, serial:PORT[,BAUD] "
+                            "or pty, got 'tcp'"),
+        (["--link", "sim"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, serial:PORT[,BAUD] "
+                            "or pty, got 'sim'"),
+        (["--link", "serial:"], "serial link must be serial:PORT[,BAUD], got 'serial:'"),
         (["--link", "pty", "--speed", "0"], "--speed must be within 0..1000, got 0"),
         (["--link", "pty", "--scenario", "nowhere"],
          "nowhere: no such scenario file or built-in name (built-ins: empty, furniture, "

@@ -8,8 +8,8 @@ import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
-from actors.firmware.mapping.grid_map import GridMap
 from server.protocol import make_frame
+from server.protocol.grid_map import GridMap
 from server.server import ServerConfig, open_server
 from server.store import Store
 from supervisors.rover import MAILBOX, rover_tree
@@ -153,3 +153,37 @@ def test_tree_shape_per_role() -> None:
     assert all(c.mailbox == MAILBOX[c.id] for c in rover_tree("mapper", HW()).children)
     with pytest.raises(ValueError, match="role must be one of mapper, hider, seeker, got 'x'"):
         rover_tree("x", HW())
+
+
+@pytest.mark.trio
+async def test_drivers_are_wired_by_the_init_hook_not_a_replaced_on_start() -> None:
+    """Each driver's child spec carries the tree's ``init`` hook (navigation's does not),
+    and the actors the tree makes keep their class's own ``on_start``."""
+    class HW:
+        from actors.firmware.hardware import HardwareSpec
+        spec = HardwareSpec("mapper", 0.5, 13.0)
+    children = rover_tree("mapper", HW(), nav_factory=recorder_factory({})).children
+    assert {c.id: c.init is not None for c in children} == {
+        "wifly": True, "motor": True, "lidar": True, "map": True, "nav": False}
+    for c in children:
+        assert "on_start" not in vars(c.start())
+
+
+@pytest.mark.trio
+async def test_a_restarted_motor_still_hears_its_counter_isr(autojump_clock) -> None:
+    """After Motor Control crashes and restarts, Int E still reaches its mailbox: a move
+    commanded to the new incarnation completes."""
+    world = World(load_scenario("empty"), np.random.default_rng(1))
+    logs: dict = {}
+    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
+        nursery.start_soon(run_world, world)
+        await system.start_supervisor(
+            rover_tree("hider", world.hardware("hider"), nav_factory=recorder_factory(logs)),
+            "hider")
+        first = system.whereis("hider/motor").actor
+        await system.send("hider/motor", Message.uint(0xFFFF, 0))  # an unknown command: crash
+        await wait_until(lambda: (cell := system.whereis("hider/motor")) is not None
+                         and cell.actor is not first, timeout=5)
+        await system.send("hider/motor", Message.float(Cmd.MOTOR_MOVE, 30.0))
+        await wait_until(lambda: seen(logs["hider"], Cmd.NAV_MOTION_DONE), timeout=20)
+        nursery.cancel_scope.cancel()

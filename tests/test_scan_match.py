@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from actors.firmware.localisation.odometry import Pose
 from actors.firmware.mapping.scan_match import (
     MatchFields,
     MatchOptions,
@@ -15,6 +14,7 @@ from actors.firmware.mapping.scan_match import (
     match_scan,
     relocalise,
 )
+from server.protocol.pose import Pose
 
 RES = 5.0
 ORIGIN = (-100.0, -100.0)

@@ -5,13 +5,13 @@ from __future__ import annotations
 import trio
 import trio.testing
 
-from server.protocol import Pose2, ReliableSession, decode_line, make_frame
+from server.protocol import Pose, ReliableSession, decode_line, make_frame
 from server.server import ServerConfig, open_server
 from server.store import Store
 from tests.fake_rover import FakeRover, memory_pipe
 
-ORIGINS = {"m1": Pose2(100.0, 100.0, 90.0), "h1": Pose2(150.0, 100.0, 90.0),
-           "s1": Pose2(100.0, 50.0, 0.0)}
+ORIGINS = {"m1": Pose(100.0, 100.0, 90.0), "h1": Pose(150.0, 100.0, 90.0),
+           "s1": Pose(100.0, 50.0, 0.0)}
 
 
 def run(fn) -> None:
@@ -32,7 +32,7 @@ def test_whole_game_in_memory() -> None:
         async with open_server(store, ServerConfig(origins=ORIGINS)) as server:
             events = server.subscribe()
             rovers = {"m1": FakeRover("m1", "mapper"), "h1": FakeRover("h1", "hider"),
-                      "s1": FakeRover("s1", "seeker", hider_at=Pose2(60.0, 10.0))}
+                      "s1": FakeRover("s1", "seeker", hider_at=Pose(60.0, 10.0))}
             async with trio.open_nursery() as nursery:
                 for r in rovers.values():
                     receive, send, _ = memory_pipe(server.attach_memory)
@@ -55,13 +55,13 @@ def test_whole_game_in_memory() -> None:
                 assert (await server.command("seek", x=55.0, y=5.0)).ok
                 await _wait_phase(server, "found")
                 snap = server.snapshot()
-                assert [g[:2] for g in snap.guesses] == [(-20.0, 60.0), (55.0, 5.0)]
+                assert [(g.x, g.y) for g in snap.guesses] == [(-20.0, 60.0), (55.0, 5.0)]
                 assert all(v.stats.up for v in snap.rovers)
                 # origins: map frame is the mapper's start frame (100, 100) @ 90 deg
                 h = rovers["h1"].origin
-                assert (round(h.x, 6), round(h.y, 6), h.heading) == (0.0, -50.0, 0.0)
+                assert (round(h.x, 6), round(h.y, 6), h.heading_deg) == (0.0, -50.0, 0.0)
                 s = rovers["s1"].origin
-                assert (round(s.x), round(s.y), s.heading) == (-50, 0, -90.0)
+                assert (round(s.x), round(s.y), s.heading_deg) == (-50, 0, -90.0)
                 assert rovers["h1"].map.same_as(rovers["m1"].room)
                 nursery.cancel_scope.cancel()
             kinds = []

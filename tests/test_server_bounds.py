@@ -9,7 +9,7 @@ import numpy as np
 import trio
 import trio.testing
 
-from server.protocol import Frame, MapGrid, decode_line, encode_frame, make_frame, map_chunks
+from server.protocol import Frame, GridMap, decode_line, encode_frame, make_frame, map_chunks
 from server.server import MAX_MAP_CHUNKS, ServerConfig, open_server
 from server.store import Store
 from tests.fake_rover import FakeRover
@@ -247,7 +247,7 @@ def test_a_map_too_big_to_download_is_refused_at_its_first_chunk() -> None:
             m.frames()
             rng = np.random.default_rng(1)
             cells = rng.choice(np.array([-1, 0, 100], np.int8), size=(600, 600))
-            chunks = map_chunks(MapGrid(cells, 5.0, (0.0, 0.0)), 1)
+            chunks = map_chunks(GridMap(cells, 5.0, (0.0, 0.0)), 1)
             assert len(chunks) > MAX_MAP_CHUNKS
             first = chunks[0]
             m.send(encode_frame(Frame(first.cmd, first.type, first.data, seq=1)))

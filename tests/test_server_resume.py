@@ -15,15 +15,15 @@ import pytest
 import trio
 import trio.testing
 
-from server.protocol import Pose2
+from server.protocol import GridMap, Pose
 from server.server import ServerConfig, open_server
 from server.store import Store
 from tests.fake_rover import FakeRover, memory_pipe, room_map
 from tui import cmd_maps
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ORIGINS = {"m1": Pose2(100.0, 100.0, 90.0), "h1": Pose2(150.0, 100.0, 90.0),
-           "s1": Pose2(100.0, 50.0, 0.0)}
+ORIGINS = {"m1": Pose(100.0, 100.0, 90.0), "h1": Pose(150.0, 100.0, 90.0),
+           "s1": Pose(100.0, 50.0, 0.0)}
 IDS = frozenset(ORIGINS)
 # (operator command or None to wait, the phase it leads to)
 SCRIPT = [("start_mapping", {}, "mapping"), (None, {}, "map_ready"),
@@ -36,7 +36,7 @@ PHASES = ["idle", "mapping", "map_ready", "hiding", "hidden", "seeking", "not_fo
 def _rovers() -> dict[str, FakeRover]:
     return {"m1": FakeRover("m1", "mapper", map_after_s=3.0),
             "h1": FakeRover("h1", "hider", drive_s=2.0),
-            "s1": FakeRover("s1", "seeker", hider_at=Pose2(60.0, 10.0), drive_s=2.0)}
+            "s1": FakeRover("s1", "seeker", hider_at=Pose(60.0, 10.0), drive_s=2.0)}
 
 
 async def _attach(server, rovers: dict[str, FakeRover], nursery) -> None:
@@ -157,8 +157,10 @@ def test_maps_on_a_live_database_changes_nothing_and_export_takes_the_played_map
                 await _attach(s, rovers, n)
                 for k in range(4):  # hidden
                     await _step(s, k)
-                other = room_map()
-                other.cells[5:8, 5:8] = 100
+                base = room_map()
+                cells = base.cells.copy()
+                cells[5:8, 5:8] = 100
+                other = GridMap(cells, base.resolution_cm, base.origin_cm)
                 rovers["m1"].room = other
                 rovers["m1"]._act("upload")  # the game is past mapping: ignored
                 await trio.sleep(3)
@@ -226,7 +228,7 @@ def _serve(db: str, port: int) -> subprocess.Popen:
     argv = [sys.executable, "-m", "tui.cli", "serve", "--db", db, "--listen",
             f"tcp:127.0.0.1:{port}"]
     for rid, p in ORIGINS.items():
-        argv += ["--rover", f"{rid}=tcp", "--origin", f"{rid}={p.x},{p.y},{p.heading}"]
+        argv += ["--rover", f"{rid}=tcp", "--origin", f"{rid}={p.x},{p.y},{p.heading_deg}"]
     proc = subprocess.Popen(argv, cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
     for line in proc.stdout:

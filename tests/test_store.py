@@ -11,7 +11,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from server.protocol import MapGrid
+from server.protocol import GridMap
 from server.store import Store, StoreError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -22,11 +22,11 @@ def test_map_and_events_round_trip(tmp_path) -> None:
     cells = np.array([[-1, 0], [100, 0], [0, 0]], dtype=np.int8)
     with Store(tmp_path / "g.db") as store:
         gid = store.new_game(t=1.5)
-        mid = store.save_map(MapGrid(cells, 5.0, (-10.0, 20.0)), game_id=gid, t=2.0)
+        mid = store.save_map(GridMap(cells, 5.0, (-10.0, 20.0)), game_id=gid, t=2.0)
         store.log_event("phase", t=2.0, game_id=gid, data={"phase": "map_ready"})
         assert store._db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
         back = store.load_map(mid)
-        assert back.same_as(MapGrid(cells, 5.0, (-10.0, 20.0)))
+        assert back.same_as(GridMap(cells, 5.0, (-10.0, 20.0)))
         assert store.events(gid) == [(2.0, "phase", "", {"phase": "map_ready"})]
         with pytest.raises(StoreError, match="no map 99 in "):
             store.load_map(99)
@@ -42,10 +42,10 @@ def test_killed_server_keeps_maps_and_marks_game_interrupted(tmp_path) -> None:
         import sys, time, numpy as np
         sys.path.insert(0, {ROOT!r})
         from server.store import Store
-        from server.protocol import MapGrid
+        from server.protocol import GridMap
         s = Store({str(db)!r})
         gid = s.new_game(t=0.0)
-        s.save_map(MapGrid(np.full((4, 5), 100, np.int8), 5.0, (0.0, 0.0)), game_id=gid, t=1.0)
+        s.save_map(GridMap(np.full((4, 5), 100, np.int8), 5.0, (0.0, 0.0)), game_id=gid, t=1.0)
         s.set_phase(gid, "hiding")
         s.log_event("phase", t=1.0, game_id=gid, data={{"phase": "hiding"}})
         print("ready", flush=True)
@@ -117,7 +117,7 @@ def test_a_file_of_the_older_schema_reads_read_only_and_migrates(tmp_path) -> No
         assert store.maps()[0].accepted
     with Store(db) as store:
         assert store.game(1).phase == "found"
-        store.save_map(MapGrid(np.zeros((1, 2), np.int8), 5.0, (0.0, 0.0)), game_id=1, t=2.0,
+        store.save_map(GridMap(np.zeros((1, 2), np.int8), 5.0, (0.0, 0.0)), game_id=1, t=2.0,
                        accepted=False, note="ignored")
         assert [m.accepted for m in store.maps()] == [True, False]
 

@@ -5,6 +5,7 @@ what the fake system's controller received."""
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import io
 from collections.abc import Callable
 
@@ -320,7 +321,10 @@ def test_command_palette_offers_every_action():
         titles = {c.title for c in app.get_system_commands(app.screen)}
         for expected in ("Start mapping", "Stop mapping early and use the map as it is",
                          "Inject or clear a fault (target, kind, duration)",
-                         "Pause / resume simulated time", "Start a new game"):
+                         "Pause simulated time (not with an attached rover)",
+                         "Resume simulated time", "Start a new game",
+                         "Save a screenshot (SVG, and PNG where cairosvg is installed) to the "
+                         "export directory"):
             assert expected in titles
 
     drive(test, speed=1.0)
@@ -372,3 +376,57 @@ def test_system_crash_is_a_notification_not_a_traceback():
 
     asyncio.run(main())
     assert isinstance(app.system_error, RuntimeError)
+
+
+def footer_labels(app: ConsoleApp) -> dict[str, tuple[str, bool]]:
+    """Key -> (footer label, enabled) as the footer shows them now."""
+    return {key: (b.binding.description, b.enabled)
+            for key, b in app.screen.active_bindings.items()}
+
+
+def test_footer_says_resume_while_paused():
+    async def test(app, fake):
+        await until(lambda: footer_labels(app).get("space", ("",))[0] == "Pause", "Pause")
+        press(app, "space")
+        await until(lambda: app.snapshot.paused, "paused")
+        await until(lambda: footer_labels(app)["space"][0] == "Resume", "Resume shown")
+        press(app, "space")
+        await until(lambda: not app.snapshot.paused, "resumed")
+
+    drive(test, speed=1.0)
+
+
+def test_keys_the_system_refuses_are_greyed():
+    class RealTime(FakeSystem):
+        def snapshot(self, now_s=None):
+            return dataclasses.replace(super().snapshot(now_s),
+                                       refused=("pause", "resume", "set_speed"))
+
+    app = ConsoleApp(RealTime(speed=1.0, seed=3))
+
+    async def main():
+        async with app.run_test(size=(120, 40)):
+            await until(lambda: app.snapshot is not None and app.snapshot.refused, "snapshot")
+            await until(lambda: footer_labels(app)["space"] == ("Pause", False), "greyed")
+            assert footer_labels(app)["right_square_bracket"][1] is False
+            assert footer_labels(app)["m"][1] is True
+
+    asyncio.run(main())
+
+
+def test_screenshot_key_saves_an_svg_into_the_export_dir(tmp_path):
+    async def test(app, fake):
+        press(app, "s")
+        await until(lambda: list(tmp_path.glob("*.svg")), "svg written")
+        await until(lambda: any("screenshot saved" in n and str(tmp_path) in n
+                                for n in notes(app)), "says where")
+
+    drive(test, speed=1.0, export_dir=str(tmp_path))
+
+
+def test_screenshot_into_a_missing_folder_is_a_notification(tmp_path):
+    async def test(app, fake):
+        press(app, "s")
+        await until(lambda: any("screenshot: error" in n for n in notes(app)), "error shown")
+
+    drive(test, speed=1.0, export_dir=str(tmp_path / "missing"))

@@ -18,9 +18,13 @@ closes, so the process exits with status 0 and no traceback.
 
 from __future__ import annotations
 
+import asyncio
 import functools
 import gc
-from collections.abc import Iterable
+import pathlib
+import signal
+import time
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import outcome
@@ -52,6 +56,11 @@ __all__ = ["ConsoleApp", "ACTIONS", "SPEEDS", "REFRESH_HZ", "UiAction"]
 REFRESH_HZ = 15.0
 #: ... and at "as fast as possible", where every frame drawn is simulation not run.
 REFRESH_HZ_MAX_SPEED = 10.0
+#: At "as fast as possible", frames are drawn only while the console's share of the
+#: thread's time stays below this (the simulation keeps the rest, however loaded the
+#: machine), and at least once per `MAX_FRAME_GAP_S`.
+UI_SHARE_MAX_SPEED = 0.06
+MAX_FRAME_GAP_S = 1.0
 #: The queue table and the tree are redrawn on every this many snapshots.
 TABLE_EVERY = 3
 #: Speed steps for faster / slower; None is "as fast as possible".
@@ -86,15 +95,20 @@ ACTIONS: tuple[UiAction, ...] = (
     UiAction("w", "wider_search", "Wider",
              f"Seek at the cursor with a wider search ({WIDER_SEARCH_CM:.0f} cm round it)",
              footer=False),
-    UiAction("space", "toggle_pause", "Pause", "Pause / resume simulated time"),
+    UiAction("space", "pause", "Pause", "Pause simulated time (not with an attached rover)"),
+    UiAction("space", "resume", "Resume", "Resume simulated time"),
     UiAction("right_square_bracket", "faster", "Faster",
-             "Speed up: x1, x4, x16, as fast as possible"),
+             "Speed up: x1, x4, x16, as fast as possible (the same game at every speed; "
+             "not with an attached rover)"),
     UiAction("left_square_bracket", "slower", "Slower", "Slow down", footer=False),
     UiAction("f", "faults", "Faults", "Inject or clear a fault (target, kind, duration)"),
     UiAction("g", "toggle_truth", "Truth", "Toggle the ground-truth overlay (simulated rooms)"),
     UiAction("n", "new_game", "New", "Start a new game", footer=False),
-    UiAction("e", "export_map", "Export", "Save the map (PGM + YAML) to the export directory",
-             footer=False),
+    UiAction("e", "export_map", "Export",
+             "Save the map (PGM + YAML, PNG) to the export directory", footer=False),
+    UiAction("s", "screenshot", "Shot",
+             "Save a screenshot (SVG, and PNG where cairosvg is installed) to the export "
+             "directory", footer=False),
     UiAction("R", "record", "Record",
              "Start / stop recording the game as MCAP (hideseek replay opens it)", footer=False),
     UiAction("p", "toggle_log_pause", "Log pause", "Pause / resume the message log",
@@ -108,6 +122,16 @@ ACTIONS: tuple[UiAction, ...] = (
     UiAction("question_mark", "help", "Help", "Show every key"),
     UiAction("q", "quit", "Quit", "Quit (also ctrl+c)"),
 )
+
+#: Actions -> the controller commands they send (a key is greyed when all are refused).
+_ACTION_COMMANDS: dict[str, tuple[str, ...]] = {
+    "pause": ("pause",), "resume": ("resume",), "toggle_pause": ("pause", "resume"),
+    "faster": ("set_speed",), "slower": ("set_speed",),
+    "start_mapping": ("start_mapping",), "stop_mapping": ("stop_mapping",),
+    "confirm": ("hide_at", "seek_at"), "wider_search": ("seek_at",),
+    "new_game": ("new_game",), "faults": ("inject_fault", "clear_fault"),
+    "export_map": ("export_map",),
+}
 
 #: Keys of the map itself (focused by default), for the help screen.
 MAP_KEYS: tuple[tuple[str, str], ...] = (
@@ -123,6 +147,27 @@ MAP_KEYS: tuple[tuple[str, str], ...] = (
 
 _KEY_NAMES = {"right_square_bracket": "]", "left_square_bracket": "[", "question_mark": "?",
               "slash": "/"}
+
+
+def _has_os_error(exc: BaseException) -> bool:
+    if isinstance(exc, BaseExceptionGroup):
+        return any(_has_os_error(e) for e in exc.exceptions)
+    return isinstance(exc, OSError)
+
+
+def _on_signals(quit_: Callable[[], object]) -> tuple[signal.Signals, ...]:
+    """SIGTERM and SIGINT quit the console as ``q`` does (the system stopped, status 0):
+    handled by the asyncio loop, so neither interrupts Textual or Trio mid-step. Returns
+    the signals handled (none outside the main thread, where asyncio cannot)."""
+    loop = asyncio.get_running_loop()
+    done = []
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        try:
+            loop.add_signal_handler(sig, quit_)
+        except (NotImplementedError, RuntimeError, ValueError):
+            continue
+        done.append(sig)
+    return tuple(done)
 
 
 class ConsoleApp(App[int]):
@@ -195,6 +240,7 @@ class ConsoleApp(App[int]):
         self._requests: trio.MemorySendChannel[None] | None = None
         self._awaiting = 0  # ticks since the outstanding request, 0 = none outstanding
         self._credit = 0.0  # frames owed at a reduced refresh rate
+        self._last_frame = (0.0, 0.0)  # (wall [s], guest's busy_s) at the last frame drawn
         self._panel_phase = ""  # phase the game panel shows
         self._asked_speed: tuple[int, int] | None = None  # (SPEEDS index, snapshots_shown)
         # Held, not queried: App.query_one searches the *current* screen, which is a
@@ -230,6 +276,13 @@ class ConsoleApp(App[int]):
         self.map_view.focus()
         self._guest.start(self._trio_main, clock=self.system.clock)
         self.set_interval(1.0 / self.refresh_hz, self._tick)
+        self._signals = _on_signals(lambda: self.call_next(self.action_quit))
+
+    def _remove_signal_handlers(self) -> None:
+        loop = asyncio.get_running_loop()
+        for sig in getattr(self, "_signals", ()):
+            loop.remove_signal_handler(sig)
+        self._signals = ()
 
     async def _trio_main(self) -> None:
         send, receive = trio.open_memory_channel[None](1)
@@ -248,26 +301,53 @@ class ConsoleApp(App[int]):
                             f"got {type(item).__name__}")
 
     def _tick(self) -> None:
-        """Ask for the next snapshot unless one is still on its way."""
+        """Ask for the next snapshot unless one is still on its way (or build it here,
+        for a system that offers ``host_snapshot``)."""
         if self._requests is None or self._guest.finished:
+            return
+        host_snapshot = getattr(self.system, "host_snapshot", None)
+        if host_snapshot is not None:
+            if self._skip_frame():
+                return
+            try:
+                snap = host_snapshot()
+            except Exception as exc:  # a bug in a snapshot must not kill the UI
+                self.notify(f"{type(exc).__name__}: {exc}", title="snapshot", severity="error")
+                return
+            self.on_console_app_snapshot_arrived(self.SnapshotArrived(snap))
             return
         if self._awaiting and self._awaiting < 2 * self.refresh_hz:
             self._awaiting += 1
             return
-        snap = self.snapshot
-        if snap is not None and snap.speed is None and not snap.paused:
-            # as fast as possible: fewer frames, more simulation (credit per tick)
-            self._credit += min(1.0, REFRESH_HZ_MAX_SPEED / self.refresh_hz)
-            if self._credit < 1.0:
-                return
-            self._credit -= 1.0
+        if self._skip_frame():
+            return
         try:
             self._requests.send_nowait(None)
         except (trio.WouldBlock, trio.ClosedResourceError, trio.BrokenResourceError):
             pass
         self._awaiting = 1
 
+    def _skip_frame(self) -> bool:
+        """At "as fast as possible", fewer frames (every frame drawn is simulation not
+        run): a credit per tick, and no frame while the console's share of the time since
+        the last one is above `UI_SHARE_MAX_SPEED` (Trio's batches are the rest)."""
+        snap = self.snapshot
+        if snap is None or snap.speed is not None or snap.paused:
+            return False
+        self._credit = min(1.0, self._credit + REFRESH_HZ_MAX_SPEED / self.refresh_hz)
+        if self._credit < 1.0:
+            return True
+        now, busy = time.perf_counter(), self._guest.busy_s
+        t0, busy0 = self._last_frame
+        elapsed = now - t0
+        if elapsed < MAX_FRAME_GAP_S and elapsed - (busy - busy0) > UI_SHARE_MAX_SPEED * elapsed:
+            return True
+        self._credit -= 1.0
+        self._last_frame = (now, busy)
+        return False
+
     async def on_unmount(self) -> None:
+        self._remove_signal_handlers()
         await self._guest.stop()
 
     # -- from the system -----------------------------------------------------
@@ -297,12 +377,20 @@ class ConsoleApp(App[int]):
         result = message.result
         if isinstance(result, outcome.Error):
             self.system_error = result.error
+            if _has_os_error(result.error):  # the system could not open a port or device:
+                self.exit(1)  # the command prints it as one line
+                return
             self.notify(f"{type(result.error).__name__}: {result.error}",
                         title="the system stopped", severity="error", timeout=30)
+        elif getattr(self.system, "auto", False):
+            self.exit(0)  # an auto game ended by itself: the command prints its report
 
     def show(self, snap: Snapshot) -> None:
         """Redraw every panel from a snapshot."""
+        old = self.snapshot
         self.snapshot = snap
+        if old is None or (old.paused, old.refused) != (snap.paused, snap.refused):
+            self.refresh_bindings()  # Pause / Resume, greyed keys
         if not (self.map_view.is_attached and self.message_log.is_mounted):
             return  # before compose finished, or after the screen went away
         self.snapshots_shown += 1
@@ -384,6 +472,49 @@ class ConsoleApp(App[int]):
         else:
             self._call("pause")
 
+    def action_pause(self) -> None:
+        self._call("pause")
+
+    def action_resume(self) -> None:
+        self._call("resume")
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """Footer and keys follow the state: ``space`` is Pause or Resume; keys whose
+        commands the system refuses whatever the phase are greyed (None: shown, not run)."""
+        snap = self.snapshot
+        if snap is None:
+            return True
+        if action == "pause" and snap.paused:
+            return False
+        if action == "resume" and not snap.paused:
+            return False
+        commands = _ACTION_COMMANDS.get(action, ())
+        if commands and all(c in snap.refused for c in commands):
+            return None
+        return True
+
+    def action_screenshot(self, filename: str | None = None, path: str | None = None) -> None:
+        """Save an SVG of the screen (and a PNG where cairosvg is installed) into ``path``
+        (the export directory by default) and say where."""
+        folder = pathlib.Path(path or self.export_dir).expanduser().resolve()
+        try:
+            if not folder.is_dir():
+                raise OSError(f"no directory {folder}")
+            svg = pathlib.Path(self.save_screenshot(filename, str(folder)))
+        except OSError as exc:
+            self.notify(str(exc), title="screenshot: error", severity="error")
+            return
+        saved = [str(svg)]
+        try:
+            import cairosvg  # noqa: PLC0415 - optional: PNG only where it is installed
+        except ImportError:
+            pass
+        else:
+            png = svg.with_suffix(".png")
+            cairosvg.svg2png(url=str(svg), write_to=str(png))
+            saved.append(str(png))
+        self.notify(", ".join(saved), title="screenshot saved", timeout=5)
+
     def _speed_index(self) -> int:
         asked = self._asked_speed
         if asked is not None and self.snapshots_shown - asked[1] < 3:
@@ -431,7 +562,8 @@ class ConsoleApp(App[int]):
         if request is None:
             return
         if request.action == "inject":
-            self._call("inject_fault", request.target, request.kind, request.duration_s, {})
+            self._call("inject_fault", request.target, request.kind, request.duration_s,
+                       request.params)
         elif request.target == "*":
             for fault in self.snapshot.faults if self.snapshot else ():
                 self._call("clear_fault", fault.id)
@@ -463,7 +595,9 @@ class ConsoleApp(App[int]):
         self.exit(0)
 
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
-        yield from super().get_system_commands(screen)
+        for command in super().get_system_commands(screen):
+            if command.title != "Screenshot":  # Textual's writes to ~/Downloads: ours below
+                yield command
         for a in self.actions:
             if a.action in ("quit",):
                 continue

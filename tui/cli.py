@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+from importlib import metadata
 
 #: subcommand -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -24,14 +26,43 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "campaign": ("tui.cmd_campaign", "many seeded games under random faults, invariants checked"),
     "replay": ("tui.cmd_replay", "open a recording (.mcap) in the console: pause, step, seek"),
     "shrink": ("tui.cmd_shrink", "a failing game's faults shrunk to what the failure needs"),
+    "ports": ("tui.cmd_ports", "list the serial ports a rover may be attached to"),
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """Bad options are one line naming the option and the rule, and exit status 2 (no
+    usage block: ``-h`` shows it)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: {message}\n")
+
+
+def version() -> str:
+    """The installed distribution's version (``unknown`` when run from a bare checkout)."""
+    try:
+        return metadata.version("hideseek")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def _stop_on_sigterm() -> None:
+    """SIGTERM stops a command as Ctrl-C does: SIGINT is raised in its place, so Trio's
+    own handler (or the console's) turns it into a clean stop, never a traceback. A shell
+    starts background jobs with SIGINT ignored; Python's handler is put back, so both
+    signals stop the command there too."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, lambda _sig, _frame: signal.raise_signal(signal.SIGINT))
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="hideseek",
         description="Three-rover hide-and-seek on a supervised actor system.",
     )
+    parser.add_argument("--version", action="version", version=f"hideseek {version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (module_name, help_text) in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
@@ -53,10 +84,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     module = importlib.import_module(args._module)
+    _stop_on_sigterm()
     try:
         return int(module.run(args) or 0)
-    except KeyboardInterrupt:
-        return 130
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: a clean stop
+        return 0
 
 
 if __name__ == "__main__":

@@ -37,6 +37,7 @@ from supervisors.harness.campaign import (
 )
 from supervisors.harness.campaign.engines import ENGINES, open_engine
 from supervisors.harness.shrink import DEFAULT_MAX_RUNS, shrink_failures
+from tui import args as args_
 from world.scenario import builtin_scenarios
 
 _BAR = 30  # progress bar width [characters]
@@ -47,7 +48,8 @@ _CAUSES = {"faults": "the faults (found, every invariant kept, without them)",
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-n", "--games", type=int, default=None, metavar="N",
                         help="games to play (default 200, or 6 with --quick)")
-    parser.add_argument("--seed", type=int, default=1, help="the campaign's seed S (default 1)")
+    parser.add_argument("--seed", type=int, default=1,  # checked by the campaign's config
+                        help="the campaign's seed S (default 1)")
     parser.add_argument("--workers", type=int, default=None, metavar="W",
                         help=f"worker processes (default one per core: {default_workers()}; "
                              "0 plays in this process)")
@@ -66,7 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(0 to 3), none")
     parser.add_argument("--window", default=None, metavar="A-B",
                         help="simulated seconds in which faults start (default 5-240)")
-    parser.add_argument("--budget", type=float, default=1200.0,
+    parser.add_argument("--budget", type=args_.positive_seconds, default=1200.0,
                         help="simulated seconds allowed for mapping (default 1200)")
     parser.add_argument("--replay-every", type=int, default=10, metavar="K",
                         help="replay every K-th game to check determinism (0: never; default 10)")
@@ -79,7 +81,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a handful of games (6) with no replays beyond the first")
     parser.add_argument("--json", action="store_true",
                         help="print one JSON summary on stdout (progress stays on stderr)")
-    parser.add_argument("--out", default="hideseek-campaign.sqlite", metavar="FILE",
+    parser.add_argument("--out", type=args_.sqlite_file, default="hideseek-campaign.sqlite",
+                        metavar="FILE",
                         help="SQLite file for the results (default hideseek-campaign.sqlite; "
                              "':memory:' to keep none)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
@@ -324,6 +327,7 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
         summary["engine"] = args.engine
         if args.shrink and not stopped:
             summary["shrunk"] = _shrink(args, results, engine)
+        summary["out"] = args.out
         store.finish(cid, summary)
     if engine is not None:
         engine.close()
@@ -332,9 +336,13 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
     else:
         _print_table(summary)
         _print_shrunk(summary.get("shrunk"))
+        if args.out != ":memory:":
+            print(f"  results stored in {args.out} (campaign {cid}; --out FILE to choose)")
     if args.record_failures and summary["failures"]:
         _record_failures(args.record_failures, summary["failures"], results,
                          out=sys.stderr if args.json else sys.stdout)
+    if stopped == "interrupted":
+        return 0  # Ctrl-C or SIGTERM: a clean stop, the games played so far are stored
     if len(results) < games:
         return 130
     return 1 if summary["failures"] else 0

@@ -32,6 +32,7 @@ from actors import (
     virtual_clock,
 )
 from supervisors import Backoff, ChildSpec, ChildType, Strategy, SupervisorSpec, TreeNode
+from tui import args as args_
 
 #: events printed as they happen (per-message events are not subscribed)
 SHOWN = {EventKind.CRASH, EventKind.POISON, EventKind.HUNG, EventKind.KILLED, EventKind.RESTART,
@@ -83,7 +84,7 @@ def tree_spec() -> SupervisorSpec:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--seed", type=int, default=1, help="run seed (default 1)")
+    parser.add_argument("--seed", type=args_.seed, default=1, help="run seed (default 1)")
     parser.add_argument("--clock", choices=("virtual", "scaled"), default="scaled",
                         help="virtual: as fast as possible; scaled: --rate x real time")
     parser.add_argument("--rate", type=float, default=4.0,

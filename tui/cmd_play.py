@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
+
+from tui import args as args_
 
 SPEED_CHOICES = {"1": 1.0, "4": 4.0, "16": 16.0, "max": None}
 
@@ -30,13 +33,15 @@ def rover_link(text: str) -> tuple[str, str]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
                         help="built-in scenario name or TOML file (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of the run (default: 1)")
-    parser.add_argument("--db", default=":memory:", metavar="FILE",
+    parser.add_argument("--seed", type=args_.seed, default=1, help="seed of the run (default: 1)")
+    parser.add_argument("--db", type=args_.sqlite_file, default=":memory:", metavar="FILE",
                         help="SQLite file for the server's games and maps (default: in memory)")
     parser.add_argument("--rover", type=rover_link, action="append", default=[],
                         metavar="ID=LINK",
                         help="attach a rover over a link instead of simulating it here: "
-                             "ROLE=serial:PORT,BAUD or ROLE=tcp (it connects to --listen); "
+                             "ROLE=serial:PORT[,BAUD] or ROLE=/dev/ttyUSB0[,BAUD] (115200 "
+                             "by default), ROLE=tcp (it connects to --listen), or "
+                             "ROLE=tcp:HOST:PORT (it listens there: the server connects); "
                              "then time runs at x1 only (repeatable)")
     parser.add_argument("--listen", default="tcp:127.0.0.1:7878", metavar="tcp:HOST:PORT",
                         help="where rovers on tcp connect (default %(default)s; loopback only)")
@@ -49,6 +54,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "stops recording)")
     parser.add_argument("--export-dir", default=".", metavar="DIR",
                         help="where the export key saves maps (default: current directory)")
+    parser.add_argument("--auto", action="store_true",
+                        help="play the headless operator's game by itself (start mapping, the "
+                             "scenario's hide spot and guesses), then leave the console and "
+                             "print what `hideseek run` prints")
+    parser.add_argument("--json", action="store_true",
+                        help="with --auto: print one JSON object, as `hideseek run --json`")
+    parser.add_argument("--budget", type=args_.positive_seconds, default=1200.0, metavar="S",
+                        help="with --auto: simulated seconds allowed for mapping (default 1200)")
 
 
 def _links(args: argparse.Namespace):
@@ -67,7 +80,7 @@ def _links(args: argparse.Namespace):
     listen = None
     if any(spec.kind == "tcp" for spec in remote.values()):
         listen = parse_link(args.listen)
-        if listen.kind != "tcp_listen":
+        if listen.kind not in ("tcp_listen", "tcp_in"):
             raise ValueError(f"--listen must be tcp:HOST:PORT, got {args.listen!r}")
         if not is_loopback(listen.host):
             raise ValueError(f"refusing to listen on {listen.host}: the console has no rover "
@@ -84,12 +97,23 @@ def run(args: argparse.Namespace) -> int:
     if args.rover and args.fake:
         print("hideseek play: --rover needs the real system, not --fake", file=sys.stderr)
         return 2
+    if (args.json or args.auto) and args.fake:
+        print("hideseek play: --auto plays the simulated game, not --fake", file=sys.stderr)
+        return 2
+    if args.json and not args.auto:
+        print("hideseek play: --json goes with --auto (the report of the auto game)",
+              file=sys.stderr)
+        return 2
+    if not args.budget > 0:
+        print(f"hideseek play: --budget must be > 0 s, got {args.budget:g}", file=sys.stderr)
+        return 2
     if args.fake:
         from tui.fake import FakeSystem
 
         system = FakeSystem(seed=args.seed, scenario=args.scenario,
                             speed=SPEED_CHOICES[args.speed])
     else:
+        from supervisors.harness.headless import Budget
         from tui.live import LiveSystem
         from world.scenario import ScenarioError, load_scenario
 
@@ -97,15 +121,39 @@ def run(args: argparse.Namespace) -> int:
             remote, listen = _links(args)
             scenario = load_scenario(args.scenario)
             system = LiveSystem(scenario, seed=args.seed, speed=SPEED_CHOICES[args.speed],
-                                db=args.db, remote=remote, listen=listen,
-                                record=args.record)
+                                db=args.db, remote=remote, listen=listen, record=args.record,
+                                auto=args.auto,
+                                budget=Budget(mapping=args.budget))
         except (ScenarioError, OSError, ValueError) as exc:
             print(f"hideseek play: {exc}", file=sys.stderr)
             return 2
     app = ConsoleApp(system, export_dir=args.export_dir)
+    wall0 = time.perf_counter()  # wall time for the auto game's report only
     app.run()
     if app.system_error is not None:
+        from tui.cmd_rover import leaves
+        from tui.live import ListenError
+
+        busy = [e for e in leaves(app.system_error) if isinstance(e, ListenError)]
+        if busy:
+            print(f"hideseek play: {busy[0]}", file=sys.stderr)
+            return 2
         print(f"hideseek play: the system stopped: {type(app.system_error).__name__}: "
               f"{app.system_error}", file=sys.stderr)
         return 1
+    if args.auto:
+        return _auto_report(system, time.perf_counter() - wall0, as_json=args.json)
     return 0
+
+
+def _auto_report(system, wall_s: float, *, as_json: bool) -> int:
+    """Print the auto game's report as ``hideseek run`` does (nothing if it was quit early)."""
+    from tui.cmd_run import print_report
+
+    report = system.report
+    if report is None:
+        print("hideseek play: quit before the game ended: no report", file=sys.stderr)
+        return 0
+    report.wall_seconds = wall_s
+    report.real_time_factor = report.sim_seconds / max(wall_s, 1e-9)
+    return print_report(report, as_json=as_json)

@@ -10,21 +10,23 @@ Ctrl-C stops it with status 0.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 
 from server.protocol import ROLES
+from tui import args as args_
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--role", required=True, choices=ROLES, help="which rover this is")
     parser.add_argument("--link", required=True, metavar="LINK",
-                        help="tcp:HOST:PORT (connect to the server), serial:PORT,BAUD (a port "
-                             "or pyserial URL), or pty (make a pty pair and print the path "
-                             "the server must open)")
+                        help="tcp:HOST:PORT (connect to the server), tcpin:HOST:PORT (wait "
+                             "there for the server to connect), serial:PORT[,BAUD] or a device "
+                             "path (a port or pyserial URL; 115200 baud by default), or pty "
+                             "(make a pty pair and print the path the server must open)")
     parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
                         help="built-in scenario name or TOML file (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of the rover's world (default 1)")
+    parser.add_argument("--seed", type=args_.seed, default=1,
+                        help="seed of the rover's world (default 1)")
     parser.add_argument("--id", dest="rover_id", metavar="ID",
                         help="the id said in hello (default: the role)")
     parser.add_argument("--token", help="the hello token, when the server asks for one")
@@ -38,9 +40,9 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         link = parse_link(args.link)
-        if link.kind not in ("tcp_listen", "serial", "pty"):
-            raise ValueError(f"--link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, "
-                             f"got {args.link!r}")
+        if link.kind not in ("tcp_listen", "tcp_in", "serial", "pty"):
+            raise ValueError(f"--link must be tcp:HOST:PORT, tcpin:HOST:PORT, "
+                             f"serial:PORT[,BAUD] or pty, got {args.link!r}")
         if not args.speed > 0 or args.speed > 1000:
             raise ValueError(f"--speed must be within 0..1000, got {args.speed:g}")
         scenario = load_scenario(args.scenario)
@@ -59,17 +61,16 @@ def run(args: argparse.Namespace) -> int:
     clock = None if args.speed == 1.0 else scaled_clock(args.speed)
     print(f"{args.role}: {scenario.name} (seed {args.seed}), link {args.link}, "
           f"speed x{args.speed:g}; Ctrl-C stops", flush=True)
-    signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill <pid> stops cleanly too
     try:
         trio.run(lambda: run_remote_rover(scenario, args.role, link, seed=args.seed,
                                           rover_id=args.rover_id, token=args.token,
                                           report=report), clock=clock)
     except BaseException as exc:  # noqa: BLE001 - sorted out below: never a traceback
-        leaves = _leaves(exc)
-        if all(isinstance(e, KeyboardInterrupt) for e in leaves):
+        errors = leaves(exc)
+        if all(isinstance(e, KeyboardInterrupt) for e in errors):
             print(f"{args.role}: stopped", flush=True)
             return 0
-        bad = [e for e in leaves if isinstance(e, OSError | ValueError)]
+        bad = [e for e in errors if isinstance(e, OSError | ValueError)]
         if not bad:
             raise
         print(f"hideseek rover: {getattr(bad[0], 'strerror', None) or bad[0]}", file=sys.stderr)
@@ -77,8 +78,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _leaves(exc: BaseException) -> list[BaseException]:
+def leaves(exc: BaseException) -> list[BaseException]:
     """The exceptions inside (nested) exception groups."""
     if isinstance(exc, BaseExceptionGroup):
-        return [leaf for e in exc.exceptions for leaf in _leaves(e)]
+        return [leaf for e in exc.exceptions for leaf in leaves(e)]
     return [exc]

@@ -20,6 +20,7 @@ import trio
 
 from actors import JsonLinesRecorder, Trace, seed_trio_scheduler, virtual_clock
 from supervisors.harness.headless import Budget, GameReport, run_game
+from tui import args as args_
 from world.scenario import (
     Scenario,
     ScenarioError,
@@ -38,14 +39,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default: furniture)")
     parser.add_argument("--generated", metavar="SEED:INDEX",
                         help="a procedurally generated room instead of --scenario")
-    parser.add_argument("--seed", type=int, default=1, help="the run's seed (default 1)")
+    parser.add_argument("--seed", type=args_.seed, default=1, help="the run's seed (default 1)")
     parser.add_argument("--campaign", metavar="S:I[,...]",
                         help="game I of fault campaign S, as `hideseek campaign` printed it "
                              "(room, faults, seed and budget all come from it)")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    parser.add_argument("--db", default=":memory:", help="SQLite file for the server's store")
+    parser.add_argument("--db", type=args_.sqlite_file, default=":memory:",
+                        help="SQLite file for the server's store")
     parser.add_argument("--trace", metavar="FILE", help="record the trace as JSON lines")
-    parser.add_argument("--budget", type=float, default=1200.0,
+    parser.add_argument("--budget", type=args_.positive_seconds, default=1200.0,
                         help="simulated seconds allowed for mapping (default 1200)")
     parser.add_argument("--record", metavar="FILE.mcap",
                         help="record the game as MCAP (open it in Foxglove or with "
@@ -74,7 +76,8 @@ def _scenario(args: argparse.Namespace):
     return load_scenario(args.scenario)
 
 
-def _print_summary(r: GameReport) -> None:
+def print_summary(r: GameReport) -> None:
+    """The human-readable summary of a game (also `hideseek play --auto`'s)."""
     def pct(v: float | None) -> str:
         return "-" if v is None else f"{100 * v:.1f} %"
 
@@ -152,7 +155,7 @@ def _fork(args: argparse.Namespace) -> int:
               f"({checker.compared} checkpoints equal)")
         for line in report.events:
             print("  " + line)
-        _print_summary(report)
+        print_summary(report)
     return 0 if report.outcome == "found" else 1
 
 
@@ -215,10 +218,16 @@ def run(args: argparse.Namespace) -> int:
     report.real_time_factor = report.sim_seconds / max(report.wall_seconds, 1e-9)
     if trace_file is not None:
         trace_file.close()
-    if args.json:
+    return print_report(report, as_json=args.json)
+
+
+def print_report(report: GameReport, *, as_json: bool) -> int:
+    """Print a finished game as ``hideseek run`` does (one JSON object, or its events and
+    a summary); returns the exit status: 0 the hider was found, else 1."""
+    if as_json:
         print(json.dumps(report.to_json()))
     else:
         for line in report.events:
             print("  " + line)
-        _print_summary(report)
+        print_summary(report)
     return 0 if report.outcome == "found" else 1

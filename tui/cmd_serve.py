@@ -90,8 +90,8 @@ def parse_assignment(text: str, what: str) -> tuple[str, str]:
 
 
 def parse_origin(text: str):
-    """``ID=X,Y,HEADING`` -> (id, Pose2)."""
-    from server.protocol import Pose2
+    """``ID=X,Y,HEADING`` -> (id, Pose)."""
+    from server.protocol import Pose
 
     rid, value = parse_assignment(text, "--origin")
     parts = value.split(",")
@@ -99,7 +99,7 @@ def parse_origin(text: str):
         x, y, h = (float(p) for p in parts)
     except ValueError:
         raise ValueError(f"--origin must be ID=X,Y,HEADING with numbers, got {text!r}") from None
-    return rid, Pose2(x, y, h)
+    return rid, Pose(x, y, h)
 
 
 def parse_command_line(line: str) -> tuple[str, dict]:

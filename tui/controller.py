@@ -7,7 +7,9 @@ queued with ``send_nowait`` into a bounded Trio channel (a full queue is a
 Trio, calls the subclass's ``_do_<command>`` (plain or async) and publishes a
 `CommandResult`: ``refused`` when it raised ValueError/TypeError, ``error`` for
 OSError, ``ok`` otherwise. It also owns the clock, because pause and speed are
-the clock's rate and autojump, changed from inside Trio.
+the clock's rate: a Trio `MockClock`'s rate and autojump, changed from inside
+Trio, or a `tui.governor.GovernedClock`'s, changed at once on the console's
+side (no Trio task runs for it, so the game cannot see a change of speed).
 
 Subclasses supply ``_do_<command>`` for the commands they support and
 ``_event(kind, text)`` for the timeline.
@@ -24,6 +26,7 @@ from typing import Any
 import trio
 import trio.testing
 
+from tui.governor import GovernedClock
 from tui.snapshot import CommandResult, Publish
 
 __all__ = ["QueuedController"]
@@ -36,6 +39,8 @@ class QueuedController:
         speed: initial clock rate, None for "as fast as possible".
         paused: start with simulated time stopped.
         capacity: commands that may wait for Trio [commands].
+        governed: run on a `GovernedClock` (the game's virtual clock paced to the
+            wall clock) instead of a `MockClock` running at the speed.
 
     Attributes:
         clock: the Trio clock the system runs on.
@@ -43,10 +48,12 @@ class QueuedController:
             (bounded), for tests and the benchmark.
     """
 
-    def __init__(self, *, speed: float | None, paused: bool = False, capacity: int) -> None:
+    def __init__(self, *, speed: float | None, paused: bool = False, capacity: int,
+                 governed: bool = False) -> None:
         if speed is not None and not speed > 0:
             raise ValueError(f"speed must be > 0 or None, got {speed!r}")
-        self.clock = trio.testing.MockClock()
+        self.clock: trio.testing.MockClock | GovernedClock = (
+            GovernedClock(speed, paused=paused) if governed else trio.testing.MockClock())
         self.calls: deque[tuple[str, tuple]] = deque(maxlen=1000)
         self._speed = speed
         self._paused = paused
@@ -72,13 +79,13 @@ class QueuedController:
         self._submit("new_game")
 
     def pause(self) -> None:
-        self._submit("pause")
+        self._clock_command("pause")
 
     def resume(self) -> None:
-        self._submit("resume")
+        self._clock_command("resume")
 
     def set_speed(self, rate: float | None) -> None:
-        self._submit("set_speed", rate)
+        self._clock_command("set_speed", rate)
 
     def inject_fault(self, target: str, kind: str, duration_s: float | None,
                      params: Mapping[str, Any]) -> None:
@@ -89,6 +96,19 @@ class QueuedController:
 
     def export_map(self, directory: str) -> None:
         self._submit("export_map", str(directory))
+
+    def _clock_command(self, name: str, *args: Any) -> None:
+        """Pause and speed: on a governed clock, done here and now (see `GovernedClock.set`)."""
+        if not isinstance(self.clock, GovernedClock):
+            self._submit(name, *args)
+            return
+        self.calls.append((name, args))
+        try:
+            reason = getattr(self, "_do_" + name)(*args)
+        except (ValueError, TypeError) as exc:
+            self._result(name, "refused", str(exc))
+        else:
+            self._result(name, "ok", reason or "")
 
     def _submit(self, name: str, *args: Any) -> None:
         self.calls.append((name, args))
@@ -144,8 +164,11 @@ class QueuedController:
         return text
 
     def _apply_clock(self) -> None:
-        """Pause and speed are the clock's rate and autojump (call inside Trio once running)."""
-        if self._paused:
+        """Pause and speed are the clock's rate and autojump (a `MockClock`: call inside
+        Trio once running)."""
+        if isinstance(self.clock, GovernedClock):
+            self.clock.set(self._speed, self._paused)
+        elif self._paused:
             self.clock.autojump_threshold = math.inf
             self.clock.rate = 0.0
         elif self._speed is None:

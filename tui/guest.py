@@ -57,6 +57,7 @@ class TrioGuest:
         self._bursting = False  # inside `_burst`: Trio's next batch joins this burst
         self._next: Callable[[], object] | None = None  # that batch
         self._host_ready: Sized | None = None  # the host loop's ready callbacks
+        self._busy_s = 0.0  # wall time spent running Trio's batches [s]
 
     @property
     def started(self) -> bool:
@@ -67,6 +68,12 @@ class TrioGuest:
     def finished(self) -> bool:
         """The guest run has ended (never true before `start`)."""
         return self._finished is not None and self._finished.done()
+
+    @property
+    def busy_s(self) -> float:
+        """Wall time spent running Trio's batches so far [s]: the rest of the thread's time
+        went to the host (the console's frames), or to other processes."""
+        return self._busy_s
 
     @property
     def outcome(self) -> outcome.Outcome | None:
@@ -140,7 +147,8 @@ class TrioGuest:
         """Run Trio batches that are ready at once while the host has nothing ready,
         for up to `BURST_S`; then let the host loop run and continue on its next turn."""
         assert self._loop is not None
-        deadline = time.perf_counter() + BURST_S
+        start = time.perf_counter()
+        deadline = start + BURST_S
         host_ready = self._host_ready
         pending: Callable[[], object] | None = fn
         self._bursting = True
@@ -155,6 +163,7 @@ class TrioGuest:
             pending = self._next  # never lose the batch Trio asked for
             raise
         finally:
+            self._busy_s += time.perf_counter() - start
             self._bursting = False
             self._next = None
             if pending is not None:

@@ -25,9 +25,12 @@ from actors import EventKind, Message, TraceEvent
 from actors.firmware.commands import name_of
 from server.export import write_pgm, write_png
 from server.links import LinkSpec
-from server.protocol import ROLES, MapGrid, Pose2, inverse
+from server.links.spec import DEFAULT_BAUD
+from server.protocol import ROLES, GridMap, inverse
+from server.protocol import Pose as FramePose
 from server.protocol import compose as compose_pose
 from server.store import Store
+from supervisors.harness.headless import Budget, GameReport, finish_report, play_game
 from supervisors.recording import Recorder, RecordingError, RunInfo
 from supervisors.recording.runinfo import scenario_text
 from supervisors.system import SimSystem, open_sim_system
@@ -36,6 +39,7 @@ from world.scenario import Scenario
 from world.truth import truth_raster
 
 from .controller import QueuedController
+from .governor import GovernedClock
 from .snapshot import (
     MAX_LOG_LINES,
     MAX_TIMELINE,
@@ -53,11 +57,14 @@ from .snapshot import (
     TreeNode,
 )
 
-__all__ = ["LiveSystem"]
+__all__ = ["LiveSystem", "ListenError"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
-LAG_MAX_S = 0.5  # the world this far behind the clock: hold the clock [s]
-LAG_RESUME_S = 0.1  # ... until it is at most this far behind [s]
+PNG_SCALE = 4  # exported PNG: pixels per map cell edge (5 cm cells: 80 px per metre)
+#: Commands an auto game refuses (the scenario chooses), and those an attached rover does.
+AUTO_REFUSED = ("start_mapping", "stop_mapping", "hide_at", "seek_at", "new_game",
+                "inject_fault", "clear_fault", "export_map")
+REAL_TIME_REFUSED = ("pause", "resume", "set_speed")
 #: Mailbox statistics, the supervision tree and the fault catalogue are rebuilt on
 #: every this many snapshots (the console draws those tables at a third of its rate).
 TABLES_EVERY = 3
@@ -65,6 +72,10 @@ _MAP_MARGIN_CELLS = 20  # unknown border shown around the known map [cells]
 _MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?,.*?value=([^)]+)\)")
 _LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
               EventKind.FAULT, EventKind.KILLED, EventKind.POISON}
+
+
+class ListenError(OSError):
+    """Raised by `LiveSystem.run` when the address for attached rovers cannot be served."""
 
 
 def _decode(message: str) -> str:
@@ -101,6 +112,16 @@ class LiveSystem(QueuedController):
         listen: where rovers on ``tcp`` connect.
         record: record the game from the start into this ``.mcap`` file (`record`
             starts and stops recording later).
+        auto: play the headless operator's game by itself
+            (`supervisors.harness.headless.play_game`: start mapping, hide at the
+            scenario's spot, its guesses, the same retries) and end when it ends,
+            with `report` filled; operator commands are then refused.
+        budget: the auto game's time limits (`Budget`'s defaults when None).
+
+    Without remote rovers the system runs on a `GovernedClock`: the headless
+    game's virtual clock, released to the wall clock at the chosen speed, so
+    every speed plays the same game (with ``auto``: the same trace hash as
+    ``hideseek run``).
 
     Raises:
         ValueError: a remote role that is not mapper, hider or seeker, a link
@@ -110,21 +131,31 @@ class LiveSystem(QueuedController):
     def __init__(self, scenario: Scenario, *, seed: int = 1, speed: float | None = 1.0,
                  db: str = ":memory:", log_messages: bool = True,
                  remote: dict[str, LinkSpec] | None = None,
-                 listen: LinkSpec | None = None, record: str | None = None) -> None:
+                 listen: LinkSpec | None = None, record: str | None = None,
+                 auto: bool = False, budget: Budget | None = None) -> None:
         remote = dict(remote or {})
         for role, spec in remote.items():
             if role not in ROLES:
                 raise ValueError(f"--rover {role}: the ID of an attached rover is its role, "
                                  f"one of {', '.join(ROLES)}")
-            if spec.kind not in ("serial", "tcp"):
-                raise ValueError(f"--rover {role}: a rover's link is serial:PORT,BAUD or tcp, "
-                                 f"got {spec.text!r}")
+            if spec.kind not in ("serial", "tcp", "tcp_listen"):
+                raise ValueError(f"--rover {role}: a rover's link is serial:PORT[,BAUD], a "
+                                 f"device path, tcp (it connects in) or tcp:HOST:PORT (the "
+                                 f"server connects to it there), got {spec.text!r}")
         if any(spec.kind == "tcp" for spec in remote.values()) and (
-                listen is None or listen.kind != "tcp_listen"):
+                listen is None or listen.kind not in ("tcp_listen", "tcp_in")):
             raise ValueError("a rover on tcp needs --listen tcp:HOST:PORT")
+        if remote and auto:
+            raise ValueError("--auto plays the simulated game: no --rover with it")
         if remote:
-            speed = 1.0  # a real rover lives in real time
-        super().__init__(speed=speed, capacity=COMMAND_CAPACITY)
+            speed = 1.0  # a real rover lives in real time: a clock running at x1
+        super().__init__(speed=speed, capacity=COMMAND_CAPACITY, governed=not remote)
+        self.auto = auto
+        """Playing the headless operator's game by itself (see the class docstring)."""
+        self.budget = budget or Budget()
+        self.report: GameReport | None = None
+        """The auto game's report, once it has ended (what ``hideseek run`` prints)."""
+        self._server_events: trio.MemoryReceiveChannel | None = None
         self.remote = remote
         """Role -> link of the rovers not simulated here."""
         self.listen = listen
@@ -148,8 +179,7 @@ class LiveSystem(QueuedController):
         self._truth: GridView | None = None
         self._truth_raster: Any = None
         self._truth_key: tuple | None = None
-        self._mapper_room = Pose2(0, 0, 0)
-        self._warned_behind = False
+        self._mapper_room = FramePose(0, 0, 0)
         self._snapshots = 0  # snapshots built
         self._tables: tuple[Any, Any, Any] | None = None  # (queues, tree, catalogue)
         self._record_path = record
@@ -157,14 +187,21 @@ class LiveSystem(QueuedController):
 
     # -- Trio side ----------------------------------------------------------------------
     async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
-        """Run the simulated system until cancelled (see `tui.snapshot.System.run`)."""
+        """Run the simulated system until cancelled, or with ``auto`` until the game ends
+        (see `tui.snapshot.System.run`).
+
+        The console's snapshots are built by `host_snapshot` on the console's side,
+        so ``requests`` is not read: no task of the console wakes inside Trio, and
+        the game's order of events is the headless game's (same trace hash).
+        """
         self._publish = publish
         s = self.scenario.starts["mapper"]
-        self._mapper_room = Pose2(s.x, s.y, s.heading_deg)
+        self._mapper_room = FramePose(s.x, s.y, s.heading_deg)
         roles = tuple(r for r in ROLES if r not in self.remote)
         with Store(self._db) as store:
             async with open_sim_system(self.scenario, seed=self.seed, store=store,
                                        roles=roles) as system:
+                t_start = trio.current_time()
                 self._system = system
                 await self._prelude(system)
                 if self._record_path:
@@ -176,16 +213,20 @@ class LiveSystem(QueuedController):
                 trace.subscribe(self._on_trace)  # lifecycle events and drops
                 if self._log_messages:
                     trace.tap_messages(self._on_message)  # every send, cheaply
-                events = system.server.subscribe()
+                self._server_events = system.server.subscribe()
                 self._event("game", f"{self.scenario.name}: system started (seed {self.seed})")
-                await self._attach_remote(system)
                 try:
-                    async with trio.open_nursery() as nursery:
-                        nursery.start_soon(self._command_loop)
-                        nursery.start_soon(self._server_events, events)
-                        async for _ in requests:  # the console's refresh: wall-clock paced
-                            self._keep_up(system)
-                            publish(self.snapshot())
+                    if self.auto:
+                        self._event("game", "auto play: the scenario's hide spot and guesses")
+                        report = GameReport(self.scenario.name, self.seed)
+                        try:
+                            await play_game(system, report, self.budget)
+                        finally:
+                            finish_report(report, system, t_start)
+                        self.report = report
+                        return
+                    await self._attach_remote(system)
+                    await self._command_loop()
                 finally:
                     if self._recorder is not None:  # the file is complete when the console ends
                         self._recorder.stop()
@@ -198,11 +239,18 @@ class LiveSystem(QueuedController):
         """Serve the attached rovers' links (a failure to listen ends the system)."""
         if any(spec.kind == "tcp" for spec in self.remote.values()):
             assert self.listen is not None
-            port = await system.server.listen_tcp(self.listen.host, self.listen.port)
+            try:
+                port = await system.server.listen_tcp(self.listen.host, self.listen.port)
+            except OSError as exc:  # a busy port: one line naming it (hideseek play, exit 2)
+                raise ListenError(f"cannot listen on {self.listen.text}: "
+                                  f"{exc.strerror or exc}") from None
             self._event("link", f"listening for rovers on tcp:{self.listen.host}:{port}")
         for role, spec in self.remote.items():
             if spec.kind == "serial":
                 system.server.start_serial(spec.url, spec.baud)
+            elif spec.kind == "tcp_listen":  # a rover listening on TCP: connect out to it
+                # (pyserial's socket:// URL: the serial link's reconnecting loop serves it)
+                system.server.start_serial(f"socket://{spec.host}:{spec.port}", DEFAULT_BAUD)
             self._event("link", f"{role}: waiting for the rover on {spec.text}")
         if self.remote:
             self._event("game", "a real rover is attached: real time only (x1)")
@@ -210,37 +258,15 @@ class LiveSystem(QueuedController):
             self._event("game", "the map shows once the mapper uploads it (its working map "
                                 "is on the rover)")
 
-    def _keep_up(self, system: SimSystem) -> None:
-        """Hold the clock while the world is behind it (a governor; see `SimSystem.world_lag`).
-
-        At x16 a slow machine steps the world slower than the clock runs: the
-        firmware and the server keep time by the clock, the bytes between them
-        move only as the world steps, so heartbeats went missing and links were
-        shown down. Freezing the clock (rate 0) while the world is more than
-        `LAG_MAX_S` behind lets it catch up; the rate comes back at the next
-        refresh once it has. Simulated time then runs as fast as the machine
-        allows, below the chosen speed, and the panel says "behind".
-        """
-        if self._paused or self._speed is None:
-            self._behind = False
-            return
-        lag = system.world_lag()
-        if not self._behind and lag > LAG_MAX_S:
-            self._behind = True
-            self.clock.rate = 0.0
-            if not self._warned_behind:
-                self._warned_behind = True
-                self._event("game", f"the machine cannot keep up with x{self._speed:g}: "
-                                    "simulated time runs slower")
-        elif self._behind and lag <= LAG_RESUME_S:
-            self._behind = False
-            self.clock.rate = float(self._speed)
-
-    def _apply_clock(self) -> None:
-        self._behind = False
-        super()._apply_clock()
-
     # -- commands (in Trio); raise ValueError to refuse ----------------------------------
+    def _submit(self, name: str, *args: Any) -> None:
+        if self.auto:  # the game is the headless operator's: nothing may change it
+            self.calls.append((name, args))
+            self._result(name, "refused", "auto play: the scenario chooses; pause, speed "
+                                          "and the views are yours")
+            return
+        super()._submit(name, *args)
+
     def _real_time_only(self) -> None:
         if self.remote:
             raise ValueError(f"{', '.join(self.remote)} attached over a link: simulated time "
@@ -309,14 +335,14 @@ class LiveSystem(QueuedController):
             snap = self._system.mapper_grid()
             if snap is None:
                 raise ValueError("there is no map yet: start mapping first")
-            grid = MapGrid(np.asarray(snap.cells, np.int8), snap.resolution_cm,
+            grid = GridMap(np.asarray(snap.cells, np.int8), snap.resolution_cm,
                            tuple(snap.origin_cm))
         out = pathlib.Path(directory).expanduser()
         if not out.is_dir():
             raise ValueError(f"export directory {directory!r} does not exist")
         name = f"map-{self.scenario.name}-seed{self.seed}-{trio.current_time():.0f}s"
         pgm, yaml = write_pgm(grid, out, name)
-        png = write_png(grid, out, name)
+        png = write_png(grid, out, name, scale=PNG_SCALE)
         self._event("export", f"map saved: {pgm.name}, {yaml.name}, {png.name}")
         return f"{pgm}, {yaml}, {png}"
 
@@ -353,7 +379,8 @@ class LiveSystem(QueuedController):
     # -- events -------------------------------------------------------------------------
     def _event(self, kind: str, text: str) -> None:
         self._event_seq += 1
-        self._timeline.append(TimelineEvent(self._event_seq, trio.current_time(), kind, text))
+        self._timeline.append(TimelineEvent(self._event_seq, self.clock.current_time(), kind,
+                                            text))
 
     def _on_message(self, time: float, kind: EventKind, queue: str, message: Any,
                     depth: int) -> None:
@@ -396,8 +423,15 @@ class LiveSystem(QueuedController):
         self._decoded_seq = self._log_seq
         return tuple(self._log)
 
-    async def _server_events(self, events: trio.MemoryReceiveChannel) -> None:
-        async for e in events:
+    def _drain_server_events(self) -> None:
+        """The server's events since the last snapshot, into the timeline (on the console's
+        side: the channel only buffers, so no task wakes for it)."""
+        events = self._server_events
+        while events is not None:
+            try:
+                e = events.receive_nowait()
+            except (trio.WouldBlock, trio.EndOfChannel, trio.ClosedResourceError):
+                return
             if e.kind == "phase":
                 self._event("phase", f"phase {e.data.get('phase')}"
                             + (f": {e.data['reason']}" if e.data.get("reason") else ""))
@@ -408,11 +442,18 @@ class LiveSystem(QueuedController):
                 self._event("game", f"{e.kind} {e.rover} {body}".strip())
 
     # -- snapshot -----------------------------------------------------------------------
+    def host_snapshot(self) -> Snapshot:
+        """A snapshot built on the console's side of the thread, between two of Trio's
+        batches (see `tui.snapshot`): the game never sees the console look."""
+        self._drain_server_events()
+        return self.snapshot()
+
     def snapshot(self) -> Snapshot:
         """A whole picture of the system now (its queues, tree and fault catalogue as of
         at most `TABLES_EVERY` - 1 snapshots ago)."""
         system = self._system
-        now = trio.current_time()
+        now = self.clock.current_time()
+        reached = self.clock.reached() if isinstance(self.clock, GovernedClock) else None
         if system is None:
             return Snapshot(now, self._speed, self._paused, self.scenario.name, self.seed, "idle")
         server = system.server.snapshot()
@@ -423,11 +464,14 @@ class LiveSystem(QueuedController):
         self._snapshots += 1
         queues, tree, catalogue = self._tables
         return Snapshot(
-            time_s=now, speed=self._speed, paused=self._paused, scenario=self.scenario.name,
+            time_s=now, speed=self._speed, paused=self._paused, speed_reached=reached,
+            scenario=self.scenario.name,
             seed=self.seed, phase=server.phase, guesses=len(server.guesses), map=grid,
             truth=self._truth_view(grid), rovers=self._rovers(system, server),
             hide_spot=_pose(server.hide_spot),
             seek_guesses=tuple((g.x, g.y) for g in server.guesses),
+            refused=(AUTO_REFUSED if self.auto else ()) + (REAL_TIME_REFUSED if self.remote
+                                                            else ()),
             queues=queues, log=self._log_lines(), tree=tree, links=self._links(server),
             timeline=tuple(self._timeline), faults=self._faults(system), catalogue=catalogue)
 
@@ -458,7 +502,7 @@ class LiveSystem(QueuedController):
             ys = y0 + (np.arange(ny) + 0.5) * r
             mx, my = np.meshgrid(xs, ys)
             m = self._mapper_room
-            h = math.radians(m.heading)
+            h = math.radians(m.heading_deg)
             rx = m.x + math.cos(h) * mx - math.sin(h) * my
             ry = m.y + math.sin(h) * mx + math.cos(h) * my
             col = np.floor(rx / truth.resolution_cm).astype(int)
@@ -483,8 +527,12 @@ class LiveSystem(QueuedController):
                                      link=view.link if view else self.remote[role].text))
                 continue
             t = system.world.true_pose(role)
-            true = compose_pose(to_map, Pose2(t.x, t.y, t.heading_deg))
-            out.append(RoverView(role, role, _pose(view.pose if view else None), _pose(true),
+            true = compose_pose(to_map, FramePose(t.x, t.y, t.heading_deg))
+            pose = view.pose if view is not None and view.pose is not None else None
+            if pose is None:  # before its first report: where the operator placed it
+                start = self.scenario.starts[role]
+                pose = compose_pose(to_map, FramePose(start.x, start.y, start.heading_deg))
+            out.append(RoverView(role, role, _pose(pose), _pose(true),
                                  link=view.link if view else "memory"))
         return tuple(out)
 
@@ -530,18 +578,21 @@ class LiveSystem(QueuedController):
         return tuple(out)
 
     def _catalogue(self, system: SimSystem) -> tuple[FaultTarget, ...]:
-        out = []
+        """Every target with every fault the catalogue has for it: a device and the
+        actor that drives it share a name (``mapper/lidar``) and so one entry."""
+        kinds: dict[str, dict[str, dict[str, float]]] = {}
         for role in ROLES:
             if role in self.remote:
                 continue
-            for device, kinds in DEVICE_FAULTS.items():
+            for device, device_kinds in DEVICE_FAULTS.items():
                 if role in ROLE_DEVICES.get(device, ROLES):
-                    out.append(FaultTarget(f"{role}/{device}", tuple(kinds)))
+                    kinds[f"{role}/{device}"] = dict(device_kinds)
         for name in system.actors.names():
-            if "/" in name:
-                out.append(FaultTarget(name, tuple(ACTOR_FAULTS)))
-        return tuple(out)
+            if "/" in name and name.split("/")[0] not in self.remote:
+                kinds.setdefault(name, {}).update(ACTOR_FAULTS)
+        return tuple(FaultTarget(target, tuple(by_kind),
+                                 {k: dict(p) for k, p in by_kind.items() if p})
+                     for target, by_kind in kinds.items())
 
-
-def _pose(p: Pose2 | None) -> Pose | None:
-    return None if p is None else Pose(p.x, p.y, p.heading)
+def _pose(p: FramePose | None) -> Pose | None:
+    return None if p is None else Pose(p.x, p.y, p.heading_deg)

@@ -11,7 +11,11 @@ things, and this module is the whole of that contract:
    *wall* second (10 at "as fast as possible") by putting ``None`` into the
    ``requests`` channel it hands to `System.run`, never more than one at a time;
    the system answers each request by building a snapshot from its current
-   state and calling ``publish(snapshot)``. This pull makes the refresh
+   state and calling ``publish(snapshot)``. A system may instead offer
+   ``host_snapshot() -> Snapshot``, which the console then calls on its own
+   side of the thread between two of Trio's batches (the state is consistent
+   there, as in any task): no Trio task wakes for the console at all, so the
+   console cannot change the order of events in a game. This pull makes the refresh
    rate independent of the simulation speed and of how many messages flow: at
    "as fast as possible" the system builds 15 snapshots per wall second, not one
    per simulated tick.
@@ -317,6 +321,8 @@ class FaultTarget:
     """Actor name (``mapper/lidar``) or device (``mapper.lidar``)."""
     kinds: tuple[str, ...]
     """Fault kinds valid for this target."""
+    params: dict[str, dict[str, float]] = field(default_factory=dict)
+    """Kind -> its parameters with their defaults (kinds without parameters may be absent)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -335,6 +341,9 @@ class Snapshot:
     """Seed of the run's generator."""
     phase: str
     """Game phase, one of `PHASES`."""
+    speed_reached: float | None = None
+    """Simulated seconds per wall second actually reached lately (None: not measured);
+    below ``speed`` when the machine cannot keep up."""
     guesses: int = 0
     """Seek guesses made so far in this game."""
     map: GridView | None = None
@@ -363,6 +372,9 @@ class Snapshot:
     """Faults in force now."""
     catalogue: tuple[FaultTarget, ...] = ()
     """Fault targets and kinds the system accepts (for the fault dialog)."""
+    refused: tuple[str, ...] = ()
+    """`Controller` methods refused whatever the phase (a rover attached: ``pause``,
+    ``resume``, ``set_speed``; an auto game: the game commands); their keys are greyed."""
 
     def __post_init__(self) -> None:
         _check(self.phase in PHASES,
@@ -463,9 +475,10 @@ class System(Controller, Protocol):
 
     clock: trio.abc.Clock
     """The clock the Trio run uses. The system owns it: speed changes and pause
-    are done by the system from inside Trio (a `trio.testing.MockClock`'s
-    ``rate`` and ``autojump_threshold``), because changing a clock from outside
-    Trio would not wake a sleeping run."""
+    are done by the system, from inside Trio for a `trio.testing.MockClock`
+    (its ``rate`` and ``autojump_threshold``: changing it from outside would not
+    wake a sleeping run), or at once for a `tui.governor.GovernedClock`, which
+    looks at its rate again at least every `tui.governor.POLL_S`."""
 
     async def run(self, publish: Publish, requests: trio.abc.ReceiveChannel[None]) -> None:
         """Run the system until cancelled.

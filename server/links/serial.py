@@ -40,8 +40,9 @@ def _open_port(url: str, baud: int):
 class ThreadSerialStream:
     """A pyserial port without a file descriptor, as a Trio byte stream (worker thread)."""
 
-    def __init__(self, port) -> None:
+    def __init__(self, port, *, eof_on_error: bool = False) -> None:
         self.port = port
+        self._eof_on_error = eof_on_error  # a socket:// peer that went away ends the stream
 
     async def receive_some(self, max_bytes: int = 4096) -> bytes:
         """Wait for bytes (polls in a thread with a short timeout, so it is cancellable)."""
@@ -49,6 +50,8 @@ class ThreadSerialStream:
             try:
                 data = await trio.to_thread.run_sync(self._read, max_bytes)
             except Exception as exc:  # pyserial raises various types on unplug
+                if self._eof_on_error:
+                    return b""
                 raise SerialLinkError(f"serial port {self.port.port} failed: {exc}") from None
             if data:
                 return data
@@ -108,9 +111,11 @@ def open_serial_stream(url: str, baud: int):
     """
     port = _open_port(url, baud)
     try:
-        port.fileno()
+        fd = port.fileno()
     except Exception:  # URL transports have no descriptor
         return ThreadSerialStream(port)
+    if not os.isatty(fd):  # socket://: a socket's descriptor takes no terminal settings,
+        return ThreadSerialStream(port, eof_on_error=True)  # and a closed peer is an end
     try:
         return _FdSerialStream(port)
     except (OSError, termios.error) as exc:

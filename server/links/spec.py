@@ -1,19 +1,25 @@
-"""Link strings: ``tcp:HOST:PORT``, ``tcp``, ``serial:PORT,BAUD``, ``sim``, ``pty``.
+"""Link strings, as MAVProxy users type them.
 
-=============================  ================================================
-string                         meaning
-=============================  ================================================
-``tcp:127.0.0.1:7878``         listen address for rovers connecting over TCP
-``tcp``                        (``--rover ID=tcp``) this rover connects over TCP
-``serial:/dev/ttyUSB0,115200`` a serial port and baud rate (MAVProxy style)
-``serial:loop://,115200``      any pyserial URL: ``loop://``, ``socket://h:p``
-``sim``                        a simulated rover in the same process
-``pty``                        (``hideseek rover``) a new pty pair: the rover
-                               holds one end, the server opens the other
-=============================  ================================================
-
-For a rover (``hideseek rover --link``), ``tcp:HOST:PORT`` is where it
-connects, as a WiFly module would.
+=================================  ============================================
+string                             meaning
+=================================  ============================================
+``tcp:127.0.0.1:7878``             a TCP address: where the connecting side
+                                   connects (a rover, or with ``--rover
+                                   ID=tcp:HOST:PORT`` the server, to a rover
+                                   listening there), or ``--listen``'s address
+``tcpin:0.0.0.0:7878``             listen there for the other side to connect
+                                   (``hideseek rover --link tcpin:...``: the
+                                   rover waits for the server)
+``tcp``                            (``--rover ID=tcp``) this rover connects in,
+                                   to ``--listen``
+``serial:/dev/ttyUSB0,115200``     a serial port and baud rate
+``serial:/dev/ttyUSB0``            ... at 115200 baud
+``/dev/ttyUSB0,57600``, ``COM3``   a bare device path, with or without a baud
+``serial:loop://,115200``          any pyserial URL: ``loop://``, ``socket://h:p``
+``sim``                            a simulated rover in the same process
+``pty``                            (``hideseek rover``) a new pty pair: the rover
+                                   holds one end, the server opens the other
+=================================  ============================================
 """
 
 from __future__ import annotations
@@ -21,9 +27,12 @@ from __future__ import annotations
 import ipaddress
 from dataclasses import dataclass
 
-__all__ = ["LinkSpec", "parse_link", "is_loopback"]
+__all__ = ["LinkSpec", "parse_link", "is_loopback", "DEFAULT_BAUD"]
 
-_KINDS = "tcp:HOST:PORT, tcp, serial:PORT,BAUD, sim or pty"
+_KINDS = ("tcp:HOST:PORT, tcpin:HOST:PORT, tcp, serial:PORT[,BAUD], a device path[,BAUD], "
+          "sim or pty")
+#: Baud rate of a serial link given without one (the WiFly module's default) [bit/s].
+DEFAULT_BAUD = 115200
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,7 +40,8 @@ class LinkSpec:
     """A parsed link string."""
 
     kind: str
-    """``tcp_listen``, ``tcp``, ``serial``, ``sim`` or ``pty``."""
+    """``tcp_listen`` (a TCP address, ``tcp:``), ``tcp_in`` (listen, ``tcpin:``), ``tcp``,
+    ``serial``, ``sim`` or ``pty``."""
     text: str
     """The string as given."""
     host: str = ""
@@ -50,20 +60,37 @@ def parse_link(text: str) -> LinkSpec:
     t = text.strip()
     if t in ("tcp", "sim", "pty"):
         return LinkSpec(t, text)
-    if t.startswith("tcp:"):
-        host, sep, port_s = t[4:].rpartition(":")
-        if not sep or not host:
-            raise ValueError(f"tcp link must be tcp:HOST:PORT, got {text!r}")
-        host = host.strip("[]")
-        port = _int_in(port_s, "tcp port", 0, 65535, text)
-        return LinkSpec("tcp_listen", text, host=host, port=port)
+    for prefix, kind in (("tcp:", "tcp_listen"), ("tcpin:", "tcp_in")):
+        if t.startswith(prefix):
+            host, sep, port_s = t[len(prefix):].rpartition(":")
+            if not sep or not host:
+                raise ValueError(f"{prefix[:-1]} link must be {prefix}HOST:PORT, got {text!r}")
+            host = host.strip("[]")
+            port = _int_in(port_s, f"{prefix[:-1]} port", 0, 65535, text)
+            return LinkSpec(kind, text, host=host, port=port)
     if t.startswith("serial:"):
-        url, sep, baud_s = t[7:].rpartition(",")
-        if not sep or not url:
-            raise ValueError(f"serial link must be serial:PORT,BAUD, got {text!r}")
-        baud = _int_in(baud_s, "serial baud", 50, 4_000_000, text)
-        return LinkSpec("serial", text, url=url, baud=baud)
+        return _serial(t[7:], text)
+    if _is_device(t):
+        return _serial(t, text)
     raise ValueError(f"link must be {_KINDS}, got {text!r}")
+
+
+def _serial(port_baud: str, text: str) -> LinkSpec:
+    """``PORT`` or ``PORT,BAUD`` (default `DEFAULT_BAUD`)."""
+    url, sep, baud_s = port_baud.rpartition(",")
+    if not sep:
+        url, baud = port_baud, DEFAULT_BAUD
+    else:
+        baud = _int_in(baud_s, "serial baud", 50, 4_000_000, text)
+    if not url.strip():
+        raise ValueError(f"serial link must be serial:PORT[,BAUD], got {text!r}")
+    return LinkSpec("serial", text, url=url.strip(), baud=baud)
+
+
+def _is_device(text: str) -> bool:
+    """A bare serial device: a path (``/dev/ttyUSB0``) or a Windows ``COMn``."""
+    port = text.partition(",")[0]
+    return port.startswith("/") or (port.upper().startswith("COM") and port[3:].isdigit())
 
 
 def _int_in(value: str, what: str, lo: int, hi: int, text: str) -> int:

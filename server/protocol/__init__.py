@@ -5,8 +5,9 @@ Layering (lower modules never import higher ones)::
     frame      one JSON line <-> `Frame`, size limit, fault codes
     lines      byte stream -> lines, bounded
     catalogue  every cmd: type, payload schema, direction, reliability
-    pose       poses and frame changes (room, map, rover)
-    mapcodec   occupancy grid <-> numbered chunks, assembler
+    pose       THE pose type and angle algebra (room, map, rover frames)
+    grid_map   THE map type (GridMap), its cell convention and its two classifications
+    mapcodec   GridMap <-> numbered chunks, assembler
     session    reliable delivery: seq, cumulative ack, resend, liveness, stats
 
 Imported by the server and by the rovers' firmware (the only server module the
@@ -40,7 +41,7 @@ from .catalogue import (
     Found,
     Hello,
     MapChunk,
-    Pose,
+    PoseData,
     Reason,
     Spec,
     Status,
@@ -58,31 +59,31 @@ from .frame import (
     encode_frame,
     error_frame,
 )
-from .lines import TOO_LONG, LineBuffer
-from .mapcodec import (
-    CHUNK_B64_CHARS,
+from .grid_map import (
     FREE,
+    FREE_MAX,
     OCCUPIED,
+    OCCUPIED_MIN,
+    OCCUPIED_SPLIT,
     UNKNOWN,
-    MapAssembler,
+    GridMap,
     MapError,
-    MapGrid,
-    decode_runs,
-    encode_runs,
-    map_chunks,
 )
-from .pose import Pose2, compose, inverse, relative, wrap_deg
+from .lines import TOO_LONG, LineBuffer
+from .mapcodec import CHUNK_B64_CHARS, MapAssembler, decode_runs, encode_runs, map_chunks
+from .pose import ZERO_POSE, Pose, angle_diff_deg, compose, inverse, relative, wrap_deg
 from .session import LinkStats, OutboxFull, ReliableSession
 
 __all__ = [
     "ACK", "ARRIVED", "CATALOGUE", "DESTINATION", "ERROR", "FOUND", "HEARTBEAT", "HELLO",
     "INVALID_SPOT", "MAP", "MAP_REQUEST", "NOT_FOUND", "ORIGIN", "POSE", "ROLES", "START",
     "STATUS", "STOP", "WELCOME", "MAX_WITHIN_CM", "Destination", "ErrorInfo", "Found", "Hello",
-    "MapChunk", "Pose", "Reason", "Spec", "Status", "Welcome", "make_frame", "read_data",
+    "MapChunk", "PoseData", "Reason", "Spec", "Status", "Welcome", "make_frame", "read_data",
     "MAX_LINE_BYTES", "MAX_SEQ", "Fault", "Frame", "FrameError", "decode_line", "encode_frame",
     "error_frame", "TOO_LONG", "LineBuffer",
-    "CHUNK_B64_CHARS", "FREE", "OCCUPIED", "UNKNOWN", "MapAssembler", "MapError", "MapGrid",
+    "FREE", "FREE_MAX", "OCCUPIED", "OCCUPIED_MIN", "OCCUPIED_SPLIT", "UNKNOWN", "GridMap",
+    "MapError", "CHUNK_B64_CHARS", "MapAssembler",
     "decode_runs", "encode_runs", "map_chunks",
-    "Pose2", "compose", "inverse", "relative", "wrap_deg",
+    "Pose", "ZERO_POSE", "angle_diff_deg", "compose", "inverse", "relative", "wrap_deg",
     "LinkStats", "OutboxFull", "ReliableSession",
 ]

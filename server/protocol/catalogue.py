@@ -10,13 +10,13 @@ ack           ack           both         no        null (the ``ack`` field carri
 error         fault         both         no        `ErrorInfo`
 start         none          srv->rover   yes       null
 stop          none          srv->rover   yes       null
-origin        pose          srv->rover   yes       `Pose`: rover's start pose, map frame
+origin        pose          srv->rover   yes       `PoseData`: rover's start pose, map frame
 map_request   none          rover->srv   yes       null
 map           chunk         both         yes       `MapChunk` (see `mapcodec`)
-pose          pose          rover->srv   no        `Pose` (map frame once origin known)
+pose          pose          rover->srv   no        `PoseData` (map frame once origin known)
 status        status        rover->srv   no        `Status`
 destination   pose          srv->rover   yes       `Destination` (map frame)
-arrived       pose          rover->srv   yes       `Pose`
+arrived       pose          rover->srv   yes       `PoseData`
 invalid_spot  reason        rover->srv   yes       `Reason`
 found         pose          rover->srv   yes       `Found`
 not_found     reason        rover->srv   yes       `Reason`
@@ -42,7 +42,7 @@ __all__ = [
     "HELLO", "WELCOME", "HEARTBEAT", "ACK", "ERROR", "START", "STOP", "ORIGIN",
     "MAP_REQUEST", "MAP", "POSE", "STATUS", "DESTINATION", "ARRIVED", "INVALID_SPOT",
     "FOUND", "NOT_FOUND",
-    "Hello", "Welcome", "Pose", "Destination", "Status", "Reason", "Found", "ErrorInfo",
+    "Hello", "Welcome", "PoseData", "Destination", "Status", "Reason", "Found", "ErrorInfo",
     "MapChunk", "MAX_WITHIN_CM", "Spec", "CATALOGUE", "make_frame", "read_data",
 ]
 
@@ -101,8 +101,11 @@ class Welcome(msgspec.Struct, frozen=True):
     """``seq`` of the server's oldest unacknowledged reliable frame (or its next one)."""
 
 
-class Pose(msgspec.Struct, frozen=True):
-    """A pose: position [cm] and heading [deg, CCW from +x]."""
+class PoseData(msgspec.Struct, frozen=True):
+    """A pose as the wire carries it: position [cm] and heading [deg, CCW from +x].
+
+    The payload schema of ``origin``, ``pose`` and ``arrived``; code works with
+    `server.protocol.pose.Pose`, made from it."""
 
     x: _Coord
     y: _Coord
@@ -194,13 +197,13 @@ CATALOGUE: dict[str, Spec] = {s.cmd: s for s in (
     Spec(ERROR, "fault", ErrorInfo, "both", False),
     Spec(START, "none", None, "server", True),
     Spec(STOP, "none", None, "server", True),
-    Spec(ORIGIN, "pose", Pose, "server", True),
+    Spec(ORIGIN, "pose", PoseData, "server", True),
     Spec(MAP_REQUEST, "none", None, "rover", True),
     Spec(MAP, "chunk", MapChunk, "both", True),
-    Spec(POSE, "pose", Pose, "rover", False),
+    Spec(POSE, "pose", PoseData, "rover", False),
     Spec(STATUS, "status", Status, "rover", False),
     Spec(DESTINATION, "pose", Destination, "server", True),
-    Spec(ARRIVED, "pose", Pose, "rover", True),
+    Spec(ARRIVED, "pose", PoseData, "rover", True),
     Spec(INVALID_SPOT, "reason", Reason, "rover", True),
     Spec(FOUND, "pose", Found, "rover", True),
     Spec(NOT_FOUND, "reason", Reason, "rover", True),
@@ -246,7 +249,7 @@ def read_data(frame: Frame) -> Any:
     if spec.payload is None:
         return None
     data = frame.data
-    if spec.payload in (Pose, Found) and isinstance(data, dict) and "heading" in data \
+    if spec.payload in (PoseData, Found) and isinstance(data, dict) and "heading" in data \
             and data["heading"] is None:
         data = {k: v for k, v in data.items() if k != "heading"}  # null means absent
     try:

@@ -6,9 +6,8 @@ y), column 0 at the left (lowest x). Cell ``[i, j]`` covers
 ``(ox, oy)`` is ``origin_cm`` (the lower-left corner of cell ``[0, 0]``) and
 ``r`` is ``resolution_cm``, all in the map frame [cm].
 
-Cell values as held in memory (``numpy.int8``): -1 unknown, 0 free, 100
-occupied; values in between are occupancy percentages and are classified with
-`FREE_MAX` and `OCCUPIED_MIN` before sending.
+The map is a `GridMap` (``grid_map``): its cells are -1 unknown, 0 free, 100
+occupied, classified once when the map was made.
 
 Wire encoding (one byte string, then base64):
 
@@ -38,71 +37,12 @@ import numpy as np
 
 from .catalogue import MAP, MapChunk
 from .frame import Frame
+from .grid_map import FREE, MAX_CELLS, OCCUPIED, UNKNOWN, GridMap, MapError
 
-__all__ = [
-    "UNKNOWN", "FREE", "OCCUPIED", "FREE_MAX", "OCCUPIED_MIN", "CHUNK_B64_CHARS",
-    "MapGrid", "MapError", "encode_runs", "decode_runs", "map_chunks", "MapAssembler",
-]
+__all__ = ["CHUNK_B64_CHARS", "encode_runs", "decode_runs", "map_chunks", "MapAssembler"]
 
-UNKNOWN = -1
-FREE = 0
-OCCUPIED = 100
-FREE_MAX = 19
-"""Cells at or below this occupancy [%] are sent as free (map_server's 0.196)."""
-OCCUPIED_MIN = 65
-"""Cells at or above this occupancy [%] are sent as occupied (map_server's 0.65)."""
 CHUNK_B64_CHARS = 640
 """Base64 characters per chunk: keeps a chunk frame well under 1 KiB."""
-MAX_CELLS = 4096 * 4096
-
-
-class MapError(ValueError):
-    """Raised when a map or a chunk is malformed, naming what is wrong."""
-
-
-@dataclass(frozen=True, eq=False)
-class MapGrid:
-    """An occupancy grid with its placement in the map frame."""
-
-    cells: np.ndarray
-    """``int8`` array, shape (ny, nx): -1 unknown, 0 free, 100 occupied."""
-    resolution_cm: float
-    """Cell side [cm]."""
-    origin_cm: tuple[float, float]
-    """Lower-left corner of cell [0, 0] in the map frame [cm]."""
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.cells, np.ndarray) or self.cells.ndim != 2:
-            raise MapError("cells must be a 2-D numpy array")
-        if self.cells.size == 0 or self.cells.size > MAX_CELLS:
-            raise MapError(f"cells must hold 1..{MAX_CELLS} cells, got {self.cells.size}")
-        if not self.resolution_cm > 0:
-            raise MapError(f"resolution_cm must be > 0, got {self.resolution_cm}")
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """(ny, nx) [cells]."""
-        return self.cells.shape  # type: ignore[return-value]
-
-    def codes(self) -> np.ndarray:
-        """The wire codes (0 unknown, 1 free, 2 occupied) as ``uint8``, same shape."""
-        c = self.cells.astype(np.int16)
-        out = np.zeros(c.shape, dtype=np.uint8)
-        out[(c >= 0) & (c <= FREE_MAX)] = 1
-        out[c >= OCCUPIED_MIN] = 2
-        return out
-
-    def normalised(self) -> MapGrid:
-        """The same map with every cell exactly -1, 0 or 100 (what the wire carries)."""
-        lut = np.array([UNKNOWN, FREE, OCCUPIED], dtype=np.int8)
-        return MapGrid(lut[self.codes()], self.resolution_cm, self.origin_cm)
-
-    def same_as(self, other: MapGrid) -> bool:
-        """True when both maps carry the same cells and placement."""
-        return (self.cells.shape == other.cells.shape
-                and bool(np.array_equal(self.cells, other.cells))
-                and self.resolution_cm == other.resolution_cm
-                and tuple(self.origin_cm) == tuple(other.origin_cm))
 
 
 def encode_runs(codes: np.ndarray) -> bytes:
@@ -169,7 +109,7 @@ def decode_runs(data: bytes, n_cells: int) -> np.ndarray:
     return np.repeat(np.array(values, dtype=np.uint8), np.array(lengths, dtype=np.int64))
 
 
-def map_chunks(grid: MapGrid, map_id: int) -> list[Frame]:
+def map_chunks(grid: GridMap, map_id: int) -> list[Frame]:
     """The ``map`` frames (without ``seq``/``ack``) that carry ``grid``."""
     raw = encode_runs(grid.codes())
     crc = zlib.crc32(raw)
@@ -194,7 +134,7 @@ def _builtins(chunk: MapChunk) -> dict:
 
 @dataclass
 class MapAssembler:
-    """Collects the chunks of one map and gives the `MapGrid` when all arrived.
+    """Collects the chunks of one map and gives the `GridMap` when all arrived.
 
     A chunk of a different ``map_id`` (or with different dimensions) starts a
     new map and discards the old pieces, so memory stays bounded by one map.
@@ -205,7 +145,7 @@ class MapAssembler:
     _header: tuple | None = None
     _pieces: dict[int, str] = field(default_factory=dict)
 
-    def add(self, chunk: MapChunk) -> MapGrid | None:
+    def add(self, chunk: MapChunk) -> GridMap | None:
         """Take one chunk; return the whole map once every chunk is in.
 
         Raises:
@@ -237,7 +177,8 @@ class MapAssembler:
         codes = decode_runs(raw, chunk.nx * chunk.ny)
         lut = np.array([UNKNOWN, FREE, OCCUPIED], dtype=np.int8)
         cells = lut[codes].reshape(chunk.ny, chunk.nx)
-        return MapGrid(cells, chunk.resolution_cm,
+        cells.flags.writeable = False
+        return GridMap(cells, chunk.resolution_cm,
                        (float(chunk.origin_cm[0]), float(chunk.origin_cm[1])))
 
     def missing(self) -> list[int]:

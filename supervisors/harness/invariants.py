@@ -288,7 +288,7 @@ def _short(keys: list[str]) -> str:
 def check_maps_equal(stored: Any, uploaded: Any) -> list[Violation]:
     """No loss: the map the server stored equals the one the mapper uploaded.
 
-    Both are `MapGrid`-like (``cells``, ``resolution_cm``, ``origin_cm``);
+    Both are `GridMap`-like (``cells``, ``resolution_cm``, ``origin_cm``);
     None means there was none (no map is fine only when neither has one).
     """
     if stored is None and uploaded is None:

@@ -44,7 +44,7 @@ from mcap.writer import CompressionType, Writer
 from actors import EventKind, Message, TraceEvent
 from actors.firmware.commands import name_of
 from actors.message import ValueType
-from server.protocol import ROLES, Pose2, compose, inverse
+from server.protocol import ROLES, Pose, compose, inverse
 from supervisors.system import SimSystem
 
 from .runinfo import RunInfo
@@ -174,7 +174,7 @@ class Recorder:
         self._next_pose = 0.0
         self._next_map = 0.0
         self._next_tick = 0.0  # min(next_pose, next_map)
-        self._to_map = Pose2(0.0, 0.0, 0.0)
+        self._to_map = Pose(0.0, 0.0, 0.0)
         self._last_grid: bytes | None = None
         self._last_upload: Any = None
         self._paths: dict[str, tuple] = {}
@@ -203,7 +203,7 @@ class Recorder:
             raise RuntimeError("a Recorder records one system once")
         self._system = system
         start = system.scenario.starts["mapper"]
-        self._to_map = inverse(Pose2(start.x, start.y, start.heading_deg))
+        self._to_map = inverse(Pose(start.x, start.y, start.heading_deg))
         trace = system.actors.trace
         taps = [trace.tap_messages(self._on_message), trace.subscribe(self._on_event)]
         self._undo += [s.close for s in taps]
@@ -369,10 +369,10 @@ class Recorder:
     def _scan(self, ranges: np.ndarray, pose: tuple[float, float, float]) -> None:
         now = trio.current_time()
         x, y, heading = pose
-        p = compose(self._to_map, Pose2(x, y, math.degrees(heading)))
+        p = compose(self._to_map, Pose(x, y, math.degrees(heading)))
         n = len(ranges)
         self._add("/mapper/scan", now, {
-            "timestamp": stamp(now), "frame_id": FRAME, "pose": pose_msg(p.x, p.y, p.heading),
+            "timestamp": stamp(now), "frame_id": FRAME, "pose": pose_msg(p.x, p.y, p.heading_deg),
             "start_angle": 0.0, "end_angle": 2.0 * math.pi * (n - 1) / n,
             "ranges": (ranges / 100.0).round(4).tolist(), "intensities": []})
 
@@ -433,9 +433,10 @@ class Recorder:
             if role not in system.trees:
                 continue
             t = system.world.true_pose(role)
-            p = compose(self._to_map, Pose2(t.x, t.y, t.heading_deg))
+            p = compose(self._to_map, Pose(t.x, t.y, t.heading_deg))
             self._add(f"/{role}/pose/true", now,
-                      {"timestamp": ts, "frame_id": FRAME, "pose": pose_msg(p.x, p.y, p.heading)})
+                      {"timestamp": ts, "frame_id": FRAME,
+                       "pose": pose_msg(p.x, p.y, p.heading_deg)})
             cell = system.actors.whereis(f"{role}/nav")
             nav = cell.actor if cell is not None else None
             if nav is None or getattr(nav, "origin", None) is None:

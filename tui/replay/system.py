@@ -15,7 +15,7 @@ from typing import Any
 
 import trio
 
-from server.protocol import Pose2, compose, inverse
+from server.protocol import Pose, compose, inverse
 from supervisors.recording.reading import Recording, read_recording
 from tui.controller import QueuedController
 from tui.snapshot import Publish, Snapshot, TimelineEvent
@@ -35,11 +35,11 @@ def _map_from_room(rec: Recording) -> Any:
         start = rec.run.scenario().starts["mapper"]
     except Exception:  # noqa: BLE001 - any rebuild failure: points shown as given
         return None
-    to_map = inverse(Pose2(start.x, start.y, start.heading_deg))
+    to_map = inverse(Pose(start.x, start.y, start.heading_deg))
 
     def convert(x: float, y: float, heading: float = 0.0) -> tuple[float, float, float]:
-        p = compose(to_map, Pose2(x, y, heading))
-        return p.x, p.y, p.heading
+        p = compose(to_map, Pose(x, y, heading))
+        return p.x, p.y, p.heading_deg
     return convert
 
 

@@ -1,12 +1,16 @@
 """The fault dialog: inject a catalogue fault on a target with a duration, or clear one.
 
 It offers exactly what the snapshot's catalogue lists, so a person cannot pick
-a kind the target does not accept. Dismisses with a `FaultRequest` or None.
+a kind the target does not accept: per target every device fault and every
+actor fault (``mapper/lidar`` is both a device and an actor: ``dead`` ...
+``noisy`` and ``crash`` / ``hang`` / ``flood``). A kind that takes parameters
+fills the parameter field with its defaults (``sigma_cm=10``), to edit.
+Dismisses with a `FaultRequest` or None.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -16,7 +20,7 @@ from textual.widgets import Button, Input, Label, Select
 
 from tui.snapshot import ActiveFault, FaultTarget
 
-__all__ = ["FaultDialog", "FaultRequest", "parse_duration"]
+__all__ = ["FaultDialog", "FaultRequest", "parse_duration", "parse_params", "format_params"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,6 +35,38 @@ class FaultRequest:
     """Fault kind (inject)."""
     duration_s: float | None = None
     """Simulated duration [s] (inject); None until cleared."""
+    params: dict[str, float] = field(default_factory=dict)
+    """The kind's parameters (inject), as edited."""
+
+
+def format_params(params: dict[str, float]) -> str:
+    """``{"sigma_cm": 10.0}`` -> ``sigma_cm=10``."""
+    return " ".join(f"{k}={v:g}" for k, v in params.items())
+
+
+def parse_params(text: str, allowed: dict[str, float]) -> dict[str, float]:
+    """``"sigma_cm=12 ..."`` (spaces or commas between) -> ``{"sigma_cm": 12.0}``.
+
+    Raises:
+        ValueError: a word that is not NAME=NUMBER, a name the kind does not take,
+            or a negative value.
+    """
+    out: dict[str, float] = {}
+    for word in text.replace(",", " ").split():
+        name, sep, value = word.partition("=")
+        if not sep:
+            raise ValueError(f"parameters are NAME=NUMBER, got {word!r}")
+        if name not in allowed:
+            raise ValueError(f"no parameter {name!r}; this kind takes "
+                             f"{', '.join(allowed) or 'none'}")
+        try:
+            number = float(value)
+        except ValueError:
+            raise ValueError(f"{name} must be a number, got {value!r}") from None
+        if not number >= 0:
+            raise ValueError(f"{name} must be >= 0, got {value!r}")
+        out[name] = number
+    return out
 
 
 def parse_duration(text: str) -> float | None:
@@ -74,7 +110,13 @@ class FaultDialog(ModalScreen[FaultRequest | None]):
         super().__init__()
         self.catalogue = catalogue
         self.active = active
-        self._kinds = {t.target: t.kinds for t in catalogue}
+        self._kinds: dict[str, tuple[str, ...]] = {}
+        self._params: dict[tuple[str, str], dict[str, float]] = {}
+        for t in catalogue:  # a target listed twice offers the kinds of both
+            kinds = self._kinds.get(t.target, ())
+            self._kinds[t.target] = kinds + tuple(k for k in t.kinds if k not in kinds)
+            for kind, params in t.params.items():
+                self._params[(t.target, kind)] = dict(params)
 
     def compose(self) -> ComposeResult:
         with Vertical():
@@ -82,6 +124,7 @@ class FaultDialog(ModalScreen[FaultRequest | None]):
             yield Select([(t, t) for t in self._kinds], prompt="target", id="target")
             yield Select([], prompt="kind", id="kind")
             yield Input(placeholder="duration [s], empty = until cleared", id="duration")
+            yield Input(placeholder="parameters: none", id="params", disabled=True)
             yield Label("", id="error")
             with Horizontal():
                 yield Button("Inject", variant="error", id="inject")
@@ -97,6 +140,16 @@ class FaultDialog(ModalScreen[FaultRequest | None]):
         if event.select.id == "target":
             kinds = self._kinds.get(str(event.value), ())
             self.query_one("#kind", Select).set_options([(k, k) for k in kinds])
+            self._show_params({})
+        elif event.select.id == "kind":
+            target = self.query_one("#target", Select).value
+            self._show_params(self._params.get((str(target), str(event.value)), {}))
+
+    def _show_params(self, params: dict[str, float]) -> None:
+        box = self.query_one("#params", Input)
+        box.value = format_params(params)
+        box.disabled = not params
+        box.placeholder = ("parameters NAME=NUMBER" if params else "parameters: none")
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
         event.stop()
@@ -123,10 +176,12 @@ class FaultDialog(ModalScreen[FaultRequest | None]):
             return
         try:
             duration = parse_duration(self.query_one("#duration", Input).value)
+            params = parse_params(self.query_one("#params", Input).value,
+                                  self._params.get((str(target), str(kind)), {}))
         except ValueError as exc:
             self._error(str(exc))
             return
-        self.dismiss(FaultRequest("inject", str(target), str(kind), duration))
+        self.dismiss(FaultRequest("inject", str(target), str(kind), duration, params))
 
     def _error(self, text: str) -> None:
         self.query_one("#error", Label).update(text)

@@ -18,10 +18,16 @@ __all__ = ["GamePanel", "speed_text", "render_game", "game_lines"]
 _PHASE_STYLE = {"found": "bold green", "not_found": "bold red", "mapping": "bold cyan"}
 
 
-def speed_text(speed: float | None, paused: bool) -> str:
-    """``x4``, ``max`` or ``paused x4``."""
+def speed_text(speed: float | None, paused: bool, reached: float | None = None) -> str:
+    """``x4``, ``max`` or ``paused x4``; with the speed ``reached`` when it is measured and
+    falls short of the speed asked (``x16 (reached x5.2)``), or always at max (``max x120``)."""
     text = "max" if speed is None else f"x{speed:g}"
-    return f"paused {text}" if paused else text
+    if paused:
+        return f"paused {text}"
+    if reached is not None and (speed is None or reached < 0.9 * speed):
+        shown = f"{reached:.0f}" if reached >= 10 else f"{reached:.1f}"
+        text += f" x{shown}" if speed is None else f" (reached x{shown})"
+    return text
 
 
 def render_game(snap: Snapshot | None) -> Text:
@@ -42,7 +48,8 @@ def game_lines(snap: Snapshot | None) -> list[Text]:
                       (snap.phase.replace("_", " "), _PHASE_STYLE.get(snap.phase, "bold")),
                       ("  t ", "dim"), f"{snap.time_s:.1f} s"),
         Text.assemble(("speed ", "dim"),
-                      (speed_text(snap.speed, snap.paused), "bold yellow" if snap.paused else ""),
+                      (speed_text(snap.speed, snap.paused, snap.speed_reached),
+                       "bold yellow" if snap.paused else ""),
                       ("  guesses ", "dim"), str(snap.guesses)),
         Text(f"{snap.scenario} · seed {snap.seed}", style="dim"),
     ]
@@ -61,8 +68,10 @@ def game_lines(snap: Snapshot | None) -> list[Text]:
         else:
             line.append("up ", style="green")
             line.append("?" if ln.rtt_ms is None else f"{ln.rtt_ms:.0f}ms")
-            if ln.lost or ln.resent or ln.bad_frames:
-                line.append(f" lost {ln.lost} re {ln.resent} bad {ln.bad_frames}", "yellow")
+            counts = [f"{name} {n}" for name, n in (("lost", ln.lost), ("re", ln.resent),
+                                                      ("bad", ln.bad_frames)) if n]
+            if counts:  # only what is not zero: the whole line fits at 120 columns
+                line.append(" " + " ".join(counts), "yellow")
         lines.append(line)
     return lines
 

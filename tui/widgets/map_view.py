@@ -42,6 +42,9 @@ _RANK = np.array([0, 2, 5, 4, 3, 0, 0, 1], np.int8)
 #: A class with its rank above it (rank * 8 + class): the largest code wins.
 _CODE = (_RANK.astype(np.uint8) << 3) | np.arange(8, dtype=np.uint8)
 _ROVER_COLOURS = {"mapper": "#40d0ff", "hider": "#40ff60", "seeker": "#ff60ff"}
+#: The truth overlay's legend, in the map's title while the overlay is on.
+TRUTH_LEGEND = (f" · truth: [{_COLOURS[_TRUTH]}]■[/] unseen [{_COLOURS[_MISSED]}]■[/] "
+                f"missed [{_COLOURS[_FALSE]}]■[/] false ○ true pose")
 _ARROWS = "→↗↑↖←↙↓↘"
 
 
@@ -253,7 +256,7 @@ class MapView(Widget, can_focus=True):
         if snap is not None and snap.map is not None:
             what = {-1: "unknown", 0: "free", 100: "occupied"}.get(
                 snap.map.value_at(x, y), "?")
-        title = f"Map {self.scale:g} cm/px" + (" · truth" if self.show_truth else "")
+        title = f"Map {self.scale:g} cm/px" + (TRUTH_LEGEND if self.show_truth else "")
         subtitle = f"({x:.0f}, {y:.0f}) cm @ {self.cursor_heading:.0f}° {what}"
         # Setting a border title repaints the whole widget, even to the same text.
         if title != self.border_title:

@@ -50,7 +50,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import LidarSamples, LidarUartIsr
 from actors.firmware.handles import post
 from actors.firmware.hardware import Interrupt, RoverHardware
-from actors.firmware.localisation.odometry import Pose
+from server.protocol.pose import Pose
 
 __all__ = ["Scan", "LidarHealth", "HealthOptions", "roughness_cm", "batch_health",
            "LidarControl"]

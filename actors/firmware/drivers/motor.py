@@ -86,7 +86,8 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import MotorCounterIsr
 from actors.firmware.drivers.tread_monitor import TreadFault, TreadMonitor, TreadVerdict
 from actors.firmware.hardware import Interrupt, RoverHardware, decode_counter
-from actors.firmware.localisation.odometry import Odometer, Pose, compose, split_heading
+from actors.firmware.localisation.odometry import Odometer, split_heading
+from server.protocol.pose import Pose, compose
 
 __all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
 

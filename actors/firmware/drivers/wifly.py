@@ -44,7 +44,6 @@ import math
 from collections import deque
 from typing import Any
 
-import numpy as np
 import trio
 
 from actors import Actor, BufferPool, Message, PoolExhausted
@@ -52,7 +51,6 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import WiflyUartIsr
 from actors.firmware.hardware import Interrupt, RoverHardware
-from actors.firmware.mapping.grid_map import GridMap
 from server.protocol import (
     ERROR,
     HELLO,
@@ -61,9 +59,9 @@ from server.protocol import (
     Fault,
     Frame,
     FrameError,
+    GridMap,
     MapAssembler,
     MapError,
-    MapGrid,
     OutboxFull,
     ReliableSession,
     make_frame,
@@ -221,9 +219,7 @@ class Wifly(Actor):
         mem = self.memory
         assert mem is not None
         mem.map_id = (mem.map_id + 1) % (2**31)
-        wire = MapGrid(np.asarray(grid.cells), float(grid.resolution_cm),
-                       (float(grid.origin_cm[0]), float(grid.origin_cm[1])))
-        self._queue_reliable(map_chunks(wire, mem.map_id))
+        self._queue_reliable(map_chunks(grid, mem.map_id))
 
     def _service(self, now: float) -> None:
         """Liveness, hello, deliveries to navigation, and transmitting what is due."""
@@ -278,8 +274,7 @@ class Wifly(Actor):
                     continue
                 if grid is not None:
                     self.maps_in += 1
-                    self._to_nav_put(Cmd.NAV_MAP_DOWNLOAD,
-                                     GridMap(grid.cells, grid.resolution_cm, grid.origin_cm))
+                    self._to_nav_put(Cmd.NAV_MAP_DOWNLOAD, grid)
             else:
                 self._to_nav_put(Cmd.NAV_NET, frame)
 

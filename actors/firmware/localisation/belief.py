@@ -52,7 +52,7 @@ import numpy as np
 
 from actors.firmware.localisation.clusters import ClusterOptions, cluster_labels
 from actors.firmware.localisation.motion_model import MotionNoise, TreadMotion, sample_motion
-from actors.firmware.localisation.odometry import Pose, compose, inverse
+from server.protocol.pose import Pose, compose, inverse
 
 __all__ = ["BeliefOptions", "Cluster", "Spread", "UpdateReport", "PoseBelief",
            "low_variance_resample"]

@@ -55,9 +55,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.planning.clearance import occupied_near
+from server.protocol.grid_map import GridMap
+from server.protocol.pose import Pose
 
 __all__ = ["Contact", "locate_contact", "stalled_side"]
 

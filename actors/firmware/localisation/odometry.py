@@ -1,4 +1,4 @@
-"""Rover pose, pose algebra and dead reckoning from tread distances.
+"""Dead reckoning from tread distances (the pose algebra is `server.protocol.pose`).
 
 Algorithm
     Differential-drive odometry with midpoint (second-order Runge-Kutta)
@@ -15,126 +15,17 @@ Reference
 
 Frame and units
     Each rover works in its own frame: it starts at (0, 0) @ 0 [deg]. ``x`` and
-    ``y`` are [cm]; the heading is [deg], counter-clockwise from +x, wrapped to
-    [-180, 180). Pose composition follows the usual SE(2) convention:
-    ``compose(a, b)`` takes pose ``b`` expressed in ``a``'s frame to ``a``'s
-    parent frame.
+    ``y`` are [cm]; the heading is [deg], counter-clockwise from +x, with the
+    angle convention of `server.protocol.pose` (wrapped to (-180, 180]).
 """
 
 from __future__ import annotations
 
 import math
-import numbers
-from dataclasses import dataclass
 
-__all__ = [
-    "Pose",
-    "ORIGIN",
-    "wrap_deg",
-    "angle_diff_deg",
-    "compose",
-    "inverse",
-    "relative",
-    "advance",
-    "Odometer",
-    "split_heading",
-]
+from server.protocol.pose import Pose
 
-
-def wrap_deg(angle_deg: float) -> float:
-    """Wrap an angle to [-180, 180) [deg].
-
-    Args:
-        angle_deg: any finite angle [deg].
-
-    Returns:
-        The same direction in [-180, 180) [deg].
-    """
-    wrapped = (angle_deg + 180.0) % 360.0 - 180.0
-    # float modulo can round up to exactly 180.0 for tiny negative inputs
-    return -180.0 if wrapped >= 180.0 else wrapped
-
-
-def angle_diff_deg(a_deg: float, b_deg: float) -> float:
-    """Smallest signed turn from ``b`` to ``a`` [deg], in [-180, 180).
-
-    Positive means ``a`` lies counter-clockwise of ``b``: turning by the result
-    from heading ``b`` reaches heading ``a``.
-    """
-    return wrap_deg(a_deg - b_deg)
-
-
-@dataclass(frozen=True, slots=True)
-class Pose:
-    """A rover pose in its own frame: position [cm] and heading [deg].
-
-    Immutable, so a pose can be passed between actors and kept as "the last
-    known pose" without copies. The heading is wrapped on construction.
-    """
-
-    x: float = 0.0
-    """Position along the start heading [cm]."""
-    y: float = 0.0
-    """Position to the left of the start heading [cm]."""
-    heading_deg: float = 0.0
-    """Heading, counter-clockwise from +x [deg], in [-180, 180)."""
-
-    def __post_init__(self) -> None:
-        x, y, h = self.x, self.y, self.heading_deg
-        if type(x) is float and type(y) is float and type(h) is float \
-                and math.isfinite(x + y + h):  # the common case: three finite floats
-            object.__setattr__(self, "heading_deg", wrap_deg(h))
-            return
-        for name in ("x", "y", "heading_deg"):
-            value = getattr(self, name)
-            if not isinstance(value, numbers.Real) or not math.isfinite(value):
-                raise ValueError(f"Pose.{name} must be a finite number, got {value!r}")
-            object.__setattr__(self, name, float(value))
-        object.__setattr__(self, "heading_deg", wrap_deg(self.heading_deg))
-
-    @property
-    def heading_rad(self) -> float:
-        """Heading [rad]."""
-        return math.radians(self.heading_deg)
-
-    def to_parent(self, x: float, y: float) -> tuple[float, float]:
-        """A point given in this pose's frame, expressed in the parent frame [cm]."""
-        c, s = math.cos(self.heading_rad), math.sin(self.heading_rad)
-        return self.x + c * x - s * y, self.y + s * x + c * y
-
-    def distance_to(self, other: Pose) -> float:
-        """Euclidean distance between the two positions [cm]."""
-        return math.hypot(other.x - self.x, other.y - self.y)
-
-
-ORIGIN = Pose(0.0, 0.0, 0.0)
-"""Where every rover starts: (0, 0) @ 0 [deg]."""
-
-
-def compose(a: Pose, b: Pose) -> Pose:
-    """Pose ``b`` given in ``a``'s frame, expressed in ``a``'s parent frame.
-
-    Args:
-        a: the frame, in the parent frame.
-        b: a pose relative to ``a``.
-
-    Returns:
-        ``a (+) b``.
-    """
-    x, y = a.to_parent(b.x, b.y)
-    return Pose(x, y, a.heading_deg + b.heading_deg)
-
-
-def inverse(a: Pose) -> Pose:
-    """The parent frame's origin expressed in ``a``'s frame: ``compose(a, inverse(a))``
-    is the identity (within float rounding)."""
-    c, s = math.cos(a.heading_rad), math.sin(a.heading_rad)
-    return Pose(-(c * a.x + s * a.y), -(-s * a.x + c * a.y), -a.heading_deg)
-
-
-def relative(a: Pose, b: Pose) -> Pose:
-    """Pose ``b`` (in the parent frame) seen from ``a``: ``compose(inverse(a), b)``."""
-    return compose(inverse(a), b)
+__all__ = ["advance", "Odometer", "split_heading"]
 
 
 def advance(pose: Pose, d_left_cm: float, d_right_cm: float, track_width_cm: float) -> Pose:

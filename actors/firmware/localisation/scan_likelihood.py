@@ -54,7 +54,7 @@ import numpy as np
 
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import to_map
-from actors.firmware.localisation.odometry import Pose, angle_diff_deg
+from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_likelihood",
            "judge_fit"]

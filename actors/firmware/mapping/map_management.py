@@ -54,8 +54,6 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
 from actors.firmware.handles import post
-from actors.firmware.localisation.odometry import Pose, angle_diff_deg, compose, inverse
-from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import (
     MatchFields,
@@ -66,6 +64,8 @@ from actors.firmware.mapping.scan_match import (
     match_scan,
     relocalise,
 )
+from server.protocol.grid_map import GridMap
+from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
 
 __all__ = ["MapManagement"]
 

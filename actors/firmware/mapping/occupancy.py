@@ -45,8 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.localisation.odometry import Pose
-from actors.firmware.mapping.grid_map import (
+from server.protocol.grid_map import (
     FREE,
     OCCUPIED,
     UNKNOWN,
@@ -54,9 +53,9 @@ from actors.firmware.mapping.grid_map import (
     cell_to_world,
     check_origin,
     check_resolution,
-    normalise_cells,
     world_to_cell,
 )
+from server.protocol.pose import Pose
 
 __all__ = [
     "LogOddsModel",
@@ -209,9 +208,9 @@ class OccupancyGrid:
         unknown 0; the extent is that of ``cells``.
 
         Raises:
-            ValueError: for bad cells, resolution or origin (see `normalise_cells`).
+            ValueError: for bad cells, resolution or origin (see `GridMap.split`).
         """
-        norm = normalise_cells(cells)
+        norm = GridMap.split(cells)
         ny, nx = norm.shape
         res = check_resolution(resolution_cm)
         grid = cls(nx * res, ny * res, res, origin_cm=origin_cm, model=model)

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.localisation.odometry import Pose
+from server.protocol.pose import Pose
 
 __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",
            "match_scan", "RelocaliseOptions", "relocalise"]

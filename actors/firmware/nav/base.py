@@ -44,13 +44,13 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
-from actors.firmware.localisation.odometry import ORIGIN, Pose, compose
-from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
 from actors.firmware.nav.tread_faults import TreadFaults
 from actors.firmware.planning.clearance import turning_radius_cm
 from server.protocol import Frame, FrameError, make_frame, read_data
+from server.protocol.grid_map import GridMap
+from server.protocol.pose import ZERO_POSE, Pose, compose
 
 __all__ = ["NavBase"]
 
@@ -87,11 +87,11 @@ class NavBase(TreadFaults, Actor):
         self.length_cm, self.width_cm = length, width
         self.radius_cm = (self.o.robot_radius_cm if self.o.robot_radius_cm is not None
                           else turning_radius_cm(length, width))
-        self.pose: Pose = ORIGIN
+        self.pose: Pose = ZERO_POSE
         """Dead-reckoned pose, own frame (from Motor Control)."""
         self.pose_known = False
         """True once Motor Control published a pose to this incarnation."""
-        self.origin: Pose | None = ORIGIN if self.role == "mapper" else None
+        self.origin: Pose | None = ZERO_POSE if self.role == "mapper" else None
         """Own start pose in the map frame (from the server's ``origin``)."""
         self.started = False
         """The server said ``start`` (and not ``stop`` since)."""

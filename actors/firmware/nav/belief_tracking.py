@@ -54,8 +54,8 @@ from actors.firmware.localisation.free_space_model import (
     free_space_log_likelihood,
 )
 from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
-from actors.firmware.localisation.odometry import Pose, angle_diff_deg, compose, inverse
-from actors.firmware.mapping.grid_map import GridMap
+from server.protocol.grid_map import GridMap
+from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
 
 __all__ = ["BeliefTracking", "tread_motion"]
 

@@ -29,11 +29,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import trio
 
-from actors.firmware.mapping.grid_map import UNKNOWN
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
 from actors.firmware.planning.clearance import obstacle_ahead
 from actors.firmware.planning.frontier import Frontier, choose_frontier, find_frontiers
+from server.protocol.grid_map import UNKNOWN
 
 __all__ = ["Exploration", "ExplorationState"]
 

@@ -35,9 +35,9 @@ from __future__ import annotations
 
 import math
 
-from actors.firmware.mapping.grid_map import OCCUPIED
 from actors.firmware.nav.route_nav import RouteNav
 from actors.firmware.planning.clearance import check_spot
+from server.protocol.grid_map import OCCUPIED
 
 __all__ = ["HidingNav"]
 

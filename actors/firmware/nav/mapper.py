@@ -48,13 +48,13 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
-from actors.firmware.mapping.grid_map import UNKNOWN, GridMap
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.exploration import Exploration, ExplorationState
 from actors.firmware.nav.homing import Homing
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.sensor_watch import SensorWatch
+from server.protocol.grid_map import UNKNOWN, GridMap
 
 __all__ = ["MappingOptions", "MappingNav"]
 

@@ -14,9 +14,9 @@ import math
 import numpy as np
 import trio
 
-from actors.firmware.localisation.odometry import Pose, angle_diff_deg
 from actors.firmware.nav.route import Motion, passable_at, with_obstacle
 from actors.firmware.planning.clearance import occupied_near, passage_width
+from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["RouteRecovery"]
 

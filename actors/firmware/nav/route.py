@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.localisation.odometry import Pose, angle_diff_deg
-from actors.firmware.mapping.grid_map import OCCUPIED, GridMap
 from actors.firmware.nav.options import NavOptions
 from actors.firmware.planning.planner import Plan, plan_path, traversable
+from server.protocol.grid_map import OCCUPIED, GridMap
+from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["Motion", "PathFollower", "plan_route", "route_points", "shorten", "with_obstacle",
            "passable_at"]

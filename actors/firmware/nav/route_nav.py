@@ -14,12 +14,12 @@ import trio
 from actors import BufferPool
 from actors.firmware.addresses import Addresses
 from actors.firmware.hardware import HardwareSpec
-from actors.firmware.mapping.grid_map import GridMap
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.belief_tracking import BeliefTracking
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.recovery import RouteRecovery
 from actors.firmware.nav.route import PathFollower, plan_route, route_points, shorten
+from server.protocol.grid_map import GridMap
 
 __all__ = ["RouteNav"]
 

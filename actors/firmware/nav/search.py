@@ -25,9 +25,9 @@ import math
 import numpy as np
 import trio
 
-from actors.firmware.localisation.odometry import angle_diff_deg
-from actors.firmware.mapping.grid_map import FREE
 from actors.firmware.nav.route import Motion, passable_at
+from server.protocol.grid_map import FREE
+from server.protocol.pose import angle_diff_deg
 
 __all__ = ["Search", "ring_outer_cm", "ring_reach_cm", "search_ring", "search_rings"]
 

@@ -50,11 +50,11 @@ from actors import BufferPool, Message
 from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.hardware import HardwareSpec
-from actors.firmware.localisation.odometry import angle_diff_deg
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion, passable_at
 from actors.firmware.nav.route_nav import RouteNav
 from actors.firmware.nav.search import Search
+from server.protocol.pose import angle_diff_deg
 
 __all__ = ["SeekingOptions", "SeekingNav"]
 

@@ -43,8 +43,8 @@ from actors import Message
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
-from actors.firmware.localisation.odometry import angle_diff_deg
 from actors.firmware.nav.mapping_options import MappingOptions
+from server.protocol.pose import angle_diff_deg
 
 __all__ = ["SensorWatch"]
 

@@ -39,8 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.localisation.odometry import Pose, angle_diff_deg
-from actors.firmware.mapping.grid_map import OCCUPIED, UNKNOWN, GridMap, normalise_cells
+from server.protocol.grid_map import OCCUPIED, UNKNOWN, GridMap
+from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead", "occupied_near",
            "passage_width"]
@@ -120,7 +120,7 @@ def check_spot(
         ValueError: for a malformed map (cells, resolution or origin) or
             non-positive rover dimensions or a negative margin.
     """
-    grid = GridMap(normalise_cells(grid_cells), resolution_cm, origin_cm)
+    grid = GridMap(GridMap.split(grid_cells), resolution_cm, origin_cm)
     if not (length_cm > 0 and width_cm > 0 and margin_cm >= 0):
         raise ValueError(f"length_cm and width_cm must be > 0 and margin_cm >= 0, got "
                          f"{length_cm}, {width_cm}, {margin_cm}")

@@ -42,8 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.mapping.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.planning.planner import bfs_steps, snap_to_passable, traversable
+from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 
 __all__ = [
     "Frontier",

@@ -40,7 +40,7 @@ from typing import Literal
 
 import numpy as np
 
-from actors.firmware.mapping.grid_map import OCCUPIED, UNKNOWN, GridMap
+from server.protocol.grid_map import OCCUPIED, UNKNOWN, GridMap
 
 __all__ = [
     "Plan",

@@ -1,0 +1,92 @@
+"""The command line on bad input and signals: one clear line, exit status 2; SIGTERM
+and SIGINT stop cleanly with status 0 and no traceback (run as subprocesses)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+
+CLI = [sys.executable, "-m", "tui.cli"]
+
+
+def hideseek(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
+    return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=timeout,
+                          stdin=subprocess.DEVNULL)
+
+
+@pytest.mark.parametrize(("args", "named"), [
+    (("run", "--seed", "-5"), "--seed"),
+    (("run", "--db", "/no/such/dir/x.db"), "/no/such/dir"),
+    (("run", "--budget", "0"), "--budget"),
+    (("play", "--seed", "x"), "--seed"),
+    (("play", "--speed", "3"), "--speed"),
+    (("play", "--json"), "--json"),
+    (("campaign", "--out", "/no/such/dir/c.sqlite"), "/no/such/dir"),
+    (("rover", "--role", "mapper", "--link", "carrier-pigeon:1"), "carrier-pigeon"),
+])
+def test_bad_option_is_one_line_naming_it_and_status_2(args, named) -> None:
+    p = hideseek(*args)
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and named in lines[0], p.stderr
+    assert "Traceback" not in p.stderr
+
+
+def test_version_is_printed() -> None:
+    p = hideseek("--version")
+    assert p.returncode == 0 and p.stdout.startswith("hideseek ")
+
+
+def test_busy_port_in_play_is_one_line_and_status_2() -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        p = hideseek("play", "--scenario", "empty", "--rover", "mapper=tcp",
+                     "--listen", f"tcp:127.0.0.1:{port}")
+    assert p.returncode == 2
+    assert f"cannot listen on tcp:127.0.0.1:{port}" in p.stderr
+    assert "Traceback" not in p.stderr and "ExceptionGroup" not in p.stderr
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_signal_stops_a_retrying_rover_cleanly(sig) -> None:
+    with socket.socket() as free:  # a port nobody listens on: the rover retries
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    proc = subprocess.Popen(CLI + ["rover", "--role", "mapper", "--scenario", "empty",
+                                   "--link", f"tcp:127.0.0.1:{port}"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            stdin=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 30
+        line = ""
+        while "retrying" not in line and time.monotonic() < deadline:
+            line = proc.stdout.readline()
+        assert "retrying" in line
+        os.kill(proc.pid, sig)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err
+    assert "stopped" in out
+    assert "Traceback" not in err and "Bad file descriptor" not in out + err
+    assert len((out + err).splitlines()) < 10
+
+
+def test_ports_lists_serial_ports_as_json() -> None:
+    import json
+
+    p = hideseek("ports", "--json")
+    assert p.returncode == 0
+    rows = json.loads(p.stdout)
+    assert isinstance(rows, list)
+    assert all({"device", "description", "hwid"} <= set(r) for r in rows)

@@ -1,0 +1,452 @@
+"""Navigation's recovery when a route is blocked: back off, weigh the pose belief by the contact,
+nudge the route sideways, probe a narrow passage, hold for a stalled tread.
+
+Most tests drive the real navigation actor among the fakes of `tests.test_nav_common`
+and assert on what it sends (motor commands, pose and status frames). The rest check
+the nudge and contact geometry on a navigation that is not started.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+import pytest
+import trio
+
+from actors import BufferPool, open_actor_system
+from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.localisation.motion_model import MotionNoise
+from actors.firmware.nav.factory import make_nav
+from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.route import Motion
+from server.protocol.pose import Pose
+from tests.test_nav_common import (
+    Body,
+    Truth,
+    believe,
+    room_map,
+    rover_spec,
+    send_route,
+    wait_for,
+)
+
+# ---------------------------------------------------------------- blocked in a corridor
+# A hider sent from map (50, 50) (its own (0, 0)) to (600, 150) through a 30 cm corridor
+# (x 250..450, walls y < 135 and y > 165). The fake motor drives exactly, except where
+# the test scripts a block: the move ends blocked where the script says, the rover
+# turned by the script's yaw. What navigation does about it is read from what it
+# sends: its motor commands and the frames it reports to the server.
+
+NARROW = NavOptions(motion=MotionNoise(encoder_sigma=0.005, turn_sigma=0.05))
+"""A motion model that trusts the counts (the fake motor is exact): the belief stays a
+few cm wide, so the probes step ``nudge_step_cm`` (4 cm)."""
+CORRIDOR = Truth(0, 0, 700, 300, boxes=((250, 0, 200, 135), (250, 165, 200, 135)))
+CORRIDOR_ORIGIN = {"x": 50.0, "y": 50.0, "heading": 0.0}
+CORRIDOR_GOAL = {"x": 600.0, "y": 150.0, "heading": None}
+
+
+class Blocks:
+    """The script: forward moves that reach own-frame x ``at`` end there blocked, turned by
+    ``yaw``, one entry per block in order; ``reverse`` scripts the end of the back-off
+    that follows the last block (``(done cm, yaw deg)``, None: as commanded)."""
+
+    def __init__(self, *blocks: tuple[float, float],
+                 reverse: tuple[float, float] | None = None) -> None:
+        self.todo = list(blocks)
+        self.reverse = reverse
+        self.at: list[tuple[float, int, int]] = []  # (time, len(sent), len(motor_log))
+        self.body: Body | None = None
+
+    def __call__(self, pose: Pose, cm: float) -> tuple[float, float] | None:
+        assert self.body is not None
+        if cm < 0 and self.reverse is not None and not self.todo and self.at:
+            done, yaw = self.reverse
+            self.reverse = None
+            return -done, yaw
+        if cm > 0 and self.todo and pose.x + cm * math.cos(pose.heading_rad) >= self.todo[0][0]:
+            at, yaw = self.todo.pop(0)
+            self.at.append((trio.current_time(), len(self.body.sent), len(self.body.motor_log)))
+            return max(0.0, (at - pose.x) / math.cos(pose.heading_rad)), yaw
+        return None
+
+
+async def drive_corridor(blocks: Blocks, *, options: NavOptions | None = None,
+                         after_s: float = 20.0, crash: bool = False) -> Body:
+    """Send the hider through the corridor with ``blocks`` scripted; return its body once
+    the last block is ``after_s`` past (navigation crashed and restarted then if ``crash``)."""
+    body = Body(script=blocks)
+    blocks.body = body
+    options = options or NARROW
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
+                                                 options=options), "hider")
+        await send_route(system, pool, "hider", CORRIDOR_ORIGIN, CORRIDOR_GOAL,
+                         room_map(CORRIDOR))
+        n = len(blocks.todo)
+        assert await wait_for(lambda: len(blocks.at) == n, 120.0)
+        await trio.sleep(after_s)
+        if crash:
+            system.inject_crash("hider/nav")
+            await trio.sleep(3.0)
+    return body
+
+
+def poses_after(body: Body, k: int, blocks: Blocks) -> list[tuple[float, float, float]]:
+    """The map-frame poses navigation reported after block ``k`` (x, y, heading)."""
+    return [(f.data["x"], f.data["y"], f.data["heading"])
+            for f in [o for _, o in body.sent[blocks.at[k][1]:]] if f.cmd == "pose"]
+
+
+def motions_after(body: Body, k: int, blocks: Blocks) -> list[tuple[float, str, float]]:
+    """The turns and moves navigation commanded after block ``k``: (time, command, amount)."""
+    start = blocks.at[k][2]
+    return [(t, c, v) for t, (c, v) in zip(body.motor_at[start:], body.motor_log[start:],
+                                           strict=True) if c in ("MOTOR_TURN", "MOTOR_MOVE")]
+
+
+@pytest.mark.trio
+async def test_a_scrape_moves_the_reported_pose_to_the_wall_on_the_stalled_side(
+        autojump_clock) -> None:
+    """Blocked mid-corridor having yawed 3 deg left: the left side touches the wall at
+    y = 165, so the pose navigation reports moves up to it (from y 149.3); Motor Control
+    is told nothing of it (its dead reckoning stays continuous), and a restarted
+    navigation reports the corrected pose still (the retained memory keeps it)."""
+    blocks = Blocks((250.0, 3.0))
+    body = await drive_corridor(blocks, after_s=1.0, crash=True)
+    x, y, _ = poses_after(body, 0, blocks)[0]
+    assert 154.0 <= y <= 162.0 and x == pytest.approx(300.0 - 6.0, abs=3.0)  # backed off
+    assert {c for c, _ in body.motor_log} <= {"MOTOR_STOP", "MOTOR_GET_POSE", "MOTOR_TURN",
+                                             "MOTOR_MOVE"}
+    assert 154.0 <= poses_after(body, 0, blocks)[-1][1] <= 162.0  # after the restart
+    assert "restarted" in [f.data["state"] for f in body.frames("status")]
+
+
+@pytest.mark.trio
+async def test_a_block_either_side_explains_leaves_the_pose_on_the_axis(autojump_clock) -> None:
+    """No yaw: left and right explain the block alike; the belief keeps both and the
+    reported pose stays near where dead reckoning put it (y 149.3) as the rover backs
+    off."""
+    blocks = Blocks((250.0, 0.0))
+    body = await drive_corridor(blocks, after_s=1.0)
+    x, y, _ = poses_after(body, 0, blocks)[0]
+    assert y == pytest.approx(149.3, abs=2.5) and x == pytest.approx(294.0, abs=3.0)
+
+
+@pytest.mark.trio
+async def test_a_block_in_a_narrow_passage_probes_sideways_at_once(autojump_clock) -> None:
+    """Blocked moving forward mid-corridor (walls both sides within 40 cm): after the
+    back-off the route is shifted sideways at once, to the left first (the first turn
+    after the back-off is to the left); blocked again at the same place, to the right;
+    a later block 50 cm on starts a new series on the side that helped (right again),
+    not back at the left."""
+    blocks = Blocks((250.0, 0.0), (250.0, 0.0), (300.0, 0.0))
+    body = await drive_corridor(blocks, after_s=4.0)
+
+    def first_turn(k: int) -> float:
+        motions = motions_after(body, k, blocks)
+        assert motions[0][1:] == ("MOTOR_MOVE", -6.0)  # backed off first
+        return next(v for _, c, v in motions[1:] if c == "MOTOR_TURN")
+
+    assert [math.copysign(1.0, first_turn(k)) for k in range(3)] == [1.0, -1.0, -1.0]
+    assert all(y < 149.0 for x, y, _ in poses_after(body, 2, blocks) if x > 360.0)
+
+
+@pytest.mark.trio
+async def test_a_nudge_mid_corridor_drives_to_a_shifted_point_ahead_first(
+        autojump_clock) -> None:
+    """Blocked mid-corridor with no waypoint near the block: after the back-off the rover
+    drives to the point 50 cm ahead of the block, shifted 4 cm left, and then on to the
+    goal along the corridor."""
+    blocks = Blocks((250.0, 0.0))
+    body = await drive_corridor(blocks, after_s=6.0)
+    motions = [(c, v) for _, c, v in motions_after(body, 0, blocks)]
+    assert motions[0] == ("MOTOR_MOVE", -6.0) and motions[1][0] == "MOTOR_TURN"
+    leg = motions[2:2 + [c for c, _ in motions[2:]].index("MOTOR_TURN")]
+    assert sum(v for _, v in leg) == pytest.approx(math.dist((294.0, 149.3), (350.0, 153.4)),
+                                                   abs=1.0)  # one straight leg to it
+    track = poses_after(body, 0, blocks)
+    assert any(abs(x - 350.0) < 1.0 and abs(y - 153.4) < 0.5 for x, y, _ in track)
+    assert track[-1][0] > 400.0
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize(("turn_sigma", "across"), [(0.05, None), (0.2, (4.0, 12.5)),
+                                                   (1.0, (11.5, 12.5))])
+async def test_the_more_doubt_the_wider_the_probe_steps(autojump_clock, turn_sigma,
+                                                        across) -> None:
+    """About 3 m driven to the block: with a belief a few cm wide the first probe steps
+    4 cm (joined at a slant, no sidestep); with the default motion noise it steps a third
+    of the belief's 95 % radius (a sidestep across); with a much wider one, at most
+    ``nudge_step_max_cm``, 12 cm."""
+    blocks = Blocks((250.0, 0.0))
+    options = NavOptions(motion=MotionNoise(encoder_sigma=0.005 if turn_sigma < 0.1 else 0.025,
+                                            turn_sigma=turn_sigma))
+    body = await drive_corridor(blocks, options=options, after_s=4.0)
+    motions = [(c, v) for _, c, v in motions_after(body, 0, blocks)]
+    assert motions[0] == ("MOTOR_MOVE", -6.0)
+    if across is None:
+        assert motions[1][0] == "MOTOR_TURN" and 0.0 < motions[1][1] < 45.0
+        return
+    assert motions[1] == ("MOTOR_TURN", pytest.approx(90.0, abs=5.0))
+    assert motions[2][0] == "MOTOR_MOVE" and across[0] < motions[2][1] < across[1]
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize("sidestep", [True, False], ids=["sidestep", "no-sidestep"])
+async def test_a_probe_sidesteps_across_before_joining_the_shifted_line(autojump_clock,
+                                                                        sidestep) -> None:
+    """Blocked a third time at the same place, the probe shifts 8 cm left: the route
+    begins with a sidestep square to the heading of the block (a quarter turn left, a
+    few cm across, a quarter turn back), then drives on along the shifted line. A shift
+    within the waypoint tolerance (the first, 4 cm) needs none, nor a route with
+    ``probe_sidestep`` off: it joins the shifted line at a slant."""
+    blocks = Blocks((250.0, 0.0), (250.0, 0.0), (250.0, 0.0))
+    body = await drive_corridor(blocks, options=replace(NARROW, probe_sidestep=sidestep),
+                                after_s=4.0)
+    first = [v for _, c, v in motions_after(body, 0, blocks) if c == "MOTOR_TURN"][0]
+    assert 0.0 < first < 45.0
+    third = motions_after(body, 2, blocks)
+    if not sidestep:
+        assert 0.0 < next(v for _, c, v in third if c == "MOTOR_TURN") < 45.0
+        return
+    (_, c0, back), (_, c1, left), (_, c2, across), (_, c3, right) = third[:4]
+    assert (c0, c1, c2, c3) == ("MOTOR_MOVE", "MOTOR_TURN", "MOTOR_MOVE", "MOTOR_TURN")
+    assert back < 0 and 80.0 < left < 100.0 and 4.0 < across < 12.0 and -100.0 < right < -80.0
+    on_line = [y for x, y, h in poses_after(body, 2, blocks) if x > 300.0]
+    assert on_line and max(on_line) - min(on_line) < 1.0 and min(on_line) > 155.0
+
+
+@pytest.mark.trio
+async def test_a_back_off_that_turns_while_blocked_holds_instead_of_backing_off_again(
+        autojump_clock) -> None:
+    """A back-off ends blocked having turned 25 deg: one tread stalls (backing off again
+    only spins the rover on the spot), so navigation says so, commands nothing for
+    ``tread_hold_s`` and plans again after it."""
+    blocks = Blocks((250.0, 0.0), reverse=(2.0, 25.0))
+    body = await drive_corridor(blocks, after_s=20.0)
+    assert "a tread stalls; holding 12 s" in [f.data.get("detail")
+                                               for f in body.frames("status")]
+    motions = motions_after(body, 0, blocks)
+    assert motions[0][1:] == ("MOTOR_MOVE", -6.0)  # the back-off the script ends
+    t_stall = motions[0][0] + 6.0 / body.speed
+    assert motions[1][0] >= t_stall + NavOptions().tread_hold_s - 0.1
+    assert not (motions[1][1] == "MOTOR_MOVE" and motions[1][2] < 0)
+
+
+@pytest.mark.trio
+async def test_a_back_off_blocked_without_turning_backs_off_again_at_once(
+        autojump_clock) -> None:
+    """A back-off that moved 2 cm and ended blocked without turning (the rear against
+    something): no stall hold, it backs off again straight away."""
+    blocks = Blocks((250.0, 0.0), reverse=(2.0, 0.0))
+    body = await drive_corridor(blocks, after_s=3.0)
+    motions = motions_after(body, 0, blocks)
+    assert motions[1][1] == "MOTOR_MOVE" and motions[1][2] < 0
+    assert motions[1][0] - motions[0][0] < 1.0
+
+
+@pytest.mark.trio
+async def test_a_back_off_that_did_not_move_replans_instead_of_reversing_again(
+        autojump_clock) -> None:
+    """Wedged: a back-off ended blocked without moving (reversing again and again leaves
+    the rover stuck diagonally in a gap). The route is planned again from where the
+    rover stands and driven on, not reversed once more."""
+    blocks = Blocks((250.0, 0.0), reverse=(0.0, 0.0))
+    body = await drive_corridor(blocks, after_s=3.0)
+    motions = motions_after(body, 0, blocks)
+    assert motions[0][1:] == ("MOTOR_MOVE", -6.0)
+    after = motions[1:]
+    assert after and not any(c == "MOTOR_MOVE" and v < 0 for _, c, v in after[:3])
+    assert any(c == "MOTOR_MOVE" and v > 0 for _, c, v in after[:3])
+
+
+def scraped_nav(yaw_deg: float, sigma_cm: float = 4.0, **options: Any) -> Any:
+    """A hider navigation (not started) mid-corridor by dead reckoning (map (300, 150) @ 0,
+    own frame (250, 100) @ 0), whose last forward move ended blocked after yawing
+    ``yaw_deg``; its belief is ``sigma_cm`` wide round that pose."""
+    nav = make_nav("hider", pool=BufferPool(4), options=NavOptions(**options))
+    nav.map = nav.work_map = room_map(
+        Truth(0, 0, 700, 300, boxes=((250, 0, 200, 135), (250, 165, 200, 135))))
+    nav.origin = Pose(50.0, 50.0, 0.0)
+    nav.pose = Pose(250.0, 100.0, yaw_deg)
+    nav.last_motion = Motion("move", 20.0)
+    nav.motion_from = Pose(280.0, 150.0, 0.0)
+    return believe(nav, sigma_cm)
+
+
+def test_a_scrape_moves_the_pose_to_the_wall_on_the_stalled_side() -> None:
+    """Yawed left while blocked: the left side touches the corridor's wall at y = 165, so
+    the belief (and the map pose read from it) moves left (the origin changes; Motor
+    Control's pose does not) and the retained memory keeps the corrected origin."""
+    nav = scraped_nav(3.0)
+    assert nav._contact_fix()
+    p = nav.map_pose
+    assert 153.0 <= p.y <= 162.0 and p.x == pytest.approx(300.0, abs=4.0)
+    assert nav.pose == Pose(250.0, 100.0, 3.0)
+    assert nav.memory.origin == pytest.approx((nav.origin.x, nav.origin.y,
+                                               nav.origin.heading_deg))
+    assert nav.counters["contacts"] == 1
+
+
+def test_a_contact_either_side_explains_is_kept_as_two_hypotheses() -> None:
+    """No yaw: the left side on the upper wall and the right side on the lower wall
+    explain the block alike. The belief keeps both (its weight each side of the
+    corridor's axis, little on it) instead of discarding the contact; a stalled turn
+    says nothing."""
+    nav = scraped_nav(0.0, sigma_cm=5.0)
+    nav._contact_fix()
+    y, w = nav.belief.particles[:, 1], nav.belief.weights
+    assert float(w[y < 146.0].sum()) > 0.25 and float(w[y > 154.0].sum()) > 0.25
+    assert float(w[abs(y - 150.0) < 2.0].sum()) < 0.15
+    assert nav.counters["contacts"] == 1
+    nav = scraped_nav(3.0)
+    nav.last_motion = Motion("turn", 20.0)
+    assert not nav._contact_fix() and nav.counters["contacts"] == 0
+
+
+def test_a_block_the_map_does_not_explain_leaves_the_belief_alone() -> None:
+    """Blocked in the open room, far from any wall within the belief: something the map
+    does not show stopped it (another rover), so the contact is not used."""
+    nav = scraped_nav(3.0)
+    nav.pose = Pose(100.0, 100.0, 3.0)  # map (150, 150): the open room
+    believe(nav, 4.0)
+    before = nav.map_pose
+    assert not nav._contact_fix()
+    after = nav.map_pose
+    assert (after.x, after.y) == pytest.approx((before.x, before.y), abs=1.0)
+    assert nav.counters["contacts"] == 0
+
+
+def test_the_doubt_grows_with_driving_and_more_with_a_tread_report() -> None:
+    """The belief's 95 % radius (``drift_cm``) grows as Motor Control's pose moves on;
+    the same counts with the left tread reported short (it counted 4 cm of 20 driven)
+    widen it far more: that tread's travel is anywhere between its count and its drive,
+    and the heading doubt follows over the track width, with no degrees added by hand."""
+    def driven(report: bool) -> float:
+        nav = scraped_nav(0.0, sigma_cm=1.0)
+        nav.pose = Pose(100.0, 100.0, 0.0)  # map (150, 150): the open room
+        believe(nav, 1.0, 1.0)
+        start = nav.drift_cm
+        nav.last_motion = Motion("move", 20.0)
+        if report:
+            nav.note_tread_fault(TreadFault.short(0))
+        dtheta = (20.0 - 4.0) / nav.spec.track_width_cm if nav.spec else 16.0 / 13.0
+        ds = 12.0
+        x, y = 100.0 + ds * math.cos(dtheta / 2), 100.0 + ds * math.sin(dtheta / 2)
+        nav.pose = Pose(x, y, math.degrees(dtheta))
+        nav.track_belief()
+        for _ in range(4):
+            nav.last_motion = Motion("move", 20.0)
+            x, y = x + 20.0 * math.cos(dtheta), y + 20.0 * math.sin(dtheta)
+            nav.pose = Pose(x, y, math.degrees(dtheta))
+            nav.track_belief()
+        return nav.drift_cm - start
+    healthy, reported = driven(False), driven(True)
+    assert healthy > 0.0
+    assert reported > healthy + 10.0
+
+
+def test_after_a_long_drive_nudges_are_wider_and_may_enter_a_mapped_wall() -> None:
+    """A belief 20-25 cm wide (95 %): the search steps a third of that at a time, not 4,
+    and a 20 cm shift into the corridor's wall, refused while the belief is narrow, is
+    tried: the pose may be that far off."""
+    pts = [(420.0, 150.0), (500.0, 60.0)]
+    nav = believe(nudging_nav((250.0, 150.0, 0.0), 20.0), 1.0)
+    assert nav._nudged(pts) is None
+    believe(nav, 10.0)
+    assert nav.drift_cm > 20.0
+    assert nav._nudged(pts) == [(300.0, 170.0), *pts]
+    nav = scraped_nav(0.0, sigma_cm=8.0)
+    nav._last_block = (300.0, 150.0, 0.0)
+    nav.goal, nav.goal_heading = (600.0, 150.0), None
+    assert nav._probe_plan()
+    assert 12.0 < nav.drift_cm < 36.0
+    assert nav._nudge_off == pytest.approx(nav.drift_cm / 3.0)
+
+
+def gap_blocked_nav(sigma_cm: float) -> Any:
+    """A hider navigation (not started) stopped 5 cm into the gap of a 15 cm wall at x 400
+    (gap y 300..335) by dead reckoning, 5 cm above its lower edge, with a belief
+    ``sigma_cm`` wide: the lower edge explains the stop nearby; the upper wall's face
+    does 20 cm up."""
+    nav = make_nav("hider", pool=BufferPool(4))
+    nav.map = nav.work_map = room_map(
+        Truth(0, 0, 700, 450, boxes=((400, 0, 15, 300), (400, 335, 15, 115))))
+    nav.origin = Pose(0.0, 0.0, 0.0)
+    nav.pose = Pose(395.0, 312.5, 0.0)
+    nav.last_motion = Motion("move", 20.0)
+    nav.motion_from = Pose(375.0, 312.5, 0.0)
+    return believe(nav, sigma_cm)
+
+
+def test_a_gap_edge_contact_moves_the_belief_to_the_edge_and_keeps_the_far_face() -> None:
+    """A narrow belief: the lower edge is the only likely explanation, the pose moves
+    down. A wide one (after a long drive): the upper face explains it too, and the
+    belief keeps that hypothesis beside the lower edge's."""
+    nav = gap_blocked_nav(3.0)
+    assert nav._contact_fix() and nav.map_pose.y < 312.5
+    nav = gap_blocked_nav(12.0)
+    nav._contact_fix()
+    ys = [c.pose.y for c in nav.spread.clusters]
+    assert any(y < 305.0 for y in ys) and any(y > 318.0 for y in ys)
+    assert nav._in_passage()
+
+
+def test_a_block_beside_the_anchor_continues_the_probe_series() -> None:
+    """A nudged route blocked 25 cm beside the series' anchor (and 6 cm short of it,
+    as a contact fix may leave it) is no progress: the series goes on to the next
+    offset instead of restarting around the nudged point."""
+    nav = scraped_nav(0.0)
+    nav._last_block = (300.0, 150.0, 0.0)
+    nav.goal, nav.goal_heading = (600.0, 150.0), None
+    assert nav._probe_plan() and nav._nudge_off == 4.0
+    assert nav._probe_plan() and nav._nudge_off == -4.0
+    nav.pose = Pose(244.0, 125.0, 0.0)  # map (294, 175): 26 cm from the anchor, 25 sideways
+    nav._last_block = (294.0, 175.0, 0.0)
+    assert nav._probe_plan()
+    assert nav._anchor == (300.0, 150.0, 0.0) and nav._nudge_off == 8.0
+
+
+def test_a_block_short_of_the_mouth_during_a_series_is_its_next_step() -> None:
+    """Dead reckoning 10 cm short of the corridor's mouth on a nudged route: no passage
+    at the body or the nose, yet with the series' anchor near the block is the next
+    probe, not an obstacle to learn; without a series, or
+    far from its anchor, it is not."""
+    nav = scraped_nav(0.0)
+    nav.pose = Pose(180.0, 112.0, 0.0)  # map (230, 162): nose 10 cm before x = 250
+    assert not nav._in_passage() and not nav._nudging_here()
+    nav._anchor, nav._nudge = (232.0, 150.0, 0.0), (0.0, 12.0, 232.0, 150.0)
+    assert nav._nudging_here()
+    nav.pose = Pose(50.0, 112.0, 0.0)  # map (100, 162): 132 cm back in the room
+    assert not nav._nudging_here()
+
+
+def nudging_nav(block: tuple[float, float, float], off: float) -> Any:
+    """A hider navigation (not started) that was blocked at ``block`` and nudges by ``off``."""
+    nav = make_nav("hider", pool=BufferPool(4))
+    corridor = Truth(0, 0, 600, 300, boxes=((100, 0, 300, 135), (100, 165, 300, 135)))
+    nav.map = room_map(corridor)
+    nav._last_block = nav._anchor = block
+    h = math.radians(block[2])
+    nav._nudge = (-math.sin(h) * off, math.cos(h) * off, block[0], block[1])
+    return nav
+
+
+def test_nudge_shifts_only_waypoints_near_the_block_and_never_the_goal() -> None:
+    """Blocked heading +x at (200, 150): the waypoint 30 cm on moves 6 cm sideways (+y)."""
+    nav = nudging_nav((200.0, 150.0, 0.0), 6.0)
+    pts = [(230.0, 150.0), (420.0, 150.0), (500.0, 60.0)]
+    assert nav._nudged(pts) == [(230.0, 156.0), (420.0, 150.0), (500.0, 60.0)]
+    assert nav._nudged([(240.0, 150.0)]) == [(240.0, 150.0)]  # the goal itself stays
+
+
+def test_a_nudge_into_the_corridor_wall_or_backwards_is_refused() -> None:
+    """A shift into the corridor's wall (20 cm off its axis) is refused (None); a route
+    whose goal lies behind the block is left as it is."""
+    pts = [(420.0, 150.0), (500.0, 60.0)]
+    assert nudging_nav((250.0, 150.0, 0.0), -6.0)._nudged(pts) == [(300.0, 144.0), *pts]
+    assert nudging_nav((250.0, 150.0, 0.0), 20.0)._nudged(pts) is None
+    assert nudging_nav((250.0, 150.0, 180.0), 6.0)._nudged(pts) == pts  # ahead is backwards
