@@ -9,7 +9,6 @@ the nudge and contact geometry on a navigation that is not started.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import Any
 
 import pytest
@@ -136,87 +135,34 @@ async def test_a_block_either_side_explains_leaves_the_pose_on_the_axis(autojump
 
 
 @pytest.mark.trio
-async def test_a_block_in_a_narrow_passage_probes_sideways_at_once(autojump_clock) -> None:
-    """Blocked moving forward mid-corridor (walls both sides within 40 cm): after the
-    back-off the route is shifted sideways at once, to the left first (the first turn
-    after the back-off is to the left); blocked again at the same place, to the right;
-    a later block 50 cm on starts a new series on the side that helped (right again),
-    not back at the left."""
+async def test_a_block_in_a_narrow_passage_probes_sideways_and_gets_through(
+        autojump_clock) -> None:
+    """Blocked moving forward mid-corridor (walls both sides within 40 cm), twice at one
+    place and once 50 cm on: each time the rover backs off the short 6 cm (nothing is
+    learned as an obstacle, which would close the corridor), the first time it probes
+    4 cm to the left (a turn under 45 deg: the narrow belief's step, joined at a slant),
+    and in the end it drives on through the corridor."""
     blocks = Blocks((250.0, 0.0), (250.0, 0.0), (300.0, 0.0))
-    body = await drive_corridor(blocks, after_s=4.0)
-
-    def first_turn(k: int) -> float:
-        motions = motions_after(body, k, blocks)
-        assert motions[0][1:] == ("MOTOR_MOVE", -6.0)  # backed off first
-        return next(v for _, c, v in motions[1:] if c == "MOTOR_TURN")
-
-    assert [math.copysign(1.0, first_turn(k)) for k in range(3)] == [1.0, -1.0, -1.0]
-    assert all(y < 149.0 for x, y, _ in poses_after(body, 2, blocks) if x > 360.0)
+    body = await drive_corridor(blocks, after_s=6.0)
+    for k in range(3):
+        assert motions_after(body, k, blocks)[0][1:] == ("MOTOR_MOVE", -6.0)
+    first = next(v for _, c, v in motions_after(body, 0, blocks)[1:] if c == "MOTOR_TURN")
+    assert 0.0 < first < 45.0
+    assert max(x for x, _, _ in poses_after(body, 2, blocks)) > 450.0
 
 
 @pytest.mark.trio
-async def test_a_nudge_mid_corridor_drives_to_a_shifted_point_ahead_first(
-        autojump_clock) -> None:
+async def test_a_nudge_mid_corridor_shifts_the_route_left_and_drives_on(autojump_clock) -> None:
     """Blocked mid-corridor with no waypoint near the block: after the back-off the rover
-    drives to the point 50 cm ahead of the block, shifted 4 cm left, and then on to the
-    goal along the corridor."""
+    turns a little left (toward the route shifted 4 cm that way) and drives on to the
+    end of the corridor, left of its axis."""
     blocks = Blocks((250.0, 0.0))
     body = await drive_corridor(blocks, after_s=6.0)
     motions = [(c, v) for _, c, v in motions_after(body, 0, blocks)]
-    assert motions[0] == ("MOTOR_MOVE", -6.0) and motions[1][0] == "MOTOR_TURN"
-    leg = motions[2:2 + [c for c, _ in motions[2:]].index("MOTOR_TURN")]
-    assert sum(v for _, v in leg) == pytest.approx(math.dist((294.0, 149.3), (350.0, 153.4)),
-                                                   abs=1.0)  # one straight leg to it
-    track = poses_after(body, 0, blocks)
-    assert any(abs(x - 350.0) < 1.0 and abs(y - 153.4) < 0.5 for x, y, _ in track)
-    assert track[-1][0] > 400.0
-
-
-@pytest.mark.trio
-@pytest.mark.parametrize(("turn_sigma", "across"), [(0.05, None), (0.2, (4.0, 12.5)),
-                                                   (1.0, (11.5, 12.5))])
-async def test_the_more_doubt_the_wider_the_probe_steps(autojump_clock, turn_sigma,
-                                                        across) -> None:
-    """About 3 m driven to the block: with a belief a few cm wide the first probe steps
-    4 cm (joined at a slant, no sidestep); with the default motion noise it steps a third
-    of the belief's 95 % radius (a sidestep across); with a much wider one, at most
-    ``nudge_step_max_cm``, 12 cm."""
-    blocks = Blocks((250.0, 0.0))
-    options = NavOptions(motion=MotionNoise(encoder_sigma=0.005 if turn_sigma < 0.1 else 0.025,
-                                            turn_sigma=turn_sigma))
-    body = await drive_corridor(blocks, options=options, after_s=4.0)
-    motions = [(c, v) for _, c, v in motions_after(body, 0, blocks)]
     assert motions[0] == ("MOTOR_MOVE", -6.0)
-    if across is None:
-        assert motions[1][0] == "MOTOR_TURN" and 0.0 < motions[1][1] < 45.0
-        return
-    assert motions[1] == ("MOTOR_TURN", pytest.approx(90.0, abs=5.0))
-    assert motions[2][0] == "MOTOR_MOVE" and across[0] < motions[2][1] < across[1]
-
-
-@pytest.mark.trio
-@pytest.mark.parametrize("sidestep", [True, False], ids=["sidestep", "no-sidestep"])
-async def test_a_probe_sidesteps_across_before_joining_the_shifted_line(autojump_clock,
-                                                                        sidestep) -> None:
-    """Blocked a third time at the same place, the probe shifts 8 cm left: the route
-    begins with a sidestep square to the heading of the block (a quarter turn left, a
-    few cm across, a quarter turn back), then drives on along the shifted line. A shift
-    within the waypoint tolerance (the first, 4 cm) needs none, nor a route with
-    ``probe_sidestep`` off: it joins the shifted line at a slant."""
-    blocks = Blocks((250.0, 0.0), (250.0, 0.0), (250.0, 0.0))
-    body = await drive_corridor(blocks, options=replace(NARROW, probe_sidestep=sidestep),
-                                after_s=4.0)
-    first = [v for _, c, v in motions_after(body, 0, blocks) if c == "MOTOR_TURN"][0]
-    assert 0.0 < first < 45.0
-    third = motions_after(body, 2, blocks)
-    if not sidestep:
-        assert 0.0 < next(v for _, c, v in third if c == "MOTOR_TURN") < 45.0
-        return
-    (_, c0, back), (_, c1, left), (_, c2, across), (_, c3, right) = third[:4]
-    assert (c0, c1, c2, c3) == ("MOTOR_MOVE", "MOTOR_TURN", "MOTOR_MOVE", "MOTOR_TURN")
-    assert back < 0 and 80.0 < left < 100.0 and 4.0 < across < 12.0 and -100.0 < right < -80.0
-    on_line = [y for x, y, h in poses_after(body, 2, blocks) if x > 300.0]
-    assert on_line and max(on_line) - min(on_line) < 1.0 and min(on_line) > 155.0
+    assert motions[1][0] == "MOTOR_TURN" and 0.0 < motions[1][1] < 45.0
+    track = poses_after(body, 0, blocks)
+    assert track[-1][0] > 400.0 and track[-1][1] > 150.0
 
 
 @pytest.mark.trio
@@ -393,6 +339,23 @@ def test_a_gap_edge_contact_moves_the_belief_to_the_edge_and_keeps_the_far_face(
     ys = [c.pose.y for c in nav.spread.clusters]
     assert any(y < 305.0 for y in ys) and any(y > 318.0 for y in ys)
     assert nav._in_passage()
+
+
+def test_a_probe_sidesteps_across_before_joining_the_shifted_line() -> None:
+    """Backed off to (300, 150) after a block at (320, 150) heading +x, probing 10 cm to
+    the right: the route starts with the point beside the rover on the shifted line
+    (a sidestep square to the heading), then the shifted waypoint near the block;
+    a shift within the waypoint tolerance needs no sidestep, nor a route without it."""
+    nav = scraped_nav(0.0)
+    nav._last_block = nav._anchor = (320.0, 150.0, 0.0)
+    nav._nudge, nav._nudge_off = (0.0, -10.0, 320.0, 150.0), -10.0
+    pts = [(340.0, 150.0), (600.0, 150.0)]
+    assert nav._nudged(pts) == [(340.0, 140.0), (600.0, 150.0)]  # no sidestep asked
+    nav._sidestep = True
+    out = nav._nudged(pts)
+    assert [q for p in out for q in p] == pytest.approx([300.0, 140.0, 340.0, 140.0, 600.0, 150.0])
+    nav._nudge, nav._nudge_off = (0.0, -4.0, 320.0, 150.0), -4.0
+    assert nav._nudged(pts) == [(340.0, 146.0), (600.0, 150.0)]
 
 
 def test_a_block_beside_the_anchor_continues_the_probe_series() -> None:
