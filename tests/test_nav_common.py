@@ -18,6 +18,7 @@ import trio
 
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
+from actors.firmware.localisation.belief import PoseBelief
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.options import NavMemory, NavOptions
@@ -436,3 +437,13 @@ def test_a_corridor_mapped_20_cm_wide_is_planned_at_the_body_width() -> None:
     found = [plan_route(m, (100, 150), (500, 150), radius_cm=r, margin_cm=g) is not None
              for r, g in tiers]
     assert found == [False, False, False, True]
+
+
+def believe(nav: Any, sigma_cm: float, sigma_deg: float = 2.0) -> Any:
+    """Give ``nav`` (a hider or seeker navigation) a pose belief ``sigma_cm`` and
+    ``sigma_deg`` wide round its map pose, as after some driving; returns ``nav``."""
+    nav.pose_known = True
+    nav.belief = PoseBelief.around(nav.map_pose, nav._rng, sigma_cm=sigma_cm,
+                                   sigma_deg=sigma_deg)
+    nav._belief_odom, nav._spread = nav.pose, None
+    return nav

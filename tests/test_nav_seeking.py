@@ -7,6 +7,7 @@ import math
 import pytest
 
 from actors import BufferPool, open_actor_system
+from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.nav.options import NavOptions
 from actors.firmware.nav.route import passable_at
 from actors.firmware.nav.search import ring_reach_cm, search_ring, search_rings
@@ -15,6 +16,7 @@ from server.protocol.pose import Pose, angle_diff_deg
 from tests.test_nav_common import (
     Body,
     Truth,
+    believe,
     net,
     room_map,
     rover_spec,
@@ -74,13 +76,14 @@ async def test_seeker_scans_then_reports_not_found_and_takes_the_next_guess(auto
 
 @pytest.mark.trio
 async def test_seeker_without_ir_reports_not_found(autojump_clock) -> None:
-    """No IR reading ever in range (stuck low): ``not_found``, never ``found``."""
+    """No IR reading ever in range (stuck low): ``not_found`` (after the search round the
+    place its belief's doubt asks for), never ``found``."""
     body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=lambda pose: False)
     pool = BufferPool(64)
     async with open_actor_system(seed=1) as system:
         await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
         await begin(system, pool, {"x": HIDER[0], "y": HIDER[1]})
-        assert await wait_for(lambda: body.frames("not_found"), 120.0)
+        assert await wait_for(lambda: body.frames("not_found"), 600.0)
         assert body.frames("found") == []
 
 
@@ -128,6 +131,10 @@ def test_the_outward_scan_sweeps_plus_minus_100_deg() -> None:
     assert SeekingOptions().outward_deg() == tuple(float(a) for a in range(-100, 101, 20))
 
 
+WIDE = NavOptions(motion=MotionNoise(turn_sigma=1.0))
+"""A motion model that doubts every turn: the belief grows wide on the way."""
+QUIET = NavOptions(motion=MotionNoise(encoder_sigma=0.005, turn_sigma=0.05))
+"""A motion model that trusts the counts: the belief stays narrow on the way."""
 FAR_GUESS = (160.0, 140.0)  # 90 cm from the hider: beyond what the scan from it sees
 
 
@@ -144,11 +151,12 @@ async def _seek_far_guess(options: NavOptions | None, seeking: SeekingOptions | 
 
 @pytest.mark.trio
 async def test_a_large_drift_searches_a_ring_round_the_guess_and_finds(autojump_clock) -> None:
-    """Dead reckoning believed far off (drift 30 % of the distance driven): after the scan
+    """Dead reckoning believed far off (a belief whose turns scrub 5 times as much as the
+    default motion model says): after the scan
     from the guess saw nothing, the seeker looks from a ring round it and finds the hider
     90 cm from the guess, from a point nearer the hider than the guess is."""
     assert math.dist(FAR_GUESS, HIDER) == pytest.approx(90.55, abs=0.01)
-    body = await _seek_far_guess(NavOptions(drift_per_cm=0.3), None)
+    body = await _seek_far_guess(WIDE, None)
     assert body.frames("not_found") == []
     f = body.frames("found")[0].data
     assert math.dist((f["x"], f["y"]), HIDER) < 80.0
@@ -161,16 +169,17 @@ async def test_a_large_drift_searches_a_ring_round_the_guess_and_finds(autojump_
 @pytest.mark.trio
 async def test_without_the_search_the_same_guess_is_not_found(autojump_clock) -> None:
     """The same game with the search off: the hider is out of reach of the guess."""
-    body = await _seek_far_guess(NavOptions(drift_per_cm=0.3), SeekingOptions(search=False))
+    body = await _seek_far_guess(WIDE, SeekingOptions(search=False))
     assert body.frames("found") == []
     assert "IR" in body.frames("not_found")[0].data["reason"]
 
 
 @pytest.mark.trio
 async def test_a_small_drift_needs_no_search(autojump_clock) -> None:
-    """After a short drive (drift a few cm) the scan from the guess covers every spot
-    within IR range of it: ``not_found`` without a ring."""
-    body = await _seek_far_guess(None, None)
+    """A belief that stays narrow on the way (a motion model that trusts the counts: a
+    95 % radius of a few cm) lets the scan from the guess cover every spot within IR
+    range of it: ``not_found`` without a ring."""
+    body = await _seek_far_guess(QUIET, None)
     assert body.frames("found") == []
     assert "ring" not in body.frames("not_found")[0].data["reason"]
     details = [fr.data.get("detail", "") for fr in body.frames("status")]
@@ -179,15 +188,15 @@ async def test_a_small_drift_needs_no_search(autojump_clock) -> None:
 
 def searching_nav(place: tuple[float, float], driven_cm: float) -> SeekingNav:
     """A seeker navigation (not started) standing on ``place`` in a 300 x 200 cm room
-    (map frame = own frame), after driving ``driven_cm``."""
+    (map frame = own frame), with a belief whose 95 % radius is about 4 % of
+    ``driven_cm`` (a Gaussian's 95 % radius is 2.45 standard deviations)."""
     nav = SeekingNav(pool=BufferPool(4))
     nav.map = nav.work_map = room_map(Truth(0, 0, 300, 200))
     nav.origin = Pose(0.0, 0.0, 0.0)
     nav.pose = Pose(place[0], place[1], 0.0)
     nav.place = place
     nav.stage = "close"
-    nav.driven_cm = driven_cm
-    return nav
+    return believe(nav, max(0.3, 0.04 * driven_cm / 2.45), 1.0)
 
 
 def test_the_ring_grows_with_the_drift_and_stays_on_free_ground() -> None:

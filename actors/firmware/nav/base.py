@@ -100,12 +100,6 @@ class NavBase(TreadFaults, Actor):
         self.counters: dict[str, int] = {"dropped": 0, "bad_frames": 0, "blocked": 0,
                                          "timeouts": 0, "motions": 0, "nudges": 0,
                                          "contacts": 0, "stall_holds": 0}
-        self.driven_cm = 0.0
-        """Distance driven since the pose was last known (start, origin, correction) [cm]."""
-        self.heading_err_deg = 0.0
-        """Heading error that tread faults may have left unseen [deg] (see `on_tread_fault`)."""
-        self._fault_base_cm = 0.0  # fault_drift_cm when the heading doubt last grew
-        self._fault_from: tuple[float, float] | None = None  # own-frame xy at that moment
         self.tread_faults = 0
         """``NAV_TREAD_FAULT`` reports acted on."""
         self._hold_until = math.inf  # holding still after a tread fault until then
@@ -218,6 +212,8 @@ class NavBase(TreadFaults, Actor):
             self.pose = Pose(self.pose.x, self.pose.y, heading)
         self._xy_mm = None
         self.pose_known = True
+        if self._motion is None:
+            self.on_pose_at_rest()
         if self._pose_deadline < math.inf and self._motion is None and self._hold_until == math.inf:
             self._pose_deadline = math.inf
             await self.after_motion(self._blocked, self._done)
@@ -236,8 +232,6 @@ class NavBase(TreadFaults, Actor):
         self.last_motion = motion
         self.motion_from = self.map_pose
         self.counters["motions"] += 1
-        if motion.kind == "move":
-            self.driven_cm += abs(motion.amount)
         nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \
             else abs(motion.amount) / 90.0
         self._motion_deadline = trio.current_time() + self.o.motion_timeout_s + nominal
@@ -318,10 +312,15 @@ class NavBase(TreadFaults, Actor):
         elif cmd == "origin":
             self.origin = Pose(data.x, data.y, data.heading)
             self.memory.origin = (data.x, data.y, data.heading)
-            self.driven_cm = 0.0
-            self._forget_fault_drift()
+            await self.on_origin()
         elif cmd == "destination":
             await self.on_destination(data.x, data.y, data.heading, data.within)
+
+    async def on_origin(self) -> None:
+        """Hook: the server gave the start pose in the map frame (``origin``)."""
+
+    def on_pose_at_rest(self) -> None:
+        """Hook: Motor Control's pose arrived with no motion in flight."""
 
     async def on_start_cmd(self) -> None:
         """Hook: the server said ``start``."""

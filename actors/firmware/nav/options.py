@@ -3,7 +3,9 @@ instructions (`NavMemory`) that survives a navigation restart."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+
+from actors.firmware.localisation.motion_model import MotionNoise
 
 __all__ = ["NavOptions", "NavMemory"]
 
@@ -54,16 +56,12 @@ class NavOptions:
     """Replans after being blocked before a route is given up."""
     nudge_step_cm: float = 4.0
     """Lateral step of the search for a narrow passage missed by dead reckoning [cm]; it
-    grows with the drift (`NavBase.drift_cm`) to at most ``nudge_step_max_cm``."""
+    grows with the pose belief's 95 % radius (`drift_cm`) to at most ``nudge_step_max_cm``."""
     nudge_step_max_cm: float = 12.0
     """Largest lateral step of that search [cm]: below the free width a 35 cm gap leaves
     a 15 cm wide body (20 cm), so the offsets tried leave no hole between them. 12, not
     8: a seeker can reach a gap 21-36 cm off (measured against ground truth), beyond
     the +-24 cm six steps of 8 reach."""
-    drift_per_cm: float = 0.04
-    """How far dead reckoning may be off sideways per cm driven since the pose was last
-    known (start, or a contact correction) [cm/cm]: measured 10-20 cm after 3-6 m of
-    hiding or seeking in the gap room (turns are resolved to about 2 deg)."""
     max_nudges: int = 6
     """Sideways offsets tried per route, at most."""
     nudge_reach_cm: float = 50.0
@@ -78,23 +76,6 @@ class NavOptions:
     """Holds in a row (each report within a minute of the last), at most; a further
     report ends the motion as blocked: a tread stalled against a wall looks the same
     as one that does not count, and holding would not free it."""
-    tread_fault_deg: float = 10.0
-    """How far one tread fault may have turned the heading unseen [deg]: the fault is
-    reported after about 5 cm of a tread's travel, counted at most 0.65 of it."""
-    tread_both_deg: float = 40.0
-    """How far a turn that Motor Control ended with both treads silent (``NAV_TREAD_FAULT``
-    `TreadFault.BOTH_SILENT`) may have turned unseen [deg]: it stops such a turn once its
-    model says a tread went 3 cm without an Int E (26 deg on the 13 cm track), and the rover coasts
-    on while it stops: 25-40 deg measured against ground truth with both of a
-    seeker's encoders stuck. Not corrected in the turn's direction: a rover jammed
-    against a wall ends the same way having hardly turned."""
-    tread_turn_fix_deg: float = 12.0
-    """A single tread silent during a turn (`TreadFault.silent`): the heading is
-    turned this much further in the turn's direction [deg]. A stuck encoder is not
-    counted while the tread drives on (the rover turns 16-28 deg more than it believes,
-    measured against ground truth); a
-    stalled motor reports the same having turned as counted. 12, about half the
-    first: the error left either way is under 12-16 deg, not 0 or 28."""
     tread_contact_s: float = 15.0
     """A short count in a move this soon after a block ends it as blocked, not held [s]."""
     tread_stop_s: float = 1.0
@@ -107,17 +88,6 @@ class NavOptions:
     doubling lets a slow transfer finish before it is asked for once more."""
     map_retry_max_s: float = 160.0
     """See ``map_retry_s``."""
-    contact_fixes: int = 4
-    """Pose corrections from contacts with mapped walls per route, at most (see `contact`)."""
-    contact_max_shift_cm: float = 14.0
-    """Largest sideways correction one contact, and all of a route's together, may make [cm]."""
-    contact_max_turn_deg: float = 8.0
-    """Largest heading correction one contact may make [deg]."""
-    contact_max_along_cm: float = 15.0
-    """A contact is searched along the heading as far as the drift, up to this [cm]
-    (6 when the drift is smaller). With 6 alone, a block on a wall's flat face 9 cm
-    further on was taken for the wall's end, and the fix cut the sideways doubt from
-    29 to 3 cm while the rover was 24 cm off."""
     probe_width_cm: float = 40.0
     """A block where the map's passage across the heading is narrower than this probes
     sideways at once (see `recovery.RouteRecovery._probe_plan`) [cm]."""
@@ -139,6 +109,8 @@ class NavOptions:
     the previous incarnation commanded arrives meanwhile and is ignored."""
     outbox: int = 16
     """Reports waiting for room in the pool or WiFly's mailbox, at most."""
+    motion: MotionNoise = field(default_factory=MotionNoise)
+    """Noise levels of the pose belief's tread motion model (`belief_tracking`)."""
 
 
 @dataclass(slots=True)

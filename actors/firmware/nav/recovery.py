@@ -1,5 +1,6 @@
-"""Recovery behaviours of a route that is blocked: back off, fix the pose from the
-contact, nudge the route sideways, probe a narrow passage.
+"""Recovery behaviours of a route that is blocked: back off, weigh the pose belief by
+the contact, nudge the route sideways, probe a narrow passage. The doubt they size
+themselves by (`drift_cm`) is the pose belief's 95 % radius.
 
 `RouteRecovery` is a mixin of `route_nav.RouteNav`: it works on the route's
 state (the goal, the working map, the follower, the nudge series) and is not
@@ -13,7 +14,6 @@ import math
 import numpy as np
 import trio
 
-from actors.firmware.localisation.contact import locate_contact, stalled_side
 from actors.firmware.nav.route import Motion, passable_at, with_obstacle
 from actors.firmware.planning.clearance import occupied_near, passage_width
 from server.protocol.pose import Pose, angle_diff_deg
@@ -182,39 +182,10 @@ class RouteRecovery:
         return turned > self.o.stall_turn_deg
 
     def _contact_fix(self) -> bool:
-        """After a straight move ended blocked: correct the pose to where the body
-        touches a wall of the server's map (`contact.locate_contact`).
-
-        Returns:
-            True when the pose was corrected. False when the dead-reckoned pose
-            already explains the block, when no pose within reach does (an
-            obstacle the map does not show), when the contact is ambiguous
-            (left or right alike), or when ``contact_fixes`` corrections were
-            made on this route already.
-        """
-        m, start = self.last_motion, self.motion_from
-        if (m is None or m.kind != "move" or m.amount == 0 or start is None or self.map is None
-                or self._contact_fixes >= self.o.contact_fixes):
-            return False
-        p = self.map_pose
-        direction = 1 if m.amount > 0 else -1
-        side = stalled_side(angle_diff_deg(p.heading_deg, start.heading_deg), direction)
-        drift = min(self.drift_cm, 3.0 * self.o.contact_max_shift_cm)
-        c = locate_contact(self.map, p, length_cm=self.length_cm, width_cm=self.width_cm,
-                           direction=direction, side=side,
-                           max_shift_cm=self.o.contact_max_shift_cm,
-                           max_turn_deg=self.o.contact_max_turn_deg,
-                           max_along_cm=max(6.0, min(drift, self.o.contact_max_along_cm)),
-                           ambiguity_cm=drift,
-                           other_shift_cm=self.o.contact_max_shift_cm + drift)
-        if c is None or c.ambiguous or not c.needed or \
-                self._contact_shift + abs(c.shift_cm) > self.o.contact_max_shift_cm:
-            return False
-        self._contact_shift += abs(c.shift_cm)
-        self.correct_pose(c.pose, sideways_known=not c.sideways_free)
-        self._contact_fixes += 1
-        self.counters["contacts"] += 1
-        return True
+        """After a straight move ended blocked: the contact weighs the pose belief
+        (`belief_tracking.BeliefTracking.contact_update`); True when the map's walls
+        explain the stop and the pose moved, so there is nothing to learn."""
+        return self.contact_update()
 
     def _in_passage(self) -> bool:
         """The last forward move was blocked where the map's walls are close on both sides

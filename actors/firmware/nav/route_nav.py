@@ -15,16 +15,16 @@ from actors import BufferPool
 from actors.firmware.addresses import Addresses
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.nav.base import NavBase
+from actors.firmware.nav.belief_tracking import BeliefTracking
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.recovery import RouteRecovery
 from actors.firmware.nav.route import PathFollower, plan_route, route_points, shorten
 from server.protocol.grid_map import GridMap
-from server.protocol.pose import Pose, compose, inverse
 
 __all__ = ["RouteNav"]
 
 
-class RouteNav(RouteRecovery, NavBase):
+class RouteNav(RouteRecovery, BeliefTracking, NavBase):
     """Navigation on a map downloaded from the server: the hider's and the seeker's base.
 
     Flow: ``start`` -> ``map_request`` -> NAV_MAP_DOWNLOAD; ``origin`` and
@@ -61,8 +61,6 @@ class RouteNav(RouteRecovery, NavBase):
         self._nudge: tuple[float, float, float, float] | None = None  # (dx, dy, cx, cy) [cm]
         self._anchor: tuple[float, float, float] | None = None  # the block nudges start from
         self._nudges = 0  # nudges tried on this route
-        self._contact_fixes = 0  # pose corrections from contacts on this route
-        self._contact_shift = 0.0  # their sideways sum [cm]
         self._probe = False  # the block in flight was in a narrow passage: probe sideways
         self._nudge_off = 0.0  # the last sideways offset tried [cm], signed (left +)
         self._nudge_first = 1.0  # the side a series of nudges tries first
@@ -71,6 +69,7 @@ class RouteNav(RouteRecovery, NavBase):
         """``map_request`` frames sent (see ``NavOptions.map_retry_s``)."""
         self._map_wait = 0.0  # the wait before the next request [s]
         self._map_again = math.inf  # ask again at this time, if still waiting
+        self._init_belief()
 
     # ------------------------------------------------------------------ server
     async def on_start_cmd(self) -> None:
@@ -144,7 +143,6 @@ class RouteNav(RouteRecovery, NavBase):
         self.stop_short_cm = stop_short_cm
         self.replans = 0
         self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
-        self._contact_fixes, self._contact_shift = 0, 0.0
         self._probe, self._nudge_off = False, 0.0
         if not self._plan():
             return False
@@ -239,21 +237,12 @@ class RouteNav(RouteRecovery, NavBase):
                 return
         await self._step()
 
-    def correct_pose(self, target: Pose, *, sideways_known: bool = True) -> None:
-        """Make the map-frame pose ``target`` by moving the origin (own frame -> map frame).
+    async def on_origin(self) -> None:
+        self.forget_belief()
+        self.track_belief()  # a new belief round the origin, if the pose is known
 
-        Motor Control's dead reckoning is left as it is: its pose stays
-        continuous, and every later pose is read through the corrected
-        origin. The retained memory keeps it across a restart. ``sideways_known``
-        False (a contact that measured only the distance along the heading) keeps
-        the sideways uncertainty (`drift_cm`) as it was.
-        """
-        origin = compose(target, inverse(self.pose))
-        self.origin = origin
-        if sideways_known:
-            self.driven_cm = 0.0
-            self._forget_fault_drift()
-        self.memory.origin = (origin.x, origin.y, origin.heading_deg)
+    def on_pose_at_rest(self) -> None:
+        self.track_belief()
 
     async def _give_up(self, reason: str) -> None:
         self.follower = None
