@@ -76,7 +76,7 @@ def shrink_game(base: Scenario, run_seed: int, *, budget_s: float = _DEFAULT_BUD
         base: the room with the failing schedule (its ``faults``).
         run_seed: the seed the game runs with.
         budget_s: simulated time allowed for mapping [s] (``hideseek run --budget``).
-        origin: where the game came from, for the report (``campaign 3:4``).
+        origin: where the game came from, for the report (``campaign S:I``).
         max_runs: games at most, the first one included (the check of the
             written file comes on top).
         resolution_s: bisection precision [s].
