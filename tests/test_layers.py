@@ -49,18 +49,16 @@ WIRING = ("supervisors/system.py", "supervisors/remote.py", "supervisors/harness
 #: the one firmware module the world may import: the device contract it implements
 DEVICE_CONTRACT = "actors.firmware.hardware"
 
-#: the supervisors modules that are domain-free: they import the actor runtime
-#: (and ``supervisors.supervisor``) only
+#: the OTP supervisor itself: domain-free, these modules import the actor runtime
+#: and each other only
 DOMAIN_FREE_SUPERVISORS = ("supervisors/__init__.py", "supervisors/supervisor.py",
                            "supervisors/spec.py", "supervisors/state.py", "supervisors/dynamic.py")
-"""The OTP supervisor itself: domain-free, it imports the actor runtime and its own modules only."""
 
 
 def _is_domain_free_supervisor(module: str) -> bool:
-    """Whether ``module`` is (a name in) one of `DOMAIN_FREE_SUPERVISORS`."""
-    parts = module.split(".")
-    return any(f"{'/'.join(parts[:n])}.py" in DOMAIN_FREE_SUPERVISORS for n in (2, 3)) or (
-        module == "supervisors")
+    """Whether ``module`` (or the name imported from it) is one of `DOMAIN_FREE_SUPERVISORS`."""
+    package_module = "/".join(module.split(".")[:2])
+    return module == "supervisors" or f"{package_module}.py" in DOMAIN_FREE_SUPERVISORS
 
 
 def is_wiring(rel: str) -> bool:
