@@ -34,6 +34,8 @@ import sys
 import tempfile
 from dataclasses import dataclass
 
+from benchmarks.game import parse_seeds
+from benchmarks.trace_hashes import run_json
 from world.scenario import builtin_scenarios
 
 _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -56,30 +58,15 @@ class Game:
 
 def play(tree: str, room: str, seed: int, timeout_s: float) -> Game:
     """Play one headless game in ``tree``'s directory and measure its child's CPU time."""
-    cmd = [sys.executable, "-m", "tui.cli", "run", "--scenario", room, "--seed", str(seed),
-           "--json"]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    proc = subprocess.run(cmd, cwd=tree, capture_output=True, text=True, timeout=timeout_s)
+    try:
+        out = run_json(["--scenario", room, "--seed", str(seed)], cwd=tree,
+                       timeout_s=timeout_s)
+    except RuntimeError as exc:
+        raise RuntimeError(f"{room} seed {seed} in {tree}: {exc}") from exc
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    try:
-        out = json.loads(proc.stdout.strip().splitlines()[-1])
-        return Game(float(out["sim_seconds"]), cpu, str(out["outcome"]), str(out["trace_hash"]))
-    except (IndexError, KeyError, ValueError) as exc:
-        tail = proc.stderr.strip().splitlines()[-1:]
-        raise RuntimeError(f"{room} seed {seed} in {tree}: no result (exit "
-                           f"{proc.returncode}): {tail}") from exc
-
-
-def parse_seeds(text: str) -> list[int]:
-    """``"1-3,7"`` -> [1, 2, 3, 7]."""
-    seeds: list[int] = []
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        seeds.extend(range(int(lo), int(hi or lo) + 1))
-    if not seeds:
-        raise ValueError(f"no seeds in {text!r}")
-    return seeds
+    return Game(float(out["sim_seconds"]), cpu, str(out["outcome"]), str(out["trace_hash"]))
 
 
 def _git(*args: str) -> str:

@@ -39,14 +39,31 @@ def default_games() -> list[str]:
     return games
 
 
+def run_json(args: list[str], *, cwd: str | None = None, timeout_s: float = 900) -> dict:
+    """Play one game as ``python -m tui.cli run ARGS --json`` in a child process (in
+    ``cwd``'s tree) and return its JSON report.
+
+    Raises:
+        RuntimeError: the child printed no report (its exit status and last error line).
+    """
+    cmd = [sys.executable, "-m", "tui.cli", "run", *args, "--json"]
+    proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout_s)
+    try:
+        report = json.loads(proc.stdout.strip().splitlines()[-1])
+        if "trace_hash" not in report:
+            raise KeyError("trace_hash")
+        return report
+    except (IndexError, KeyError, ValueError) as exc:
+        raise RuntimeError(f"no result (exit {proc.returncode}): "
+                           f"{proc.stderr.strip().splitlines()[-1:]}") from exc
+
+
 def trace_hash(game: str) -> str:
     """Play one game headless in a child process and return its trace hash (or the error)."""
-    cmd = [sys.executable, "-m", "tui.cli", "run", *game.split(), "--json"]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     try:
-        return json.loads(proc.stdout.strip().splitlines()[-1])["trace_hash"]
-    except (IndexError, KeyError, json.JSONDecodeError):
-        return f"error (exit {proc.returncode}): {proc.stderr.strip().splitlines()[-1:]}"
+        return run_json(game.split())["trace_hash"]
+    except RuntimeError as exc:
+        return f"error: {exc}"
 
 
 def main(argv: list[str] | None = None) -> int:
