@@ -163,12 +163,10 @@ def _recorder(args: argparse.Namespace, scenario: Scenario) -> Recorder | None:
     """The ``--record`` observer, or None (raises RecordingError when the file cannot be made)."""
     if not args.record:
         return None
-    from supervisors.recording import Recorder, RunInfo  # noqa: PLC0415 - only when asked
-    from supervisors.recording.runinfo import scenario_text  # noqa: PLC0415
+    from supervisors.recording import Recorder  # noqa: PLC0415 - only when asked
 
-    info = RunInfo.for_scenario(scenario, args.seed, budget_s=args.budget,
-                                campaign=args.campaign)
-    return Recorder(args.record, info, scenario_toml=scenario_text(scenario))
+    return Recorder.for_scenario(args.record, scenario, args.seed, budget_s=args.budget,
+                                 campaign=args.campaign)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -31,8 +31,7 @@ from server.protocol import Pose as FramePose
 from server.protocol import compose as compose_pose
 from server.store import Store
 from supervisors.harness.headless import Budget, GameReport, finish_report, play_game
-from supervisors.recording import Recorder, RecordingError, RunInfo
-from supervisors.recording.runinfo import scenario_text
+from supervisors.recording import Recorder, RecordingError
 from supervisors.system import SimSystem, open_sim_system
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_DEVICES
 from world.scenario import Scenario
@@ -361,9 +360,8 @@ class LiveSystem(QueuedController):
             return f"saved {rec.path}"
         path = path or (f"hideseek-{self.scenario.name}-seed{self.seed}-"
                         f"{trio.current_time():.0f}s.mcap")
-        info = RunInfo.for_scenario(self.scenario, self.seed, operator="console")
         try:
-            recorder = Recorder(path, info, scenario_toml=scenario_text(self.scenario))
+            recorder = Recorder.for_scenario(path, self.scenario, self.seed, operator="console")
         except RecordingError as exc:
             raise ValueError(str(exc)) from None
         recorder.start(self._system)

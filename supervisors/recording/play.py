@@ -11,7 +11,6 @@ from supervisors.harness.headless import Budget, GameReport, run_game
 from world.scenario import Scenario
 
 from .recorder import Recorder
-from .runinfo import RunInfo, scenario_text
 
 __all__ = ["record_game"]
 
@@ -27,8 +26,7 @@ def record_game(scenario: Scenario, seed: int, path: str | os.PathLike[str], *,
     Raises:
         RecordingError: the file cannot be created.
     """
-    info = RunInfo.for_scenario(scenario, seed, budget_s=budget_s, campaign=campaign)
-    recorder = Recorder(path, info, scenario_toml=scenario_text(scenario))
+    recorder = Recorder.for_scenario(path, scenario, seed, budget_s=budget_s, campaign=campaign)
     seed_trio_scheduler(seed)
     return trio.run(lambda: run_game(scenario, seed, budget=Budget(mapping=budget_s),
                                      observers=[recorder]), clock=virtual_clock())

@@ -46,8 +46,9 @@ from actors.firmware.commands import name_of
 from actors.message import ValueType
 from server.protocol import ROLES, Pose, compose, inverse
 from supervisors.system import SimSystem
+from world.scenario import Scenario
 
-from .runinfo import RunInfo
+from .runinfo import RunInfo, scenario_text
 from .schemas import CHANNELS, FRAME, LOG_LEVELS, schema_bytes
 
 __all__ = ["Recorder", "RecordingError", "POSE_PERIOD_S", "MAX_PER_CHANNEL", "checkpoint"]
@@ -140,6 +141,18 @@ class Recorder:
     Raises:
         RecordingError: the file cannot be created.
     """
+
+    @classmethod
+    def for_scenario(cls, path: str | os.PathLike[str], scenario: Scenario, seed: int,
+                     **run: Any) -> Recorder:
+        """A recorder of a run of ``scenario`` with ``seed``: its `RunInfo` (``run``:
+        `RunInfo.for_scenario`'s keywords) and the scenario's TOML as metadata.
+
+        Raises:
+            RecordingError: the file cannot be created.
+        """
+        return cls(path, RunInfo.for_scenario(scenario, seed, **run),
+                   scenario_toml=scenario_text(scenario))
 
     def __init__(self, path: str | os.PathLike[str], info: RunInfo, *,
                  scenario_toml: str = "") -> None:
