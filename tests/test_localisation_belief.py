@@ -158,8 +158,8 @@ def _localisation_lines(n: int) -> int:
     sys.settrace(trace)
     try:
         b.predict(motion, W, MotionNoise(), rng)
-        b.update(free_space_log_likelihood(FIELD, b.particles), rng)
-        b.update(contact_log_likelihood(FIELD, b.particles), rng)
+        b.update(free_space_log_likelihood(FIELD, b.particles, (20.0, 15.0)), rng)
+        b.update(contact_log_likelihood(FIELD, b.particles, (20.0, 15.0)), rng)
         b.update(scan_log_likelihood(FIELD, b.particles, pts), rng)
     finally:
         sys.settrace(None)
