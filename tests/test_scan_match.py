@@ -92,8 +92,10 @@ def test_a_correction_beyond_the_limit_is_refused() -> None:
 
 def test_options_are_checked() -> None:
     """Nonsense tunables are refused with the rule."""
-    with pytest.raises(ValueError, match="iterations"):
-        MatchOptions(iterations=0)
+    with pytest.raises(ValueError, match="max_shift_cm and max_turn_deg must be > 0"):
+        MatchOptions(max_turn_deg=0.0)
+    with pytest.raises(ValueError, match="min_range_cm and prior_per_point must be >= 0"):
+        MatchOptions(min_range_cm=-1.0)
 
 
 @pytest.mark.parametrize("dx, dy, dh", [(0.0, 0.0, 15.0), (8.0, -6.0, -20.0), (3.0, 3.0, 10.0)])
