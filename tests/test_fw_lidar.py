@@ -174,7 +174,7 @@ async def _interrupt(system, hw: FakeHardware, data: bytes, heading: float = 0.0
 @pytest.mark.trio
 async def test_stuck_rotor_batches_are_withheld_until_it_turns_again(autojump_clock) -> None:
     """Samples all at one angle: no scan from the first such batch on, navigation told
-    STUCK once; after ``recover_batches`` good sweeps it is told OK and scans flow."""
+    STUCK once; after ``RECOVER_BATCHES`` good sweeps it is told OK and scans flow."""
     hw, pool, log = FakeHardware(), BufferPool(64), []
     async with open_actor_system(1) as system:
         await system.start_supervisor(_health_tree(log, pool, hw), "mapper")

@@ -72,7 +72,7 @@ def test_a_scan_of_unmapped_space_is_not_matched() -> None:
 
 
 def test_too_few_hits_keep_the_guess() -> None:
-    """Fewer hits than ``min_points``: refused without trying."""
+    """Fewer hits than ``MIN_POINTS``: refused without trying."""
     fields = MatchFields(room_map(), ORIGIN, RES)
     result = match_scan(fields, np.zeros((3, 2)) + 50.0, Pose(10, 10, 0))
     assert not result.accepted and "need" in result.reason

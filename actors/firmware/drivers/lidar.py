@@ -26,8 +26,8 @@ Health (why: a faulty LIDAR leaves a wrong map, docs/faults.md)
     Every batch is judged before it is sent (`batch_health`): a batch collected
     while the ISR rejected many frames (garbled line), one whose samples all lie
     at one angle (stuck rotor), or one far rougher than the calibrated noise
-    (noisy) is dropped, never integrated. ``fault_batches`` bad batches in a row
-    make the sensor faulty: every batch is dropped until ``recover_batches``
+    (noisy) is dropped, never integrated. ``FAULT_BATCHES`` bad batches in a row
+    make the sensor faulty: every batch is dropped until ``RECOVER_BATCHES``
     good ones in a row, and navigation is told each change of verdict with
     ``NAV_LIDAR_HEALTH`` (a `LidarHealth`), so it can stop driving meanwhile. A
     dead LIDAR sends nothing to judge: navigation sees its scan count stop.
