@@ -14,7 +14,7 @@ from server.protocol import Pose, inverse
 from server.protocol import compose as compose_pose
 from tui.live import LiveSystem
 from tui.snapshot import FREE, OCCUPIED, GridView
-from tui.widgets.map_view import classify
+from tui.widgets.map_pixels import classify
 from world.scenario import load_scenario
 
 _MISSED, _FALSE = 6, 7  # map_view classes: obstacle mapped free, free mapped occupied
