@@ -2,7 +2,10 @@
 
 `ServerCore` holds the rovers, roles, links and game that the parts of the
 server (`server.connections`, `server.hello`, `server.frames`,
-`server.durability`) read and change; `server.server.Server` joins those parts.
+`server.durability`) read and change; `server.server.Server` joins those parts
+into one class, so a part calls another's methods through ``self`` (a link's task
+hands a ``hello`` to `server.hello.Hellos._on_hello`, a game frame to
+`server.frames.GameFrames._on_frame`).
 Every part emits events (`_emit`: to each subscriber's bounded channel and,
 except telemetry, to the store's event log) and transmits what a session has
 queued (`_flush_conn`).
