@@ -68,7 +68,7 @@ def empty_room(slip_sigma: float | None):
 async def test_move_and_turn_land_close_in_the_simulated_world(autojump_clock, slip, tol,
                                                                seed) -> None:
     """A 100 cm move and a 90 deg turn land within ``tol`` cm / deg of the true pose
-    (2 in a noise-free room; 5 with the default 2 % encoder slip noise)."""
+    (2 in a noise-free room; 5 with the default encoder slip noise)."""
     world = World(empty_room(slip), np.random.default_rng(seed))
     hw = world.hardware("hider")
     start = world.true_pose("hider")
