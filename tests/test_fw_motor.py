@@ -13,7 +13,6 @@ from actors import Actor, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.motor import MotorControl, PoseMemory
 from actors.firmware.hardware import HardwareSpec, Interrupt, encode_counter
-from actors.firmware.localisation.odometry import split_heading
 from server.protocol.pose import Pose, angle_diff_deg
 from supervisors import ChildSpec, SupervisorSpec
 from world import World, load_scenario, run_world
@@ -68,7 +67,7 @@ def empty_room(slip_sigma: float | None):
 async def test_move_and_turn_land_close_in_the_simulated_world(autojump_clock, slip, tol,
                                                                seed) -> None:
     """A 100 cm move and a 90 deg turn land within ``tol`` cm / deg of the true pose
-    (2 in a noise-free room; 5 with the default 2 % encoder slip noise)."""
+    (2 in a noise-free room; 5 with the default encoder slip noise)."""
     world = World(empty_room(slip), np.random.default_rng(seed))
     hw = world.hardware("hider")
     start = world.true_pose("hider")
@@ -231,7 +230,7 @@ async def test_correction_puts_navigation_in_the_map_frame_and_lidar_stays_raw(
     """MOTOR_CORRECT_XY + _HEADING: navigation's pose is correction (+) odometry, the LIDAR
     keeps the raw odometry pose, the correction is retained, MOTOR_GET_POSE hands it to the
     map, and a NOOP flood message is ignored (no restart)."""
-    from server.protocol.pose import Pose, compose
+    from server.protocol.pose import compose
 
     hw = FakeHardware()
     log: list = []
@@ -461,19 +460,3 @@ async def test_both_treads_hardly_counting_lately_in_a_move_is_a_push(autojump_c
             assert (m.command == Cmd.NAV_MOTION_BLOCKED) == push
             assert tread_reports(log) == ([] if push else [6])
             nursery.cancel_scope.cancel()
-
-
-@pytest.mark.parametrize(("target", "counted", "modelled"), [
-    ((20.0, 20.0), (7.5, 9.0), (9.2, 8.5)), ((-20.0, -20.0), (7.5, 9.0), (9.2, 8.5)),
-    ((-6.0, 6.0), (2.5, 2.5), (5.2, 5.6))], ids=["forward", "backward", "turn"])
-def test_a_short_count_sets_the_heading_halfway_between_counts_and_model(
-        target, counted, modelled) -> None:
-    """At a short-count report the heading is put halfway between what the counts and what
-    the modelled travel say: a slipping encoder (the model is right) and a weak motor
-    (the counts are right) read the same, and halfway bounds the error either way."""
-    signs = [math.copysign(1.0, t) for t in target]
-    by_counts = math.degrees((counted[1] * signs[1] - counted[0] * signs[0]) / 13.0)
-    by_model = math.degrees((modelled[1] * signs[1] - modelled[0] * signs[0]) / 13.0)
-    pose = split_heading(Pose(3.0, 4.0, by_counts), target, list(counted), list(modelled), 13.0)
-    assert (pose.x, pose.y) == (3.0, 4.0)
-    assert pose.heading_deg == pytest.approx((by_counts + by_model) / 2, abs=1e-6)

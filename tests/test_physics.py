@@ -53,7 +53,7 @@ def test_straight_drive_ticks_match_ground_truth() -> None:
     travelled = math.hypot(end.x - start.x, end.y - start.y)
     assert 60 < travelled < 95  # 0.6 * 30 cm/s for 5 s, less the motor lag
     left, right = tread_cm(events, world.hardware("mapper").spec.cm_per_interrupt)
-    tol = 4 * world.params.slip_sigma * travelled / math.sqrt(100) + 0.5 + 0.5
+    tol = 4 * world.params.slip_sigma * math.sqrt(travelled) + 0.5 + 0.5
     assert left == pytest.approx(travelled, abs=tol)
     assert right == pytest.approx(travelled, abs=tol)
     assert abs(end.heading_deg) < 1.0 or abs(end.heading_deg - 360) < 1.0
@@ -166,8 +166,8 @@ def test_arc_drive_dead_reckons_to_the_true_pose() -> None:
 
 @pytest.mark.parametrize("sigma", [0.0, 0.1])
 def test_encoder_error_stays_within_the_slip_noise(sigma: float) -> None:
-    """Per-tick slip N(0, sigma): without slip ticks match truth to one interrupt; with slip
-    the error is about sigma * sqrt(sum of squared per-tick travel), never wildly more."""
+    """Slip sigma [cm / sqrt(cm)]: without slip ticks match truth to one interrupt; with
+    slip the error is about sigma * sqrt(distance travelled), never wildly more."""
     text = ROOM + f"[devices]\nslip_sigma = {sigma}\n"
     errors = []
     for seed in range(6):
@@ -178,8 +178,7 @@ def test_encoder_error_stays_within_the_slip_noise(sigma: float) -> None:
         travelled = math.hypot(end.x - start.x, end.y - start.y)
         left, _ = tread_cm(events, world.hardware("mapper").spec.cm_per_interrupt)
         errors.append(left - travelled)
-    per_tick = 0.8 * 30 * 0.05  # cm per 50 ms tick at speed
-    sd = sigma * per_tick * math.sqrt(4.0 / 0.05)  # [cm] over 80 ticks
+    sd = sigma * math.sqrt(0.8 * 30 * 4.0)  # [cm] over the distance at speed
     if sigma == 0:
         assert max(abs(e) for e in errors) <= 0.5 + 1e-6
     else:

@@ -39,9 +39,9 @@ def test_a_tread_that_never_counts_is_silent() -> None:
     assert drive(monitor(), 1.0, (0.0, 1.0)) == [(TreadVerdict.FAULT, TreadFault.silent(0))]
 
 
-def test_a_tread_counting_half_in_a_move_counts_short_and_splits_the_heading() -> None:
+def test_a_tread_counting_half_in_a_move_counts_short() -> None:
     found = drive(monitor(), 2.0, (1.0, 0.45))
-    assert found == [(TreadVerdict.FAULT_SPLIT, TreadFault.short(1))]
+    assert found == [(TreadVerdict.FAULT, TreadFault.short(1))]
 
 
 def test_both_counting_short_is_one_finding_for_the_mapper() -> None:

@@ -6,9 +6,13 @@ first-order lag ``tau`` (``v += (target - v) * (1 - exp(-dt / tau))``). The
 physics then decides how far the tread really went (walls stop it).
 
 Encoder model: each tread's travel in a tick [cm] (from the body's motion at
-the tread's contact line) is scaled by ``1 + N(0, slip_sigma)`` (slip), turned
-into quadrature ticks (``ticks_per_cm``), and the motor counter timer raises
-Int E every ``ticks_per_interrupt`` ticks in either direction.
+the tread's contact line) is counted with slip (`slipped_travel`): an error of
+``slip_sigma * sqrt(|travel|) * N(0, 1)`` [cm], so the error's variance grows
+with the distance travelled, not with the number of ticks it took: over a path
+of ``D`` cm a tread's count errs by ``slip_sigma * sqrt(D)`` [cm] (standard
+deviation) whatever the tick. The count is turned into quadrature ticks
+(``ticks_per_cm``), and the motor counter timer raises Int E every
+``ticks_per_interrupt`` ticks in either direction.
 """
 
 from __future__ import annotations
@@ -65,6 +69,22 @@ class Tread:
             self.counter += n * per_interrupt
             out = [self._back] * n
         return out
+
+
+def slipped_travel(travel_cm: float, z: float, slip_sigma: float) -> float:
+    """The travel an encoder counts for a tread that really went ``travel_cm`` [cm].
+
+    Args:
+        travel_cm: the tread's true travel in one tick [cm], signed.
+        z: a standard normal draw (from the run's generator).
+        slip_sigma: slip noise [cm / sqrt(cm)].
+
+    Returns:
+        ``travel_cm + slip_sigma * sqrt(|travel_cm|) * z``: independent draws over the
+        ticks of a path add up to a variance of ``slip_sigma**2 * D`` for ``D`` cm
+        travelled, however the path is cut into ticks.
+    """
+    return travel_cm + slip_sigma * math.sqrt(abs(travel_cm)) * z
 
 
 def lag_alpha(dt: float, tau: float) -> float:

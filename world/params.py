@@ -40,8 +40,11 @@ class DeviceParams:
     """Tread speed at full PWM [cm/s]."""
     motor_tau_s: float = 0.08
     """First-order lag of the tread motors [s]."""
-    slip_sigma: float = 0.02
-    """Relative tread slip noise: each tick's tread travel is scaled by 1 + N(0, sigma)."""
+    slip_sigma: float = 0.022
+    """Tread slip noise, the standard deviation of a tread's counted travel over 1 cm
+    [cm / sqrt(cm)]: over ``D`` cm the count errs by ``slip_sigma * sqrt(D)`` (0.22 cm
+    over 1 m), whatever the tick (`world.drive.slipped_travel`). 0.022 is what a
+    relative noise of 0.02 per 50 ms tick gave at the cruise speed (24 cm/s)."""
     # -- encoders ----------------------------------------------------------
     ticks_per_cm: float = 8.0
     """Quadrature encoder ticks per cm of tread travel."""

@@ -23,7 +23,7 @@ import trio
 
 from actors.clock import sleep_until
 from actors.firmware.hardware import Interrupt
-from world.drive import Tread, lag_alpha
+from world.drive import Tread, lag_alpha, slipped_travel
 from world.faults import Fault, FaultBook, check_fault, is_actor_fault
 from world.geometry import Pose, boundary_segments, room_segments
 from world.hardware import SimRoverHardware
@@ -185,17 +185,20 @@ class World:
             self.physics.set_tread_speeds(role, vl, vr)
         self.physics.step(dt)
         self.ticks += 1
-        slip = (self.rng.standard_normal(2 * len(ROLES)) * p.slip_sigma).tolist()
+        slip = self.rng.standard_normal(2 * len(ROLES)).tolist()  # per tread, every tick
         self._prev, self._now = self._now, {r: self.physics.state(r) for r in ROLES}
         for i, role in enumerate(ROLES):
-            self._encoders(role, 1.0 + slip[2 * i], 1.0 + slip[2 * i + 1])
+            self._encoders(role, slip[2 * i], slip[2 * i + 1])
             if role == "mapper":
                 self._lidar_tick(dt)
             elif role == "seeker":
                 self._ir_tick(dt)
             self._wifly_tick(role, now, dt)
 
-    def _encoders(self, role: str, slip_l: float, slip_r: float) -> None:
+    def _encoders(self, role: str, z_left: float, z_right: float) -> None:
+        """Count this tick's tread travel with slip (`slipped_travel`: the error grows
+        with the distance, not the tick) and deliver the Int E it raises; ``z_left``,
+        ``z_right`` are the tick's standard normal draws."""
         if self._prev[role] == self._now[role]:
             return  # no travel, no ticks (the slip draws were taken all the same)
         x0, y0, a0 = self._prev[role]
@@ -207,8 +210,8 @@ class World:
         handler = self._hw[role].handlers.get(Interrupt.INT_E)
         p = self.params
         left, right = self.treads[role]
-        travel_l = (ds - half) * slip_l
-        travel_r = (ds + half) * slip_r
+        travel_l = slipped_travel(ds - half, z_left, p.slip_sigma)
+        travel_r = slipped_travel(ds + half, z_right, p.slip_sigma)
         if self._faults:
             travel_l = self._encoder_fault(role, "encoder_left", travel_l)
             travel_r = self._encoder_fault(role, "encoder_right", travel_r)

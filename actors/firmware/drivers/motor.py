@@ -53,12 +53,11 @@ Tread faults (``NAV_TREAD_FAULT``)
     have gone and finds a tread that is driven but does not count, or counts
     short, or both counting short (see that module). Motor Control sends each
     finding as a `tread_monitor.TreadFault`; the command goes on (navigation
-    decides: the mapper stops and holds). At a short count of the hider or
-    seeker (one tread in a move, both in a move or turn) the heading is first
-    set halfway between counts and model (`odometry.split_heading`): neither a
-    slip nor a weak motor is known, and halfway bounds the error of both. Both
-    short in a move while lately counting hardly at all is a push: the move
-    ends blocked.
+    decides: the mapper stops and holds). The pose stays what the counts say:
+    whether a short tread slipped (the model is right) or was held back (the
+    counts are right) is the pose belief's question, whose motion model samples
+    between the two (`localisation.motion_model`). Both short in a move while
+    lately counting hardly at all is a push: the move ends blocked.
 
 Restarts
     The pose lives in a `PoseMemory` made by the rover tree: the model of a
@@ -86,7 +85,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import MotorCounterIsr
 from actors.firmware.drivers.tread_monitor import TreadFault, TreadMonitor, TreadVerdict
 from actors.firmware.hardware import Interrupt, RoverHardware, decode_counter
-from actors.firmware.localisation.odometry import Odometer, split_heading
+from actors.firmware.localisation.odometry import Odometer
 from server.protocol.pose import Pose, compose
 
 __all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
@@ -425,7 +424,7 @@ class MotorControl(Actor):
 
     def _watch_treads(self, period_pending: bool) -> None:
         """Act on the tread monitor's findings of this step, in order: report each tread
-        fault (after splitting the heading where the monitor says so), end a push blocked.
+        fault, end a push blocked.
 
         The encoders of one world step arrive together, so at a control step whose
         step's Int E may not have arrived yet (``period_pending``) the last period's
@@ -436,12 +435,6 @@ class MotorControl(Actor):
             if verdict is TreadVerdict.PUSH:
                 self._finish(Cmd.NAV_MOTION_BLOCKED)
                 continue
-            if verdict is TreadVerdict.FAULT_SPLIT:
-                self._integrate()
-                self.memory.pose = split_heading(self.memory.pose, self._target,
-                                                 self._monitor.counted, self._monitor.modelled,
-                                                 self._track)
-                self._pose_dirty = self._lidar_dirty = True
             self.tread_faults += 1
             self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, int(fault)))
 

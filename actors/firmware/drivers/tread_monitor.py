@@ -110,8 +110,6 @@ class TreadVerdict(enum.Enum):
 
     FAULT = "fault"
     """Report the `TreadFault` to navigation."""
-    FAULT_SPLIT = "fault_split"
-    """Set the heading halfway between counts and model, then report the fault."""
     PUSH = "push"
     """Both treads short in a move, lately hardly counting: end the move blocked."""
 
@@ -286,8 +284,7 @@ class TreadMonitor:
             if moving and not self._mapper and self.pushing():
                 found.append((TreadVerdict.PUSH, TreadFault.BOTH_SHORT))
                 return
-            verdict = TreadVerdict.FAULT if self._mapper else TreadVerdict.FAULT_SPLIT
-            found.append((verdict, TreadFault.BOTH_SHORT))
+            found.append((TreadVerdict.FAULT, TreadFault.BOTH_SHORT))
             return
         for tread in (0, 1):
             other = 1 - tread
@@ -302,8 +299,7 @@ class TreadMonitor:
                     >= UNEVEN_CM
             if short:
                 self._short_sent[tread] = True
-                verdict = TreadVerdict.FAULT_SPLIT if moving else TreadVerdict.FAULT
-                found.append((verdict, TreadFault.short(tread)))
+                found.append((TreadVerdict.FAULT, TreadFault.short(tread)))
 
     def pushing(self) -> bool:
         """Both treads count short in a move, and lately hardly at all: the rover pushes

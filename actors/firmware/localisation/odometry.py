@@ -25,7 +25,7 @@ import math
 
 from server.protocol.pose import Pose
 
-__all__ = ["advance", "Odometer", "split_heading"]
+__all__ = ["advance", "Odometer"]
 
 
 def advance(pose: Pose, d_left_cm: float, d_right_cm: float, track_width_cm: float) -> Pose:
@@ -92,23 +92,3 @@ class Odometer:
             self.pending = [0.0, 0.0]
             return advance(pose, left, right, self.track_width_cm)
         return None
-
-
-def split_heading(pose: Pose, target: tuple[float, float], counted: list[float],
-                  modelled: list[float], track_width_cm: float) -> Pose:
-    """``pose`` with its heading set halfway between what the treads' counts say and
-    what their modelled travel says, for a command with per-tread ``target`` [cm].
-
-    Why: when a tread counts short in a straight move, the cross-coupling holds its
-    count an interrupt or three behind the other's while it catches up, so a move
-    stopped there leaves the counts saying a turn toward that tread. A slipping
-    encoder (its tread really went as modelled) turned the rover the other way; a
-    weak motor (it really went as counted) turned it as counted. Nothing on board
-    tells the two apart; halfway bounds the error either way.
-    """
-    sl = math.copysign(1.0, target[0])
-    sr = math.copysign(1.0, target[1])
-    counted_turn = counted[1] * sr - counted[0] * sl
-    modelled_turn = modelled[1] * sr - modelled[0] * sl
-    delta = math.degrees((modelled_turn - counted_turn) / track_width_cm) / 2.0
-    return Pose(pose.x, pose.y, pose.heading_deg + delta)
