@@ -119,21 +119,20 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
 
     # ------------------------------------------------------------------ dispatch
     async def handle(self, message: Any) -> Any:
-        if isinstance(message, Message) and message.command == Cmd.NAV_LIDAR_HEALTH:
+        cmd = message.command if isinstance(message, Message) else None
+        if cmd == Cmd.NAV_LIDAR_HEALTH:
             await self.on_lidar_health(int(message.value))
-            return None
-        if isinstance(message, Message) and message.command == Cmd.NAV_TREAD_FAULT:
+        elif cmd == Cmd.NAV_TREAD_FAULT:
             await self.on_tread_fault(TreadFault(int(message.value)))
-            return None
-        if isinstance(message, Message) and message.command == Cmd.NAV_MAP_ORIGIN_XY:
+        elif cmd == Cmd.NAV_MAP_ORIGIN_XY:
             self._origin_halves.take_xy(message)
-            return None
-        if isinstance(message, Message) and message.command == Cmd.NAV_MAP_ORIGIN_HEADING:
+        elif cmd == Cmd.NAV_MAP_ORIGIN_HEADING:
             origin = self._origin_halves.take_heading(message)
             if origin is not None:
                 self.set_origin(origin)
-            return None
-        return await super().handle(message)
+        else:
+            return await super().handle(message)
+        return None
 
     # ------------------------------------------------------------------ lifecycle
     async def on_restart(self) -> None:
