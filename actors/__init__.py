@@ -9,13 +9,16 @@ Layering inside the package (each module imports only those above it):
     mailbox   Mailbox: bounded, survives restarts, drains in bursts
     call      CallEnvelope, CallTimeout, CallFailed, NoProc, UnknownActor
     cell      Cell, ActorState, Monitor, Down: per-name state outliving incarnations
-    actor     Actor, ActorContext, Timer, run_actor
+    actor     Actor, ActorContext, Timer: what an actor is and what it may do
+    watchdog  Guard: one incarnation's handling deadline
+    serving   serve: the message loop of one incarnation
+    incarnation  run_actor: one incarnation's life, start to stop
     system    ActorSystem, open_actor_system: registry, sending, faults, lifetime
 
 Supervision lives in the ``supervisors`` package, built on these names.
 """
 
-from .actor import MAX_TIMERS, Actor, ActorContext, InjectedCrash, Timer, run_actor
+from .actor import MAX_TIMERS, Actor, ActorContext, InjectedCrash, Timer
 from .call import CallEnvelope, CallFailed, CallTimeout, NoProc, UnknownActor
 from .cell import ActorState, Cell, Down, Monitor
 from .clock import (
@@ -40,6 +43,7 @@ from .exits import (
     ExitReason,
     Ignore,
 )
+from .incarnation import run_actor
 from .mailbox import Mailbox, MailboxClosed, MailboxStatistics
 from .message import BufferPool, Message, PoolExhausted, PoolStatistics, ValueType
 from .system import ActorSystem, StartFailed, SupervisorHandle, open_actor_system

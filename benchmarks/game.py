@@ -138,6 +138,25 @@ def truth_nav_factory(grid: Any) -> Any:
     return factory
 
 
+def _watch_hidden(system: Any, probe: dict[str, Any]) -> None:
+    """Note the hider's true pose in ``probe["true_hider"]`` at each of its frames until
+    its arrival is known.
+
+    A frame observer, not a polling task: an extra task would change Trio's
+    batches and so the game, and the row's trace hash would not replay with
+    ``hideseek run``. Observers run before the game logic sees the frame, so
+    the last pose noted is the one at the arrival report (the hider then stands).
+    """
+    game = system.server.game
+
+    def observe(_rover_id: str, role: str, _frame: Any) -> None:
+        if role == "hider" and game.hider_pose is None:
+            p = system.world.true_pose("hider")
+            probe["true_hider"] = (p.x, p.y, p.heading_deg)
+
+    system.server.observe_frames(observe)
+
+
 def play_one(job: tuple[str, int, float, bool]) -> dict[str, Any]:
     """Play one game (a module-level function for the ``spawn`` pool) and return its figures.
 
@@ -157,29 +176,12 @@ def play_one(job: tuple[str, int, float, bool]) -> dict[str, Any]:
     report = GameReport(scenario.name, seed)
     probe: dict[str, Any] = {}
 
-    def watch_hidden(system: Any) -> None:
-        """Note the hider's true pose at each of its frames until its arrival is known.
-
-        A frame observer, not a polling task: an extra task would change Trio's
-        batches and so the game, and the row's trace hash would not replay with
-        ``hideseek run``. Observers run before the game logic sees the frame, so
-        the last pose noted is the one at the arrival report (the hider then stands).
-        """
-        game = system.server.game
-
-        def observe(_rover_id: str, role: str, _frame: Any) -> None:
-            if role == "hider" and game.hider_pose is None:
-                p = system.world.true_pose("hider")
-                probe["true_hider"] = (p.x, p.y, p.heading_deg)
-
-        system.server.observe_frames(observe)
-
     async def main() -> None:
         with Store(":memory:") as store:
             async with open_sim_system(scenario, seed=seed, store=store,
                                        nav_factory=nav_factory) as system:
                 t_start = trio.current_time()
-                watch_hidden(system)
+                _watch_hidden(system, probe)
                 try:
                     await play_game(system, report, Budget(mapping=mapping_budget))
                 finally:

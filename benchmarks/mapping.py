@@ -121,16 +121,14 @@ def python_frontier_mask(cells: np.ndarray) -> int:
     return n
 
 
-def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer repetitions")
-    args = parser.parse_args(argv)
-    rep = 5 if args.quick else 40
-    rng = np.random.default_rng(1)
-    figures: dict[str, float] = {}
-    rows: list[tuple[str, str, str, str]] = []
+Row = tuple[str, str, str, str]
+"""One table row: case, time, baseline, ratio."""
 
-    # -- occupancy -----------------------------------------------------------
+
+def _bench_occupancy(rng: np.random.Generator, rep: int, figures: dict[str, float],
+                     rows: list[Row]) -> tuple[np.ndarray, list[Pose], list]:
+    """Grid update, vectorised against Python loops; returns the angles, poses and scans
+    the later cases reuse."""
     angles = np.arange(0.0, 360.0, 1.0)
     poses = [Pose(float(rng.uniform(-250, 650)), float(rng.uniform(-150, 550)),
                   float(rng.uniform(-180, 180))) for _ in range(8)]
@@ -154,8 +152,12 @@ def main(argv: list[str] | None = None) -> dict:
     figures["occupancy_speedup"] = t_py / t_vec
     rows.append(("occupancy integrate (360 rays)", f"{t_vec * 1e3:.2f} ms",
                  f"{t_py * 1e3:.1f} ms (python loops)", f"x{t_py / t_vec:.1f}"))
+    return angles, poses, scans
 
-    # -- A* ---------------------------------------------------------------------
+
+def _bench_astar(rng: np.random.Generator, rep: int, figures: dict[str, float],
+                 rows: list[Row]) -> None:
+    """A* on a hall, against Dijkstra (A* with no heuristic), and the inflation."""
     m = GridMap(hall_cells(rng), 5.0, (0.0, 0.0))
     passable = traversable(m)
     start, goal = (125.0, 325.0), (875.0, 325.0)
@@ -176,7 +178,10 @@ def main(argv: list[str] | None = None) -> dict:
     rows.append(("  expanded nodes", str(plan.expanded), str(dijkstra[2]), ""))
     rows.append(("inflate 200x160 (traversable)", f"{t_inflate * 1e3:.2f} ms", "", ""))
 
-    # -- frontier ---------------------------------------------------------------
+
+def _bench_frontier(angles: np.ndarray, poses: list[Pose], scans: list, rep: int,
+                    figures: dict[str, float], rows: list[Row]) -> None:
+    """Frontier search, against the frontier mask computed in Python."""
     explored = OccupancyGrid()
     for p, r in scans[:3]:
         explored.integrate(p, angles, r)
@@ -191,7 +196,10 @@ def main(argv: list[str] | None = None) -> dict:
                  f"{t_front * 1e3:.1f} ms", f"{t_mask_py * 1e3:.1f} ms (python mask only)",
                  f"x{t_mask_py / t_front:.1f}"))
 
-    # -- scan matching -------------------------------------------------------------
+
+def _bench_scan_match(angles: np.ndarray, poses: list[Pose], scans: list, rep: int,
+                      figures: dict[str, float], rows: list[Row]) -> None:
+    """Scan matching a 100-ray wedge, against integrating it, and the pose error."""
     ref = OccupancyGrid()
     for p, r in scans:
         ref.integrate(p, angles, r)
@@ -230,6 +238,8 @@ def main(argv: list[str] | None = None) -> dict:
     rows.append(("  pose error 3.6 cm / 2.5 deg ->", f"{err_cm:.2f} cm / {err_deg:.2f} deg",
                  "", ""))
 
+
+def _print_rows(rows: list[Row]) -> None:
     widths = [max(len(r[i]) for r in rows + [("case", "time", "baseline", "ratio")])
               for i in range(4)]
     header = ("case", "time", "baseline", "ratio")
@@ -237,10 +247,24 @@ def main(argv: list[str] | None = None) -> dict:
     print("  ".join("-" * w for w in widths))
     for r in rows:
         print("  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)))
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer repetitions")
+    args = parser.parse_args(argv)
+    rep = 5 if args.quick else 40
+    rng = np.random.default_rng(1)
+    figures: dict[str, float] = {}
+    rows: list[Row] = []
+    angles, poses, scans = _bench_occupancy(rng, rep, figures, rows)
+    _bench_astar(rng, rep, figures, rows)
+    _bench_frontier(angles, poses, scans, rep, figures, rows)
+    _bench_scan_match(angles, poses, scans, rep, figures, rows)
+    _print_rows(rows)
     out = {k: round(v, 3) if isinstance(v, float) else v for k, v in figures.items()}
     print(json.dumps(out))
     return out
-
 
 if __name__ == "__main__":
     main()

@@ -105,32 +105,21 @@ Child spec fields and defaults: ``id`` (required, unique among siblings, no
 (per-incarnation hook ``init(actor)`` before ``on_start``).
 Supervisor options and defaults: ``strategy=one_for_one``, ``intensity=3``,
 ``period=5.0`` [s], ``backoff=None``, ``auto_shutdown=never``.
+
+The running supervisor is built in layers, one module each: `supervisors.children`
+(its state, starting and stopping children), `supervisors.restart` (exits,
+strategies, intensity, backoff, auto-shutdown) and, here, the supervisor itself
+(its public API and its run). Specs and the pure rules are in `supervisors.spec`,
+its records in `supervisors.state`.
 """
 
 from __future__ import annotations
 
-import math
-from collections import deque
-from collections.abc import Callable
-from typing import Any
-
 import trio
 
-from actors import (
-    AUTO_SHUTDOWN,
-    IGNORE,
-    KILLED,
-    MAX_INTENSITY,
-    SHUTDOWN,
-    ActorState,
-    ActorSystem,
-    EventKind,
-    ExitKind,
-    ExitReason,
-    Ignore,
-    run_actor,
-)
+from actors import IGNORE, SHUTDOWN, ActorState, EventKind, ExitReason
 
+from .restart import Restarts
 from .spec import (
     AutoShutdown,
     Backoff,
@@ -147,9 +136,8 @@ from .spec import (
     backoff_delay,
     check_significant,
     intensity_exceeded,
-    should_restart,
 )
-from .state import ChildRecord, Run, Serial, Started
+from .state import ChildRecord, Started
 
 __all__ = [
     "AutoShutdown", "Backoff", "ChildCounts", "ChildError", "ChildInfo", "ChildSpec",
@@ -158,39 +146,9 @@ __all__ = [
 ]
 
 
-# ============================================================================ the supervisor
-
-
-class Supervisor:
+class Supervisor(Restarts):
     """A running supervisor (made by `SupervisorSpec.build`; start it with
     ``ActorSystem.start_supervisor`` or as a child)."""
-
-    _keeps_ended = True  # a child that ended and is not restarted keeps its spec
-
-    def __init__(self, spec: Any, system: ActorSystem, name: str) -> None:
-        self.spec = spec
-        self.system = system
-        self.name = name
-        # by id, in start order; a child whose spec goes (temporary, dynamic) is removed
-        self._children: dict[str, ChildRecord] = {
-            c.id: ChildRecord(c, self._child_name(c.id)) for c in spec.children}
-        self._exited: deque[Run] = deque()  # runs that ended, not yet handled
-        self._nursery: trio.Nursery | None = None
-        self._open = False  # accepting dynamic-children calls (between start and stop)
-        self._serial = Serial()
-        self._wakeup = trio.Event()  # set when a child exits or a stop is requested
-        self._stop_requested = False
-        self._stop_event = trio.Event()  # set by stop(); ends a backoff wait early
-        self._stopped = trio.Event()
-        self._restart_times: deque[float] = deque()  # inside the intensity window, in order
-        self._consecutive = 0  # restarts since the last quiet period (backoff)
-        self._last_restart = -math.inf
-        self._rng = system.rng_for(f"supervisor:{name}")
-        self.exit_reason: ExitReason | None = None
-        """Why it stopped, once stopped."""
-
-    def _child_name(self, child_id: str) -> str:
-        return f"{self.name}/{child_id}" if self.name else child_id
 
     # ------------------------------------------------------------------ public API
     def stop(self) -> None:
@@ -374,337 +332,3 @@ class Supervisor:
                 task_status.started(reason)
             trace.emit(EventKind.STOP, self.name or "<root>", detail=str(reason))
             self._stopped.set()
-
-    async def _start_children(self, children: list[ChildRecord]) -> ExitReason | None:
-        """Start ``children`` in order; on a failure return its reason (others stay up)."""
-        for child in children:
-            started = await self._start_child(child)
-            if started is IGNORE:
-                self._ended(child)
-            elif started is not None:
-                self.system.trace.emit(EventKind.STOP, child.name, detail=f"start: {started}")
-                return started
-        return None
-
-    async def _start_child(self, child: ChildRecord) -> Started:
-        assert self._nursery is not None
-        run = Run(child)
-        spec = child.spec
-        if spec.type is ChildType.WORKER:
-            cell = self.system.ensure_cell(child.name, spec.mailbox)
-            cell.watchdog = spec.watchdog
-            cell.supervisor = self.name
-            child.cell = cell
-            started = await self._nursery.start(self._worker_task, run)
-        else:
-            started = await self._nursery.start(self._supervisor_task, run)
-        if started is None:
-            child.run = run
-        elif started is not IGNORE:
-            child.last_exit = started
-        return started
-
-    async def _worker_task(self, run: Run, *, task_status: trio.TaskStatus[Started]) -> None:
-        """Run a worker's incarnations: the first, then those restarted in place."""
-        child = run.child
-        status: Any = task_status
-        try:
-            while True:
-                assert child.cell is not None
-                reason = await run_actor(self.system, child.cell, child.spec.start,
-                                         init=child.spec.init, task_status=status)
-                run.reason = reason
-                if not self._restart_in_place(run, reason):
-                    return
-                status = _InPlace(self, child)
-        finally:
-            self._ended_run(run)
-
-    def _restart_in_place(self, run: Run, reason: ExitReason | Ignore) -> bool:
-        """Decide a worker's restart in its own task, when nothing else is involved.
-
-        Why: a restart through the supervisor's task costs a task switch, a nursery
-        ``start`` and a new task; for the common case (``one_for_one``, no backoff,
-        a restart within the intensity, the supervisor idle) the decision and its
-        record are the same as `_handle_exit`'s, so the exited task starts the next
-        incarnation itself. The supervisor's serial lock is held until that start
-        returned, as for a restart made by the supervisor. Anything else (a stop in
-        progress, another strategy, backoff, the intensity reached, a start that
-        failed) takes the supervisor's path, which decides it again from scratch.
-
-        Returns:
-            True when the caller is to run the next incarnation now.
-        """
-        child = run.child
-        if (child.run is not run or run.stopping or not self._open or self._stop_requested
-                or type(reason) is not ExitReason or reason.kind is ExitKind.START_FAILED
-                or self.spec.strategy is not Strategy.ONE_FOR_ONE
-                or self.spec.backoff is not None
-                or not should_restart(child.spec.restart, reason)):
-            return False
-        now = trio.current_time()
-        times = self._restart_times
-        while times and now - times[0] > self.spec.period:
-            times.popleft()
-        if len(times) + 1 > self.spec.intensity or not self._serial.try_acquire():
-            return False
-        times.append(now)
-        child.last_exit = reason
-        child.restarting = True
-        child.restarts += 1
-        cell = child.cell
-        assert cell is not None
-        cell.state = ActorState.RESTARTING
-        self.system.trace.emit(EventKind.RESTART, child.name, child.name, None,
-                               cell.mailbox.depth, str(reason))
-        return True
-
-    def _ended_run(self, run: Run) -> None:
-        run.done.set()
-        self._exited.append(run)
-        self._wakeup.set()
-
-    async def _supervisor_task(self, run: Run, *,
-                               task_status: trio.TaskStatus[Started]) -> None:
-        child = run.child
-        started = False
-        try:
-            with trio.CancelScope() as scope:
-                run.scope = scope
-                try:
-                    spec = child.spec.start()
-                    if spec is IGNORE:
-                        run.reason = IGNORE
-                        return
-                    if not hasattr(spec, "build") or not hasattr(spec, "children"):
-                        raise ChildStartError(
-                            f"start of supervisor child {child.spec.id!r} must return a "
-                            f"SupervisorSpec, got {spec!r}")
-                except Exception as exc:
-                    run.reason = ExitReason.start_failed(f"{type(exc).__name__}: {exc}")
-                    return
-                sup = spec.build(self.system, child.name)
-                run.sup = child.sup = sup
-
-                def started_cb(value: Started = None) -> None:
-                    nonlocal started
-                    started = True
-                    task_status.started(value)
-
-                run.reason = await sup.run(task_status=_Relay(started_cb))
-            if scope.cancelled_caught:
-                run.reason = KILLED
-        finally:
-            if not started:
-                task_status.started(run.reason or KILLED)
-            self._ended_run(run)
-
-    # ------------------------------------------------------------------ supervise and restart
-    async def _supervise(self) -> ExitReason:
-        """Wait for exits and apply the strategy; returns when stopped or ending."""
-        while True:
-            await self._wakeup.wait()
-            self._wakeup = trio.Event()
-            if self._stop_requested:
-                return SHUTDOWN
-            async with self._serial:
-                while self._exited:
-                    ended = self._take_exits()
-                    for run in ended:
-                        child = run.child
-                        if child.run is not run or run.stopping:
-                            continue  # stopped by this supervisor, or a start that failed
-                        child.run = None
-                        reason = run.reason if isinstance(run.reason, ExitReason) else KILLED
-                        child.last_exit = reason
-                        verdict = await self._handle_exit(child, reason)
-                        if verdict is not None:
-                            return verdict
-                        if self._stop_requested:
-                            return SHUTDOWN
-
-    def _take_exits(self) -> list[Run]:
-        """The runs ended so far, in their children's start order (as a scan would)."""
-        ended = list(self._exited)
-        self._exited.clear()
-        if len(ended) > 1:
-            order = {c: i for i, c in enumerate(self._children.values())}
-            ended.sort(key=lambda r: order.get(r.child, -1))
-        return ended
-
-    async def _handle_exit(self, child: ChildRecord, reason: ExitReason) -> ExitReason | None:
-        """Apply restart type and strategy to one exit.
-
-        Returns:
-            None to go on, or the supervisor's own exit reason (intensity exceeded,
-            auto-shutdown).
-        """
-        trace = self.system.trace
-        if not should_restart(child.spec.restart, reason):
-            self._ended(child)
-            if child.spec.significant and self._auto_shutdown_due():
-                trace.emit(EventKind.STOP, self.name or "<root>",
-                           detail=f"auto shutdown: {child.name} {reason}")
-                return AUTO_SHUTDOWN
-            return None
-        now = trio.current_time()
-        exceeded, window = intensity_exceeded(
-            self._restart_times, now, self.spec.period, self.spec.intensity)
-        self._restart_times = deque(window)
-        if exceeded:
-            trace.emit(EventKind.ESCALATE, self.name or "<root>", detail=(
-                f"{len(self._restart_times)} restarts in {self.spec.period} s "
-                f"> intensity {self.spec.intensity}; last: {child.name} {reason}"))
-            return MAX_INTENSITY
-        affected = self._affected(child)
-        for c in affected:
-            c.restarting = c is child or c.spec.restart is not Restart.TEMPORARY
-        # stop the running ones among them, reverse start order
-        await self._stop_children([c for c in affected if c is not child])
-        for c in affected:
-            if c is not child and c.spec.restart is Restart.TEMPORARY:
-                self._remove(c)
-        to_start = [c for c in affected if c.restarting]
-        for c in to_start:
-            if c.cell is not None:
-                c.cell.state = ActorState.RESTARTING
-        await self._backoff(now)
-        if self._stop_requested:  # stopped during the backoff: nothing to restart
-            for c in to_start:
-                c.restarting = False
-            return None
-        for i, c in enumerate(to_start):
-            c.restarts += 1
-            trace.emit(EventKind.RESTART, c.name, c.name, None,
-                       c.cell.mailbox.depth if c.cell is not None else 0,
-                       f"after {reason} of {child.name}" if c is not child else str(reason))
-            started = await self._start_child(c)
-            c.restarting = False
-            if started is IGNORE:
-                self._ended(c)
-            elif started is not None:
-                # a failed restart counts as another exit (bounded by the intensity)
-                run = Run(c)
-                run.reason = started
-                c.run = run
-                self._ended_run(run)
-                for rest in to_start[i + 1:]:
-                    rest.restarting = False
-                break
-        return None
-
-    def _affected(self, child: ChildRecord) -> list[ChildRecord]:
-        """The children to restart for ``child``'s exit, one case per strategy."""
-        strategy = self.spec.strategy
-        if strategy is Strategy.ONE_FOR_ONE:
-            return [child]
-        children = list(self._children.values())
-        if strategy is Strategy.ONE_FOR_ALL:
-            return children
-        return children[children.index(child):]  # rest_for_one
-
-    def _auto_shutdown_due(self) -> bool:
-        """A significant child just ended by itself: does the supervisor end too?"""
-        mode = self.spec.auto_shutdown
-        if mode is AutoShutdown.ANY_SIGNIFICANT:
-            return True
-        if mode is AutoShutdown.ALL_SIGNIFICANT:
-            return not any(c.spec.significant and (c.run is not None or c.restarting)
-                           for c in self._children.values())
-        return False
-
-    async def _backoff(self, now: float) -> None:
-        backoff = self.spec.backoff
-        if backoff is None:
-            return
-        if now - self._last_restart >= backoff.reset_after:
-            self._consecutive = 0
-        self._consecutive += 1
-        self._last_restart = now
-        delay = backoff_delay(backoff, self._consecutive, float(self._rng.uniform(-1.0, 1.0)))
-        if delay > 0:
-            with trio.move_on_after(delay):
-                await self._stop_event.wait()
-
-    def _ended(self, child: ChildRecord) -> None:
-        """A child ended and will not be restarted: drop a temporary one (every one in a
-        dynamic supervisor), unregister its name."""
-        if child.spec.restart is Restart.TEMPORARY or not self._keeps_ended:
-            self._remove(child)
-        else:
-            self._forget_name(child)
-
-    def _remove(self, child: ChildRecord) -> None:
-        if self._children.get(child.spec.id) is child:
-            del self._children[child.spec.id]
-        self._forget_name(child, keep=False)
-
-    def _forget_name(self, child: ChildRecord, *, keep: bool = True) -> None:
-        """Unregister a worker's name: retired (readable) while its spec is kept,
-        forgotten with its spec (see `actors.system`)."""
-        if child.cell is not None and self.system.whereis(child.name) is child.cell:
-            if keep:
-                self.system.retire(child.name)
-            else:
-                self.system.forget(child.name)
-
-    # ------------------------------------------------------------------ shutdown
-    async def _stop_children(self, children: list[ChildRecord]) -> None:
-        """Stop the running ones of ``children`` in reverse order, each within its timeout."""
-        for child in reversed(children):
-            run = child.run
-            if run is None:
-                continue
-            run.stopping = True
-            if not run.done.is_set():
-                await self._stop_one(child, run)
-            child.run = None
-            child.last_exit = run.reason if isinstance(run.reason, ExitReason) else KILLED
-
-    async def _stop_one(self, child: ChildRecord, run: Run) -> None:
-        timeout = child.spec.shutdown
-        if child.cell is not None and child.spec.type is ChildType.WORKER:
-            child.cell.stop_requested = True
-            child.cell.mailbox.poke()
-        elif run.sup is not None:
-            run.sup.stop()
-        with trio.move_on_after(math.inf if timeout is None else timeout):
-            await run.done.wait()
-        if not run.done.is_set():
-            scope = child.cell.scope if child.cell is not None else run.scope
-            if scope is not None:
-                scope.cancel()
-            await run.done.wait()
-            self.system.trace.emit(EventKind.KILLED, child.name,
-                                   detail=f"missed shutdown timeout {timeout} s")
-
-
-class _InPlace:
-    """The task status of an incarnation started in place (see
-    `Supervisor._restart_in_place`): ends the restart when its start returned."""
-
-    __slots__ = ("_sup", "_child")
-
-    def __init__(self, sup: Supervisor, child: ChildRecord) -> None:
-        self._sup = sup
-        self._child = child
-
-    def started(self, value: Started = None) -> None:
-        child = self._child
-        child.restarting = False
-        if value is IGNORE:
-            child.run = None
-            self._sup._ended(child)  # noqa: SLF001 - the supervisor's own helper
-        elif value is not None:
-            child.last_exit = value
-        self._sup._serial.release()  # noqa: SLF001
-
-
-class _Relay:
-    """Passes a nested supervisor's ``started`` to the parent's task status."""
-
-    def __init__(self, callback: Callable[[Any], None]) -> None:
-        self._callback = callback
-
-    def started(self, value: Any = None) -> None:
-        self._callback(value)

@@ -11,6 +11,7 @@ import trio
 from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import (
+    RECOVER_BATCHES,
     HealthOptions,
     LidarControl,
     LidarHealth,
@@ -173,7 +174,7 @@ async def _interrupt(system, hw: FakeHardware, data: bytes, heading: float = 0.0
 @pytest.mark.trio
 async def test_stuck_rotor_batches_are_withheld_until_it_turns_again(autojump_clock) -> None:
     """Samples all at one angle: no scan from the first such batch on, navigation told
-    STUCK once; after ``recover_batches`` good sweeps it is told OK and scans flow."""
+    STUCK once; after ``RECOVER_BATCHES`` good sweeps it is told OK and scans flow."""
     hw, pool, log = FakeHardware(), BufferPool(64), []
     async with open_actor_system(1) as system:
         await system.start_supervisor(_health_tree(log, pool, hw), "mapper")
@@ -183,7 +184,7 @@ async def test_stuck_rotor_batches_are_withheld_until_it_turns_again(autojump_cl
         for _ in range(5):
             await _interrupt(system, hw, _frames([4200] * 100, [150] * 100))
         assert [(c, v) for c, v in log[1:]] == [(Cmd.NAV_LIDAR_HEALTH, LidarHealth.STUCK)]
-        recover = HealthOptions().recover_batches
+        recover = RECOVER_BATCHES
         for i in range(recover - 1):
             await _interrupt(system, hw, _frames(*_wall(i * 100)))
         assert len(log) == 2  # good sweeps, but not yet enough of them

@@ -444,7 +444,7 @@ def test_a_refused_batch_whose_guess_fits_well_starts_the_relocalisation_count_o
 
     searches = []
 
-    def fake_relocalise(fields, pts, guess, options=None, search=None):
+    def fake_relocalise(fields, pts, guess, options=None, search=None, *, turn_deg=24.0):
         searches.append(guess)
         return MatchResult(guess, False, 0.45, 0.45, "ambiguous", True)
 

@@ -421,10 +421,10 @@ async def test_both_treads_counting_short_are_reported_to_the_mapper_and_in_turn
                          ids=["left-0.8", "right-0.8", "healthy"])
 async def test_a_tread_driven_harder_for_level_counts_counts_short_in_a_move(
         autojump_clock, counts, expected) -> None:
-    """One encoder counting 0.8 (above ``short_ratio``): the cross-coupling keeps the counts
+    """One encoder counting 0.8 (above ``SHORT_RATIO``): the cross-coupling keeps the counts
     level, so only the PWM it needs shows it (23 deg turned unseen per 20 cm). In the 40 cm
     move that tread is reported as counting short; healthy treads
-    are not (their modelled travel stays within the ``uneven_cm`` of each other)."""
+    are not (their modelled travel stays within the ``UNEVEN_CM`` of each other)."""
     log, _ = await run_commands(counts, [(Cmd.MOTOR_MOVE, 40.0)], horizon=10.0)
     assert set(tread_reports(log)) == expected
 

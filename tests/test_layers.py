@@ -52,6 +52,7 @@ DEVICE_CONTRACT = "actors.firmware.hardware"
 #: the OTP supervisor itself: domain-free, these modules import the actor runtime
 #: and each other only
 DOMAIN_FREE_SUPERVISORS = ("supervisors/__init__.py", "supervisors/supervisor.py",
+                           "supervisors/children.py", "supervisors/restart.py",
                            "supervisors/spec.py", "supervisors/state.py", "supervisors/dynamic.py")
 
 

@@ -182,7 +182,7 @@ def test_missing_serial_port_is_reported_and_retried() -> None:
 def test_a_serial_port_unplugged_mid_stream_is_reported_and_reopened(monkeypatch) -> None:
     """A port that fails while the server reads it (the device unplugged) gives one
     link_error naming why, the server stays up and opens the port again."""
-    from server import server as server_module
+    from server import connections as server_module
     from server.links.serial import SerialLinkError
 
     opened: list[str] = []

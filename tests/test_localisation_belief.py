@@ -138,10 +138,11 @@ def test_the_same_seed_gives_the_same_belief() -> None:
 
 def _localisation_lines(n: int) -> int:
     """Python lines run inside the localisation package for one predict and three
-    updates (free space, contact, scan) of an n-particle belief."""
+    updates (free space, contact, scan) of an n-particle belief (each update resamples:
+    the caller sets ``RESAMPLE_ESS`` to 1)."""
     rng = np.random.default_rng(9)
     b = PoseBelief.around(Pose(60.0, 60.0, 0.0), rng, sigma_cm=10.0,
-                          options=BeliefOptions(particles=n, resample_ess=1.0))
+                          options=BeliefOptions(particles=n))
     pts = hits_to_points(ANGLES, cast(ROOM, Pose(60.0, 60.0, 0.0), ANGLES))
     motion = TreadMotion(6.0, 10.0, driven_left_cm=10.0, left=TreadReport.SHORT)
     package = str(Path(belief_module.__file__).parent)
@@ -158,17 +159,18 @@ def _localisation_lines(n: int) -> int:
     sys.settrace(trace)
     try:
         b.predict(motion, W, MotionNoise(), rng)
-        b.update(free_space_log_likelihood(FIELD, b.particles), rng)
-        b.update(contact_log_likelihood(FIELD, b.particles), rng)
+        b.update(free_space_log_likelihood(FIELD, b.particles, (20.0, 15.0)), rng)
+        b.update(contact_log_likelihood(FIELD, b.particles, (20.0, 15.0)), rng)
         b.update(scan_log_likelihood(FIELD, b.particles, pts), rng)
     finally:
         sys.settrace(None)
     return count
 
 
-def test_predict_and_update_run_no_python_loop_over_particles() -> None:
+def test_predict_and_update_run_no_python_loop_over_particles(monkeypatch) -> None:
     """The Python lines run for 20 particles and for 5000 are the same: every
     per-particle step is numpy's."""
+    monkeypatch.setattr(belief_module, "RESAMPLE_ESS", 1.0)  # every update resamples
     small = _localisation_lines(20)
     assert small > 50  # the tracer saw the package run
     assert _localisation_lines(5000) == small

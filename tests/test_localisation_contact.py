@@ -24,6 +24,7 @@ from server.protocol.pose import Pose
 from tests.localisation_rooms import room, turn_treads
 
 W = 13.0  # track width [cm]
+BODY = (20.0, 15.0)  # the rover's body: length, width [cm]
 # a 200 x 100 cm room split by a wall at x 100..105 with a 30 cm gap at y 35..65
 GAP_ROOM = room(200.0, 100.0, (100.0, 0.0, 5.0, 35.0), (100.0, 65.0, 5.0, 35.0))
 FIELD = DistanceField.from_grid(GAP_ROOM)
@@ -45,19 +46,19 @@ def test_the_distance_field_reads_the_distance_to_the_nearest_wall() -> None:
 def test_a_body_overlapping_a_wall_is_unlikely_and_unknown_ground_is_not() -> None:
     """Inside the wall: log(1e-3); free or unknown ground: 0."""
     p = _particles((90.0, 20.0, 0.0), (101.0, 20.0, 0.0), (50.0, 50.0, 90.0))
-    assert inside_obstacle(FIELD, p).tolist() == [False, True, False]
-    ll = free_space_log_likelihood(FIELD, p)
+    assert inside_obstacle(FIELD, p, BODY).tolist() == [False, True, False]
+    ll = free_space_log_likelihood(FIELD, p, BODY)
     assert ll[0] == 0.0 and ll[1] == pytest.approx(math.log(1e-3))
     half_known = DistanceField.from_grid(room(200.0, 100.0, unknown_beyond_x=100.0))
-    assert free_space_log_likelihood(half_known, _particles((150.0, 50.0, 0.0)))[0] == 0.0
+    assert free_space_log_likelihood(half_known, _particles((150.0, 50.0, 0.0)), BODY)[0] == 0.0
 
 
 def test_the_gap_is_zero_for_a_body_touching_a_face_and_grows_with_distance() -> None:
     """Front edge on the wall's face (x 100): 0; 10 cm short: 10 cm; backward: the rear."""
-    gaps = contact_gap_cm(FIELD, _particles((90.0, 25.0, 0.0), (80.0, 25.0, 0.0)))
+    gaps = contact_gap_cm(FIELD, _particles((90.0, 25.0, 0.0), (80.0, 25.0, 0.0)), BODY)
     assert gaps[0] == pytest.approx(0.0, abs=0.3)
     assert gaps[1] == pytest.approx(10.0, abs=0.3)
-    back = contact_gap_cm(FIELD, _particles((115.0, 25.0, 0.0)), direction=-1)
+    back = contact_gap_cm(FIELD, _particles((115.0, 25.0, 0.0)), BODY, direction=-1)
     assert back[0] == pytest.approx(0.0, abs=0.3)
     assert edge_points(20.0, 15.0, 1, 1, 2.5)[:, 1].min() == 0.0
 
@@ -85,7 +86,7 @@ def test_a_contact_at_a_corner_keeps_two_hypotheses() -> None:
     wall's end or the left front corner on the upper wall's end explain it alike; the
     belief keeps both (two clusters), the particles in the gap's middle lose."""
     belief, rng = _believed_in_the_gap(11)
-    belief.update(contact_log_likelihood(FIELD, belief.particles, direction=1), rng)
+    belief.update(contact_log_likelihood(FIELD, belief.particles, BODY, direction=1), rng)
     spread = belief.spread()
     heavy = [c for c in spread.clusters if c.weight > 0.25]
     assert len(heavy) == 2
@@ -104,12 +105,12 @@ def test_a_later_contact_resolves_the_two_hypotheses() -> None:
     true pose."""
     belief, rng = _believed_in_the_gap(12)
     noise = MotionNoise()
-    belief.update(contact_log_likelihood(FIELD, belief.particles, direction=1), rng)
+    belief.update(contact_log_likelihood(FIELD, belief.particles, BODY, direction=1), rng)
     assert len([c for c in belief.spread().clusters if c.weight > 0.25]) == 2
     belief.predict(TreadMotion(-10.0, -10.0), W, noise, rng)
     belief.predict(TreadMotion(*turn_treads(90.0, W)), W, noise, rng)
     belief.predict(TreadMotion(47.0, 47.0), W, noise, rng)
-    belief.update(contact_log_likelihood(FIELD, belief.particles, direction=1), rng)
+    belief.update(contact_log_likelihood(FIELD, belief.particles, BODY, direction=1), rng)
     spread = belief.spread()
     assert spread.best.weight > 0.9
     truth = Pose(80.0, 85.0, 90.0)
@@ -123,7 +124,7 @@ def test_the_stalled_side_weighs_the_hypotheses_touching_with_it() -> None:
     weights = []
     for side in (0, -1):
         belief, rng = _believed_in_the_gap(13)
-        belief.update(contact_log_likelihood(FIELD, belief.particles, 1, side), rng)
+        belief.update(contact_log_likelihood(FIELD, belief.particles, BODY, 1, side), rng)
         below = sum(c.weight for c in belief.spread().clusters if c.pose.y < 50.0)
         weights.append(below)
     assert weights[1] > weights[0] + 0.15

@@ -10,8 +10,9 @@ import pytest
 
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.scan_likelihood import (
+    MIN_FIT,
+    MIN_JUDGED,
     FitVerdict,
-    ScanOptions,
     hits_to_points,
     judge_fit,
     scan_log_likelihood,
@@ -50,7 +51,7 @@ def test_a_bad_fit_is_refused(dx: float, dy: float, dh: float) -> None:
     off = Pose(TRUTH.x + dx, TRUTH.y + dy, TRUTH.heading_deg + dh)
     fit = judge_fit(FIELD, off, _scan())
     assert fit.verdict is FitVerdict.BAD_FIT and not fit.accepted
-    assert fit.fit < ScanOptions().min_fit
+    assert fit.fit < MIN_FIT
 
 
 def test_a_scan_of_new_ground_is_not_judged_a_bad_fit() -> None:
@@ -59,7 +60,7 @@ def test_a_scan_of_new_ground_is_not_judged_a_bad_fit() -> None:
                                           unknown_beyond_x=40.0))
     fit = judge_fit(unseen, Pose(200.0, 120.0, 0.0), _scan(Pose(200.0, 120.0, 0.0)))
     assert fit.verdict is FitVerdict.NEW_GROUND
-    assert fit.judged < ScanOptions().min_judged
+    assert fit.judged < MIN_JUDGED
 
 
 def test_too_few_hits_are_not_judged() -> None:

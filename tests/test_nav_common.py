@@ -91,6 +91,7 @@ class Body:
     ir_in_range: Any = None  # callable(pose) -> bool for the seeker's IR
     script: Any = None  # callable(pose, cm) -> (done cm, yaw deg) | None: a move's scripted end
     motor_at: list = field(default_factory=list)  # the time of each motor_log entry [s]
+    published: list = field(default_factory=list)  # (time, pose) Motor Control reported
 
     def frames(self, cmd: str | None = None) -> list[Frame]:
         return [o for c, o in self.sent if isinstance(o, Frame) and (cmd is None or o.cmd == cmd)]
@@ -107,6 +108,7 @@ class FakeMotor(Actor):
 
     def _publish(self) -> None:
         p = self.body.pose
+        self.body.published.append((trio.current_time(), p))
         self.ctx.send_nowait(self.nav, Message.pair(Cmd.NAV_POSE_XY, round(p.x * 10),
                                                     round(p.y * 10)))
         self.ctx.send_nowait(self.nav, Message.float(Cmd.NAV_POSE_HEADING, p.heading_deg))

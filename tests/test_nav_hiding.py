@@ -88,12 +88,12 @@ async def test_hider_requests_the_map_drives_round_the_wall_and_arrives(autojump
 async def test_invalid_spot_is_refused_with_a_reason_and_no_motion(autojump_clock, dest,
                                                                    why) -> None:
     """An invalid spot gets ``invalid_spot`` naming why; the rover does not move (with
-    ``spot_shift_cm`` 0: no place near it is looked for)."""
+    ``hide_within_cm`` 0: no place near it is looked for)."""
     body = Body(truth=own_truth())
     pool = BufferPool(64)
     async with open_actor_system(seed=1) as system:
         await system.start_supervisor(rover_spec("hider", body, pool,
-                                                 options=NavOptions(spot_shift_cm=0.0)), "hider")
+                                                 options=NavOptions(hide_within_cm=0.0)), "hider")
         await begin(system, pool, dest)
         assert await wait_for(lambda: body.frames("invalid_spot"), 5.0)
         assert body.frames("invalid_spot")[0].data["reason"].startswith(why)
@@ -375,7 +375,7 @@ async def test_a_tread_fault_while_standing_is_ignored(autojump_clock) -> None:
 @pytest.mark.trio
 async def test_a_spot_inside_a_wall_moves_to_the_nearest_place_that_fits(autojump_clock) -> None:
     """A spot on the wall's middle (its map says obstacle): the hider hides at the nearest
-    place within ``spot_shift_cm`` where it fits, reports ``arrived`` with where it is,
+    place within ``hide_within_cm`` where it fits, reports ``arrived`` with where it is,
     and says so in its status; a spot with nothing that fits near it is refused."""
     body = Body(truth=own_truth())
     pool = BufferPool(64)
@@ -400,7 +400,7 @@ async def test_a_spot_inside_a_wall_moves_to_the_nearest_place_that_fits(autojum
 async def test_a_hider_blocked_for_good_near_its_spot_hides_where_it_stands(
         autojump_clock, monkeypatch, dest, hidden) -> None:
     """Every move blocked, back-offs too (wedged by something the map does not show): the
-    route is given up after ``replan_limit`` blocks where the rover started. 20 cm from
+    route is given up after ``REPLAN_LIMIT`` blocks where the rover started. 20 cm from
     the spot the hider hides where it stands (``arrived``, its own pose); 70 cm from it,
     it refuses as before."""
     import tests.test_nav_common as common
@@ -433,7 +433,7 @@ async def test_a_hider_blocked_for_good_near_its_spot_hides_where_it_stands(
 
 
 def test_near_enough_needs_the_spot_in_sight_on_the_map(autojump_clock) -> None:
-    """Within ``hide_near_cm`` but with the wall between (on the map): not near."""
+    """Within ``hide_within_cm`` but with the wall between (on the map): not near."""
     from actors.firmware.nav.hider import HidingNav
     from server.protocol.pose import Pose as P
 

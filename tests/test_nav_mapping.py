@@ -193,15 +193,17 @@ async def test_server_stop_uploads_what_is_known(autojump_clock) -> None:
         assert "stopped by the server" in body.frames("status")[-1].data["detail"]
 
 
-def test_futile_trips_count_whole_visits_and_end_exploration() -> None:
+def test_futile_trips_count_whole_visits_and_end_exploration(monkeypatch) -> None:
     """A trip runs until its target is reached or given up, whatever the frontiers chosen on
-    the way; after ``futile_trips`` visits that together made fewer than
-    ``futile_trips * min_gain_cells`` cells known, exploration counts the frontiers left
+    the way; after ``FUTILE_TRIPS`` visits that together made fewer than
+    ``FUTILE_TRIPS * MIN_GAIN_CELLS`` cells known, exploration counts the frontiers left
     as not useful."""
-    from actors.firmware.nav.mapper import MappingNav, MappingOptions
+    from actors.firmware.nav import exploration
+    from actors.firmware.nav.mapper import MappingNav
 
-    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=3,
-                                                                min_gain_cells=30))
+    monkeypatch.setattr(exploration, "FUTILE_TRIPS", 3)
+    nav = MappingNav(pool=BufferPool(4))
+    assert exploration.MIN_GAIN_CELLS == 30
     cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
     known = [0]
 
@@ -230,12 +232,14 @@ def test_futile_trips_count_whole_visits_and_end_exploration() -> None:
 
 
 
-def test_the_least_useful_gain_grows_with_the_map() -> None:
+def test_the_least_useful_gain_grows_with_the_map(monkeypatch) -> None:
     """In a big map a visit must reveal 0.3 % of what is known to count: 60 cells of
-    30000 known is futile, though more than ``min_gain_cells``."""
-    from actors.firmware.nav.mapper import MappingNav, MappingOptions
+    30000 known is futile, though more than ``MIN_GAIN_CELLS``."""
+    from actors.firmware.nav import exploration
+    from actors.firmware.nav.mapper import MappingNav
 
-    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=2))
+    monkeypatch.setattr(exploration, "FUTILE_TRIPS", 2)
+    nav = MappingNav(pool=BufferPool(4))
     cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:30000] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
@@ -248,9 +252,11 @@ def test_the_least_useful_gain_grows_with_the_map() -> None:
 def test_one_visit_just_above_the_limit_does_not_restart_the_futile_count() -> None:
     """The window is judged on its sum: visits of 21, 7, 4 and 34 cells
     (limit 32: 34 alone is above it) are futile together, so mapping ends."""
-    from actors.firmware.nav.mapper import MappingNav, MappingOptions
+    from actors.firmware.nav import exploration
+    from actors.firmware.nav.mapper import MappingNav
 
-    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=4))
+    assert exploration.FUTILE_TRIPS == 4
+    nav = MappingNav(pool=BufferPool(4))
     cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:10785] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
@@ -273,12 +279,15 @@ def _walled_room(gaps: dict[str, int]) -> GridMap:
 
 
 @pytest.mark.trio
-async def test_after_futile_visits_long_frontiers_still_count(autojump_clock) -> None:
+async def test_after_futile_visits_long_frontiers_still_count(autojump_clock,
+                                                               monkeypatch) -> None:
     """Futile visits dismiss short frontiers only: a long one (a big room's unseen part) is
     still chosen, and with it blacklisted nothing useful is left."""
-    from actors.firmware.nav.mapper import MappingNav, MappingOptions
+    from actors.firmware.nav import exploration
+    from actors.firmware.nav.mapper import MappingNav
 
-    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(futile_trips=2))
+    monkeypatch.setattr(exploration, "FUTILE_TRIPS", 2)
+    nav = MappingNav(pool=BufferPool(4))
     nav.grid = _walled_room({"west": 8, "east": 40})  # east: two 1 m pieces of 20 cells
     assert nav._choose(keep=False)  # not futile: any useful frontier
     nav.ex = type(nav.ex)(gains=[0, 0])
@@ -295,13 +304,16 @@ async def test_after_futile_visits_long_frontiers_still_count(autojump_clock) ->
 
 
 @pytest.mark.trio
-async def test_map_stability_counts_net_growth_not_edge_flicker(autojump_clock) -> None:
+async def test_map_stability_counts_net_growth_not_edge_flicker(autojump_clock,
+                                                                 monkeypatch) -> None:
     """Cells flickering between unknown and known (scan matching's jitter at rest) leave the
     map stable; the known area growing is a change."""
-    from actors.firmware.nav.mapper import MappingNav, MappingOptions
+    from actors.firmware.nav import mapper
+    from actors.firmware.nav.mapper import MappingNav
 
-    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(change_cells=3,
-                                                                change_share=0.0))
+    monkeypatch.setattr(mapper, "CHANGE_SHARE", 0.0)  # the threshold: CHANGE_CELLS (3)
+    assert mapper.CHANGE_CELLS == 3
+    nav = MappingNav(pool=BufferPool(4))
     base = _walled_room({})
     await nav.on_map_update(base)
     t0 = nav._changed_at
@@ -323,7 +335,7 @@ async def test_a_turn_that_moves_the_pose_stops_and_holds_the_rover(autojump_clo
                                                                      monkeypatch) -> None:
     """Odometry contradicted (an in-place turn drags the map-frame pose 15 cm, as scan
     matching does when a tread's encoder is stuck): MOTOR_STOP at once, no Command A for
-    ``odo_hold_s``, an ``odometry_fault`` status, then exploring goes on."""
+    ``ODO_HOLD_S``, an ``odometry_fault`` status, then exploring goes on."""
     import tests.test_nav_common as common
 
     class DraggedMotor(common.FakeMotor):
@@ -373,7 +385,7 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
                                                                    value, hold, text) -> None:
     """NAV_TREAD_FAULT during a move (Motor Control: the right tread is driven but does
     not count; the left, or both, count short): MOTOR_STOP at once, though the pose shows
-    nothing yet, no Command A for the hold (``odo_hold_s``; ``short_hold_s`` for counting
+    nothing yet, no Command A for the hold (``ODO_HOLD_S``; ``SHORT_HOLD_S`` for counting
     short), an ``odometry_fault`` status naming the fault, then exploring goes on. Both
     silent (value 4) also tells Map Management the pose is lost (MAP_POSE_LOST), and
     only it: the LIDAR still sees where the rover is after the others."""
@@ -413,11 +425,13 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
 
 def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -> None:
     """A route the obstacle check refuses to drive (the rover would turn toward it, be
-    refused and turn away for minutes): after ``obstacle_turns`` turns away toward
+    refused and turn away for minutes): after ``OBSTACLE_TURNS`` turns away toward
     one target the target is blacklisted and the trip ends; another target starts over."""
-    from actors.firmware.nav.mapper import MappingNav, MappingOptions
+    from actors.firmware.nav import exploration
+    from actors.firmware.nav.mapper import MappingNav
 
-    nav = MappingNav(pool=BufferPool(4), mapping=MappingOptions(obstacle_turns=3))
+    assert exploration.OBSTACLE_TURNS == 3
+    nav = MappingNav(pool=BufferPool(4))
     cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:100] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))

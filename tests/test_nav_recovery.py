@@ -44,6 +44,8 @@ few cm wide, so the probes step ``nudge_step_cm`` (4 cm)."""
 CORRIDOR = Truth(0, 0, 700, 300, boxes=((250, 0, 200, 135), (250, 165, 200, 135)))
 CORRIDOR_ORIGIN = {"x": 50.0, "y": 50.0, "heading": 0.0}
 CORRIDOR_GOAL = {"x": 600.0, "y": 150.0, "heading": None}
+OPEN_ROOM = Truth(0, 0, 700, 300)
+"""The corridor's room without its walls: no wall near the route explains a block."""
 
 
 class Blocks:
@@ -72,9 +74,11 @@ class Blocks:
 
 
 async def drive_corridor(blocks: Blocks, *, options: NavOptions | None = None,
-                         after_s: float = 20.0, crash: bool = False) -> Body:
-    """Send the hider through the corridor with ``blocks`` scripted; return its body once
-    the last block is ``after_s`` past (navigation crashed and restarted then if ``crash``)."""
+                         after_s: float = 20.0, crash: bool = False,
+                         room: Truth = CORRIDOR) -> Body:
+    """Send the hider through the corridor (or another ``room``, mapped whole) with
+    ``blocks`` scripted; return its body once the last block is ``after_s`` past
+    (navigation crashed and restarted then if ``crash``)."""
     body = Body(script=blocks)
     blocks.body = body
     options = options or NARROW
@@ -83,7 +87,7 @@ async def drive_corridor(blocks: Blocks, *, options: NavOptions | None = None,
         await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
                                                  options=options), "hider")
         await send_route(system, pool, "hider", CORRIDOR_ORIGIN, CORRIDOR_GOAL,
-                         room_map(CORRIDOR))
+                         room_map(room))
         n = len(blocks.todo)
         assert await wait_for(lambda: len(blocks.at) == n, 120.0)
         await trio.sleep(after_s)
@@ -97,6 +101,16 @@ def poses_after(body: Body, k: int, blocks: Blocks) -> list[tuple[float, float, 
     """The map-frame poses navigation reported after block ``k`` (x, y, heading)."""
     return [(f.data["x"], f.data["y"], f.data["heading"])
             for f in [o for _, o in body.sent[blocks.at[k][1]:]] if f.cmd == "pose"]
+
+
+def dead_reckoned_after_back_off(body: Body, k: int, blocks: Blocks) -> Pose:
+    """The pose Motor Control reported once the back-off after block ``k`` ended, in the
+    map frame (the hider's own frame starts at map (50, 50) @ 0)."""
+    t_back, command, cm = motions_after(body, k, blocks)[0]
+    assert command == "MOTOR_MOVE" and cm < 0
+    end = t_back + abs(cm) / body.speed
+    p = next(p for t, p in body.published if t >= end - 1e-9)
+    return Pose(p.x + CORRIDOR_ORIGIN["x"], p.y + CORRIDOR_ORIGIN["y"], p.heading_deg)
 
 
 def motions_after(body: Body, k: int, blocks: Blocks) -> list[tuple[float, str, float]]:
@@ -117,6 +131,7 @@ async def test_a_scrape_moves_the_reported_pose_to_the_wall_on_the_stalled_side(
     body = await drive_corridor(blocks, after_s=1.0, crash=True)
     x, y, _ = poses_after(body, 0, blocks)[0]
     assert 154.0 <= y <= 162.0 and x == pytest.approx(300.0 - 6.0, abs=3.0)  # backed off
+    assert y - dead_reckoned_after_back_off(body, 0, blocks).y > 4.0
     assert {c for c, _ in body.motor_log} <= {"MOTOR_STOP", "MOTOR_GET_POSE", "MOTOR_TURN",
                                              "MOTOR_MOVE"}
     assert 154.0 <= poses_after(body, 0, blocks)[-1][1] <= 162.0  # after the restart
@@ -132,6 +147,21 @@ async def test_a_block_either_side_explains_leaves_the_pose_on_the_axis(autojump
     body = await drive_corridor(blocks, after_s=1.0)
     x, y, _ = poses_after(body, 0, blocks)[0]
     assert y == pytest.approx(149.3, abs=2.5) and x == pytest.approx(294.0, abs=3.0)
+
+
+@pytest.mark.trio
+async def test_a_block_the_map_does_not_explain_leaves_the_reported_pose_on_dead_reckoning(
+        autojump_clock) -> None:
+    """Blocked in the open room having yawed 3 deg, far from any wall: something the map
+    does not show stopped it (another rover), so the contact is not used: the pose
+    navigation reports after backing off is where Motor Control's dead reckoning puts
+    it (the same block in the corridor moves it to the wall)."""
+    blocks = Blocks((250.0, 3.0))
+    body = await drive_corridor(blocks, room=OPEN_ROOM, after_s=1.0)
+    x, y, heading = poses_after(body, 0, blocks)[0]
+    dr = dead_reckoned_after_back_off(body, 0, blocks)
+    assert math.dist((x, y), (dr.x, dr.y)) < 1.0
+    assert heading == pytest.approx(dr.heading_deg, abs=0.5)
 
 
 @pytest.mark.trio
@@ -223,20 +253,6 @@ def scraped_nav(yaw_deg: float, sigma_cm: float = 4.0, **options: Any) -> Any:
     return believe(nav, sigma_cm)
 
 
-def test_a_scrape_moves_the_pose_to_the_wall_on_the_stalled_side() -> None:
-    """Yawed left while blocked: the left side touches the corridor's wall at y = 165, so
-    the belief (and the map pose read from it) moves left (the origin changes; Motor
-    Control's pose does not) and the retained memory keeps the corrected origin."""
-    nav = scraped_nav(3.0)
-    assert nav._contact_fix()
-    p = nav.map_pose
-    assert 153.0 <= p.y <= 162.0 and p.x == pytest.approx(300.0, abs=4.0)
-    assert nav.pose == Pose(250.0, 100.0, 3.0)
-    assert nav.memory.origin == pytest.approx((nav.origin.x, nav.origin.y,
-                                               nav.origin.heading_deg))
-    assert nav.counters["contacts"] == 1
-
-
 def test_a_contact_either_side_explains_is_kept_as_two_hypotheses() -> None:
     """No yaw: the left side on the upper wall and the right side on the lower wall
     explain the block alike. The belief keeps both (its weight each side of the
@@ -251,19 +267,6 @@ def test_a_contact_either_side_explains_is_kept_as_two_hypotheses() -> None:
     nav = scraped_nav(3.0)
     nav.last_motion = Motion("turn", 20.0)
     assert not nav._contact_fix() and nav.counters["contacts"] == 0
-
-
-def test_a_block_the_map_does_not_explain_leaves_the_belief_alone() -> None:
-    """Blocked in the open room, far from any wall within the belief: something the map
-    does not show stopped it (another rover), so the contact is not used."""
-    nav = scraped_nav(3.0)
-    nav.pose = Pose(100.0, 100.0, 3.0)  # map (150, 150): the open room
-    believe(nav, 4.0)
-    before = nav.map_pose
-    assert not nav._contact_fix()
-    after = nav.map_pose
-    assert (after.x, after.y) == pytest.approx((before.x, before.y), abs=1.0)
-    assert nav.counters["contacts"] == 0
 
 
 def test_the_doubt_grows_with_driving_and_more_with_a_tread_report() -> None:

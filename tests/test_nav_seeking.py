@@ -167,9 +167,12 @@ async def test_a_large_drift_searches_a_ring_round_the_guess_and_finds(autojump_
 
 
 @pytest.mark.trio
-async def test_without_the_search_the_same_guess_is_not_found(autojump_clock) -> None:
-    """The same game with the search off: the hider is out of reach of the guess."""
-    body = await _seek_far_guess(WIDE, SeekingOptions(search=False))
+async def test_without_the_search_the_same_guess_is_not_found(autojump_clock,
+                                                             monkeypatch) -> None:
+    """The same game with the search off (no ring is ever planned): the hider is out of
+    reach of the guess."""
+    monkeypatch.setattr(SeekingNav, "_plan_search", lambda self: False)
+    body = await _seek_far_guess(WIDE, None)
     assert body.frames("found") == []
     assert "IR" in body.frames("not_found")[0].data["reason"]
 

@@ -72,7 +72,7 @@ def test_a_scan_of_unmapped_space_is_not_matched() -> None:
 
 
 def test_too_few_hits_keep_the_guess() -> None:
-    """Fewer hits than ``min_points``: refused without trying."""
+    """Fewer hits than ``MIN_POINTS``: refused without trying."""
     fields = MatchFields(room_map(), ORIGIN, RES)
     result = match_scan(fields, np.zeros((3, 2)) + 50.0, Pose(10, 10, 0))
     assert not result.accepted and "need" in result.reason
@@ -92,8 +92,10 @@ def test_a_correction_beyond_the_limit_is_refused() -> None:
 
 def test_options_are_checked() -> None:
     """Nonsense tunables are refused with the rule."""
-    with pytest.raises(ValueError, match="iterations"):
-        MatchOptions(iterations=0)
+    with pytest.raises(ValueError, match="max_shift_cm and max_turn_deg must be > 0"):
+        MatchOptions(max_turn_deg=0.0)
+    with pytest.raises(ValueError, match="min_range_cm and prior_per_point must be >= 0"):
+        MatchOptions(min_range_cm=-1.0)
 
 
 @pytest.mark.parametrize("dx, dy, dh", [(0.0, 0.0, 15.0), (8.0, -6.0, -20.0), (3.0, 3.0, 10.0)])

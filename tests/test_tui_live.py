@@ -14,7 +14,7 @@ from server.protocol import Pose, inverse
 from server.protocol import compose as compose_pose
 from tui.live import LiveSystem
 from tui.snapshot import FREE, OCCUPIED, GridView
-from tui.widgets.map_view import classify
+from tui.widgets.map_pixels import classify
 from world.scenario import load_scenario
 
 _MISSED, _FALSE = 6, 7  # map_view classes: obstacle mapped free, free mapped occupied
@@ -134,19 +134,19 @@ def test_message_log_decodes_the_latest_lines_when_a_snapshot_asks() -> None:
     DROP marked; lines scrolled out before a snapshot are never decoded."""
     from actors import EventKind, Message, TraceEvent
     from actors.firmware.commands import Cmd
-    from tui.live import MAX_LOG_LINES
+    from tui.snapshot import MAX_LOG_LINES
 
     live = LiveSystem(load_scenario("empty"))
     moves = [Message.float(Cmd.MOTOR_MOVE, float(i)) for i in range(MAX_LOG_LINES + 10)]
     for m in moves:
-        live._on_message(1.0, EventKind.SEND, "hider/motor", m, 1)
-    lines = live._log_lines()
+        live.activity.on_message(1.0, EventKind.SEND, "hider/motor", m, 1)
+    lines = live.activity.log_lines()
     assert len(lines) == MAX_LOG_LINES
     assert [ln.seq for ln in lines] == list(range(11, MAX_LOG_LINES + 11))
     assert lines[-1].text == f"MOTOR_MOVE {float(MAX_LOG_LINES + 9)}"
-    live._on_trace(TraceEvent(2.0, EventKind.DROP, "mapper/map", "mapper/map",
-                              repr(Message.int(Cmd.NOOP, 0))))
-    lines = live._log_lines()
+    live.activity.on_trace(TraceEvent(2.0, EventKind.DROP, "mapper/map", "mapper/map",
+                                       repr(Message.int(Cmd.NOOP, 0))))
+    lines = live.activity.log_lines()
     assert lines[-1].seq == MAX_LOG_LINES + 11 and lines[-1].text == "DROP overflow NOOP 0"
     assert lines[-2].text == f"MOTOR_MOVE {float(MAX_LOG_LINES + 9)}"
 
@@ -158,10 +158,10 @@ def test_message_log_shows_other_objects_as_their_repr_and_only_new_lines_are_de
     from actors.firmware.commands import Cmd
 
     live = LiveSystem(load_scenario("empty"))
-    live._on_message(1.0, EventKind.SEND, "server/game", ("report", "x" * 100), 0)
-    first = live._log_lines()
+    live.activity.on_message(1.0, EventKind.SEND, "server/game", ("report", "x" * 100), 0)
+    first = live.activity.log_lines()
     assert first[-1].text == repr(("report", "x" * 100))[:80] and first[-1].actor == "server/game"
-    live._on_message(2.0, EventKind.SEND, "seeker/ir", Message.int(Cmd.NOOP, 3), 0)
-    second = live._log_lines()
+    live.activity.on_message(2.0, EventKind.SEND, "seeker/ir", Message.int(Cmd.NOOP, 3), 0)
+    second = live.activity.log_lines()
     assert [ln.seq for ln in second] == [1, 2] and second[0] is first[0]
     assert (second[1].time_s, second[1].text) == (2.0, "NOOP 3")

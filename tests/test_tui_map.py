@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tui.snapshot import GridView
-from tui.widgets.map_view import ZOOMS_CM, classify, fit_view, heading_glyph, known_extent
+from tui.widgets.map_pixels import ZOOMS_CM, classify, fit_view, heading_glyph, known_extent
 
 
 @pytest.mark.parametrize("heading,glyph", [
@@ -108,7 +108,7 @@ def test_pixel_classes_per_cell_codes_match_sampling_every_point(monkeypatch, zo
             view.center = (13.0, -7.0)
             await pilot.pause()
             fast = view.pixel_classes()
-            monkeypatch.setattr(map_view, "_same_raster", lambda a, b: False)
+            monkeypatch.setattr(map_view, "same_raster", lambda a, b: False)
             view.snapshot = Snapshot(0.0, 1.0, False, "test", 0, "mapping", map=None)
             none = view.pixel_classes()
             view.snapshot = snap

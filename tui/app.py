@@ -8,8 +8,9 @@ screen never piles work up) and redraws from it; key bindings call the
 system's `Controller` methods, which only queue the command; results come back
 as `CommandResult` and refusals and errors show as notifications.
 
-Every action is one row of `ACTIONS`: its key binding, footer label, help text
-and command palette entry all come from that row.
+Every action is one row of `tui.keymap.ACTIONS`: its key binding, footer label,
+help text and command palette entry all come from that row. How often frames
+are drawn is `tui.pacing`.
 
 Quitting (``q``, ``ctrl+c``, or any other way the app ends) cancels Trio's
 root scope and waits for the guest run to finish before the asyncio loop
@@ -22,10 +23,7 @@ import asyncio
 import functools
 import gc
 import pathlib
-import signal
-import time
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Iterable
 
 import outcome
 import trio
@@ -36,7 +34,17 @@ from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Footer, Input, TabbedContent, TabPane
 
-from tui.guest import TrioGuest
+from tui.guest import TrioGuest, quit_on_signals
+from tui.keymap import (
+    ACTION_COMMANDS,
+    ACTIONS,
+    KEY_NAMES,
+    MAP_KEYS,
+    SPEEDS,
+    WIDER_SEARCH_CM,
+    UiAction,
+)
+from tui.pacing import REFRESH_HZ, FramePacer
 from tui.snapshot import CommandResult, Snapshot, System
 from tui.widgets import (
     FaultDialog,
@@ -50,124 +58,16 @@ from tui.widgets import (
     Timeline,
 )
 
-__all__ = ["ConsoleApp", "ACTIONS", "SPEEDS", "REFRESH_HZ", "UiAction"]
+__all__ = ["ConsoleApp"]
 
-#: Snapshots asked for per wall second.
-REFRESH_HZ = 15.0
-#: ... and at "as fast as possible", where every frame drawn is simulation not run.
-REFRESH_HZ_MAX_SPEED = 10.0
-#: At "as fast as possible", frames are drawn only while the console's share of the
-#: thread's time stays below this (the simulation keeps the rest, however loaded the
-#: machine), and at least once per `MAX_FRAME_GAP_S`.
-UI_SHARE_MAX_SPEED = 0.06
-MAX_FRAME_GAP_S = 1.0
 #: The queue table and the tree are redrawn on every this many snapshots.
 TABLE_EVERY = 3
-#: Speed steps for faster / slower; None is "as fast as possible".
-SPEEDS: tuple[float | None, ...] = (1.0, 4.0, 16.0, None)
-#: A wider search (``w``): the hider believed within this of the cursor [cm] (the
-#: headless operator's `supervisors.harness.headless.Budget.wider_within_cm`).
-WIDER_SEARCH_CM = 120.0
-
-
-@dataclass(frozen=True, slots=True)
-class UiAction:
-    """One thing a person can do: key, action name, footer label, help text."""
-
-    key: str
-    """Textual key name(s), comma separated."""
-    action: str
-    """App action (``action_<name>``)."""
-    label: str
-    """Short footer label."""
-    help: str
-    """Help screen and command palette text."""
-    footer: bool = True
-    """Show in the footer (the help screen and palette list every action)."""
-
-
-ACTIONS: tuple[UiAction, ...] = (
-    UiAction("m", "start_mapping", "Map", "Start mapping"),
-    UiAction("x", "stop_mapping", "Stop map", "Stop mapping early and use the map as it is",
-             footer=False),
-    UiAction("enter", "confirm", "Confirm",
-             "Confirm the cursor: hide spot (map ready) or seek guess (hidden / not found)"),
-    UiAction("w", "wider_search", "Wider",
-             f"Seek at the cursor with a wider search ({WIDER_SEARCH_CM:.0f} cm round it)",
-             footer=False),
-    UiAction("space", "pause", "Pause", "Pause simulated time (not with an attached rover)"),
-    UiAction("space", "resume", "Resume", "Resume simulated time"),
-    UiAction("right_square_bracket", "faster", "Faster",
-             "Speed up: x1, x4, x16, as fast as possible (the same game at every speed; "
-             "not with an attached rover)"),
-    UiAction("left_square_bracket", "slower", "Slower", "Slow down", footer=False),
-    UiAction("f", "faults", "Faults", "Inject or clear a fault (target, kind, duration)"),
-    UiAction("g", "toggle_truth", "Truth", "Toggle the ground-truth overlay (simulated rooms)"),
-    UiAction("n", "new_game", "New", "Start a new game", footer=False),
-    UiAction("e", "export_map", "Export",
-             "Save the map (PGM + YAML, PNG) to the export directory", footer=False),
-    UiAction("s", "screenshot", "Shot",
-             "Save a screenshot (SVG, and PNG where cairosvg is installed) to the export "
-             "directory", footer=False),
-    UiAction("R", "record", "Record",
-             "Start / stop recording the game as MCAP (hideseek replay opens it)", footer=False),
-    UiAction("p", "toggle_log_pause", "Log pause", "Pause / resume the message log",
-             footer=False),
-    UiAction("slash", "filter_log", "Filter", "Filter the message log", footer=False),
-    UiAction("1", "tab('queues')", "Queues", "Show queue traffic", footer=False),
-    UiAction("2", "tab('log')", "Log", "Show the message log", footer=False),
-    UiAction("3", "tab('tree')", "Tree", "Show the supervision tree", footer=False),
-    UiAction("4", "tab('events')", "Events", "Show the timeline of events and faults",
-             footer=False),
-    UiAction("question_mark", "help", "Help", "Show every key"),
-    UiAction("q", "quit", "Quit", "Quit (also ctrl+c)"),
-)
-
-#: Actions -> the controller commands they send (a key is greyed when all are refused).
-_ACTION_COMMANDS: dict[str, tuple[str, ...]] = {
-    "pause": ("pause",), "resume": ("resume",), "toggle_pause": ("pause", "resume"),
-    "faster": ("set_speed",), "slower": ("set_speed",),
-    "start_mapping": ("start_mapping",), "stop_mapping": ("stop_mapping",),
-    "confirm": ("hide_at", "seek_at"), "wider_search": ("seek_at",),
-    "new_game": ("new_game",), "faults": ("inject_fault", "clear_fault"),
-    "export_map": ("export_map",),
-}
-
-#: Keys of the map itself (focused by default), for the help screen.
-MAP_KEYS: tuple[tuple[str, str], ...] = (
-    ("arrows", "move the cursor (or click the map)"),
-    ("shift+arrows", "pan the map"),
-    ("+ / -", "zoom in / out"),
-    ("0", "fit the known map, and follow it as it grows"),
-    ("r", "rotate the hide heading by 45°"),
-    ("escape", "back to the map from the log filter"),
-    ("wheel / arrows, page keys", "scroll the log back (arrows once it is clicked); end: newest"),
-    ("ctrl+p", "command palette: every action by name"),
-)
-
-_KEY_NAMES = {"right_square_bracket": "]", "left_square_bracket": "[", "question_mark": "?",
-              "slash": "/"}
 
 
 def _has_os_error(exc: BaseException) -> bool:
     if isinstance(exc, BaseExceptionGroup):
         return any(_has_os_error(e) for e in exc.exceptions)
     return isinstance(exc, OSError)
-
-
-def _on_signals(quit_: Callable[[], object]) -> tuple[signal.Signals, ...]:
-    """SIGTERM and SIGINT quit the console as ``q`` does (the system stopped, status 0):
-    handled by the asyncio loop, so neither interrupts Textual or Trio mid-step. Returns
-    the signals handled (none outside the main thread, where asyncio cannot)."""
-    loop = asyncio.get_running_loop()
-    done = []
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        try:
-            loop.add_signal_handler(sig, quit_)
-        except (NotImplementedError, RuntimeError, ValueError):
-            continue
-        done.append(sig)
-    return tuple(done)
 
 
 class ConsoleApp(App[int]):
@@ -189,7 +89,7 @@ class ConsoleApp(App[int]):
     #tree-scroll, #queue-scroll { height: 1fr; }
     """
     BINDINGS = [
-        Binding(a.key, a.action, a.label, show=a.footer, key_display=_KEY_NAMES.get(a.key))
+        Binding(a.key, a.action, a.label, show=a.footer, key_display=KEY_NAMES.get(a.key))
         for a in ACTIONS
     ] + [
         Binding("ctrl+c", "quit", "Quit", show=False, priority=True),
@@ -239,8 +139,7 @@ class ConsoleApp(App[int]):
         self._guest = TrioGuest(on_done=lambda r: self.post_message(self.SystemEnded(r)))
         self._requests: trio.MemorySendChannel[None] | None = None
         self._awaiting = 0  # ticks since the outstanding request, 0 = none outstanding
-        self._credit = 0.0  # frames owed at a reduced refresh rate
-        self._last_frame = (0.0, 0.0)  # (wall [s], guest's busy_s) at the last frame drawn
+        self._pacer = FramePacer(refresh_hz)
         self._panel_phase = ""  # phase the game panel shows
         self._asked_speed: tuple[int, int] | None = None  # (SPEEDS index, snapshots_shown)
         # Held, not queried: App.query_one searches the *current* screen, which is a
@@ -276,7 +175,7 @@ class ConsoleApp(App[int]):
         self.map_view.focus()
         self._guest.start(self._trio_main, clock=self.system.clock)
         self.set_interval(1.0 / self.refresh_hz, self._tick)
-        self._signals = _on_signals(lambda: self.call_next(self.action_quit))
+        self._signals = quit_on_signals(lambda: self.call_next(self.action_quit))
 
     def _remove_signal_handlers(self) -> None:
         loop = asyncio.get_running_loop()
@@ -328,23 +227,11 @@ class ConsoleApp(App[int]):
         self._awaiting = 1
 
     def _skip_frame(self) -> bool:
-        """At "as fast as possible", fewer frames (every frame drawn is simulation not
-        run): a credit per tick, and no frame while the console's share of the time since
-        the last one is above `UI_SHARE_MAX_SPEED` (Trio's batches are the rest)."""
+        """At "as fast as possible", fewer frames (see `tui.pacing.FramePacer`)."""
         snap = self.snapshot
         if snap is None or snap.speed is not None or snap.paused:
             return False
-        self._credit = min(1.0, self._credit + REFRESH_HZ_MAX_SPEED / self.refresh_hz)
-        if self._credit < 1.0:
-            return True
-        now, busy = time.perf_counter(), self._guest.busy_s
-        t0, busy0 = self._last_frame
-        elapsed = now - t0
-        if elapsed < MAX_FRAME_GAP_S and elapsed - (busy - busy0) > UI_SHARE_MAX_SPEED * elapsed:
-            return True
-        self._credit -= 1.0
-        self._last_frame = (now, busy)
-        return False
+        return self._pacer.skip(self._guest.busy_s)
 
     async def on_unmount(self) -> None:
         self._remove_signal_handlers()
@@ -488,7 +375,7 @@ class ConsoleApp(App[int]):
             return False
         if action == "resume" and not snap.paused:
             return False
-        commands = _ACTION_COMMANDS.get(action, ())
+        commands = ACTION_COMMANDS.get(action, ())
         if commands and all(c in snap.refused for c in commands):
             return None
         return True
@@ -586,7 +473,7 @@ class ConsoleApp(App[int]):
         self.map_view.focus()
 
     def action_help(self) -> None:
-        keys = [(_KEY_NAMES.get(a.key, a.key), a.help) for a in self.actions] + list(MAP_KEYS)
+        keys = [(KEY_NAMES.get(a.key, a.key), a.help) for a in self.actions] + list(MAP_KEYS)
         self.push_screen(HelpScreen(keys, intro="[b]hideseek console[/b]: keys\n"))
 
     async def action_quit(self) -> None:
@@ -601,5 +488,5 @@ class ConsoleApp(App[int]):
         for a in self.actions:
             if a.action in ("quit",):
                 continue
-            yield SystemCommand(a.help.split(":")[0], f"key {_KEY_NAMES.get(a.key, a.key)}",
+            yield SystemCommand(a.help.split(":")[0], f"key {KEY_NAMES.get(a.key, a.key)}",
                                 functools.partial(self.run_action, a.action))

@@ -269,21 +269,7 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
     """Run the campaign the options describe; ``worker`` is for tests."""
     try:
         config = config_from_args(args)
-        games = args.games if args.games is not None else (6 if args.quick else 200)
-        if not 1 <= games <= MAX_GAMES:
-            raise CampaignError(f"-n must be within 1..{MAX_GAMES}, got {games}")
-        workers = default_workers() if args.workers is None else args.workers
-        if not 0 <= workers <= 256:
-            raise CampaignError(f"--workers must be within 0..256, got {workers}")
-        if args.replay_every < 0:
-            raise CampaignError(f"--replay-every must be >= 0, got {args.replay_every}")
-        if not args.timeout > 0:
-            raise CampaignError(f"--timeout must be > 0, got {args.timeout}")
-        if args.max_wall is not None and not 0 < args.max_wall <= 1e6:
-            raise CampaignError(f"--max-wall must be within (0, 1e6] minutes, "
-                                f"got {args.max_wall}")
-        if args.record_failures:
-            _record_dir(args.record_failures)
+        games, workers = _sizes(args)
         engine = _open_engine(args, workers)
         store = CampaignStore(args.out)
     except CampaignError as exc:
@@ -346,6 +332,31 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
     if len(results) < games:
         return 130
     return 1 if summary["failures"] else 0
+
+
+def _sizes(args: argparse.Namespace) -> tuple[int, int]:
+    """The games to play and the workers to play them, after checking every bound.
+
+    Raises:
+        CampaignError: a count, timeout or wall-time limit out of its bounds, or a
+            ``--record-failures`` folder that cannot be made.
+    """
+    games = args.games if args.games is not None else (6 if args.quick else 200)
+    if not 1 <= games <= MAX_GAMES:
+        raise CampaignError(f"-n must be within 1..{MAX_GAMES}, got {games}")
+    workers = default_workers() if args.workers is None else args.workers
+    if not 0 <= workers <= 256:
+        raise CampaignError(f"--workers must be within 0..256, got {workers}")
+    if args.replay_every < 0:
+        raise CampaignError(f"--replay-every must be >= 0, got {args.replay_every}")
+    if not args.timeout > 0:
+        raise CampaignError(f"--timeout must be > 0, got {args.timeout}")
+    if args.max_wall is not None and not 0 < args.max_wall <= 1e6:
+        raise CampaignError(f"--max-wall must be within (0, 1e6] minutes, "
+                            f"got {args.max_wall}")
+    if args.record_failures:
+        _record_dir(args.record_failures)
+    return games, workers
 
 
 def _open_engine(args: argparse.Namespace, workers: int) -> Any:

@@ -13,7 +13,8 @@ Everything runs on Trio's clock (the system's own `MockClock`, so pause and
 speed changes are real changes of simulated time) and all randomness comes from
 one seeded generator. It is not a simulation: rovers pass through obstacles on
 the way to a spot, and the map frame is the room's frame shifted to the
-mapper's start.
+mapper's start. The room itself (its truth, the tour, ray casting) is
+`tui.fake_room`.
 """
 
 from __future__ import annotations
@@ -28,11 +29,21 @@ import trio
 import trio.testing
 
 from tui.controller import QueuedController
+from tui.fake_room import (
+    LIDAR_RAYS,
+    RES_CM,
+    START_CM,
+    TOUR_CM,
+    carve,
+    cast,
+    clearance,
+    room_grid,
+    write_map,
+)
 from tui.snapshot import (
     FREE,
     MAX_LOG_LINES,
     MAX_TIMELINE,
-    OCCUPIED,
     UNKNOWN,
     ActiveFault,
     FaultTarget,
@@ -54,21 +65,10 @@ __all__ = ["FakeSystem", "COMMAND_CAPACITY", "TICK_S"]
 COMMAND_CAPACITY = 64
 #: Simulated time per step of the fake [s].
 TICK_S = 0.1
-RES_CM = 5.0
-ROOM_CM = (400.0, 300.0)
-#: The mapper's start in the room frame [cm]; the map frame's origin.
-START_CM = (60.0, 60.0)
-#: The mapper's tour in the room frame [cm] (straight legs are obstacle-free).
-TOUR_CM = ((240.0, 50.0), (360.0, 140.0), (250.0, 180.0), (100.0, 250.0),
-           (40.0, 160.0), (120.0, 170.0))
-BOXES_CM = ((150.0, 90.0, 200.0, 150.0), (280.0, 210.0, 330.0, 270.0))
-CIRCLE_CM = (330.0, 70.0, 25.0)
 SPEED_CMS = {"mapper": 25.0, "hider": 30.0, "seeker": 30.0}
 RESTART_DELAY_S = 0.5
 WATCHDOG_S = 1.0
 FOUND_RADIUS_CM = 40.0
-LIDAR_RAYS = 90
-LIDAR_RANGE_CM = 400.0
 
 WORKERS = {
     "mapper": ("motor", "lidar", "map", "navigation", "wifly"),
@@ -84,20 +84,6 @@ DEVICE_FAULTS = {
     "wifly": ("drop", "loss", "corrupt", "latency"),
 }
 ACTOR_FAULTS = ("crash", "hang", "flood")
-
-
-def room_grid() -> np.ndarray:
-    """Ground truth of the fake room: int8 (ny, nx), walls and obstacles occupied."""
-    nx, ny = int(ROOM_CM[0] / RES_CM), int(ROOM_CM[1] / RES_CM)
-    xs = (np.arange(nx) + 0.5) * RES_CM
-    ys = (np.arange(ny) + 0.5) * RES_CM
-    gx, gy = np.meshgrid(xs, ys)
-    occ = (gx < 10) | (gx > ROOM_CM[0] - 10) | (gy < 10) | (gy > ROOM_CM[1] - 10)
-    for x0, y0, x1, y1 in BOXES_CM:
-        occ |= (gx >= x0) & (gx <= x1) & (gy >= y0) & (gy <= y1)
-    cx, cy, r = CIRCLE_CM
-    occ |= (gx - cx) ** 2 + (gy - cy) ** 2 <= r * r
-    return np.where(occ, OCCUPIED, FREE).astype(np.int8)
 
 
 @dataclass(slots=True)
@@ -199,7 +185,7 @@ class FakeSystem(QueuedController):
         if grid.value_at(x, y) != FREE:
             raise ValueError(f"spot ({x:.0f}, {y:.0f}) cm is not known free space")
         rx, ry = x + START_CM[0], y + START_CM[1]
-        if self._truth_clearance(rx, ry) < 15.0:
+        if clearance(self._truth, rx, ry) < 15.0:
             raise ValueError(f"spot ({x:.0f}, {y:.0f}) cm has less than 15 cm clearance")
         self._hide = Pose(x, y, heading)
         self._send_to(self._rovers["hider"], (rx, ry))
@@ -261,18 +247,9 @@ class FakeSystem(QueuedController):
         out = pathlib.Path(directory).expanduser()
         if not out.is_dir():
             raise ValueError(f"export directory {directory!r} does not exist")
-        # map_server convention: 0 occupied (black), 254 free, 205 unknown; top row first.
-        pgm = np.full(cells.shape, 205, np.uint8)
-        pgm[cells == FREE] = 254
-        pgm[cells == OCCUPIED] = 0
-        ny, nx = cells.shape
-        (out / "map.pgm").write_bytes(b"P5\n%d %d\n255\n" % (nx, ny) + pgm[::-1].tobytes())
-        (out / "map.yaml").write_text(
-            f"image: map.pgm\nresolution: {RES_CM / 100}\n"
-            f"origin: [{-START_CM[0] / 100}, {-START_CM[1] / 100}, 0.0]\n"
-            "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
-        self._event("export", f"map saved to {out}/map.pgm")
-        return str(out / "map.pgm")
+        pgm = write_map(cells, out)
+        self._event("export", f"map saved to {pgm}")
+        return str(pgm)
 
     # -- the fake world, stepped -------------------------------------------
     def _reset_game(self) -> None:
@@ -331,11 +308,6 @@ class FakeSystem(QueuedController):
     def _send_to(self, rover: _Rover, goal: tuple[float, float]) -> None:
         rover.goal = goal
         rover.path = [goal]
-
-    def _truth_clearance(self, x: float, y: float) -> float:
-        occ = np.argwhere(self._truth == OCCUPIED)
-        centres = (occ[:, ::-1] + 0.5) * RES_CM
-        return float(np.min(np.hypot(centres[:, 0] - x, centres[:, 1] - y)))
 
     def _map_view(self) -> GridView:
         return GridView(self._map, RES_CM, (-START_CM[0], -START_CM[1]))
@@ -433,19 +405,9 @@ class FakeSystem(QueuedController):
         noise = 8.0 if self._fault_on("mapper.lidar", "noisy") else 1.0
         start = 0.0 if self._fault_on("mapper.lidar", "stuck") else self._rng.uniform(0, 4)
         angles = np.radians(start + np.arange(LIDAR_RAYS) * 360.0 / LIDAR_RAYS)
-        steps = np.arange(0.0, LIDAR_RANGE_CM, RES_CM / 2)
-        xs = mapper.x + np.cos(angles)[:, None] * steps[None, :]
-        ys = mapper.y + np.sin(angles)[:, None] * steps[None, :]
-        ny, nx = self._truth.shape
-        cols = np.clip((xs / RES_CM).astype(int), 0, nx - 1)
-        rows = np.clip((ys / RES_CM).astype(int), 0, ny - 1)
-        hit = self._truth[rows, cols] == OCCUPIED
-        first = np.where(hit.any(axis=1), hit.argmax(axis=1), len(steps) - 1)
-        mask = np.arange(len(steps))[None, :] < first[:, None]
-        self._map[rows[mask], cols[mask]] = FREE
-        has = hit.any(axis=1)
-        r = np.arange(LIDAR_RAYS)[has]
-        self._map[rows[r, first[has]], cols[r, first[has]]] = OCCUPIED
+        rays = cast(self._truth, mapper.x, mapper.y, angles)
+        carve(self._map, rays)
+        steps, first, has = rays.steps, rays.first, rays.has
         dist = steps[first[has]] + self._rng.normal(0, noise, int(has.sum()))
         px = mapper.x + np.cos(angles[has]) * dist - START_CM[0]
         py = mapper.y + np.sin(angles[has]) * dist - START_CM[1]

@@ -20,19 +20,21 @@ fire up to `BURST_S` late.
 What this is not: ``trio.from_thread`` must not be used from the asyncio side
 (it hangs forever in guest mode); and the guest run must finish before the
 asyncio loop closes, or Trio warns that the run was abandoned. `TrioGuest.stop`
-is the one way to end it: cancel the root scope, then wait for the run.
+is the one way to end it: cancel the root scope, then wait for the run;
+`quit_on_signals` makes SIGTERM and SIGINT take that way too.
 """
 
 from __future__ import annotations
 
 import asyncio
+import signal
 import time
 from collections.abc import Awaitable, Callable, Sized
 
 import outcome
 import trio
 
-__all__ = ["TrioGuest"]
+__all__ = ["TrioGuest", "quit_on_signals"]
 
 #: How long `TrioGuest.stop` waits for a cancelled run before giving up [s, wall].
 STOP_TIMEOUT_S = 5.0
@@ -175,3 +177,18 @@ class TrioGuest:
             self._finished.set_result(result)
         if self._on_done is not None:
             self._on_done(result)
+
+
+def quit_on_signals(quit_: Callable[[], object]) -> tuple[signal.Signals, ...]:
+    """SIGTERM and SIGINT quit the console as ``q`` does (the system stopped, status 0):
+    handled by the asyncio loop, so neither interrupts Textual or Trio mid-step. Returns
+    the signals handled (none outside the main thread, where asyncio cannot)."""
+    loop = asyncio.get_running_loop()
+    done = []
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        try:
+            loop.add_signal_handler(sig, quit_)
+        except (NotImplementedError, RuntimeError, ValueError):
+            continue
+        done.append(sig)
+    return tuple(done)

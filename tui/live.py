@@ -6,55 +6,44 @@ turns operator commands into server commands and fault injections, and builds
 a `Snapshot` whenever the console asks for one. It reads the server's view
 (phase, map, rover poses, link statistics), the runtime's (mailboxes, the
 supervision tree, the trace) and, for the overlay and drift only, the world's
-ground truth.
+ground truth. The message log and timeline are `tui.activity`, the views of the
+system's parts `tui.sim_views`.
 """
 
 from __future__ import annotations
 
-import math
 import pathlib
-import re
-from collections import deque
-from itertools import islice
 from typing import Any
 
 import numpy as np
 import trio
 
-from actors import EventKind, Message, TraceEvent
-from actors.firmware.commands import name_of
 from server.export import write_pgm, write_png
 from server.links import LinkSpec
 from server.links.spec import DEFAULT_BAUD
-from server.protocol import ROLES, GridMap, inverse
+from server.protocol import ROLES, GridMap
 from server.protocol import Pose as FramePose
-from server.protocol import compose as compose_pose
 from server.store import Store
 from supervisors.harness.headless import Budget, GameReport, finish_report, play_game
 from supervisors.recording import Recorder, RecordingError
 from supervisors.system import SimSystem, open_sim_system
-from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_DEVICES
 from world.scenario import Scenario
-from world.truth import truth_raster
 
+from .activity import ActivityLog
 from .controller import QueuedController
 from .governor import GovernedClock
-from .snapshot import (
-    MAX_LOG_LINES,
-    MAX_TIMELINE,
-    ActiveFault,
-    FaultTarget,
-    GridView,
-    LinkStats,
-    LogLine,
-    Pose,
-    Publish,
-    QueueStats,
-    RoverView,
-    Snapshot,
-    TimelineEvent,
-    TreeNode,
+from .sim_views import (
+    QueueRates,
+    TruthOverlay,
+    active_faults,
+    fault_catalogue,
+    link_stats,
+    map_view,
+    rover_views,
+    snapshot_pose,
+    tree_view,
 )
+from .snapshot import GridView, Publish, Snapshot
 
 __all__ = ["LiveSystem", "ListenError"]
 
@@ -67,30 +56,10 @@ REAL_TIME_REFUSED = ("pause", "resume", "set_speed")
 #: Mailbox statistics, the supervision tree and the fault catalogue are rebuilt on
 #: every this many snapshots (the console draws those tables at a third of its rate).
 TABLES_EVERY = 3
-_MAP_MARGIN_CELLS = 20  # unknown border shown around the known map [cells]
-_MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?,.*?value=([^)]+)\)")
-_LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
-              EventKind.FAULT, EventKind.KILLED, EventKind.POISON}
 
 
 class ListenError(OSError):
     """Raised by `LiveSystem.run` when the address for attached rovers cannot be served."""
-
-
-def _decode(message: str) -> str:
-    """``Message(command=<Cmd.MOTOR_MOVE: 256>, ..., value=12.5)`` -> ``MOTOR_MOVE 12.5``."""
-    m = _MESSAGE_RE.search(message)
-    if m is None:
-        return message[:80]
-    return f"{name_of(int(m.group(1)))} {m.group(2)}"
-
-
-def describe(message: Any) -> str:
-    """A log line's text for a message object: ``MOTOR_MOVE 12.5`` for the firmware's
-    `Message`, else its repr (at most 80 characters)."""
-    if type(message) is Message:
-        return f"{name_of(message.command)} {message.value!r}"
-    return repr(message)[:80]
 
 
 class LiveSystem(QueuedController):
@@ -163,21 +132,10 @@ class LiveSystem(QueuedController):
         self._db = db
         self._log_messages = log_messages
         self._system: SimSystem | None = None
-        self._log: deque[LogLine] = deque(maxlen=MAX_LOG_LINES)
-        # messages as tapped (time, queue, message object, dropped), decoded into `_log`
-        # only when a snapshot shows them: most scroll out between two frames, and
-        # decoding each costs the simulation time
-        self._raw_log: deque[tuple[float, str, Any, bool]] = deque(maxlen=MAX_LOG_LINES)
-        self._decoded_seq = 0
-        self._names: dict[int, str] = {}  # command code -> name, for the log
-        self._timeline: deque[TimelineEvent] = deque(maxlen=MAX_TIMELINE)
-        self._log_seq = 0
-        self._event_seq = 0
-        self._rates: dict[str, tuple[float, int, float]] = {}  # name -> (t, received, rate)
-        self._exits: dict[str, float] = {}  # actor -> time of its last exit
-        self._truth: GridView | None = None
-        self._truth_raster: Any = None
-        self._truth_key: tuple | None = None
+        self.activity = ActivityLog(lambda: self.clock.current_time())
+        """The message log and the timeline of events the console shows."""
+        self._rates = QueueRates()
+        self._truth = TruthOverlay(scenario)
         self._mapper_room = FramePose(0, 0, 0)
         self._snapshots = 0  # snapshots built
         self._tables: tuple[Any, Any, Any] | None = None  # (queues, tree, catalogue)
@@ -209,9 +167,9 @@ class LiveSystem(QueuedController):
                     except ValueError as exc:  # the console runs on, unrecorded
                         self._event("game", f"cannot record: {exc}")
                 trace = system.actors.trace
-                trace.subscribe(self._on_trace)  # lifecycle events and drops
+                trace.subscribe(self.activity.on_trace)  # lifecycle events and drops
                 if self._log_messages:
-                    trace.tap_messages(self._on_message)  # every send, cheaply
+                    trace.tap_messages(self.activity.on_message)  # every send, cheaply
                 self._server_events = system.server.subscribe()
                 self._event("game", f"{self.scenario.name}: system started (seed {self.seed})")
                 try:
@@ -376,74 +334,13 @@ class LiveSystem(QueuedController):
 
     # -- events -------------------------------------------------------------------------
     def _event(self, kind: str, text: str) -> None:
-        self._event_seq += 1
-        self._timeline.append(TimelineEvent(self._event_seq, self.clock.current_time(), kind,
-                                            text))
-
-    def _on_message(self, time: float, kind: EventKind, queue: str, message: Any,
-                    depth: int) -> None:
-        """A message tap (`actors.Trace.tap_messages`): runs for every message sent."""
-        self._log_seq += 1
-        self._raw_log.append((time, queue, message, False))
-
-    def _on_trace(self, event: TraceEvent) -> None:
-        if event.kind is EventKind.DROP:
-            self._log_seq += 1
-            self._raw_log.append((event.time, event.queue, event.message, True))
-            return
-        if event.kind in _LIFECYCLE:
-            if event.kind in (EventKind.CRASH, EventKind.HUNG, EventKind.KILLED):
-                self._exits[event.actor] = event.time
-            kind = {EventKind.RESTART: "restart", EventKind.FAULT: "fault"}.get(event.kind, "crash")
-            self._event(kind, f"{event.kind.value} {event.actor} {event.detail}".strip())
-
-    def _log_lines(self) -> tuple[LogLine, ...]:
-        """The message log, decoding what was traced since the last snapshot."""
-        raw = self._raw_log
-        first = self._log_seq - len(raw) + 1  # seq of the oldest raw entry
-        start = max(self._decoded_seq + 1, first)
-        names = self._names
-        append = self._log.append
-        # indexing a deque walks it: take the new entries from its end in one go
-        for i, (time, queue, message, dropped) in enumerate(
-                islice(raw, start - first, None), start):
-            if dropped:  # a drop is a trace event: its message is a repr already
-                text = "DROP overflow " + _decode(message)
-            elif type(message) is Message:
-                command = message.command
-                name = names.get(command)
-                if name is None:
-                    name = names[command] = name_of(command)
-                text = f"{name} {message.value!r}"
-            else:
-                text = repr(message)[:80]
-            append(LogLine(i, time, queue, queue, text))
-        self._decoded_seq = self._log_seq
-        return tuple(self._log)
-
-    def _drain_server_events(self) -> None:
-        """The server's events since the last snapshot, into the timeline (on the console's
-        side: the channel only buffers, so no task wakes for it)."""
-        events = self._server_events
-        while events is not None:
-            try:
-                e = events.receive_nowait()
-            except (trio.WouldBlock, trio.EndOfChannel, trio.ClosedResourceError):
-                return
-            if e.kind == "phase":
-                self._event("phase", f"phase {e.data.get('phase')}"
-                            + (f": {e.data['reason']}" if e.data.get("reason") else ""))
-            elif e.kind in ("link_up", "link_down"):
-                self._event("link", f"{e.rover} {e.kind.replace('_', ' ')}")
-            elif e.kind in ("report", "refused", "map"):
-                body = " ".join(f"{k}={v}" for k, v in e.data.items())
-                self._event("game", f"{e.kind} {e.rover} {body}".strip())
+        self.activity.event(kind, text)
 
     # -- snapshot -----------------------------------------------------------------------
     def host_snapshot(self) -> Snapshot:
         """A snapshot built on the console's side of the thread, between two of Trio's
         batches (see `tui.snapshot`): the game never sees the console look."""
-        self._drain_server_events()
+        self.activity.drain_server_events(self._server_events)
         return self.snapshot()
 
     def snapshot(self) -> Snapshot:
@@ -455,142 +352,27 @@ class LiveSystem(QueuedController):
         if system is None:
             return Snapshot(now, self._speed, self._paused, self.scenario.name, self.seed, "idle")
         server = system.server.snapshot()
-        grid = self._map_view(system)
+        grid = map_view(system)
         if self._tables is None or self._snapshots % TABLES_EVERY == 0:
-            self._tables = (self._queues(system, now), self._tree(system),
-                            self._catalogue(system))
+            self._tables = (self._rates.stats(system, now),
+                            tree_view(system, self.activity.exits),
+                            fault_catalogue(system, self.remote))
         self._snapshots += 1
         queues, tree, catalogue = self._tables
         return Snapshot(
             time_s=now, speed=self._speed, paused=self._paused, speed_reached=reached,
             scenario=self.scenario.name,
             seed=self.seed, phase=server.phase, guesses=len(server.guesses), map=grid,
-            truth=self._truth_view(grid), rovers=self._rovers(system, server),
-            hide_spot=_pose(server.hide_spot),
+            truth=self._truth_view(grid),
+            rovers=rover_views(system, server, self.scenario, self.remote, self._mapper_room),
+            hide_spot=snapshot_pose(server.hide_spot),
             seek_guesses=tuple((g.x, g.y) for g in server.guesses),
             refused=(AUTO_REFUSED if self.auto else ()) + (REAL_TIME_REFUSED if self.remote
                                                             else ()),
-            queues=queues, log=self._log_lines(), tree=tree, links=self._links(server),
-            timeline=tuple(self._timeline), faults=self._faults(system), catalogue=catalogue)
-
-    def _map_view(self, system: SimSystem) -> GridView | None:
-        snap = system.mapper_grid()
-        if snap is None:
-            grid = system.server.game.map
-            if grid is None:
-                return None
-            return GridView(np.array(grid.cells, np.int8), grid.resolution_cm,
-                            tuple(grid.origin_cm))
-        snap = snap.crop_known(margin_cells=_MAP_MARGIN_CELLS)  # the room, not 24 m of nothing
-        return GridView(np.array(snap.cells, np.int8), snap.resolution_cm, tuple(snap.origin_cm))
+            queues=queues, log=self.activity.log_lines(), tree=tree, links=link_stats(server),
+            timeline=self.activity.timeline(), faults=active_faults(system),
+            catalogue=catalogue)
 
     def _truth_view(self, grid: GridView | None) -> GridView | None:
-        """Ground truth resampled onto the map's raster (same frame and cells)."""
-        if grid is None:
-            return None
-        key = (grid.shape, grid.origin_cm, grid.resolution_cm)
-        if key != self._truth_key:
-            if self._truth_raster is None:
-                self._truth_raster = truth_raster(self.scenario, grid.resolution_cm)
-            truth = self._truth_raster
-            ny, nx = grid.shape
-            x0, y0 = grid.origin_cm
-            r = grid.resolution_cm
-            xs = x0 + (np.arange(nx) + 0.5) * r
-            ys = y0 + (np.arange(ny) + 0.5) * r
-            mx, my = np.meshgrid(xs, ys)
-            m = self._mapper_room
-            h = math.radians(m.heading_deg)
-            rx = m.x + math.cos(h) * mx - math.sin(h) * my
-            ry = m.y + math.sin(h) * mx + math.cos(h) * my
-            col = np.floor(rx / truth.resolution_cm).astype(int)
-            row = np.floor(ry / truth.resolution_cm).astype(int)
-            th, tw = truth.occupied.shape
-            inside = (row >= 0) & (row < th) & (col >= 0) & (col < tw)
-            cells = np.full((ny, nx), 100, np.int8)
-            occ = truth.occupied[np.clip(row, 0, th - 1), np.clip(col, 0, tw - 1)]
-            cells[inside & ~occ] = 0
-            self._truth = GridView(cells, r, grid.origin_cm)
-            self._truth_key = key
-        return self._truth
-
-    def _rovers(self, system: SimSystem, server: Any) -> tuple[RoverView, ...]:
-        to_map = inverse(self._mapper_room)
-        views = {r.role: r for r in server.rovers}
-        out = []
-        for role in ROLES:
-            view = views.get(role)
-            if role in self.remote:  # its true pose is in another world
-                out.append(RoverView(role, role, _pose(view.pose if view else None), None,
-                                     link=view.link if view else self.remote[role].text))
-                continue
-            t = system.world.true_pose(role)
-            true = compose_pose(to_map, FramePose(t.x, t.y, t.heading_deg))
-            pose = view.pose if view is not None and view.pose is not None else None
-            if pose is None:  # before its first report: where the operator placed it
-                start = self.scenario.starts[role]
-                pose = compose_pose(to_map, FramePose(start.x, start.y, start.heading_deg))
-            out.append(RoverView(role, role, _pose(pose), _pose(true),
-                                 link=view.link if view else "memory"))
-        return tuple(out)
-
-    def _queues(self, system: SimSystem, now: float) -> tuple[QueueStats, ...]:
-        out = []
-        for name in system.actors.names():
-            if "/" not in name:
-                continue
-            s = system.actors.statistics(name)
-            t0, r0, rate = self._rates.get(name, (now, s.received, 0.0))
-            if now - t0 >= 1.0:
-                rate = (s.received - r0) / (now - t0)
-                t0, r0 = now, s.received
-            self._rates[name] = (t0, r0, rate)
-            out.append(QueueStats(name.split("/")[0], name, s.depth, s.capacity, rate,
-                                  s.dropped))
-        return tuple(out)
-
-    def _tree(self, system: SimSystem) -> TreeNode:
-        def convert(node: Any) -> TreeNode:
-            state = str(node.state)
-            state = {"starting": "restarting"}.get(state, state)
-            return TreeNode(node.name, str(node.kind), state, node.restarts,  # type: ignore[arg-type]
-                            None if node.last_exit is None else str(node.last_exit),
-                            self._exits.get(node.name),
-                            tuple(convert(c) for c in node.children))
-        roots = tuple(convert(n) for n in system.tree_snapshots())
-        return TreeNode("system", "supervisor", "running", 0, None, None, roots)
-
-    def _links(self, server: Any) -> tuple[LinkStats, ...]:
-        out = []
-        for r in server.rovers:
-            s = r.stats
-            out.append(LinkStats(r.id, s.up, None if s.rtt_s is None else s.rtt_s * 1000.0,
-                                 s.lost, s.resent, s.bad_frames, s.frames_in, s.frames_out))
-        return tuple(out)
-
-    def _faults(self, system: SimSystem) -> tuple[ActiveFault, ...]:
-        out = []
-        for f in system.world.active_faults():
-            until = f.start_s + f.duration_s if f.duration_s > 0 else None
-            out.append(ActiveFault(f"w{f.id}", f.target, f.kind, f.start_s, until))
-        return tuple(out)
-
-    def _catalogue(self, system: SimSystem) -> tuple[FaultTarget, ...]:
-        """Every target with every fault the catalogue has for it: a device and the
-        actor that drives it share a name (``mapper/lidar``) and so one entry."""
-        kinds: dict[str, dict[str, dict[str, float]]] = {}
-        for role in ROLES:
-            if role in self.remote:
-                continue
-            for device, device_kinds in DEVICE_FAULTS.items():
-                if role in ROLE_DEVICES.get(device, ROLES):
-                    kinds[f"{role}/{device}"] = dict(device_kinds)
-        for name in system.actors.names():
-            if "/" in name and name.split("/")[0] not in self.remote:
-                kinds.setdefault(name, {}).update(ACTOR_FAULTS)
-        return tuple(FaultTarget(target, tuple(by_kind),
-                                 {k: dict(p) for k, p in by_kind.items() if p})
-                     for target, by_kind in kinds.items())
-
-def _pose(p: FramePose | None) -> Pose | None:
-    return None if p is None else Pose(p.x, p.y, p.heading_deg)
+        """Ground truth on the map's raster (see `TruthOverlay`)."""
+        return self._truth.view(grid, self._mapper_room)

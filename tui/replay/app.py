@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from textual.binding import Binding
 
-from tui.app import _KEY_NAMES, ConsoleApp, UiAction
+from tui.app import ConsoleApp
+from tui.keymap import KEY_NAMES, UiAction
 from tui.replay.seek_dialog import SeekDialog, parse_seek
 from tui.replay.system import ReplaySystem
 from tui.snapshot import Snapshot
@@ -43,7 +44,7 @@ REPLAY_ACTIONS: tuple[UiAction, ...] = (
     UiAction("q", "quit", "Quit", "Quit (also ctrl+c)"),
 )
 
-_NAMES = {**_KEY_NAMES, "full_stop": ".", "comma": ","}
+_NAMES = {**KEY_NAMES, "full_stop": ".", "comma": ","}
 
 
 class ReplayApp(ConsoleApp, inherit_bindings=False):

@@ -8,7 +8,8 @@ significant of them (occupied over free over unknown), so thin walls survive
 zooming out. Rovers, the frontier target, the hide spot, guesses and the
 cursor are characters drawn over the pixels.
 
-The frame is the map frame of `tui.snapshot` (x right, y up on screen).
+The frame is the map frame of `tui.snapshot` (x right, y up on screen). What
+each pixel shows, and the zoom steps, are `tui.widgets.map_pixels`.
 """
 
 from __future__ import annotations
@@ -25,109 +26,27 @@ from textual.reactive import reactive
 from textual.strip import Strip
 from textual.widget import Widget
 
-from tui.snapshot import FREE, OCCUPIED, GridView, Snapshot
+from tui.snapshot import GridView, Snapshot
+from tui.widgets.map_pixels import (
+    CODE,
+    COLOURS,
+    LIDAR_PX,
+    PATH_PX,
+    RANK,
+    ROVER_COLOURS,
+    TRUTH_LEGEND,
+    UNKNOWN_PX,
+    ZOOMS_CM,
+    classify_values,
+    fit_view,
+    gather,
+    heading_glyph,
+    indexer,
+    known_extent,
+    same_raster,
+)
 
-__all__ = ["MapView", "ZOOMS_CM", "heading_glyph"]
-
-#: Pixel sizes the zoom steps through [cm per pixel].
-ZOOMS_CM: tuple[float, ...] = (1.25, 2.5, 4.0, 5.0, 6.0, 7.5, 10.0, 15.0, 20.0, 25.0, 30.0,
-                                40.0, 60.0)
-
-# Pixel classes, drawn in this colour (index = class).
-_UNKNOWN, _FREE, _OCC, _MISSED, _FALSE, _PATH, _LIDAR, _TRUTH = range(8)
-_COLOURS = ("#161616", "#4a4a4a", "#e0e0e0", "#d040ff", "#e07020", "#c8a000", "#ff4040",
-            "#283c64")
-#: Which sample wins when a pixel covers several cells (index = class).
-_RANK = np.array([0, 2, 5, 4, 3, 0, 0, 1], np.int8)
-#: A class with its rank above it (rank * 8 + class): the largest code wins.
-_CODE = (_RANK.astype(np.uint8) << 3) | np.arange(8, dtype=np.uint8)
-_ROVER_COLOURS = {"mapper": "#40d0ff", "hider": "#40ff60", "seeker": "#ff60ff"}
-#: The truth overlay's legend, in the map's title while the overlay is on.
-TRUTH_LEGEND = (f" · truth: [{_COLOURS[_TRUTH]}]■[/] unseen [{_COLOURS[_MISSED]}]■[/] "
-                f"missed [{_COLOURS[_FALSE]}]■[/] false ○ true pose")
-_ARROWS = "→↗↑↖←↙↓↘"
-
-
-def heading_glyph(heading_deg: float) -> str:
-    """An arrow for a heading [deg] (counter-clockwise from +x, screen up is +y)."""
-    return _ARROWS[int(round((heading_deg % 360.0) / 45.0)) % 8]
-
-
-def classify(grid: GridView | None, truth: GridView | None, xs: np.ndarray,
-             ys: np.ndarray) -> np.ndarray:
-    """Pixel classes for sample points (any shape) [cm]: unknown/free/occupied, and
-    with ``truth``: obstacles not yet seen (dim blue), mapping errors (an obstacle
-    mapped as free: purple; free ground mapped as occupied: orange)."""
-    return classify_values(None if grid is None else _sample(grid, xs, ys),
-                           None if truth is None else _sample(truth, xs, ys), xs.shape)
-
-
-def classify_values(map_val: np.ndarray | None, true_val: np.ndarray | None,
-                    shape: tuple[int, ...]) -> np.ndarray:
-    """`classify` from cell values already sampled (-1 outside a grid)."""
-    out = np.full(shape, _UNKNOWN, np.int8)
-    if map_val is None:
-        return out
-    out[map_val == FREE] = _FREE
-    out[map_val == OCCUPIED] = _OCC
-    if true_val is not None:
-        out[(true_val == OCCUPIED) & (map_val == -1)] = _TRUTH
-        out[(true_val == OCCUPIED) & (map_val == FREE)] = _MISSED
-        out[(true_val == FREE) & (map_val == OCCUPIED)] = _FALSE
-    return out
-
-
-def _same_raster(a: GridView, b: GridView) -> bool:
-    """Whether two grids share cells one for one (shape, origin and resolution)."""
-    return (a.cells.shape == b.cells.shape and a.origin_cm == b.origin_cm
-            and a.resolution_cm == b.resolution_cm)
-
-
-def _sample(grid: GridView, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-    return _gather(grid, _indexer(grid, xs, ys))
-
-
-def _indexer(grid: GridView, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-    """Flat cell index of each sample point, -1 outside the grid."""
-    ny, nx = grid.cells.shape
-    cols = np.floor((xs - grid.origin_cm[0]) / grid.resolution_cm).astype(np.int64)
-    rows = np.floor((ys - grid.origin_cm[1]) / grid.resolution_cm).astype(np.int64)
-    inside = (cols >= 0) & (cols < nx) & (rows >= 0) & (rows < ny)
-    return np.where(inside, rows * nx + cols, -1)
-
-
-def _gather(grid: GridView, index: np.ndarray) -> np.ndarray:
-    """Cell values at flat indexes (from `_indexer`), -1 where the index is -1."""
-    flat = grid.cells.reshape(-1)
-    out = flat[np.maximum(index, 0)].astype(np.int16)
-    out[index < 0] = -1
-    return out
-
-
-def known_extent(grid: GridView) -> tuple[float, float, float, float] | None:
-    """(x_min, y_min, x_max, y_max) [cm] of the cells the map knows, one cell of
-    margin; None when it knows none (a fresh grid is mostly unknown space)."""
-    known = grid.cells != -1
-    rows = np.flatnonzero(known.any(axis=1))
-    if len(rows) == 0:
-        return None
-    cols = np.flatnonzero(known.any(axis=0))
-    r, (ox, oy) = grid.resolution_cm, grid.origin_cm
-    return (ox + (cols[0] - 1) * r, oy + (rows[0] - 1) * r,
-            ox + (cols[-1] + 2) * r, oy + (rows[-1] + 2) * r)
-
-
-def fit_view(extent: tuple[float, float, float, float], width: int,
-             height: int) -> tuple[int, tuple[float, float]]:
-    """The finest zoom index showing ``extent`` [cm] in ``width`` x ``height``
-    characters (two pixels per character vertically), and the centre [cm]."""
-    x0, y0, x1, y1 = extent
-    zoom = len(ZOOMS_CM) - 1
-    for i, s in enumerate(ZOOMS_CM):
-        if (x1 - x0) / s <= width and (y1 - y0) / s <= 2 * height:
-            zoom = i
-            break
-    return zoom, ((x0 + x1) / 2, (y0 + y1) / 2)
+__all__ = ["MapView"]
 
 
 class MapView(Widget, can_focus=True):
@@ -345,12 +264,12 @@ class MapView(Widget, can_focus=True):
         _, gx, gy, indexers = self._samples
 
         n_samples = k * k
-        if grid is not None and (truth is None or _same_raster(grid, truth)):
+        if grid is not None and (truth is None or same_raster(grid, truth)):
             # Classify each cell once, then pick per pixel the most significant of its
             # samples as the largest code (rank above class): one gather and one max.
             cells = classify_values(grid.cells, None if truth is None else truth.cells,
                                     grid.cells.shape)
-            codes = np.append(_CODE[cells].reshape(-1), _CODE[_UNKNOWN])  # last: outside
+            codes = np.append(CODE[cells].reshape(-1), CODE[UNKNOWN_PX])  # last: outside
             index = self._sample_index(grid, indexers, gx, gy)  # (samples, 2h, w)
             out = (codes[index].max(axis=0) & 7).astype(np.int8)
         else:  # no map, or ground truth on another raster: sample both
@@ -360,12 +279,12 @@ class MapView(Widget, can_focus=True):
                     return None
                 gkey = ("raw", g.cells.shape, g.origin_cm, g.resolution_cm)
                 if gkey not in indexers:
-                    indexers[gkey] = _indexer(g, gx, gy)
-                return _gather(g, indexers[gkey])
+                    indexers[gkey] = indexer(g, gx, gy)
+                return gather(g, indexers[gkey])
 
             cls = classify_values(values(grid), values(truth), gx.shape)
             # significance: occupied/errors over free over unknown
-            rank = _RANK[cls]
+            rank = RANK[cls]
             best = rank.reshape(2 * h, w, n_samples).argmax(axis=2)
             out = np.take_along_axis(cls.reshape(2 * h, w, n_samples), best[..., None], 2)[..., 0]
         if snap is None:
@@ -374,9 +293,9 @@ class MapView(Widget, can_focus=True):
             pts = rover.path
             for (x0, y0), (x1, y1) in zip(pts, pts[1:], strict=False):
                 n = int(math.hypot(x1 - x0, y1 - y0) / (s / 2)) + 2
-                self._plot(out, np.linspace(x0, x1, n), np.linspace(y0, y1, n), _PATH)
+                self._plot(out, np.linspace(x0, x1, n), np.linspace(y0, y1, n), PATH_PX)
         if len(snap.lidar_points):
-            self._plot(out, snap.lidar_points[:, 0], snap.lidar_points[:, 1], _LIDAR)
+            self._plot(out, snap.lidar_points[:, 0], snap.lidar_points[:, 1], LIDAR_PX)
         return out
 
     @staticmethod
@@ -391,7 +310,7 @@ class MapView(Widget, can_focus=True):
         if index is None:
             if len(indexers) > 8:  # a growing map changes geometry now and then
                 indexers.clear()
-            index = _indexer(grid, gx, gy)
+            index = indexer(grid, gx, gy)
             index = np.where(index < 0, grid.cells.size, index).astype(np.intp)
             h2, w = index.shape[:2]
             index = np.ascontiguousarray(np.moveaxis(index.reshape(h2, w, -1), 2, 0))
@@ -423,7 +342,7 @@ class MapView(Widget, can_focus=True):
         if snap.hide_spot is not None:
             put(snap.hide_spot.x_cm, snap.hide_spot.y_cm, "H", "#40ff60")
         for rover in snap.rovers:
-            colour = _ROVER_COLOURS.get(rover.role, "#ffffff")
+            colour = ROVER_COLOURS.get(rover.role, "#ffffff")
             if rover.target is not None:
                 put(*rover.target, "◎", colour)
             if self.show_truth and rover.true_pose is not None:
@@ -450,7 +369,7 @@ class MapView(Widget, can_focus=True):
 
         for (col, row), (char, colour) in self.glyphs().items():
             if 0 <= col < w and 0 <= row < h:
-                bg = _COLOURS[cls[2 * row + 1, col]]
+                bg = COLOURS[cls[2 * row + 1, col]]
                 overlay(col, row, char, self._style(colour, bg, bold=True))
         ccol, crow, _ = self.to_screen(*self.cursor, view)
         if 0 <= ccol < w and 0 <= crow < h:
@@ -478,8 +397,8 @@ class MapView(Widget, can_focus=True):
                 else:
                     style = styles.get(code)
                     if style is None:
-                        style = styles[code] = self._style(_COLOURS[code >> 4],
-                                                           _COLOURS[code & 15])
+                        style = styles[code] = self._style(COLOURS[code >> 4],
+                                                           COLOURS[code & 15])
                     segs.append(Segment("▀" * (b - a), style))
             lines.append(Strip(segs, w))
         self._row_keys = keys

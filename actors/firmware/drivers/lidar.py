@@ -26,8 +26,8 @@ Health (why: a faulty LIDAR leaves a wrong map, docs/faults.md)
     Every batch is judged before it is sent (`batch_health`): a batch collected
     while the ISR rejected many frames (garbled line), one whose samples all lie
     at one angle (stuck rotor), or one far rougher than the calibrated noise
-    (noisy) is dropped, never integrated. ``fault_batches`` bad batches in a row
-    make the sensor faulty: every batch is dropped until ``recover_batches``
+    (noisy) is dropped, never integrated. ``FAULT_BATCHES`` bad batches in a row
+    make the sensor faulty: every batch is dropped until ``RECOVER_BATCHES``
     good ones in a row, and navigation is told each change of verdict with
     ``NAV_LIDAR_HEALTH`` (a `LidarHealth`), so it can stop driving meanwhile. A
     dead LIDAR sends nothing to judge: navigation sees its scan count stop.
@@ -53,7 +53,8 @@ from actors.firmware.hardware import Interrupt, RoverHardware
 from server.protocol.pose import Pose
 
 __all__ = ["Scan", "LidarHealth", "HealthOptions", "roughness_cm", "batch_health",
-           "LidarControl"]
+           "LidarControl", "MIN_SAMPLES", "STUCK_SPAN_DEG", "MIN_TRIPLES", "GARBLED_SHARE",
+           "GARBLED_MIN", "FAULT_BATCHES", "RECOVER_BATCHES"]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -86,36 +87,40 @@ class LidarHealth(enum.IntEnum):
 
 @dataclass(frozen=True, slots=True)
 class HealthOptions:
-    """Limits of the batch checks (see `batch_health`) and of the fault state.
+    """The noise limit of the batch checks (see `batch_health`).
 
     The calibrated sensor: 360 samples per revolution (1 deg apart), 0.5 cm range noise on
     a 2 cm quantum. Measured over whole games in every built-in room (docs/mapping.md):
     healthy batches have a median roughness (`roughness_cm`) of 0-4 cm; 5 cm of added
-    noise gives about 8, 10 cm about 16.
+    noise gives about 8, 10 cm about 16. The counts and shares of the checks and of the
+    fault state are module constants (`MIN_SAMPLES` ... `RECOVER_BATCHES`).
     """
 
-    min_samples: int = 8
-    """Batches with fewer samples are not judged for rotor or noise (too little to tell)."""
-    stuck_span_deg: float = 1.0
-    """A batch whose angles all lie within this is from a rotor that does not turn [deg]."""
-    max_step_deg: float = 1.5
-    """Neighbouring samples further apart than this are not compared [deg]."""
-    min_triples: int = 12
-    """Roughness needs at least this many triples of neighbouring returns."""
     noise_limit_cm: float = 5.0
-    """A median roughness above this is noise, not surfaces [cm]."""
-    garbled_share: float = 0.25
-    """A batch during which the ISR dropped more bad frames than this share of its
-    samples (and at least ``garbled_min``) came over a garbled line."""
-    garbled_min: int = 1
-    """Fewest bad frames that can make a batch garbled (a healthy line has none)."""
-    fault_batches: int = 2
-    """Bad batches in a row that make the sensor faulty (one alone is only dropped)."""
-    recover_batches: int = 20
-    """Good batches in a row that make a faulty sensor healthy again (about 1 s)."""
+    """A median roughness (`roughness_cm`) above this is noise, not surfaces [cm]."""
 
 
 _DEFAULT_HEALTH = HealthOptions()
+
+# Counts and spans of the batch checks and of the fault state: fixed by the calibrated
+# sensor (360 samples a revolution, 1 deg apart) and by how many batches tell a fault
+# from a stray one; none is a property a rover team sets.
+MIN_SAMPLES = 8
+"""Batches with fewer samples are not judged for rotor or noise (too little to tell)."""
+STUCK_SPAN_DEG = 1.0
+"""A batch whose angles all lie within this (one sample step) is from a rotor that does
+not turn [deg]."""
+MIN_TRIPLES = 12
+"""Roughness needs at least this many triples of neighbouring returns."""
+GARBLED_SHARE = 0.25
+"""A batch during which the ISR dropped more bad frames than this share of its samples
+(and at least ``GARBLED_MIN``) came over a garbled line."""
+GARBLED_MIN = 1
+"""Fewest bad frames that can make a batch garbled (a healthy line has none)."""
+FAULT_BATCHES = 2
+"""Bad batches in a row that make the sensor faulty (one alone is only dropped)."""
+RECOVER_BATCHES = 20
+"""Good batches in a row that make a faulty sensor healthy again (about 1 s)."""
 
 
 def roughness_cm(angles_deg: np.ndarray, ranges_cm: np.ndarray, *,
@@ -162,20 +167,20 @@ def batch_health(angles_deg: np.ndarray, ranges_cm: np.ndarray, bad_frames: int,
         angles_deg: ray angles in sample order [deg].
         ranges_cm: ranges [cm], 0 = no return.
         bad_frames: frames the UART ISR rejected while the batch was collected.
-        options: the limits.
+        options: the noise limit.
     """
     o = options
     n = int(np.asarray(angles_deg).size)
-    if bad_frames >= max(o.garbled_min, o.garbled_share * n):
+    if bad_frames >= max(GARBLED_MIN, GARBLED_SHARE * n):
         return LidarHealth.GARBLED
-    if n < o.min_samples:
+    if n < MIN_SAMPLES:
         return LidarHealth.OK
     a = np.asarray(angles_deg, dtype=np.float64)
     spread = np.abs((a - a[0] + 180.0) % 360.0 - 180.0)
-    if float(spread.max()) <= o.stuck_span_deg:
+    if float(spread.max()) <= STUCK_SPAN_DEG:
         return LidarHealth.STUCK
-    rough, triples = roughness_cm(a, ranges_cm, max_step_deg=o.max_step_deg)
-    if triples >= o.min_triples and rough > o.noise_limit_cm:
+    rough, triples = roughness_cm(a, ranges_cm)
+    if triples >= MIN_TRIPLES and rough > o.noise_limit_cm:
         return LidarHealth.NOISY
     return LidarHealth.OK
 
@@ -326,18 +331,18 @@ class LidarControl(Actor):
             bad_frames = self._isr.bad_frames - self._bad_frames_seen
             self._bad_frames_seen = self._isr.bad_frames
         verdict = batch_health(angles, ranges, bad_frames, o)
-        if verdict == LidarHealth.OK and angles.size < o.min_samples:
+        if verdict == LidarHealth.OK and angles.size < MIN_SAMPLES:
             # too few to judge (a stray frame among garbage?): not evidence of recovery
             return self.health == LidarHealth.OK
         if verdict == LidarHealth.OK:
             self._good += 1
             self._bad = 0
-            if self.health != LidarHealth.OK and self._good >= o.recover_batches:
+            if self.health != LidarHealth.OK and self._good >= RECOVER_BATCHES:
                 self._set_health(LidarHealth.OK)
         else:
             self._bad += 1
             self._good = 0
-            if self._bad >= o.fault_batches:
+            if self._bad >= FAULT_BATCHES:
                 self._set_health(verdict)
         if self._told != self.health:  # navigation's queue was full: tell it again
             self._tell()

@@ -90,12 +90,19 @@ _CONTROL = Message.uint(Cmd.MOTOR_CONTROL, 0)  # the control period's tick
 
 @dataclass(frozen=True, slots=True)
 class MotorTuning:
-    """Control constants, tuned against the simulated world (tests/test_fw_motor.py)."""
+    """Physical quantities of the control loop and of its blocked and silent-tread checks,
+    tuned against the simulated world (tests/test_fw_motor.py).
+
+    A tread counts as at its target within half an encoder interrupt
+    (``HardwareSpec.cm_per_interrupt / 2``), so the counted travel stops at the
+    interrupt nearest the target. The tread monitor's detection thresholds are
+    constants of `tread_monitor`.
+    """
 
     period_s: float = 0.05
     """Control period [s] (the world's tick)."""
     cruise_fraction: float = 0.8
-    """Cruise speed as a fraction of the spec's full-PWM speed."""
+    """Cruise speed as a fraction of the spec's full-PWM speed [1] (24 cm/s at 30 cm/s)."""
     decel_cm_s2: float = 40.0
     """Braking deceleration of the speed profile [cm/s^2]."""
     gain_per_s: float = 4.0
@@ -104,9 +111,6 @@ class MotorTuning:
     """Speed floor while a tread is outside the tolerance [cm/s]."""
     coupling_per_s: float = 2.0
     """Cross-coupling gain on the difference of the treads' progress [1/s]."""
-    tolerance_cm: float = 0.25
-    """A tread this close to its target counts as there [cm]: half an encoder interrupt, so
-    the counted travel stops at the interrupt nearest the target."""
     blocked_after_s: float = 1.0
     """Treads commanded but no encoder progress for this long: blocked [s]."""
     blocked_cm: float = 3.0
@@ -116,39 +120,6 @@ class MotorTuning:
     """After both treads arrive, wait this long for coasting ticks before reporting [s]."""
     motor_tau_s: float = 0.08
     """The treads' first-order lag behind their PWM, as modelled for the silent-tread check [s]."""
-    silent_cm: float = 1.25
-    """A tread the model says went this far since its last Int E is silent [cm]."""
-    silent_other: int = 2
-    """...provided the other tread counted this many Int E in a row meanwhile, and has
-    counted this many more in the command: two treads going slow alike (two weak
-    motors at 0.3, a rover pushing against something) interleave their interrupts
-    irregularly, and one could look silent with the counts level (each false report
-    costs the seeker a blocked move and more heading doubt)."""
-    short_after_cm: float = 5.0
-    """Judge a tread's count against its modelled travel once this far into a command [cm]."""
-    short_ratio: float = 0.65
-    """A tread that counted less than this share of its modelled travel counts short
-    (a healthy tread counts 0.77 or more after 6 cm; a slipping encoder about 0.45),
-    provided the other counted at least ``short_other_ratio`` of its own."""
-    short_other_ratio: float = 0.8
-    """See ``short_ratio``."""
-    both_move_ratio: float = 0.5
-    """Both treads counting short in a straight move of the hider or seeker: under this
-    share of their modelled travel (``short_ratio`` elsewhere). A rover sliding along a
-    wall it meets at an angle counts 0.55-0.65 (each report costs a hold); encoders
-    slipping at 0.3-0.5 go 2-3 times the counted distance (60 cm per 20 cm move)."""
-    push_ratio: float = 0.2
-    """Both treads counting under this share of their modelled travel lately, in a move:
-    pushing against something, blocked (see `tread_monitor.TreadMonitor.pushing`)."""
-    push_window_cm: float = 10.0
-    """"Lately": the last 10-20 cm of both treads' modelled travel together [cm]."""
-    uneven_cm: float = 2.0
-    """In a straight move, a tread whose modelled travel exceeds its count by this much
-    more than the other's counts short too [cm]: the cross-coupling keeps the counts
-    level, so an encoder slipping at 0.8 shows only as the PWM its tread needs (25 %
-    more than the other's), while dead reckoning sees a straight line and the rover
-    turns about 23 deg per 20 cm. Healthy 20 cm moves differ by 0.6 cm at most, an
-    interrupt's quantum (0.5 cm) either way included."""
 
 
 class PoseMemory:
@@ -198,6 +169,7 @@ class MotorControl(Actor):
         self._unit = float(spec.cm_per_interrupt)
         self._track = float(spec.track_width_cm)
         self._vmax = float(spec.max_speed_cm_s)
+        self._tolerance = 0.5 * self._unit  # a tread this close to its target is there [cm]
         # the running command (None when idle)
         self._kind: int | None = None       # Cmd.MOTOR_MOVE or Cmd.MOTOR_TURN
         self._target = (0.0, 0.0)           # per tread [cm], signed
@@ -359,7 +331,7 @@ class MotorControl(Actor):
         cruise = self._vmax * self.tuning.cruise_fraction
         self._deadline = now + 3.0 * length / max(cruise, 1e-6) + 3.0
         self.memory.active = True
-        if length <= self.tuning.tolerance_cm:
+        if length <= self._tolerance:
             self._finish(Cmd.NAV_MOTION_DONE)
             return
         self._control()
@@ -381,7 +353,7 @@ class MotorControl(Actor):
         pl, pr = self._progress
         tl, tr = self._target
         rl, rr = tl - pl, tr - pr
-        tol = t.tolerance_cm
+        tol = self._tolerance
         if abs(rl) <= tol and abs(rr) <= tol:
             self._set_pwm(0.0, 0.0)
             if self._arrived_t is None:
@@ -436,7 +408,7 @@ class MotorControl(Actor):
     def _speed(self, remaining: float, cruise: float) -> float:
         t = self.tuning
         r = abs(remaining)
-        if r <= t.tolerance_cm:
+        if r <= self._tolerance:
             return 0.0
         v = min(cruise, math.sqrt(2.0 * t.decel_cm_s2 * r), t.gain_per_s * r)
         return math.copysign(max(v, t.min_speed_cm_s), remaining)

@@ -13,8 +13,8 @@ Why
 
 A tread that is driven but does not count (silent)
     When the modelled travel since a tread's last Int E reaches
-    ``silent_cm`` (2.5 interrupts) while the other tread counted at least
-    ``silent_other`` interrupts in a row meanwhile and is that many ahead in
+    ``SILENT_INTERRUPTS`` (2.5) interrupts while the other tread counted at least
+    ``SILENT_OTHER`` interrupts in a row meanwhile and is that many ahead in
     the command (two treads slow alike keep level counts, their interrupts
     interleaved irregularly), the tread is silent. A stalled motor on one
     side looks the same as a stuck encoder here.
@@ -26,17 +26,17 @@ Both treads silent (blocked)
     blocked timer (`TreadMonitor.both_silent`).
 
 A tread that counts short
-    Once a tread's modelled travel in the command reaches ``short_after_cm``,
-    a count under ``short_ratio`` of it while the other tread counts at least
-    ``short_other_ratio`` of its own is short (a slipping encoder counts
+    Once a tread's modelled travel in the command reaches ``SHORT_AFTER_CM``,
+    a count under ``SHORT_RATIO`` of it while the other tread counts at least
+    ``SHORT_OTHER_RATIO`` of its own is short (a slipping encoder counts
     about half). A weak motor on that side looks the same (it really goes
     half as far, and then its odometry is right).
 
 Both treads counting short
     Both slipping alike keep the treads equal, so the comparison above says
     nothing, yet the rover turns more than it counts. Once both modelled
-    travels reach ``short_after_cm`` and each tread counted under its share
-    (``short_ratio`` in turns and on the mapper, ``both_move_ratio`` in the
+    travels reach ``SHORT_AFTER_CM`` and each tread counted under its share
+    (``SHORT_RATIO`` in turns and on the mapper, ``BOTH_MOVE_RATIO`` in the
     straight moves of the hider and seeker: a rover sliding along a wall
     counts 0.55-0.65), both count short. Two weak motors read the same. Both
     short in a move while lately counting hardly at all is a push, not a
@@ -45,7 +45,7 @@ Both treads counting short
 One tread driven harder for level counts
     In a straight move the cross-coupling keeps the counts level, so an
     encoder slipping at 0.8 shows only in the PWM its tread needs; a tread
-    whose modelled travel runs ``uneven_cm`` further ahead of its count than
+    whose modelled travel runs ``UNEVEN_CM`` further ahead of its count than
     the other's counts short too.
 
 Each finding is sent at most once per tread per command (short is not sent
@@ -58,7 +58,9 @@ import enum
 import math
 from typing import Protocol
 
-__all__ = ["MonitorTuning", "TreadFault", "TreadVerdict", "TreadMonitor"]
+__all__ = ["MonitorTuning", "TreadFault", "TreadVerdict", "TreadMonitor", "SILENT_INTERRUPTS",
+           "SILENT_OTHER", "SHORT_AFTER_CM", "SHORT_RATIO", "SHORT_OTHER_RATIO",
+           "BOTH_MOVE_RATIO", "PUSH_RATIO", "PUSH_WINDOW_CM", "UNEVEN_CM"]
 
 
 class TreadFault(enum.IntFlag):
@@ -113,31 +115,61 @@ class TreadVerdict(enum.Enum):
 
 
 class MonitorTuning(Protocol):
-    """The constants the monitor reads: the fields of the same name of
+    """The physical quantities the monitor reads: the fields of the same name of
     ``motor.MotorTuning``, documented there."""
 
     period_s: float
     motor_tau_s: float
     blocked_cm: float
-    silent_cm: float
-    silent_other: int
-    short_after_cm: float
-    short_ratio: float
-    short_other_ratio: float
-    both_move_ratio: float
-    push_ratio: float
-    push_window_cm: float
-    uneven_cm: float
+
+
+# The monitor's detection thresholds. Each is fixed by what the calibrated treads and
+# encoders give, measured in the simulated world (tests/test_tread_monitor.py and the
+# figures below), not a property a rover team sets: together they are the line between a
+# healthy tread and a faulty one.
+SILENT_INTERRUPTS = 2.5
+"""A tread the model says went this many encoder interrupts since its last Int E is
+silent (1.25 cm with 0.5 cm interrupts)."""
+SILENT_OTHER = 2
+"""...provided the other tread counted this many Int E in a row meanwhile, and has counted
+this many more in the command: two treads going slow alike (two weak motors at 0.3, a rover
+pushing against something) interleave their interrupts irregularly, and one could look
+silent with the counts level (each false report costs the seeker a blocked move)."""
+SHORT_AFTER_CM = 5.0
+"""Judge a tread's count against its modelled travel once this far into a command [cm]."""
+SHORT_RATIO = 0.65
+"""A tread that counted less than this share of its modelled travel counts short (a
+healthy tread counts 0.77 or more after 6 cm; a slipping encoder about 0.45), provided
+the other counted at least ``SHORT_OTHER_RATIO`` of its own."""
+SHORT_OTHER_RATIO = 0.8
+"""See ``SHORT_RATIO``."""
+BOTH_MOVE_RATIO = 0.5
+"""Both treads counting short in a straight move of the hider or seeker: under this share
+of their modelled travel (``SHORT_RATIO`` elsewhere). A rover sliding along a wall it meets
+at an angle counts 0.55-0.65; encoders slipping at 0.3-0.5 go 2-3 times the counted
+distance."""
+PUSH_RATIO = 0.2
+"""Both treads counting under this share of their modelled travel lately, in a move:
+pushing against something, blocked (see `TreadMonitor.pushing`)."""
+PUSH_WINDOW_CM = 10.0
+""""Lately": the last 10-20 cm of both treads' modelled travel together [cm]."""
+UNEVEN_CM = 2.0
+"""In a straight move, a tread whose modelled travel exceeds its count by this much more
+than the other's counts short too [cm]: the cross-coupling keeps the counts level, so an
+encoder slipping at 0.8 shows only as the PWM its tread needs (25 % more than the
+other's), while dead reckoning sees a straight line and the rover turns about 23 deg per
+20 cm. Healthy 20 cm moves differ by 0.6 cm at most, an interrupt's quantum (0.5 cm)
+either way included."""
 
 
 class TreadMonitor:
     """The lagged model of both treads and the counts, over one Command A.
 
     Args:
-        tuning: the motor's tuning (``motor.MotorTuning``).
+        tuning: the motor's physical quantities (``motor.MotorTuning``).
         unit_cm: tread travel per Int E [cm].
         vmax_cm_s: tread speed at full PWM [cm/s].
-        mapper: the rover has its own LIDAR (both-short uses ``short_ratio`` in moves
+        mapper: the rover has its own LIDAR (both-short uses ``SHORT_RATIO`` in moves
             too, and a push is not judged: the mapper's scan matching sees it).
     """
 
@@ -156,7 +188,7 @@ class TreadMonitor:
         self.counted = [0.0, 0.0]
         """Counted travel in this command [cm]."""
         self._short_sent = [False, False]  # counts short found in this command
-        self._marks = [(0.0, 0.0)]     # (modelled, counted) sums every push_window_cm, last two
+        self._marks = [(0.0, 0.0)]     # (modelled, counted) sums every PUSH_WINDOW_CM, last two
         self._run = [0, 0]             # Int E in a row without one from the other tread
         self._silent_sent = [False, False]  # silent found in this command
         self.pwm = (0.0, 0.0)
@@ -226,14 +258,14 @@ class TreadMonitor:
         t = self.tuning
         for tread in (0, 1):
             other = 1 - tread
-            if self._silent_sent[tread] or self._run[other] < t.silent_other:
+            if self._silent_sent[tread] or self._run[other] < SILENT_OTHER:
                 continue
-            if self.counted[other] - self.counted[tread] < t.silent_other * self._unit:
+            if self.counted[other] - self.counted[tread] < SILENT_OTHER * self._unit:
                 continue  # counts level: slow alike (weak, pushing), interrupts interleaved
             owed = self._unticked[tread]
             if period_pending:
                 owed -= abs(self.model_v[tread]) * t.period_s
-            if owed >= t.silent_cm:
+            if owed >= SILENT_INTERRUPTS * self._unit:
                 self._silent_sent[tread] = True
                 found.append((TreadVerdict.FAULT, TreadFault.silent(tread)))
         return found
@@ -241,13 +273,12 @@ class TreadMonitor:
     def _watch_counts(self, moving: bool, found: list[tuple[TreadVerdict, TreadFault]]) -> None:
         """Both treads counting short (a push in a move of the hider or seeker), or one
         counting short, or driven further for the same count in a move."""
-        t = self.tuning
         modelled = sum(self.modelled)
-        if modelled - self._marks[-1][0] >= t.push_window_cm:
+        if modelled - self._marks[-1][0] >= PUSH_WINDOW_CM:
             self._marks = [self._marks[-1], (modelled, sum(self.counted))]
-        ratio = t.short_ratio if not moving or self._mapper else t.both_move_ratio
+        ratio = SHORT_RATIO if not moving or self._mapper else BOTH_MOVE_RATIO
         if not (any(self._short_sent) or any(self._silent_sent)) \
-                and min(self.modelled) >= t.short_after_cm \
+                and min(self.modelled) >= SHORT_AFTER_CM \
                 and all(self.counted[i] < ratio * self.modelled[i] for i in (0, 1)):
             self._short_sent = [True, True]
             if moving and not self._mapper and self.pushing():
@@ -258,14 +289,14 @@ class TreadMonitor:
         for tread in (0, 1):
             other = 1 - tread
             modelled, counted = self.modelled[tread], self.counted[tread]
-            if self._short_sent[tread] or self._silent_sent[tread] or modelled < t.short_after_cm:
+            if self._short_sent[tread] or self._silent_sent[tread] or modelled < SHORT_AFTER_CM:
                 continue
-            short = counted < t.short_ratio * modelled and \
-                self.counted[other] >= t.short_other_ratio * self.modelled[other]
+            short = counted < SHORT_RATIO * modelled and \
+                self.counted[other] >= SHORT_OTHER_RATIO * self.modelled[other]
             if not short and moving and counted > 0.0:
-                # driven further than the other for the same count (see ``uneven_cm``)
+                # driven further than the other for the same count (see ``UNEVEN_CM``)
                 short = (modelled - counted) - (self.modelled[other] - self.counted[other]) \
-                    >= t.uneven_cm
+                    >= UNEVEN_CM
             if short:
                 self._short_sent[tread] = True
                 found.append((TreadVerdict.FAULT, TreadFault.short(tread)))
@@ -277,10 +308,10 @@ class TreadMonitor:
         Slipping encoders count 0.3-0.8 of the travel from the moment they slip; a
         rover that meets a wall counts right until then and next to nothing after, or
         a few % while it slides along a face it meets at an angle. Judged on the last
-        ``push_window_cm`` to twice that of both treads' modelled travel, one
+        ``PUSH_WINDOW_CM`` to twice that of both treads' modelled travel, one
         interrupt's quantum granted (two weak motors at 0.3 must not read as a push).
         """
         modelled0, counted0 = self._marks[0]
         modelled = sum(self.modelled) - modelled0
         counted = sum(self.counted) - counted0
-        return counted + self._unit < self.tuning.push_ratio * modelled  # an interrupt's grace
+        return counted + self._unit < PUSH_RATIO * modelled  # an interrupt's grace

@@ -20,7 +20,7 @@ Algorithm
     `contact_model`, `free_space_model`, `scan_likelihood`), and the particles
     are resampled (low-variance, one random number for the whole set) when
     the effective sample size ``1 / sum(w**2)`` falls under
-    ``resample_ess * N`` (selective resampling: resampling after every update
+    ``RESAMPLE_ESS * N`` (selective resampling: resampling after every update
     would throw away diversity for nothing).
 
     What the belief publishes (`Spread`): the weighted mean pose (circular
@@ -46,16 +46,16 @@ Frame and units
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.localisation.clusters import ClusterOptions, cluster_labels
+from actors.firmware.localisation.clusters import cluster_labels
 from actors.firmware.localisation.motion_model import MotionNoise, TreadMotion, sample_motion
 from server.protocol.pose import Pose, compose, inverse
 
 __all__ = ["BeliefOptions", "Cluster", "Spread", "UpdateReport", "PoseBelief",
-           "low_variance_resample"]
+           "low_variance_resample", "RESAMPLE_ESS", "MIN_CLUSTER_WEIGHT", "MAX_CLUSTERS"]
 
 _TWO_PI = 2.0 * math.pi
 
@@ -65,28 +65,28 @@ def _wrap(theta: np.ndarray) -> np.ndarray:
     return (theta + math.pi) % _TWO_PI - math.pi
 
 
+RESAMPLE_ESS = 0.5
+"""Resample when the effective sample size falls under this share of the particles [1]
+(the usual N/2 of particle filters; a structural constant of the filter)."""
+MIN_CLUSTER_WEIGHT = 0.02
+"""Clusters lighter than this share of the weight are not reported [1]."""
+MAX_CLUSTERS = 8
+"""At most this many clusters are reported, heaviest first (a bound on the report)."""
+
+
 @dataclass(frozen=True, slots=True)
 class BeliefOptions:
-    """Parameters of the filter (not of its models)."""
+    """Parameters of the filter (not of its models). How the hypotheses are found is
+    `clusters`'; when to resample and which clusters are reported are the constants
+    above."""
 
     particles: int = 500
     """Number of particles [1]."""
-    resample_ess: float = 0.5
-    """Resample when the effective sample size falls under this share of the particles [1]."""
-    clusters: ClusterOptions = field(default_factory=ClusterOptions)
-    """How the hypotheses are found (`clusters`)."""
-    min_cluster_weight: float = 0.02
-    """Clusters lighter than this share of the weight are not reported [1]."""
-    max_clusters: int = 8
-    """At most this many clusters are reported, heaviest first."""
+
     def __post_init__(self) -> None:
         if not (isinstance(self.particles, int) and 1 <= self.particles <= 1_000_000):
             raise ValueError(f"particles must be an integer in 1..1000000, got "
                              f"{self.particles!r}")
-        if not 0.0 <= self.resample_ess <= 1.0:
-            raise ValueError(f"resample_ess must be within 0..1, got {self.resample_ess!r}")
-        if not (self.max_clusters >= 1 and 0.0 <= self.min_cluster_weight < 1.0):
-            raise ValueError("max_clusters must be >= 1 and min_cluster_weight within 0..1")
 
 
 @dataclass(frozen=True, slots=True)
@@ -302,7 +302,7 @@ class PoseBelief:
         log_mean = top + math.log(total)
         self._w = w / total
         ess = self.ess()
-        resampled = ess < self.options.resample_ess * self._w.shape[0]
+        resampled = ess < RESAMPLE_ESS * self._w.shape[0]
         if resampled:
             idx = low_variance_resample(self._w, rng)
             self._p = self._p[idx]
@@ -312,15 +312,14 @@ class PoseBelief:
     # -- clusters ---------------------------------------------------------------
 
     def _clusters(self) -> tuple[Cluster, ...]:
-        o = self.options
-        lab = cluster_labels(self._p, self._w, o.clusters)
+        lab = cluster_labels(self._p, self._w)
         cw = np.bincount(lab, weights=self._w)
         order = [int(k) for k in np.argsort(-cw, kind="stable")
-                 if cw[k] >= o.min_cluster_weight][:o.max_clusters]
+                 if cw[k] >= MIN_CLUSTER_WEIGHT][:MAX_CLUSTERS]
         if not order:
             order = [int(np.argmax(cw))]
         out = []
-        for k in order:  # one pass per reported cluster (at most max_clusters)
+        for k in order:  # one pass per reported cluster (at most MAX_CLUSTERS)
             m = lab == k
             out.append(_cluster(self._p[m], self._w[m], float(cw[k])))
         return tuple(out)

@@ -10,14 +10,14 @@ Why
     whatever trail lies between, and keep one broad hypothesis whole.
 
 Algorithm
-    1. The weights are summed on a lattice of ``cell_cm`` x ``cell_cm`` x
-       ``cell_deg`` (heading periodic) and smoothed with a Gaussian of
-       ``smooth_cells`` lattice cells (``scipy.ndimage.gaussian_filter``).
+    1. The weights are summed on a lattice of ``CELL_CM`` x ``CELL_CM`` x
+       ``CELL_DEG`` (heading periodic) and smoothed with a Gaussian of
+       ``SMOOTH_CELLS`` lattice cells (``scipy.ndimage.gaussian_filter``).
     2. Local maxima of the smoothed density (``maximum_filter`` over the 26
-       neighbours) above ``peak_floor`` of the highest are the candidate modes
-       (at most ``max_peaks``, highest first).
+       neighbours) above ``PEAK_FLOOR`` of the highest are the candidate modes
+       (at most ``MAX_PEAKS``, highest first).
     3. Two modes are one hypothesis when the density along the straight line
-       between them never falls under ``valley`` times the lower of the two
+       between them never falls under ``VALLEY`` times the lower of the two
        (a plateau, or a ridge); the joined modes are the connected components
        of that relation (``scipy.sparse.csgraph.connected_components``).
     4. Every particle belongs to its nearest mode's hypothesis (lattice
@@ -38,69 +38,57 @@ Frame and units
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import gaussian_filter, maximum_filter
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-__all__ = ["ClusterOptions", "cluster_labels"]
+__all__ = ["cluster_labels", "CELL_CM", "CELL_DEG", "SMOOTH_CELLS", "PEAK_FLOOR", "VALLEY",
+           "MAX_PEAKS", "MAX_LATTICE_CELLS"]
 
 
-@dataclass(frozen=True, slots=True)
-class ClusterOptions:
-    """Parameters of the mode clustering."""
-
-    cell_cm: float = 4.0
-    """Position side of the lattice [cm]."""
-    cell_deg: float = 5.0
-    """Heading side of the lattice [deg]."""
-    smooth_cells: float = 1.0
-    """Standard deviation of the smoothing, in lattice cells [1]."""
-    peak_floor: float = 0.05
-    """Modes lower than this share of the highest are not modes [1]."""
-    valley: float = 0.5
-    """Two modes are one hypothesis unless the density between them dips under this share
-    of the lower mode [1]."""
-    max_peaks: int = 32
-    """At most this many modes are considered, highest first [1]."""
-    max_lattice_cells: int = 2_000_000
-    """Bound on the lattice: a belief spread wider than this allows is clustered on a
-    coarser position lattice [cells]."""
-
-    def __post_init__(self) -> None:
-        if not (self.cell_cm > 0 and 0 < self.cell_deg <= 90 and self.smooth_cells >= 0):
-            raise ValueError("ClusterOptions needs cell_cm > 0, cell_deg in (0, 90] and "
-                             f"smooth_cells >= 0, got {self.cell_cm!r}, {self.cell_deg!r}, "
-                             f"{self.smooth_cells!r}")
-        if not (0 <= self.peak_floor < 1 and 0 < self.valley <= 1 and self.max_peaks >= 1
-                and self.max_lattice_cells >= 1000):
-            raise ValueError("ClusterOptions needs peak_floor in [0, 1), valley in (0, 1], "
-                             "max_peaks >= 1 and max_lattice_cells >= 1000")
+# The lattice and thresholds of the mode finding: how the particles are summarised as
+# hypotheses, not a property of the rover or of its sensors, so fixed here beside the
+# algorithm (they are checked by tests/test_localisation_belief.py and
+# tests/test_localisation_contact.py: a corner's two hypotheses stay two, one broad one
+# stays one).
+CELL_CM = 4.0
+"""Position side of the lattice [cm]."""
+CELL_DEG = 5.0
+"""Heading side of the lattice [deg]."""
+SMOOTH_CELLS = 1.0
+"""Standard deviation of the smoothing, in lattice cells [1]."""
+PEAK_FLOOR = 0.05
+"""Modes lower than this share of the highest are not modes [1]."""
+VALLEY = 0.5
+"""Two modes are one hypothesis unless the density between them dips under this share of
+the lower mode [1]."""
+MAX_PEAKS = 32
+"""At most this many modes are considered, highest first [1]."""
+MAX_LATTICE_CELLS = 2_000_000
+"""Bound on the lattice: a belief spread wider than this allows is clustered on a coarser
+position lattice [cells]."""
 
 
 _MODES = ("nearest", "nearest", "wrap")  # the heading axis is periodic
 _LINE_SAMPLES = 16
 
 
-def cluster_labels(particles: np.ndarray, weights: np.ndarray,
-                   options: ClusterOptions | None = None) -> np.ndarray:
+def cluster_labels(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
     """The hypothesis of every particle: labels (N,) in 0..K-1, K the hypotheses found.
 
     Args:
         particles: (N, 3) ``x``, ``y`` [cm], ``theta`` [rad].
         weights: (N,) non-negative weights.
-        options: the clustering's parameters.
     """
-    o = options or ClusterOptions()
     p = np.asarray(particles, dtype=float)
     w = np.asarray(weights, dtype=float)
-    nh = max(1, round(360.0 / o.cell_deg))
-    pad = math.ceil(3 * o.smooth_cells) + 1
+    nh = max(1, round(360.0 / CELL_DEG))
+    pad = math.ceil(3 * SMOOTH_CELLS) + 1
     x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
     span = max(float(p[:, 0].max()) - x0, float(p[:, 1].max()) - y0)
-    cell = max(o.cell_cm, span / max(math.sqrt(o.max_lattice_cells / nh) - 2 * pad, 1.0))
+    cell = max(CELL_CM, span / max(math.sqrt(MAX_LATTICE_CELLS / nh) - 2 * pad, 1.0))
     gx = (p[:, 0] - x0) / cell + pad  # lattice coordinates [cells]
     gy = (p[:, 1] - y0) / cell + pad
     gh = (np.degrees(p[:, 2]) % 360.0) / (360.0 / nh)
@@ -108,16 +96,16 @@ def cluster_labels(particles: np.ndarray, weights: np.ndarray,
     ih = gh.astype(np.int64) % nh
     mass = np.zeros((int(ix.max()) + pad + 1, int(iy.max()) + pad + 1, nh))
     np.add.at(mass, (ix, iy, ih), w)
-    dens = gaussian_filter(mass, o.smooth_cells, mode=_MODES) if o.smooth_cells > 0 else mass
+    dens = gaussian_filter(mass, SMOOTH_CELLS, mode=_MODES) if SMOOTH_CELLS > 0 else mass
     top = float(dens.max())
     if top <= 0.0:
         return np.zeros(p.shape[0], dtype=np.int64)
-    peak = (dens == maximum_filter(dens, size=3, mode=_MODES)) & (dens >= o.peak_floor * top)
+    peak = (dens == maximum_filter(dens, size=3, mode=_MODES)) & (dens >= PEAK_FLOOR * top)
     coords = np.argwhere(peak)
     values = dens[peak]
-    order = np.argsort(-values, kind="stable")[:o.max_peaks]
+    order = np.argsort(-values, kind="stable")[:MAX_PEAKS]
     coords, values = coords[order].astype(float) + 0.5, values[order]
-    comp = _join(dens, coords, values, o.valley, nh)
+    comp = _join(dens, coords, values, VALLEY, nh)
     # nearest mode of each particle, heading wrapped [cells]
     dx = gx[:, None] - coords[None, :, 0]
     dy = gy[:, None] - coords[None, :, 1]

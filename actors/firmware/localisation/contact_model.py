@@ -54,12 +54,9 @@ __all__ = ["ContactOptions", "edge_points", "contact_gap_cm", "contact_log_likel
 
 @dataclass(frozen=True, slots=True)
 class ContactOptions:
-    """Parameters of the contact model."""
+    """Parameters of the contact model (the body's size is the rover's, an argument;
+    a body overlapping an obstacle is scored by `free_space_model.FreeSpaceOptions`)."""
 
-    length_cm: float = 20.0
-    """Body length, along the heading [cm]."""
-    width_cm: float = 15.0
-    """Body width [cm]."""
     sigma_cm: float = 1.5
     """Spread of the gap between the leading edge and the wall's face at a contact [cm]:
     the face lies anywhere in the cell that holds it, uniform over a 5 cm cell has a
@@ -68,14 +65,10 @@ class ContactOptions:
     unmapped_weight: float = 0.02
     """Likelihood, relative to a touching pose's, that something the map does not show
     stopped the rover [1] (``z_rand``): no particle drops to zero on one contact."""
-    inside_likelihood: float = 1e-3
-    """Likelihood of a pose whose body overlaps an occupied cell [1] (see
-    `free_space_model.FreeSpaceOptions`)."""
 
     def __post_init__(self) -> None:
-        if not (self.length_cm > 0 and self.width_cm > 0 and self.sigma_cm > 0):
-            raise ValueError("ContactOptions: body size and sigma_cm must be positive, got "
-                             f"{self.length_cm!r} x {self.width_cm!r}, {self.sigma_cm!r}")
+        if not self.sigma_cm > 0:
+            raise ValueError(f"sigma_cm must be positive, got {self.sigma_cm!r}")
         if not self.unmapped_weight >= 0:
             raise ValueError(f"unmapped_weight must be >= 0, got {self.unmapped_weight!r}")
 
@@ -103,30 +96,34 @@ def edge_points(length_cm: float, width_cm: float, direction: int, side: int,
     return np.column_stack([np.full(n, 0.5 * length_cm * direction), lat])
 
 
-def contact_gap_cm(field: DistanceField, particles: np.ndarray, direction: int = 1,
-                   side: int = 0, options: ContactOptions | None = None) -> np.ndarray:
-    """Gap [cm] between each particle's leading edge and the nearest mapped face: (N,)."""
-    o = options or ContactOptions()
+def contact_gap_cm(field: DistanceField, particles: np.ndarray, body_cm: tuple[float, float],
+                   direction: int = 1, side: int = 0) -> np.ndarray:
+    """Gap [cm] between each particle's leading edge (of a body ``body_cm``: length,
+    width [cm]) and the nearest mapped face: (N,)."""
+    length, width = body_cm
     res = field.resolution_cm
-    pts = edge_points(o.length_cm, o.width_cm, direction, side, 0.5 * res)
+    pts = edge_points(length, width, direction, side, 0.5 * res)
     x, y = to_map(np.asarray(particles, dtype=float), pts)
     d = field.at(x, y).min(axis=1)
     return np.maximum(d - 0.5 * res, 0.0)
 
 
-def contact_log_likelihood(field: DistanceField, particles: np.ndarray, direction: int = 1,
-                           side: int = 0, options: ContactOptions | None = None) -> np.ndarray:
+def contact_log_likelihood(field: DistanceField, particles: np.ndarray,
+                           body_cm: tuple[float, float], direction: int = 1, side: int = 0,
+                           options: ContactOptions | None = None,
+                           free: FreeSpaceOptions | None = None) -> np.ndarray:
     """Log-likelihood (N,) of "the body stopped against something" for every particle.
 
     Args:
         field: the map's distance field.
         particles: (N, 3) ``x``, ``y`` [cm], ``theta`` [rad].
+        body_cm: the rover's body (length along the heading, width) [cm].
         direction: +1 the blocked motion was forward, -1 backward.
         side: the side that stalled, +1 left, -1 right, 0 unknown.
         options: the model's parameters.
+        free: the free-space model's parameters (a body inside an obstacle).
     """
     o = options or ContactOptions()
-    gap = contact_gap_cm(field, particles, direction, side, o)
+    gap = contact_gap_cm(field, particles, body_cm, direction, side)
     touch = np.exp(-0.5 * (gap / o.sigma_cm) ** 2) + o.unmapped_weight
-    free = FreeSpaceOptions(o.length_cm, o.width_cm, inside_likelihood=o.inside_likelihood)
-    return np.log(touch) + free_space_log_likelihood(field, particles, free)
+    return np.log(touch) + free_space_log_likelihood(field, particles, body_cm, free)

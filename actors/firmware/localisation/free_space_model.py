@@ -10,13 +10,14 @@ Why
     kills every particle there would kill the truth with them.
 
 Algorithm
-    The body (a ``length`` x ``width`` rectangle centred on the pose), shrunk
-    by ``tol_cm`` on each side (a wall's face may lie anywhere in the cell that
-    holds it), is sampled on a regular lattice of points at most half a cell
-    apart; each particle's points are put in the map frame at once and looked
-    up in the grid. A particle with any point in an occupied cell gets the
-    likelihood ``inside_likelihood``, every other one 1. Unknown cells and
-    points off the map are not obstacles (no evidence).
+    The body (a ``length`` x ``width`` rectangle centred on the pose, the
+    rover's `HardwareSpec` body), shrunk by half a cell on each side (a wall's
+    face may lie anywhere in the cell that holds it), is sampled on a regular
+    lattice of points at most half a cell apart; each particle's points are put
+    in the map frame at once and looked up in the grid. A particle with any
+    point in an occupied cell gets the likelihood ``inside_likelihood``, every
+    other one 1. Unknown cells and points off the map are not obstacles (no
+    evidence).
 
 Reference
     Thrun, Burgard, Fox, *Probabilistic Robotics*, section 6.6 (map
@@ -41,23 +42,13 @@ __all__ = ["FreeSpaceOptions", "body_points", "to_map", "inside_obstacle",
 
 @dataclass(frozen=True, slots=True)
 class FreeSpaceOptions:
-    """Parameters of the free-space model."""
+    """Parameters of the free-space model (the body's size is the rover's, an argument)."""
 
-    length_cm: float = 20.0
-    """Body length, along the heading [cm]."""
-    width_cm: float = 15.0
-    """Body width [cm]."""
-    tol_cm: float | None = None
-    """How far a wall's face may lie inside its occupied cell, taken off each side of the
-    body [cm]; default half a cell."""
     inside_likelihood: float = 1e-3
     """Likelihood of a pose whose body overlaps an occupied cell, relative to one that
     does not [1] (the chance that the map's obstacle there is a phantom)."""
 
     def __post_init__(self) -> None:
-        if not (self.length_cm > 0 and self.width_cm > 0):
-            raise ValueError(f"body size must be positive, got {self.length_cm!r} x "
-                             f"{self.width_cm!r}")
         if not 0 < self.inside_likelihood <= 1:
             raise ValueError(f"inside_likelihood must be in (0, 1], got "
                              f"{self.inside_likelihood!r}")
@@ -88,20 +79,40 @@ def to_map(particles: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.nd
             particles[:, 1][:, None] + s * fx + c * fy)
 
 
+def _check_body(body_cm: tuple[float, float]) -> tuple[float, float]:
+    """``body_cm`` as (length, width) [cm], both positive.
+
+    Raises:
+        ValueError: for a size that is not two positive numbers.
+    """
+    length, width = (float(v) for v in body_cm)
+    if not (length > 0 and width > 0):
+        raise ValueError(f"body_cm must be (length, width) > 0, got {body_cm!r}")
+    return length, width
+
+
 def inside_obstacle(field: DistanceField, particles: np.ndarray,
-                    options: FreeSpaceOptions | None = None) -> np.ndarray:
-    """Whether each particle's (shrunk) body overlaps an occupied cell: bool (N,)."""
-    options = options or FreeSpaceOptions()
+                    body_cm: tuple[float, float]) -> np.ndarray:
+    """Whether each particle's body, shrunk by half a cell on each side (a wall's face
+    may lie anywhere in its occupied cell), overlaps an occupied cell: bool (N,).
+
+    Args:
+        field: the map's distance field.
+        particles: (N, 3) ``x``, ``y`` [cm], ``theta`` [rad].
+        body_cm: the rover's body (length along the heading, width) [cm].
+    """
+    length, width = _check_body(body_cm)
     res = field.resolution_cm
-    tol = 0.5 * res if options.tol_cm is None else float(options.tol_cm)
-    pts = body_points(options.length_cm, options.width_cm, tol, 0.5 * res)
+    pts = body_points(length, width, 0.5 * res, 0.5 * res)
     x, y = to_map(np.asarray(particles, dtype=float), pts)
     return field.occupied_at(x, y).any(axis=1)
 
 
 def free_space_log_likelihood(field: DistanceField, particles: np.ndarray,
+                              body_cm: tuple[float, float],
                               options: FreeSpaceOptions | None = None) -> np.ndarray:
-    """Log-likelihood (N,) of "the body is on free ground" for every particle."""
+    """Log-likelihood (N,) of "the body (``body_cm``: length, width [cm]) is on free
+    ground" for every particle."""
     options = options or FreeSpaceOptions()
-    inside = inside_obstacle(field, particles, options)
+    inside = inside_obstacle(field, particles, body_cm)
     return np.where(inside, math.log(options.inside_likelihood), 0.0)

@@ -19,18 +19,18 @@ Algorithm
     max(0, d - res / 2)`` and its likelihood ``z_hit * exp(-g**2 / (2
     sigma_hit**2)) + z_rand``. A hit on new ground (an unknown cell farther
     than ``new_ground_cm`` from every mapped obstacle: what the map has not
-    seen) reads at least ``unknown_hit``: it neither confirms nor contradicts
+    seen) reads at least ``UNKNOWN_HIT``: it neither confirms nor contradicts
     the pose. The scan's log-likelihood is the sum over at most
-    ``max_beams`` hits taken evenly along the scan (neighbouring beams are
+    ``MAX_BEAMS`` hits taken evenly along the scan (neighbouring beams are
     not independent; AMCL's ``max_beams``). Everything is vectorised over
     particles times hits.
 
     The verdict on one pose (`judge_fit`): refused when fewer than
-    ``min_points`` hits, when under ``min_judged`` of them are off new ground
+    ``MIN_POINTS`` hits, when under ``MIN_JUDGED`` of them are off new ground
     (nothing to judge by), when the mean hit term ``exp(-g**2 /
-    (2 sigma_hit**2))`` over the judged hits is under ``min_fit``
+    (2 sigma_hit**2))`` over the judged hits is under ``MIN_FIT``
     (a bad fit), or, given the belief's mean and covariance, when the pose's
-    squared Mahalanobis distance from it exceeds ``gate_chi2`` (the match
+    squared Mahalanobis distance from it exceeds ``GATE_CHI2`` (the match
     jumped further than the belief allows).
 
 Reference
@@ -54,68 +54,68 @@ import numpy as np
 
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import to_map
+from actors.firmware.mapping.scan_match import MAX_RANGE_CM, MIN_POINTS, MatchOptions
 from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_likelihood",
-           "judge_fit"]
+           "judge_fit", "MAX_BEAMS", "UNKNOWN_HIT", "MIN_JUDGED", "MIN_FIT", "GATE_CHI2"]
+
+
+# Structural constants of the likelihood and of the verdict: how many beams a particle's
+# likelihood reads (AMCL's ``max_beams``), the neutral term of a hit on new ground, and
+# the verdict's least evidence and gate. The hits used are scan matching's
+# (`scan_match.MatchOptions.min_range_cm`, `scan_match.MAX_RANGE_CM`,
+# `scan_match.MIN_POINTS`): one LIDAR, one notion of a usable hit.
+MAX_BEAMS = 60
+"""Hits taken per scan for the likelihood of particles [1]."""
+UNKNOWN_HIT = 0.5
+"""Least hit term of a hit on new ground [1]: it neither confirms nor refutes."""
+MIN_JUDGED = 0.35
+"""Share of the hits that must not be on new ground for the fit to be judged [1]."""
+MIN_FIT = 0.6
+"""Least mean hit term over the judged hits for an accepted fit [1]. In a 3 x 2 m test
+room a pose 5 cm or 3 deg off fits 0.74-0.84, 12 cm across the walls or 10 deg off under
+0.5; a shift along most walls' direction keeps their hits on them (15 cm along the long
+walls: 0.67), which only the belief's gate can refuse."""
+GATE_CHI2 = 11.34
+"""Largest squared Mahalanobis distance of a matched pose from the belief [1]: the
+chi-square 99 % point for 3 degrees of freedom (x, y, heading)."""
 
 
 @dataclass(frozen=True, slots=True)
 class ScanOptions:
-    """Parameters of the scan likelihood and of the verdict on a fit."""
+    """Noise levels of the scan likelihood (each with its unit)."""
 
     sigma_hit_cm: float = 3.0
     """Spread of a hit round the mapped face [cm] (range noise, the map's cell size and
     the scan's own blur while turning)."""
-    z_hit: float = 0.9
-    """Weight of "the hit lies on a mapped face" in the mixture [1]."""
     z_rand: float = 0.1
-    """Weight of "a hit the map does not explain" (noise, a rover, an unmapped object) [1]."""
-    unknown_hit: float = 0.5
-    """Least hit term of a hit on new ground [1]: it neither confirms nor refutes."""
+    """Weight of "a hit the map does not explain" (noise, a rover, an unmapped object) in
+    the mixture [1]; "the hit lies on a mapped face" weighs the rest (`z_hit`)."""
     new_ground_cm: float = 15.0
     """A hit on an unknown cell farther than this from every mapped obstacle is on new
     ground [cm]. Nearer, it is judged like any other: a pose that puts hits just behind
     a mapped wall (unknown cells: no ray ever crossed it) fits badly."""
-    max_beams: int = 60
-    """Hits taken per scan for the likelihood of particles [1]."""
     independent_hits: float = 10.0
     """How many independent measurements one scan counts as [1]: the hits of one scan err
     together (the pose they were stamped with, the map's cells, a scan blurred by a
     turn), so the sum of their log-likelihoods is scaled by ``independent_hits / K``.
     Counting every hit as independent makes the belief far surer than it is (its 95 %
     radius shrank under its true error)."""
-    min_range_cm: float = 12.0
-    """Nearer hits are ignored [cm] (as in scan matching)."""
-    max_range_cm: float = 600.0
-    """Farther hits, and "no return" (0), are ignored [cm]."""
-    min_points: int = 12
-    """Fewest hits a fit is judged on [1]."""
-    min_judged: float = 0.35
-    """Share of the hits that must not be on new ground for the fit to be judged [1]."""
-    min_fit: float = 0.6
-    """Least mean hit term over the judged hits for an accepted fit [1]. In a 3 x 2 m
-    test room a pose 5 cm or 3 deg off fits 0.74-0.84, 12 cm across the walls or 10 deg
-    off under 0.5; a shift along most walls' direction keeps their hits on them (15 cm
-    along the long walls: 0.67), which only the belief's gate can refuse."""
-    gate_chi2: float = 11.34
-    """Largest squared Mahalanobis distance of a matched pose from the belief [1]
-    (the chi-square 99 % point for 3 degrees of freedom)."""
 
     def __post_init__(self) -> None:
-        if not (self.sigma_hit_cm > 0 and self.z_hit > 0 and self.z_rand >= 0):
-            raise ValueError("ScanOptions needs sigma_hit_cm > 0, z_hit > 0, z_rand >= 0, got "
-                             f"{self.sigma_hit_cm!r}, {self.z_hit!r}, {self.z_rand!r}")
-        if not (self.max_beams >= 1 and self.min_points >= 1 and self.gate_chi2 > 0
-                and self.independent_hits > 0):
-            raise ValueError("ScanOptions needs max_beams, min_points >= 1, gate_chi2 > 0 "
-                             "and independent_hits > 0")
+        if not (self.sigma_hit_cm > 0 and 0 <= self.z_rand < 1):
+            raise ValueError("ScanOptions needs sigma_hit_cm > 0 and z_rand in [0, 1), got "
+                             f"{self.sigma_hit_cm!r}, {self.z_rand!r}")
+        if not self.independent_hits > 0:
+            raise ValueError(f"independent_hits must be > 0, got {self.independent_hits!r}")
         if not self.new_ground_cm >= 0:
             raise ValueError(f"new_ground_cm must be >= 0, got {self.new_ground_cm!r}")
-        for name in ("unknown_hit", "min_judged", "min_fit"):
-            v = getattr(self, name)
-            if not 0.0 <= v <= 1.0:
-                raise ValueError(f"ScanOptions.{name} must be within 0..1, got {v!r}")
+
+    @property
+    def z_hit(self) -> float:
+        """Weight of "the hit lies on a mapped face" in the mixture: ``1 - z_rand`` [1]."""
+        return 1.0 - self.z_rand
 
 
 class FitVerdict(Enum):
@@ -152,23 +152,25 @@ class ScanFit:
 
 
 def hits_to_points(angles_deg: np.ndarray, ranges_cm: np.ndarray,
-                   options: ScanOptions | None = None) -> np.ndarray:
+                   match: MatchOptions | None = None) -> np.ndarray:
     """The usable hits of a scan in the rover frame: (K, 2) forward, left [cm].
 
     Args:
         angles_deg: ray angles, counter-clockwise from the heading [deg], (n,).
         ranges_cm: ranges [cm], (n,); 0 is "no return".
+        match: scan matching's quantities: hits nearer than its ``min_range_cm`` or
+            farther than `scan_match.MAX_RANGE_CM` are not used.
 
     Raises:
         ValueError: when the arrays are not 1-D of one length.
     """
-    o = options or ScanOptions()
+    o = match or MatchOptions()
     a = np.asarray(angles_deg, dtype=float)
     r = np.asarray(ranges_cm, dtype=float)
     if a.ndim != 1 or a.shape != r.shape:
         raise ValueError(f"angles_deg and ranges_cm must be 1-D of one length, got "
                          f"{a.shape} and {r.shape}")
-    keep = np.isfinite(a) & np.isfinite(r) & (r >= o.min_range_cm) & (r <= o.max_range_cm)
+    keep = np.isfinite(a) & np.isfinite(r) & (r >= o.min_range_cm) & (r <= MAX_RANGE_CM)
     t = np.radians(a[keep])
     return np.column_stack([r[keep] * np.cos(t), r[keep] * np.sin(t)])
 
@@ -205,12 +207,12 @@ def scan_log_likelihood(field: DistanceField, particles: np.ndarray, points: np.
     """
     o = options or ScanOptions()
     p = np.asarray(particles, dtype=float)
-    pts = _beams(np.asarray(points, dtype=float).reshape(-1, 2), o.max_beams)
+    pts = _beams(np.asarray(points, dtype=float).reshape(-1, 2), MAX_BEAMS)
     if pts.shape[0] == 0:
         return np.zeros(p.shape[0])
     x, y = to_map(p, pts)
     term, judged = _hit_terms(field, x, y, o)
-    term = np.where(judged, term, np.maximum(term, o.unknown_hit))
+    term = np.where(judged, term, np.maximum(term, UNKNOWN_HIT))
     scale = min(1.0, o.independent_hits / pts.shape[0])
     return scale * np.log(o.z_hit * term + o.z_rand).sum(axis=1)
 
@@ -227,7 +229,7 @@ def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
         options: the model's parameters.
         belief_pose, belief_covariance: the belief's mean and 3 x 3 covariance of
             (x [cm], y [cm], heading [rad]) (`belief.Spread`); with them, a pose beyond
-            ``gate_chi2`` is refused. A floor of 1 cm and 1 deg is added to the
+            ``GATE_CHI2`` is refused. A floor of 1 cm and 1 deg is added to the
             covariance (a collapsed belief must still accept its own mean).
     """
     o = options or ScanOptions()
@@ -240,18 +242,18 @@ def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
         cov = np.asarray(belief_covariance, dtype=float) + np.diag(
             [1.0, 1.0, math.radians(1.0) ** 2])
         d2 = float(e @ np.linalg.solve(cov, e))
-    if n < o.min_points:
+    if n < MIN_POINTS:
         return ScanFit(FitVerdict.TOO_FEW_HITS, 0.0, 0.0, n, d2)
     one = np.array([[pose.x, pose.y, pose.heading_rad]])
     x, y = to_map(one, pts)
     term, judged = _hit_terms(field, x[0], y[0], o)
     judged_share = float(judged.mean())
     fit = float(term[judged].mean()) if judged.any() else 0.0
-    if judged_share < o.min_judged:
+    if judged_share < MIN_JUDGED:
         verdict = FitVerdict.NEW_GROUND
-    elif fit < o.min_fit:
+    elif fit < MIN_FIT:
         verdict = FitVerdict.BAD_FIT
-    elif d2 is not None and d2 > o.gate_chi2:
+    elif d2 is not None and d2 > GATE_CHI2:
         verdict = FitVerdict.OUTSIDE_BELIEF
     else:
         verdict = FitVerdict.ACCEPTED

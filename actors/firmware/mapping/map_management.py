@@ -58,10 +58,10 @@ from actors.firmware.drivers.lidar import Scan
 from actors.firmware.handles import post
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import (
+    BLUR_WIDE,
     MatchFields,
     MatchOptions,
     MatchResult,
-    RelocaliseOptions,
     hits_to_local,
     match_scan,
     relocalise,
@@ -303,7 +303,7 @@ class MapManagement(Actor):
             return None
         self._relocalise_at = now
         pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
-        wide = relocalise(fields, pts, guess, opts, RelocaliseOptions(turn_deg=self._lost_deg))
+        wide = relocalise(fields, pts, guess, opts, turn_deg=self._lost_deg)
         if not wide.accepted:
             self.lost_scans += 1
             return None
@@ -361,17 +361,17 @@ class MapManagement(Actor):
         rows = np.flatnonzero(occupied.any(axis=1))
         res = grid.resolution_cm
         if rows.size == 0:
-            self._fields = MatchFields(occupied[:1, :1], grid.origin_cm, res, opts)
+            self._fields = MatchFields(occupied[:1, :1], grid.origin_cm, res)
         else:
             cols = np.flatnonzero(occupied.any(axis=0))
-            k = opts.blur_wide + 2
+            k = BLUR_WIDE + 2
             r0, r1 = max(0, int(rows[0]) - k), int(rows[-1]) + k + 1
             c0, c1 = max(0, int(cols[0]) - k), int(cols[-1]) + k + 1
             near_occ = _max3(occupied[r0:r1, c0:c1].astype(np.float32)) > 0
             hits = np.where(near_occ, grid.hit_counts()[r0:r1, c0:c1], 0.0)
             weights = hits / np.maximum(_max3(hits), 1.0)
             origin = (grid.origin_cm[0] + c0 * res, grid.origin_cm[1] + r0 * res)
-            self._fields = MatchFields(weights, origin, res, opts)
+            self._fields = MatchFields(weights, origin, res)
         self._fields_at = now
         self._fields_stale = False
 

@@ -35,48 +35,60 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from actors.firmware.mapping.occupancy import LogOddsModel
 from server.protocol.pose import Pose
 
 __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",
-           "match_scan", "RelocaliseOptions", "relocalise"]
+           "match_scan", "RelocaliseOptions", "relocalise", "ITERATIONS", "BLUR_WIDE",
+           "BLUR_NARROW", "DAMPING", "MIN_POINTS", "MIN_SUPPORT", "MAX_RANGE_CM",
+           "RELOCALISE_TURN_DEG", "RELOCALISE_STEP_DEG", "RELOCALISE_MIN_SCORE",
+           "RELOCALISE_MIN_SUPPORT", "RELOCALISE_MARGIN"]
+
+
+# Structural constants of the Gauss-Newton registration and of its verdict: the solver's
+# iteration count, blur passes and damping, and the least evidence a scan must bring; no
+# rover team tunes these, and a different rover changes none of them.
+ITERATIONS = 4
+"""Gauss-Newton iterations per blur level."""
+BLUR_WIDE = 4
+"""Passes of the [1, 2, 1] blur for the first (wide basin) level: a basin of about three
+cells."""
+BLUR_NARROW = 1
+"""Passes of the [1, 2, 1] blur for the final level."""
+DAMPING = 0.05
+"""Levenberg damping, relative to the diagonal of the normal matrix."""
+MIN_POINTS = 12
+"""Fewest hits a scan needs to be matched."""
+MIN_SUPPORT = 0.35
+"""Share of the hits that must land on mapped obstacles (narrow field > 0.25) at the guess
+or at the result: a scan of a part of the room never seen is not matched."""
+MAX_RANGE_CM = LogOddsModel().max_range_cm
+"""Hits farther than this are ignored [cm]: the occupancy model's ``max_range_cm``, beyond
+which a return is too uncertain to mark (600 cm)."""
 
 
 @dataclass(frozen=True, slots=True)
 class MatchOptions:
-    """Tunables of `match_scan`."""
+    """Physical quantities of `match_scan`."""
 
-    iterations: int = 4
-    """Gauss-Newton iterations per blur level."""
-    blur_wide: int = 4
-    """Passes of the [1, 2, 1] blur for the first (wide basin) level."""
-    blur_narrow: int = 1
-    """Passes of the [1, 2, 1] blur for the final level."""
     max_shift_cm: float = 12.0
     """Largest accepted correction of the position [cm]."""
     max_turn_deg: float = 6.0
     """Largest accepted correction of the heading [deg]."""
-    min_points: int = 12
-    """Fewest hits a scan needs to be matched."""
-    min_support: float = 0.35
-    """Share of the hits that must land on mapped obstacles (narrow field > 0.25) at the
-    guess or at the result: a scan of a part of the room never seen is not matched."""
     min_range_cm: float = 12.0
     """Hits nearer than this are ignored [cm] (too close to tell direction well)."""
-    max_range_cm: float = 600.0
-    """Hits farther than this are ignored [cm] (as in the occupancy model)."""
-    damping: float = 0.05
-    """Levenberg damping, relative to the diagonal of the normal matrix."""
     prior_per_point: float = 2e-4
     """Pull toward the guess per hit [1/cm^2] (heading: times the hits' mean square range):
     a direction the scan does not constrain (along one straight wall) stays where dead
     reckoning put it instead of sliding on noise."""
 
     def __post_init__(self) -> None:
-        if self.iterations < 1 or self.blur_wide < 0 or self.blur_narrow < 0:
-            raise ValueError(f"iterations must be >= 1 and blurs >= 0, got {self.iterations}, "
-                             f"{self.blur_wide}, {self.blur_narrow}")
-        if not (self.max_shift_cm > 0 and self.max_turn_deg > 0 and self.min_points >= 3):
-            raise ValueError("max_shift_cm and max_turn_deg must be > 0 and min_points >= 3")
+        if not (self.max_shift_cm > 0 and self.max_turn_deg > 0):
+            raise ValueError(f"max_shift_cm and max_turn_deg must be > 0, got "
+                             f"{self.max_shift_cm!r}, {self.max_turn_deg!r}")
+        if not (self.min_range_cm >= 0 and self.prior_per_point >= 0):
+            raise ValueError(f"min_range_cm and prior_per_point must be >= 0, got "
+                             f"{self.min_range_cm!r}, {self.prior_per_point!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -190,7 +202,7 @@ def hits_to_local(angles_deg: np.ndarray, ranges_cm: np.ndarray, options: MatchO
     """Hits usable for matching as points (n, 2) in the rover frame [cm]."""
     r = np.asarray(ranges_cm, dtype=np.float64)
     a = np.radians(np.asarray(angles_deg, dtype=np.float64))
-    keep = (r >= options.min_range_cm) & (r <= options.max_range_cm)
+    keep = (r >= options.min_range_cm) & (r <= MAX_RANGE_CM)
     r, a = r[keep], a[keep]
     return np.column_stack([r * np.cos(a), r * np.sin(a)])
 
@@ -262,17 +274,15 @@ class MatchFields:
             fine).
         origin_cm: lower-left corner of ``occupied``'s cell [0, 0] [cm].
         resolution_cm: cell side [cm].
-        options: blur widths.
     """
 
     def __init__(self, occupied: np.ndarray, origin_cm: tuple[float, float],
-                 resolution_cm: float, options: MatchOptions | None = None) -> None:
-        o = options or MatchOptions()
+                 resolution_cm: float) -> None:
         occ = np.asarray(occupied, dtype=np.float64)
         self.empty = not occ.any()
         """True when the map has no obstacle to match against."""
-        self.wide = OccupancyField(occ, origin_cm, resolution_cm, o.blur_wide)
-        self.narrow = OccupancyField(occ, origin_cm, resolution_cm, o.blur_narrow)
+        self.wide = OccupancyField(occ, origin_cm, resolution_cm, BLUR_WIDE)
+        self.narrow = OccupancyField(occ, origin_cm, resolution_cm, BLUR_NARROW)
 
 
 def _score(fields: MatchFields, hom: np.ndarray, x: float, y: float, theta: float
@@ -296,8 +306,8 @@ def _prior(pts: np.ndarray, o: MatchOptions) -> np.ndarray:
 def _fit(fields: MatchFields, hom: np.ndarray, start: np.ndarray, prior: np.ndarray,
          o: MatchOptions) -> tuple[np.ndarray, float, float]:
     """Gauss-Newton from ``start`` (wide, then narrow); the pose, its score and support."""
-    est = _gauss_newton(fields.wide, hom, start, start, o.iterations, o.damping, prior)
-    est = _gauss_newton(fields.narrow, hom, est, start, o.iterations, o.damping, prior)
+    est = _gauss_newton(fields.wide, hom, start, start, ITERATIONS, DAMPING, prior)
+    est = _gauss_newton(fields.narrow, hom, est, start, ITERATIONS, DAMPING, prior)
     return (est, *_score(fields, hom, est[0], est[1], est[2]))
 
 
@@ -316,8 +326,8 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
     """
     o = options or MatchOptions()
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    if len(pts) < o.min_points:
-        return MatchResult(guess, False, 0.0, 0.0, f"{len(pts)} hits, need {o.min_points}")
+    if len(pts) < MIN_POINTS:
+        return MatchResult(guess, False, 0.0, 0.0, f"{len(pts)} hits, need {MIN_POINTS}")
     if fields.empty:
         return MatchResult(guess, False, 0.0, 0.0, "no mapped obstacle to match against")
     theta0 = guess.heading_rad
@@ -327,7 +337,7 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
     est, score1, support1 = _fit(fields, hom, start, _prior(pts, o), o)
     shift = math.hypot(est[0] - guess.x, est[1] - guess.y)
     turn = abs(math.degrees(est[2] - theta0))
-    if max(support0, support1) < o.min_support:
+    if max(support0, support1) < MIN_SUPPORT:
         return MatchResult(guess, False, score0, score0,
                            f"only {max(support0, support1):.0%} of the hits on mapped obstacles")
     if shift > o.max_shift_cm or turn > o.max_turn_deg:
@@ -340,43 +350,53 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
                        score0, score1, "", True)
 
 
+# The search of `relocalise` and its verdict: the fan of starting headings (within the
+# wide field's basin of each other) and how clearly the winner must win; structural, like
+# the solver's constants above.
+RELOCALISE_TURN_DEG = 24.0
+"""Search headings up to this far either side of the guess by default [deg]; a lost pose
+(`map_management`) searches as far as navigation says the heading may be off."""
+RELOCALISE_STEP_DEG = 3.0
+"""Between the headings tried [deg] (within the wide field's basin of each other)."""
+RELOCALISE_MIN_SCORE = 0.45
+"""The winner's mean narrow-field value at the hits must reach this..."""
+RELOCALISE_MIN_SUPPORT = 0.6
+"""...and this share of its hits must land on mapped obstacles..."""
+RELOCALISE_MARGIN = 0.08
+"""...and it must beat the guess, and any other fit more than 2 ``RELOCALISE_STEP_DEG``
+away in heading, by this much (an ambiguous view, such as a round wall, is not
+re-localised)."""
+
+
 @dataclass(frozen=True, slots=True)
 class RelocaliseOptions:
-    """Tunables of `relocalise`."""
+    """Physical quantities of `relocalise`."""
 
-    turn_deg: float = 24.0
-    """Search headings up to this far either side of the guess [deg]."""
-    step_deg: float = 3.0
-    """Between the headings tried [deg] (within the wide field's basin of each other)."""
     max_shift_cm: float = 40.0
     """Largest accepted correction of the position [cm]."""
-    min_score: float = 0.45
-    """The winner's mean narrow-field value at the hits must reach this."""
-    min_support: float = 0.6
-    """...and this share of its hits must land on mapped obstacles."""
-    margin: float = 0.08
-    """...and it must beat the guess, and any other fit more than 2 ``step_deg`` away in
-    heading, by this much (an ambiguous view, such as a round wall, is not re-localised)."""
 
 
 def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
                options: MatchOptions | None = None,
-               search: RelocaliseOptions | None = None) -> MatchResult:
+               search: RelocaliseOptions | None = None, *,
+               turn_deg: float = RELOCALISE_TURN_DEG) -> MatchResult:
     """A wider search than `match_scan`, for a pose odometry has lost (a stuck or slipping
     encoder turned the rover where dead reckoning did not, or the other way round).
 
     Why: `match_scan` refuses corrections over ``max_turn_deg``, so once the heading is
     further off every batch that sees the map is dropped and the pose never comes back.
-    Here Gauss-Newton starts from headings every ``step_deg`` within ``turn_deg`` of the
-    guess; the best fit is accepted only when it is good in itself, clearly better than
-    the guess, and unambiguous (see `RelocaliseOptions`). Use it while the rover stands.
+    Here Gauss-Newton starts from headings every ``RELOCALISE_STEP_DEG`` within
+    ``turn_deg`` of the guess; the best fit is accepted only when it is good in itself,
+    clearly better than the guess, and unambiguous (``RELOCALISE_MIN_SCORE``,
+    ``RELOCALISE_MIN_SUPPORT``, ``RELOCALISE_MARGIN``). Use it while the rover stands.
 
     Args:
         fields: the map's fields.
         points: hits in the rover frame, (n, 2) [cm].
         guess: dead reckoning's pose (map frame).
-        options: matching tunables (iterations, blur, prior).
-        search: the search's tunables.
+        options: matching's quantities (the hits' range, the prior).
+        search: the search's quantities.
+        turn_deg: search headings up to this far either side of the guess [deg].
 
     Returns:
         The re-localised pose (accepted), or the guess with the reason it was refused.
@@ -384,16 +404,16 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     o = options or MatchOptions()
     r = search or RelocaliseOptions()
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    if len(pts) < o.min_points or fields.empty:
+    if len(pts) < MIN_POINTS or fields.empty:
         return MatchResult(guess, False, 0.0, 0.0, "too few hits or nothing mapped")
     theta0 = guess.heading_rad
     hom = _homogeneous(pts)
     score0, _ = _score(fields, hom, guess.x, guess.y, theta0)
     prior = _prior(pts, o)
-    n = int(r.turn_deg // r.step_deg)
+    n = int(turn_deg // RELOCALISE_STEP_DEG)
     fits = []
     for k in range(-n, n + 1):
-        start = np.array([guess.x, guess.y, theta0 + math.radians(k * r.step_deg)])
+        start = np.array([guess.x, guess.y, theta0 + math.radians(k * RELOCALISE_STEP_DEG)])
         est, score, support = _fit(fields, hom, start, prior, o)
         if math.hypot(est[0] - guess.x, est[1] - guess.y) <= r.max_shift_cm:
             fits.append((score, support, est))
@@ -403,12 +423,12 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     # the pull toward each start biases its fit: polish the winner from where it ended
     est, score, support = _fit(fields, hom, est, prior, o)
     rivals = [f[0] for f in fits
-              if abs(math.degrees(f[2][2] - est[2])) > 2.0 * r.step_deg]
+              if abs(math.degrees(f[2][2] - est[2])) > 2.0 * RELOCALISE_STEP_DEG]
     rival = max(rivals, default=0.0)
-    if score < r.min_score or support < r.min_support:
+    if score < RELOCALISE_MIN_SCORE or support < RELOCALISE_MIN_SUPPORT:
         return MatchResult(guess, False, score0, score0,
                            f"best fit too weak ({score:.2f}, {support:.0%} on obstacles)", True)
-    if score < score0 + r.margin or score < rival + r.margin:
+    if score < score0 + RELOCALISE_MARGIN or score < rival + RELOCALISE_MARGIN:
         return MatchResult(guess, False, score0, score0,
                            f"ambiguous ({score:.2f} against {max(score0, rival):.2f})", True)
     return MatchResult(Pose(float(est[0]), float(est[1]), math.degrees(est[2])), True,

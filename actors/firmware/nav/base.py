@@ -56,7 +56,24 @@ from server.protocol import Frame, FrameError, make_frame, read_data
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import ZERO_POSE, Pose, compose
 
-__all__ = ["NavBase"]
+__all__ = ["NavBase", "POSE_REPORT_TICKS", "MOTION_TIMEOUT_S", "POSE_WAIT_S", "SEND_TIMEOUT_S",
+           "OUTBOX"]
+
+# Fixed timings and bounds of the ADP loop's messaging: what the firmware's queues and
+# links need, not properties of the rover.
+POSE_REPORT_TICKS = 3
+"""``pose`` telemetry to the server goes every this many ticks (``NavOptions.tick_s``):
+every 0.75 s, about 1.3 Hz."""
+MOTION_TIMEOUT_S = 4.0
+"""A motion reporting nothing after this plus its nominal duration is stopped [s]: a
+watchdog on Motor Control, which reports every motion's end itself."""
+POSE_WAIT_S = 0.3
+"""How long to wait for the pose at rest after a motion [s] (Motor Control answers within
+a control period or two)."""
+SEND_TIMEOUT_S = 1.0
+"""Longest wait for room in a neighbour's mailbox [s]."""
+OUTBOX = 16
+"""Reports waiting for room in the pool or WiFly's mailbox, at most."""
 
 
 class NavBase(TreadFaults, Actor):
@@ -91,8 +108,8 @@ class NavBase(TreadFaults, Actor):
         length = spec.length_cm if spec else 20.0
         width = spec.width_cm if spec else 15.0
         self.length_cm, self.width_cm = length, width
-        self.radius_cm = (self.o.robot_radius_cm if self.o.robot_radius_cm is not None
-                          else turning_radius_cm(length, width))
+        self.radius_cm = turning_radius_cm(length, width)
+        """Turning radius for planning [cm]: the body's half-diagonal."""
         self.pose: Pose = ZERO_POSE
         """Dead-reckoned pose, own frame (from Motor Control)."""
         self.pose_known = False
@@ -246,7 +263,7 @@ class NavBase(TreadFaults, Actor):
         self.counters["motions"] += 1
         nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \
             else abs(motion.amount) / 90.0
-        self._motion_deadline = trio.current_time() + self.o.motion_timeout_s + nominal
+        self._motion_deadline = trio.current_time() + MOTION_TIMEOUT_S + nominal
         if not await self.post(self.motor, Message.float(code, float(motion.amount))):
             self._motion_deadline = trio.current_time()  # the tick treats it as blocked
 
@@ -267,7 +284,7 @@ class NavBase(TreadFaults, Actor):
         if blocked:
             self.counters["blocked"] += 1
             self._blocked_t = trio.current_time()
-        self._pose_deadline = trio.current_time() + self.o.pose_wait_s
+        self._pose_deadline = trio.current_time() + POSE_WAIT_S
         await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
 
     async def after_motion(self, blocked: bool, done: float) -> None:
@@ -279,7 +296,7 @@ class NavBase(TreadFaults, Actor):
         if self._hold_until < math.inf:
             if now >= self._hold_until:  # the hold is over: decide again from the pose at rest
                 self._hold_until = math.inf
-                self._pose_deadline = now + self.o.pose_wait_s
+                self._pose_deadline = now + POSE_WAIT_S
                 await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
         elif self._motion is not None and now >= self._motion_deadline:
             self.counters["timeouts"] += 1
@@ -287,7 +304,7 @@ class NavBase(TreadFaults, Actor):
             self._motion = None
             self._motion_deadline = math.inf
             self._blocked, self._done = True, 0.0
-            self._pose_deadline = now + self.o.pose_wait_s
+            self._pose_deadline = now + POSE_WAIT_S
             await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
         elif self._motion is None and now >= self._pose_deadline:
             self._pose_deadline = math.inf  # no fresh pose: decide with the last one
@@ -296,7 +313,7 @@ class NavBase(TreadFaults, Actor):
             await self._flush_outbox()
         if now >= self._next_pose_report and self.pose_known and (
                 self.origin is not None or self.role == "mapper"):
-            self._next_pose_report = now + self.o.pose_period_s
+            self._next_pose_report = now + POSE_REPORT_TICKS * self.o.tick_s
             p = self.map_pose
             await self.send_frame(make_frame("pose", {"x": round(p.x, 1), "y": round(p.y, 1),
                                                       "heading": round(p.heading_deg, 1)}),
@@ -400,7 +417,7 @@ class NavBase(TreadFaults, Actor):
         return self._queue(Cmd.WIFLY_SEND_MAP, grid)
 
     def _queue(self, code: int, obj: Any) -> bool:
-        if len(self._outbox) >= self.o.outbox:
+        if len(self._outbox) >= OUTBOX:
             self.counters["dropped"] += 1
             return False
         self._outbox.append((code, obj))
@@ -426,8 +443,8 @@ class NavBase(TreadFaults, Actor):
         return False
 
     async def post(self, name: str, message: Message) -> bool:
-        """Send to a neighbour, waiting at most ``send_timeout_s`` for room; False if not sent."""
-        with trio.move_on_after(self.o.send_timeout_s):
+        """Send to a neighbour, waiting at most ``SEND_TIMEOUT_S`` for room; False if not sent."""
+        with trio.move_on_after(SEND_TIMEOUT_S):
             if await self.ctx.cast(name, message):
                 return True
         self.counters["dropped"] += 1

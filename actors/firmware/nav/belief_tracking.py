@@ -49,10 +49,7 @@ from actors.firmware.localisation.contact_model import (
     contact_log_likelihood,
 )
 from actors.firmware.localisation.distance_field import DistanceField
-from actors.firmware.localisation.free_space_model import (
-    FreeSpaceOptions,
-    free_space_log_likelihood,
-)
+from actors.firmware.localisation.free_space_model import free_space_log_likelihood
 from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
@@ -146,8 +143,8 @@ class BeliefTracking:
             return  # nothing moved: the free-space evidence is in already
         field = self._distance_field()
         if field is not None:
-            free = FreeSpaceOptions(self.length_cm, self.width_cm)
-            self.belief.update(free_space_log_likelihood(field, self.belief.particles, free),
+            body = (self.length_cm, self.width_cm)
+            self.belief.update(free_space_log_likelihood(field, self.belief.particles, body),
                                self._rng)
             self._spread = None
         self._sync_origin()
@@ -225,13 +222,13 @@ class BeliefTracking:
         before = self.map_pose
         direction = 1 if m.amount > 0 else -1
         side = stalled_side(angle_diff_deg(before.heading_deg, start.heading_deg), direction)
-        o = ContactOptions(self.length_cm, self.width_cm)
+        o, body = ContactOptions(), (self.length_cm, self.width_cm)
         particles = self.belief.particles
-        gap = contact_gap_cm(field, particles, direction, side, o)
+        gap = contact_gap_cm(field, particles, body, direction, side)
         touch = float(self.belief.weights @ np.exp(-0.5 * (gap / o.sigma_cm) ** 2))
         if touch <= o.unmapped_weight:
             return False  # the walls explain the stop worse than something unmapped
-        self.belief.update(contact_log_likelihood(field, particles, direction, side, o),
+        self.belief.update(contact_log_likelihood(field, particles, body, direction, side, o),
                            self._rng)
         self._spread = None
         _ = self.spread  # a contact may leave several hypotheses: count them

@@ -17,7 +17,7 @@ Obstacles ahead
     stop_cm`` ahead on the map: the move is shortened to stop ``stop_cm``
     (20 cm: inside the seed's 15-30 cm) before the obstacle, and when that
     leaves nothing to drive the rover turns away from it and chooses again;
-    after ``obstacle_turns`` such turns toward one target without a move between,
+    after ``OBSTACLE_TURNS`` such turns toward one target without a move between,
     the target is blacklisted (the route passes where the rover will not drive).
 """
 
@@ -35,7 +35,44 @@ from actors.firmware.planning.clearance import obstacle_ahead
 from actors.firmware.planning.frontier import Frontier, choose_frontier, find_frontiers
 from server.protocol.grid_map import UNKNOWN
 
-__all__ = ["Exploration", "ExplorationState"]
+__all__ = ["Exploration", "ExplorationState", "MIN_FRONTIER_CELLS", "RECHOOSE_STEPS",
+           "OBSTACLE_TURNS", "MAX_CHOICES", "BLACKLIST", "TRIP_MAX_S", "FUTILE_TRIPS",
+           "MIN_GAIN_CELLS", "MIN_GAIN_SHARE", "FUTILE_MIN_CELLS", "FUTILE_OPEN_SHARE"]
+
+# Counts, bounds and shares of frontier exploration and of the futile-trip rule: how the
+# algorithm chooses and when it stops looking, fixed here beside it; the distances a rover
+# keeps are `MappingOptions`.
+MIN_FRONTIER_CELLS = 6
+"""Smallest useful frontier [cells] (30 cm of 5 cm cells)."""
+RECHOOSE_STEPS = 3
+"""Re-choose the frontier after this many ADP steps (the map grew meanwhile)."""
+OBSTACLE_TURNS = 3
+"""Turns away from an obstacle toward one target with no move between them before the
+target is blacklisted (the route passes where the rover will not drive)."""
+MAX_CHOICES = 8
+"""Frontiers tried per decision before waiting for the map to change."""
+BLACKLIST = 256
+"""Most blacklisted points kept."""
+TRIP_MAX_S = 90.0
+"""A trip also ends after this long [s] (a rover switching frontiers on the way never
+reaches a target)."""
+FUTILE_TRIPS = 4
+"""After this many trips in a row (each until its target was reached or given up) that
+revealed fewer than the least gain (`MIN_GAIN_CELLS`, `MIN_GAIN_SHARE`) each on average,
+the frontiers left are not worth visiting (pockets behind furniture, noise at edges):
+exploration treats them as not useful, and completion may follow."""
+MIN_GAIN_CELLS = 30
+"""A trip that made fewer cells known than this was futile [cells]..."""
+MIN_GAIN_SHARE = 0.003
+"""...or fewer than this share of the cells already known (a big hall's ragged far edges
+give a few dozen cells per visit for ever). Counted per visit, not per minute: crossing a
+big hall to a far frontier reveals nothing for a while."""
+FUTILE_MIN_CELLS = 16
+"""After futile trips, frontiers at least this long still count as useful [cells]: a big
+room's far part, one long frontier, stays worth a visit after visits to small pockets."""
+FUTILE_OPEN_SHARE = 0.5
+"""...and at least this share of their cells in the open (no obstacle within 30 cm): a
+ragged edge along a wall or a pocket behind furniture is long too."""
 
 
 @dataclass
@@ -93,7 +130,7 @@ class Exploration:
         ex = self.ex
         pose = self.map_pose
         if ex.trip_known is not None and trio.current_time() - ex.trip_started >= \
-                self.m.trip_max_s:
+                TRIP_MAX_S:
             # a rover that keeps switching to new frontiers on the way never ends a trip
             # (trips of ten minutes in a furnished room): count it as a visit, go on
             self._end_trip()
@@ -101,7 +138,7 @@ class Exploration:
         if ex.follower is not None and ex.steps >= ex.budget:
             self._blacklist(ex.target)  # no progress worth the route
             ex.follower = None
-        if ex.follower is None or ex.steps % self.m.rechoose_steps == 0:
+        if ex.follower is None or ex.steps % RECHOOSE_STEPS == 0:
             if not self._choose(keep=ex.follower is not None):
                 return
         assert ex.follower is not None
@@ -127,7 +164,7 @@ class Exploration:
 
     def _turned_away(self) -> bool:
         """Count a turn away from an obstacle; True (target blacklisted, decide again
-        at the next tick) after ``obstacle_turns`` toward one target without a move.
+        at the next tick) after ``OBSTACLE_TURNS`` toward one target without a move.
 
         Why: the route (planned with the narrowest clearance tier) can pass where the
         obstacle check refuses to drive; the rover then turned toward the route, was
@@ -141,7 +178,7 @@ class Exploration:
             ex.turned_away += 1
         else:
             ex.turned_away, ex.turned_target = 1, ex.target
-        if ex.turned_away < self.m.obstacle_turns:
+        if ex.turned_away < OBSTACLE_TURNS:
             return False
         ex.turned_away, ex.turned_target = 0, None
         self._blacklist(ex.target)
@@ -170,15 +207,15 @@ class Exploration:
         # after futile visits only long frontiers in the open still count (what an obstacle
         # hid in a big room), and each is blacklisted once reached (below), so this ends
         futile = self._futile()
-        min_size = self.m.futile_min_cells if futile else self.m.min_frontier_cells
+        min_size = FUTILE_MIN_CELLS if futile else MIN_FRONTIER_CELLS
         # reachability with the narrowest tier the rover can drive (a corridor barely wider
         # than the body); the route itself tries the roomier tiers first
         radius, margin = self._tiers()[-1]
         frontiers = find_frontiers(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
                                    margin_cm=margin, approach_cm=self.m.approach_cm)
         if futile:
-            frontiers = [f for f in frontiers if f.open_share >= self.m.futile_open_share]
-        for _ in range(self.m.max_choices):
+            frontiers = [f for f in frontiers if f.open_share >= FUTILE_OPEN_SHARE]
+        for _ in range(MAX_CHOICES):
             f = choose_frontier(frontiers, min_size_cells=min_size,
                                 blacklist=ex.blacklist, blacklist_radius_cm=self.m.approach_cm)
             if f is None:
@@ -215,19 +252,19 @@ class Exploration:
         return out
 
     def _min_gain(self, known: int) -> float:
-        return max(self.m.min_gain_cells, self.m.min_gain_share * known)
+        return max(MIN_GAIN_CELLS, MIN_GAIN_SHARE * known)
 
     def _futile(self) -> bool:
-        """Whether the last ``futile_trips`` visits together revealed too little to go on.
+        """Whether the last ``FUTILE_TRIPS`` visits together revealed too little to go on.
 
         Judged on their sum (a running window), not on each: one visit just above the
         limit among small ones would start the count over, and mapping would go on for
         90-s trips gaining 21, 7, 4 and 34 cells (limit 32)."""
         g = self.ex.gains
-        if len(g) < self.m.futile_trips:
+        if len(g) < FUTILE_TRIPS:
             return False
         least = self._min_gain(self._known() if self.grid is not None else 0)
-        return sum(g[-self.m.futile_trips:]) < least * self.m.futile_trips
+        return sum(g[-FUTILE_TRIPS:]) < least * FUTILE_TRIPS
 
     def _known(self) -> int:
         assert self.grid is not None
@@ -263,7 +300,7 @@ class Exploration:
         ex = self.ex
         if ex.trip_known is not None and self.grid is not None:
             ex.gains.append(self._known() - ex.trip_known)
-            del ex.gains[:-self.m.futile_trips]
+            del ex.gains[:-FUTILE_TRIPS]
         ex.trip_known = None
 
     def _blacklist(self, point: tuple[float, float] | None) -> None:
@@ -273,6 +310,6 @@ class Exploration:
             self._end_trip()
         bl = self.ex.blacklist
         bl.append(point)
-        if len(bl) > self.m.blacklist:
+        if len(bl) > BLACKLIST:
             del bl[0]
 

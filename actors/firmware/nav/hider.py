@@ -21,8 +21,8 @@ Near enough
     0.0 cm from the spot" on a smeared map). And a
     hider that reached its spot's surroundings may be stopped a few cm short by
     its own dead-reckoning error. Neither must end the game unhidden. A spot that
-    does not fit moves to the nearest place within ``spot_shift_cm`` that does
-    (and can be planned to); a hider blocked for good within ``hide_near_cm`` of
+    does not fit moves to the nearest place within ``hide_within_cm`` that does
+    (and can be planned to); a hider blocked for good within ``hide_within_cm`` of
     its spot, with nothing mapped between, hides where it stands. Either way
     ``arrived`` carries where the hider believes it stopped, as always, so the
     server knows; 30 cm is half the seeker's IR reach (60 cm), so a seeker at the
@@ -58,12 +58,12 @@ class HidingNav(RouteNav):
                           self.length_cm, self.width_cm, self.o.spot_margin_cm)
 
     def near_spots(self, x: float, y: float, heading: float | None) -> list[tuple[float, float]]:
-        """Places within ``spot_shift_cm`` of (x, y) where the rover fits: the nearest ring
+        """Places within ``hide_within_cm`` of (x, y) where the rover fits: the nearest ring
         first (every ``_SHIFT_STEP_CM``), on a ring the place nearest the rover first."""
         out: list[tuple[float, float]] = []
         here = (self.map_pose.x, self.map_pose.y)
         r = _SHIFT_STEP_CM
-        while r <= self.o.spot_shift_cm + 1e-9:
+        while r <= self.o.hide_within_cm + 1e-9:
             ring = []
             for k in range(_SHIFT_BEARINGS):
                 a = 2.0 * math.pi * k / _SHIFT_BEARINGS
@@ -105,13 +105,13 @@ class HidingNav(RouteNav):
         await self.set_state("hidden", detail)
 
     def near_enough(self) -> bool:
-        """Within ``hide_near_cm`` of the goal by dead reckoning, and no occupied cell of
+        """Within ``hide_within_cm`` of the goal by dead reckoning, and no occupied cell of
         the map on the line between (a spot behind a wall is not near)."""
         if self.goal is None or self.map is None:
             return False
         p = self.map_pose
         d = math.dist((p.x, p.y), self.goal)
-        if d > self.o.hide_near_cm:
+        if d > self.o.hide_within_cm:
             return False
         grid = self.map
         gx, gy = self.goal

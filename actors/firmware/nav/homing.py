@@ -5,7 +5,7 @@ Homing
     hider needs (a corridor barely wider than a rover: the hider pushes it and
     gives up). So when mapping completes by itself, the mapper first drives
     back to its start pose, the LIDAR still scanning (scan matching keeps its
-    pose honest), bounded by ``home_budget_s`` and ``home_blocks``; then it
+    pose honest), bounded by ``home_budget_s`` and ``HOME_BLOCKS``; then it
     uploads. A stop from the server or the time budget uploads at once.
 """
 
@@ -16,7 +16,10 @@ import math
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
 
-__all__ = ["Homing"]
+__all__ = ["Homing", "HOME_BLOCKS"]
+
+HOME_BLOCKS = 3
+"""Blocked motions on the way home before uploading from where the rover is (a bound)."""
 
 
 class Homing:
@@ -73,7 +76,7 @@ class Homing:
             return
         ex.blocks += 1
         ex.follower = None
-        if ex.blocks >= self.m.home_blocks:
+        if ex.blocks >= HOME_BLOCKS:
             await self._finish(self._finish_reason + "; home blocked")
             return
         await self.command(Motion("move", -self.o.backoff_cm))

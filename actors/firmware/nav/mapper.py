@@ -13,10 +13,10 @@ Flow
 
 Complete when both hold (either alone can lie)
     * no reachable frontier of useful size remains (a stalled LIDAR would also
-      give "no change"); after ``futile_trips`` trips in a row that made
-      fewer than ``min_gain_cells`` cells known each on average (a window, so one
+      give "no change"); after ``FUTILE_TRIPS`` trips in a row that made
+      fewer than ``MIN_GAIN_CELLS`` cells known each on average (a window, so one
       trip just above the limit does not start the count over), only frontiers of at least
-      ``futile_min_cells`` lying mostly in the open (``futile_open_share``)
+      ``FUTILE_MIN_CELLS`` lying mostly in the open (``FUTILE_OPEN_SHARE``)
       still count as useful (the rest are pockets nobody can see into, ragged
       edges along walls), and
     * the map's count of known cells has not moved for ``stable_window_s``
@@ -28,7 +28,7 @@ Restart
     The new incarnation asks Map Management for a snapshot (MAP_GET) and Motor
     Control for the pose, and takes its origin from `NavMemory`. Only navigation
     starts the LIDAR, so scans still arriving (NAV_SCAN_COUNT rising within
-    ``probe_s``) prove mapping was under way: it resumes exploring from the
+    ``PROBE_S``) prove mapping was under way: it resumes exploring from the
     current pose and map. The blacklist is lost, which costs at most a few
     wasted trips. A restarted Map Management (``NAV_MAP_LOST``) gets the origin
     back (``MAP_ORIGIN_*``: its scan matching correction) and the last snapshot.
@@ -68,7 +68,28 @@ from actors.firmware.origin_wire import OriginHalves, origin_messages
 from server.protocol.grid_map import UNKNOWN, GridMap
 from server.protocol.pose import ZERO_POSE
 
-__all__ = ["MappingOptions", "MappingNav"]
+__all__ = ["MappingOptions", "MappingNav", "FIRST_SCANS", "STABLE_SCANS", "CHANGE_CELLS",
+           "CHANGE_SHARE", "PROBE_S", "UPLOAD_WAIT_S"]
+
+# Counts, shares and fixed waits of the completion test and of a restart; the physical
+# quantities are `MappingOptions`.
+FIRST_SCANS = 3
+"""Scan batches to wait for before the first move."""
+STABLE_SCANS = 5
+"""The map is complete when it has not changed for ``stable_window_s`` while at least this
+many scan batches arrived."""
+CHANGE_CELLS = 3
+"""The map changed when its count of known cells moved by more than this (or
+``CHANGE_SHARE`` of it) since the last change; free/occupied flicker is not a change,
+and neither is unknown/known flicker at the edges (scan matching's jitter at rest), which
+nets out."""
+CHANGE_SHARE = 0.002
+"""Relative part of the change threshold (of the known cells)."""
+PROBE_S = 3.0
+"""After a restart, rising scan counts within this mean mapping was under way [s] (Map
+Management publishes the count every 0.25 s while scans arrive)."""
+UPLOAD_WAIT_S = 1.0
+"""Wait at most this for a fresh snapshot before uploading the last one [s]."""
 
 
 class MappingNav(SensorWatch, Exploration, Homing, NavBase):
@@ -139,7 +160,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         self.map_name = self.names.map
         self.lidar = self.names.lidar
         await self.post(self.map_name, Message.uint(Cmd.MAP_GET, 0))
-        self._probe_until = trio.current_time() + self.m.probe_s
+        self._probe_until = trio.current_time() + PROBE_S
         if self.memory.started:  # the retained record says mapping was under way
             await self._begin(trio.current_time(), resumed=True)
 
@@ -187,7 +208,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         now = trio.current_time()
         known = int(np.count_nonzero(grid.cells != UNKNOWN))
         if prev is None or prev.shape != grid.shape or abs(known - self._known_at_change) > max(
-                self.m.change_cells, self.m.change_share * known):
+                CHANGE_CELLS, CHANGE_SHARE * known):
             self._changed_at, self._scans_at_change = now, self.scans
             self._known_at_change = known
         if self.state == "uploading":
@@ -214,7 +235,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
             await self._maybe_explore()
 
     async def _maybe_explore(self) -> None:
-        if self.grid is not None and self.scans - self._scans_at_start >= self.m.first_scans:
+        if self.grid is not None and self.scans - self._scans_at_start >= FIRST_SCANS:
             await self.set_state("exploring", "frontier exploration")
             await self.decide()
 
@@ -251,7 +272,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         """Both completion conditions: no useful frontier, and a stable map while scanning."""
         return (self.ex.no_frontier and not self.holding
                 and now - self._changed_at >= self.m.stable_window_s
-                and self.scans - self._scans_at_change >= self.m.stable_scans)
+                and self.scans - self._scans_at_change >= STABLE_SCANS)
 
     # ------------------------------------------------------------------ finishing
     async def _finish(self, reason: str, *, home: bool = False) -> None:
@@ -268,7 +289,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         await self.post(self.lidar, Message.uint(Cmd.LIDAR_STOP, 0))
         await self.post(self.map_name, Message.uint(Cmd.MAP_GET, 0))
         self._finish_reason = reason
-        self._upload_deadline = trio.current_time() + self.m.upload_wait_s
+        self._upload_deadline = trio.current_time() + UPLOAD_WAIT_S
         await self.set_state("uploading", reason)
 
     async def _upload(self) -> None:

@@ -18,7 +18,34 @@ from actors.firmware.nav.route import Motion, passable_at, with_obstacle
 from actors.firmware.planning.clearance import occupied_near, passage_width
 from server.protocol.pose import Pose, angle_diff_deg
 
-__all__ = ["RouteRecovery"]
+__all__ = ["RouteRecovery", "NUDGE_STEP_MAX_CM", "MAX_NUDGES", "NUDGE_REACH_CM", "REPLAN_LIMIT",
+           "BACKOFF_REPEAT_CM", "STALL_TURN_DEG", "PROBE_WIDTH_CM", "PROBE_PROGRESS_CM"]
+
+# The fixed geometry and bounds of the recovery behaviours. The distances follow from the
+# game's passages (a 35 cm gap) and the body (20 x 15 cm); the counts bound how long a
+# route may try before it is given up. The doubt they scale with is the belief's.
+NUDGE_STEP_MAX_CM = 12.0
+"""Largest lateral step of the search for a narrow passage [cm]: below the free width a
+35 cm gap leaves a 15 cm wide body (20 cm), so the offsets tried leave no hole between
+them; a seeker can reach a gap 21-36 cm off, beyond the +-24 cm six steps of 8 reach."""
+MAX_NUDGES = 6
+"""Sideways offsets tried per route, at most."""
+NUDGE_REACH_CM = 50.0
+"""Waypoints this close to the block point are shifted by a nudge [cm]."""
+REPLAN_LIMIT = 10
+"""Replans after being blocked before a route is given up."""
+BACKOFF_REPEAT_CM = 20.0
+"""Reverse this far after a second block at one place: room to come back sideways [cm]."""
+STALL_TURN_DEG = 8.0
+"""A back-off that ends blocked having turned more than this holds
+``NavOptions.tread_hold_s`` before the route goes on: a tread stalled (see
+`RouteRecovery._backoff_turned`) [deg]."""
+PROBE_WIDTH_CM = 40.0
+"""A block where the map's passage across the heading is narrower than this probes
+sideways at once (see `RouteRecovery._probe_plan`), the nudged route beginning with a
+sidestep across the heading of the block (`RouteRecovery._with_sidestep`) [cm]."""
+PROBE_PROGRESS_CM = 25.0
+"""A block this far from the last one starts a new sideways probe [cm]."""
 
 
 class RouteRecovery:
@@ -26,12 +53,12 @@ class RouteRecovery:
 
     def _nudged(self, pts: list[tuple[float, float]]) -> list[tuple[float, float]] | None:
         """``pts`` with the nudge applied: waypoints near the block point shifted sideways;
-        when none is near (a long corridor), a shifted waypoint ``nudge_reach_cm`` ahead of
+        when none is near (a long corridor), a shifted waypoint ``NUDGE_REACH_CM`` ahead of
         the block point is driven to first. None when a shifted point is not on free
         ground of the server's map: the search went wider than the passage."""
         assert self._nudge is not None and self._anchor is not None
         dx, dy, cx, cy = self._nudge
-        reach = self.o.nudge_reach_cm
+        reach = NUDGE_REACH_CM
         near = [i < len(pts) - 1 and math.dist(q, (cx, cy)) <= reach for i, q in enumerate(pts)]
         # an offset within the drift may put the point in a mapped wall: dead reckoning
         # is that far off, so the wall may well be where the rover can pass
@@ -93,8 +120,8 @@ class RouteRecovery:
         an obstacle the map does not show. The search tries lateral offsets
         of the waypoints near the block point, alternating sides and growing
         by ``nudge_step_cm`` (+4, -4, +8, -8 ... [cm]), one per block
-        (offsets whose points do not fit are skipped), at most ``max_nudges``
-        per route and bounded by ``replan_limit`` blocks.
+        (offsets whose points do not fit are skipped), at most ``MAX_NUDGES``
+        per route and bounded by ``REPLAN_LIMIT`` blocks.
         """
         if self.map is None or self._last_block is None:
             return False
@@ -106,8 +133,8 @@ class RouteRecovery:
         if self._nudges == 0:  # a new series: first toward the side that helped last
             self._nudge_first = 1.0 if self._nudge_off >= 0 else -1.0
         first = self._nudge_first
-        step = min(self.o.nudge_step_max_cm, max(self.o.nudge_step_cm, self.drift_cm / 3.0))
-        while self._nudges < self.o.max_nudges:
+        step = min(NUDGE_STEP_MAX_CM, max(self.o.nudge_step_cm, self.drift_cm / 3.0))
+        while self._nudges < MAX_NUDGES:
             k = self._nudges
             self._nudges += 1
             off = step * (k // 2 + 1) * (first if k % 2 == 0 else -first)
@@ -123,7 +150,7 @@ class RouteRecovery:
         self.replans += 1
         if await self.on_blocked():
             return
-        if self.replans > self.o.replan_limit:
+        if self.replans > REPLAN_LIMIT:
             await self._give_up(f"{why} {self.replans} times")
             return
         assert self.work_map is not None
@@ -160,7 +187,7 @@ class RouteRecovery:
             if last is not None and math.dist(last[:2], (p.x, p.y)) <= 30.0:
                 self.work_map = with_obstacle(self.work_map, p.x + ahead * math.cos(h),
                                               p.y + ahead * math.sin(h), 8.0)
-                back = self.o.backoff_repeat_cm
+                back = BACKOFF_REPEAT_CM
         self._replan = True
         await self.command(Motion("move", -back))
 
@@ -173,13 +200,13 @@ class RouteRecovery:
 
     def _backoff_turned(self) -> bool:
         """The last motion, a reverse (a back-off), ended blocked having turned the rover
-        more than ``stall_turn_deg``: one tread drives, the other does not. Backing away
+        more than ``STALL_TURN_DEG``: one tread drives, the other does not. Backing away
         from a wall is free ground, so a turn there is no wall's doing."""
         start = self._backoff_start()
         if start is None:
             return False
         turned = abs(angle_diff_deg(self.map_pose.heading_deg, start.heading_deg))
-        return turned > self.o.stall_turn_deg
+        return turned > STALL_TURN_DEG
 
     def _contact_fix(self) -> bool:
         """After a straight move ended blocked: the contact weighs the pose belief
@@ -189,7 +216,7 @@ class RouteRecovery:
 
     def _in_passage(self) -> bool:
         """The last forward move was blocked where the map's walls are close on both sides
-        (narrower than ``probe_width_cm`` across the heading), at the body's centre or at
+        (narrower than ``PROBE_WIDTH_CM`` across the heading), at the body's centre or at
         its nose: a rover stopped at a gap's mouth has only its nose in the gap."""
         m = self.last_motion
         if m is None or m.kind != "move" or m.amount <= 0 or self.map is None:
@@ -198,8 +225,8 @@ class RouteRecovery:
         h = math.radians(p.heading_deg)
         nose = 0.5 * self.length_cm
         for x, y in ((p.x, p.y), (p.x + nose * math.cos(h), p.y + nose * math.sin(h))):
-            w = passage_width(self.map, x, y, p.heading_deg, max_cm=self.o.probe_width_cm)
-            if w is not None and w < self.o.probe_width_cm:
+            w = passage_width(self.map, x, y, p.heading_deg, max_cm=PROBE_WIDTH_CM)
+            if w is not None and w < PROBE_WIDTH_CM:
                 return True
         return False
 
@@ -225,7 +252,7 @@ class RouteRecovery:
         return float(np.min(np.hypot(px, py))) <= reach
 
     def _nudging_here(self) -> bool:
-        """A nudge series is on and this block is within ``nudge_reach_cm`` of its anchor:
+        """A nudge series is on and this block is within ``NUDGE_REACH_CM`` of its anchor:
         the nudged route met a wall again at the passage it looks for.
 
         Why: blocked short of the mouth by dead reckoning (the nose a few cm before
@@ -237,7 +264,7 @@ class RouteRecovery:
         if self._nudge is None or self._anchor is None:
             return False
         p = self.map_pose
-        return math.dist((p.x, p.y), self._anchor[:2]) <= self.o.nudge_reach_cm
+        return math.dist((p.x, p.y), self._anchor[:2]) <= NUDGE_REACH_CM
 
     def _probe_plan(self) -> bool:
         """Plan after a block in a narrow passage: the route shifted sideways at once.
@@ -245,13 +272,13 @@ class RouteRecovery:
         Dead reckoning cannot tell which wall the rover scraped (its heading
         error is invisible to it), so it tries the nudge series (`_nudged_plan`)
         without first learning an obstacle, which in a passage would only close
-        it. Once a probe made progress (the next block is ``probe_progress_cm``
+        it. Once a probe made progress (the next block is ``PROBE_PROGRESS_CM``
         on), a new series starts on the side that helped.
         """
         p = self.map_pose
-        if self._anchor is None or self._progress(p) > self.o.probe_progress_cm:
+        if self._anchor is None or self._progress(p) > PROBE_PROGRESS_CM:
             self._anchor, self._nudge, self._nudges = self._last_block, None, 0
-        self._sidestep = self.o.probe_sidestep
+        self._sidestep = True
         try:
             return self._nudged_plan()
         finally:
@@ -261,7 +288,7 @@ class RouteRecovery:
         """How far ``p`` lies beyond the series' anchor along the anchor's heading [cm].
 
         Along, not straight-line: a nudge moves the block point across the heading
-        by its own offset (up to 3 x ``nudge_step_max_cm``), and a contact fix
+        by its own offset (up to 3 x ``NUDGE_STEP_MAX_CM``), and a contact fix
         moves it a few cm more; counting that as progress restarted the series
         around the nudged point, 25 cm to the wrong side, and the offset that would
         have passed was never tried."""

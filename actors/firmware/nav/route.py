@@ -20,8 +20,12 @@ from actors.firmware.planning.planner import Plan, plan_path, traversable
 from server.protocol.grid_map import OCCUPIED, GridMap
 from server.protocol.pose import Pose, angle_diff_deg
 
-__all__ = ["Motion", "PathFollower", "plan_route", "route_points", "shorten", "with_obstacle",
-           "passable_at"]
+__all__ = ["MAX_CORRECTIONS", "Motion", "PathFollower", "plan_route", "route_points", "shorten",
+           "with_obstacle", "passable_at"]
+
+MAX_CORRECTIONS = 6
+"""Extra ADP steps allowed beyond the plan's length before giving up on a route (a bound:
+the route is replanned from where the rover is)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,7 +73,7 @@ class PathFollower:
     def budget(self, pose: Pose) -> int:
         """Most motions still reasonable: two per step of the remaining route, plus slack."""
         return 2 * math.ceil(self.remaining_cm(pose) / self.o.step_cm) + len(self.waypoints) \
-            + self.o.max_corrections
+            + MAX_CORRECTIONS
 
     def next_motion(self, pose: Pose) -> Motion | None:
         """The next motion from ``pose``, or None when at the goal (and heading).

@@ -17,11 +17,20 @@ from actors.firmware.hardware import HardwareSpec
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.belief_tracking import BeliefTracking
 from actors.firmware.nav.options import NavMemory, NavOptions
-from actors.firmware.nav.recovery import RouteRecovery
+from actors.firmware.nav.recovery import NUDGE_REACH_CM, RouteRecovery
 from actors.firmware.nav.route import PathFollower, plan_route, route_points, shorten
 from server.protocol.grid_map import GridMap
 
-__all__ = ["RouteNav"]
+__all__ = ["RouteNav", "MAP_RETRY_S", "MAP_RETRY_MAX_S"]
+
+MAP_RETRY_S = 20.0
+"""Waiting for the map this long asks the server again, the wait doubling each time up to
+``MAP_RETRY_MAX_S`` [s]. A map lost on the way (a chunk corrupted on the link is refused
+and the map never completes, and waiting for it could last the game) or refused ("no map
+yet", "outbox full; request the map later") comes again; the doubling lets a slow
+transfer finish before it is asked for once more. A protocol timing, not the rover's."""
+MAP_RETRY_MAX_S = MAP_RETRY_S * 2 ** 3
+"""The longest wait between map requests: ``MAP_RETRY_S`` doubled three times [s]."""
 
 
 class RouteNav(RouteRecovery, BeliefTracking, NavBase):
@@ -34,7 +43,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
     A* on the map (obstacles inflated by the rover's radius) and follows the
     route with the ADP loop. When the motor reports blocked, something the map
     does not show is ahead (another rover): it is added to a working copy of the
-    map, the rover backs off and replans, at most ``replan_limit`` times.
+    map, the rover backs off and replans, at most ``REPLAN_LIMIT`` times.
     """
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
@@ -66,7 +75,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self._nudge_first = 1.0  # the side a series of nudges tries first
         self._sidestep = False  # the nudge in flight starts with a sidestep (`_nudged`)
         self.map_requests = 0
-        """``map_request`` frames sent (see ``NavOptions.map_retry_s``)."""
+        """``map_request`` frames sent (see ``MAP_RETRY_S``)."""
         self._map_wait = 0.0  # the wait before the next request [s]
         self._map_again = math.inf  # ask again at this time, if still waiting
         self._init_belief()
@@ -74,7 +83,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
     # ------------------------------------------------------------------ server
     async def on_start_cmd(self) -> None:
         if self.map is None:
-            await self._request_map(self.o.map_retry_s)
+            await self._request_map(MAP_RETRY_S)
             await self.set_state("waiting_map", "map requested")
         await self._proceed()
 
@@ -127,7 +136,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
 
     async def on_tick(self, now: float) -> None:
         if self.state == "waiting_map" and self.map is None and now >= self._map_again:
-            await self._request_map(min(2.0 * self._map_wait, self.o.map_retry_max_s))
+            await self._request_map(min(2.0 * self._map_wait, MAP_RETRY_MAX_S))
         await self._proceed()
 
     # ------------------------------------------------------------------ routes
@@ -193,7 +202,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         if plan.goal_snapped:
             pts.append(self.goal)  # the goal itself; the spot check vouched for it
         if self._anchor is not None and math.dist(self._anchor[:2], (p.x, p.y)) > \
-                2.0 * self.o.nudge_reach_cm:
+                2.0 * NUDGE_REACH_CM:
             self._nudge, self._anchor, self._nudges = None, None, 0  # past the tight spot
         if self._nudge is not None:
             nudged = self._nudged(pts)

@@ -14,7 +14,7 @@ above first, then wider ones (`search_rings`), innermost first. When the rings
 saw nothing, the pose itself is in doubt (a heading lost in a turn no tread
 report showed), and what is left of ``wide_search_s`` goes
 to a sweep by touch (`Search._sweep`): straight legs from wall to wall,
-stopping every ``sweep_step_cm`` to scan all round, turning ``sweep_turn_deg``
+stopping every ``sweep_step_cm`` to scan all round, turning ``SWEEP_TURN_DEG``
 where blocked; no map, no pose.
 """
 
@@ -29,7 +29,37 @@ from actors.firmware.nav.route import Motion, passable_at
 from server.protocol.grid_map import FREE
 from server.protocol.pose import angle_diff_deg
 
-__all__ = ["Search", "ring_outer_cm", "ring_reach_cm", "search_ring", "search_rings"]
+__all__ = ["Search", "ring_outer_cm", "ring_reach_cm", "search_ring", "search_rings",
+           "SEARCH_IR_WAIT_S", "SEARCH_SCAN_DEG"]
+
+# Bounds and fixed geometry of the search. Each bounds the cost of one search (drives and
+# scans of about 15 s a point), or is geometry that follows from what the scan from the
+# place already covers; none is a property of the rover.
+RING_POINTS = 6
+"""Points of the search ring round the place, at most (fewer when they see far enough:
+`search_ring`)."""
+RING_MAX_CM = 60.0
+"""Largest radius of the search ring [cm] (with 6 points it covers 115 cm); a ring wider
+than the scan's reach would leave holes next to its points (`ring_reach_cm`)."""
+WIDE_MAX_RINGS = 6
+"""Rings of a wider search, at most (the first included)."""
+WIDE_MAX_POINTS = 72
+"""Points of a wider search, at most (each costs a drive and a scan of about 15 s)."""
+SEARCH_SCAN_DEG = 100.0
+"""From a ring point, scan outward from the place +- this [deg]: the inside is covered by
+the scan from the place itself."""
+SEARCH_IR_WAIT_S = 0.8
+"""Longest wait for "in range" at one heading of a search or sweep scan [s]: the IR
+decision comes within about 0.1 s (3 samples at 50 Hz); the scans from the place keep
+``SeekingOptions.ir_wait_s``."""
+DOUBT_RINGS_SHARE = 0.5
+"""Share of ``wide_search_s`` the rings get when the seeker's drift exceeds the
+destination's ``within``; the sweep by touch gets the rest."""
+SWEEP_TURN_DEG = 137.5
+"""Turn between legs of the sweep [deg]: the golden angle, so the legs' headings spread
+evenly round the circle, without a random generator."""
+SWEEP_MAX_STEPS = 6
+"""Steps of one sweep leg, at most (a leg ends earlier at whatever blocks it)."""
 
 
 def ring_outer_cm(ring_cm: float, reach_cm: float, points: int) -> float:
@@ -110,7 +140,7 @@ class Search:
         (walls, the map's edge) are left out.
         """
         s = self.s
-        if not s.search or self.place is None or self.map is None:
+        if self.place is None or self.map is None:
             return False
         drift = self.drift_cm
         within = self.memory.within
@@ -120,11 +150,11 @@ class Search:
             self.search_until = now + s.wide_search_s
             # a pose in more doubt than the guess: rings planned from it may all be
             # somewhere else, and the sweep by touch gets half the time
-            share = s.doubt_rings_share if drift > within else 1.0
+            share = DOUBT_RINGS_SHARE if drift > within else 1.0
             self.rings_until = now + share * s.wide_search_s
         need = (s.range_cm if within is None else within) + drift
-        rings = search_rings(need, s.reach_cm, s.search_points, s.search_ring_max_cm,
-                             s.wide_spacing_cm, 1 if within is None else s.wide_max_rings)
+        rings = search_rings(need, self.reach_cm, RING_POINTS, RING_MAX_CM,
+                             self.reach_cm, 1 if within is None else WIDE_MAX_RINGS)
         if not rings:
             return False
         px, py = self.place
@@ -133,7 +163,7 @@ class Search:
             first = math.atan2(p.y - py, p.x - px)  # nearest the seeker first
         else:
             first = math.radians(p.heading_deg)  # on the place: the one it faces
-        seen = max(0.0, s.reach_cm - drift)
+        seen = max(0.0, self.reach_cm - drift)
         points: list[tuple[float, float]] = []
         for i, (n, ring) in enumerate(rings):
             # a point that does not fit is pulled in: the first ring toward the place,
@@ -149,8 +179,8 @@ class Search:
                         break
             if points:  # the next ring starts beside where this one ends
                 first = math.atan2(points[-1][1] - py, points[-1][0] - px)
-            seen = max(0.0, ring_outer_cm(ring, s.reach_cm, n) - drift)
-        points = points[:s.wide_max_points]
+            seen = max(0.0, ring_outer_cm(ring, self.reach_cm, n) - drift)
+        points = points[:WIDE_MAX_POINTS]
         if not points:
             return False
         self.stage = "search"
@@ -164,7 +194,7 @@ class Search:
         assert self.map is not None and self.place is not None
         g = self.map
         px, py = self.place
-        reach = self.s.reach_cm
+        reach = self.reach_cm
         res = g.resolution_cm
         r0, c0 = g.world_to_cell(q[0] - reach, q[1] - reach)
         r1, c1 = g.world_to_cell(q[0] + reach, q[1] + reach)
@@ -204,8 +234,8 @@ class Search:
     async def _sweep(self) -> None:
         """One step of the sweep by touch: face the leg's heading, drive ``sweep_step_cm``
         (or until blocked), then scan all round (`_confirm`). A leg goes straight step
-        after step until a step is blocked (or ``sweep_max_steps``); the next leg turns
-        ``sweep_turn_deg`` from it.
+        after step until a step is blocked (or ``SWEEP_MAX_STEPS``); the next leg turns
+        ``SWEEP_TURN_DEG`` from it.
 
         Why: the rings are planned on the map from the pose; when they saw nothing the
         pose may be far off (a heading lost unseen), and a rover that trusts it drives
@@ -215,9 +245,9 @@ class Search:
         """
         first = self.stage != "sweep"
         self.stage = "sweep"
-        if first or self._sweep_blocked or self._sweep_steps >= self.s.sweep_max_steps:
+        if first or self._sweep_blocked or self._sweep_steps >= SWEEP_MAX_STEPS:
             base = self.map_pose.heading_deg if first else self._leg_heading
-            self._leg_heading = base + self.s.sweep_turn_deg
+            self._leg_heading = base + SWEEP_TURN_DEG
             self._sweep_steps = 0
         self._sweep_turned = False
         left = self.search_until - trio.current_time()

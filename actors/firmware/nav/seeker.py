@@ -4,14 +4,14 @@ Flow (see `route_nav.RouteNav` for map, origin and destination handling; the sea
 rings and the sweep are in `search`)::
 
     ready --destination (x, y)--> driving to a standoff point, facing (x, y)
-        --arrived, or blocked within ``near_cm`` of (x, y)--> confirming (standoff scan)
+        --arrived, or blocked within ``reach_cm`` of (x, y)--> confirming (standoff scan)
     standoff scan: at each heading (facing, +20, -20, +40, -40 [deg]) wait
         ``settle_s`` and up to ``ir_wait_s`` for NAV_IR in range
         --in range--> found: ``found {pose}``
         --scan over--> approaching the place itself (stopping ``close_cm`` short)
-            --arrived, or blocked within ``near_cm`` (the hider, most likely)-->
+            --arrived, or blocked within ``reach_cm`` (the hider, most likely)-->
             confirming (all-round scan: facing, +-20, +-40, then on round
-            in ``all_round_step_deg`` steps)
+            in ``ir_half_fov_deg`` steps)
                 --in range--> found
                 --scan over, own drift small--> ``not_found {reason}``
                 --scan over, own drift large--> searching: to each point of a ring
@@ -33,7 +33,7 @@ the range minus half the body length from the hider's centre). Steps of
 from the nose, not just from the centre.
 
 IR on demand: while confirming, navigation holds a lease on the IR actor's
-sampling (`Cmd.IR_LEASE`, renewed every tick for ``ir_lease_s``) and ends it
+sampling (`Cmd.IR_LEASE`, renewed every tick for ``IR_LEASE_TICKS`` ticks) and ends it
 when it answers, so the IR timer runs only while the seeker looks.
 
 Frame: destination and reports in the map frame [cm, deg].
@@ -53,89 +53,87 @@ from actors.firmware.hardware import HardwareSpec
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion, passable_at
 from actors.firmware.nav.route_nav import RouteNav
-from actors.firmware.nav.search import Search
+from actors.firmware.nav.search import SEARCH_IR_WAIT_S, SEARCH_SCAN_DEG, Search
 from server.protocol.pose import angle_diff_deg
 
-__all__ = ["SeekingOptions", "SeekingNav"]
+__all__ = ["SeekingOptions", "SeekingNav", "IR_LEASE_TICKS", "STANDOFF_RING_STEP_DEG",
+           "MAX_STANDOFF_PLANS"]
+
+
+IR_LEASE_TICKS = 4
+"""An IR lease lasts this many navigation ticks (``NavOptions.tick_s``): renewed every
+tick while confirming, it outlasts a few missed ticks and ends soon after the last."""
+
+STANDOFF_RING_STEP_DEG = 15.0
+"""Angular spacing of the candidate standoff points on each radius [deg]: the
+candidates are a sampling of the ring, three nearest the seeker kept per radius."""
+
+MAX_STANDOFF_PLANS = 8
+"""Candidate standoff points planned to per destination, at most (a bound on planning)."""
 
 
 @dataclass(frozen=True, slots=True)
 class SeekingOptions:
-    """Tunables of the approach and of the IR confirmation."""
+    """Physical quantities of the approach and of the IR confirmation.
+
+    Derived, not set: the scan's reach (`reach_cm`: ``range_cm`` plus half the body
+    length, the IR sensor sits on the nose), the headings of the scans (multiples of
+    ``ir_half_fov_deg``) and the wider search's ring spacing (the reach). The bounds
+    of the search are constants of `search`.
+    """
 
     standoffs_cm: tuple[float, ...] = (35.0, 45.0, 30.0, 55.0)
-    """Standoff radii to try, in order of preference [cm]."""
-    ring_step_deg: float = 15.0
-    """Angular spacing of candidate points on a ring [deg]."""
-    max_plans: int = 8
-    """Candidate points planned to, at most, per destination."""
-    near_cm: float = 70.0
-    """Blocked this close to the place: confirm from here [cm]."""
+    """Standoff radii to try, in order of preference (centre of the place to the
+    seeker's centre) [cm]."""
     settle_s: float = 0.4
     """Wait after each turn before trusting the IR decision [s]."""
     ir_wait_s: float = 1.5
-    """Longest wait for "in range" at one heading [s]."""
-    scan_deg: tuple[float, ...] = (0.0, 20.0, -20.0, 40.0, -40.0)
-    """Headings to check from the standoff, relative to facing the place [deg]."""
+    """Longest wait for "in range" at one heading of a scan from the place or a standoff
+    [s]."""
     close_cm: float = 5.0
     """The approach to the place itself stops this short of it [cm]."""
-    all_round_step_deg: float = 20.0
-    """Step of the all-round scan from the place [deg]."""
-    ir_lease_s: float = 1.0
-    """How long each IR lease keeps the sensor sampling [s]; renewed every navigation tick
-    while confirming, so it outlasts a few missed ticks."""
-    search: bool = True
-    """After the all-round scan saw nothing, search around the place (see `search.search_ring`)."""
+    ir_half_fov_deg: float = 20.0
+    """Half-angle of the IR sensor's field of view [deg]. Scans turn in steps of it
+    (a hider close by stays in view from the nose, not just from the centre); the
+    standoff scan looks at 0, +-1 and +-2 steps from facing the place; the outward scans
+    of a wider search turn 1.5 steps at a time (30 deg: still overlapping, two thirds
+    of the scans' cost)."""
     range_cm: float = 60.0
-    """A guess "within IR range" has the hider's centre this close to it [cm]."""
-    reach_cm: float = 70.0
-    """An all-round scan sees a hider whose centre is this close to the seeker's centre
-    [cm]: the nose is 10 cm ahead of it, the sensor sees 60 cm from the nose and the
-    hider's body is 7.5-10 cm deep; a few cm are left for the scan's 20 deg steps."""
-    search_points: int = 6
-    """Points of the search ring around the place, at most (fewer when they see far
-    enough: `search.search_ring`)."""
-    search_ring_max_cm: float = 60.0
-    """Largest radius of the search ring [cm] (with 6 points it covers 115 cm)."""
-    search_ir_wait_s: float = 0.8
-    """Longest wait for "in range" at one heading of a search scan [s]: the IR decision
-    comes within about 0.1 s (3 samples at 50 Hz); the scans from the place keep
-    ``ir_wait_s``."""
-    search_scan_deg: float = 100.0
-    """From a ring point, scan outward from the place +- this [deg] (the inside is
-    covered by the scan from the place itself)."""
-    wide_spacing_cm: float = 70.0
-    """Spacing of neighbouring points on the rings beyond the first of a wider search
-    (a destination's ``within``) [cm]: with ``reach_cm`` 70 each ring then sees about
-    60 cm beyond itself."""
-    wide_max_rings: int = 6
-    """Rings of a wider search, at most (the first included)."""
-    wide_scan_step_deg: float = 30.0
-    """Step of the outward scans of a wider search [deg]: with the sensor's +-20 deg a
-    30 deg step still overlaps, and the scans cost two thirds of 20 deg ones."""
+    """The IR sensor's range from the nose: a guess "within IR range" has the hider's
+    centre this close to it [cm]."""
     sweep_step_cm: float = 110.0
     """Leg of the sweep by touch [cm]: a little less than two scans' reach (70 cm), so
     the discs seen from consecutive stops overlap."""
-    sweep_turn_deg: float = 137.5
-    """Turn between legs of the sweep [deg]: the golden angle, so the legs' headings
-    spread evenly round the circle, without a random generator."""
-    sweep_max_steps: int = 6
-    """Steps of one sweep leg, at most (a leg ends earlier at whatever blocks it)."""
-    doubt_rings_share: float = 0.5
-    """Share of ``wide_search_s`` the rings get when the seeker's drift exceeds the
-    destination's ``within``; the sweep by touch gets the rest."""
-    wide_max_points: int = 72
-    """Points of a wider search, at most (each costs a drive and a scan of about 15 s)."""
     wide_search_s: float = 800.0
     """A wider search (its rings, then the sweep by touch) ends after this long [s]; the
     operator's budget for the whole guess is longer (`headless.Budget.wider_seeking`)."""
 
+    @property
+    def scan_deg(self) -> tuple[float, ...]:
+        """Headings to check from the standoff, relative to facing the place: 0, +-1 and
+        +-2 steps of ``ir_half_fov_deg`` [deg]."""
+        f = self.ir_half_fov_deg
+        return (0.0, f, -f, 2.0 * f, -2.0 * f)
+
+    @property
+    def wide_scan_step_deg(self) -> float:
+        """Step of the outward scans of a wider search and of the sweep: 1.5
+        ``ir_half_fov_deg`` [deg]."""
+        return 1.5 * self.ir_half_fov_deg
+
+    def reach_cm(self, length_cm: float) -> float:
+        """How far from the seeker's centre an all-round scan sees a hider's centre
+        [cm]: ``range_cm`` from the nose, which is half the body ``length_cm`` ahead of
+        the centre (the hider's depth and the scan's steps are left as margin)."""
+        return self.range_cm + 0.5 * length_cm
+
     def all_round_deg(self) -> tuple[float, ...]:
         """The all-round scan's headings relative to facing the place [deg]: the
-        standoff scan's first, then on round in one direction (short turns)."""
+        standoff scan's first, then on round in one direction (short turns) in steps
+        of ``ir_half_fov_deg``."""
         first = list(self.scan_deg)
         out = list(first)
-        step = self.all_round_step_deg
+        step = self.ir_half_fov_deg
         a = max(first, default=0.0) + step
         while a < 360.0 + min(first, default=0.0) - step / 2:
             out.append(a)
@@ -144,10 +142,10 @@ class SeekingOptions:
 
     def outward_deg(self, step: float | None = None) -> tuple[float, ...]:
         """The scan from a search point: headings relative to facing away from the place,
-        -``search_scan_deg`` .. +``search_scan_deg`` in ``step`` (default
-        ``all_round_step_deg``) steps [deg]."""
-        step = step or self.all_round_step_deg
-        k = math.floor(self.search_scan_deg / step + 1e-9)
+        -``SEARCH_SCAN_DEG`` .. +``SEARCH_SCAN_DEG`` in ``step`` (default
+        ``ir_half_fov_deg``) steps [deg]."""
+        step = step or self.ir_half_fov_deg
+        k = math.floor(SEARCH_SCAN_DEG / step + 1e-9)
         return tuple(step * i for i in range(-k, k + 1))
 
 
@@ -163,6 +161,10 @@ class SeekingNav(Search, RouteNav):
         super().__init__(pool=pool, spec=spec, options=options, memory=memory,
                          addresses=addresses)
         self.s = seeking or SeekingOptions()
+        self.reach_cm = self.s.reach_cm(self.length_cm)
+        """How far from the centre an all-round scan sees a hider's centre [cm]; also how
+        near the place a block confirms from where it stands, and the spacing of a wider
+        search's ring points (each ring then sees about 60 cm beyond itself)."""
         self.place: tuple[float, float] | None = None
         """Where to look (map frame [cm])."""
         self.ir = False
@@ -193,7 +195,7 @@ class SeekingNav(Search, RouteNav):
         self.place = (x, y)
         self.stage = "standoff"
         self.search_points = []
-        if self._distance() <= self.s.near_cm:
+        if self._distance() <= self.reach_cm:
             await self._confirm()
             return
         for point in self._standoff_points():
@@ -225,7 +227,7 @@ class SeekingNav(Search, RouteNav):
         px, py = self.place
         me = (self.map_pose.x, self.map_pose.y)
         out: list[tuple[float, float]] = []
-        n = max(4, round(360.0 / self.s.ring_step_deg))
+        n = max(4, round(360.0 / STANDOFF_RING_STEP_DEG))
         for r in self.s.standoffs_cm:
             ring = [(px + r * math.cos(2 * math.pi * k / n), py + r * math.sin(2 * math.pi * k / n))
                     for k in range(n)]
@@ -233,10 +235,10 @@ class SeekingNav(Search, RouteNav):
                                                    self.o.plan_margin_cm)]
             ring.sort(key=lambda p: math.dist(p, me))
             out += ring[:3]
-        return out[:self.s.max_plans]
+        return out[:MAX_STANDOFF_PLANS]
 
     async def on_blocked(self) -> bool:
-        if self.place is not None and self._distance() <= self.s.near_cm:
+        if self.place is not None and self._distance() <= self.reach_cm:
             self.follower = None  # likely the hider itself: look from here
             await self._confirm()
             return True
@@ -261,7 +263,7 @@ class SeekingNav(Search, RouteNav):
         where = {"close": " all round", "search": " from the search ring",
                  "sweep": " all round, sweeping"}.get(self.stage, "")
         await self.set_state("confirming", "looking with the IR sensor" + where)
-        await self._ir_lease(self.s.ir_lease_s)
+        await self._ir_lease(IR_LEASE_TICKS * self.o.tick_s)
         p = self.map_pose
         if self._distance() > 2.0 * self.o.goal_tol_cm:
             base = math.degrees(math.atan2(self.place[1] - p.y, self.place[0] - p.x))
@@ -306,7 +308,7 @@ class SeekingNav(Search, RouteNav):
 
     def _start_check(self) -> None:
         now = trio.current_time()
-        wait = self.s.search_ir_wait_s if self.stage in ("search", "sweep") else self.s.ir_wait_s
+        wait = SEARCH_IR_WAIT_S if self.stage in ("search", "sweep") else self.s.ir_wait_s
         self._check_from = now + self.s.settle_s
         self._check_until = now + self.s.settle_s + wait
 
@@ -325,7 +327,7 @@ class SeekingNav(Search, RouteNav):
         await super().on_tick(now)
         if self.state != "confirming":
             return
-        await self._ir_lease(self.s.ir_lease_s)
+        await self._ir_lease(IR_LEASE_TICKS * self.o.tick_s)
         if self.moving:
             return
         if await self._check():

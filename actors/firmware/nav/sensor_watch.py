@@ -4,7 +4,7 @@ odometry cannot be trusted, since a map drawn from them would be wrong.
 A faulty LIDAR (a map drawn while it fails has phantom or missing obstacles)
     LIDAR Control withholds the scans of a sensor it judges faulty and says so
     (``NAV_LIDAR_HEALTH``: garbled, stuck, noisy); a dead one sends nothing, which
-    shows here as a scan count that stops rising for ``lidar_silent_s`` while
+    shows here as a scan count that stops rising for ``LIDAR_SILENT_S`` while
     the LIDAR should be scanning. Either way navigation holds still (MOTOR_STOP;
     driving blind is what distorted the maps: no obstacle check, no scan matching)
     and reports ``lidar_fault`` in its status. It goes on once the verdict is
@@ -17,16 +17,16 @@ Odometry that scan matching contradicts (a stuck encoder draws the map from a wr
     spin or veer where dead reckoning sees it stand or go straight; scan
     matching drags the pose after it, batch by batch, and the map is drawn
     from a wrong pose. Navigation sees the contradiction in its map-frame pose:
-    an in-place turn that moved it more than ``odo_turn_shift_cm``, or a
-    straight move that turned it more than ``odo_move_turn_deg``. It stops the
+    an in-place turn that moved it more than ``ODO_TURN_SHIFT_CM``, or a
+    straight move that turned it more than ``ODO_MOVE_TURN_DEG``. It stops the
     motor at once and holds still (the LIDAR scanning, so matching can settle
-    the pose) for ``odo_hold_s``, doubled for each repeat within a minute up to
-    ``odo_hold_max_s``, reporting ``odometry_fault`` in its status; the fault
+    the pose) for ``ODO_HOLD_S``, doubled for each repeat within a minute up to
+    ``ODO_HOLD_MAX_S``, reporting ``odometry_fault`` in its status; the fault
     cannot be seen from standing still, so it drives on after the hold. Motor
     Control's ``NAV_TREAD_FAULT`` (a driven tread that does not count) starts
     the same hold at once, a second or more before the pose shows it; one
     saying a tread, or both, count short (a slipping encoder, or a weak motor)
-    stops the motion too and holds ``short_hold_s`` (see `on_tread_fault`).
+    stops the motion too and holds ``SHORT_HOLD_S`` (see `on_tread_fault`).
     A turn that ended with both treads silent (`TreadFault.BOTH_SILENT`: the rover may have
     turned tens of degrees unseen) holds as a silent tread does and tells Map
     Management the pose is lost (``MAP_POSE_LOST``): it places no batch until
@@ -46,7 +46,32 @@ from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.nav.mapping_options import MappingOptions
 from server.protocol.pose import angle_diff_deg
 
-__all__ = ["SensorWatch"]
+__all__ = ["SensorWatch", "LIDAR_SILENT_S", "ODO_TURN_SHIFT_CM", "ODO_MOVE_TURN_DEG",
+           "ODO_HOLD_S", "ODO_HOLD_MAX_S", "SHORT_HOLD_S", "BLIND_TURN_DEG"]
+
+# The thresholds and holds of the two watches, fixed beside them: they judge and wait for
+# scan matching (which owns the mapper's pose), not a property of the rover.
+LIDAR_SILENT_S = 1.5
+"""No scan counted for this long while scanning: the LIDAR is silent (dead or garbled),
+and navigation holds still [s]: six of Map Management's 0.25 s count reports."""
+ODO_TURN_SHIFT_CM = 10.0
+"""An in-place turn that moved the map-frame position further than this: odometry and
+scan matching disagree grossly (an encoder stuck or slipping) [cm]."""
+ODO_MOVE_TURN_DEG = 25.0
+"""A straight move that turned the map-frame heading by more than this: the same [deg]."""
+ODO_HOLD_S = 3.0
+"""Hold still this long after such a disagreement [s]; doubled for each repeat within
+60 s, up to ``ODO_HOLD_MAX_S``."""
+ODO_HOLD_MAX_S = ODO_HOLD_S * 2 ** 3
+"""Longest hold for an odometry disagreement: ``ODO_HOLD_S`` doubled three times [s]."""
+SHORT_HOLD_S = 2.0
+"""Hold still this long after Motor Control saw a tread (or both) count short [s]: about
+eight scan batches for scan matching to catch up with what was not counted."""
+BLIND_TURN_DEG = 180
+"""After a turn that ended with both treads silent, Map Management searches this far
+either side of dead reckoning's heading for the pose (``MAP_POSE_LOST``) [deg]: one such
+turn can go 50 deg unseen, and backing off and turning again on two stuck encoders spins
+the rover several turns in a few seconds."""
 
 
 class SensorWatch:
@@ -71,7 +96,7 @@ class SensorWatch:
             self.lidar_fault = None
             return False
         m = self.m
-        silent = now - self._scan_rise_at >= m.lidar_silent_s
+        silent = now - self._scan_rise_at >= LIDAR_SILENT_S
         if self.lidar_fault is None:
             fault = self._lidar_verdict if self._lidar_verdict != LidarHealth.OK else (
                 LidarHealth.SILENT if silent else None)
@@ -113,7 +138,6 @@ class SensorWatch:
         """Stop and hold when the motion in flight contradicts odometry; True while holding.
 
         See "Odometry that scan matching contradicts" in the module docstring."""
-        m = self.m
         if self.state not in ("exploring", "homing"):
             return False
         if self._odo_hold_until > -math.inf and now >= self._odo_hold_until:
@@ -132,12 +156,12 @@ class SensorWatch:
         p = self.map_pose
         if motion.kind == "turn":
             off = math.hypot(p.x - start.x, p.y - start.y)
-            if off <= m.odo_turn_shift_cm:
+            if off <= ODO_TURN_SHIFT_CM:
                 return False
             what = f"a turn moved the pose {off:.0f} cm"
         else:
             turned = abs(angle_diff_deg(p.heading_deg, start.heading_deg))
-            if turned <= m.odo_move_turn_deg:
+            if turned <= ODO_MOVE_TURN_DEG:
                 return False
             what = f"a straight move turned the pose {turned:.0f} deg"
         await self._odometry_hold(now, f"{what}: odometry and scan matching disagree")
@@ -148,7 +172,7 @@ class SensorWatch:
         odometry is wrong from now on, so stop at once and hold, as for a disagreement.
 
         A tread (or both) that counts short stops the motion too, with a
-        short hold (``short_hold_s``, not doubled): a slipping encoder makes every
+        short hold (``SHORT_HOLD_S``, not doubled): a slipping encoder makes every
         motion turn (one tread) or go (both) further than counted, and driving on let
         the heading get 40-130 deg off, beyond what scan matching recovers. A weak
         motor reads the same and its odometry is right, so the hold is short: it costs a
@@ -159,7 +183,7 @@ class SensorWatch:
             return
         if fault.both:
             if fault.counts_short:
-                await self._odometry_hold(now, "both treads count short", self.m.short_hold_s)
+                await self._odometry_hold(now, "both treads count short", SHORT_HOLD_S)
             else:
                 # both silent: a turn that ended blocked without one Int E. Backing off
                 # and turning again drives it on blind: with both encoders stuck for
@@ -167,23 +191,21 @@ class SensorWatch:
                 # map comes out at half accuracy
                 await self._odometry_hold(now, "both treads are driven but do not count")
                 await self.post(self.map_name, Message.uint(Cmd.MAP_POSE_LOST,
-                                                            int(self.m.blind_turn_deg)))
+                                                            BLIND_TURN_DEG))
             return
         side = fault.side
         if fault.counts_short:
-            await self._odometry_hold(now, f"the {side} tread counts short",
-                                      self.m.short_hold_s)
+            await self._odometry_hold(now, f"the {side} tread counts short", SHORT_HOLD_S)
             return
         await self._odometry_hold(now, f"the {side} tread is driven but does not count")
 
     async def _odometry_hold(self, now: float, what: str, hold: float | None = None) -> None:
         """Stop the motor and hold still for odometry (see the module docstring); ``hold``
         [s] given: that long, not counted as a strike."""
-        m = self.m
         if hold is None:
             self._odo_strikes = self._odo_strikes + 1 if now - self._odo_last <= 60.0 else 1
             self._odo_last = now
-            hold = min(m.odo_hold_max_s, m.odo_hold_s * 2.0 ** (self._odo_strikes - 1))
+            hold = min(ODO_HOLD_MAX_S, ODO_HOLD_S * 2.0 ** (self._odo_strikes - 1))
         self._odo_hold_until = now + hold
         self.odometry_faults += 1
         await self.stop_motor()

@@ -14,7 +14,18 @@ import trio
 
 from actors.firmware.drivers.tread_monitor import TreadFault
 
-__all__ = ["TreadFaults"]
+__all__ = ["TreadFaults", "TREAD_HOLDS", "TREAD_CONTACT_S", "TREAD_STOP_S"]
+
+TREAD_HOLDS = 2
+"""Holds in a row (each report within a minute of the last), at most; a further report
+ends the motion as blocked: a tread stalled against a wall looks the same as one that
+does not count, and holding would not free it."""
+TREAD_CONTACT_S = 15.0
+"""A short count in a move this soon after a block ends it as blocked, not held [s]:
+scraping along the wall it met counts short as well."""
+TREAD_STOP_S = 1.0
+"""A tread fault that ends its motion as blocked waits this long before deciding [s]: the
+stopped motion's last pose and end arrive meanwhile and are ignored."""
 
 
 class TreadFaults:
@@ -32,7 +43,7 @@ class TreadFaults:
         heading it believes (90-100 deg after a 9 s slip). Stopping at the
         report keeps what one motion costs small; the hold
         (``tread_hold_s``, doubled for a repeat
-        within a minute, at most ``tread_holds`` in a row, then a report ends
+        within a minute, at most ``TREAD_HOLDS`` in a row, then a report ends
         the motion as blocked) waits for a passing fault to clear, as nothing
         can tell that while standing still. Only turns are held for: in a
         straight move a tread scraping along a wall stalls and reports the
@@ -50,7 +61,7 @@ class TreadFaults:
             return  # standing (or holding) already: the report is of a motion given up
         now = trio.current_time()
         if fault == TreadFault.BOTH_SHORT and self._motion.kind == "move" \
-                and now - self._blocked_t > self.o.tread_contact_s and self._wall_within_drift():
+                and now - self._blocked_t > TREAD_CONTACT_S and self._wall_within_drift():
             return  # a slide along a wall the rover may touch: the move goes on
         self._tread_strikes = self._tread_strikes + 1 if now - self._tread_last <= 60.0 else 1
         self._tread_last = now
@@ -61,13 +72,13 @@ class TreadFaults:
         await self.stop_motor()
         # a short count in a move holds, unless the rover was blocked just before: in
         # contact with a wall, scraping along it counts short as well
-        held_move = fault.counts_short and now - self._blocked_t > self.o.tread_contact_s
-        if (not turning and not held_move) or self._tread_strikes > self.o.tread_holds:
+        held_move = fault.counts_short and now - self._blocked_t > TREAD_CONTACT_S
+        if (not turning and not held_move) or self._tread_strikes > TREAD_HOLDS:
             # a short hold all the same: the stopped motion's last pose and end arrive
             # meanwhile and are ignored, and the decision uses the pose at rest
             self._blocked, self._done = True, 0.0
             self.counters["blocked"] += 1
-            self._hold_until = now + self.o.tread_stop_s
+            self._hold_until = now + TREAD_STOP_S
             return
         hold = self.o.tread_hold_s * 2.0 ** (self._tread_strikes - 1)
         self._blocked, self._done = False, 0.0

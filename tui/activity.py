@@ -1,0 +1,135 @@
+"""The console's record of activity: the message log and the timeline of events.
+
+`ActivityLog` collects what the running system does, cheaply, while Trio runs:
+every message sent (a trace tap), every drop, crash, restart, fault and kill (a
+trace subscription), and the server's phase, link and report events. Messages
+are kept raw and decoded into log lines only when a snapshot shows them: most
+scroll out between two frames, and decoding each would cost the simulation time.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import deque
+from collections.abc import Callable
+from itertools import islice
+from typing import Any
+
+import trio
+
+from actors import EventKind, Message, TraceEvent
+from actors.firmware.commands import name_of
+
+from .snapshot import MAX_LOG_LINES, MAX_TIMELINE, LogLine, TimelineEvent
+
+__all__ = ["ActivityLog", "describe"]
+
+_MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?,.*?value=([^)]+)\)")
+_LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
+              EventKind.FAULT, EventKind.KILLED, EventKind.POISON}
+
+
+def _decode(message: str) -> str:
+    """``Message(command=<Cmd.MOTOR_MOVE: 256>, ..., value=12.5)`` -> ``MOTOR_MOVE 12.5``."""
+    m = _MESSAGE_RE.search(message)
+    if m is None:
+        return message[:80]
+    return f"{name_of(int(m.group(1)))} {m.group(2)}"
+
+
+def describe(message: Any) -> str:
+    """A log line's text for a message object: ``MOTOR_MOVE 12.5`` for the firmware's
+    `Message`, else its repr (at most 80 characters)."""
+    if type(message) is Message:
+        return f"{name_of(message.command)} {message.value!r}"
+    return repr(message)[:80]
+
+
+class ActivityLog:
+    """The message log (at most `MAX_LOG_LINES`) and the timeline (at most `MAX_TIMELINE`).
+
+    Args:
+        now: the system's clock [s], for the timeline's times.
+    """
+
+    def __init__(self, now: Callable[[], float]) -> None:
+        self._now = now
+        self._log: deque[LogLine] = deque(maxlen=MAX_LOG_LINES)
+        # messages as tapped (time, queue, message object, dropped), decoded into `_log`
+        # only when a snapshot shows them
+        self._raw_log: deque[tuple[float, str, Any, bool]] = deque(maxlen=MAX_LOG_LINES)
+        self._decoded_seq = 0
+        self._names: dict[int, str] = {}  # command code -> name, for the log
+        self._timeline: deque[TimelineEvent] = deque(maxlen=MAX_TIMELINE)
+        self._log_seq = 0
+        self._event_seq = 0
+        self.exits: dict[str, float] = {}
+        """Actor -> time [s] of its last exit (crash, hang, kill)."""
+
+    def timeline(self) -> tuple[TimelineEvent, ...]:
+        """The timeline's events, oldest first."""
+        return tuple(self._timeline)
+
+    def event(self, kind: str, text: str) -> None:
+        """Add one event to the timeline, at the system's time now."""
+        self._event_seq += 1
+        self._timeline.append(TimelineEvent(self._event_seq, self._now(), kind, text))
+
+    def on_message(self, time: float, kind: EventKind, queue: str, message: Any,
+                   depth: int) -> None:
+        """A message tap (`actors.Trace.tap_messages`): runs for every message sent."""
+        self._log_seq += 1
+        self._raw_log.append((time, queue, message, False))
+
+    def on_trace(self, event: TraceEvent) -> None:
+        """A trace subscriber: drops go to the log, lifecycle events to the timeline."""
+        if event.kind is EventKind.DROP:
+            self._log_seq += 1
+            self._raw_log.append((event.time, event.queue, event.message, True))
+            return
+        if event.kind in _LIFECYCLE:
+            if event.kind in (EventKind.CRASH, EventKind.HUNG, EventKind.KILLED):
+                self.exits[event.actor] = event.time
+            kind = {EventKind.RESTART: "restart", EventKind.FAULT: "fault"}.get(event.kind, "crash")
+            self.event(kind, f"{event.kind.value} {event.actor} {event.detail}".strip())
+
+    def log_lines(self) -> tuple[LogLine, ...]:
+        """The message log, decoding what was traced since the last snapshot."""
+        raw = self._raw_log
+        first = self._log_seq - len(raw) + 1  # seq of the oldest raw entry
+        start = max(self._decoded_seq + 1, first)
+        names = self._names
+        append = self._log.append
+        # indexing a deque walks it: take the new entries from its end in one go
+        for i, (time, queue, message, dropped) in enumerate(
+                islice(raw, start - first, None), start):
+            if dropped:  # a drop is a trace event: its message is a repr already
+                text = "DROP overflow " + _decode(message)
+            elif type(message) is Message:
+                command = message.command
+                name = names.get(command)
+                if name is None:
+                    name = names[command] = name_of(command)
+                text = f"{name} {message.value!r}"
+            else:
+                text = repr(message)[:80]
+            append(LogLine(i, time, queue, queue, text))
+        self._decoded_seq = self._log_seq
+        return tuple(self._log)
+
+    def drain_server_events(self, events: trio.MemoryReceiveChannel | None) -> None:
+        """The server's events since the last snapshot, into the timeline (on the console's
+        side: the channel only buffers, so no task wakes for it)."""
+        while events is not None:
+            try:
+                e = events.receive_nowait()
+            except (trio.WouldBlock, trio.EndOfChannel, trio.ClosedResourceError):
+                return
+            if e.kind == "phase":
+                self.event("phase", f"phase {e.data.get('phase')}"
+                            + (f": {e.data['reason']}" if e.data.get("reason") else ""))
+            elif e.kind in ("link_up", "link_down"):
+                self.event("link", f"{e.rover} {e.kind.replace('_', ' ')}")
+            elif e.kind in ("report", "refused", "map"):
+                body = " ".join(f"{k}={v}" for k, v in e.data.items())
+                self.event("game", f"{e.kind} {e.rover} {body}".strip())
