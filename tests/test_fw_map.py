@@ -154,11 +154,10 @@ def _room_scans(pose_true, n: int = 120):
     return ray_scan(room_map(), pose_true, n)
 
 
-def _map_tree(pool: BufferPool, log: list, motor_log: list, **options) -> SupervisorSpec:
-    """Map Management (a 10 x 10 m map, ``options``) beside two recorders standing in for
-    navigation and Motor Control."""
+def _map_tree(pool: BufferPool, log: list, **options) -> SupervisorSpec:
+    """Map Management (a 10 x 10 m map, ``options``) beside a recorder standing in for
+    navigation."""
     return SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
-                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
                            ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
                                                                   **options))])
 
@@ -174,8 +173,9 @@ def _send_room_scan(system, pool: BufferPool, odom, taken_at) -> None:
 @pytest.mark.trio
 async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_clock) -> None:
     """Odometry says 4 deg more than the truth: the scan is registered onto the walls the
-    reference scans drew, the correction (about -4 deg) goes to Motor Control, and the wall
-    stays one band thick instead of being drawn twice."""
+    reference scans drew, the correction (about -4 deg) goes to navigation as its origin
+    (Motor Control hears nothing of it), and the wall stays one band thick instead of being
+    drawn twice."""
     from server.protocol.pose import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
@@ -202,9 +202,14 @@ async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_cloc
         assert mm.correction.heading_deg == pytest.approx(-4.0, abs=0.7)
         after = mm.grid.cells()
         assert _stray_walls(before, after) == 0  # no second wall
-        xy = [p for c, p in motor_log if c == Cmd.MOTOR_CORRECT_XY]
-        heading = [p for c, p in motor_log if c == Cmd.MOTOR_CORRECT_HEADING]
-        assert xy and heading[-1] == pytest.approx(mm.correction.heading_deg, abs=1e-3)
+        origin = [(c, p) for c, p in log
+                  if c in (Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING)]
+        assert origin and [c for c, _ in origin[-2:]] == [Cmd.NAV_MAP_ORIGIN_XY,
+                                                          Cmd.NAV_MAP_ORIGIN_HEADING]
+        c = mm.correction
+        assert origin[-2][1] == Message.pair(0, round(c.x * 10), round(c.y * 10)).value
+        assert origin[-1][1] == pytest.approx(c.heading_deg, abs=1e-3)
+        assert motor_log == []
 
 
 @pytest.mark.trio
@@ -215,11 +220,8 @@ async def test_a_batch_with_an_unchanged_odometry_stamp_is_matched_until_the_rov
     unchanged odometry are batches placed unmatched (the rover stands)."""
     from server.protocol.pose import Pose
 
-    pool, log, motor_log = BufferPool(64), [], []
-    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
-                           ChildSpec("motor", lambda: Recorder(motor_log, pool)),
-                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(1000, 1000),
-                                                                  warmup_scans=3, settle_s=1.0))])
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3, settle_s=1.0)
     truth = Pose(120.0, 80.0, 0.0)
 
     def send(system, odom: Pose, taken_at: Pose) -> None:
@@ -277,9 +279,10 @@ async def test_without_matching_a_heading_error_draws_a_second_wall(autojump_clo
 
 
 @pytest.mark.trio
-async def test_restarted_map_takes_the_correction_back_from_motor(autojump_clock) -> None:
-    """A restarted Map Management asks Motor Control (MOTOR_GET_POSE), drops scans until
-    MAP_CORRECTION_* arrives, then uses that correction."""
+async def test_restarted_map_takes_the_correction_back_from_navigation(autojump_clock) -> None:
+    """A restarted Map Management says NAV_MAP_LOST to navigation (Motor Control hears
+    nothing), drops scans until navigation's MAP_ORIGIN_* arrives, then uses that origin
+    as its correction; an unpaired heading is no origin."""
     from server.protocol.pose import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
@@ -290,18 +293,46 @@ async def test_restarted_map_takes_the_correction_back_from_motor(autojump_clock
     async with open_actor_system(1) as system:
         await system.start_supervisor(spec, "mapper")
         await trio.sleep(0.01)
-        assert (Cmd.MOTOR_GET_POSE, 0) in motor_log
+        assert log == [(Cmd.NAV_MAP_LOST, 0)] and motor_log == []
         system.send_nowait("mapper/map", Message.handle(Cmd.MAP_SCAN, pool.put(ring_scan())))
         await trio.sleep(0.01)
         mm = system.whereis("mapper/map").actor
         assert mm.held_scans == 1 and mm.scans == 0
-        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_CORRECTION_XY, 125, -40))
-        system.send_nowait("mapper/map", Message.float(Cmd.MAP_CORRECTION_HEADING, 2.5))
+        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_ORIGIN_XY, 125, -40))
+        system.send_nowait("mapper/map", Message.float(Cmd.MAP_ORIGIN_HEADING, 2.5))
         system.send_nowait("mapper/map", Message.handle(Cmd.MAP_SCAN, pool.put(ring_scan())))
         await trio.sleep(0.01)
         assert mm.correction == Pose(12.5, -4.0, 2.5)
         assert mm.scans == 1
         assert pool.statistics().in_use == 0
+        # the correction navigation has is not sent back to it
+        assert not [c for c, _ in log if c in (Cmd.NAV_MAP_ORIGIN_XY,
+                                                Cmd.NAV_MAP_ORIGIN_HEADING)]
+
+
+@pytest.mark.trio
+async def test_restarted_map_waits_a_bounded_time_for_navigations_origin(autojump_clock) -> None:
+    """No answer from navigation: scans are dropped for 1 s, then placed with the identity;
+    a late or unpaired MAP_ORIGIN_HEADING changes nothing."""
+    from server.protocol.pose import Pose
+
+    pool, log = BufferPool(64), []
+    spec = SupervisorSpec([ChildSpec("nav", lambda: Recorder(log, pool)),
+                           ChildSpec("map", lambda: MapManagement(pool, size_cm=(400, 400),
+                                                                  restarted=True))])
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        await trio.sleep(0.5)
+        system.send_nowait("mapper/map", Message.float(Cmd.MAP_ORIGIN_HEADING, 7.0))
+        system.send_nowait("mapper/map", Message.handle(Cmd.MAP_SCAN, pool.put(ring_scan())))
+        await trio.sleep(0.01)
+        mm = system.whereis("mapper/map").actor
+        assert mm.correction == Pose() and mm.held_scans == 0 and mm.scans == 1
+        await trio.sleep(1.0)
+        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_ORIGIN_XY, 125, -40))
+        system.send_nowait("mapper/map", Message.float(Cmd.MAP_ORIGIN_HEADING, 2.5))
+        await trio.sleep(0.01)
+        assert mm.correction == Pose()
 
 
 @pytest.mark.trio
@@ -351,8 +382,8 @@ async def test_a_lost_pose_places_no_batch_until_two_searches_agree(autojump_clo
     correction. The walls are not drawn a second time."""
     from server.protocol.pose import Pose
 
-    pool, log, motor_log = BufferPool(64), [], []
-    spec = _map_tree(pool, log, motor_log, warmup_scans=3)
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3)
     truth, turned = Pose(120.0, 80.0, 0.0), Pose(120.0, 80.0, 50.0)
 
     def send(system, taken_at: Pose) -> None:
@@ -387,8 +418,8 @@ async def test_without_the_lost_notice_a_standing_rover_draws_its_unseen_turn(
     prevents)."""
     from server.protocol.pose import Pose
 
-    pool, log, motor_log = BufferPool(64), [], []
-    spec = _map_tree(pool, log, motor_log, warmup_scans=3)
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3)
     truth, turned = Pose(120.0, 80.0, 0.0), Pose(120.0, 80.0, 50.0)
     async with open_actor_system(1) as system:
         await system.start_supervisor(spec, "mapper")

@@ -225,18 +225,16 @@ async def test_get_pose_republishes_and_unknown_command_is_a_crash(autojump_cloc
 
 
 @pytest.mark.trio
-async def test_correction_puts_navigation_in_the_map_frame_and_lidar_stays_raw(
+async def test_the_mapper_motor_publishes_the_raw_odometry_pose_to_navigation_and_lidar(
         autojump_clock) -> None:
-    """MOTOR_CORRECT_XY + _HEADING: navigation's pose is correction (+) odometry, the LIDAR
-    keeps the raw odometry pose, the correction is retained, MOTOR_GET_POSE hands it to the
-    map, and a NOOP flood message is ignored (no restart)."""
-    from server.protocol.pose import compose
-
+    """Motor Control knows no map frame: on MOTOR_GET_POSE navigation and the LIDAR both get
+    the odometry pose as counted (navigation in mm, the LIDAR in cm), Map Management gets
+    nothing, and a NOOP flood message is ignored (no restart)."""
     hw = FakeHardware()
     log: list = []
     lidar_log: list = []
     map_log: list = []
-    memory = PoseMemory(Pose(100.0, 0.0, 0.0))
+    memory = PoseMemory(Pose(100.0, -20.0, 90.0))
     spec = SupervisorSpec([
         ChildSpec("nav", lambda: Recorder(log), mailbox=256),
         ChildSpec("lidar", lambda: Recorder(lidar_log), mailbox=256),
@@ -250,21 +248,13 @@ async def test_correction_puts_navigation_in_the_map_frame_and_lidar_stays_raw(
         log.clear()
         lidar_log.clear()
         system.send_nowait("mapper/motor", Message.int(Cmd.NOOP, 0))
-        system.send_nowait("mapper/motor", Message.pair(Cmd.MOTOR_CORRECT_XY, 50, -20))
-        system.send_nowait("mapper/motor", Message.float(Cmd.MOTOR_CORRECT_HEADING, 90.0))
-        await trio.sleep(0.2)
-        assert memory.correction == Pose(5.0, -2.0, 90.0)
-        want = compose(Pose(5.0, -2.0, 90.0), Pose(100.0, 0.0, 0.0))  # (5, 98) @ 90
-        x, y, h = dead_reckoned(log)
-        assert (x, y, h) == (pytest.approx(want.x, abs=0.1), pytest.approx(want.y, abs=0.1),
-                             pytest.approx(90.0))
         system.send_nowait("mapper/motor", Message.uint(Cmd.MOTOR_GET_POSE, 0))
         await trio.sleep(0.01)
-        raw = [m.as_pair() for _, m in lidar_log if m.command == Cmd.LIDAR_POSE_XY]
-        assert raw and raw[-1] == (100, 0)
-        assert [m.command for _, m in map_log] == [Cmd.MAP_CORRECTION_XY,
-                                                   Cmd.MAP_CORRECTION_HEADING]
-        assert map_log[0][1].as_pair() == (50, -20) and map_log[1][1].value == 90.0
+        assert [m.command for _, m in log] == [Cmd.NAV_POSE_XY, Cmd.NAV_POSE_HEADING]
+        assert dead_reckoned(log) == (100.0, -20.0, 90.0)
+        assert [m.command for _, m in lidar_log] == [Cmd.LIDAR_POSE_XY, Cmd.LIDAR_POSE_HEADING]
+        assert lidar_log[0][1].as_pair() == (100, -20) and lidar_log[1][1].value == 90.0
+        assert map_log == []
         assert [c.restarts for c in tree.which_children() if c.id == "motor"] == [0]
 
 

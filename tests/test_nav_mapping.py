@@ -447,3 +447,26 @@ def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -
     assert nav._turned_away()
     assert nav.ex.blacklist == [(460.0, -30.0)]
     assert nav.ex.gains == [40] and nav.ex.trip_known is None  # the visit ended
+
+
+def test_the_mapper_steers_and_plans_home_from_its_map_frame_pose() -> None:
+    """Odometry at its start (0, 0) @ 0, the origin (scan matching's correction) putting
+    the rover at (40, 0) in the map: the obstacle check sees the wall 30 cm ahead in the
+    map (a 30 cm move is cut to 10; odometry alone would see it 70 cm off and drive all
+    30), and homing plans a route back to the map's (0, 0) (odometry alone would say it is
+    home)."""
+    from actors.firmware.nav.mapper import MappingNav
+    from actors.firmware.nav.route import Motion
+    from server.protocol.pose import Pose
+
+    nav = MappingNav(pool=BufferPool(4))
+    cells = np.full((40, 60), FREE, dtype=np.int8)  # x -100..200, y -100..100
+    cells[:, 34] = OCCUPIED  # the wall x 70..75
+    nav.grid = GridMap(cells, 5.0, (-100.0, -100.0))
+    nav.pose, nav.pose_known = Pose(0.0, 0.0, 0.0), True
+    nav.set_origin(Pose(40.0, 0.0, 0.0))
+    assert nav.memory.origin == (40.0, 0.0, 0.0)
+    assert nav._mind_the_obstacle(Motion("move", 30.0)).amount == pytest.approx(10.0, abs=2.6)
+    assert nav._plan_home() and nav.ex.target == (0.0, 0.0)
+    assert nav.ex.follower is not None
+    assert nav.ex.follower.next_motion(nav.map_pose) == Motion("turn", pytest.approx(180.0))

@@ -35,14 +35,8 @@ class Cmd(enum.IntEnum):
     """Motor control loop period elapsed (self-timer); value unused."""
 
     MOTOR_GET_POSE = 0x0105
-    """Publish the current dead-reckoned pose to the pose subscribers now (after a restart);
-    on the mapper also the map-frame correction to Map Management (MAP_CORRECTION_*)."""
-    MOTOR_CORRECT_XY = 0x0106
-    """Map Management's odometry -> map frame correction (scan matching), translation;
-    value int16 pair (x, y) [mm]. Always followed by MOTOR_CORRECT_HEADING."""
-    MOTOR_CORRECT_HEADING = 0x0107
-    """The correction's rotation; value float32 [deg]. Navigation's pose is the
-    correction composed with the dead-reckoned pose from then on."""
+    """Publish the current dead-reckoned pose (own frame) to the pose subscribers now:
+    navigation (NAV_POSE_*) and, on the mapper, the LIDAR (LIDAR_POSE_*)."""
 
     # -- Navigation queue --------------------------------------------------
     NAV_POSE_XY = 0x0200
@@ -71,8 +65,10 @@ class Cmd(enum.IntEnum):
     NAV_LINK = 0x020A
     """WiFly link state changed; value int32 (1 up, 0 down)."""
     NAV_MAP_LOST = 0x020B
-    """Map Management restarted with an empty grid; navigation may answer MAP_RESTORE
-    with the last `GridMap` it received. Value unused."""
+    """Map Management restarted with an empty grid (value unused). Navigation answers
+    MAP_ORIGIN_XY + MAP_ORIGIN_HEADING with the origin it holds (Map Management drops
+    scans until they arrive), and may answer MAP_RESTORE with the last `GridMap` it
+    received."""
     NAV_LIDAR_HEALTH = 0x020C
     """LIDAR Control's verdict on its sensor changed; value int32, a `lidar.LidarHealth`
     (0 healthy; otherwise the fault seen: scans are withheld until it is healthy again)."""
@@ -84,6 +80,14 @@ class Cmd(enum.IntEnum):
     one Int E (both silent; its NAV_MOTION_BLOCKED follows), 6 both count short (mapper
     only). At most once of each per tread per Command A; the command goes on (navigation
     decides). See motor.py."""
+
+    NAV_MAP_ORIGIN_XY = 0x020E
+    """Map Management's map -> odometry transform (mapper: the correction its scan matching
+    found; the odometry frame's origin in the map frame), translation; value int16 pair
+    (x, y) [mm]. Always followed by NAV_MAP_ORIGIN_HEADING. Navigation keeps it as its
+    ``origin`` (map pose = origin (+) Motor Control's pose), retained in `NavMemory`."""
+    NAV_MAP_ORIGIN_HEADING = 0x020F
+    """The origin's rotation; value float32 [deg]."""
 
     # -- LIDAR queue -------------------------------------------------------
     LIDAR_SAMPLE = 0x0300
@@ -110,11 +114,12 @@ class Cmd(enum.IntEnum):
     MAP_RESTORE = 0x0402
     """Seed the grid after a restart: value handle of a `GridMap` (navigation's last copy).
     Cells the new grid has not observed yet take the snapshot's class."""
-    MAP_CORRECTION_XY = 0x0403
-    """Motor Control's copy of the map-frame correction (after Map Management restarted),
-    translation; value int16 pair (x, y) [mm]. Always followed by MAP_CORRECTION_HEADING."""
-    MAP_CORRECTION_HEADING = 0x0404
-    """The correction's rotation; value float32 [deg]."""
+    MAP_ORIGIN_XY = 0x0403
+    """Navigation's copy of the map -> odometry transform, its answer to NAV_MAP_LOST (a
+    restarted Map Management takes its correction back from it), translation; value
+    int16 pair (x, y) [mm]. Always followed by MAP_ORIGIN_HEADING."""
+    MAP_ORIGIN_HEADING = 0x0404
+    """The origin's rotation; value float32 [deg]."""
     MAP_POSE_LOST = 0x0405
     """From navigation: odometry missed a motion (both treads driven, neither counting), so
     the heading may be off by up to value uint32 [deg]; place no batch until scan

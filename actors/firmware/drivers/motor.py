@@ -33,20 +33,14 @@ Blocked
 Dead reckoning
     This actor owns the pose: every tread increment goes through an
     `odometry.Odometer` (one `odometry.advance` step per burst of Int E, with
-    the track width from the hardware spec). The pose is published
-    (``NAV_POSE_XY`` [mm] + ``NAV_POSE_HEADING`` [deg] to navigation;
-    ``LIDAR_POSE_XY`` [cm] + ``LIDAR_POSE_HEADING`` to the LIDAR on the mapper)
-    when it changed, at most once per control period, and at once on
-    ``MOTOR_GET_POSE``.
-
-Map frame (mapper)
-    Map Management corrects the odometry by scan matching and sends the
-    correction (``MOTOR_CORRECT_XY`` + ``MOTOR_CORRECT_HEADING``: the odometry
-    -> map frame transform). Navigation gets the corrected pose (it plans on
-    the map); the LIDAR keeps getting the raw odometry pose, so every scan is
-    stamped in one frame whatever correction was current, and Map Management
-    applies its own latest correction. The correction is retained like the
-    pose, and handed back to a restarted Map Management on ``MOTOR_GET_POSE``.
+    the track width from the hardware spec). The pose, in the rover's own
+    (odometry) frame, is published (``NAV_POSE_XY`` [mm] + ``NAV_POSE_HEADING``
+    [deg] to navigation; ``LIDAR_POSE_XY`` [cm] + ``LIDAR_POSE_HEADING`` to the
+    LIDAR on the mapper) when it changed, at most once per control period, and
+    at once on ``MOTOR_GET_POSE``. Motor Control knows nothing of the map frame:
+    each navigation keeps its own map -> odometry transform (its ``origin``:
+    from the server, from its pose belief, or on the mapper from Map
+    Management's scan matching).
 
 Tread faults (``NAV_TREAD_FAULT``)
     A `tread_monitor.TreadMonitor` models how far each driven tread should
@@ -86,7 +80,7 @@ from actors.firmware.drivers.isr import MotorCounterIsr
 from actors.firmware.drivers.tread_monitor import TreadFault, TreadMonitor, TreadVerdict
 from actors.firmware.hardware import Interrupt, RoverHardware, decode_counter
 from actors.firmware.localisation.odometry import Odometer
-from server.protocol.pose import Pose, compose
+from server.protocol.pose import Pose
 
 __all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
 
@@ -136,16 +130,13 @@ class PoseMemory:
     other actor reads it).
     """
 
-    __slots__ = ("pose", "active", "correction")
+    __slots__ = ("pose", "active")
 
     def __init__(self, pose: Pose | None = None) -> None:
         self.pose: Pose = pose or Pose()
         """The dead-reckoned pose in the rover's own (odometry) frame."""
         self.active: bool = False
         """True while a Command A was running (a restart reports it blocked)."""
-        self.correction: Pose = Pose()
-        """Odometry frame -> map frame, from Map Management's scan matching (mapper);
-        the identity on rovers without a map of their own."""
 
     def __repr__(self) -> str:
         p = self.pose
@@ -195,7 +186,6 @@ class MotorControl(Actor):
         self._ticked = False            # an Int E was in the burst being handled
         self.tread_faults = 0
         """NAV_TREAD_FAULT reports sent (this incarnation)."""
-        self._correct_xy: tuple[float, float] | None = None  # first half of a correction
         self._period: Timer | Any = None  # the control period's timer while it runs, else None
         self.commands = 0
         """Command A received (this incarnation)."""
@@ -206,7 +196,6 @@ class MotorControl(Actor):
         names = self._addresses or Addresses.beside(ctx.name)
         self._nav = names.nav
         self._lidar_name = names.lidar if self._lidar else None
-        self._map_name = names.map if self._lidar else None
         if self._isr is None:
             self._isr = MotorCounterIsr(self._post)
         self.hw.attach(Interrupt.INT_E, self._isr)
@@ -245,18 +234,6 @@ class MotorControl(Actor):
             self._set_pwm(0.0, 0.0)
         elif cmd == Cmd.MOTOR_GET_POSE:
             self._publish()
-            self._publish_correction()
-        elif cmd == Cmd.MOTOR_CORRECT_XY:
-            x_mm, y_mm = message.as_pair()
-            self._correct_xy = (x_mm / 10.0, y_mm / 10.0)
-        elif cmd == Cmd.MOTOR_CORRECT_HEADING:
-            heading = float(message.value)
-            if self._correct_xy is None or not math.isfinite(heading):
-                raise ValueError("MOTOR_CORRECT_HEADING must follow MOTOR_CORRECT_XY and be "
-                                 f"finite, got {heading!r}")
-            self.memory.correction = Pose(*self._correct_xy, heading)
-            self._correct_xy = None
-            self._pose_dirty = True
         elif cmd == Cmd.NOOP:
             pass  # a flood fault: costs a queue slot, never a restart
         else:
@@ -308,7 +285,7 @@ class MotorControl(Actor):
 
     def _publish(self) -> None:
         self._integrate()
-        p = compose(self.memory.correction, self.memory.pose)  # navigation works in the map frame
+        p = self.memory.pose
         send = self._send  # pose is superseded by the next one: drop when full
         x_mm = max(-_INT16, min(_INT16, round(p.x * 10)))
         y_mm = max(-_INT16, min(_INT16, round(p.y * 10)))
@@ -329,16 +306,6 @@ class MotorControl(Actor):
         self._send(self._lidar_name,
                              Message.float(Cmd.LIDAR_POSE_HEADING, p.heading_deg))
         self._lidar_dirty = False
-
-    def _publish_correction(self) -> None:
-        """Give a restarted Map Management the correction it had (mapper only)."""
-        if self._map_name is None:
-            return
-        c = self.memory.correction
-        x_mm = max(-_INT16, min(_INT16, round(c.x * 10)))
-        y_mm = max(-_INT16, min(_INT16, round(c.y * 10)))
-        self._send(self._map_name, Message.pair(Cmd.MAP_CORRECTION_XY, x_mm, y_mm))
-        self._send(self._map_name, Message.float(Cmd.MAP_CORRECTION_HEADING, c.heading_deg))
 
     # ------------------------------------------------------------------ Command A
     def _begin(self, kind: int, amount: float) -> None:

@@ -16,9 +16,10 @@ Scan matching (why: see `scan_match`)
     made a reference, registered against the obstacle surfaces of the map
     built so far; an accepted match updates the correction (odometry -> map
     frame). The matching fields are rebuilt from the grid at most every
-    ``fields_s``. The correction goes to Motor Control (``MOTOR_CORRECT_XY`` +
-    ``MOTOR_CORRECT_HEADING``) with the published updates, so navigation's
-    pose is in the map frame.
+    ``fields_s``. The correction goes to navigation (``NAV_MAP_ORIGIN_XY`` +
+    ``NAV_MAP_ORIGIN_HEADING``) with the published updates: navigation keeps
+    it as its ``origin`` (map -> odometry), so its map-frame pose is the
+    correction composed with Motor Control's odometry pose.
 
 Re-localisation
     A stuck or slipping encoder can turn the rover further than matching may
@@ -33,9 +34,10 @@ tells navigation ``NAV_MAP_LOST``; navigation may answer ``MAP_RESTORE`` with
 the last snapshot it received, whose known cells seed the cells the new grid
 has not observed yet (what was seen since the restart wins). The scan count
 starts again from 0 (``NAV_MAP_LOST`` tells navigation so). The correction
-is asked back from Motor Control (``MOTOR_GET_POSE`` answers with
-``MAP_CORRECTION_XY`` + ``MAP_CORRECTION_HEADING``); scans arriving before it
-(at most ``_CORRECTION_WAIT_S``) are dropped, not placed in the wrong frame.
+is asked back from navigation, which keeps it as its origin in retained
+memory (it answers ``NAV_MAP_LOST`` with ``MAP_ORIGIN_XY`` +
+``MAP_ORIGIN_HEADING``); scans arriving before it (at most
+``_CORRECTION_WAIT_S``) are dropped, not placed in the wrong frame.
 
 Flood: ``NOOP`` is ignored (counted in `noops`), so a flood fault costs
 queue slots and dropped scans, never a restart.
@@ -64,13 +66,14 @@ from actors.firmware.mapping.scan_match import (
     match_scan,
     relocalise,
 )
+from actors.firmware.origin_wire import OriginHalves, origin_messages
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
 
 __all__ = ["MapManagement"]
 
 _MATCH = MatchOptions()  # immutable default
-_CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for Motor's copy of the correction
+_CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for navigation's copy of the correction
 _RELOCALISE_AFTER = 3  # supported batches refused in a row before the wider search
 _RELOCALISE_EVERY_S = 0.5  # at most one wider search per this much time [s] (24 ms each)
 _RELOCALISE_BELOW = 0.6  # ...and only when the guess scores below this (lost poses: 0.3-0.45)
@@ -143,9 +146,9 @@ class MapManagement(Actor):
         self._fields_at = -float("inf")
         self._fields_stale = True  # the grid changed since the fields were built
         self._last_odom: Pose | None = None  # odometry pose of the last matched batch
-        self._sent_correction = Pose()  # the correction Motor Control has (as far as we know)
-        self._correction_xy: tuple[float, float] | None = None  # half of MAP_CORRECTION_*
-        # a restarted incarnation waits (a bounded time) for the correction Motor kept
+        self._sent_correction = Pose()  # the correction navigation has (as far as we know)
+        self._origin_halves = OriginHalves()  # MAP_ORIGIN_XY waiting for its heading
+        # a restarted incarnation waits (a bounded time) for the correction navigation kept
         self._await_correction_until = -float("inf")
         self.unplaced = 0
         """Batches dropped because they see the map but match nowhere near dead reckoning."""
@@ -170,11 +173,8 @@ class MapManagement(Actor):
     async def on_start(self) -> None:
         names = self._addresses or Addresses.beside(self.ctx.name)
         self._nav = names.nav
-        self._motor = names.motor
-        if self.restarted:
-            self._send(self._nav, Message.uint(Cmd.NAV_MAP_LOST, 0))
-            if self._send(self._motor, Message.uint(Cmd.MOTOR_GET_POSE, 0)):
-                self._await_correction_until = trio.current_time() + _CORRECTION_WAIT_S
+        if self.restarted and self._send(self._nav, Message.uint(Cmd.NAV_MAP_LOST, 0)):
+            self._await_correction_until = trio.current_time() + _CORRECTION_WAIT_S
 
     def _send(self, name: str, message: Message) -> bool:
         """``send_nowait`` to a neighbour; False when full or not registered (yet)."""
@@ -211,16 +211,13 @@ class MapManagement(Actor):
         elif cmd == Cmd.MAP_RESTORE:
             self._restore(self.pool.take(int(message.value)))
             self._publish()
-        elif cmd == Cmd.MAP_CORRECTION_XY:
-            x_mm, y_mm = message.as_pair()
-            self._correction_xy = (x_mm / 10.0, y_mm / 10.0)
-        elif cmd == Cmd.MAP_CORRECTION_HEADING:
-            # only a restarted incarnation waits for Motor's copy; any other is stale
-            if self._correction_xy is not None and \
-                    trio.current_time() < self._await_correction_until:
-                self.correction = self._sent_correction = Pose(*self._correction_xy,
-                                                               float(message.value))
-                self._correction_xy = None
+        elif cmd == Cmd.MAP_ORIGIN_XY:
+            self._origin_halves.take_xy(message)
+        elif cmd == Cmd.MAP_ORIGIN_HEADING:
+            # only a restarted incarnation waits for navigation's copy; any other is stale
+            origin = self._origin_halves.take_heading(message)
+            if origin is not None and trio.current_time() < self._await_correction_until:
+                self.correction = self._sent_correction = origin
             self._await_correction_until = -float("inf")
         elif cmd == Cmd.MAP_POSE_LOST:
             self._lost_until = trio.current_time() + _LOST_MAX_S
@@ -399,17 +396,14 @@ class MapManagement(Actor):
         self._send_correction()
 
     def _send_correction(self) -> None:
-        """Tell Motor Control the correction when it moved by a cm or half a degree
-        (navigation's pose is in the map frame through it; less is below what it steers by)."""
+        """Tell navigation the correction (its origin) when it moved by a cm or half a
+        degree (less is below what navigation steers by)."""
         c, old = self.correction, self._sent_correction
         if abs(c.x - old.x) < 1.0 and abs(c.y - old.y) < 1.0 and abs(
                 c.heading_deg - old.heading_deg) < 0.5:
             return
-        x_mm = max(-32767, min(32767, round(c.x * 10)))
-        y_mm = max(-32767, min(32767, round(c.y * 10)))
-        if self._send(self._motor, Message.pair(Cmd.MOTOR_CORRECT_XY, x_mm, y_mm)) and \
-                self._send(self._motor, Message.float(Cmd.MOTOR_CORRECT_HEADING,
-                                                      c.heading_deg)):
+        xy, heading = origin_messages(Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING, c)
+        if self._send(self._nav, xy) and self._send(self._nav, heading):
             self._sent_correction = c
 
     def _send_snapshot(self) -> None:

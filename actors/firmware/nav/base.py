@@ -15,11 +15,15 @@ The ADP loop (seed: "Command A, wait for distance travelled, update position")
     nothing within its timeout is stopped and counts as blocked.
 
 Frames
-    Each rover's dead reckoning starts at (0, 0) @ 0 [deg] (its own frame). The
-    map frame is the mapper's start frame; the server sends each rover its
-    ``origin`` (start pose in the map frame), so ``map = compose(origin, own)``.
-    Maps, destinations and reports are in the map frame; motions are relative,
-    so they need no conversion.
+    Each rover's dead reckoning starts at (0, 0) @ 0 [deg] (its own frame), and
+    Motor Control publishes it in that frame. The map frame is the mapper's start
+    frame; navigation holds the map -> own frame transform, its ``origin``, so
+    ``map = compose(origin, own)``: the hider and seeker start from the server's
+    ``origin`` (their start pose in the map frame) and move it by their pose
+    belief; the mapper starts from the identity and takes Map Management's scan
+    matching correction (``NAV_MAP_ORIGIN_*``). The origin is kept in the retained
+    `NavMemory`. Maps, destinations and reports are in the map frame; motions are
+    relative, so they need no conversion.
 
 Restart (why state survives honestly)
     A new incarnation knows nothing but what it can ask: ``on_start`` stops the
@@ -89,6 +93,8 @@ class NavBase(TreadFaults, Actor):
     """
 
     role = ""
+    origin_from_server = True
+    """Whether the server's ``origin`` sets the origin (not on the mapper: see `mapper`)."""
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
@@ -109,7 +115,8 @@ class NavBase(TreadFaults, Actor):
         self.pose_known = False
         """True once Motor Control published a pose to this incarnation."""
         self.origin: Pose | None = ZERO_POSE if self.role == "mapper" else None
-        """Own start pose in the map frame (from the server's ``origin``)."""
+        """The map -> own frame transform: the own frame's (0, 0) @ 0 in the map frame
+        (see Frames in the module docstring)."""
         self.started = False
         """The server said ``start`` (and not ``stop`` since)."""
         self.state = "idle"
@@ -221,6 +228,11 @@ class NavBase(TreadFaults, Actor):
         """The pose in the map frame (own frame while no origin is known)."""
         return compose(self.origin, self.pose) if self.origin is not None else self.pose
 
+    def set_origin(self, origin: Pose) -> None:
+        """Make ``origin`` the map -> own frame transform, and retain it (`NavMemory`)."""
+        self.origin = origin
+        self.memory.origin = (origin.x, origin.y, origin.heading_deg)
+
     async def _on_pose(self, heading: float) -> None:
         if self._xy_mm is not None:
             x, y = self._xy_mm
@@ -327,8 +339,8 @@ class NavBase(TreadFaults, Actor):
             self.memory.goal = None
             await self.on_stop_cmd()
         elif cmd == "origin":
-            self.origin = Pose(data.x, data.y, data.heading)
-            self.memory.origin = (data.x, data.y, data.heading)
+            if self.origin_from_server:
+                self.set_origin(Pose(data.x, data.y, data.heading))
             await self.on_origin()
         elif cmd == "destination":
             await self.on_destination(data.x, data.y, data.heading, data.within)

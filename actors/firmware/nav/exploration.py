@@ -128,7 +128,7 @@ class Exploration:
             self._wait_map = True  # the tick tries again
             return
         ex = self.ex
-        pose = self.pose
+        pose = self.map_pose
         if ex.trip_known is not None and trio.current_time() - ex.trip_started >= \
                 TRIP_MAX_S:
             # a rover that keeps switching to new frontiers on the way never ends a trip
@@ -189,7 +189,7 @@ class Exploration:
         """Shorten a move to stop ``stop_cm`` before an obstacle, or turn away from it."""
         assert self.grid is not None
         look = motion.amount + self.m.stop_cm
-        ob = obstacle_ahead(self.grid, self.pose, look, half_angle_deg=20.0,
+        ob = obstacle_ahead(self.grid, self.map_pose, look, half_angle_deg=20.0,
                             half_width_cm=0.5 * self.width_cm + 2.5)
         if ob is None:
             return motion
@@ -203,7 +203,7 @@ class Exploration:
         """Choose a frontier and a route to it; False (and ``no_frontier``) when none."""
         assert self.grid is not None
         ex = self.ex
-        pose = self.pose
+        pose = self.map_pose
         # after futile visits only long frontiers in the open still count (what an obstacle
         # hid in a big room), and each is blacklisted once reached (below), so this ends
         futile = self._futile()
@@ -272,7 +272,7 @@ class Exploration:
 
     def _route_to(self, f: Frontier) -> bool:
         assert self.grid is not None and f.target_cm is not None
-        pose = self.pose
+        pose = self.map_pose
         plan = None
         for radius, margin in self._tiers():
             plan = plan_route(self.grid, (pose.x, pose.y), f.target_cm, radius_cm=radius,

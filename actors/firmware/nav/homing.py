@@ -30,7 +30,7 @@ class Homing:
     def _plan_home(self) -> bool:
         """A route back to the start pose (0, 0); False when there or no route is known."""
         assert self.grid is not None
-        pose = self.pose
+        pose = self.map_pose
         if math.hypot(pose.x, pose.y) <= self.m.home_reach_cm:
             return False
         for radius, margin in self._tiers():
@@ -52,7 +52,7 @@ class Homing:
         if self.state != "homing" or self.moving or not self.can_move or self.holding:
             return
         ex = self.ex
-        pose = self.pose
+        pose = self.map_pose
         if ex.follower is None and not self._plan_home():
             await self._finish(self._finish_reason)
             return

@@ -26,12 +26,22 @@ Complete when both hold (either alone can lie)
 
 Restart
     The new incarnation asks Map Management for a snapshot (MAP_GET) and Motor
-    Control for the pose. Only navigation starts the LIDAR, so scans still
-    arriving (NAV_SCAN_COUNT rising within ``PROBE_S``) prove mapping was under
-    way: it resumes exploring from the current pose and map. The blacklist is
-    lost, which costs at most a few wasted trips.
+    Control for the pose, and takes its origin from `NavMemory`. Only navigation
+    starts the LIDAR, so scans still arriving (NAV_SCAN_COUNT rising within
+    ``PROBE_S``) prove mapping was under way: it resumes exploring from the
+    current pose and map. The blacklist is lost, which costs at most a few
+    wasted trips. A restarted Map Management (``NAV_MAP_LOST``) gets the origin
+    back (``MAP_ORIGIN_*``: its scan matching correction) and the last snapshot.
 
-Frame: the mapper's own frame is the map frame [cm, deg].
+Frames
+    The map frame is the mapper's start frame [cm, deg]. Motor Control's pose is
+    dead reckoning in the own (odometry) frame; Map Management's scan matching
+    finds how far it drifted and sends the correction (``NAV_MAP_ORIGIN_XY`` +
+    ``NAV_MAP_ORIGIN_HEADING``), which navigation keeps as its ``origin``
+    (retained), so ``map_pose = compose(origin, pose)`` is what it plans, steers
+    and reports by. The server's ``origin`` (the identity, with ``start``) does not
+    set it: the map frame is the mapper's own start frame by definition, and
+    only scan matching moves the origin.
 """
 
 from __future__ import annotations
@@ -54,7 +64,9 @@ from actors.firmware.nav.homing import Homing
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.sensor_watch import SensorWatch
+from actors.firmware.origin_wire import OriginHalves, origin_messages
 from server.protocol.grid_map import UNKNOWN, GridMap
+from server.protocol.pose import ZERO_POSE
 
 __all__ = ["MappingOptions", "MappingNav", "FIRST_SCANS", "STABLE_SCANS", "CHANGE_CELLS",
            "CHANGE_SHARE", "PROBE_S", "UPLOAD_WAIT_S"]
@@ -84,6 +96,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
     """The mapper's navigation actor (registered as ``mapper/nav``)."""
 
     role = "mapper"
+    origin_from_server = False
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
@@ -123,16 +136,24 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         self._odo_hold_until = -math.inf  # holding still for odometry until then
         self._odo_last = -math.inf  # when the last disagreement was seen
         self._odo_strikes = 0  # disagreements in a row, each within 60 s of the last
+        self._origin_halves = OriginHalves()  # NAV_MAP_ORIGIN_XY waiting for its heading
 
     # ------------------------------------------------------------------ dispatch
     async def handle(self, message: Any) -> Any:
-        if isinstance(message, Message) and message.command == Cmd.NAV_LIDAR_HEALTH:
+        cmd = message.command if isinstance(message, Message) else None
+        if cmd == Cmd.NAV_LIDAR_HEALTH:
             await self.on_lidar_health(int(message.value))
-            return None
-        if isinstance(message, Message) and message.command == Cmd.NAV_TREAD_FAULT:
+        elif cmd == Cmd.NAV_TREAD_FAULT:
             await self.on_tread_fault(TreadFault(int(message.value)))
-            return None
-        return await super().handle(message)
+        elif cmd == Cmd.NAV_MAP_ORIGIN_XY:
+            self._origin_halves.take_xy(message)
+        elif cmd == Cmd.NAV_MAP_ORIGIN_HEADING:
+            origin = self._origin_halves.take_heading(message)
+            if origin is not None:
+                self.set_origin(origin)
+        else:
+            return await super().handle(message)
+        return None
 
     # ------------------------------------------------------------------ lifecycle
     async def on_restart(self) -> None:
@@ -144,9 +165,14 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
             await self._begin(trio.current_time(), resumed=True)
 
     async def on_map_lost(self) -> None:
-        # Map Management restarted empty: give it back what we knew; its count restarts at 0
+        # Map Management restarted empty: give it back what we knew (the origin first: it
+        # drops scans until the origin arrives); its count restarts at 0
         self._probe_scans = None
         self._scans_at_start = self._scans_at_change = self.scans = 0
+        xy, heading = origin_messages(Cmd.MAP_ORIGIN_XY, Cmd.MAP_ORIGIN_HEADING,
+                                      self.origin or ZERO_POSE)
+        if await self.post(self.map_name, xy):
+            await self.post(self.map_name, heading)
         if self.grid is not None:
             await self.put_and_post(self.map_name, Cmd.MAP_RESTORE, self.grid)
 
