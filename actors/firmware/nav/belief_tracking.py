@@ -201,8 +201,7 @@ class BeliefTracking:
         else:
             target = self.belief.mean_pose()
         origin = compose(target, inverse(self.pose))
-        self.origin = origin
-        self.memory.origin = (origin.x, origin.y, origin.heading_deg)
+        self.set_origin(origin)
 
     def contact_update(self) -> bool:
         """After a straight move ended blocked: weigh the belief by the contact model.
