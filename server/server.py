@@ -67,6 +67,7 @@ from .guard import BurstLog, PeerBackoff
 from .links.memory import MemoryLink
 from .links.serial import SerialLinkError, open_serial_stream
 from .links.spec import is_loopback
+from .links.udp import open_udp_endpoint
 from .protocol import (
     ACK,
     CATALOGUE,
@@ -363,14 +364,30 @@ class Server:
         Raises:
             ValueError: a non-loopback address while some accepted id has no token.
         """
-        if not is_loopback(host):
-            refusal = beyond_loopback_refusal(host, self.config)
-            if refusal:
-                raise ValueError(refusal)
+        self._check_listen(host)
         listeners = await trio.open_tcp_listeners(port, host=host)
         for listener in listeners:
             self._nursery.start_soon(self._accept_loop, listener)
         return listeners[0].socket.getsockname()[1]
+
+    async def listen_udp(self, host: str, port: int) -> int:
+        """Accept rovers over UDP (`server.links.udp`: each peer address is a connection,
+        bounded as TCP connections are); return the bound port.
+
+        Raises:
+            ValueError: as `listen_tcp`.
+            OSError: the address is in use or does not resolve.
+        """
+        self._check_listen(host)
+        endpoint = await open_udp_endpoint(host, port)
+        self._nursery.start_soon(endpoint.serve, self._admit_peer)
+        return endpoint.port
+
+    def _check_listen(self, host: str) -> None:
+        if not is_loopback(host):
+            refusal = beyond_loopback_refusal(host, self.config)
+            if refusal:
+                raise ValueError(refusal)
 
     async def _accept_loop(self, listener: trio.SocketListener) -> None:
         delay = 0.0
@@ -404,6 +421,11 @@ class Server:
             addr, name = str(peer[0]), f"tcp:{peer[0]}:{peer[1]}"
         except OSError:
             addr, name = "", "tcp"
+        if not self._admit_peer(stream, addr, name):
+            stream.socket.close()
+
+    def _admit_peer(self, stream: Any, addr: str, name: str) -> bool:
+        """Serve a new connection (TCP, or a UDP peer address) within the bounds, or refuse it."""
         now = trio.current_time()
         cfg = self.config
         refuse = ""
@@ -421,11 +443,11 @@ class Server:
                 del self._tcp[oldest]  # its slot is free now, whatever its task does next
         if refuse:
             self._count("conn_closed", refuse, name, now)
-            stream.socket.close()
-            return
+            return False
         conn = self._new_conn(name, peer=addr, timed=True)
         self._tcp[conn] = None
         self._nursery.start_soon(self._serve_conn, stream, conn)
+        return True
 
     def start_serial(self, url: str, baud: int) -> None:
         """Serve a serial port; a missing or unplugged port is reported and retried."""
@@ -446,24 +468,30 @@ class Server:
                 continue
             delay = first
             try:
-                await self.serve_stream(stream, name)
+                await self.serve_stream(stream, name, ask_hello=True)
             except* SerialLinkError as failed:  # raised by the reader or the writer task
                 self._emit("link_error", data={"link": name, "error": str(failed.exceptions[0]),
                                                "retry_s": delay})
             await trio.sleep(delay)
 
     async def serve_stream(self, stream: Any, link: str, *, peer: str | None = None,
-                           trusted: bool = False, timed: bool = False) -> None:
+                           trusted: bool = False, timed: bool = False,
+                           ask_hello: bool = False) -> None:
         """Speak the protocol over one byte stream until it ends or the server closes it.
 
         ``trusted``: a memory link of a simulated rover; ``peer``: the TCP peer
-        address; ``timed``: hello and idle timeouts and the connection cap apply.
+        address; ``timed``: hello and idle timeouts and the connection cap apply;
+        ``ask_hello``: the server speaks first, with ``send hello first`` (a serial
+        port: opening it flushed whatever the rover sent before, its hello too).
 
         Raises:
             SerialLinkError: from a serial stream that failed (the caller retries).
         """
-        await self._serve_conn(stream, self._new_conn(link, peer=peer, trusted=trusted,
-                                                      timed=timed))
+        conn = self._new_conn(link, peer=peer, trusted=trusted, timed=timed)
+        if ask_hello:
+            conn.pre.send_error(FrameError(Fault.NOT_ALLOWED, "send hello first"))
+            self._flush_conn(conn)
+        await self._serve_conn(stream, conn)
 
     def _new_conn(self, link: str, *, peer: str | None = None, trusted: bool = False,
                   timed: bool = False) -> _Conn:

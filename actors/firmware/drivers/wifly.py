@@ -10,8 +10,11 @@ drives heartbeats, resends and reconnects.
 Protocol (server.protocol, docs/protocol.md)
     * **connect**: ``hello`` (id, role, token, ``seq_base``) is sent until the
       server answers ``welcome``; unanswered hellos back off from ``hello_s``
-      doubling up to ``hello_max_s``. ``NAV_LINK`` 1 goes to navigation on
-      welcome, 0 when the link goes down.
+      doubling up to ``hello_max_s``; ``send hello first`` from the server
+      asks for one at once. Until the welcome nothing but hello leaves
+      (telemetry, heartbeats and reliable frames wait in the session's
+      bounded queues). ``NAV_LINK`` 1 goes to navigation on welcome, 0 when
+      the link goes down.
     * **reliable delivery**: a `ReliableSession` numbers reliable frames,
       resends them until acknowledged, drops duplicates and keeps order.
     * **drop and reconnect**: when the server has not been heard for
@@ -229,13 +232,6 @@ class Wifly(Actor):
         if self.welcomed and not session.is_up(now):
             self._link(False)
             self._next_hello = now
-        if not self.welcomed and now >= self._next_hello:
-            session.send(make_frame(HELLO, {"id": self.rover_id, "role": self.role,
-                                            "token": self.token,
-                                            "seq_base": session.seq_base}), reliable=False)
-            self.hellos += 1
-            self._next_hello = now + self._hello_wait
-            self._hello_wait = min(self._hello_wait * 2, self.hello_max_s)
         while mem.backlog and session.outbox_room() > 0:
             try:
                 session.send(mem.backlog[0], reliable=True)
@@ -243,6 +239,18 @@ class Wifly(Actor):
                 break
             mem.backlog.popleft()
         self._deliver()
+        if not self.welcomed:
+            # Until the welcome only hello leaves: a server that does not know this link
+            # refuses anything else ("send hello first"). Telemetry, heartbeats and
+            # reliable frames wait in the session's bounded queues for the welcome.
+            if now >= self._next_hello:
+                self.hw.wifly_write(session.transmit_alone(make_frame(HELLO, {
+                    "id": self.rover_id, "role": self.role, "token": self.token,
+                    "seq_base": session.seq_base}), now))
+                self.hellos += 1
+                self._next_hello = now + self._hello_wait
+                self._hello_wait = min(self._hello_wait * 2, self.hello_max_s)
+            return
         data = session.transmit(now)
         if data:
             self.hw.wifly_write(data)
