@@ -26,14 +26,15 @@ Trust (docs/protocol.md section 4 says the same to rover authors):
   (``ServerConfig.rovers``), unless ``open_enrolment``; it may never claim a
   simulated rover's role, nor an id bound to a memory link.
 * Tokens (per rover id, or ``*`` for all) are compared in constant time. A
-  TCP peer that is not loopback must give one for every id.
+  TCP or UDP peer that is not loopback must give one for every id.
 * A hello for an id whose session is live on another link is accepted only
   with that id's token, or, with no token for the id, once the old link has
   been silent ``down_after_s``. One rover id per link.
 * A link that fails authentication ``auth_failures`` times is closed; an
   address that keeps failing is blocked with a doubling backoff (`PeerBackoff`).
 
-Bounds on TCP links: at most ``max_connections`` at once (the oldest
+Bounds on TCP links, and on UDP peers (`server.links.udp`: each peer address
+is a connection, refused by dropping its datagrams): at most ``max_connections`` at once (the oldest
 unauthenticated one makes room for a new one) and ``max_pending_per_address``
 unauthenticated ones per address (closed in the accept loop, which keeps the
 kernel's accept queue short under a flood), ``hello_timeout_s`` to
@@ -159,7 +160,7 @@ class ServerSnapshot:
     guesses: tuple[Pose, ...]
     dropped_events: int
     connections: int = 0
-    """TCP connections open now."""
+    """TCP connections and UDP peers served now."""
     refused: dict[str, int] = field(default_factory=dict)
     """Totals since start: ``bad_frame``, ``auth_failed``, ``conn_closed`` (by the server)."""
 
