@@ -171,6 +171,40 @@ def test_pty_link_gives_a_path_the_server_opens_as_a_serial_port() -> None:
     assert lines[0].startswith("pty ready: give the server serial:/dev/")
 
 
+def test_pty_attach_is_answered_at_once_and_logs_no_error() -> None:
+    """The mapper (its idle firmware sends status and pose) talks into its pty for 10 s
+    before the server opens the port (pyserial
+    flushes what waits there, its hellos too): the server asks for a hello, the rover
+    says it within a second, and no error is logged on either side."""
+    lines: list[str] = []
+    seen: dict = {}
+
+    async def main() -> None:
+        scenario = load_scenario("empty")
+        with Store(":memory:") as store:
+            async with open_server(store, ServerConfig(rovers=frozenset({"mapper"}))) as server, \
+                    open_remote_rover(scenario, "mapper", parse_link("pty"),
+                                      report=lines.append) as rover:
+                events = server.subscribe()
+                await trio.sleep(10)  # hellos at 0, 1, 3 and 7 s wait in the pty; next at 15 s
+                opened = trio.current_time()
+                server.start_serial(rover.pty_path, 115200)
+                kinds = []
+                with trio.move_on_after(5):
+                    async for e in events:
+                        kinds.append(e.kind)
+                        if e.kind == "hello":
+                            seen["hello_after_s"] = trio.current_time() - opened
+                seen["kinds"] = kinds
+                seen["view"] = server.snapshot().rovers[0]
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=PTY_CLOCK_THRESHOLD_S))
+    assert seen["hello_after_s"] < 1.0
+    assert not {"bad_frame", "link_error", "peer_error", "refused"} & set(seen["kinds"])
+    assert seen["view"].stats.up and seen["view"].stats.bad_frames == 0
+    assert [ln for ln in lines if "error" in ln] == []
+
+
 def test_whole_game_with_the_mapper_on_a_pty_serial_link() -> None:
     """Mapper over two ptys (pyserial on both ends), hider and seeker in memory: found."""
     scenario = load_scenario("empty")
