@@ -12,13 +12,18 @@ from __future__ import annotations
 
 import argparse
 import os
+import pathlib
+import signal
 import socket
+import subprocess
+import sys
 import tty
 
 import pytest
 import trio
 import trio.testing
 
+from actors import scaled_clock
 from server.links import parse_link
 from server.server import ServerConfig, open_server
 from server.store import Store
@@ -29,6 +34,7 @@ from supervisors.system import open_sim_system
 from tui import cmd_rover
 from world.scenario import load_scenario
 
+ROOT = pathlib.Path(__file__).resolve().parent.parent
 PTY_CLOCK_THRESHOLD_S = 0.0005  # real time with nothing to do before the clock jumps [s]
 
 
@@ -173,9 +179,9 @@ def test_pty_link_gives_a_path_the_server_opens_as_a_serial_port() -> None:
 
 def test_pty_attach_is_answered_at_once_and_logs_no_error() -> None:
     """The mapper (its idle firmware sends status and pose) talks into its pty for 10 s
-    before the server opens the port (pyserial
-    flushes what waits there, its hellos too): the server asks for a hello, the rover
-    says it within a second, and no error is logged on either side."""
+    before the server opens the port (pyserial flushes what waits there, its hellos
+    too): the server asks for a hello, the rover says it within a second, and no error
+    is logged on either side."""
     lines: list[str] = []
     seen: dict = {}
 
@@ -242,6 +248,70 @@ def test_whole_game_with_the_mapper_on_a_pty_serial_link() -> None:
     assert seen["rovers"]["hider"].link == "sim:hider"
     assert report.coverage is not None and report.coverage > 0.9
     assert min(seen["bytes"]) > 1000
+
+
+def test_whole_game_with_the_mapper_on_udp() -> None:
+    """Mapper over real UDP sockets on loopback (one frame per datagram), hider and
+    seeker in memory: found, with no bad frame."""
+    scenario = load_scenario("empty")
+    report = GameReport(scenario.name, 1)
+    seen: dict = {}
+
+    async def main() -> None:
+        with Store(":memory:") as store:
+            async with open_sim_system(scenario, seed=1, store=store,
+                                       roles=("hider", "seeker")) as system:
+                port = await system.server.listen_udp("127.0.0.1", 0)
+                async with open_remote_rover(scenario, "mapper",
+                                             parse_link(f"udp:127.0.0.1:{port}"), seed=1):
+                    await play_game(system, report, Budget(hello=30, mapping=400,
+                                                           hiding=200, seeking=200))
+                    seen["rovers"] = {r.id: r for r in system.server.snapshot().rovers}
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=PTY_CLOCK_THRESHOLD_S))
+    assert report.outcome == "found", (report.reason, report.events)
+    mapper = seen["rovers"]["mapper"]
+    assert mapper.link.startswith("udp:127.0.0.1:")
+    assert mapper.stats.bad_frames == 0 and mapper.stats.frames_in > 100
+    assert report.coverage is not None and report.coverage > 0.9
+
+
+def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
+    """The real command: ``hideseek rover --link udp:`` in its own process (the mapper,
+    at x8) plays a game against a server receiving UDP on loopback (hider and seeker
+    simulated there, its clock at x8 too): found, no bad frame, stopped with status 0."""
+    speed = 8.0
+    scenario = load_scenario("empty")
+    report = GameReport(scenario.name, 1)
+    seen: dict = {}
+
+    async def main() -> None:
+        with Store(":memory:") as store:
+            async with open_sim_system(scenario, seed=1, store=store,
+                                       roles=("hider", "seeker")) as system:
+                port = await system.server.listen_udp("127.0.0.1", 0)
+                seen["proc"] = subprocess.Popen(
+                    [sys.executable, "-m", "tui.cli", "rover", "--role", "mapper",
+                     "--scenario", "empty", "--link", f"udp:127.0.0.1:{port}",
+                     "--speed", f"{speed:g}"],
+                    cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                await play_game(system, report, Budget(hello=160, mapping=400, hiding=200,
+                                                       seeking=200))
+                seen["rovers"] = {r.id: r for r in system.server.snapshot().rovers}
+
+    try:
+        trio.run(main, clock=scaled_clock(speed))
+    finally:
+        proc = seen.get("proc")
+        if proc is not None:
+            proc.send_signal(signal.SIGINT)
+            out, _ = proc.communicate(timeout=20)
+    assert report.outcome == "found", (report.reason, report.events, out)
+    mapper = seen["rovers"]["mapper"]
+    assert mapper.link.startswith("udp:127.0.0.1:")
+    assert mapper.stats.bad_frames == 0
+    assert proc.returncode == 0, out
+    assert "mapper: connected to udp:127.0.0.1:" in out and "Traceback" not in out
 
 
 def _rover_args(argv: list[str]) -> argparse.Namespace:
