@@ -186,6 +186,23 @@ def test_speed_keys_pressed_quickly_step_from_the_speed_asked_last():
     drive(test, speed=1.0)
 
 
+def test_speed_keys_at_either_end_change_nothing():
+    """'[' at x1 and ']' at "as fast as possible" send no speed change (nothing to log)."""
+
+    async def test(app, fake):
+        press(app, "left_square_bracket")
+        await asyncio.sleep(0.3)
+        assert calls(fake, "set_speed") == []
+        for _ in range(3):
+            press(app, "right_square_bracket")
+        await until(lambda: app.snapshot.speed is None, "max speed shown")
+        press(app, "right_square_bracket")
+        await asyncio.sleep(0.3)
+        assert calls(fake, "set_speed") == [(4.0,), (16.0,), (None,)]
+
+    drive(test, speed=1.0)
+
+
 def test_fault_dialog_injects_a_crash_that_flashes_and_recovers():
     """f opens the dialog; a crash on mapper/lidar shows restarting, then ↻1."""
 

@@ -11,6 +11,7 @@ ground truth.
 
 from __future__ import annotations
 
+import ast
 import math
 import pathlib
 import re
@@ -57,7 +58,7 @@ from .snapshot import (
     TreeNode,
 )
 
-__all__ = ["LiveSystem", "ListenError"]
+__all__ = ["LiveSystem", "ListenError", "fault_text"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
 PNG_SCALE = 4  # exported PNG: pixels per map cell edge (5 cm cells: 80 px per metre)
@@ -92,6 +93,29 @@ def describe(message: Any) -> str:
     if type(message) is Message:
         return f"{name_of(message.command)} {message.value!r}"
     return repr(message)[:80]
+
+
+def fault_text(target: str, detail: str) -> str:
+    """A device fault's trace event for people (``fault_injected [('duration_s', 60.0), ('id',
+    1), ('kind', 'slipping'), ...]`` -> ``slipping on hider/encoder for 60 s (w1)``); ``""``
+    for any other detail (actor faults read well as they are)."""
+    what, _, rest = detail.partition(" ")
+    if what not in ("fault_injected", "fault_cleared"):
+        return ""
+    try:
+        fields = dict(ast.literal_eval(rest))
+    except (ValueError, SyntaxError, TypeError):
+        return ""
+    fid = f"w{fields.get('id', '?')}"
+    kind = fields.get("kind", "?")
+    if what == "fault_cleared":
+        return f"{kind} on {target} cleared ({fields.get('reason', 'cleared')}, {fid})"
+    duration = float(fields.get("duration_s") or 0.0)
+    params = " ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
+                      for k, v in sorted(dict(fields.get("params") or {}).items()))
+    return (f"{kind} on {target}" + (f" {params}" if params else "")
+            + (f" for {duration:g} s" if duration else " until cleared")
+            + (", scheduled" if fields.get("scheduled") else "") + f" ({fid})")
 
 
 class LiveSystem(QueuedController):
@@ -323,11 +347,8 @@ class LiveSystem(QueuedController):
         if role in self.remote:
             raise ValueError(f"{role} is attached over {self.remote[role].text}: its devices "
                              "and actors are not simulated here")
-        fid = self._system.inject_fault(target, kind, duration_s or 0.0, **params)
-        self._event("fault", f"{kind} on {target}"
-                    + (f" for {duration_s:g} s" if duration_s else " until cleared")
-                    + f" ({fid})")
-        return fid
+        # the trace reports it on the Events tab (`fault_text`), as it does scheduled faults
+        return self._system.inject_fault(target, kind, duration_s or 0.0, **params)
 
     async def _do_clear_fault(self, fault: str) -> str:
         assert self._system is not None
@@ -405,7 +426,8 @@ class LiveSystem(QueuedController):
             if event.kind in (EventKind.CRASH, EventKind.HUNG, EventKind.KILLED):
                 self._exits[event.actor] = event.time
             kind = {EventKind.RESTART: "restart", EventKind.FAULT: "fault"}.get(event.kind, "crash")
-            self._event(kind, f"{event.kind.value} {event.actor} {event.detail}".strip())
+            text = fault_text(event.actor, event.detail) if kind == "fault" else ""
+            self._event(kind, text or f"{event.kind.value} {event.actor} {event.detail}".strip())
 
     def _log_lines(self) -> tuple[LogLine, ...]:
         """The message log, decoding what was traced since the last snapshot."""
