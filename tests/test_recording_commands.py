@@ -56,6 +56,34 @@ def test_the_live_system_records_between_two_record_commands(tmp_path: Any) -> N
         plan_fork(rec, rec.start_s + 1.0)
 
 
+def test_record_into_a_folder_names_the_file_there(tmp_path: Any) -> None:
+    """``R`` passes the export folder: the recording gets a name of its own inside it,
+    not in the working directory."""
+    live = LiveSystem(load_scenario("empty"), speed=None, log_messages=False)
+    results: list[CommandResult] = []
+
+    def publish(item: Any) -> None:
+        if isinstance(item, CommandResult):
+            results.append(item)
+
+    async def main() -> None:
+        send, receive = trio.open_memory_channel[None](1)
+        async with trio.open_nursery() as nursery:
+            nursery.start_soon(live.run, publish, receive)
+            await trio.sleep(1.0)
+            live.record(str(tmp_path))
+            await trio.sleep(2.0)
+            live.record(str(tmp_path))
+            await trio.sleep(0.5)
+            nursery.cancel_scope.cancel()
+
+    trio.run(main, clock=live.clock)
+    assert [r.status for r in results if r.command == "record"] == ["ok", "ok"]
+    (made,) = tmp_path.iterdir()
+    assert made.name.startswith("hideseek-empty-seed1-") and made.suffix == ".mcap"
+    assert read_recording(made).run.operator == "console"
+
+
 def test_play_record_writes_from_the_start(tmp_path: Any) -> None:
     """``LiveSystem(record=...)``: the recording starts with the system; the file is closed
     when the console ends."""

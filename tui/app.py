@@ -559,7 +559,7 @@ class ConsoleApp(App[int]):
         if not hasattr(self.system, "record"):
             self.notify("this system cannot be recorded", severity="warning")
             return
-        self._call("record", None)
+        self._call("record", str(self.export_dir))
 
     def action_faults(self) -> None:
         snap = self.snapshot

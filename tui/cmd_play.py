@@ -56,7 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="record the game from the start (R in the console starts and "
                              "stops recording)")
     parser.add_argument("--export-dir", default=".", metavar="DIR",
-                        help="where the export key saves maps (default: current directory)")
+                        help="where the export key saves maps, the screenshot key SVGs and "
+                             "the record key recordings (default: current directory)")
     parser.add_argument("--auto", action="store_true",
                         help="play the headless operator's game by itself (start mapping, the "
                              "scenario's hide spot and guesses), then leave the console and "

@@ -378,8 +378,9 @@ class LiveSystem(QueuedController):
 
     # -- recording ----------------------------------------------------------------------
     def record(self, path: str | None = None) -> None:
-        """Start recording the game as MCAP into ``path`` (None: a name of its own in the
-        working directory), or stop the recording in progress. Queued like every command."""
+        """Start recording the game as MCAP into ``path`` (a folder or None: a name of its
+        own in that folder or the working directory), or stop the recording in progress.
+        Queued like every command."""
         self._submit("record", path)
 
     def _do_record(self, path: str | None) -> str:
@@ -389,8 +390,9 @@ class LiveSystem(QueuedController):
             rec.stop()
             self._event("game", f"recording saved: {rec.path}")
             return f"saved {rec.path}"
-        path = path or (f"hideseek-{self.scenario.name}-seed{self.seed}-"
-                        f"{trio.current_time():.0f}s.mcap")
+        if path is None or pathlib.Path(path).is_dir():
+            path = str(pathlib.Path(path or ".") / (f"hideseek-{self.scenario.name}-seed"
+                                                    f"{self.seed}-{trio.current_time():.0f}s.mcap"))
         try:
             recorder = Recorder.for_scenario(path, self.scenario, self.seed, operator="console")
         except RecordingError as exc:
