@@ -45,6 +45,10 @@ _ROVER_COLOURS = {"mapper": "#40d0ff", "hider": "#40ff60", "seeker": "#ff60ff"}
 #: The truth overlay's legend, in the map's title while the overlay is on.
 TRUTH_LEGEND = (f" · truth: [{_COLOURS[_TRUTH]}]■[/] unseen [{_COLOURS[_MISSED]}]■[/] "
                 f"missed [{_COLOURS[_FALSE]}]■[/] false ○ true pose")
+#: The same for a narrow map (80 columns): the title is then ``20cm`` (per pixel) and this.
+TRUTH_LEGEND_SHORT = (f" [{_COLOURS[_TRUTH]}]■[/]unseen [{_COLOURS[_MISSED]}]■[/]missed "
+                      f"[{_COLOURS[_FALSE]}]■[/]false ○true")
+_TRUTH_LEGEND_CELLS = len(" · truth: ■ unseen ■ missed ■ false ○ true pose")
 _ARROWS = "→↗↑↖←↙↓↘"
 
 
@@ -256,7 +260,12 @@ class MapView(Widget, can_focus=True):
         if snap is not None and snap.map is not None:
             what = {-1: "unknown", 0: "free", 100: "occupied"}.get(
                 snap.map.value_at(x, y), "?")
-        title = f"Map {self.scale:g} cm/px" + (TRUTH_LEGEND if self.show_truth else "")
+        title = f"Map {self.scale:g} cm/px"
+        if self.show_truth:  # the whole legend where it fits in the top border, else short
+            if len(title) + _TRUTH_LEGEND_CELLS <= self.size.width - 4:
+                title += TRUTH_LEGEND
+            else:
+                title = f"{self.scale:g}cm" + TRUTH_LEGEND_SHORT
         subtitle = f"({x:.0f}, {y:.0f}) cm @ {self.cursor_heading:.0f}° {what}"
         # Setting a border title repaints the whole widget, even to the same text.
         if title != self.border_title:
