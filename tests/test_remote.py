@@ -11,6 +11,7 @@ byte arriving, so the pty traffic is never outrun by the clock.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import pathlib
 import signal
@@ -95,6 +96,27 @@ def test_unreachable_server_is_reported_and_retried_with_backoff() -> None:
     assert lines[0].startswith(f"cannot connect over tcp:127.0.0.1:{port}: ")
 
 
+def test_udp_rover_without_a_server_says_no_answer_and_retries() -> None:
+    """Over UDP nothing connects: the first datagram to a port nobody receives on comes
+    back refused (ICMP), the rover says there was no answer, and tries again."""
+    lines: list[str] = []
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+
+    async def main() -> None:
+        scenario = load_scenario("empty")
+        link = parse_link(f"udp:127.0.0.1:{port}")
+        async with open_remote_rover(scenario, "hider", link, report=lines.append,
+                                     retry_s=(1.0, 4.0), nav_factory=_idle_nav) as rover:
+            await trio.sleep(8)
+            assert rover.connects >= 2 and not any("connected" in ln for ln in lines)
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
+    assert lines[0] == (f"no answer from udp:127.0.0.1:{port}: Connection refused; "
+                        "reconnecting in 1 s")
+
+
 def test_rover_reconnects_after_the_server_restarts() -> None:
     """The server goes away and comes back on the same port: the rover says hello again."""
     port = _free_port()
@@ -106,6 +128,7 @@ def test_rover_reconnects_after_the_server_restarts() -> None:
             await server.listen_tcp("127.0.0.1", port)
             async for e in events:
                 if e.kind == "hello":
+                    await trio.sleep(0.5)  # the welcome reaches the rover: it was answered
                     return
 
     async def main() -> None:
@@ -250,6 +273,19 @@ def test_whole_game_with_the_mapper_on_a_pty_serial_link() -> None:
     assert min(seen["bytes"]) > 1000
 
 
+async def _game_over_udp(scenario, report: GameReport, budget: Budget, mapper) -> dict:
+    """Play ``report``'s game: hider and seeker simulated beside a server receiving UDP on
+    loopback, the mapper brought by ``mapper(port)`` (an async context for the game).
+    Returns the server's rover views at the end."""
+    with Store(":memory:") as store:
+        async with open_sim_system(scenario, seed=1, store=store,
+                                   roles=("hider", "seeker")) as system:
+            port = await system.server.listen_udp("127.0.0.1", 0)
+            async with mapper(port):
+                await play_game(system, report, budget)
+                return {r.id: r for r in system.server.snapshot().rovers}
+
+
 def test_whole_game_with_the_mapper_on_udp() -> None:
     """Mapper over real UDP sockets on loopback (one frame per datagram), hider and
     seeker in memory: found, with no bad frame."""
@@ -257,16 +293,13 @@ def test_whole_game_with_the_mapper_on_udp() -> None:
     report = GameReport(scenario.name, 1)
     seen: dict = {}
 
+    def bring_mapper(port: int):
+        return open_remote_rover(scenario, "mapper", parse_link(f"udp:127.0.0.1:{port}"),
+                                 seed=1)
+
     async def main() -> None:
-        with Store(":memory:") as store:
-            async with open_sim_system(scenario, seed=1, store=store,
-                                       roles=("hider", "seeker")) as system:
-                port = await system.server.listen_udp("127.0.0.1", 0)
-                async with open_remote_rover(scenario, "mapper",
-                                             parse_link(f"udp:127.0.0.1:{port}"), seed=1):
-                    await play_game(system, report, Budget(hello=30, mapping=400,
-                                                           hiding=200, seeking=200))
-                    seen["rovers"] = {r.id: r for r in system.server.snapshot().rovers}
+        seen["rovers"] = await _game_over_udp(scenario, report, Budget(
+            hello=30, mapping=400, hiding=200, seeking=200), bring_mapper)
 
     trio.run(main, clock=trio.testing.MockClock(autojump_threshold=PTY_CLOCK_THRESHOLD_S))
     assert report.outcome == "found", (report.reason, report.events)
@@ -285,19 +318,17 @@ def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
     report = GameReport(scenario.name, 1)
     seen: dict = {}
 
+    @contextlib.asynccontextmanager
+    async def bring_mapper(port: int):
+        seen["proc"] = subprocess.Popen(
+            [sys.executable, "-m", "tui.cli", "rover", "--role", "mapper", "--scenario",
+             "empty", "--link", f"udp:127.0.0.1:{port}", "--speed", f"{speed:g}"],
+            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        yield
+
     async def main() -> None:
-        with Store(":memory:") as store:
-            async with open_sim_system(scenario, seed=1, store=store,
-                                       roles=("hider", "seeker")) as system:
-                port = await system.server.listen_udp("127.0.0.1", 0)
-                seen["proc"] = subprocess.Popen(
-                    [sys.executable, "-m", "tui.cli", "rover", "--role", "mapper",
-                     "--scenario", "empty", "--link", f"udp:127.0.0.1:{port}",
-                     "--speed", f"{speed:g}"],
-                    cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-                await play_game(system, report, Budget(hello=160, mapping=400, hiding=200,
-                                                       seeking=200))
-                seen["rovers"] = {r.id: r for r in system.server.snapshot().rovers}
+        seen["rovers"] = await _game_over_udp(scenario, report, Budget(
+            hello=160, mapping=400, hiding=200, seeking=200), bring_mapper)
 
     try:
         trio.run(main, clock=scaled_clock(speed))
@@ -323,10 +354,13 @@ def _rover_args(argv: list[str]) -> argparse.Namespace:
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--link", "tcp"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, serial:PORT[,BAUD] "
-                            "or pty, got 'tcp'"),
-        (["--link", "sim"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, serial:PORT[,BAUD] "
-                            "or pty, got 'sim'"),
+        (["--link", "tcp"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, "
+                            "serial:PORT[,BAUD] or pty, got 'tcp'"),
+        (["--link", "sim"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, "
+                            "serial:PORT[,BAUD] or pty, got 'sim'"),
+        (["--link", "udpin:0.0.0.0:7878"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, "
+                                           "udp:HOST:PORT, serial:PORT[,BAUD] or pty, got "
+                                           "'udpin:0.0.0.0:7878'"),
         (["--link", "serial:"], "serial link must be serial:PORT[,BAUD], got 'serial:'"),
         (["--link", "pty", "--speed", "0"], "--speed must be within 0..1000, got 0"),
         (["--link", "pty", "--scenario", "nowhere"],

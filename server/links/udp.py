@@ -79,18 +79,24 @@ def _received(data: bytes) -> bytes:
     return data if data.endswith(b"\n") else data + b"\n"
 
 
-async def _resolve(host: str, port: int) -> tuple[Any, ...]:
-    """(family, address) of ``host``:``port`` for a datagram socket (the first the resolver
-    gives).
+async def _socket_to(host: str, port: int, *, bind: bool) -> trio.socket.SocketType:
+    """A datagram socket bound to (``bind``) or connected to ``host``:``port`` (the first
+    address the resolver gives).
 
     Raises:
-        OSError: the host does not resolve.
+        OSError: the host does not resolve, the address is in use, or no route.
     """
     infos = await trio.socket.getaddrinfo(host, port, type=trio.socket.SOCK_DGRAM)
     if not infos:
         raise OSError(f"cannot resolve {host}")
     family, _type, _proto, _name, addr = infos[0]
-    return family, addr
+    sock = trio.socket.socket(family, trio.socket.SOCK_DGRAM)
+    try:
+        await (sock.bind(addr) if bind else sock.connect(addr))
+    except BaseException:
+        sock.close()
+        raise
+    return sock
 
 
 class UdpPeer:
@@ -252,14 +258,7 @@ async def open_udp_endpoint(host: str, port: int) -> UdpEndpoint:
     Raises:
         OSError: the address does not resolve or is in use.
     """
-    family, addr = await _resolve(host, port)
-    sock = trio.socket.socket(family, trio.socket.SOCK_DGRAM)
-    try:
-        await sock.bind(addr)
-    except BaseException:
-        sock.close()
-        raise
-    return UdpEndpoint(sock)
+    return UdpEndpoint(await _socket_to(host, port, bind=True))
 
 
 class UdpStream:
@@ -314,12 +313,5 @@ async def open_udp_stream(host: str, port: int) -> UdpStream:
     Raises:
         OSError: the host does not resolve, or no route.
     """
-    family, addr = await _resolve(host, port)
-    sock = trio.socket.socket(family, trio.socket.SOCK_DGRAM)
-    try:
-        await sock.connect(addr)
-    except BaseException:
-        sock.close()
-        raise
-    return UdpStream(sock, f"udp:{host}:{port}")
+    return UdpStream(await _socket_to(host, port, bind=False), f"udp:{host}:{port}")
 
