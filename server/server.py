@@ -34,8 +34,9 @@ Trust (docs/protocol.md section 4 says the same to rover authors):
   address that keeps failing is blocked with a doubling backoff (`PeerBackoff`).
 
 Bounds on TCP links, and on UDP peers (`server.links.udp`: each peer address
-is a connection, refused by dropping its datagrams): at most ``max_connections`` at once (the oldest
-unauthenticated one makes room for a new one) and ``max_pending_per_address``
+is a connection, refused by dropping its datagrams): at most
+``max_connections`` at once (the oldest unauthenticated one makes room for a
+new one) and ``max_pending_per_address``
 unauthenticated ones per address (closed in the accept loop, which keeps the
 kernel's accept queue short under a flood), ``hello_timeout_s`` to
 authenticate, closed after ``down_after_s`` of silence, and a bad-frame
