@@ -293,7 +293,7 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
         async with open_actor_system(seed) as actors, trio.open_nursery() as nursery:
             nursery.start_soon(run_world, world)
             spec = rover_tree(role, world.hardware(role), rover_id=rover_id, token=token,
-                              nav_factory=nav_factory)
+                              nav_factory=nav_factory, hold_until_welcome=True)
             tree = await actors.start_supervisor(spec, role)
             rover = RemoteRover(role, link, world, actors, tree, uplink,
                                 pty_path=cable.path if cable else "")
