@@ -29,17 +29,18 @@ class ServerConfig:
     simulated: tuple[str, ...] = ()
     """Roles played by simulated rovers in this process: no other link may claim them."""
     max_connections: int = 64
-    """TCP connections held at once at most."""
+    """Connections held at once at most: TCP connections and UDP peer addresses together."""
     max_pending_per_address: int = 16
-    """TCP connections from one address that have not said an accepted hello, at most."""
+    """Connections (TCP, UDP peers) from one address that have not said an accepted hello,
+    at most."""
     hello_timeout_s: float = 5.0
-    """A TCP connection that has not authenticated by then is closed [s]."""
+    """A TCP connection or UDP peer that has not authenticated by then is closed [s]."""
     auth_failures: int = 5
     """Failed hellos after which a link is closed."""
     bad_frame_budget: float = 50.0
-    """Bad frames a TCP link may send in a burst before it is closed."""
+    """Bad frames a TCP link (or UDP peer) may send in a burst before it is closed."""
     bad_frame_rate: float = 5.0
-    """Bad frames per second a TCP link may send on and on [1/s]."""
+    """Bad frames per second a TCP link (or UDP peer) may send on and on [1/s]."""
     max_sessions: int = 64
     """Rover sessions kept at most."""
     reclaim_after_s: float = 60.0

@@ -67,6 +67,11 @@ class Connections(ServerCore):
             addr, name = str(peer[0]), f"tcp:{peer[0]}:{peer[1]}"
         except OSError:
             addr, name = "", "tcp"
+        if not self._admit_peer(stream, addr, name):
+            stream.socket.close()
+
+    def _admit_peer(self, stream: Any, addr: str, name: str) -> bool:
+        """Serve a new connection (TCP, or a UDP peer address) within the bounds, or refuse it."""
         now = trio.current_time()
         cfg = self.config
         refuse = ""
@@ -84,11 +89,11 @@ class Connections(ServerCore):
                 del self._tcp[oldest]  # its slot is free now, whatever its task does next
         if refuse:
             self._count("conn_closed", refuse, name, now)
-            stream.socket.close()
-            return
+            return False
         conn = self._new_conn(name, peer=addr, timed=True)
         self._tcp[conn] = None
         self._nursery.start_soon(self._serve_conn, stream, conn)
+        return True
 
     async def _serve_serial(self, url: str, baud: int) -> None:
         name = f"serial:{url},{baud}"
@@ -105,7 +110,7 @@ class Connections(ServerCore):
                 continue
             delay = first
             try:
-                await self.serve_stream(stream, name)
+                await self.serve_stream(stream, name, ask_hello=True)
             except* SerialLinkError as failed:  # raised by the reader or the writer task
                 self._emit("link_error", data={"link": name, "error": str(failed.exceptions[0]),
                                                "retry_s": delay})

@@ -26,14 +26,16 @@ Trust (docs/protocol.md section 4 says the same to rover authors):
   (``ServerConfig.rovers``), unless ``open_enrolment``; it may never claim a
   simulated rover's role, nor an id bound to a memory link.
 * Tokens (per rover id, or ``*`` for all) are compared in constant time. A
-  TCP peer that is not loopback must give one for every id.
+  TCP or UDP peer that is not loopback must give one for every id.
 * A hello for an id whose session is live on another link is accepted only
   with that id's token, or, with no token for the id, once the old link has
   been silent ``down_after_s``. One rover id per link.
 * A link that fails authentication ``auth_failures`` times is closed; an
   address that keeps failing is blocked with a doubling backoff (`PeerBackoff`).
 
-Bounds on TCP links: at most ``max_connections`` at once (the oldest
+Bounds on TCP links, and on UDP peers (`server.links.udp`: each peer address
+is a connection, refused by dropping its datagrams): at most
+``max_connections`` at once (the oldest
 unauthenticated one makes room for a new one) and ``max_pending_per_address``
 unauthenticated ones per address (closed in the accept loop, which keeps the
 kernel's accept queue short under a flood), ``hello_timeout_s`` to
@@ -71,7 +73,8 @@ from .game import Result
 from .hello import PROTOCOL_NAME, Hellos
 from .links.memory import MemoryLink
 from .links.spec import is_loopback
-from .protocol import Frame
+from .links.udp import open_udp_endpoint
+from .protocol import Fault, Frame, FrameError
 from .store import Store
 from .trust import beyond_loopback_refusal
 from .views import RoverView, ServerEvent, ServerSnapshot
@@ -170,31 +173,53 @@ class Server(Connections, Hellos, GameFrames, Durability):
         Raises:
             ValueError: a non-loopback address while some accepted id has no token.
         """
-        if not is_loopback(host):
-            refusal = beyond_loopback_refusal(host, self.config)
-            if refusal:
-                raise ValueError(refusal)
+        self._check_listen(host)
         listeners = await trio.open_tcp_listeners(port, host=host)
         for listener in listeners:
             self._nursery.start_soon(self._accept_loop, listener)
         return listeners[0].socket.getsockname()[1]
+
+    async def listen_udp(self, host: str, port: int) -> int:
+        """Accept rovers over UDP (`server.links.udp`: each peer address is a connection,
+        bounded as TCP connections are); return the bound port.
+
+        Raises:
+            ValueError: as `listen_tcp`.
+            OSError: the address is in use or does not resolve.
+        """
+        self._check_listen(host)
+        endpoint = await open_udp_endpoint(host, port)
+        self._nursery.start_soon(endpoint.serve, self._admit_peer)
+        return endpoint.port
+
+    def _check_listen(self, host: str) -> None:
+        if not is_loopback(host):
+            refusal = beyond_loopback_refusal(host, self.config)
+            if refusal:
+                raise ValueError(refusal)
 
     def start_serial(self, url: str, baud: int) -> None:
         """Serve a serial port; a missing or unplugged port is reported and retried."""
         self._nursery.start_soon(self._serve_serial, url, baud)
 
     async def serve_stream(self, stream: Any, link: str, *, peer: str | None = None,
-                           trusted: bool = False, timed: bool = False) -> None:
+                           trusted: bool = False, timed: bool = False,
+                           ask_hello: bool = False) -> None:
         """Speak the protocol over one byte stream until it ends or the server closes it.
 
         ``trusted``: a memory link of a simulated rover; ``peer``: the TCP peer
-        address; ``timed``: hello and idle timeouts and the connection cap apply.
+        address; ``timed``: hello and idle timeouts and the connection cap apply;
+        ``ask_hello``: the server speaks first, with ``send hello first`` (a serial
+        port: opening it flushed whatever the rover sent before, its hello too).
 
         Raises:
             SerialLinkError: from a serial stream that failed (the caller retries).
         """
-        await self._serve_conn(stream, self._new_conn(link, peer=peer, trusted=trusted,
-                                                      timed=timed))
+        conn = self._new_conn(link, peer=peer, trusted=trusted, timed=timed)
+        if ask_hello:
+            conn.pre.send_error(FrameError(Fault.NOT_ALLOWED, "send hello first"))
+            self._flush_conn(conn)
+        await self._serve_conn(stream, conn)
 
     # -- time ---------------------------------------------------------------------------
 

@@ -62,6 +62,6 @@ class ServerSnapshot:
     guesses: tuple[Pose, ...]
     dropped_events: int
     connections: int = 0
-    """TCP connections open now."""
+    """TCP connections and UDP peers served now."""
     refused: dict[str, int] = field(default_factory=dict)
     """Totals since start: ``bad_frame``, ``auth_failed``, ``conn_closed`` (by the server)."""

@@ -6,6 +6,9 @@ on that world's hardware, and carries the bytes of the rover's WiFly link
 over a real byte stream instead of the in-memory link:
 
 * ``tcp:HOST:PORT``: connect as a TCP client, as a WiFly module does;
+* ``tcpin:HOST:PORT``: listen there; the server connects out to the rover;
+* ``udp:HOST:PORT``: send datagrams there from a connected UDP socket
+  (`server.links.udp`: one frame per datagram);
 * ``serial:PORT,BAUD``: any pyserial port or URL (a pty stands in for a cable);
 * ``pty``: make a pseudo-terminal pair, hold one end, report the other's path
   for the server (``hideseek serve --rover ID=serial:PATH,115200``).
@@ -38,20 +41,24 @@ import trio
 
 from actors import ActorSystem, open_actor_system
 from actors.firmware.hardware import ROLES
-from server.links import LinkSpec, open_pty_cable, open_serial_stream
+from server.links import LinkSpec, open_pty_cable, open_serial_stream, open_udp_stream
 from supervisors.rover import rover_tree
 from world.scenario import Scenario
 from world.wifly import WiflyLink
 from world.world import World, run_world
 
-__all__ = ["UPLINK_BYTES", "RETRY_S", "Uplink", "RemoteRover", "open_remote_rover",
-           "run_remote_rover"]
+__all__ = ["UPLINK_BYTES", "RETRY_S", "LINK_KINDS", "LINK_FORMS", "Uplink", "RemoteRover",
+           "open_remote_rover", "run_remote_rover"]
 
 UPLINK_BYTES = 16384
 """Bytes from the rover waiting for the stream at most [bytes] (beyond: dropped, counted)."""
 RETRY_S = (1.0, 30.0)
 """Backoff between connection attempts: first, most [s]."""
 _READ_SIZE = 4096  # [bytes]
+LINK_KINDS = ("tcp_listen", "tcp_in", "udp_listen", "serial", "pty")
+"""`LinkSpec` kinds a rover can use."""
+LINK_FORMS = "tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, serial:PORT[,BAUD] or pty"
+"""The same, as people type them."""
 
 Report = Callable[[str], None]
 
@@ -140,6 +147,8 @@ async def _open_stream(spec: LinkSpec) -> Any:
         return await trio.open_tcp_stream(spec.host, spec.port)
     if spec.kind == "serial":
         return open_serial_stream(spec.url, spec.baud)
+    if spec.kind == "udp_listen":  # datagrams to the server; "connected" once it answers
+        return await open_udp_stream(spec.host, spec.port)
     if spec.kind == "tcp_in":  # the rover listens; the server connects out to it
         listeners = await trio.open_tcp_listeners(spec.port, host=spec.host or None)
         try:
@@ -147,8 +156,7 @@ async def _open_stream(spec: LinkSpec) -> Any:
         finally:
             for listener in listeners:
                 await listener.aclose()
-    raise OSError(f"a rover's link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, "
-                  f"got {spec.text!r}")
+    raise OSError(f"a rover's link must be {LINK_FORMS}, got {spec.text!r}")
 
 
 async def _pump(stream: Any, link: WiflyLink, rover: RemoteRover, on_answer: Any) -> str:
@@ -188,6 +196,11 @@ def _reason(exc: BaseException) -> str:
     return text.splitlines()[0]
 
 
+def _answered(answered: list[bool], report: Report, text: str) -> None:
+    answered.append(True)
+    report(text)
+
+
 async def _keep_connected(rover: RemoteRover, link: WiflyLink, report: Report,
                           retry_s: tuple[float, float], stream: Any = None) -> None:
     """Connect, pump, and on any failure report and retry with doubling backoff."""
@@ -209,9 +222,10 @@ async def _keep_connected(rover: RemoteRover, link: WiflyLink, report: Report,
         rover.connects += 1
         rover.uplink.connected = True
         where = rover.pty_path or spec.text
+        answered: list[bool] = []
         try:  # "connected" once the server answers: an open port or socket is no server yet
-            why = await _pump(stream, link, rover,
-                              functools.partial(report, f"connected to {where}"))
+            why = await _pump(stream, link, rover, functools.partial(
+                _answered, answered, report, f"connected to {where}"))
         except (OSError, trio.BrokenResourceError, trio.ClosedResourceError,
                 BaseExceptionGroup) as exc:
             if isinstance(exc, BaseExceptionGroup) and not exc.subgroup(
@@ -231,7 +245,8 @@ async def _keep_connected(rover: RemoteRover, link: WiflyLink, report: Report,
             await trio.sleep(delay)
             continue  # the cable stays: same stream, wait for the other end again
         stream = None
-        report(f"lost the server at {spec.text}: {why}; reconnecting in {delay:g} s")
+        lost = "lost the server at" if answered else "no answer from"
+        report(f"{lost} {spec.text}: {why}; reconnecting in {delay:g} s")
         await trio.sleep(delay)
         delay = min(delay * 2, most)
 
@@ -248,7 +263,8 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
     Args:
         scenario: the room and the rover's start pose.
         role: ``mapper``, ``hider`` or ``seeker``.
-        link: where the server is (``tcp:HOST:PORT``, ``serial:PORT,BAUD``) or ``pty``.
+        link: where the server is (``tcp:HOST:PORT``, ``udp:HOST:PORT``,
+            ``serial:PORT,BAUD``), ``tcpin:HOST:PORT`` or ``pty``.
         seed: the world's noise and the actors' generators derive from it.
         rover_id: the id said in hello (default: the role).
         token: the hello token, when the server asks for one.
@@ -262,9 +278,8 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
     """
     if role not in ROLES:
         raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
-    if link.kind not in ("tcp_listen", "tcp_in", "serial", "pty"):
-        raise ValueError(f"a rover's link must be tcp:HOST:PORT, serial:PORT,BAUD or pty, "
-                         f"got {link.text!r}")
+    if link.kind not in LINK_KINDS:
+        raise ValueError(f"a rover's link must be {LINK_FORMS}, got {link.text!r}")
     first, most = retry_s
     if not 0 < first <= most:
         raise ValueError(f"retry_s must be (first, most) with 0 < first <= most, got {retry_s!r}")
@@ -278,7 +293,7 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
         async with open_actor_system(seed) as actors, trio.open_nursery() as nursery:
             nursery.start_soon(run_world, world)
             spec = rover_tree(role, world.hardware(role), rover_id=rover_id, token=token,
-                              nav_factory=nav_factory)
+                              nav_factory=nav_factory, hold_until_welcome=True)
             tree = await actors.start_supervisor(spec, role)
             rover = RemoteRover(role, link, world, actors, tree, uplink,
                                 pty_path=cable.path if cable else "")

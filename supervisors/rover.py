@@ -163,7 +163,8 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
                nav_options: dict[str, Any] | None = None, token: str | None = None,
                motor_tuning: MotorTuning | None = None, map_size_cm: tuple[float, float] = (
                    2400.0, 2400.0), ir_rate_hz: float = 50.0,
-               intensity: int = 10, period: float = 10.0) -> SupervisorSpec:
+               intensity: int = 10, period: float = 10.0,
+               hold_until_welcome: bool = False) -> SupervisorSpec:
     """The supervision tree of one rover (see the module docstring).
 
     Args:
@@ -183,6 +184,8 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
         ir_rate_hz: IR timer rate [Hz] (seeker).
         intensity: restarts allowed within ``period`` before the tree gives up.
         period: [s].
+        hold_until_welcome: the WiFly sends nothing but hello until the welcome (a rover
+            on a real link; see `Wifly`).
 
     Raises:
         ValueError: unknown role.
@@ -205,7 +208,8 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
         if not link_memory:
             link_memory.append(LinkMemory())
         return Wifly(hardware, pool, rover_id=rover_id, role=role, token=token,
-                     memory=link_memory[0], isr=isrs.wifly, addresses=names)
+                     memory=link_memory[0], isr=isrs.wifly, addresses=names,
+                     hold_until_welcome=hold_until_welcome)
 
     map_starts = [0]
 

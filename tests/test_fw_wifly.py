@@ -16,6 +16,7 @@ from server.protocol import (
     GridMap,
     MapAssembler,
     ReliableSession,
+    decode_line,
     make_frame,
     map_chunks,
     read_data,
@@ -152,6 +153,47 @@ async def test_restart_keeps_unacknowledged_frames(autojump_clock) -> None:
         await trio.sleep(15.0)
         assert [f.cmd for f in server.got].count("arrived") == 1
         nursery.cancel_scope.cancel()
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize("hold", [True, False])
+async def test_hold_until_welcome_sends_only_hellos_before_the_welcome(autojump_clock,
+                                                                      hold) -> None:
+    """With hold_until_welcome (a rover on a real link) every frame before the welcome is
+    a hello, and what navigation queued meanwhile follows it; without (the in-memory
+    link) the session's frames and heartbeats go out from the start."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
+        server = FakeServer(hw)
+        written: list[str] = []
+        to_server = hw.wifly_write
+
+        def wire(data: bytes) -> None:  # every frame the rover writes, heard or not
+            written.extend(decode_line(ln).cmd for ln in data.splitlines() if ln.strip())
+            to_server(data)
+
+        hw.wifly_write = wire
+        server.deaf = True
+        nursery.start_soon(server.run)
+        spec = SupervisorSpec([
+            ChildSpec("nav", lambda: Recorder(log, pool)),
+            ChildSpec("wifly", lambda: Wifly(hw, pool, rover_id="h", role="hider",
+                                             hold_until_welcome=hold), mailbox=256)])
+        await system.start_supervisor(spec, "hider")
+        await system.send("hider/wifly", Message.handle(
+            Cmd.WIFLY_SEND_UNRELIABLE, pool.put(make_frame("status", {"state": "idle"}))))
+        await system.send("hider/wifly", arrived(pool))
+        await trio.sleep(4.0)
+        before = list(written)
+        server.deaf = False
+        await trio.sleep(10.0)
+        got = [f.cmd for f in server.got]
+        nursery.cancel_scope.cancel()
+    if hold:
+        assert before == ["hello"] * 3  # at 0, 1 and 3 s
+        assert got[0] == "hello" and {"status", "arrived"} <= set(got)
+    else:
+        assert {"status", "heartbeat"} <= set(before)
 
 
 def test_bad_rover_id_is_refused_at_construction() -> None:

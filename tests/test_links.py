@@ -50,6 +50,10 @@ def test_parse_link_accepts_the_documented_forms(text: str, kind: str, fields: d
         ("COM3,9600", "serial", ("COM3", 9600)),
         ("tcpin:0.0.0.0:7000", "tcp_in", ("0.0.0.0", 7000)),
         ("tcp:10.0.0.2:23", "tcp_listen", ("10.0.0.2", 23)),
+        ("udp:127.0.0.1:14550", "udp_listen", ("127.0.0.1", 14550)),
+        ("udpin:0.0.0.0:14550", "udp_in", ("0.0.0.0", 14550)),
+        ("udp:[::1]:14550", "udp_listen", ("::1", 14550)),
+        ("udp", "udp", ("", 0)),
     ],
 )
 def test_link_strings_as_mavproxy_users_type_them(text: str, kind: str, where: tuple) -> None:
@@ -62,8 +66,11 @@ def test_link_strings_as_mavproxy_users_type_them(text: str, kind: str, where: t
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("ttyUSB0", "link must be tcp:HOST:PORT, tcpin:HOST:PORT, tcp, serial:PORT[,BAUD], "
-                    "a device path[,BAUD], sim or pty, got 'ttyUSB0'"),
+        ("ttyUSB0", "link must be tcp:HOST:PORT, tcpin:HOST:PORT, tcp, udp:HOST:PORT, "
+                    "udpin:HOST:PORT, udp, serial:PORT[,BAUD], a device path[,BAUD], sim or "
+                    "pty, got 'ttyUSB0'"),
+        ("udp:7878", "udp link must be udp:HOST:PORT, got 'udp:7878'"),
+        ("udpin:[]:7878", "udpin link must be udpin:HOST:PORT, got 'udpin:[]:7878'"),
         ("serial:", "serial link must be serial:PORT[,BAUD], got 'serial:'"),
         ("tcpin:5", "tcpin link must be tcpin:HOST:PORT, got 'tcpin:5'"),
         ("serial:/dev/ttyUSB0,fast", "serial baud must be a number, got 'fast' in "

@@ -22,11 +22,10 @@ from tui.snapshot import CommandResult
 from world.scenario import load_scenario
 
 
-def test_the_live_system_records_between_two_record_commands(tmp_path: Any) -> None:
-    """``record`` starts a recording of the running game and ``record`` again closes it; the
-    file is a console recording, which a fork refuses (a person's choices are not in it)."""
-    path = tmp_path / "live.mcap"
-    live = LiveSystem(load_scenario("empty"), speed=None, log_messages=False)
+def _record_twice(live: LiveSystem, first: str | None, second: str | None, *, for_s: float,
+                  mapping: bool = False) -> list[CommandResult]:
+    """Run ``live`` (virtual time): ``record(first)`` at 1 s (after start mapping when
+    ``mapping``), ``record(second)`` ``for_s`` later; the command results published."""
     results: list[CommandResult] = []
 
     def publish(item: Any) -> None:
@@ -38,14 +37,24 @@ def test_the_live_system_records_between_two_record_commands(tmp_path: Any) -> N
         async with trio.open_nursery() as nursery:
             nursery.start_soon(live.run, publish, receive)
             await trio.sleep(1.0)
-            live.start_mapping()
-            live.record(str(path))
-            await trio.sleep(20.0)
-            live.record(None)
+            if mapping:
+                live.start_mapping()
+            live.record(first)
+            await trio.sleep(for_s)
+            live.record(second)
             await trio.sleep(0.5)
             nursery.cancel_scope.cancel()
 
     trio.run(main, clock=live.clock)
+    return results
+
+
+def test_the_live_system_records_between_two_record_commands(tmp_path: Any) -> None:
+    """``record`` starts a recording of the running game and ``record`` again closes it; the
+    file is a console recording, which a fork refuses (a person's choices are not in it)."""
+    path = tmp_path / "live.mcap"
+    live = LiveSystem(load_scenario("empty"), speed=None, log_messages=False)
+    results = _record_twice(live, str(path), None, for_s=20.0, mapping=True)
     assert [r.status for r in results if r.command == "record"] == ["ok", "ok"]
     assert live.recording is None
     rec = read_recording(path)
@@ -54,6 +63,17 @@ def test_the_live_system_records_between_two_record_commands(tmp_path: Any) -> N
     assert rec.topic("/map/working") and rec.topic("/actors/messages")
     with pytest.raises(ForkError, match="recorded from the console"):
         plan_fork(rec, rec.start_s + 1.0)
+
+
+def test_record_into_a_folder_names_the_file_there(tmp_path: Any) -> None:
+    """``R`` passes the export folder: the recording gets a name of its own inside it,
+    not in the working directory."""
+    live = LiveSystem(load_scenario("empty"), speed=None, log_messages=False)
+    results = _record_twice(live, str(tmp_path), str(tmp_path), for_s=2.0)
+    assert [r.status for r in results if r.command == "record"] == ["ok", "ok"]
+    (made,) = tmp_path.iterdir()
+    assert made.name.startswith("hideseek-empty-seed1-") and made.suffix == ".mcap"
+    assert read_recording(made).run.operator == "console"
 
 
 def test_play_record_writes_from_the_start(tmp_path: Any) -> None:

@@ -11,14 +11,20 @@ byte arriving, so the pty traffic is never outrun by the clock.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import pathlib
+import signal
 import socket
+import subprocess
+import sys
 import tty
 
 import pytest
 import trio
 import trio.testing
 
+from actors import scaled_clock
 from server.links import parse_link
 from server.server import ServerConfig, open_server
 from server.store import Store
@@ -29,6 +35,7 @@ from supervisors.system import open_sim_system
 from tui import cmd_rover
 from world.scenario import load_scenario
 
+ROOT = pathlib.Path(__file__).resolve().parent.parent
 PTY_CLOCK_THRESHOLD_S = 0.0005  # real time with nothing to do before the clock jumps [s]
 
 
@@ -89,6 +96,27 @@ def test_unreachable_server_is_reported_and_retried_with_backoff() -> None:
     assert lines[0].startswith(f"cannot connect over tcp:127.0.0.1:{port}: ")
 
 
+def test_udp_rover_without_a_server_says_no_answer_and_retries() -> None:
+    """Over UDP nothing connects: the first datagram to a port nobody receives on comes
+    back refused (ICMP), the rover says there was no answer, and tries again."""
+    lines: list[str] = []
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+
+    async def main() -> None:
+        scenario = load_scenario("empty")
+        link = parse_link(f"udp:127.0.0.1:{port}")
+        async with open_remote_rover(scenario, "hider", link, report=lines.append,
+                                     retry_s=(1.0, 4.0), nav_factory=_idle_nav) as rover:
+            await trio.sleep(8)
+            assert rover.connects >= 2 and not any("connected" in ln for ln in lines)
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
+    assert lines[0] == (f"no answer from udp:127.0.0.1:{port}: Connection refused; "
+                        "reconnecting in 1 s")
+
+
 def test_rover_reconnects_after_the_server_restarts() -> None:
     """The server goes away and comes back on the same port: the rover says hello again."""
     port = _free_port()
@@ -100,6 +128,7 @@ def test_rover_reconnects_after_the_server_restarts() -> None:
             await server.listen_tcp("127.0.0.1", port)
             async for e in events:
                 if e.kind == "hello":
+                    await trio.sleep(0.5)  # the welcome reaches the rover: it was answered
                     return
 
     async def main() -> None:
@@ -171,6 +200,40 @@ def test_pty_link_gives_a_path_the_server_opens_as_a_serial_port() -> None:
     assert lines[0].startswith("pty ready: give the server serial:/dev/")
 
 
+def test_pty_attach_is_answered_at_once_and_logs_no_error() -> None:
+    """The mapper (its idle firmware sends status and pose) talks into its pty for 10 s
+    before the server opens the port (pyserial flushes what waits there, its hellos
+    too): the server asks for a hello, the rover says it within a second, and no error
+    is logged on either side."""
+    lines: list[str] = []
+    seen: dict = {}
+
+    async def main() -> None:
+        scenario = load_scenario("empty")
+        with Store(":memory:") as store:
+            async with open_server(store, ServerConfig(rovers=frozenset({"mapper"}))) as server, \
+                    open_remote_rover(scenario, "mapper", parse_link("pty"),
+                                      report=lines.append) as rover:
+                events = server.subscribe()
+                await trio.sleep(10)  # hellos at 0, 1, 3 and 7 s wait in the pty; next at 15 s
+                opened = trio.current_time()
+                server.start_serial(rover.pty_path, 115200)
+                kinds = []
+                with trio.move_on_after(5):
+                    async for e in events:
+                        kinds.append(e.kind)
+                        if e.kind == "hello":
+                            seen["hello_after_s"] = trio.current_time() - opened
+                seen["kinds"] = kinds
+                seen["view"] = server.snapshot().rovers[0]
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=PTY_CLOCK_THRESHOLD_S))
+    assert seen["hello_after_s"] < 1.0
+    assert not {"bad_frame", "link_error", "peer_error", "refused"} & set(seen["kinds"])
+    assert seen["view"].stats.up and seen["view"].stats.bad_frames == 0
+    assert [ln for ln in lines if "error" in ln] == []
+
+
 def test_whole_game_with_the_mapper_on_a_pty_serial_link() -> None:
     """Mapper over two ptys (pyserial on both ends), hider and seeker in memory: found."""
     scenario = load_scenario("empty")
@@ -210,6 +273,78 @@ def test_whole_game_with_the_mapper_on_a_pty_serial_link() -> None:
     assert min(seen["bytes"]) > 1000
 
 
+async def _game_over_udp(scenario, report: GameReport, budget: Budget, mapper) -> dict:
+    """Play ``report``'s game: hider and seeker simulated beside a server receiving UDP on
+    loopback, the mapper brought by ``mapper(port)`` (an async context for the game).
+    Returns the server's rover views at the end."""
+    with Store(":memory:") as store:
+        async with open_sim_system(scenario, seed=1, store=store,
+                                   roles=("hider", "seeker")) as system:
+            port = await system.server.listen_udp("127.0.0.1", 0)
+            async with mapper(port):
+                await play_game(system, report, budget)
+                return {r.id: r for r in system.server.snapshot().rovers}
+
+
+def test_whole_game_with_the_mapper_on_udp() -> None:
+    """Mapper over real UDP sockets on loopback (one frame per datagram), hider and
+    seeker in memory: found, with no bad frame."""
+    scenario = load_scenario("empty")
+    report = GameReport(scenario.name, 1)
+    seen: dict = {}
+
+    def bring_mapper(port: int):
+        return open_remote_rover(scenario, "mapper", parse_link(f"udp:127.0.0.1:{port}"),
+                                 seed=1)
+
+    async def main() -> None:
+        seen["rovers"] = await _game_over_udp(scenario, report, Budget(
+            hello=30, mapping=400, hiding=200, seeking=200), bring_mapper)
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=PTY_CLOCK_THRESHOLD_S))
+    assert report.outcome == "found", (report.reason, report.events)
+    mapper = seen["rovers"]["mapper"]
+    assert mapper.link.startswith("udp:127.0.0.1:")
+    assert mapper.stats.bad_frames == 0 and mapper.stats.frames_in > 100
+    assert report.coverage is not None and report.coverage > 0.9
+
+
+def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
+    """The real command: ``hideseek rover --link udp:`` in its own process (the mapper,
+    at x8) plays a game against a server receiving UDP on loopback (hider and seeker
+    simulated there, its clock at x8 too): found, no bad frame, stopped with status 0."""
+    speed = 8.0
+    scenario = load_scenario("empty")
+    report = GameReport(scenario.name, 1)
+    seen: dict = {}
+
+    @contextlib.asynccontextmanager
+    async def bring_mapper(port: int):
+        seen["proc"] = subprocess.Popen(
+            [sys.executable, "-m", "tui.cli", "rover", "--role", "mapper", "--scenario",
+             "empty", "--link", f"udp:127.0.0.1:{port}", "--speed", f"{speed:g}"],
+            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        yield
+
+    async def main() -> None:
+        seen["rovers"] = await _game_over_udp(scenario, report, Budget(
+            hello=160, mapping=400, hiding=200, seeking=200), bring_mapper)
+
+    try:
+        trio.run(main, clock=scaled_clock(speed))
+    finally:
+        proc = seen.get("proc")
+        if proc is not None:
+            proc.send_signal(signal.SIGINT)
+            out, _ = proc.communicate(timeout=20)
+    assert report.outcome == "found", (report.reason, report.events, out)
+    mapper = seen["rovers"]["mapper"]
+    assert mapper.link.startswith("udp:127.0.0.1:")
+    assert mapper.stats.bad_frames == 0
+    assert proc.returncode == 0, out
+    assert "mapper: connected to udp:127.0.0.1:" in out and "Traceback" not in out
+
+
 def _rover_args(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="hideseek rover")
     cmd_rover.add_arguments(parser)
@@ -219,10 +354,13 @@ def _rover_args(argv: list[str]) -> argparse.Namespace:
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--link", "tcp"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, serial:PORT[,BAUD] "
-                            "or pty, got 'tcp'"),
-        (["--link", "sim"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, serial:PORT[,BAUD] "
-                            "or pty, got 'sim'"),
+        (["--link", "tcp"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, "
+                            "serial:PORT[,BAUD] or pty, got 'tcp'"),
+        (["--link", "sim"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, "
+                            "serial:PORT[,BAUD] or pty, got 'sim'"),
+        (["--link", "udpin:0.0.0.0:7878"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, "
+                                           "udp:HOST:PORT, serial:PORT[,BAUD] or pty, got "
+                                           "'udpin:0.0.0.0:7878'"),
         (["--link", "serial:"], "serial link must be serial:PORT[,BAUD], got 'serial:'"),
         (["--link", "pty", "--speed", "0"], "--speed must be within 0..1000, got 0"),
         (["--link", "pty", "--scenario", "nowhere"],

@@ -30,7 +30,13 @@ def _args(module, prog: str, argv: list[str]) -> argparse.Namespace:
          "nowhere: no such scenario file or built-in name (built-ins: empty, furniture, "
          "l_shaped, corridor, cluttered, hall, round, gap)"),
         (["--rover", "m1=tcp:1.2.3.4:5"], "--rover m1: a rover's link is serial:PORT,BAUD, "
-                                          "tcp or sim"),
+                                          "tcp, udp or sim"),
+        (["--rover", "m1=udp", "--listen", "tcp:127.0.0.1:7878"],
+         "a rover on udp needs --listen udp:HOST:PORT"),
+        (["--rover", "m1=udp", "--listen", "udp:10.1.2.3:7878"],
+         "refusing to listen on 10.1.2.3: not loopback and no rover tokens (give --token)"),
+        (["--listen", "serial:/dev/ttyS0"],
+         "--listen must be tcp:HOST:PORT, udp:HOST:PORT or none, got 'serial:/dev/ttyS0'"),
         (["--rover", "m1"], "--rover must be ID=VALUE, got 'm1'"),
         (["--rover", "m1=serial:"], "serial link must be serial:PORT[,BAUD], got 'serial:'"),
         (["--origin", "h1=1,2"], "--origin must be ID=X,Y,HEADING with numbers, got 'h1=1,2'"),

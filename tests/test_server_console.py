@@ -73,5 +73,5 @@ def test_status_is_formatted_for_people() -> None:
     assert lines[0] == "game 3: hiding"
     assert lines[2].split() == ["h1", "hider", "tcp:127.0.0.1:5", "yes", "23", "ms", "12",
                                 "9", "1", "2", "3"]
-    assert lines[3] == ("  tcp connections 2; refused since start: 7 bad frames, "
+    assert lines[3] == ("  connections 2; refused since start: 7 bad frames, "
                         "0 failed hellos, 0 links closed")

@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 import pytest
 from rich.console import Console
+from rich.text import Text
 from textual import events
 from textual.widgets import Button, Input, Select
 
@@ -186,6 +187,23 @@ def test_speed_keys_pressed_quickly_step_from_the_speed_asked_last():
     drive(test, speed=1.0)
 
 
+def test_speed_keys_at_either_end_change_nothing():
+    """'[' at x1 and ']' at "as fast as possible" send no speed change (nothing to log)."""
+
+    async def test(app, fake):
+        press(app, "left_square_bracket")
+        await asyncio.sleep(0.3)
+        assert calls(fake, "set_speed") == []
+        for _ in range(3):
+            press(app, "right_square_bracket")
+        await until(lambda: app.snapshot.speed is None, "max speed shown")
+        press(app, "right_square_bracket")
+        await asyncio.sleep(0.3)
+        assert calls(fake, "set_speed") == [(4.0,), (16.0,), (None,)]
+
+    drive(test, speed=1.0)
+
+
 def test_fault_dialog_injects_a_crash_that_flashes_and_recovers():
     """f opens the dialog; a crash on mapper/lidar shows restarting, then ↻1."""
 
@@ -269,6 +287,24 @@ def test_truth_toggle_and_zoom_change_the_map_title():
         await until(lambda: view.scale > before, "zoomed out")
 
     drive(test, speed=1.0)
+
+
+@pytest.mark.parametrize(("size", "legend"), [
+    ((120, 40), "truth: ■ unseen ■ missed ■ false ○ true pose"),
+    ((80, 24), "■unseen ■missed ■false ○true"),
+])
+def test_truth_legend_is_whole_in_the_map_title_at_120_and_80_columns(size, legend):
+    """The overlay's legend fits the top border: in words at 120 columns, short at 80."""
+
+    async def test(app, fake):
+        view = app.query_one(MapView)
+        press(app, "g")
+        await until(lambda: "■" in str(view.border_title), "legend in title")
+        title = Text.from_markup(str(view.border_title)).plain
+        assert title.endswith(legend)
+        assert len(title) <= view.size.width - 4
+
+    drive(test, speed=1.0, size=size)
 
 
 def test_map_draws_rovers_and_occupied_cells():

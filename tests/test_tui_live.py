@@ -12,7 +12,7 @@ import trio.testing
 from server.links import parse_link
 from server.protocol import Pose, inverse
 from server.protocol import compose as compose_pose
-from tui.live import LiveSystem
+from tui.live import LiveSystem, fault_text
 from tui.snapshot import FREE, OCCUPIED, GridView
 from tui.widgets.map_pixels import classify
 from world.scenario import load_scenario
@@ -68,7 +68,7 @@ def test_truth_overlay_puts_an_obstacle_on_the_mappers_cell_for_it(tmp_path, hea
 
 
 def test_attached_rover_links_are_checked() -> None:
-    """A remote rover's ID is its role; tcp needs a listen address; only serial or tcp."""
+    """A remote rover's ID is its role; tcp and udp need a listen address of their kind."""
     scenario = load_scenario("empty")
     with pytest.raises(ValueError, match="--rover m1: the ID of an attached rover is its role"):
         LiveSystem(scenario, remote={"m1": parse_link("tcp")})
@@ -80,6 +80,28 @@ def test_attached_rover_links_are_checked() -> None:
         LiveSystem(scenario, remote={"mapper": parse_link("/dev/ttyUSB0")}, auto=True)
     live = LiveSystem(scenario, remote={"mapper": parse_link("tcp:10.0.0.2:2000")})
     assert live.remote["mapper"].kind == "tcp_listen"  # the console connects out to it
+    with pytest.raises(ValueError, match="a rover on udp needs --listen udp:HOST:PORT"):
+        LiveSystem(scenario, remote={"mapper": parse_link("udp")},
+                   listen=[parse_link("tcp:127.0.0.1:7878")])
+    live = LiveSystem(scenario, remote={"mapper": parse_link("udp")},
+                      listen=[parse_link("udp:127.0.0.1:7878")])
+    assert [s.kind for s in live.listen] == ["udp_listen"]
+
+
+def test_fault_events_read_as_sentences() -> None:
+    """The world's fault trace details become one readable line each; others are left."""
+    injected = ("fault_injected [('duration_s', 60.0), ('id', 1), ('kind', 'slipping'), "
+                "('params', {'ratio': 0.5})]")
+    assert fault_text("hider/encoder", injected) == (
+        "slipping on hider/encoder ratio=0.5 for 60 s (w1)")
+    scheduled = ("fault_injected [('duration_s', 0.0), ('id', 2), ('kind', 'dead'), "
+                 "('params', {}), ('scheduled', True)]")
+    assert fault_text("mapper/lidar", scheduled) == (
+        "dead on mapper/lidar until cleared, scheduled (w2)")
+    cleared = "fault_cleared [('id', 1), ('kind', 'slipping'), ('reason', 'expired')]"
+    assert fault_text("hider/encoder", cleared) == "slipping on hider/encoder cleared (expired, w1)"
+    assert fault_text("mapper/nav", "crash") == ""
+    assert fault_text("mapper/nav", "fault_injected [broken") == ""
 
 
 def test_with_an_attached_rover_time_is_real_and_speed_is_refused() -> None:

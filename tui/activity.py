@@ -9,6 +9,7 @@ scroll out between two frames, and decoding each would cost the simulation time.
 
 from __future__ import annotations
 
+import ast
 import re
 from collections import deque
 from collections.abc import Callable
@@ -43,6 +44,29 @@ def describe(message: Any) -> str:
     if type(message) is Message:
         return f"{name_of(message.command)} {message.value!r}"
     return repr(message)[:80]
+
+
+def fault_text(target: str, detail: str) -> str:
+    """A device fault's trace event for people (``fault_injected [('duration_s', 60.0), ('id',
+    1), ('kind', 'slipping'), ...]`` -> ``slipping on hider/encoder for 60 s (w1)``); ``""``
+    for any other detail (actor faults read well as they are)."""
+    what, _, rest = detail.partition(" ")
+    if what not in ("fault_injected", "fault_cleared"):
+        return ""
+    try:
+        fields = dict(ast.literal_eval(rest))
+    except (ValueError, SyntaxError, TypeError):
+        return ""
+    fid = f"w{fields.get('id', '?')}"
+    kind = fields.get("kind", "?")
+    if what == "fault_cleared":
+        return f"{kind} on {target} cleared ({fields.get('reason', 'cleared')}, {fid})"
+    duration = float(fields.get("duration_s") or 0.0)
+    params = " ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
+                      for k, v in sorted(dict(fields.get("params") or {}).items()))
+    return (f"{kind} on {target}" + (f" {params}" if params else "")
+            + (f" for {duration:g} s" if duration else " until cleared")
+            + (", scheduled" if fields.get("scheduled") else "") + f" ({fid})")
 
 
 class ActivityLog:
@@ -91,7 +115,8 @@ class ActivityLog:
             if event.kind in (EventKind.CRASH, EventKind.HUNG, EventKind.KILLED):
                 self.exits[event.actor] = event.time
             kind = {EventKind.RESTART: "restart", EventKind.FAULT: "fault"}.get(event.kind, "crash")
-            self.event(kind, f"{event.kind.value} {event.actor} {event.detail}".strip())
+            text = fault_text(event.actor, event.detail) if kind == "fault" else ""
+            self.event(kind, text or f"{event.kind.value} {event.actor} {event.detail}".strip())
 
     def log_lines(self) -> tuple[LogLine, ...]:
         """The message log, decoding what was traced since the last snapshot."""

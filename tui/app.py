@@ -412,10 +412,20 @@ class ConsoleApp(App[int]):
         return min(range(len(SPEEDS) - 1), key=lambda i: abs(SPEEDS[i] - speed))  # type: ignore[operator]
 
     def action_faster(self) -> None:
-        self._set_speed(min(len(SPEEDS) - 1, self._speed_index() + 1))
+        self._step_speed(+1)
 
     def action_slower(self) -> None:
-        self._set_speed(max(0, self._speed_index() - 1))
+        self._step_speed(-1)
+
+    def _step_speed(self, step: int) -> None:
+        """One speed step; at either end a note instead of a speed "change" to the same."""
+        now = self._speed_index()
+        index = min(len(SPEEDS) - 1, max(0, now + step))
+        if index == now:
+            self.notify("already as fast as possible" if step > 0 else "already at x1",
+                        timeout=2)
+            return
+        self._set_speed(index)
 
     def _set_speed(self, index: int) -> None:
         self._asked_speed = (index, self.snapshots_shown)
@@ -436,7 +446,7 @@ class ConsoleApp(App[int]):
         if not hasattr(self.system, "record"):
             self.notify("this system cannot be recorded", severity="warning")
             return
-        self._call("record", None)
+        self._call("record", str(self.export_dir))
 
     def action_faults(self) -> None:
         snap = self.snapshot

@@ -1,7 +1,7 @@
 """``hideseek play``: open the console on the simulated system (or the fake one with --fake).
 
 With ``--rover ROLE=LINK`` that rover is not simulated here but attached over a
-serial port or TCP (a real rover, or ``hideseek rover`` in another process);
+serial port, TCP or UDP (a real rover, or ``hideseek rover`` in another process);
 simulated time then runs at real time only.
 
 Textual is imported only when the command runs, so ``hideseek --help`` stays fast.
@@ -40,11 +40,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         metavar="ID=LINK",
                         help="attach a rover over a link instead of simulating it here: "
                              "ROLE=serial:PORT[,BAUD] or ROLE=/dev/ttyUSB0[,BAUD] (115200 "
-                             "by default), ROLE=tcp (it connects to --listen), or "
-                             "ROLE=tcp:HOST:PORT (it listens there: the server connects); "
-                             "then time runs at x1 only (repeatable)")
-    parser.add_argument("--listen", default="tcp:127.0.0.1:7878", metavar="tcp:HOST:PORT",
-                        help="where rovers on tcp connect (default %(default)s; loopback only)")
+                             "by default), ROLE=tcp (it connects to --listen), ROLE=udp (it "
+                             "sends datagrams to --listen), or ROLE=tcp:HOST:PORT (it listens "
+                             "there: the server connects); then time runs at x1 only "
+                             "(repeatable)")
+    parser.add_argument("--listen", action="append", metavar="tcp:HOST:PORT|udp:HOST:PORT",
+                        help="where rovers on tcp connect and rovers on udp send (repeatable; "
+                             "loopback only; default tcp:127.0.0.1:7878 and "
+                             "udp:127.0.0.1:7878, each where a rover uses it)")
     parser.add_argument("--fake", action="store_true",
                         help="run the built-in fake system (the console's demo and test double)")
     parser.add_argument("--speed", choices=list(SPEED_CHOICES), default="1",
@@ -53,7 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="record the game from the start (R in the console starts and "
                              "stops recording)")
     parser.add_argument("--export-dir", default=".", metavar="DIR",
-                        help="where the export key saves maps (default: current directory)")
+                        help="where the export key saves maps, the screenshot key SVGs and "
+                             "the record key recordings (default: current directory)")
     parser.add_argument("--auto", action="store_true",
                         help="play the headless operator's game by itself (start mapping, the "
                              "scenario's hide spot and guesses), then leave the console and "
@@ -65,26 +69,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _links(args: argparse.Namespace):
-    """``--rover`` and ``--listen`` -> (role -> LinkSpec, listen LinkSpec or None).
+    """``--rover`` and ``--listen`` -> (role -> LinkSpec, listen LinkSpecs).
+
+    A rover on ``tcp`` or ``udp`` needs a listening address of that kind: the
+    one given with ``--listen``, else ``127.0.0.1:7878`` when none is given.
 
     Raises:
-        ValueError: a bad link string, a rover given twice, or a non-loopback listen.
+        ValueError: a bad link string, a rover given twice, a missing or
+            non-loopback listen.
     """
     from server.links import is_loopback, parse_link
+    from tui.cmd_serve import parse_listens
 
     remote = {}
     for role, text in args.rover:
         if role in remote:
             raise ValueError(f"--rover {role} given twice")
         remote[role] = parse_link(text)
-    listen = None
-    if any(spec.kind == "tcp" for spec in remote.values()):
-        listen = parse_link(args.listen)
-        if listen.kind not in ("tcp_listen", "tcp_in"):
-            raise ValueError(f"--listen must be tcp:HOST:PORT, got {args.listen!r}")
-        if not is_loopback(listen.host):
-            raise ValueError(f"refusing to listen on {listen.host}: the console has no rover "
+    given = parse_listens(args.listen or [])
+    listen = []
+    for kind in ("tcp", "udp"):
+        if not any(spec.kind == kind for spec in remote.values()):
+            continue
+        where = next((spec for proto, spec in given if proto == kind), None)
+        if where is None:
+            if args.listen:
+                raise ValueError(f"a rover on {kind} needs --listen {kind}:HOST:PORT")
+            where = parse_link(f"{kind}:127.0.0.1:7878")
+        if not is_loopback(where.host):
+            raise ValueError(f"refusing to listen on {where.host}: the console has no rover "
                              "tokens; use a loopback address or hideseek serve --token")
+        listen.append(where)
     return remote, listen
 
 

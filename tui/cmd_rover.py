@@ -1,4 +1,4 @@
-"""``hideseek rover``: one simulated rover as its own process, over TCP or serial.
+"""``hideseek rover``: one simulated rover as its own process, over TCP, UDP or serial.
 
 The rover's WiFly bytes go over ``--link`` instead of the in-memory link, so
 the path a real rover takes (a WiFly module connecting over TCP, or a serial
@@ -20,7 +20,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--role", required=True, choices=ROLES, help="which rover this is")
     parser.add_argument("--link", required=True, metavar="LINK",
                         help="tcp:HOST:PORT (connect to the server), tcpin:HOST:PORT (wait "
-                             "there for the server to connect), serial:PORT[,BAUD] or a device "
+                             "there for the server to connect), udp:HOST:PORT (send datagrams "
+                             "to the server there), serial:PORT[,BAUD] or a device "
                              "path (a port or pyserial URL; 115200 baud by default), or pty "
                              "(make a pty pair and print the path the server must open)")
     parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
@@ -36,13 +37,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from server.links import parse_link
+    from supervisors.remote import LINK_FORMS, LINK_KINDS
     from world.scenario import ScenarioError, load_scenario
 
     try:
         link = parse_link(args.link)
-        if link.kind not in ("tcp_listen", "tcp_in", "serial", "pty"):
-            raise ValueError(f"--link must be tcp:HOST:PORT, tcpin:HOST:PORT, "
-                             f"serial:PORT[,BAUD] or pty, got {args.link!r}")
+        if link.kind not in LINK_KINDS:
+            raise ValueError(f"--link must be {LINK_FORMS}, got {args.link!r}")
         if not args.speed > 0 or args.speed > 1000:
             raise ValueError(f"--speed must be within 0..1000, got {args.speed:g}")
         scenario = load_scenario(args.scenario)

@@ -1,9 +1,10 @@
 """``hideseek serve``: run the game server for real rovers, log events as plain text.
 
-Rovers attach over TCP (``--rover ID=tcp``: they connect to ``--listen``),
-serial (``--rover ID=serial:PORT,BAUD``) or are simulated in this process
+Rovers attach over TCP (``--rover ID=tcp``: they connect to ``--listen
+tcp:HOST:PORT``), UDP (``--rover ID=udp``: they send datagrams to ``--listen
+udp:HOST:PORT``), serial (``--rover ID=serial:PORT,BAUD``) or are simulated in this process
 (``--rover ROLE=sim``: the ``--scenario`` room, in real time, in-memory link).
-Only the ids given with ``--rover`` may say hello over TCP or serial, unless
+Only the ids given with ``--rover`` may say hello over TCP, UDP or serial, unless
 ``--open-enrolment``; beyond loopback every such id needs a ``--token``.
 
 The server plays on the database's newest game when it is unfinished (a
@@ -28,12 +29,21 @@ import argparse
 import contextlib
 import os
 import sys
+from typing import TYPE_CHECKING
 
 from server.protocol import ROLES
 
-__all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_command_line",
-           "CONSOLE_COMMANDS", "HELP", "format_status"]
+if TYPE_CHECKING:
+    from server.links.spec import LinkSpec
 
+__all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_listens",
+           "parse_command_line", "CONSOLE_COMMANDS", "DEFAULT_LISTEN", "DEFAULT_UDP_LISTEN",
+           "HELP", "format_status"]
+
+DEFAULT_LISTEN = "tcp:127.0.0.1:7878"
+"""Where ``serve`` listens without ``--listen``."""
+DEFAULT_UDP_LISTEN = "udp:127.0.0.1:7878"
+"""... and for rovers on ``udp`` (``--rover ID=udp``)."""
 CONSOLE_COMMANDS = ("start_mapping", "stop_mapping", "hide", "seek", "new_game", "status",
                     "help", "quit")
 """Every command the operator console takes."""
@@ -51,12 +61,13 @@ HELP = """\
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--listen", default="tcp:127.0.0.1:7878", metavar="tcp:HOST:PORT",
-                        help="where rovers connect over TCP (default %(default)s); 'none' to "
-                             "not listen")
+    parser.add_argument("--listen", action="append", metavar="tcp:HOST:PORT|udp:HOST:PORT",
+                        help=f"where rovers connect over TCP, or send over UDP (repeatable; "
+                             f"default {DEFAULT_LISTEN}, and {DEFAULT_UDP_LISTEN} with a "
+                             f"rover on udp); 'none' to not listen")
     parser.add_argument("--rover", action="append", default=[], metavar="ID=LINK",
-                        help="a rover and its link: serial:PORT,BAUD, tcp or sim (repeatable); "
-                             "only these ids may say hello over TCP or serial")
+                        help="a rover and its link: serial:PORT,BAUD, tcp, udp or sim "
+                             "(repeatable); only these ids may say hello over TCP, UDP or serial")
     parser.add_argument("--db", default="hideseek.db", metavar="FILE",
                         help="SQLite database for games, maps and events (default %(default)s)")
     parser.add_argument("--token", action="append", default=[], metavar="[ID=]TOKEN",
@@ -69,7 +80,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="start a new game even when the database's newest game is "
                              "unfinished (by default it is resumed)")
     parser.add_argument("--max-connections", type=int, default=64, metavar="N",
-                        help="TCP connections held at once at most (default %(default)s)")
+                        help="TCP connections and UDP peers held at once at most (default "
+                             "%(default)s)")
     parser.add_argument("--no-console", action="store_true",
                         help="ignore standard input (no operator commands; stop with a signal)")
     parser.add_argument("--origin", action="append", default=[], metavar="ID=X,Y,HEADING",
@@ -87,6 +99,27 @@ def parse_assignment(text: str, what: str) -> tuple[str, str]:
     if not sep or not key or not value:
         raise ValueError(f"{what} must be ID=VALUE, got {text!r}")
     return key.strip(), value.strip()
+
+
+def parse_listens(texts: list[str]) -> list[tuple[str, LinkSpec]]:
+    """``--listen`` values -> [(``tcp`` or ``udp``, address)]; ``none`` alone: no listening.
+
+    Raises:
+        ValueError: a value that is not tcp:HOST:PORT, udp:HOST:PORT (udpin:, tcpin: too)
+            or none.
+    """
+    from server.links import parse_link
+
+    if texts == ["none"]:
+        return []
+    out = []
+    for text in texts:
+        spec = parse_link(text) if text != "none" else None
+        if spec is None or spec.kind not in ("tcp_listen", "tcp_in", "udp_listen", "udp_in"):
+            raise ValueError(f"--listen must be tcp:HOST:PORT, udp:HOST:PORT or none, got "
+                             f"{text!r}")
+        out.append((spec.kind[:3], spec))
+    return out
 
 
 def parse_origin(text: str):
@@ -154,7 +187,7 @@ def format_status(snap) -> str:
     if not snap.rovers:
         lines.append("  no rover has said hello yet")
     refused = getattr(snap, "refused", {}) or {}
-    lines.append(f"  tcp connections {getattr(snap, 'connections', 0)}; refused since start: "
+    lines.append(f"  connections {getattr(snap, 'connections', 0)}; refused since start: "
                  f"{refused.get('bad_frame', 0)} bad frames, "
                  f"{refused.get('auth_failed', 0)} failed hellos, "
                  f"{refused.get('conn_closed', 0)} links closed")
@@ -178,9 +211,7 @@ def run(args: argparse.Namespace) -> int:
         origins = dict(parse_origin(o) for o in args.origin)
         rovers = [(rid, parse_link(link)) for rid, link in
                   (parse_assignment(r, "--rover") for r in args.rover)]
-        listen = None if args.listen == "none" else parse_link(args.listen)
-        if listen is not None and listen.kind != "tcp_listen":
-            raise ValueError(f"--listen must be tcp:HOST:PORT or none, got {args.listen!r}")
+        listens = parse_listens(args.listen or [DEFAULT_LISTEN])
         if args.max_connections < 1:
             raise ValueError(f"--max-connections must be at least 1, got {args.max_connections}")
         sim_roles: list[str] = []
@@ -192,19 +223,25 @@ def run(args: argparse.Namespace) -> int:
                 if rid in sim_roles:
                     raise ValueError(f"--rover {rid}=sim given twice")
                 sim_roles.append(rid)
-            elif spec.kind not in ("serial", "tcp"):
-                raise ValueError(f"--rover {rid}: a rover's link is serial:PORT,BAUD, tcp or sim")
-        if any(spec.kind == "tcp" for _, spec in rovers) and listen is None:
-            raise ValueError("a rover on tcp needs --listen")
+            elif spec.kind not in ("serial", "tcp", "udp"):
+                raise ValueError(f"--rover {rid}: a rover's link is serial:PORT,BAUD, tcp, udp "
+                                 "or sim")
+        if args.listen is None and any(spec.kind == "udp" for _, spec in rovers):
+            listens += parse_listens([DEFAULT_UDP_LISTEN])
+        for kind in ("tcp", "udp"):
+            if any(spec.kind == kind for _, spec in rovers) and not any(
+                    proto == kind for proto, _ in listens):
+                raise ValueError(f"a rover on {kind} needs --listen {kind}:HOST:PORT")
         config = ServerConfig(
             tokens=tokens, origins=origins,
             rovers=frozenset(rid for rid, spec in rovers if spec.kind != "sim"),
             open_enrolment=args.open_enrolment, simulated=tuple(sim_roles),
             max_connections=args.max_connections, resume=not args.fresh_game)
-        if listen is not None and not is_loopback(listen.host):
-            refusal = beyond_loopback_refusal(listen.host, config)
-            if refusal:
-                raise ValueError(refusal)
+        for _, listen in listens:
+            if not is_loopback(listen.host):
+                refusal = beyond_loopback_refusal(listen.host, config)
+                if refusal:
+                    raise ValueError(refusal)
         scenario = None
         if sim_roles:
             from supervisors.system import scenario_origins
@@ -223,7 +260,7 @@ def run(args: argparse.Namespace) -> int:
 
     sim = (scenario, args.seed, tuple(sim_roles)) if sim_roles else None
     try:
-        trio.run(_serve, store, config, listen, rovers, sim, not args.no_console)
+        trio.run(_serve, store, config, listens, rovers, sim, not args.no_console)
     except KeyboardInterrupt:
         return 0
     except (OSError, ValueError, BaseExceptionGroup) as exc:
@@ -266,14 +303,14 @@ def _banner(server, store) -> list[str]:
     if cfg.open_enrolment:
         lines.append("open enrolment: any rover id may say hello")
     elif cfg.rovers:
-        lines.append(f"rovers accepted over tcp/serial: {', '.join(sorted(cfg.rovers))}")
+        lines.append(f"rovers accepted over tcp/udp/serial: {', '.join(sorted(cfg.rovers))}")
     else:
-        lines.append("no rover ids given (--rover ID=tcp|serial:...): rovers from outside "
+        lines.append("no rover ids given (--rover ID=tcp|udp|serial:...): rovers from outside "
                      "are refused; --open-enrolment welcomes any id")
     return lines
 
 
-async def _serve(store, config, listen, rovers, sim=None, console: bool = True) -> None:
+async def _serve(store, config, listens, rovers, sim=None, console: bool = True) -> None:
     import trio
 
     from server.server import open_server
@@ -290,9 +327,10 @@ async def _serve(store, config, listen, rovers, sim=None, console: bool = True) 
             print(f"simulated in this process ({scenario.name}, seed {seed}): "
                   f"{', '.join(roles)}", flush=True)
         events = server.subscribe()
-        if listen is not None:
-            port = await server.listen_tcp(listen.host, listen.port)
-            print(f"listening on tcp:{listen.host}:{port}", flush=True)
+        for proto, listen in listens:
+            start = server.listen_tcp if proto == "tcp" else server.listen_udp
+            port = await start(listen.host, listen.port)
+            print(f"listening on {proto}:{listen.host}:{port}", flush=True)
         for rid, spec in rovers:
             if spec.kind == "serial":
                 server.start_serial(spec.url, spec.baud)

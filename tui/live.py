@@ -13,6 +13,7 @@ system's parts `tui.sim_views`.
 from __future__ import annotations
 
 import pathlib
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -29,7 +30,7 @@ from supervisors.recording import Recorder, RecordingError
 from supervisors.system import SimSystem, open_sim_system
 from world.scenario import Scenario
 
-from .activity import ActivityLog
+from .activity import ActivityLog, fault_text
 from .controller import QueuedController
 from .governor import GovernedClock
 from .sim_views import (
@@ -45,7 +46,7 @@ from .sim_views import (
 )
 from .snapshot import GridView, Publish, Snapshot
 
-__all__ = ["LiveSystem", "ListenError"]
+__all__ = ["LiveSystem", "ListenError", "fault_text"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
 PNG_SCALE = 4  # exported PNG: pixels per map cell edge (5 cm cells: 80 px per metre)
@@ -73,11 +74,13 @@ class LiveSystem(QueuedController):
         log_messages: trace every message for the log pane (slower; the log
             then shows sends and receives, decoded).
         remote: rovers attached over real links instead of simulated here,
-            ``role -> LinkSpec`` (``serial:PORT,BAUD``, or ``tcp``: the rover
-            connects to ``listen``). With any, simulated time runs at real
+            ``role -> LinkSpec`` (``serial:PORT,BAUD``; ``tcp`` or ``udp``: the
+            rover connects, or sends, to ``listen``; ``tcp:HOST:PORT``: the server
+            connects to the rover there). With any, simulated time runs at real
             time only: a real rover cannot be paused or sped up, so speed and
             pause are refused.
-        listen: where rovers on ``tcp`` connect.
+        listen: where rovers on ``tcp`` connect and rovers on ``udp`` send
+            (``tcp:HOST:PORT``, ``udp:HOST:PORT``; one of each at most is used).
         record: record the game from the start into this ``.mcap`` file (`record`
             starts and stops recording later).
         auto: play the headless operator's game by itself
@@ -93,26 +96,29 @@ class LiveSystem(QueuedController):
 
     Raises:
         ValueError: a remote role that is not mapper, hider or seeker, a link
-            kind a rover cannot use, or ``tcp`` without ``listen``.
+            kind a rover cannot use, or ``tcp``/``udp`` without a ``listen`` of its kind.
     """
 
     def __init__(self, scenario: Scenario, *, seed: int = 1, speed: float | None = 1.0,
                  db: str = ":memory:", log_messages: bool = True,
                  remote: dict[str, LinkSpec] | None = None,
-                 listen: LinkSpec | None = None, record: str | None = None,
+                 listen: Sequence[LinkSpec] = (), record: str | None = None,
                  auto: bool = False, budget: Budget | None = None) -> None:
         remote = dict(remote or {})
         for role, spec in remote.items():
             if role not in ROLES:
                 raise ValueError(f"--rover {role}: the ID of an attached rover is its role, "
                                  f"one of {', '.join(ROLES)}")
-            if spec.kind not in ("serial", "tcp", "tcp_listen"):
+            if spec.kind not in ("serial", "tcp", "udp", "tcp_listen"):
                 raise ValueError(f"--rover {role}: a rover's link is serial:PORT[,BAUD], a "
-                                 f"device path, tcp (it connects in) or tcp:HOST:PORT (the "
-                                 f"server connects to it there), got {spec.text!r}")
-        if any(spec.kind == "tcp" for spec in remote.values()) and (
-                listen is None or listen.kind not in ("tcp_listen", "tcp_in")):
-            raise ValueError("a rover on tcp needs --listen tcp:HOST:PORT")
+                                 f"device path, tcp (it connects in), udp (it sends in) or "
+                                 f"tcp:HOST:PORT (the server connects to it there), got "
+                                 f"{spec.text!r}")
+        listen = tuple(listen)
+        for kind in ("tcp", "udp"):
+            if any(spec.kind == kind for spec in remote.values()) and not any(
+                    spec.kind.startswith(kind + "_") for spec in listen):
+                raise ValueError(f"a rover on {kind} needs --listen {kind}:HOST:PORT")
         if remote and auto:
             raise ValueError("--auto plays the simulated game: no --rover with it")
         if remote:
@@ -127,6 +133,7 @@ class LiveSystem(QueuedController):
         self.remote = remote
         """Role -> link of the rovers not simulated here."""
         self.listen = listen
+        """Where rovers on ``tcp`` connect and rovers on ``udp`` send."""
         self.scenario = scenario
         self.seed = seed
         self._db = db
@@ -194,14 +201,17 @@ class LiveSystem(QueuedController):
 
     async def _attach_remote(self, system: SimSystem) -> None:
         """Serve the attached rovers' links (a failure to listen ends the system)."""
-        if any(spec.kind == "tcp" for spec in self.remote.values()):
-            assert self.listen is not None
+        for kind, start in (("tcp", system.server.listen_tcp),
+                            ("udp", system.server.listen_udp)):
+            where = next((s for s in self.listen if s.kind.startswith(kind + "_")), None)
+            if where is None or not any(s.kind == kind for s in self.remote.values()):
+                continue
             try:
-                port = await system.server.listen_tcp(self.listen.host, self.listen.port)
+                port = await start(where.host, where.port)
             except OSError as exc:  # a busy port: one line naming it (hideseek play, exit 2)
-                raise ListenError(f"cannot listen on {self.listen.text}: "
+                raise ListenError(f"cannot listen on {where.text}: "
                                   f"{exc.strerror or exc}") from None
-            self._event("link", f"listening for rovers on tcp:{self.listen.host}:{port}")
+            self._event("link", f"listening for rovers on {kind}:{where.host}:{port}")
         for role, spec in self.remote.items():
             if spec.kind == "serial":
                 system.server.start_serial(spec.url, spec.baud)
@@ -271,11 +281,8 @@ class LiveSystem(QueuedController):
         if role in self.remote:
             raise ValueError(f"{role} is attached over {self.remote[role].text}: its devices "
                              "and actors are not simulated here")
-        fid = self._system.inject_fault(target, kind, duration_s or 0.0, **params)
-        self._event("fault", f"{kind} on {target}"
-                    + (f" for {duration_s:g} s" if duration_s else " until cleared")
-                    + f" ({fid})")
-        return fid
+        # the trace reports it on the Events tab (`fault_text`), as it does scheduled faults
+        return self._system.inject_fault(target, kind, duration_s or 0.0, **params)
 
     async def _do_clear_fault(self, fault: str) -> str:
         assert self._system is not None
@@ -305,8 +312,9 @@ class LiveSystem(QueuedController):
 
     # -- recording ----------------------------------------------------------------------
     def record(self, path: str | None = None) -> None:
-        """Start recording the game as MCAP into ``path`` (None: a name of its own in the
-        working directory), or stop the recording in progress. Queued like every command."""
+        """Start recording the game as MCAP into ``path`` (a folder or None: a name of its
+        own in that folder or the working directory), or stop the recording in progress.
+        Queued like every command."""
         self._submit("record", path)
 
     def _do_record(self, path: str | None) -> str:
@@ -316,8 +324,9 @@ class LiveSystem(QueuedController):
             rec.stop()
             self._event("game", f"recording saved: {rec.path}")
             return f"saved {rec.path}"
-        path = path or (f"hideseek-{self.scenario.name}-seed{self.seed}-"
-                        f"{trio.current_time():.0f}s.mcap")
+        if path is None or pathlib.Path(path).is_dir():
+            path = str(pathlib.Path(path or ".") / (f"hideseek-{self.scenario.name}-seed"
+                                                    f"{self.seed}-{trio.current_time():.0f}s.mcap"))
         try:
             recorder = Recorder.for_scenario(path, self.scenario, self.seed, operator="console")
         except RecordingError as exc:

@@ -12,6 +12,12 @@ string                             meaning
                                    rover waits for the server)
 ``tcp``                            (``--rover ID=tcp``) this rover connects in,
                                    to ``--listen``
+``udp:127.0.0.1:7878``             a UDP address: where a rover sends its
+                                   datagrams, or ``--listen``'s address (the
+                                   server receives there; MAVProxy's ``udpin``)
+``udpin:0.0.0.0:7878``             ``--listen`` only: the same as ``udp:``
+``udp``                            (``--rover ID=udp``) this rover sends to the
+                                   server's UDP ``--listen`` address
 ``serial:/dev/ttyUSB0,115200``     a serial port and baud rate
 ``serial:/dev/ttyUSB0``            ... at 115200 baud
 ``/dev/ttyUSB0,57600``, ``COM3``   a bare device path, with or without a baud
@@ -29,8 +35,8 @@ from dataclasses import dataclass
 
 __all__ = ["LinkSpec", "parse_link", "is_loopback", "DEFAULT_BAUD"]
 
-_KINDS = ("tcp:HOST:PORT, tcpin:HOST:PORT, tcp, serial:PORT[,BAUD], a device path[,BAUD], "
-          "sim or pty")
+_KINDS = ("tcp:HOST:PORT, tcpin:HOST:PORT, tcp, udp:HOST:PORT, udpin:HOST:PORT, udp, "
+          "serial:PORT[,BAUD], a device path[,BAUD], sim or pty")
 #: Baud rate of a serial link given without one (the WiFly module's default) [bit/s].
 DEFAULT_BAUD = 115200
 
@@ -41,6 +47,7 @@ class LinkSpec:
 
     kind: str
     """``tcp_listen`` (a TCP address, ``tcp:``), ``tcp_in`` (listen, ``tcpin:``), ``tcp``,
+    ``udp_listen`` (a UDP address, ``udp:``), ``udp_in`` (listen, ``udpin:``), ``udp``,
     ``serial``, ``sim`` or ``pty``."""
     text: str
     """The string as given."""
@@ -58,12 +65,13 @@ def parse_link(text: str) -> LinkSpec:
         ValueError: naming what is wrong, with the accepted forms.
     """
     t = text.strip()
-    if t in ("tcp", "sim", "pty"):
+    if t in ("tcp", "udp", "sim", "pty"):
         return LinkSpec(t, text)
-    for prefix, kind in (("tcp:", "tcp_listen"), ("tcpin:", "tcp_in")):
+    for prefix, kind in (("tcp:", "tcp_listen"), ("tcpin:", "tcp_in"), ("udp:", "udp_listen"),
+                         ("udpin:", "udp_in")):
         if t.startswith(prefix):
             host, sep, port_s = t[len(prefix):].rpartition(":")
-            if not sep or not host:
+            if not sep or not host.strip("[]"):
                 raise ValueError(f"{prefix[:-1]} link must be {prefix}HOST:PORT, got {text!r}")
             host = host.strip("[]")
             port = _int_in(port_s, f"{prefix[:-1]} port", 0, 65535, text)

@@ -288,6 +288,16 @@ class ReliableSession:
         self._c["bytes_out"] += len(data)
         return data
 
+    def transmit_alone(self, frame: Frame, now: float) -> bytes:
+        """The bytes of one unreliable ``frame``, sent now and alone: what is queued
+        stays queued (a rover's ``hello`` before the welcome, when nothing else may go)."""
+        ack = self.ack_value if self._rx_next > 1 else None
+        data = encode_frame(Frame(frame.cmd, frame.type, frame.data, ack=ack))
+        self._last_sent = now
+        self._c["frames_out"] += 1
+        self._c["bytes_out"] += len(data)
+        return data
+
     # -- public: receiving ------------------------------------------------------
 
     def feed(self, data: bytes, now: float) -> list[Frame]:

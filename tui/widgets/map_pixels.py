@@ -15,6 +15,7 @@ import numpy as np
 from tui.snapshot import FREE, OCCUPIED, GridView
 
 __all__ = ["ZOOMS_CM", "COLOURS", "RANK", "CODE", "ROVER_COLOURS", "TRUTH_LEGEND",
+           "TRUTH_LEGEND_SHORT", "TRUTH_LEGEND_CELLS",
            "UNKNOWN_PX", "FREE_PX", "OCCUPIED_PX", "MISSED_PX", "FALSE_PX", "PATH_PX",
            "LIDAR_PX", "TRUTH_PX", "heading_glyph", "classify", "classify_values",
            "same_raster", "indexer", "gather", "known_extent", "fit_view"]
@@ -35,6 +36,11 @@ ROVER_COLOURS = {"mapper": "#40d0ff", "hider": "#40ff60", "seeker": "#ff60ff"}
 #: The truth overlay's legend, in the map's title while the overlay is on.
 TRUTH_LEGEND = (f" · truth: [{COLOURS[TRUTH_PX]}]■[/] unseen [{COLOURS[MISSED_PX]}]■[/] "
                 f"missed [{COLOURS[FALSE_PX]}]■[/] false ○ true pose")
+#: The same for a narrow map (80 columns): the title is then ``20cm`` (per pixel) and this.
+TRUTH_LEGEND_SHORT = (f" [{COLOURS[TRUTH_PX]}]■[/]unseen [{COLOURS[MISSED_PX]}]■[/]missed "
+                      f"[{COLOURS[FALSE_PX]}]■[/]false ○true")
+#: Terminal cells the full legend takes.
+TRUTH_LEGEND_CELLS = len(" · truth: ■ unseen ■ missed ■ false ○ true pose")
 _ARROWS = "→↗↑↖←↙↓↘"
 
 

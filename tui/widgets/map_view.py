@@ -35,6 +35,8 @@ from tui.widgets.map_pixels import (
     RANK,
     ROVER_COLOURS,
     TRUTH_LEGEND,
+    TRUTH_LEGEND_CELLS,
+    TRUTH_LEGEND_SHORT,
     UNKNOWN_PX,
     ZOOMS_CM,
     classify_values,
@@ -175,7 +177,12 @@ class MapView(Widget, can_focus=True):
         if snap is not None and snap.map is not None:
             what = {-1: "unknown", 0: "free", 100: "occupied"}.get(
                 snap.map.value_at(x, y), "?")
-        title = f"Map {self.scale:g} cm/px" + (TRUTH_LEGEND if self.show_truth else "")
+        title = f"Map {self.scale:g} cm/px"
+        if self.show_truth:  # the whole legend where it fits in the top border, else short
+            if len(title) + TRUTH_LEGEND_CELLS <= self.size.width - 4:
+                title += TRUTH_LEGEND
+            else:
+                title = f"{self.scale:g}cm" + TRUTH_LEGEND_SHORT
         subtitle = f"({x:.0f}, {y:.0f}) cm @ {self.cursor_heading:.0f}° {what}"
         # Setting a border title repaints the whole widget, even to the same text.
         if title != self.border_title:

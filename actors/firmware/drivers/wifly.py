@@ -10,8 +10,11 @@ drives heartbeats, resends and reconnects.
 Protocol (server.protocol, docs/protocol.md)
     * **connect**: ``hello`` (id, role, token, ``seq_base``) is sent until the
       server answers ``welcome``; unanswered hellos back off from ``hello_s``
-      doubling up to ``hello_max_s``. ``NAV_LINK`` 1 goes to navigation on
-      welcome, 0 when the link goes down.
+      doubling up to ``hello_max_s``; ``send hello first`` from the server
+      asks for one at once. With ``hold_until_welcome`` (a rover on a real
+      link) nothing but hello leaves until the welcome: telemetry, heartbeats
+      and reliable frames wait in the session's bounded queues. ``NAV_LINK``
+      1 goes to navigation on welcome, 0 when the link goes down.
     * **reliable delivery**: a `ReliableSession` numbers reliable frames,
       resends them until acknowledged, drops duplicates and keeps order.
     * **drop and reconnect**: when the server has not been heard for
@@ -116,13 +119,19 @@ class Wifly(Actor):
         hello_max_s: the longest hello retry interval (backoff cap) [s].
         max_backlog: reliable frames waiting for the outbox at most.
         max_to_nav: deliveries waiting for navigation's mailbox at most.
+        hold_until_welcome: send nothing but hello until the welcome (a rover on a
+            serial, TCP or UDP link, which the server may not know yet). A simulated
+            rover on the server's in-memory link sends its queued frames from the
+            start: its hello always arrives first there, and the server never drops
+            that link.
     """
 
     def __init__(self, hardware: RoverHardware, pool: BufferPool, *, rover_id: str, role: str,
                  memory: LinkMemory | None = None, token: str | None = None,
                  isr: WiflyUartIsr | None = None, tick_s: float = 0.1, hello_s: float = 1.0,
                  hello_max_s: float = 8.0, max_backlog: int = 4096,
-                 max_to_nav: int = 256, addresses: Addresses | None = None) -> None:
+                 max_to_nav: int = 256, addresses: Addresses | None = None,
+                 hold_until_welcome: bool = False) -> None:
         self._addresses = addresses
         # check the hello once here: a bad id is a configuration error, not a crash loop
         make_frame(HELLO, {"id": rover_id, "role": role, "token": token})
@@ -134,6 +143,7 @@ class Wifly(Actor):
         self.tick_s = tick_s
         self.hello_s, self.hello_max_s = hello_s, hello_max_s
         self.max_backlog, self.max_to_nav = max_backlog, max_to_nav
+        self.hold_until_welcome = hold_until_welcome
         self.welcomed = False
         """True between the server's welcome and the link going down."""
         self.hellos = 0
@@ -229,13 +239,6 @@ class Wifly(Actor):
         if self.welcomed and not session.is_up(now):
             self._link(False)
             self._next_hello = now
-        if not self.welcomed and now >= self._next_hello:
-            session.send(make_frame(HELLO, {"id": self.rover_id, "role": self.role,
-                                            "token": self.token,
-                                            "seq_base": session.seq_base}), reliable=False)
-            self.hellos += 1
-            self._next_hello = now + self._hello_wait
-            self._hello_wait = min(self._hello_wait * 2, self.hello_max_s)
         while mem.backlog and session.outbox_room() > 0:
             try:
                 session.send(mem.backlog[0], reliable=True)
@@ -243,9 +246,26 @@ class Wifly(Actor):
                 break
             mem.backlog.popleft()
         self._deliver()
+        hello_due = not self.welcomed and now >= self._next_hello
+        if hello_due:
+            self.hellos += 1
+            self._next_hello = now + self._hello_wait
+            self._hello_wait = min(self._hello_wait * 2, self.hello_max_s)
+        if not self.welcomed and self.hold_until_welcome:
+            # only hello leaves: a server that does not know this link refuses anything
+            # else ("send hello first"); the rest waits in the session's bounded queues
+            if hello_due:
+                self.hw.wifly_write(session.transmit_alone(self._hello(), now))
+            return
+        if hello_due:
+            session.send(self._hello(), reliable=False)
         data = session.transmit(now)
         if data:
             self.hw.wifly_write(data)
+
+    def _hello(self) -> Frame:
+        return make_frame(HELLO, {"id": self.rover_id, "role": self.role, "token": self.token,
+                                  "seq_base": self.session.seq_base})
 
     # ------------------------------------------------------------------ receiving
     def _receive(self, data: bytes, now: float) -> None:
