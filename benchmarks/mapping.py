@@ -35,7 +35,8 @@ import numpy as np
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import MatchFields, MatchOptions, hits_to_local, match_scan
 from actors.firmware.planning.frontier import find_frontiers
-from actors.firmware.planning.planner import astar, plan_path, traversable
+from actors.firmware.planning.grid_search import astar
+from actors.firmware.planning.planner import plan_path, traversable
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from server.protocol.pose import Pose
 

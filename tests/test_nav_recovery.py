@@ -18,6 +18,18 @@ from actors import BufferPool, open_actor_system
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.nav.factory import make_nav
+from actors.firmware.nav.nudge import (
+    MAX_NUDGES,
+    NUDGE_STEP_MAX_CM,
+    PROBE_PROGRESS_CM,
+    Nudge,
+    in_passage,
+    near_block,
+    nudge_step,
+    nudged_route,
+    progress,
+    series_offset,
+)
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
 from server.protocol.pose import Pose
@@ -259,14 +271,14 @@ def test_a_contact_either_side_explains_is_kept_as_two_hypotheses() -> None:
     corridor's axis, little on it) instead of discarding the contact; a stalled turn
     says nothing."""
     nav = scraped_nav(0.0, sigma_cm=5.0)
-    nav._contact_fix()
+    nav.contact_update()
     y, w = nav.belief.particles[:, 1], nav.belief.weights
     assert float(w[y < 146.0].sum()) > 0.25 and float(w[y > 154.0].sum()) > 0.25
     assert float(w[abs(y - 150.0) < 2.0].sum()) < 0.15
     assert nav.counters["contacts"] == 1
     nav = scraped_nav(3.0)
     nav.last_motion = Motion("turn", 20.0)
-    assert not nav._contact_fix() and nav.counters["contacts"] == 0
+    assert not nav.contact_update() and nav.counters["contacts"] == 0
 
 
 def test_the_doubt_grows_with_driving_and_more_with_a_tread_report() -> None:
@@ -298,24 +310,6 @@ def test_the_doubt_grows_with_driving_and_more_with_a_tread_report() -> None:
     assert reported > healthy + 10.0
 
 
-def test_after_a_long_drive_nudges_are_wider_and_may_enter_a_mapped_wall() -> None:
-    """A belief 20-25 cm wide (95 %): the search steps a third of that at a time, not 4,
-    and a 20 cm shift into the corridor's wall, refused while the belief is narrow, is
-    tried: the pose may be that far off."""
-    pts = [(420.0, 150.0), (500.0, 60.0)]
-    nav = believe(nudging_nav((250.0, 150.0, 0.0), 20.0), 1.0)
-    assert nav._nudged(pts) is None
-    believe(nav, 10.0)
-    assert nav.drift_cm > 20.0
-    assert nav._nudged(pts) == [(300.0, 170.0), *pts]
-    nav = scraped_nav(0.0, sigma_cm=8.0)
-    nav._last_block = (300.0, 150.0, 0.0)
-    nav.goal, nav.goal_heading = (600.0, 150.0), None
-    assert nav._probe_plan()
-    assert 12.0 < nav.drift_cm < 36.0
-    assert nav._nudge_off == pytest.approx(nav.drift_cm / 3.0)
-
-
 def gap_blocked_nav(sigma_cm: float) -> Any:
     """A hider navigation (not started) stopped 5 cm into the gap of a 15 cm wall at x 400
     (gap y 300..335) by dead reckoning, 5 cm above its lower edge, with a belief
@@ -336,12 +330,69 @@ def test_a_gap_edge_contact_moves_the_belief_to_the_edge_and_keeps_the_far_face(
     down. A wide one (after a long drive): the upper face explains it too, and the
     belief keeps that hypothesis beside the lower edge's."""
     nav = gap_blocked_nav(3.0)
-    assert nav._contact_fix() and nav.map_pose.y < 312.5
+    assert nav.contact_update() and nav.map_pose.y < 312.5
     nav = gap_blocked_nav(12.0)
-    nav._contact_fix()
+    nav.contact_update()
     ys = [c.pose.y for c in nav.spread.clusters]
     assert any(y < 305.0 for y in ys) and any(y > 318.0 for y in ys)
-    assert nav._in_passage()
+
+
+# ---------------------------------------------------------------- the sideways search's geometry
+# Pure functions of `nav.nudge`: a block (x, y, heading), an offset, the route, the map.
+
+CORRIDOR_MAP = room_map(CORRIDOR)
+"""The corridor of the scripted tests as a map: walls y < 135 and y > 165 for x 250..450."""
+LONG_CORRIDOR_MAP = room_map(
+    Truth(0, 0, 600, 300, boxes=((100, 0, 300, 135), (100, 165, 300, 135))))
+"""A 30 cm corridor for x 100..400 (walls y < 135 and y > 165)."""
+TOL_CM = NavOptions().waypoint_tol_cm
+
+
+def test_nudge_shifts_only_waypoints_near_the_block_and_never_the_goal() -> None:
+    """Blocked heading +x at (200, 150): the waypoint 30 cm on moves 6 cm sideways (+y);
+    one farther on, and the goal even when near, stay."""
+    nudge = Nudge((200.0, 150.0, 0.0), 6.0)
+    pts = [(230.0, 150.0), (420.0, 150.0), (500.0, 60.0)]
+    assert nudged_route(pts, nudge, LONG_CORRIDOR_MAP, drift_cm=0.0) == \
+        [(230.0, 156.0), (420.0, 150.0), (500.0, 60.0)]
+    assert nudged_route([(240.0, 150.0)], nudge, LONG_CORRIDOR_MAP, drift_cm=0.0) == \
+        [(240.0, 150.0)]
+
+
+def test_a_nudge_into_the_corridor_wall_or_backwards_is_refused() -> None:
+    """No waypoint near the block: a point 50 cm ahead of it, shifted, is driven to first.
+    A shift into the corridor's wall (20 cm off its axis) is refused (None); a route
+    whose goal lies behind the block is left as it is."""
+    pts = [(420.0, 150.0), (500.0, 60.0)]
+
+    def nudged(block: tuple[float, float, float], off: float) -> Any:
+        return nudged_route(pts, Nudge(block, off), LONG_CORRIDOR_MAP, drift_cm=0.0)
+
+    assert nudged((250.0, 150.0, 0.0), -6.0) == [(300.0, 144.0), *pts]
+    assert nudged((250.0, 150.0, 0.0), 20.0) is None
+    assert nudged((250.0, 150.0, 180.0), 6.0) == pts  # ahead is backwards
+
+
+def test_a_nudge_within_the_doubt_may_enter_a_mapped_wall() -> None:
+    """A 20 cm shift into the corridor's wall, refused while the pose's doubt is a few cm,
+    is tried once the doubt (``drift_cm``) is wider than the shift: the pose may be that
+    far off, so the wall may be where the rover can pass."""
+    pts = [(420.0, 150.0), (500.0, 60.0)]
+    nudge = Nudge((250.0, 150.0, 0.0), 20.0)
+    assert nudged_route(pts, nudge, LONG_CORRIDOR_MAP, drift_cm=3.0) is None
+    assert nudged_route(pts, nudge, LONG_CORRIDOR_MAP, drift_cm=24.0) == [(300.0, 170.0), *pts]
+
+
+def test_the_search_steps_wider_with_the_doubt_alternating_sides() -> None:
+    """The step is ``nudge_step_cm`` (4) while the doubt is small, a third of the doubt
+    after a long drive, and at most ``NUDGE_STEP_MAX_CM``; the offsets alternate sides,
+    the first on the side asked for, growing by a step every second one."""
+    assert nudge_step(4.0, 6.0) == 4.0
+    assert nudge_step(4.0, 30.0) == pytest.approx(10.0)
+    assert nudge_step(4.0, 60.0) == NUDGE_STEP_MAX_CM
+    assert [series_offset(k, 4.0, 1.0) for k in range(MAX_NUDGES)] == \
+        [4.0, -4.0, 8.0, -8.0, 12.0, -12.0]
+    assert [series_offset(k, 10.0, -1.0) for k in range(3)] == [-10.0, 10.0, -20.0]
 
 
 def test_a_probe_sidesteps_across_before_joining_the_shifted_line() -> None:
@@ -349,70 +400,47 @@ def test_a_probe_sidesteps_across_before_joining_the_shifted_line() -> None:
     the right: the route starts with the point beside the rover on the shifted line
     (a sidestep square to the heading), then the shifted waypoint near the block;
     a shift within the waypoint tolerance needs no sidestep, nor a route without it."""
-    nav = scraped_nav(0.0)
-    nav._last_block = nav._anchor = (320.0, 150.0, 0.0)
-    nav._nudge, nav._nudge_off = (0.0, -10.0, 320.0, 150.0), -10.0
     pts = [(340.0, 150.0), (600.0, 150.0)]
-    assert nav._nudged(pts) == [(340.0, 140.0), (600.0, 150.0)]  # no sidestep asked
-    nav._sidestep = True
-    out = nav._nudged(pts)
+    right = Nudge((320.0, 150.0, 0.0), -10.0)
+    assert nudged_route(pts, right, CORRIDOR_MAP, drift_cm=5.0) == \
+        [(340.0, 140.0), (600.0, 150.0)]  # no sidestep asked
+    out = nudged_route(pts, right, CORRIDOR_MAP, drift_cm=5.0, sidestep_from=(300.0, 150.0),
+                       tol_cm=TOL_CM)
+    assert out is not None
     assert [q for p in out for q in p] == pytest.approx([300.0, 140.0, 340.0, 140.0, 600.0, 150.0])
-    nav._nudge, nav._nudge_off = (0.0, -4.0, 320.0, 150.0), -4.0
-    assert nav._nudged(pts) == [(340.0, 146.0), (600.0, 150.0)]
+    small = Nudge((320.0, 150.0, 0.0), -4.0)
+    assert nudged_route(pts, small, CORRIDOR_MAP, drift_cm=5.0, sidestep_from=(300.0, 150.0),
+                        tol_cm=TOL_CM) == [(340.0, 146.0), (600.0, 150.0)]
 
 
-def test_a_block_beside_the_anchor_continues_the_probe_series() -> None:
-    """A nudged route blocked 25 cm beside the series' anchor (and 6 cm short of it,
-    as a contact fix may leave it) is no progress: the series goes on to the next
-    offset instead of restarting around the nudged point."""
-    nav = scraped_nav(0.0)
-    nav._last_block = (300.0, 150.0, 0.0)
-    nav.goal, nav.goal_heading = (600.0, 150.0), None
-    assert nav._probe_plan() and nav._nudge_off == 4.0
-    assert nav._probe_plan() and nav._nudge_off == -4.0
-    nav.pose = Pose(244.0, 125.0, 0.0)  # map (294, 175): 26 cm from the anchor, 25 sideways
-    nav._last_block = (294.0, 175.0, 0.0)
-    assert nav._probe_plan()
-    assert nav._anchor == (300.0, 150.0, 0.0) and nav._nudge_off == 8.0
+def test_progress_is_measured_along_the_heading_of_the_first_block() -> None:
+    """A nudged route blocked 25 cm beside the series' first block (and 6 cm short of it,
+    as a contact fix may leave it) made no progress: 26 cm away in a straight line, but
+    -6 cm along the heading, so the series goes on. A block 50 cm on starts a new one."""
+    first = (300.0, 150.0, 0.0)
+    assert math.dist(first[:2], (294.0, 175.0)) > PROBE_PROGRESS_CM
+    assert progress(first, 294.0, 175.0) == pytest.approx(-6.0)
+    assert progress(first, 350.0, 150.0) > PROBE_PROGRESS_CM
+    assert progress((300.0, 150.0, 90.0), 294.0, 175.0) == pytest.approx(25.0)
 
 
-def test_a_block_short_of_the_mouth_during_a_series_is_its_next_step() -> None:
-    """Dead reckoning 10 cm short of the corridor's mouth on a nudged route: no passage
-    at the body or the nose, yet with the series' anchor near the block is the next
-    probe, not an obstacle to learn; without a series, or
-    far from its anchor, it is not."""
-    nav = scraped_nav(0.0)
-    nav.pose = Pose(180.0, 112.0, 0.0)  # map (230, 162): nose 10 cm before x = 250
-    assert not nav._in_passage() and not nav._nudging_here()
-    nav._anchor, nav._nudge = (232.0, 150.0, 0.0), (0.0, 12.0, 232.0, 150.0)
-    assert nav._nudging_here()
-    nav.pose = Pose(50.0, 112.0, 0.0)  # map (100, 162): 132 cm back in the room
-    assert not nav._nudging_here()
+def test_a_block_short_of_the_mouth_is_near_the_series_but_not_in_a_passage() -> None:
+    """Dead reckoning 10 cm short of the corridor's mouth (map (230, 162), the nose at
+    x 240): no passage at the body or the nose, yet near the series' first block
+    (232, 150), so during a series it is the next probe; 132 cm back in the room it is
+    not. At the mouth (the nose in the gap) and inside it, it is a passage."""
+    assert not in_passage(CORRIDOR_MAP, Pose(230.0, 162.0, 0.0), 10.0)
+    assert near_block((232.0, 150.0, 0.0), 230.0, 162.0)
+    assert not near_block((232.0, 150.0, 0.0), 100.0, 162.0)
+    assert in_passage(CORRIDOR_MAP, Pose(245.0, 150.0, 0.0), 10.0)
+    assert in_passage(CORRIDOR_MAP, Pose(300.0, 150.0, 0.0), 10.0)
+    assert not in_passage(room_map(OPEN_ROOM), Pose(300.0, 150.0, 0.0), 10.0)
 
 
-def nudging_nav(block: tuple[float, float, float], off: float) -> Any:
-    """A hider navigation (not started) that was blocked at ``block`` and nudges by ``off``."""
-    nav = make_nav("hider", pool=BufferPool(4))
-    corridor = Truth(0, 0, 600, 300, boxes=((100, 0, 300, 135), (100, 165, 300, 135)))
-    nav.map = room_map(corridor)
-    nav._last_block = nav._anchor = block
-    h = math.radians(block[2])
-    nav._nudge = (-math.sin(h) * off, math.cos(h) * off, block[0], block[1])
-    return nav
-
-
-def test_nudge_shifts_only_waypoints_near_the_block_and_never_the_goal() -> None:
-    """Blocked heading +x at (200, 150): the waypoint 30 cm on moves 6 cm sideways (+y)."""
-    nav = nudging_nav((200.0, 150.0, 0.0), 6.0)
-    pts = [(230.0, 150.0), (420.0, 150.0), (500.0, 60.0)]
-    assert nav._nudged(pts) == [(230.0, 156.0), (420.0, 150.0), (500.0, 60.0)]
-    assert nav._nudged([(240.0, 150.0)]) == [(240.0, 150.0)]  # the goal itself stays
-
-
-def test_a_nudge_into_the_corridor_wall_or_backwards_is_refused() -> None:
-    """A shift into the corridor's wall (20 cm off its axis) is refused (None); a route
-    whose goal lies behind the block is left as it is."""
-    pts = [(420.0, 150.0), (500.0, 60.0)]
-    assert nudging_nav((250.0, 150.0, 0.0), -6.0)._nudged(pts) == [(300.0, 144.0), *pts]
-    assert nudging_nav((250.0, 150.0, 0.0), 20.0)._nudged(pts) is None
-    assert nudging_nav((250.0, 150.0, 180.0), 6.0)._nudged(pts) == pts  # ahead is backwards
+def test_a_gap_whose_walls_are_close_is_a_passage() -> None:
+    """A 35 cm gap in a 15 cm wall at x 400 (gap y 300..335): a rover stopped 5 cm into
+    it, off its middle, is in a passage, as is one whose nose just reached the mouth."""
+    gap = gap_blocked_nav(3.0).map
+    assert in_passage(gap, Pose(395.0, 312.5, 0.0), 10.0)
+    assert in_passage(gap, Pose(392.0, 317.5, 0.0), 10.0)
+    assert not in_passage(gap, Pose(300.0, 317.5, 0.0), 10.0)

@@ -1,4 +1,5 @@
-"""Log-odds occupancy grid and map snapshots (actors.firmware.mapping.occupancy)."""
+"""Log-odds occupancy grid, its sensor model and map snapshots
+(actors.firmware.mapping.occupancy, sensor_model)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import numpy as np
 import pytest
 
 from actors.firmware.mapping.occupancy import OccupancyGrid
+from actors.firmware.mapping.sensor_model import grazing_shortening
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from server.protocol.pose import Pose
 
@@ -118,6 +120,23 @@ def test_integrate_rejects_bad_batches(angles, ranges, message):
     """A malformed batch is a ValueError with a clear message."""
     with pytest.raises(ValueError, match=message):
         small_grid().integrate(Pose(), np.array(angles), np.array(ranges))
+
+
+def test_a_ray_grazing_its_wall_stops_clearing_farther_before_the_hit():
+    """Returns from a flat wall 100 cm ahead, one every degree: the ray square on to it
+    stops clearing half a cell before its hit, a ray meeting it at 70 deg about three
+    times as far (0.5 / sin 20 deg), a ray with no hit not at all; no pull-back is
+    longer than its ray."""
+    angles = np.arange(-70.0, 71.0, 1.0)
+    ranges = 100.0 / np.cos(np.radians(angles))
+    has_hit = np.ones(angles.size, dtype=bool)
+    has_hit[angles == 30.0] = False
+    pull = grazing_shortening(angles, ranges, has_hit, 5.0, 0.5)
+    by_angle = dict(zip(angles.tolist(), pull.tolist(), strict=True))
+    assert by_angle[0.0] == pytest.approx(0.5, abs=0.01)
+    assert by_angle[70.0] == pytest.approx(0.5 / np.sin(np.radians(20.0)), rel=0.1)
+    assert by_angle[30.0] == 0.0
+    assert (pull <= ranges / 5.0).all()
 
 
 def test_cropped_cells_and_from_cells_round_trip():

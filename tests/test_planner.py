@@ -1,4 +1,5 @@
-"""A* planning, inflation, line of sight and BFS distances (actors.firmware.planning.planner)."""
+"""A* planning, inflation, line of sight and BFS distances (actors.firmware.planning.planner
+and its searches, actors.firmware.planning.grid_search)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from actors.firmware.planning.grid_search import _astar_padded, astar, bfs_steps
 from actors.firmware.planning.planner import (
-    _astar_padded,
-    astar,
-    bfs_steps,
     inflate,
     line_of_sight,
     plan_path,

@@ -16,6 +16,10 @@ Algorithm
     the ray is free up to ``max_range_cm`` and has no hit. So is any return
     beyond ``max_range_cm`` (too uncertain to mark as an obstacle).
 
+    The increments, clamps and thresholds, and the pull-back of a grazing ray's
+    free end, are the inverse sensor model (`sensor_model.LogOddsModel`); this
+    module applies them to the grid.
+
 Reference
     Thrun, Burgard, Fox, *Probabilistic Robotics*, chapter 9 (occupancy grid
     mapping, algorithm ``occupancy_grid_mapping``); PythonRobotics
@@ -41,10 +45,10 @@ Cell values of a snapshot (`grid_map.GridMap`)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from actors.firmware.mapping.sensor_model import LogOddsModel, check_batch, grazing_shortening
 from server.protocol.grid_map import (
     FREE,
     OCCUPIED,
@@ -57,80 +61,7 @@ from server.protocol.grid_map import (
 )
 from server.protocol.pose import Pose
 
-__all__ = [
-    "LogOddsModel",
-    "OccupancyGrid",
-]
-
-
-@dataclass(frozen=True, slots=True)
-class LogOddsModel:
-    """Inverse sensor model and classification thresholds (all in log-odds)."""
-
-    l_free: float = -0.35
-    """Added to a cell a ray passes through: two passes make a cell free, so one stray
-    ray (a scan placed a little wrong) cannot open a hole through a wall."""
-    l_occ: float = 0.9
-    """Added to the cell holding a hit."""
-    l_min: float = -2.0
-    """Lower clamp: how sure "free" may become."""
-    l_max: float = 3.5
-    """Upper clamp: how sure "occupied" may become."""
-    free_threshold: float = -0.4
-    """Below this a cell reads free."""
-    occ_threshold: float = 0.4
-    """Above this a cell reads occupied."""
-    max_range_cm: float = 600.0
-    """Longest range trusted [cm]: longer returns and "no return" (0) clear
-    free space up to here and mark no hit."""
-    ray_step: float = 0.5
-    """Sampling step along a ray [cells]."""
-    grazing_margin_cells: float = 0.5
-    """Free space along a ray with a hit ends this far [cells], measured across the
-    surface, before the hit: ``margin / sin(incidence)`` along the ray, so a ray that
-    grazes a wall (incidence from the neighbouring returns) stops clearing well before
-    the wall line, where a fraction of a degree of pose error would carry it through
-    the wall (to the outside, where no later ray can repair the map). 0 turns it off."""
-
-    def __post_init__(self) -> None:
-        if not (self.l_min < self.free_threshold < 0 < self.occ_threshold < self.l_max):
-            raise ValueError(
-                "LogOddsModel needs l_min < free_threshold < 0 < occ_threshold < l_max, got "
-                f"{self.l_min}, {self.free_threshold}, {self.occ_threshold}, {self.l_max}"
-            )
-        if not (self.l_free < 0 < self.l_occ):
-            raise ValueError(f"LogOddsModel needs l_free < 0 < l_occ, got {self.l_free}, "
-                             f"{self.l_occ}")
-        if not (self.max_range_cm > 0 and 0 < self.ray_step <= 1):
-            raise ValueError(f"max_range_cm must be > 0 and ray_step in (0, 1], got "
-                             f"{self.max_range_cm}, {self.ray_step}")
-
-
-def _grazing_shortening(angles_deg: np.ndarray, ranges_cm: np.ndarray, has_hit: np.ndarray,
-                        resolution_cm: float, margin_cells: float) -> np.ndarray:
-    """How much to pull back each ray's free end [cells] (0 for rays without a hit).
-
-    The incidence of a return on its surface comes from the neighbouring return (the
-    nearer in angle, within 3 [deg], on the more grazing side): for a flat surface
-    ``sin(incidence) = r dtheta / hypot(dr, r dtheta)``. A depth jump to the neighbour
-    reads as grazing too, which only makes that ray more careful.
-    """
-    order = np.argsort(angles_deg, kind="stable")
-    a = np.radians(angles_deg[order])
-    r = ranges_cm[order]
-    hit = has_hit[order]
-    da = np.diff(a)
-    dr = np.abs(np.diff(r))
-    ok = (da > 0) & (da <= np.radians(3.0)) & hit[:-1] & hit[1:]
-    arc = np.maximum(r[:-1], r[1:]) * da
-    sin_pair = np.where(ok, arc / np.maximum(np.hypot(dr, arc), 1e-9), 1.0)
-    sin_inc = np.ones(r.size)
-    sin_inc[:-1] = sin_pair
-    sin_inc[1:] = np.minimum(sin_inc[1:], sin_pair)
-    pull = np.where(hit, margin_cells / np.maximum(sin_inc, 0.05), 0.0)
-    out = np.empty_like(pull)
-    out[order] = np.minimum(pull, r / resolution_cm)
-    return out
+__all__ = ["OccupancyGrid"]
 
 
 class OccupancyGrid:
@@ -254,7 +185,7 @@ class OccupancyGrid:
             ValueError: if the arrays differ in shape, are not 1-D, or hold a
                 non-finite angle or a negative or non-finite range.
         """
-        angles, ranges = _check_batch(angles_deg, ranges_cm)
+        angles, ranges = check_batch(angles_deg, ranges_cm)
         if angles.size == 0:
             return 0
         m = self.model
@@ -270,10 +201,10 @@ class OccupancyGrid:
         length_c = length / res
 
         # free samples: strictly before the ray's end, which is pulled back on rays
-        # that graze their surface (see `_grazing_shortening`)
+        # that graze their surface (see `sensor_model.grazing_shortening`)
         free_c = length_c
         if m.grazing_margin_cells > 0 and angles.size > 1:
-            free_c = length_c - _grazing_shortening(angles, ranges, has_hit, res,
+            free_c = length_c - grazing_shortening(angles, ranges, has_hit, res,
                                                     m.grazing_margin_cells)
         free_flat = self._free_samples(px, py, cos, sin, free_c)
 
@@ -482,24 +413,3 @@ class OccupancyGrid:
         ny, nx = self._log_odds.shape
         return (f"<OccupancyGrid {nx}x{ny} @ {self.resolution_cm:g} cm, origin "
                 f"{self.origin_cm}, batches={self.batches}, known={self.known_count()}>")
-
-
-def _check_batch(angles_deg: np.ndarray, ranges_cm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A batch's angles and ranges as float64 arrays.
-
-    Raises:
-        ValueError: the arrays differ in shape, are not 1-D, or hold a non-finite
-            angle or a negative or non-finite range.
-    """
-    angles = np.asarray(angles_deg, dtype=np.float64)
-    ranges = np.asarray(ranges_cm, dtype=np.float64)
-    if angles.ndim != 1 or angles.shape != ranges.shape:
-        raise ValueError(f"angles_deg and ranges_cm must be 1-D of one length, got "
-                         f"{angles.shape} and {ranges.shape}")
-    if angles.size == 0:
-        return angles, ranges
-    if not np.isfinite(angles).all():
-        raise ValueError("angles_deg must be finite")
-    if not (np.isfinite(ranges).all() and (ranges >= 0).all()):
-        raise ValueError("ranges_cm must be finite and >= 0")
-    return angles, ranges

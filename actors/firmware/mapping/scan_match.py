@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from actors.firmware.mapping.occupancy import LogOddsModel
+from actors.firmware.mapping.sensor_model import LogOddsModel
 from server.protocol.pose import Pose
 
 __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",

@@ -17,7 +17,7 @@ class NavOptions:
     The turning radius is the body's half-diagonal (`planning.clearance.turning_radius_cm`
     of the hardware spec). Bounds (retries, nudges, holds, the outbox) and the fixed
     timings and geometry of the recovery behaviours are constants beside the code that
-    uses them (`base`, `route`, `route_nav`, `recovery`, `tread_faults`).
+    uses them (`base`, `route`, `route_nav`, `recovery`, `nudge`, `tread_faults`).
     """
 
     tick_s: float = 0.25
@@ -51,7 +51,7 @@ class NavOptions:
     nudge_step_cm: float = 4.0
     """Lateral step of the search for a narrow passage missed by dead reckoning [cm]; it
     grows with the pose belief's 95 % radius (`drift_cm`) to at most
-    `recovery.NUDGE_STEP_MAX_CM`."""
+    `nudge.NUDGE_STEP_MAX_CM`."""
     tread_hold_s: float = 12.0
     """A tread fault (``NAV_TREAD_FAULT``) stops the motion and holds this long [s],
     doubled for a repeat within a minute: a slipping encoder or a weak motor lasts a

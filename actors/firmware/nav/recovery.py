@@ -14,24 +14,26 @@ import math
 import numpy as np
 import trio
 
-from actors.firmware.nav.route import Motion, passable_at, with_obstacle
-from actors.firmware.planning.clearance import occupied_near, passage_width
+from actors.firmware.nav.nudge import (
+    MAX_NUDGES,
+    PROBE_PROGRESS_CM,
+    Nudge,
+    in_passage,
+    near_block,
+    nudge_step,
+    nudged_route,
+    progress,
+    series_offset,
+)
+from actors.firmware.nav.route import Motion, with_obstacle
+from actors.firmware.planning.clearance import occupied_near
 from server.protocol.pose import Pose, angle_diff_deg
 
-__all__ = ["RouteRecovery", "NUDGE_STEP_MAX_CM", "MAX_NUDGES", "NUDGE_REACH_CM", "REPLAN_LIMIT",
-           "BACKOFF_REPEAT_CM", "STALL_TURN_DEG", "PROBE_WIDTH_CM", "PROBE_PROGRESS_CM"]
+__all__ = ["RouteRecovery", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM", "STALL_TURN_DEG"]
 
-# The fixed geometry and bounds of the recovery behaviours. The distances follow from the
-# game's passages (a 35 cm gap) and the body (20 x 15 cm); the counts bound how long a
-# route may try before it is given up. The doubt they scale with is the belief's.
-NUDGE_STEP_MAX_CM = 12.0
-"""Largest lateral step of the search for a narrow passage [cm]: below the free width a
-35 cm gap leaves a 15 cm wide body (20 cm), so the offsets tried leave no hole between
-them; a seeker can reach a gap 21-36 cm off, beyond the +-24 cm six steps of 8 reach."""
-MAX_NUDGES = 6
-"""Sideways offsets tried per route, at most."""
-NUDGE_REACH_CM = 50.0
-"""Waypoints this close to the block point are shifted by a nudge [cm]."""
+# The bounds of the recovery behaviours: how long a route may try before it is given up,
+# and how a back-off reads a stalled tread. The geometry of the sideways search is in
+# `nudge`.
 REPLAN_LIMIT = 10
 """Replans after being blocked before a route is given up."""
 BACKOFF_REPEAT_CM = 20.0
@@ -40,75 +42,19 @@ STALL_TURN_DEG = 8.0
 """A back-off that ends blocked having turned more than this holds
 ``NavOptions.tread_hold_s`` before the route goes on: a tread stalled (see
 `RouteRecovery._backoff_turned`) [deg]."""
-PROBE_WIDTH_CM = 40.0
-"""A block where the map's passage across the heading is narrower than this probes
-sideways at once (see `RouteRecovery._probe_plan`), the nudged route beginning with a
-sidestep across the heading of the block (`RouteRecovery._with_sidestep`) [cm]."""
-PROBE_PROGRESS_CM = 25.0
-"""A block this far from the last one starts a new sideways probe [cm]."""
 
 
 class RouteRecovery:
     """What a `RouteNav` does when its route is blocked (a mixin; see the module docstring)."""
 
     def _nudged(self, pts: list[tuple[float, float]]) -> list[tuple[float, float]] | None:
-        """``pts`` with the nudge applied: waypoints near the block point shifted sideways;
-        when none is near (a long corridor), a shifted waypoint ``NUDGE_REACH_CM`` ahead of
-        the block point is driven to first. None when a shifted point is not on free
-        ground of the server's map: the search went wider than the passage."""
-        assert self._nudge is not None and self._anchor is not None
-        dx, dy, cx, cy = self._nudge
-        reach = NUDGE_REACH_CM
-        near = [i < len(pts) - 1 and math.dist(q, (cx, cy)) <= reach for i, q in enumerate(pts)]
-        # an offset within the drift may put the point in a mapped wall: dead reckoning
-        # is that far off, so the wall may well be where the rover can pass
-        free = math.hypot(dx, dy) <= self.drift_cm
-        if any(near):
-            out = [(x + dx, y + dy) if n else (x, y) for (x, y), n in zip(pts, near, strict=True)]
-            ok = free or all(self._fits(*q) for q, n in zip(out, near, strict=True) if n)
-            if ok and self._sidestep:
-                out = self._with_sidestep(out)
-            return out if ok else None
-        h = math.radians(self._anchor[2])
-        ahead = (cx + reach * math.cos(h) + dx, cy + reach * math.sin(h) + dy)
-        to_goal = math.dist((cx, cy), pts[-1])
-        if to_goal <= reach or math.dist(ahead, pts[-1]) >= to_goal:
-            return pts  # the goal is near, or ahead of the block leads away from it
-        if not (free or self._fits(*ahead)):
-            return None
-        out = [ahead, *pts]
-        return self._with_sidestep(out) if self._sidestep else out
-
-    def _with_sidestep(self, pts: list[tuple[float, float]]) -> list[tuple[float, float]]:
-        """``pts`` (a nudged route) preceded by a sidestep: the point beside the rover on
-        the shifted line, across the heading of the block.
-
-        Why: driven straight from where the back-off left it, the nudged route meets
-        the passage's mouth at an angle; with a heading error of 7 deg the nose then
-        hits the face before the body has moved across, or the body slides along the
-        face, which the encoders do not see (from 26 to 60 cm off within a few
-        probes). A sidestep moves the rover across first, square to the
-        heading of the block, so the shifted line is joined where the rover stands
-        and the mouth is met head-on. Not when the rover is already on the line
-        (within ``waypoint_tol_cm``) or the point is off the server's free ground.
-        """
-        assert self._nudge is not None and self._anchor is not None
+        """``pts`` with the series' current nudge applied (`nudge.nudged_route`), from a
+        sidestep where the rover stands when a probe asked for one."""
+        assert self._nudge is not None
         p = self.map_pose
-        bx, by, bh = self._anchor
-        h = math.radians(bh)
-        nx, ny = -math.sin(h), math.cos(h)
-        lateral = (p.x - bx) * nx + (p.y - by) * ny
-        move = self._nudge_off - lateral
-        side = (p.x + move * nx, p.y + move * ny)
-        if abs(move) <= self.o.waypoint_tol_cm or not self._fits(*side):
-            return pts
-        return [side, *pts]
-
-    def _fits(self, x: float, y: float) -> bool:
-        """(x, y) [cm] is on free ground of the server's map. Not more: the offset must
-        also make up for a heading error the rover cannot see, so the point may lie
-        closer to a wall than the body could stand."""
-        return self.map is not None and passable_at(self.map, x, y, 0.0, 0.0)
+        return nudged_route(pts, self._nudge, self.map, drift_cm=self.drift_cm,
+                            sidestep_from=(p.x, p.y) if self._sidestep else None,
+                            tol_cm=self.o.waypoint_tol_cm)
 
     def _nudged_plan(self) -> bool:
         """Plan again on the server's map, the route shifted sideways near the block.
@@ -119,7 +65,7 @@ class RouteRecovery:
         is missed by a heading drift of a few degrees over a few metres), not
         an obstacle the map does not show. The search tries lateral offsets
         of the waypoints near the block point, alternating sides and growing
-        by ``nudge_step_cm`` (+4, -4, +8, -8 ... [cm]), one per block
+        by the step (`nudge.nudge_step`: +4, -4, +8, -8 ... [cm]), one per block
         (offsets whose points do not fit are skipped), at most ``MAX_NUDGES``
         per route and bounded by ``REPLAN_LIMIT`` blocks.
         """
@@ -127,18 +73,14 @@ class RouteRecovery:
             return False
         if self._anchor is None:  # the first block of the series: later ones come from nudges
             self._anchor = self._last_block
-        bx, by, bh = self._anchor
-        h = math.radians(bh)
         self.work_map = self.map
         if self._nudges == 0:  # a new series: first toward the side that helped last
             self._nudge_first = 1.0 if self._nudge_off >= 0 else -1.0
-        first = self._nudge_first
-        step = min(NUDGE_STEP_MAX_CM, max(self.o.nudge_step_cm, self.drift_cm / 3.0))
+        step = nudge_step(self.o.nudge_step_cm, self.drift_cm)
         while self._nudges < MAX_NUDGES:
-            k = self._nudges
+            off = series_offset(self._nudges, step, self._nudge_first)
             self._nudges += 1
-            off = step * (k // 2 + 1) * (first if k % 2 == 0 else -first)
-            self._nudge = (-math.sin(h) * off, math.cos(h) * off, bx, by)
+            self._nudge = Nudge(self._anchor, off)
             self._nudge_off = off
             if self._plan():
                 self.counters["nudges"] += 1
@@ -174,7 +116,7 @@ class RouteRecovery:
         ahead = self.radius_cm + 8.0
         h = math.radians(p.heading_deg)
         back = self.o.backoff_cm
-        if why == "blocked" and self._contact_fix():
+        if why == "blocked" and self.contact_update():
             pass  # a mapped wall stopped it: the pose is corrected, nothing to learn
         elif why == "blocked" and (self._in_passage() or self._nudging_here()):
             # a mapped wall on one side or the other: drift, nothing to learn; probe sideways
@@ -208,27 +150,12 @@ class RouteRecovery:
         turned = abs(angle_diff_deg(self.map_pose.heading_deg, start.heading_deg))
         return turned > STALL_TURN_DEG
 
-    def _contact_fix(self) -> bool:
-        """After a straight move ended blocked: the contact weighs the pose belief
-        (`belief_tracking.BeliefTracking.contact_update`); True when the map's walls
-        explain the stop and the pose moved, so there is nothing to learn."""
-        return self.contact_update()
-
     def _in_passage(self) -> bool:
-        """The last forward move was blocked where the map's walls are close on both sides
-        (narrower than ``PROBE_WIDTH_CM`` across the heading), at the body's centre or at
-        its nose: a rover stopped at a gap's mouth has only its nose in the gap."""
+        """The last forward move was blocked in a narrow passage (`nudge.in_passage`)."""
         m = self.last_motion
         if m is None or m.kind != "move" or m.amount <= 0 or self.map is None:
             return False
-        p = self.map_pose
-        h = math.radians(p.heading_deg)
-        nose = 0.5 * self.length_cm
-        for x, y in ((p.x, p.y), (p.x + nose * math.cos(h), p.y + nose * math.sin(h))):
-            w = passage_width(self.map, x, y, p.heading_deg, max_cm=PROBE_WIDTH_CM)
-            if w is not None and w < PROBE_WIDTH_CM:
-                return True
-        return False
+        return in_passage(self.map, self.map_pose, 0.5 * self.length_cm)
 
     def _wall_within_drift(self) -> bool:
         """A mapped wall lies within the body's radius plus ``drift_cm`` of the believed
@@ -252,19 +179,12 @@ class RouteRecovery:
         return float(np.min(np.hypot(px, py))) <= reach
 
     def _nudging_here(self) -> bool:
-        """A nudge series is on and this block is within ``NUDGE_REACH_CM`` of its anchor:
-        the nudged route met a wall again at the passage it looks for.
-
-        Why: blocked short of the mouth by dead reckoning (the nose a few cm before
-        it, or on the face beside it), the block was taken for an obstacle the map
-        does not show; learned inside a mapped wall it changed nothing, and the same
-        offset was driven again and again (the same offset four times, 2 cm short of
-        passing, until the replan limit).
-        The next offset is the search's next step."""
+        """A nudge series is on and this block is near its anchor (`nudge.near_block`):
+        the block is the search's next step, not an obstacle to learn."""
         if self._nudge is None or self._anchor is None:
             return False
         p = self.map_pose
-        return math.dist((p.x, p.y), self._anchor[:2]) <= NUDGE_REACH_CM
+        return near_block(self._anchor, p.x, p.y)
 
     def _probe_plan(self) -> bool:
         """Plan after a block in a narrow passage: the route shifted sideways at once.
@@ -273,26 +193,13 @@ class RouteRecovery:
         error is invisible to it), so it tries the nudge series (`_nudged_plan`)
         without first learning an obstacle, which in a passage would only close
         it. Once a probe made progress (the next block is ``PROBE_PROGRESS_CM``
-        on), a new series starts on the side that helped.
+        on, `nudge.progress`), a new series starts on the side that helped.
         """
         p = self.map_pose
-        if self._anchor is None or self._progress(p) > PROBE_PROGRESS_CM:
+        if self._anchor is None or progress(self._anchor, p.x, p.y) > PROBE_PROGRESS_CM:
             self._anchor, self._nudge, self._nudges = self._last_block, None, 0
         self._sidestep = True
         try:
             return self._nudged_plan()
         finally:
             self._sidestep = False
-
-    def _progress(self, p: Pose) -> float:
-        """How far ``p`` lies beyond the series' anchor along the anchor's heading [cm].
-
-        Along, not straight-line: a nudge moves the block point across the heading
-        by its own offset (up to 3 x ``NUDGE_STEP_MAX_CM``), and a contact fix
-        moves it a few cm more; counting that as progress restarted the series
-        around the nudged point, 25 cm to the wrong side, and the offset that would
-        have passed was never tried."""
-        assert self._anchor is not None
-        bx, by, bh = self._anchor
-        h = math.radians(bh)
-        return (p.x - bx) * math.cos(h) + (p.y - by) * math.sin(h)

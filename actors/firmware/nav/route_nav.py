@@ -16,8 +16,9 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.belief_tracking import BeliefTracking
+from actors.firmware.nav.nudge import NUDGE_REACH_CM, Nudge
 from actors.firmware.nav.options import NavMemory, NavOptions
-from actors.firmware.nav.recovery import NUDGE_REACH_CM, RouteRecovery
+from actors.firmware.nav.recovery import RouteRecovery
 from actors.firmware.nav.route import PathFollower, plan_route, route_points, shorten
 from server.protocol.grid_map import GridMap
 
@@ -67,7 +68,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         """(radius, margin) [cm] of the planning tier the current route used (`plan_tiers`)."""
         self._replan = False  # replan after the backoff in flight
         self._last_block: tuple[float, float, float] | None = None  # (x, y, heading) of a block
-        self._nudge: tuple[float, float, float, float] | None = None  # (dx, dy, cx, cy) [cm]
+        self._nudge: Nudge | None = None  # the offset of the series being driven
         self._anchor: tuple[float, float, float] | None = None  # the block nudges start from
         self._nudges = 0  # nudges tried on this route
         self._probe = False  # the block in flight was in a narrow passage: probe sideways

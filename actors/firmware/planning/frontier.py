@@ -5,7 +5,7 @@ Algorithm
        (cells outside the grid do not count as unknown).
     2. Clusters: 8-connected components of frontier cells (`scipy.ndimage.label`);
        each has a size [cells] and a centroid [cm].
-    3. Reachability: a layered BFS (`actors.firmware.planning.planner.bfs_steps`) over
+    3. Reachability: a layered BFS (`actors.firmware.planning.grid_search.bfs_steps`) over
        the cells where the rover's centre may be (occupied cells inflated by
        its radius plus a margin, unknown blocked) gives the step distance from
        the rover. A frontier cell is approachable from any reachable cell
@@ -42,7 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from actors.firmware.planning.planner import bfs_steps, snap_to_passable, traversable
+from actors.firmware.planning.grid_search import bfs_steps
+from actors.firmware.planning.planner import snap_to_passable, traversable
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 
 __all__ = [
