@@ -158,6 +158,19 @@ class _Isrs:
             post.system = actor.ctx.system
 
 
+class _Retained:
+    """One retained-memory object per tree, made at the first incarnation that needs it."""
+
+    def __init__(self, make: Callable[[], Any]) -> None:
+        self._make = make
+        self._obj: Any = None
+
+    def get(self) -> Any:
+        if self._obj is None:
+            self._obj = self._make()
+        return self._obj
+
+
 def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = None,
                nav_factory: Callable[..., Actor] | None = None,
                nav_options: dict[str, Any] | None = None, token: str | None = None,
@@ -200,18 +213,14 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
 
     # retained memory (survives actor restarts; a new tree is a rover reset)
     pose_memory = PoseMemory()
-    link_memory: list[LinkMemory] = []  # made lazily: LinkMemory reads Trio's clock
-
+    link_memory = _Retained(LinkMemory)  # made lazily: LinkMemory reads Trio's clock
+    map_starts = [0]
     isrs = _Isrs(role, names, pool)
 
     def make_wifly() -> Actor:
-        if not link_memory:
-            link_memory.append(LinkMemory())
         return Wifly(hardware, pool, rover_id=rover_id, role=role, token=token,
-                     memory=link_memory[0], isr=isrs.wifly, addresses=names,
+                     memory=link_memory.get(), isr=isrs.wifly, addresses=names,
                      hold_until_welcome=hold_until_welcome)
-
-    map_starts = [0]
 
     def make_map() -> Actor:
         map_starts[0] += 1
