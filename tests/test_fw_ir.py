@@ -24,6 +24,25 @@ def test_decision_needs_consecutive_samples_past_the_thresholds() -> None:
     assert not ir.in_range
 
 
+@pytest.mark.parametrize("rail", [4095, 0])
+def test_samples_on_an_adc_rail_pin_the_sensor_until_one_comes_off_it(rail: int) -> None:
+    """A stuck-high sensor is not "in range", nor a stuck-low one "out of range": three
+    samples in a row on a rail pin it (no decision) until a sample off the rails."""
+    ir = IrSensor(FakeHardware(), high=2200, low=1800, consecutive=3)
+    changes = [ir.update(rail) for _ in range(5)]
+    assert changes == [False, False, True, False, False]
+    assert ir.pinned and not ir.in_range
+    assert ir.update(3800) and not ir.pinned and not ir.in_range  # a real reading again
+    assert [ir.update(3800) for _ in range(3)][-1] and ir.in_range
+
+
+def test_a_reading_near_a_rail_is_a_reading() -> None:
+    """Near the rails (contact, nothing in range) the noisy reading is a decision."""
+    ir = IrSensor(FakeHardware(), high=2200, low=1800, consecutive=3)
+    assert [ir.update(s) for s in (4094, 4095, 4093)][-1] and ir.in_range and not ir.pinned
+    assert [ir.update(s) for s in (1, 0, 2)][-1] and not ir.in_range and not ir.pinned
+
+
 def test_bad_thresholds_are_refused() -> None:
     with pytest.raises(ValueError, match="need 0 <= low < high <= 4095, got low=3000 high=2000"):
         IrSensor(FakeHardware(), low=3000, high=2000)

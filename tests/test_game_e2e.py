@@ -213,3 +213,17 @@ def test_run_command_refuses_a_bad_scenario_with_status_2(tmp_path, capsys) -> N
     assert main(["run", "--scenario", str(bad)]) == 2
     err = capsys.readouterr().err
     assert "bad.toml" in err and "Traceback" not in err
+
+
+def test_a_seeker_whose_ir_sensor_is_stuck_high_reports_no_hider() -> None:
+    """An IR sensor pinned at the ADC's top rail from the start: the seeker says it cannot
+    tell at every guess (``not_found`` naming the sensor), never ``found`` with the hider
+    elsewhere; the game ends ``not_found``."""
+    base = load_scenario("empty")
+    stuck = dataclasses.replace(base, faults=(
+        ScheduledFault(at_s=0.0, target="seeker/ir", kind="stuck_high"),))
+    report = play(stuck)
+    assert report.outcome == "not_found", report.reason
+    reasons = [e.split("reason=")[1] for e in report.events if "report=not_found" in e]
+    assert reasons and all("pinned at an ADC rail" in r for r in reasons)
+    assert not any("report=found" in e for e in report.events)

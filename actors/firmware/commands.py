@@ -59,7 +59,8 @@ class Cmd(enum.IntEnum):
     NAV_MAP_DOWNLOAD = 0x0207
     """A whole map downloaded from the server; value handle of a `GridMap` (map frame)."""
     NAV_IR = 0x0208
-    """IR decision; value int32 (1 hider in range, 0 not), sent on change and every sample batch."""
+    """IR decision; value int32 (1 hider in range, 0 not, 2 no decision: the sensor is pinned
+    at an ADC rail), sent on change and every sample batch."""
     NAV_TIMER = 0x0209
     """Navigation's own periodic tick; value unused."""
     NAV_LINK = 0x020A

@@ -7,8 +7,9 @@ hysteresis (in range above ``high``, out of range below ``low``) and
 debouncing (the new state must hold for ``consecutive`` samples in a row),
 so sensor noise near the threshold does not make the decision flicker.
 
-``NAV_IR`` (int32: 1 in range, 0 not) goes to navigation on every change and
-once per burst of samples (so navigation always has a recent decision). The
+``NAV_IR`` (int32: `IR_IN` 1 in range, `IR_OUT` 0 not, `IR_PINNED` 2 no
+decision) goes to navigation on every change and once per burst of samples
+(so navigation always has a recent decision). The
 decision of a restarted incarnation starts at "not in range" and is rebuilt
 from the next ``consecutive`` samples: nothing to ask anyone.
 
@@ -23,7 +24,14 @@ starts it; a lease nobody renews runs out). The lease's end is noticed when
 samples arrive, so a running timer stops at most one sample late. When the
 timer stops the decision falls back to "not in range" (sent to navigation),
 so a later look never starts from a stale "in range". ``always_on=True``
-keeps the timer running from the start, as before.
+keeps the timer running from the start.
+
+A pinned sensor: a healthy sensor reads about 200 counts with nothing in
+range and about 3800 at contact, with noise, so ``consecutive`` samples in a
+row at exactly an ADC rail (0 or 4095) are not a reading but a stuck sensor
+or a shorted line. The sensor is then `pinned`: the decision is "not in
+range" and navigation is told `IR_PINNED` instead of a decision, until a
+sample off the rails comes.
 """
 
 from __future__ import annotations
@@ -38,7 +46,12 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import IrAdcIsr, IrTimerIsr
 from actors.firmware.hardware import Interrupt, RoverHardware
 
-__all__ = ["IrSensor"]
+__all__ = ["IrSensor", "IR_OUT", "IR_IN", "IR_PINNED", "ADC_RAILS"]
+
+IR_OUT, IR_IN, IR_PINNED = 0, 1, 2
+"""``NAV_IR`` values: not in range, in range, no decision (the sensor is pinned)."""
+ADC_RAILS = (0, 4095)
+"""The 12-bit ADC's rails [counts]: a healthy sensor's noisy reading never sits on one."""
 
 #: the longest lease accepted [s]: a renewal is expected every navigation tick
 MAX_LEASE_S = 60.0
@@ -79,6 +92,9 @@ class IrSensor(Actor):
         self.last_sample = 0
         """The latest ADC reading [0..4095]."""
         self._streak = 0  # samples in a row that disagree with the decision
+        self._rail_run = 0  # samples in a row at an ADC rail
+        self.pinned = False
+        """``consecutive`` samples in a row at an ADC rail, none off them since."""
         self.always_on = always_on
         self.sampling = False
         """Whether the IR timer runs (set by this incarnation)."""
@@ -148,13 +164,22 @@ class IrSensor(Actor):
         if not on:
             changed = self.in_range
             self.in_range = False
-            self._streak = 0
+            self._streak = self._rail_run = 0
             if report and changed:
                 self._report()
 
     def update(self, sample: int) -> bool:
-        """Feed one sample; True when the decision changed."""
+        """Feed one sample; True when the decision (or `pinned`) changed."""
         self.last_sample = sample
+        self._rail_run = self._rail_run + 1 if sample in ADC_RAILS else 0
+        pinned = self._rail_run >= self.consecutive or (self.pinned and self._rail_run > 0)
+        if pinned != self.pinned:
+            self.pinned = pinned
+            self.in_range = False
+            self._streak = 0
+            return True
+        if pinned:
+            return False
         disagrees = sample < self.low if self.in_range else sample > self.high
         self._streak = self._streak + 1 if disagrees else 0
         if self._streak >= self.consecutive:
@@ -164,4 +189,5 @@ class IrSensor(Actor):
         return False
 
     def _report(self) -> None:
-        self._send(self._nav, Message.int(Cmd.NAV_IR, int(self.in_range)))
+        value = IR_PINNED if self.pinned else IR_IN if self.in_range else IR_OUT
+        self._send(self._nav, Message.int(Cmd.NAV_IR, value))

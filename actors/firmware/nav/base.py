@@ -205,7 +205,8 @@ class NavBase(TreadFaults, Actor):
         elif cmd == Cmd.NAV_SCAN_COUNT:
             await self.on_scan_count(int(message.value))
         elif cmd == Cmd.NAV_IR:
-            await self.on_ir(int(message.value) != 0)
+            value = int(message.value)
+            await self.on_ir(value == 1, pinned=value == 2)
         elif cmd == Cmd.NAV_LINK:
             await self.on_link(int(message.value) != 0)
         elif cmd == Cmd.NAV_MAP_LOST:
@@ -373,8 +374,9 @@ class NavBase(TreadFaults, Actor):
     async def on_scan_count(self, count: int) -> None:
         """Hook: Map Management integrated ``count`` scan batches so far (mapper)."""
 
-    async def on_ir(self, in_range: bool) -> None:
-        """Hook: the IR decision (seeker)."""
+    async def on_ir(self, in_range: bool, *, pinned: bool = False) -> None:
+        """Hook: the IR decision (seeker); ``pinned``: the sensor sits on an ADC rail and
+        decides nothing (``in_range`` is then False)."""
 
     async def on_link(self, up: bool) -> None:
         """Hook: the WiFly link went up or down."""

@@ -168,6 +168,8 @@ class SeekingNav(Search, RouteNav):
         self.place: tuple[float, float] | None = None
         """Where to look (map frame [cm])."""
         self.ir = False
+        self.ir_pinned = False
+        """The IR sensor sits on an ADC rail (it cannot tell; `drivers.ir`)."""
         """The IR actor's latest decision."""
         self.stage = "standoff"
         """``standoff`` (looking from near the place), ``close`` (from the place itself) or
@@ -312,8 +314,14 @@ class SeekingNav(Search, RouteNav):
         self._check_from = now + self.s.settle_s
         self._check_until = now + self.s.settle_s + wait
 
-    async def on_ir(self, in_range: bool) -> None:
+    async def on_ir(self, in_range: bool, *, pinned: bool = False) -> None:
         self.ir = in_range
+        self.ir_pinned = pinned
+        if pinned and self.state == "confirming":
+            # a sensor on its rail cannot tell: say so now, instead of searching blind
+            # (or, stuck high, of reporting a hider wherever it looks)
+            await self._not_found("the IR sensor is pinned at an ADC rail: it cannot tell")
+            return
         self._ir_at = trio.current_time()
         await self._check()
 
