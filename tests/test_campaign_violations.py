@@ -217,3 +217,40 @@ def test_determinism_catches_a_game_that_plays_differently_twice(factory, broken
     assert result["replay_hash"] and result["trace_hash"]
     assert (result["replay_hash"] != result["trace_hash"]) is broken
     assert bool(mismatch) is broken
+
+
+# ---------------------------------------------------------------------------- truth
+
+def test_truth_accepts_a_found_on_a_hider_in_view_and_names_one_out_of_view():
+    assert inv.check_found_is_true("found", [True]) == []
+    assert inv.check_found_is_true("not_found", []) == []
+    assert inv.check_found_is_true("found", [False, True]) == []  # the last report ends it
+    (v,) = inv.check_found_is_true("found", [True, False])
+    assert v.name == "truth.false_found" and "out of its IR sensor's view" in v.detail
+    (v,) = inv.check_found_is_true("found", [])
+    assert v.name == "truth.false_found"
+
+
+def _play_whole_empty_game() -> tuple[object, list[str]]:
+    from supervisors.harness.headless import Budget  # noqa: PLC0415
+
+    campaign.seed_game_scheduler(1)
+    report, checks = trio.run(lambda: campaign_play.play_checked_scenario(
+        load_scenario("empty"), 1, Budget(), drain_s=2.0), clock=virtual_clock())
+    return report, checks["violations"]
+
+
+def test_truth_control_a_real_found_keeps_the_invariant():
+    report, violations = _play_whole_empty_game()
+    assert report.outcome == "found" and not [v for v in violations if v.startswith("truth")]
+
+
+def test_truth_names_a_found_the_world_says_was_out_of_view(monkeypatch):
+    """The same game, with the world's ground truth saying the hider was out of view at the
+    found report: the campaign names it a false found."""
+    from world.world import World  # noqa: PLC0415
+
+    monkeypatch.setattr(World, "hider_in_ir_view", lambda self: False)
+    report, violations = _play_whole_empty_game()
+    assert report.outcome == "found"
+    assert "truth.false_found" in _names(violations)

@@ -406,3 +406,18 @@ def test_the_actor_catalogue_matches_the_rover_trees(role: str) -> None:
 
 def test_every_device_in_the_catalogue_has_kinds() -> None:
     assert all(DEVICE_FAULTS[d] for d in DEVICE_FAULTS)
+
+
+@pytest.mark.parametrize(("hider", "seen"), [
+    ("[200, 150, 0]", True),  # ahead: the nose at 160, the hider's body from 190
+    ("[300, 150, 0]", False),  # ahead, beyond the 60 cm range
+    ("[90, 150, 0]", False),  # behind
+    ("[190, 240, 0]", False),  # in range of the nose but far outside the field of view
+])
+def test_the_hider_in_ir_view_is_ground_truth_of_range_and_field_of_view(hider: str,
+                                                                          seen: bool) -> None:
+    """`World.hider_in_ir_view`: the hider's body within IR range of the seeker's nose and
+    its centre within the field of view."""
+    room = ROOM.replace("hider = [200, 150, 0]", f"hider = {hider}")
+    world = World(parse_scenario(room), np.random.default_rng(0))
+    assert world.hider_in_ir_view() is seen

@@ -113,6 +113,12 @@ class World:
         """Ground-truth pose (for metrics and the console only, never for firmware)."""
         return self.physics.pose(self._role(role))
 
+    def hider_in_ir_view(self) -> bool:
+        """Ground truth: a healthy IR sensor on the seeker would see the hider now (within
+        its range and field of view; for campaign invariants only, never for firmware)."""
+        seeker, hider = self.physics.state("seeker"), self.physics.state("hider")
+        return self.ir.reading(seeker, hider, 0.0) > self.params.ir_low
+
     def inject_fault(self, target: str, kind: str, duration_s: float = 0.0, **params: float) -> int:
         """Start a device fault now; returns its id.
 

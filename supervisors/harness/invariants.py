@@ -15,6 +15,9 @@ faults and checks, in each, what must hold whatever went wrong:
   record it was built with (the import rules of tests/test_layers.py,
   asserted on the live objects; a firmware actor keeping the frozen
   `Scenario`, the room's ground truth, is caught);
+* **truth**: a game that ended ``found`` found the hider: when the seeker's
+  ``found`` report reached the server, a healthy IR sensor would have seen
+  the hider (ground truth, `world.World.hider_in_ir_view`);
 * **determinism**: the same game played twice gives the same trace hash.
 
 Each broken invariant is a `Violation` whose ``name`` says which
@@ -225,7 +228,37 @@ class TraceCounts:
         self._sub.close()
 
 
+class FoundProbe:
+    """Notes, for each ``found`` report the server's game logic receives from the seeker,
+    whether the hider truly was in view of the seeker's IR sensor then (a frame observer:
+    it never awaits, so the run keeps its trace hash)."""
+
+    def __init__(self, in_view: Callable[[], bool]) -> None:
+        self.founds: list[bool] = []
+        """One entry per ``found`` report: the hider was in view."""
+        self._in_view = in_view
+
+    @classmethod
+    def install(cls, system: Any) -> FoundProbe:
+        probe = cls(system.world.hider_in_ir_view)
+        system.server.observe_frames(probe._delivered)
+        return probe
+
+    def _delivered(self, _rover_id: str, role: str, frame: Frame) -> None:
+        if role == "seeker" and frame.cmd == "found" and len(self.founds) < 100:
+            self.founds.append(self._in_view())
+
+
 # ---------------------------------------------------------------------------- checks
+
+def check_found_is_true(outcome: str, founds: list[bool]) -> list[Violation]:
+    """Truth: a game that ended ``found`` ended on a report of a hider truly in view."""
+    if outcome != "found" or (founds and founds[-1]):
+        return []
+    detail = "no found report was seen" if not founds else \
+        "the seeker reported found with the hider out of its IR sensor's view"
+    return [Violation("truth.false_found", detail)]
+
 
 def check_ended(outcome: str, reason: str) -> list[Violation]:
     """Liveness: the game ended as found or not found (not failed, e.g. by a phase timeout)."""

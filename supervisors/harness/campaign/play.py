@@ -108,6 +108,7 @@ async def play_checked_scenario(scenario: Scenario, run_seed: int, budget: Budge
         async with open_sim_system(scenario, seed=run_seed, store=store,
                                    trace=trace, nav_factory=nav_factory) as system:
             probe = inv.DeliveryProbe.install(system, trio.current_time)
+            founds = inv.FoundProbe.install(system)
             counts = inv.TraceCounts(system.actors.trace)
             t_start = trio.current_time()
             try:
@@ -119,6 +120,7 @@ async def play_checked_scenario(scenario: Scenario, run_seed: int, budget: Budge
             fired = len(system.faults)
             violations = (
                 inv.check_ended(report.outcome, report.reason)
+                + inv.check_found_is_true(report.outcome, founds.founds)
                 + inv.check_actors_alive(_actor_states(system))
                 + inv.check_no_escalation(counts.escalations, fired)
                 + inv.check_exactly_once(probe.sent_and_delivered(cut))
