@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import pathlib
 import signal
@@ -228,7 +229,10 @@ def test_pty_attach_is_answered_at_once_and_logs_no_error() -> None:
                 seen["view"] = server.snapshot().rovers[0]
 
     trio.run(main, clock=trio.testing.MockClock(autojump_threshold=PTY_CLOCK_THRESHOLD_S))
-    assert seen["hello_after_s"] < 1.0
+    # answered, not the rover's own next hello (due 15 s in, 5 s after the port opened); the
+    # pty's bytes move in real time under the autojump clock, so a loaded machine adds a
+    # second or so of virtual time
+    assert seen.get("hello_after_s", math.inf) < 4.0
     assert not {"bad_frame", "link_error", "peer_error", "refused"} & set(seen["kinds"])
     assert seen["view"].stats.up and seen["view"].stats.bad_frames == 0
     assert [ln for ln in lines if "error" in ln] == []
