@@ -187,13 +187,20 @@ class OccupancyField:
         a = self._right[i] - v00
         b = self._up_right[i] - v10
         top = v00 + a * fx
-        vert = v10 + b * fx - top
         if out is None:
+            vert = v10 + b * fx - top
             return top + vert * fy, (a + (b - a) * fy) * inv, vert * inv
+        # the same operations written in place into the rows of ``out``
         val, dx, dy = out[0], out[1], out[2]
-        np.add(top, vert * fy, out=val)
-        np.multiply(a + (b - a) * fy, inv, out=dx)
-        np.multiply(vert, inv, out=dy)
+        np.multiply(b, fx, out=dy)
+        dy += v10
+        dy -= top  # vert
+        np.multiply(dy, fy, out=val)
+        val += top
+        np.subtract(b, a, out=dx)
+        dx *= fy
+        dx += a
+        out[1:3] *= inv  # both gradient rows at once
         return val, dx, dy
 
 
@@ -240,16 +247,24 @@ def _gauss_newton(field: OccupancyField, hom: np.ndarray, pose: np.ndarray, gues
     and the gradient at once; the 3 x 3 system is solved in closed form. With about a
     hundred hits the numpy call overhead, not the arithmetic, is the cost.
     """
-    x, y, th = (float(v) for v in pose)
-    gx0, gy0, gth0 = (float(v) for v in guess)
+    x, y, th = pose.tolist()
+    gx0, gy0, gth0 = guess.tolist()
     jr = np.empty((4, hom.shape[1]))  # rows: the residual (first the field's value), d/dx,
     # d/dy, d/dtheta
     r, mx, my, dth = jr
-    lx, ly, lth = (float(v) for v in prior)
+    lx, ly, lth = prior.tolist()
+    turn = np.zeros((2, 3))  # [[c, -s, 0], [s, c, 0]], filled in per iteration
+    shift = np.empty((2, 1))  # [[x], [y]]
+    xy = np.empty((2, hom.shape[1]))  # the hits in the map frame (sample_xy overwrites it)
     for _ in range(iterations):
         c, s = math.cos(th), math.sin(th)
-        rot = np.array([[c, -s, 0.0], [s, c, 0.0]]) @ hom  # the hits rotated, rover-relative
-        field.sample_xy(rot + np.array([[x], [y]]), out=jr[:3])
+        turn[0, 0] = turn[1, 1] = c
+        turn[0, 1] = -s
+        turn[1, 0] = s
+        rot = turn @ hom  # the hits rotated, rover-relative
+        shift[0, 0] = x
+        shift[1, 0] = y
+        field.sample_xy(np.add(rot, shift, out=xy), out=jr[:3])
         np.subtract(my * rot[0], mx * rot[1], out=dth)
         np.subtract(1.0, r, out=r)
         (gx, hxx, hxy, hxt), (gy, _, hyy, hyt), (gt, _, _, htt) = (jr[1:] @ jr.T).tolist()
@@ -258,7 +273,8 @@ def _gauss_newton(field: OccupancyField, hom: np.ndarray, pose: np.ndarray, gues
              [hxt, hyt, htt * (1 + damping) + lth + 1e-9]]
         g = [gx - lx * (x - gx0), gy - ly * (y - gy0), gt - lth * (th - gth0)]
         step = _solve3(h, g)
-        if step is None or not all(math.isfinite(v) for v in step):
+        if step is None or not (math.isfinite(step[0]) and math.isfinite(step[1])
+                                and math.isfinite(step[2])):
             break
         x, y, th = x + step[0], y + step[1], th + step[2]
         if abs(step[0]) + abs(step[1]) < 0.05 and abs(step[2]) < 1e-4:
@@ -293,14 +309,17 @@ def _score(fields: MatchFields, hom: np.ndarray, x: float, y: float, theta: floa
     c, s = math.cos(theta), math.sin(theta)
     m, _, _ = fields.narrow.sample_xy(np.array([[c, -s, x], [s, c, y]]) @ hom)
     n = m.size
-    return float(m.sum()) / n, float(np.count_nonzero(m > 0.25)) / n
+    # the ufuncs' own reductions: what ``m.sum()`` runs, without its Python wrapper
+    return float(np.add.reduce(m)) / n, float(np.count_nonzero(m > 0.25)) / n
 
 
 def _prior(pts: np.ndarray, o: MatchOptions) -> np.ndarray:
     """The pull toward the starting pose per (x, y, theta), scaled by the hit count
     (theta also by the hits' mean squared range)."""
     a = o.prior_per_point * len(pts)
-    return np.array([a, a, a * float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2))])
+    # the mean as ``np.mean`` computes it (its sum, then one division), without its wrapper
+    return np.array([a, a, a * (float(np.add.reduce(pts[:, 0] ** 2 + pts[:, 1] ** 2))
+                                / len(pts))])
 
 
 def _fit(fields: MatchFields, hom: np.ndarray, start: np.ndarray, prior: np.ndarray,
