@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from actors.firmware.arrays import pad_border
 from actors.firmware.mapping.sensor_model import LogOddsModel
 from server.protocol.pose import Pose
 
@@ -143,7 +144,7 @@ class OccupancyField:
         peak = float(_binomial(passes).max())  # what a one-cell line keeps across it
         f = np.minimum(_blur(np.asarray(occupied, dtype=np.float64), passes) / peak, 1.0)
         # a border of zeros: points outside read 0 with no gradient
-        self.values = np.pad(f, 1)
+        self.values = pad_border(f)
         """Field values (ny + 2, nx + 2), 0..1, with a zero border."""
         self._flat = self.values.ravel()
         self.origin_cm = (origin_cm[0] - resolution_cm, origin_cm[1] - resolution_cm)
