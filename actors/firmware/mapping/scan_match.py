@@ -175,19 +175,7 @@ class OccupancyField:
         as views of them).
         """
         inv = 1.0 / self.resolution_cm
-        # cell centres are the interpolation nodes: to node units, clamped to the crop
-        g = np.subtract(xy, self._node0, out=xy)
-        g *= inv
-        np.maximum(g, 0.0, out=g)
-        np.minimum(g, self._node_max, out=g)
-        cr = g.astype(np.int64)
-        frac = g - cr
-        fx, fy = frac[0], frac[1]
-        i = cr[1] * self._nx + cr[0]
-        v00, v10 = self._flat[i], self._up[i]
-        a = self._right[i] - v00
-        b = self._up_right[i] - v10
-        top = v00 + a * fx
+        fx, fy, a, b, v10, top = self._lerp(xy, inv)
         if out is None:
             vert = v10 + b * fx - top
             return top + vert * fy, (a + (b - a) * fy) * inv, vert * inv
@@ -204,6 +192,31 @@ class OccupancyField:
         out[1:3] *= inv  # both gradient rows at once
         return val, dx, dy
 
+    def value_xy(self, xy: np.ndarray) -> np.ndarray:
+        """`sample_xy`'s value alone (the same floats), without the gradient's work;
+        ``xy`` is overwritten."""
+        fx, fy, _, b, v10, top = self._lerp(xy, 1.0 / self.resolution_cm)
+        return top + (v10 + b * fx - top) * fy
+
+    def _lerp(self, xy: np.ndarray, inv: float) -> tuple[np.ndarray, ...]:
+        """The interpolation's first half at points ``xy`` (2, n) [cm] (overwritten),
+        ``inv`` the inverse cell side: the fractions fx, fy within the cell, the
+        differences a (lower nodes) and b (upper nodes) along x, the upper-left node's
+        value and the lower edge's value at fx (``top``)."""
+        # cell centres are the interpolation nodes: to node units, clamped to the crop
+        g = np.subtract(xy, self._node0, out=xy)
+        g *= inv
+        np.maximum(g, 0.0, out=g)
+        np.minimum(g, self._node_max, out=g)
+        cr = g.astype(np.int64)
+        frac = g - cr
+        fx, fy = frac[0], frac[1]
+        i = cr[1] * self._nx + cr[0]
+        v00, v10 = self._flat[i], self._up[i]
+        a = self._right[i] - v00
+        b = self._up_right[i] - v10
+        return fx, fy, a, b, v10, v00 + a * fx
+
 
 def hits_to_local(angles_deg: np.ndarray, ranges_cm: np.ndarray, options: MatchOptions
                   ) -> np.ndarray:
@@ -212,7 +225,10 @@ def hits_to_local(angles_deg: np.ndarray, ranges_cm: np.ndarray, options: MatchO
     a = np.radians(np.asarray(angles_deg, dtype=np.float64))
     keep = (r >= options.min_range_cm) & (r <= MAX_RANGE_CM)
     r, a = r[keep], a[keep]
-    return np.column_stack([r * np.cos(a), r * np.sin(a)])
+    pts = np.empty((r.size, 2))  # the columns written in place (not `np.column_stack`)
+    np.multiply(r, np.cos(a), out=pts[:, 0])
+    np.multiply(r, np.sin(a), out=pts[:, 1])
+    return pts
 
 
 def _homogeneous(pts: np.ndarray) -> np.ndarray:
@@ -308,7 +324,7 @@ def _score(fields: MatchFields, hom: np.ndarray, x: float, y: float, theta: floa
     the mean of the narrow field, and the share of hits on a mapped obstacle (field above
     0.25)."""
     c, s = math.cos(theta), math.sin(theta)
-    m, _, _ = fields.narrow.sample_xy(np.array([[c, -s, x], [s, c, y]]) @ hom)
+    m = fields.narrow.value_xy(np.array([[c, -s, x], [s, c, y]]) @ hom)
     n = m.size
     # the ufuncs' own reductions: what ``m.sum()`` runs, without its Python wrapper
     return float(np.add.reduce(m)) / n, float(np.count_nonzero(m > 0.25)) / n
