@@ -136,6 +136,10 @@ class ActorContext:
         """`ActorSystem.cast`."""
         return await self.system.cast(name, message)
 
+    def cast_nowait(self, name: str, message: Any) -> bool | None:
+        """`ActorSystem.cast_nowait`."""
+        return self.system.cast_nowait(name, message)
+
     async def call(self, name: str, request: Any, *, timeout: float) -> Any:
         """`ActorSystem.call` (an actor calling itself would deadlock until the timeout)."""
         return await self.system.call(name, request, timeout=timeout)

@@ -195,28 +195,44 @@ class ActorSystem:
     async def cast(self, name: str, message: Any) -> bool:
         """Fire and forget: as `send`, but an unregistered name returns False, also when
         it is unregistered while waiting for room."""
+        sent = self.cast_nowait(name, message)
+        if sent is not None:
+            return sent
+        try:
+            await self._cells[name].mailbox.send(message)
+        except MailboxClosed:
+            return False
+        return True
+
+    def cast_nowait(self, name: str, message: Any) -> bool | None:
+        """`cast` as far as it needs no waiting: True when the message was queued, False
+        when ``name`` is unregistered or its mailbox closed, None when the mailbox is full
+        (nothing done; `cast` would wait for room).
+
+        Why: a sender that bounds its wait with a timeout needs the timeout's cancel
+        scope only when there is no room; entering and leaving one costs several times
+        what queuing the message does.
+        """
         cell = self._cells.get(name)
         if cell is None:
             return False
         mailbox = cell.mailbox
+        if mailbox._closed:
+            return False
         queue = mailbox._queue
         n = len(queue)
-        if n < mailbox.capacity and not mailbox._closed:
-            if self.trace.per_message:
-                return mailbox.send_nowait(message)  # it traces the SEND event
-            # room: Mailbox.send_nowait's success path inline. Why: cast is the hot path
-            # of actor-to-actor traffic, and the call was a fifth of a cast's CPU.
-            queue.append(message)
-            mailbox._sent += 1
-            if n >= mailbox._high:
-                mailbox._high = n + 1
-            if mailbox._receiver is not None:
-                mailbox._wake()
-            return True
-        try:
-            await mailbox.send(message)
-        except MailboxClosed:
-            return False
+        if n >= mailbox.capacity:
+            return None
+        if self.trace.per_message:
+            return mailbox.send_nowait(message)  # it traces the SEND event
+        # Mailbox.send_nowait's success path inline. Why: cast is the hot path of
+        # actor-to-actor traffic, and the call was a fifth of a cast's CPU.
+        queue.append(message)
+        mailbox._sent += 1
+        if n >= mailbox._high:
+            mailbox._high = n + 1
+        if mailbox._receiver is not None:
+            mailbox._wake()
         return True
 
     async def call(self, name: str, request: Any, *, timeout: float) -> Any:

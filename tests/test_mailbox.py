@@ -155,6 +155,29 @@ async def test_cast_counts_like_send_and_waits_when_full(autojump_clock) -> None
 
 
 @pytest.mark.trio
+async def test_cast_nowait_queues_into_room_and_says_none_when_full(autojump_clock) -> None:
+    """cast_nowait queues (counted as a cast) while there is room, answers None without
+    queuing when the mailbox is full, and False for an unknown or retired name."""
+    from actors import Actor, open_actor_system
+    from supervisors import ChildSpec, SupervisorSpec
+
+    class Slow(Actor):
+        async def handle(self, message):
+            await trio.sleep(1)
+
+    async with open_actor_system() as system:
+        await system.start_supervisor(SupervisorSpec([ChildSpec("a", Slow, mailbox=2)]))
+        assert system.cast_nowait("a", 1) is True
+        assert system.cast_nowait("a", 2) is True
+        assert system.cast_nowait("a", 3) is None  # full: nothing queued
+        stats = system.statistics("a")
+        assert (stats.sent, stats.depth, stats.dropped) == (2, 2, 0)
+        assert system.cast_nowait("nobody", 1) is False
+        system.retire("a")
+        assert system.cast_nowait("a", 4) is False
+
+
+@pytest.mark.trio
 async def test_call_into_a_full_mailbox_waits_then_times_out(autojump_clock) -> None:
     """A call that first waits for room keeps one timeout for both waits."""
     from actors import Actor, CallTimeout, open_actor_system

@@ -10,6 +10,7 @@ import pytest
 from actors.firmware.mapping.scan_match import (
     MatchFields,
     MatchOptions,
+    OccupancyField,
     hits_to_local,
     match_scan,
     relocalise,
@@ -126,3 +127,17 @@ def test_relocalise_refuses_an_ambiguous_view() -> None:
     result = relocalise(MatchFields(occ, ORIGIN, RES), pts, Pose(150.0, 100.0, 15.0))
     assert not result.accepted
     assert "ambiguous" in result.reason
+
+
+def test_value_xy_gives_sample_xys_value_bit_for_bit() -> None:
+    """The value-only lookup that scoring uses is the same floats as the full one's value,
+    also for points outside the crop (0)."""
+    rng = np.random.default_rng(11)
+    field = OccupancyField(rng.random((30, 40)) > 0.9, (-20.0, 35.0), 5.0, 2)
+    xy = rng.uniform(-80.0, 260.0, size=(2, 150))
+    value = field.value_xy(xy.copy())
+    full, _, _ = field.sample_xy(xy.copy())
+    out = np.empty((3, 150))
+    field.sample_xy(xy.copy(), out=out)
+    assert value.tobytes() == full.tobytes() == out[0].tobytes()
+    assert (value == 0.0).any() and (value > 0.0).any()

@@ -123,9 +123,9 @@ class LidarUartIsr(_Isr):
         a, d = f["a"], f["d"]
         # sync bytes, checksums (a0 ^ a1 ^ d0 ^ d1 ^ check is 0) and ranges: one
         # reduction each (every world tick brings a batch)
-        if not ((raw[:, 0] == LIDAR_SYNC).all()
-                and not np.bitwise_xor.reduce(raw[:, 1:], axis=1).any()
-                and a.max() < 36000 and d.max() <= 32767):
+        if not (np.logical_and.reduce(raw[:, 0] == LIDAR_SYNC)
+                and not np.logical_or.reduce(np.bitwise_xor.reduce(raw[:, 1:], axis=1))
+                and np.maximum.reduce(a) < 36000 and np.maximum.reduce(d) <= 32767):
             return False
         count = len(f)
         samples = LidarSamples((a // 10).astype(np.int32), d.astype(np.int32))

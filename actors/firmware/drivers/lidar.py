@@ -145,10 +145,12 @@ def roughness_cm(angles_deg: np.ndarray, ranges_cm: np.ndarray, *,
     r = np.asarray(ranges_cm, dtype=np.float64)
     if a.size < 3:
         return 0.0, 0
-    step = np.abs((np.diff(a) + 180.0) % 360.0 - 180.0)
-    ok_step = (step > 0.0) & (step <= max_step_deg)
+    # per batch: slices and ufuncs, not np.diff's wrapper; the neighbours' conditions
+    # are and-ed per pair first (``pair[i]``: step i usable, returns i and i + 1 valid)
+    step = np.abs((a[1:] - a[:-1] + 180.0) % 360.0 - 180.0)
     valid = r > 0
-    use = ok_step[:-1] & ok_step[1:] & valid[:-2] & valid[1:-1] & valid[2:]
+    pair = (step > 0.0) & (step <= max_step_deg) & valid[:-1] & valid[1:]
+    use = pair[:-1] & pair[1:]
     n = int(np.count_nonzero(use))
     if n == 0:
         return 0.0, 0
@@ -177,7 +179,7 @@ def batch_health(angles_deg: np.ndarray, ranges_cm: np.ndarray, bad_frames: int,
         return LidarHealth.OK
     a = np.asarray(angles_deg, dtype=np.float64)
     spread = np.abs((a - a[0] + 180.0) % 360.0 - 180.0)
-    if float(spread.max()) <= STUCK_SPAN_DEG:
+    if float(np.maximum.reduce(spread)) <= STUCK_SPAN_DEG:
         return LidarHealth.STUCK
     rough, triples = roughness_cm(a, ranges_cm)
     if triples >= MIN_TRIPLES and rough > o.noise_limit_cm:

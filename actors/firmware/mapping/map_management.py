@@ -53,6 +53,7 @@ import trio
 
 from actors import Actor, BufferPool, Message
 from actors.firmware.addresses import Addresses
+from actors.firmware.arrays import pad_border
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
 from actors.firmware.handles import post
@@ -85,7 +86,7 @@ _LOST_AGREE_DEG = 3.0  # ...and [deg]
 
 def _max3(values: np.ndarray) -> np.ndarray:
     """Maximum over each cell's 3 x 3 neighbourhood."""
-    p = np.pad(values, 1)
+    p = pad_border(values)
     rows = np.maximum(np.maximum(p[:-2], p[1:-1]), p[2:])
     return np.maximum(np.maximum(rows[:, :-2], rows[:, 1:-1]), rows[:, 2:])
 

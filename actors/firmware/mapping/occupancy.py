@@ -208,8 +208,9 @@ class OccupancyGrid:
                                                     m.grazing_margin_cells)
         free_flat = self._free_samples(px, py, cos, sin, free_c)
 
-        hx = px + cos[has_hit] * length_c[has_hit]  # hits [cells]
-        hy = py + sin[has_hit] * length_c[has_hit]
+        hit_c = length_c[has_hit]
+        hx = px + cos[has_hit] * hit_c  # hits [cells]
+        hy = py + sin[has_hit] * hit_c
         # np.unique's result (sorted, distinct) without its overhead (17 -> 5 us per batch)
         hit_idx = np.sort(self._inside(np.floor(hy).astype(np.int64),
                                        np.floor(hx).astype(np.int64)))
@@ -237,17 +238,18 @@ class OccupancyGrid:
         from the ray origin (``px``, ``py``) [cells] along (``cos``, ``sin``)."""
         step = self.model.ray_step
         n_samples = np.ceil(np.maximum(free_c, 0.0) / step).astype(np.int64)
-        total = int(n_samples.sum())
+        total = int(np.add.reduce(n_samples))
         # sample k of its ray at t = k step; each ray's cos and sin repeated per sample
         # (cheaper than gathering them by a ray index), the arithmetic in place: the
         # same operations in the same order, so the same cells
         k = np.arange(total)
-        k -= np.repeat(np.cumsum(n_samples) - n_samples, n_samples)
+        # (the array methods, not the `np.repeat` / `np.cumsum` wrappers around them)
+        k -= (n_samples.cumsum() - n_samples).repeat(n_samples)
         t = k * step
-        x = np.repeat(cos, n_samples)
+        x = cos.repeat(n_samples)
         x *= t
         x += px
-        y = np.repeat(sin, n_samples)
+        y = sin.repeat(n_samples)
         y *= t
         y += py
         fc = np.floor(x, out=x).astype(np.int64)
@@ -266,7 +268,7 @@ class OccupancyGrid:
         was_free, was_occ = vals < m.free_threshold, vals > m.occ_threshold
         vals[:n_free] += m.l_free
         vals[n_free:] += m.l_occ
-        np.clip(vals, m.l_min, m.l_max, out=vals)
+        np.minimum(np.maximum(vals, m.l_min, out=vals), m.l_max, out=vals)  # clipped
         flat[idx] = vals
         now_free, now_occ = vals < m.free_threshold, vals > m.occ_threshold
         moved = (was_free != now_free) | (was_occ != now_occ)
@@ -294,7 +296,7 @@ class OccupancyGrid:
         # a negative index reads as a huge unsigned one: one comparison per axis
         inside = (rows.view(np.uint64) < ny) & (cols.view(np.uint64) < nx)
         flat = rows * nx + cols
-        return flat if inside.all() else flat[inside]
+        return flat if np.logical_and.reduce(inside) else flat[inside]
 
     def _splat_hits(self, hx: np.ndarray, hy: np.ndarray) -> None:
         """Add each hit [cells] to the four nearest cell centres, bilinearly: the counts
@@ -314,7 +316,7 @@ class OccupancyGrid:
         ny, nx = self._hits.shape
         inside = (rows.view(np.uint64) < ny) & (cols.view(np.uint64) < nx)
         flat = rows * nx + cols
-        if not inside.all():
+        if not np.logical_and.reduce(inside):
             flat, weights = flat[inside], weights[inside]
         np.add.at(self._hits.reshape(-1), flat, weights)
 

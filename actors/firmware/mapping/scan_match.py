@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from actors.firmware.arrays import pad_border
 from actors.firmware.mapping.sensor_model import LogOddsModel
 from server.protocol.pose import Pose
 
@@ -143,7 +144,7 @@ class OccupancyField:
         peak = float(_binomial(passes).max())  # what a one-cell line keeps across it
         f = np.minimum(_blur(np.asarray(occupied, dtype=np.float64), passes) / peak, 1.0)
         # a border of zeros: points outside read 0 with no gradient
-        self.values = np.pad(f, 1)
+        self.values = pad_border(f)
         """Field values (ny + 2, nx + 2), 0..1, with a zero border."""
         self._flat = self.values.ravel()
         self.origin_cm = (origin_cm[0] - resolution_cm, origin_cm[1] - resolution_cm)
@@ -174,6 +175,34 @@ class OccupancyField:
         as views of them).
         """
         inv = 1.0 / self.resolution_cm
+        fx, fy, a, b, v10, top = self._lerp(xy, inv)
+        if out is None:
+            vert = v10 + b * fx - top
+            return top + vert * fy, (a + (b - a) * fy) * inv, vert * inv
+        # the same operations written in place into the rows of ``out``
+        val, dx, dy = out[0], out[1], out[2]
+        np.multiply(b, fx, out=dy)
+        dy += v10
+        dy -= top  # vert
+        np.multiply(dy, fy, out=val)
+        val += top
+        np.subtract(b, a, out=dx)
+        dx *= fy
+        dx += a
+        out[1:3] *= inv  # both gradient rows at once
+        return val, dx, dy
+
+    def value_xy(self, xy: np.ndarray) -> np.ndarray:
+        """`sample_xy`'s value alone (the same floats), without the gradient's work;
+        ``xy`` is overwritten."""
+        fx, fy, _, b, v10, top = self._lerp(xy, 1.0 / self.resolution_cm)
+        return top + (v10 + b * fx - top) * fy
+
+    def _lerp(self, xy: np.ndarray, inv: float) -> tuple[np.ndarray, ...]:
+        """The interpolation's first half at points ``xy`` (2, n) [cm] (overwritten),
+        ``inv`` the inverse cell side: the fractions fx, fy within the cell, the
+        differences a (lower nodes) and b (upper nodes) along x, the upper-left node's
+        value and the lower edge's value at fx (``top``)."""
         # cell centres are the interpolation nodes: to node units, clamped to the crop
         g = np.subtract(xy, self._node0, out=xy)
         g *= inv
@@ -186,15 +215,7 @@ class OccupancyField:
         v00, v10 = self._flat[i], self._up[i]
         a = self._right[i] - v00
         b = self._up_right[i] - v10
-        top = v00 + a * fx
-        vert = v10 + b * fx - top
-        if out is None:
-            return top + vert * fy, (a + (b - a) * fy) * inv, vert * inv
-        val, dx, dy = out[0], out[1], out[2]
-        np.add(top, vert * fy, out=val)
-        np.multiply(a + (b - a) * fy, inv, out=dx)
-        np.multiply(vert, inv, out=dy)
-        return val, dx, dy
+        return fx, fy, a, b, v10, v00 + a * fx
 
 
 def hits_to_local(angles_deg: np.ndarray, ranges_cm: np.ndarray, options: MatchOptions
@@ -204,7 +225,10 @@ def hits_to_local(angles_deg: np.ndarray, ranges_cm: np.ndarray, options: MatchO
     a = np.radians(np.asarray(angles_deg, dtype=np.float64))
     keep = (r >= options.min_range_cm) & (r <= MAX_RANGE_CM)
     r, a = r[keep], a[keep]
-    return np.column_stack([r * np.cos(a), r * np.sin(a)])
+    pts = np.empty((r.size, 2))  # the columns written in place (not `np.column_stack`)
+    np.multiply(r, np.cos(a), out=pts[:, 0])
+    np.multiply(r, np.sin(a), out=pts[:, 1])
+    return pts
 
 
 def _homogeneous(pts: np.ndarray) -> np.ndarray:
@@ -240,16 +264,24 @@ def _gauss_newton(field: OccupancyField, hom: np.ndarray, pose: np.ndarray, gues
     and the gradient at once; the 3 x 3 system is solved in closed form. With about a
     hundred hits the numpy call overhead, not the arithmetic, is the cost.
     """
-    x, y, th = (float(v) for v in pose)
-    gx0, gy0, gth0 = (float(v) for v in guess)
+    x, y, th = pose.tolist()
+    gx0, gy0, gth0 = guess.tolist()
     jr = np.empty((4, hom.shape[1]))  # rows: the residual (first the field's value), d/dx,
     # d/dy, d/dtheta
     r, mx, my, dth = jr
-    lx, ly, lth = (float(v) for v in prior)
+    lx, ly, lth = prior.tolist()
+    turn = np.zeros((2, 3))  # [[c, -s, 0], [s, c, 0]], filled in per iteration
+    shift = np.empty((2, 1))  # [[x], [y]]
+    xy = np.empty((2, hom.shape[1]))  # the hits in the map frame (sample_xy overwrites it)
     for _ in range(iterations):
         c, s = math.cos(th), math.sin(th)
-        rot = np.array([[c, -s, 0.0], [s, c, 0.0]]) @ hom  # the hits rotated, rover-relative
-        field.sample_xy(rot + np.array([[x], [y]]), out=jr[:3])
+        turn[0, 0] = turn[1, 1] = c
+        turn[0, 1] = -s
+        turn[1, 0] = s
+        rot = turn @ hom  # the hits rotated, rover-relative
+        shift[0, 0] = x
+        shift[1, 0] = y
+        field.sample_xy(np.add(rot, shift, out=xy), out=jr[:3])
         np.subtract(my * rot[0], mx * rot[1], out=dth)
         np.subtract(1.0, r, out=r)
         (gx, hxx, hxy, hxt), (gy, _, hyy, hyt), (gt, _, _, htt) = (jr[1:] @ jr.T).tolist()
@@ -258,7 +290,8 @@ def _gauss_newton(field: OccupancyField, hom: np.ndarray, pose: np.ndarray, gues
              [hxt, hyt, htt * (1 + damping) + lth + 1e-9]]
         g = [gx - lx * (x - gx0), gy - ly * (y - gy0), gt - lth * (th - gth0)]
         step = _solve3(h, g)
-        if step is None or not all(math.isfinite(v) for v in step):
+        if step is None or not (math.isfinite(step[0]) and math.isfinite(step[1])
+                                and math.isfinite(step[2])):
             break
         x, y, th = x + step[0], y + step[1], th + step[2]
         if abs(step[0]) + abs(step[1]) < 0.05 and abs(step[2]) < 1e-4:
@@ -291,16 +324,19 @@ def _score(fields: MatchFields, hom: np.ndarray, x: float, y: float, theta: floa
     the mean of the narrow field, and the share of hits on a mapped obstacle (field above
     0.25)."""
     c, s = math.cos(theta), math.sin(theta)
-    m, _, _ = fields.narrow.sample_xy(np.array([[c, -s, x], [s, c, y]]) @ hom)
+    m = fields.narrow.value_xy(np.array([[c, -s, x], [s, c, y]]) @ hom)
     n = m.size
-    return float(m.sum()) / n, float(np.count_nonzero(m > 0.25)) / n
+    # the ufuncs' own reductions: what ``m.sum()`` runs, without its Python wrapper
+    return float(np.add.reduce(m)) / n, float(np.count_nonzero(m > 0.25)) / n
 
 
 def _prior(pts: np.ndarray, o: MatchOptions) -> np.ndarray:
     """The pull toward the starting pose per (x, y, theta), scaled by the hit count
     (theta also by the hits' mean squared range)."""
     a = o.prior_per_point * len(pts)
-    return np.array([a, a, a * float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2))])
+    # the mean as ``np.mean`` computes it (its sum, then one division), without its wrapper
+    return np.array([a, a, a * (float(np.add.reduce(pts[:, 0] ** 2 + pts[:, 1] ** 2))
+                                / len(pts))])
 
 
 def _fit(fields: MatchFields, hom: np.ndarray, start: np.ndarray, prior: np.ndarray,

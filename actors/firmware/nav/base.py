@@ -445,9 +445,16 @@ class NavBase(TreadFaults, Actor):
         return False
 
     async def post(self, name: str, message: Message) -> bool:
-        """Send to a neighbour, waiting at most ``SEND_TIMEOUT_S`` for room; False if not sent."""
-        with trio.move_on_after(SEND_TIMEOUT_S):
-            if await self.ctx.cast(name, message):
-                return True
+        """Send to a neighbour, waiting at most ``SEND_TIMEOUT_S`` for room; False if not sent.
+
+        The timeout's cancel scope is entered only when the neighbour's mailbox is full
+        (`ActorSystem.cast_nowait`): with room the message is queued without waiting.
+        """
+        sent = self.ctx.cast_nowait(name, message)
+        if sent is None:
+            with trio.move_on_after(SEND_TIMEOUT_S):
+                sent = await self.ctx.cast(name, message)
+        if sent:
+            return True
         self.counters["dropped"] += 1
         return False

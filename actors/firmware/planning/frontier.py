@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from actors.firmware.arrays import pad_border
 from actors.firmware.planning.grid_search import bfs_steps
 from actors.firmware.planning.planner import snap_to_passable, traversable
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
@@ -110,7 +111,7 @@ class FrontierWeights:
 
 def frontier_mask(cells: np.ndarray) -> np.ndarray:
     """Free cells with a 4-neighbour unknown: bool, the shape of ``cells``."""
-    unknown = np.pad(cells == UNKNOWN, 1, constant_values=False)
+    unknown = pad_border(cells == UNKNOWN, 1, False)
     near = unknown[:-2, 1:-1] | unknown[2:, 1:-1] | unknown[1:-1, :-2] | unknown[1:-1, 2:]
     return (cells == FREE) & near
 
@@ -257,7 +258,7 @@ class _UnknownShare:
     an integral image over the cells padded with unknown."""
 
     def __init__(self, cells: np.ndarray, k: int) -> None:
-        unknown = np.pad(cells == UNKNOWN, k, constant_values=True).astype(np.int32)
+        unknown = pad_border(cells == UNKNOWN, k, True).astype(np.int32)
         self._integral = np.pad(unknown.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
         self._area = (2 * k + 1) ** 2
         self._k = k

@@ -33,6 +33,8 @@ import math
 
 import numpy as np
 
+from actors.firmware.arrays import pad_border
+
 __all__ = ["MOVES", "astar", "bfs_steps"]
 
 SQRT2 = math.sqrt(2.0)
@@ -159,8 +161,8 @@ def _astar_padded(passable: np.ndarray, start: tuple[int, int], goal: tuple[int,
     no bounds checks in the loop."""
     ny, nx = passable.shape
     w = nx + 2
-    pas = np.pad(passable, 1).view(np.uint8).ravel().tobytes()
-    extra = np.pad(extra_cost, 1).ravel().tolist() if extra_cost is not None else None
+    pas = pad_border(passable).view(np.uint8).ravel().tobytes()
+    extra = pad_border(extra_cost).ravel().tolist() if extra_cost is not None else None
     n = len(pas)
     s = (start[0] + 1) * w + start[1] + 1
     g = (goal[0] + 1) * w + goal[1] + 1
@@ -224,7 +226,7 @@ def bfs_steps(passable: np.ndarray, start: tuple[int, int]) -> np.ndarray:
     """
     ny, nx = passable.shape
     w = nx + 2
-    pas = np.pad(np.asarray(passable, dtype=bool), 1).ravel()
+    pas = pad_border(np.asarray(passable, dtype=bool)).ravel()
     dist = np.full(pas.size, -1, dtype=np.int32)
     r, c = start
     if 0 <= r < ny and 0 <= c < nx and passable[r, c]:
