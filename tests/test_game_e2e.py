@@ -227,3 +227,15 @@ def test_a_seeker_whose_ir_sensor_is_stuck_high_reports_no_hider() -> None:
     reasons = [e.split("reason=")[1] for e in report.events if "report=not_found" in e]
     assert reasons and all("pinned at an ADC rail" in r for r in reasons)
     assert not any("report=found" in e for e in report.events)
+
+
+def test_a_seeker_waits_for_an_ir_sensor_pinned_for_a_while_and_then_finds_the_hider() -> None:
+    """The IR sensor stuck high for 40 s from before the first look: the seeker holds its
+    look (no ``found`` from the pinned sensor, no guess spent on it) and, once the sensor
+    reads again, finds the hider truly in view."""
+    base = load_scenario("empty")
+    stuck = dataclasses.replace(base, faults=(
+        ScheduledFault(at_s=60.0, target="seeker/ir", kind="stuck_high", duration_s=40.0),))
+    report = play(stuck)
+    assert report.outcome == "found", report.reason
+    assert not any("pinned" in e for e in report.events if "report=not_found" in e)

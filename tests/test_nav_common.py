@@ -205,7 +205,8 @@ class FakeMap(Actor):
 
 
 class FakeIr(Actor):
-    """Sends NAV_IR every 0.1 s from ``body.ir_in_range(pose)``."""
+    """Sends NAV_IR every 0.1 s from ``body.ir_in_range(pose)`` (a bool, or the value: 2 is a
+    sensor pinned at an ADC rail)."""
 
     def __init__(self, body: Body) -> None:
         self.body = body
@@ -215,8 +216,8 @@ class FakeIr(Actor):
         self.ctx.start_timer(0.1, Message.uint(Cmd.NAV_TIMER, 0), interval=0.1)
 
     async def handle(self, message: Message) -> None:
-        v = bool(self.body.ir_in_range(self.body.pose)) if self.body.ir_in_range else False
-        self.ctx.send_nowait(self.nav, Message.int(Cmd.NAV_IR, int(v)))
+        v = int(self.body.ir_in_range(self.body.pose)) if self.body.ir_in_range else 0
+        self.ctx.send_nowait(self.nav, Message.int(Cmd.NAV_IR, v))
 
 
 def rover_spec(role: str, body: Body, pool: BufferPool, *, memory: NavMemory | None = None,

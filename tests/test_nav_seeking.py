@@ -5,13 +5,14 @@ from __future__ import annotations
 import math
 
 import pytest
+import trio
 
 from actors import BufferPool, open_actor_system
 from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.nav.options import NavOptions
 from actors.firmware.nav.route import passable_at
 from actors.firmware.nav.search import ring_reach_cm, search_ring, search_rings
-from actors.firmware.nav.seeker import SeekingNav, SeekingOptions
+from actors.firmware.nav.seeker import IR_PINNED_WAIT_S, SeekingNav, SeekingOptions
 from server.protocol.pose import Pose, angle_diff_deg
 from tests.test_nav_common import (
     Body,
@@ -84,6 +85,36 @@ async def test_seeker_without_ir_reports_not_found(autojump_clock) -> None:
         await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
         await begin(system, pool, {"x": HIDER[0], "y": HIDER[1]})
         assert await wait_for(lambda: body.frames("not_found"), 600.0)
+        assert body.frames("found") == []
+
+
+@pytest.mark.trio
+async def test_a_pinned_ir_sensor_holds_the_look_until_it_reads_again(autojump_clock) -> None:
+    """The sensor pinned at an ADC rail (``NAV_IR`` 2) for the first 25 s: the seeker neither
+    reports a hider nor gives up on the guess; once it reads again it finds the hider."""
+    body = Body(truth=Truth(-50, -50, 250, 150),
+                ir_in_range=lambda pose: 2 if trio.current_time() < 25.0 else ir_sees_hider(pose))
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
+        await begin(system, pool, {"x": HIDER[0], "y": HIDER[1], "heading": None})
+        assert await wait_for(lambda: body.frames("found"), 120.0)
+        assert trio.current_time() > 25.0
+        assert body.frames("not_found") == []
+
+
+@pytest.mark.trio
+async def test_an_ir_sensor_pinned_past_the_wait_is_reported_not_a_hider(autojump_clock) -> None:
+    """Pinned for good: after `IR_PINNED_WAIT_S` of the look, ``not_found`` naming the sensor,
+    never ``found`` (a stuck-high sensor reads like a hider everywhere)."""
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=lambda pose: 2)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
+        await begin(system, pool, {"x": HIDER[0], "y": HIDER[1], "heading": None})
+        assert await wait_for(lambda: body.frames("not_found"), 120.0)
+        assert "pinned" in body.frames("not_found")[0].data["reason"]
+        assert trio.current_time() > IR_PINNED_WAIT_S
         assert body.frames("found") == []
 
 

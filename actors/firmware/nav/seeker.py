@@ -57,7 +57,7 @@ from actors.firmware.nav.search import SEARCH_IR_WAIT_S, SEARCH_SCAN_DEG, Search
 from server.protocol.pose import angle_diff_deg
 
 __all__ = ["SeekingOptions", "SeekingNav", "IR_LEASE_TICKS", "STANDOFF_RING_STEP_DEG",
-           "MAX_STANDOFF_PLANS"]
+           "MAX_STANDOFF_PLANS", "IR_PINNED_WAIT_S"]
 
 
 IR_LEASE_TICKS = 4
@@ -70,6 +70,11 @@ candidates are a sampling of the ring, three nearest the seeker kept per radius.
 
 MAX_STANDOFF_PLANS = 8
 """Candidate standoff points planned to per destination, at most (a bound on planning)."""
+
+IR_PINNED_WAIT_S = 30.0
+"""How long a look waits for an IR sensor pinned at an ADC rail to read again [s] before
+the seeker reports that it cannot tell: a stuck sensor or a loose line often recovers,
+and reporting at once would spend the operator's guesses while it cannot see."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -191,6 +196,7 @@ class SeekingNav(Search, RouteNav):
         self._scan_index = 0
         self._check_from = math.inf
         self._check_until = math.inf
+        self._pinned_since: float | None = None  # a look held for a pinned sensor, since [s]
 
     # ------------------------------------------------------------------ approach
     async def on_goal(self, x: float, y: float, heading: float | None) -> None:
@@ -317,12 +323,19 @@ class SeekingNav(Search, RouteNav):
     async def on_ir(self, in_range: bool, *, pinned: bool = False) -> None:
         self.ir = in_range
         self.ir_pinned = pinned
-        if pinned and self.state == "confirming":
-            # a sensor on its rail cannot tell: say so now, instead of searching blind
-            # (or, stuck high, of reporting a hider wherever it looks)
-            await self._not_found("the IR sensor is pinned at an ADC rail: it cannot tell")
+        now = trio.current_time()
+        if self.state == "confirming" and pinned:
+            # a sensor on its rail cannot tell: hold the look (stuck high would otherwise
+            # report a hider wherever it looks, stuck low search blind) until it reads again
+            if self._pinned_since is None:
+                self._pinned_since = now
+            self._check_until = math.inf
             return
-        self._ir_at = trio.current_time()
+        if self._pinned_since is not None:  # it reads again: look afresh from here
+            self._pinned_since = None
+            if self.state == "confirming":
+                self._start_check()
+        self._ir_at = now
         await self._check()
 
     async def _ir_lease(self, seconds: float) -> None:
@@ -336,6 +349,10 @@ class SeekingNav(Search, RouteNav):
         if self.state != "confirming":
             return
         await self._ir_lease(IR_LEASE_TICKS * self.o.tick_s)
+        if self._pinned_since is not None:
+            if now - self._pinned_since >= IR_PINNED_WAIT_S:
+                await self._not_found("the IR sensor is pinned at an ADC rail: it cannot tell")
+            return
         if self.moving:
             return
         if await self._check():
@@ -368,6 +385,7 @@ class SeekingNav(Search, RouteNav):
 
     async def _not_found(self, reason: str) -> None:
         self._check_until = math.inf
+        self._pinned_since = None
         self.answered()
         await self._ir_lease(0.0)
         await self.report("not_found", {"reason": reason})
