@@ -205,8 +205,8 @@ class FakeMap(Actor):
 
 
 class FakeIr(Actor):
-    """Sends NAV_IR every 0.1 s from ``body.ir_in_range(pose)`` (a bool, or the value: 2 is a
-    sensor pinned at an ADC rail)."""
+    """Sends NAV_IR every 0.1 s from ``body.ir_in_range(pose)`` (a bool, or a ``NAV_IR`` value
+    of `drivers.ir` such as ``IR_PINNED``)."""
 
     def __init__(self, body: Body) -> None:
         self.body = body

@@ -8,6 +8,7 @@ import pytest
 import trio
 
 from actors import BufferPool, open_actor_system
+from actors.firmware.drivers.ir import IR_PINNED
 from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.nav.options import NavOptions
 from actors.firmware.nav.route import passable_at
@@ -93,7 +94,8 @@ async def test_a_pinned_ir_sensor_holds_the_look_until_it_reads_again(autojump_c
     """The sensor pinned at an ADC rail (``NAV_IR`` 2) for the first 25 s: the seeker neither
     reports a hider nor gives up on the guess; once it reads again it finds the hider."""
     body = Body(truth=Truth(-50, -50, 250, 150),
-                ir_in_range=lambda pose: 2 if trio.current_time() < 25.0 else ir_sees_hider(pose))
+                ir_in_range=lambda pose: IR_PINNED if trio.current_time() < 25.0
+                else ir_sees_hider(pose))
     pool = BufferPool(64)
     async with open_actor_system(seed=1) as system:
         await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")
@@ -107,7 +109,7 @@ async def test_a_pinned_ir_sensor_holds_the_look_until_it_reads_again(autojump_c
 async def test_an_ir_sensor_pinned_past_the_wait_is_reported_not_a_hider(autojump_clock) -> None:
     """Pinned for good: after `IR_PINNED_WAIT_S` of the look, ``not_found`` naming the sensor,
     never ``found`` (a stuck-high sensor reads like a hider everywhere)."""
-    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=lambda pose: 2)
+    body = Body(truth=Truth(-50, -50, 250, 150), ir_in_range=lambda pose: IR_PINNED)
     pool = BufferPool(64)
     async with open_actor_system(seed=1) as system:
         await system.start_supervisor(rover_spec("seeker", body, pool), "seeker")

@@ -46,6 +46,7 @@ import trio
 from actors import Actor, BufferPool, Message, PoolExhausted, ValueType
 from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
+from actors.firmware.drivers.ir import IR_IN, IR_PINNED
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.nav.options import NavMemory, NavOptions
@@ -206,7 +207,7 @@ class NavBase(TreadFaults, Actor):
             await self.on_scan_count(int(message.value))
         elif cmd == Cmd.NAV_IR:
             value = int(message.value)
-            await self.on_ir(value == 1, pinned=value == 2)
+            await self.on_ir(value == IR_IN, pinned=value == IR_PINNED)
         elif cmd == Cmd.NAV_LINK:
             await self.on_link(int(message.value) != 0)
         elif cmd == Cmd.NAV_MAP_LOST:
