@@ -42,40 +42,36 @@ def play_one(job: tuple[str, int]) -> dict[str, Any]:
     import trio  # noqa: PLC0415 - imported in the worker
 
     from actors import seed_trio_scheduler, virtual_clock  # noqa: PLC0415
-    from server.store import Store  # noqa: PLC0415
-    from supervisors.harness.headless import Budget, GameReport, finish_report, play_game  # noqa: PLC0415
-    from supervisors.system import open_sim_system  # noqa: PLC0415
+    from supervisors.harness.headless import run_game  # noqa: PLC0415
     from world.scenario import load_scenario  # noqa: PLC0415
 
     name, seed = job
-    scenario = load_scenario(name)
-    report = GameReport(scenario.name, seed)
     samples: dict[str, list[tuple[float, ...]]] = {r: [] for r in ROLES}
 
-    async def main() -> None:
-        with Store(":memory:") as store:
-            async with open_sim_system(scenario, seed=seed, store=store) as system:
-                def observe(_rover_id: str, role: str, frame: Any) -> None:
-                    if role not in samples or frame.cmd != "pose":
-                        return
-                    cell = system.actors.whereis(f"{role}/nav")
-                    spread = getattr(cell.actor, "spread", None) if cell is not None else None
-                    if spread is None:
-                        return
-                    t = system.world.true_pose(role)
-                    d = frame.data
-                    samples[role].append((t.x, t.y, t.heading_deg, d["x"], d["y"], d["heading"],
-                                          spread.radius95_cm, spread.heading95_deg))
+    class Sampler:
+        """A `RunObserver`: notes each pose frame with the true pose and the belief's spread."""
 
-                system.server.observe_frames(observe)
-                t0 = trio.current_time()
-                try:
-                    await play_game(system, report, Budget())
-                finally:
-                    finish_report(report, system, t0)
+        def started(self, system: Any) -> None:
+            def observe(_rover_id: str, role: str, frame: Any) -> None:
+                if role not in samples or frame.cmd != "pose":
+                    return
+                cell = system.actors.whereis(f"{role}/nav")
+                spread = getattr(cell.actor, "spread", None) if cell is not None else None
+                if spread is None:
+                    return
+                t = system.world.true_pose(role)
+                d = frame.data
+                samples[role].append((t.x, t.y, t.heading_deg, d["x"], d["y"], d["heading"],
+                                      spread.radius95_cm, spread.heading95_deg))
+
+            system.server.observe_frames(observe)
+
+        def finished(self, system: Any, report: Any) -> None:
+            pass
 
     seed_trio_scheduler(seed)
-    trio.run(main, clock=virtual_clock())
+    report = trio.run(lambda: run_game(load_scenario(name), seed, observers=[Sampler()]),
+                      clock=virtual_clock())
     out: dict[str, Any] = {"scenario": name, "seed": seed, "outcome": report.outcome,
                            "trace_hash": report.trace_hash}
     for role, rows in samples.items():
