@@ -12,7 +12,8 @@ import trio.testing
 from server.links import parse_link
 from server.protocol import Pose, inverse
 from server.protocol import compose as compose_pose
-from tui.live import LiveSystem, fault_text
+from tui.activity import fault_text
+from tui.live import LiveSystem
 from tui.snapshot import FREE, OCCUPIED, GridView
 from tui.widgets.map_pixels import classify
 from world.scenario import load_scenario

@@ -30,7 +30,7 @@ from supervisors.recording import Recorder, RecordingError
 from supervisors.system import SimSystem, open_sim_system
 from world.scenario import Scenario
 
-from .activity import ActivityLog, fault_text
+from .activity import ActivityLog
 from .controller import QueuedController
 from .governor import GovernedClock
 from .sim_views import (
@@ -46,7 +46,7 @@ from .sim_views import (
 )
 from .snapshot import GridView, Publish, Snapshot
 
-__all__ = ["LiveSystem", "ListenError", "fault_text"]
+__all__ = ["LiveSystem", "ListenError"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
 PNG_SCALE = 4  # exported PNG: pixels per map cell edge (5 cm cells: 80 px per metre)
@@ -281,7 +281,7 @@ class LiveSystem(QueuedController):
         if role in self.remote:
             raise ValueError(f"{role} is attached over {self.remote[role].text}: its devices "
                              "and actors are not simulated here")
-        # the trace reports it on the Events tab (`fault_text`), as it does scheduled faults
+        # the trace reports it on the Events tab (`activity.fault_text`), as it does scheduled ones
         return self._system.inject_fault(target, kind, duration_s or 0.0, **params)
 
     async def _do_clear_fault(self, fault: str) -> str:

@@ -11,6 +11,7 @@ wins (occupied over free over unknown), so thin walls survive zooming out.
 from __future__ import annotations
 
 import numpy as np
+from rich.text import Text
 
 from tui.snapshot import FREE, OCCUPIED, GridView
 
@@ -39,8 +40,8 @@ TRUTH_LEGEND = (f" · truth: [{COLOURS[TRUTH_PX]}]■[/] unseen [{COLOURS[MISSED
 #: The same for a narrow map (80 columns): the title is then ``20cm`` (per pixel) and this.
 TRUTH_LEGEND_SHORT = (f" [{COLOURS[TRUTH_PX]}]■[/]unseen [{COLOURS[MISSED_PX]}]■[/]missed "
                       f"[{COLOURS[FALSE_PX]}]■[/]false ○true")
-#: Terminal cells the full legend takes.
-TRUTH_LEGEND_CELLS = len(" · truth: ■ unseen ■ missed ■ false ○ true pose")
+#: Terminal cells the full legend takes (its text without the colour markup).
+TRUTH_LEGEND_CELLS = Text.from_markup(TRUTH_LEGEND).cell_len
 _ARROWS = "→↗↑↖←↙↓↘"
 
 
