@@ -1,13 +1,21 @@
-"""The mapper's map -> odometry transform on the wire, as two messages.
+"""A pose on the wire as two messages ("pose halves"), and the mapper's origin so sent.
 
-Map Management tells navigation the correction its scan matching found
-(``NAV_MAP_ORIGIN_XY`` + ``NAV_MAP_ORIGIN_HEADING``), and navigation hands it
-back to a restarted Map Management (``MAP_ORIGIN_XY`` + ``MAP_ORIGIN_HEADING``).
-One seed message carries 64 bits of value, so a pose takes two: the translation
-as an int16 pair [mm] (clamped: +-327 m), then the rotation as a float32 [deg].
-The receiver pairs them (`OriginHalves`); a heading without its translation is
-not a pose (the translation went to a dead incarnation, or was dropped) and is
-ignored, and the next correction supersedes it.
+One seed message carries 64 bits of value, so a pose takes two: the
+translation as an int16 pair, then the rotation as a float32 [deg]. The
+translation's unit is chosen per link, as ``per_cm`` (integer units per cm):
+millimetres (`MM`) for Motor Control's pose to navigation and for the map
+origin, centimetres (`CM`) for the pose that stamps the LIDAR's samples.
+`pose_messages` makes both halves and `xy_half` reads the translation back;
+each link pairs them its own way (a missing translation means "unchanged" for
+a pose, "no origin" for the map origin).
+
+The mapper's map -> odometry transform travels this way: Map Management tells
+navigation the correction its scan matching found (``NAV_MAP_ORIGIN_XY`` +
+``NAV_MAP_ORIGIN_HEADING``), and navigation hands it back to a restarted Map
+Management (``MAP_ORIGIN_XY`` + ``MAP_ORIGIN_HEADING``). The receiver pairs
+them (`OriginHalves`); a heading without its translation is not a pose (the
+translation went to a dead incarnation, or was dropped) and is ignored, and
+the next correction supersedes it.
 """
 
 from __future__ import annotations
@@ -17,18 +25,39 @@ import math
 from actors import Message
 from server.protocol.pose import Pose
 
-__all__ = ["OriginHalves", "origin_messages"]
+__all__ = ["CM", "MM", "OriginHalves", "origin_messages", "pose_messages", "xy_half"]
 
 _INT16 = 32767
 
+MM = 10
+"""``per_cm`` of a translation in millimetres (clamped: +-32.767 m)."""
+CM = 1
+"""``per_cm`` of a translation in centimetres (clamped: +-327.67 m)."""
 
-def origin_messages(xy_command: int, heading_command: int, origin: Pose
-                    ) -> tuple[Message, Message]:
-    """The two messages that carry ``origin``: translation [mm], then heading [deg]."""
-    x_mm = max(-_INT16, min(_INT16, round(origin.x * 10)))
-    y_mm = max(-_INT16, min(_INT16, round(origin.y * 10)))
-    return (Message.pair(xy_command, x_mm, y_mm),
-            Message.float(heading_command, origin.heading_deg))
+
+def pose_messages(xy_command: int, heading_command: int, pose: Pose, per_cm: int = MM
+                  ) -> tuple[Message, Message]:
+    """The two halves of ``pose``: its translation rounded to ``1 / per_cm`` cm and
+    clamped to int16, then its heading [deg] as a float."""
+    x = max(-_INT16, min(_INT16, round(pose.x * per_cm)))
+    y = max(-_INT16, min(_INT16, round(pose.y * per_cm)))
+    return (Message.pair(xy_command, x, y),
+            Message.float(heading_command, pose.heading_deg))
+
+
+def xy_half(message: Message, per_cm: int = MM) -> tuple[float, float]:
+    """The translation half made by `pose_messages`, back in cm.
+
+    Raises:
+        ValueError: ``message`` is not an int16 pair.
+    """
+    x, y = message.as_pair()
+    return (x / per_cm, y / per_cm)
+
+
+origin_messages = pose_messages
+"""The map origin's halves (`pose_messages` in millimetres): the name the mapper's
+actors use."""
 
 
 class OriginHalves:
@@ -41,8 +70,7 @@ class OriginHalves:
 
     def take_xy(self, message: Message) -> None:
         """The translation half (int16 pair [mm]); kept until its heading arrives."""
-        x_mm, y_mm = message.as_pair()
-        self._xy = (x_mm / 10.0, y_mm / 10.0)
+        self._xy = xy_half(message)
 
     def take_heading(self, message: Message) -> Pose | None:
         """The heading half: the whole origin, or None when no translation came first

@@ -50,6 +50,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import LidarSamples, LidarUartIsr
 from actors.firmware.handles import post
 from actors.firmware.hardware import Interrupt, RoverHardware
+from actors.firmware.origin_wire import CM, xy_half
 from server.protocol.pose import Pose
 
 __all__ = ["Scan", "LidarHealth", "HealthOptions", "roughness_cm", "batch_health",
@@ -281,8 +282,7 @@ class LidarControl(Actor):
                 if self._pending >= self.max_pending:
                     self._flush()
             elif cmd == Cmd.LIDAR_POSE_XY:
-                x, y = m.as_pair()
-                self._xy = (float(x), float(y))
+                self._xy = xy_half(m, CM)
             elif cmd == Cmd.LIDAR_POSE_HEADING:
                 self._heading = float(m.value)
                 self._flush()  # pending samples were taken at this pose

@@ -80,11 +80,11 @@ from actors.firmware.drivers.isr import MotorCounterIsr
 from actors.firmware.drivers.tread_monitor import TreadFault, TreadMonitor, TreadVerdict
 from actors.firmware.hardware import Interrupt, RoverHardware, decode_counter
 from actors.firmware.localisation.odometry import Odometer
+from actors.firmware.origin_wire import CM, MM, pose_messages
 from server.protocol.pose import Pose
 
 __all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
 
-_INT16 = 32767
 _CONTROL = Message.uint(Cmd.MOTOR_CONTROL, 0)  # the control period's tick
 
 
@@ -287,10 +287,9 @@ class MotorControl(Actor):
         self._integrate()
         p = self.memory.pose
         send = self._send  # pose is superseded by the next one: drop when full
-        x_mm = max(-_INT16, min(_INT16, round(p.x * 10)))
-        y_mm = max(-_INT16, min(_INT16, round(p.y * 10)))
-        send(self._nav, Message.pair(Cmd.NAV_POSE_XY, x_mm, y_mm))
-        send(self._nav, Message.float(Cmd.NAV_POSE_HEADING, p.heading_deg))
+        xy, heading = pose_messages(Cmd.NAV_POSE_XY, Cmd.NAV_POSE_HEADING, p, MM)
+        send(self._nav, xy)
+        send(self._nav, heading)
         self._pose_dirty = False
         self._publish_lidar()
 
@@ -299,12 +298,10 @@ class MotorControl(Actor):
         # stamps the samples of the same world tick with it (see lidar.py).
         if self._lidar_name is None:
             return
-        p = self.memory.pose
-        xc = max(-_INT16, min(_INT16, round(p.x)))
-        yc = max(-_INT16, min(_INT16, round(p.y)))
-        self._send(self._lidar_name, Message.pair(Cmd.LIDAR_POSE_XY, xc, yc))
-        self._send(self._lidar_name,
-                             Message.float(Cmd.LIDAR_POSE_HEADING, p.heading_deg))
+        xy, heading = pose_messages(Cmd.LIDAR_POSE_XY, Cmd.LIDAR_POSE_HEADING,
+                                    self.memory.pose, CM)
+        self._send(self._lidar_name, xy)
+        self._send(self._lidar_name, heading)
         self._lidar_dirty = False
 
     # ------------------------------------------------------------------ Command A

@@ -52,6 +52,7 @@ from actors.firmware.hardware import HardwareSpec
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
 from actors.firmware.nav.tread_faults import TreadFaults
+from actors.firmware.origin_wire import MM, xy_half
 from actors.firmware.planning.clearance import turning_radius_cm
 from server.protocol import Frame, FrameError, make_frame, read_data
 from server.protocol.grid_map import GridMap
@@ -131,7 +132,7 @@ class NavBase(TreadFaults, Actor):
         self._tread_strikes = 0
         self._tread_last = -math.inf
         self._blocked_t = -math.inf  # when a motion last ended blocked [s]
-        self._xy_mm: tuple[int, int] | None = None
+        self._pose_xy: tuple[float, float] | None = None  # NAV_POSE_XY waiting for its heading
         self._motion: Motion | None = None
         self.last_motion: Motion | None = None
         """The last motion commanded."""
@@ -182,7 +183,7 @@ class NavBase(TreadFaults, Actor):
             return None
         cmd = message.command
         if cmd == Cmd.NAV_POSE_XY:
-            self._xy_mm = message.as_pair()
+            self._pose_xy = xy_half(message, MM)
         elif cmd == Cmd.NAV_POSE_HEADING:
             await self._on_pose(float(message.value))
         elif cmd == Cmd.NAV_MOTION_DONE or cmd == Cmd.NAV_MOTION_BLOCKED:
@@ -236,12 +237,9 @@ class NavBase(TreadFaults, Actor):
         self.memory.origin = (origin.x, origin.y, origin.heading_deg)
 
     async def _on_pose(self, heading: float) -> None:
-        if self._xy_mm is not None:
-            x, y = self._xy_mm
-            self.pose = Pose(x / 10.0, y / 10.0, heading)
-        else:
-            self.pose = Pose(self.pose.x, self.pose.y, heading)
-        self._xy_mm = None
+        x, y = self._pose_xy if self._pose_xy is not None else (self.pose.x, self.pose.y)
+        self.pose = Pose(x, y, heading)
+        self._pose_xy = None
         self.pose_known = True
         if self._motion is None:
             self.on_pose_at_rest()
