@@ -19,7 +19,9 @@ Algorithm
     3. Two modes are one hypothesis when the density along the straight line
        between them never falls under ``VALLEY`` times the lower of the two
        (a plateau, or a ridge); the joined modes are the connected components
-       of that relation (``scipy.sparse.csgraph.connected_components``).
+       of that relation (union-find over at most ``MAX_PEAKS`` modes, numbered
+       as ``scipy.sparse.csgraph.connected_components`` numbers them: in the
+       order of each component's first mode).
     4. Every particle belongs to its nearest mode's hypothesis (lattice
        distance, heading wrapped).
 
@@ -41,8 +43,6 @@ import math
 
 import numpy as np
 from scipy.ndimage import gaussian_filter, maximum_filter
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 __all__ = ["cluster_labels", "CELL_CM", "CELL_DEG", "SMOOTH_CELLS", "PEAK_FLOOR", "VALLEY",
            "MAX_PEAKS", "MAX_LATTICE_CELLS"]
@@ -130,6 +130,28 @@ def _join(dens: np.ndarray, coords: np.ndarray, values: np.ndarray, valley: floa
     line = dens[np.clip(pts[..., 0], 0, nx - 1), np.clip(pts[..., 1], 0, ny - 1),
                 pts[..., 2] % nh]
     joined = line.min(axis=1) >= valley * np.minimum(values[i], values[j])
-    graph = coo_matrix((np.ones(int(joined.sum())), (i[joined], j[joined])), shape=(k, k))
-    _, comp = connected_components(graph, directed=False)
-    return comp.astype(np.int64)
+    return _components(k, i[joined].tolist(), j[joined].tolist())
+
+
+def _components(k: int, first: list[int], second: list[int]) -> np.ndarray:
+    """Connected components of the graph on ``k`` nodes with the edges ``first[e]`` -
+    ``second[e]``, numbered in the order of each component's lowest node.
+
+    Why not `scipy.sparse.csgraph`: the graph has at most ``MAX_PEAKS`` nodes, and
+    importing scipy's sparse graphs cost every game's start more than all its
+    clusterings' joins (0.04 CPU s).
+    """
+    root = list(range(k))  # each set's root is its lowest node
+
+    def find(a: int) -> int:
+        while root[a] != a:
+            root[a] = a = root[root[a]]
+        return a
+
+    for a, b in zip(first, second, strict=True):
+        ra, rb = find(a), find(b)
+        if ra != rb:
+            root[max(ra, rb)] = min(ra, rb)
+    number: dict[int, int] = {}
+    return np.array([number.setdefault(find(n), len(number)) for n in range(k)],
+                    dtype=np.int64)
