@@ -1,14 +1,24 @@
-"""The belief's clusters: modes joined into hypotheses, numbered like scipy's components."""
+"""The belief's clusters: the density and its modes equal scipy's filters on the whole
+lattice; modes joined into hypotheses, numbered like scipy's connected components."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from scipy.ndimage import gaussian_filter, maximum_filter
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from actors.firmware.localisation.clusters import _components, cluster_labels
+from actors.firmware.localisation.clusters import (
+    CELL_CM,
+    MAX_LATTICE_CELLS,
+    PEAK_FLOOR,
+    SMOOTH_CELLS,
+    _components,
+    _Density,
+    cluster_labels,
+)
 
 
 def test_joined_modes_are_numbered_as_scipy_numbers_connected_components() -> None:
@@ -32,3 +42,50 @@ def test_two_groups_far_apart_are_two_hypotheses() -> None:
     assert set(labels[:200].tolist()) == {labels[0]}
     assert set(labels[200:].tolist()) == {labels[200]}
     assert labels[0] != labels[200]
+
+
+def _dense_modes(particles: np.ndarray, weights: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The density, its peaks and their values computed on the whole lattice with
+    scipy's filters (what `_Density` must equal), and the lattice cells."""
+    nh, pad = 72, 4
+    p = particles
+    x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
+    span = max(float(p[:, 0].max()) - x0, float(p[:, 1].max()) - y0)
+    cell = max(CELL_CM, span / max(math.sqrt(MAX_LATTICE_CELLS / nh) - 2 * pad, 1.0))
+    ix = ((p[:, 0] - x0) / cell + pad).astype(np.int64)
+    iy = ((p[:, 1] - y0) / cell + pad).astype(np.int64)
+    ih = ((np.degrees(p[:, 2]) % 360.0) / (360.0 / nh)).astype(np.int64) % nh
+    mass = np.zeros((int(ix.max()) + pad + 1, int(iy.max()) + pad + 1, nh))
+    np.add.at(mass, (ix, iy, ih), weights)
+    dens = gaussian_filter(mass, SMOOTH_CELLS, mode=("nearest", "nearest", "wrap"))
+    peak = (dens == maximum_filter(dens, size=3, mode=("nearest", "nearest", "wrap"))) \
+        & (dens >= PEAK_FLOOR * dens.max())
+    return dens, np.argwhere(peak), dens[peak], np.stack([ix, iy, ih])
+
+
+def test_the_density_and_its_peaks_equal_scipys_filters_on_the_whole_lattice() -> None:
+    rng = np.random.default_rng(11)
+    for trial in range(20):
+        groups = int(rng.integers(1, 5))
+        n = int(rng.integers(1, 400))
+        centres = rng.uniform(-300, 300, (groups, 2))
+        pick = rng.integers(0, groups, n)
+        spread = rng.uniform(0.5, 40.0)
+        xy = centres[pick] + rng.normal(0, spread, (n, 2))
+        theta = rng.choice([0.0, math.pi - 1e-9, -math.pi + 0.01, 1.0], n) \
+            + rng.normal(0, 0.2, n)
+        p = np.column_stack([xy, theta])
+        w = rng.random(n) if trial % 3 else np.ones(n)
+        dens, coords, values, (ix, iy, ih) = _dense_modes(p, w)
+        d = _Density(ix, iy, ih, w, dens.shape)
+        assert d.top == float(dens.max())
+        assert np.array_equal(d.at(*np.indices(dens.shape)), dens)
+        got, got_values = d.peaks(PEAK_FLOOR * d.top)
+        assert np.array_equal(got, coords) and np.array_equal(got_values, values)
+
+
+def test_particles_without_weight_are_one_hypothesis() -> None:
+    p = np.array([[0.0, 0.0, 0.0], [100.0, 0.0, 1.0]])
+    assert cluster_labels(p, np.zeros(2)).tolist() == [0, 0]
+    assert cluster_labels(p[:1], np.ones(1)).tolist() == [0]
