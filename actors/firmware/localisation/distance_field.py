@@ -30,7 +30,7 @@ Frame and units
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt
@@ -59,6 +59,11 @@ class DistanceField:
     """Lower-left corner of cell [0, 0] in the map frame [cm]."""
     max_dist_cm: float
     """The cap: no obstacle within this distance reads as this distance [cm]."""
+    _occupied: np.ndarray = field(init=False, repr=False)
+    # flat bool (ny * nx): the distance is 0 (an occupied cell), for `occupied_at`
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_occupied", (self.distance_cm == 0.0).reshape(-1))
 
     @classmethod
     def from_grid(cls, grid: GridMap, max_dist_cm: float = 50.0) -> DistanceField:
@@ -106,22 +111,25 @@ class DistanceField:
 
     def occupied_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whether the cell holding each point (x, y) [cm] is occupied (False off the grid)."""
-        r, c, inside = self._cell(x, y)
-        return inside & (self.distance_cm[r, c] == 0.0)
+        flat, inside = self._cell(x, y)
+        return inside & self._occupied[flat]
 
     def known_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whether the cell holding each point (x, y) [cm] is known (False off the grid)."""
-        r, c, inside = self._cell(x, y)
-        return inside & self.known[r, c]
+        flat, inside = self._cell(x, y)
+        return inside & self.known.reshape(-1)[flat]
 
-    def _cell(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _cell(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The flat index of the cell holding each point (0 off the grid) and whether
+        the point is on the grid (called per particle and body point: few passes)."""
         ox, oy = self.origin_cm
         res = self.resolution_cm
         c = np.floor((np.asarray(x, dtype=float) - ox) / res).astype(np.int64)
         r = np.floor((np.asarray(y, dtype=float) - oy) / res).astype(np.int64)
         ny, nx = self.distance_cm.shape
-        inside = (r >= 0) & (r < ny) & (c >= 0) & (c < nx)
-        return np.clip(r, 0, ny - 1), np.clip(c, 0, nx - 1), inside
+        # a negative index reads as a huge unsigned one: one comparison per axis
+        inside = (r.view(np.uint64) < ny) & (c.view(np.uint64) < nx)
+        return np.where(inside, r * nx + c, 0), inside
 
     def _corners(self, x: np.ndarray, y: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
