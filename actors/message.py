@@ -138,6 +138,10 @@ class Message:
     @classmethod
     def handle(cls, command: int, handle: int) -> Message:
         """A handle into a `BufferPool`."""
+        if isinstance(command, int) and type(command) is not bool and type(handle) is int \
+                and 0 <= command <= _UINT32_MAX \
+                and 0 <= handle <= _UINT32_MAX:
+            return _checked(cls, command, ValueType.HANDLE, handle)
         return cls(command, ValueType.HANDLE, handle)
 
     @classmethod
