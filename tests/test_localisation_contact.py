@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.ndimage import distance_transform_edt
 
 from actors.firmware.localisation.belief import BeliefOptions, PoseBelief
 from actors.firmware.localisation.contact_model import (
@@ -20,6 +21,7 @@ from actors.firmware.localisation.free_space_model import (
     inside_obstacle,
 )
 from actors.firmware.localisation.motion_model import MotionNoise, TreadMotion
+from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap
 from server.protocol.pose import Pose
 from tests.localisation_rooms import room, turn_treads
 
@@ -41,6 +43,37 @@ def test_the_distance_field_reads_the_distance_to_the_nearest_wall() -> None:
     assert FIELD.at(np.array([-50.0]), np.array([20.0]))[0] == FIELD.max_dist_cm
     assert FIELD.occupied_at(np.array([102.0, 90.0]), np.array([10.0, 10.0])).tolist() == [
         True, False]
+
+
+def test_a_field_built_on_the_known_window_reads_as_the_whole_grid_would() -> None:
+    """A map mostly unknown (a mapper's early grid) keeps only its known part and the
+    cap round it; distance, occupancy and knowledge read the same everywhere."""
+    cells = np.full((160, 200), UNKNOWN, np.int8)
+    h, w = GAP_ROOM.cells.shape
+    cells[60:60 + h, 80:80 + w] = GAP_ROOM.cells
+    grid = GridMap(cells, GAP_ROOM.resolution_cm, (-300.0, -200.0))
+    window = DistanceField.from_grid(grid)
+    assert window.distance_cm.size < grid.cells.size / 4
+    occupied = grid.cells == OCCUPIED
+    whole = np.minimum(distance_transform_edt(~occupied, sampling=grid.resolution_cm), 50.0)
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-320.0, 720.0, 5000)
+    y = rng.uniform(-220.0, 620.0, 5000)
+    c = np.floor((x + 300.0) / grid.resolution_cm).astype(int)
+    r = np.floor((y + 200.0) / grid.resolution_cm).astype(int)
+    on = (r >= 0) & (r < 160) & (c >= 0) & (c < 200)
+    rc, cc = np.clip(r, 0, 159), np.clip(c, 0, 199)
+    assert window.occupied_at(x, y).tolist() == (on & occupied[rc, cc]).tolist()
+    assert window.known_at(x, y).tolist() == (on & (grid.cells[rc, cc] != UNKNOWN)).tolist()
+    near = window.at(x, y) < 50.0
+    assert near.any()
+    gx = (x[near] + 300.0) / grid.resolution_cm - 0.5
+    gy = (y[near] + 200.0) / grid.resolution_cm - 0.5
+    c0, r0 = np.floor(gx).astype(int), np.floor(gy).astype(int)
+    fx, fy = gx - c0, gy - r0
+    expected = ((1 - fx) * (1 - fy) * whole[r0, c0] + fx * (1 - fy) * whole[r0, c0 + 1]
+                + (1 - fx) * fy * whole[r0 + 1, c0] + fx * fy * whole[r0 + 1, c0 + 1])
+    assert window.at(x[near], y[near]) == pytest.approx(expected, abs=1e-9)
 
 
 def test_a_body_overlapping_a_wall_is_unlikely_and_unknown_ground_is_not() -> None:

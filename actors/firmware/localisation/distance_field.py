@@ -46,7 +46,9 @@ class DistanceField:
 
     Immutable; build one per map snapshot with `DistanceField.from_grid` (a
     snapshot is immutable too, so the field stays valid as long as the map it
-    came from is the one in use).
+    came from is the one in use). It covers the map's known cells widened by the
+    cap (`_known_window`); every point outside reads as it would on the whole grid:
+    unknown, the cap.
     """
 
     distance_cm: np.ndarray
@@ -56,7 +58,7 @@ class DistanceField:
     resolution_cm: float
     """Cell side [cm]."""
     origin_cm: tuple[float, float]
-    """Lower-left corner of cell [0, 0] in the map frame [cm]."""
+    """Lower-left corner of cell [0, 0] (the window's) in the map frame [cm]."""
     max_dist_cm: float
     """The cap: no obstacle within this distance reads as this distance [cm]."""
     _occupied: np.ndarray = field(init=False, repr=False)
@@ -79,16 +81,17 @@ class DistanceField:
         """
         if not (math.isfinite(max_dist_cm) and max_dist_cm > 0):
             raise ValueError(f"max_dist_cm must be positive, got {max_dist_cm!r}")
-        occupied = grid.cells == OCCUPIED
+        cells, origin = _known_window(grid, max_dist_cm)
+        occupied = cells == OCCUPIED
         if occupied.any():
             dist = distance_transform_edt(~occupied, sampling=grid.resolution_cm)
             dist = np.minimum(dist, max_dist_cm)
         else:
-            dist = np.full(grid.shape, float(max_dist_cm))
+            dist = np.full(cells.shape, float(max_dist_cm))
         dist.flags.writeable = False
-        known = grid.cells != UNKNOWN
+        known = cells != UNKNOWN
         known.flags.writeable = False
-        return cls(dist, known, grid.resolution_cm, grid.origin_cm, float(max_dist_cm))
+        return cls(dist, known, grid.resolution_cm, origin, float(max_dist_cm))
 
     def at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Distance to the nearest obstacle [cm] at points (x, y) [cm], any shape.
@@ -139,3 +142,24 @@ class DistanceField:
         gx = (np.asarray(x, dtype=float) - ox) / res - 0.5
         gy = (np.asarray(y, dtype=float) - oy) / res - 0.5
         return gx, gy, np.floor(gx).astype(np.int64), np.floor(gy).astype(np.int64)
+
+
+def _known_window(grid: GridMap, max_dist_cm: float) -> tuple[np.ndarray, tuple[float, float]]:
+    """The part of ``grid`` the field needs, and that part's lower-left corner [cm].
+
+    Every occupied cell is known, so beyond the known cells' bounding box widened by
+    the cap (and two cells, for the bilinear read) every cell is unknown and reads the
+    cap: the same answers as the whole grid's field, which a mapper's grid (mostly
+    unknown while it maps) would make costly to build every few batches.
+    """
+    known = grid.cells != UNKNOWN
+    rows = np.flatnonzero(known.any(axis=1))
+    if rows.size == 0:
+        return grid.cells, grid.origin_cm
+    cols = np.flatnonzero(known.any(axis=0))
+    res = grid.resolution_cm
+    k = int(math.ceil(max_dist_cm / res)) + 2
+    r0, r1 = max(0, int(rows[0]) - k), int(rows[-1]) + k + 1
+    c0, c1 = max(0, int(cols[0]) - k), int(cols[-1]) + k + 1
+    return grid.cells[r0:r1, c0:c1], (grid.origin_cm[0] + c0 * res, grid.origin_cm[1] + r0 * res)
+
