@@ -25,8 +25,8 @@ from server.protocol.pose import Pose
 
 __all__ = ["Block", "Nudge", "NUDGE_STEP_MAX_CM", "MAX_NUDGES", "NUDGE_REACH_CM",
            "PROBE_WIDTH_CM", "PROBE_PROGRESS_CM", "nudge_step", "series_offset",
-           "on_free_ground", "nudged_route", "with_sidestep", "progress", "near_block",
-           "in_passage"]
+           "on_free_ground", "nudged_route", "probe_route", "with_sidestep", "progress",
+           "near_block", "in_passage"]
 
 Block = tuple[float, float, float]
 """Where a move ended blocked: (x [cm], y [cm], heading [deg]), map frame."""
@@ -57,6 +57,9 @@ class Nudge:
     """The series' first block (its anchor): the shift is across its heading."""
     off: float
     """The signed offset [cm], left of the block's heading positive."""
+    probe: bool = False
+    """A probe of a narrow passage (`probe_route`): the shifted line is drawn from the
+    block itself, not from the route's waypoints."""
 
     @property
     def shift(self) -> tuple[float, float]:
@@ -124,6 +127,43 @@ def nudged_route(pts: list[tuple[float, float]], nudge: Nudge, grid: GridMap | N
     if sidestep_from is None:
         return out
     return with_sidestep(out, nudge, sidestep_from, grid, tol_cm=tol_cm)
+
+
+def probe_route(pts: list[tuple[float, float]], nudge: Nudge, grid: GridMap | None, *,
+                drift_cm: float, at: tuple[float, float], through_cm: float,
+                tol_cm: float = 0.0) -> list[tuple[float, float]] | None:
+    """The route ``pts`` (waypoints [cm], the goal last) entered through a narrow
+    passage on the line ``nudge.off`` beside the block, from a sidestep where the
+    rover stands (``at``).
+
+    The line is drawn from the block alone: a sidestep onto it, then the point
+    ``through_cm`` beyond the block along its heading (the body through the mouth its
+    nose met), then the route's waypoints beyond that point. Why not the route's
+    own waypoints shifted (`nudged_route`): they lie where the map puts the passage,
+    seen from the pose belief; a contact that moves the belief between explanations
+    (one wall's end or the other's) would move every probe with it, and the probes
+    would search where the belief jumped to, not round the place the rover met the
+    wall. Drawn from the block, and the block held where the rover was (its own
+    frame), the probes are a fixed pattern round that place.
+
+    Returns:
+        The new route; ``pts`` itself when the rover is already past the mouth or
+        the goal lies before it; None when the point through the mouth is off free
+        ground of ``grid`` and the offset exceeds ``drift_cm`` [cm] (a wider search
+        than the pose's doubt must stay on free ground).
+    """
+    bx, by, bh = nudge.block
+    h = math.radians(bh)
+    ux, uy = math.cos(h), math.sin(h)
+    dx, dy = nudge.shift
+    if progress(nudge.block, *at) >= through_cm or progress(nudge.block, *pts[-1]) <= through_cm:
+        return pts
+    through = (bx + through_cm * ux + dx, by + through_cm * uy + dy)
+    if abs(nudge.off) > drift_cm and not on_free_ground(grid, *through):
+        return None
+    rest = [q for i, q in enumerate(pts)
+            if i == len(pts) - 1 or progress(nudge.block, *q) > through_cm]
+    return with_sidestep([through, *rest], nudge, at, grid, tol_cm=tol_cm)
 
 
 def with_sidestep(pts: list[tuple[float, float]], nudge: Nudge, at: tuple[float, float],

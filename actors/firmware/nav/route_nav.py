@@ -67,6 +67,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.tier: tuple[float, float] | None = None
         """(radius, margin) [cm] of the planning tier the current route used (`plan_tiers`)."""
         self._replan = False  # replan after the backoff in flight
+        # blocks are held in the rover's own frame (`RouteRecovery._here`)
         self._last_block: tuple[float, float, float] | None = None  # (x, y, heading) of a block
         self._nudge: Nudge | None = None  # the offset of the series being driven
         self._anchor: tuple[float, float, float] | None = None  # the block nudges start from
@@ -202,7 +203,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         pts = route_points(plan, (p.x, p.y))
         if plan.goal_snapped:
             pts.append(self.goal)  # the goal itself; the spot check vouched for it
-        if self._anchor is not None and math.dist(self._anchor[:2], (p.x, p.y)) > \
+        if self._anchor is not None and math.dist(self._anchor[:2], (self.pose.x, self.pose.y)) > \
                 2.0 * NUDGE_REACH_CM:
             self._nudge, self._anchor, self._nudges = None, None, 0  # past the tight spot
         if self._nudge is not None:
