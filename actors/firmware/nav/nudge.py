@@ -26,7 +26,7 @@ from server.protocol.pose import Pose
 __all__ = ["Block", "Nudge", "NUDGE_STEP_MAX_CM", "MAX_NUDGES", "NUDGE_REACH_CM",
            "PROBE_WIDTH_CM", "PROBE_PROGRESS_CM", "nudge_step", "series_offset",
            "on_free_ground", "nudged_route", "probe_route", "with_sidestep", "progress",
-           "near_block", "in_passage"]
+           "near_block", "in_passage", "probe_step"]
 
 Block = tuple[float, float, float]
 """Where a move ended blocked: (x [cm], y [cm], heading [deg]), map frame."""
@@ -228,3 +228,35 @@ def in_passage(grid: GridMap, pose: Pose, nose_cm: float) -> bool:
         if w is not None and w < PROBE_WIDTH_CM:
             return True
     return False
+
+
+def probe_step(grid: GridMap, pose: Pose, length_cm: float, width_cm: float, *,
+               heading_doubt_deg: float, floor_cm: float) -> float | None:
+    """The step of a probe series at a narrow passage [cm]: the passage's play for a body
+    (``length_cm`` x ``width_cm``) whose heading may be off by ``heading_doubt_deg``,
+    between ``floor_cm`` and ``NUDGE_STEP_MAX_CM``; None when no passage is there.
+
+    The passage's width is the map's free width across ``pose``'s heading at the body's
+    centre, its nose, or a cell beyond the nose (a rover blocked at a mouth has its nose
+    on the face beside it), the narrowest under ``PROBE_WIDTH_CM``. A body turned by
+    ``a`` from the passage's direction spans ``width cos a + length sin a`` across it;
+    the play is what the width leaves of that.
+
+    Why the play: the lateral places from which the body passes form a band as wide
+    as the play; probes that step by no more than it cannot jump over the band, and
+    probes that step by less spend blocks on places a step before already ruled out.
+    """
+    h = math.radians(pose.heading_deg)
+    ux, uy = math.cos(h), math.sin(h)
+    nose = 0.5 * length_cm
+    widths = []
+    for ahead in (0.0, nose, nose + grid.resolution_cm):
+        w = passage_width(grid, pose.x + ahead * ux, pose.y + ahead * uy, pose.heading_deg,
+                          max_cm=PROBE_WIDTH_CM)
+        if w is not None and w < PROBE_WIDTH_CM:
+            widths.append(w)
+    if not widths:
+        return None
+    a = math.radians(min(abs(heading_doubt_deg), 90.0))
+    span = width_cm * math.cos(a) + length_cm * math.sin(a)
+    return min(NUDGE_STEP_MAX_CM, max(floor_cm, min(widths) - span))

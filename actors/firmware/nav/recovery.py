@@ -24,6 +24,7 @@ from actors.firmware.nav.nudge import (
     nudge_step,
     nudged_route,
     probe_route,
+    probe_step,
     progress,
     series_offset,
 )
@@ -97,6 +98,8 @@ class RouteRecovery:
         if self._nudges == 0:  # a new series: first toward the side that helped last
             self._nudge_first = 1.0 if self._nudge_off >= 0 else -1.0
         step = nudge_step(self.o.nudge_step_cm, self.drift_cm)
+        if self._sidestep and self._probe_step is not None:
+            step = self._probe_step
         while self._nudges < MAX_NUDGES:
             off = series_offset(self._nudges, step, self._nudge_first)
             self._nudges += 1
@@ -227,6 +230,12 @@ class RouteRecovery:
         q = self.pose
         if self._anchor is None or progress(self._anchor, q.x, q.y) > PROBE_PROGRESS_CM:
             self._anchor, self._nudge, self._nudges = self._last_block, None, 0
+        if self._nudges == 0 and self.map is not None:  # a new series: step by the play
+            s = self.spread
+            self._probe_step = probe_step(
+                self.map, self.map_pose, self.length_cm, self.width_cm,
+                heading_doubt_deg=0.0 if s is None else s.heading95_deg,
+                floor_cm=self.o.nudge_step_cm)
         self._sidestep = True
         try:
             return self._nudged_plan()

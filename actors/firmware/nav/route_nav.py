@@ -76,6 +76,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self._nudge_off = 0.0  # the last sideways offset tried [cm], signed (left +)
         self._nudge_first = 1.0  # the side a series of nudges tries first
         self._sidestep = False  # the nudge in flight starts with a sidestep (`_nudged`)
+        self._probe_step: float | None = None  # the probe series' step (`nudge.probe_step`)
         self.map_requests = 0
         """``map_request`` frames sent (see ``MAP_RETRY_S``)."""
         self._map_wait = 0.0  # the wait before the next request [s]
@@ -249,8 +250,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         await self._step()
 
     async def on_origin(self) -> None:
-        self.forget_belief()
-        self.track_belief()  # a new belief round the origin, if the pose is known
+        self.on_server_origin()  # a new belief round a new origin; a retry's widened
 
     def on_pose_at_rest(self) -> None:
         self.track_belief()
