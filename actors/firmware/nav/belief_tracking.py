@@ -151,7 +151,7 @@ class BeliefTracking:
                 and self._given is not None and _same_pose(given, self._given)):
             self.track_belief()
             self.belief = self.belief.mixed_with(self._dead, RETRY_PRIOR_SHARE, self._rng)
-            self._spread = None
+            self._weigh_free_space()  # the rover stands on free ground, whichever is right
             _ = self.spread  # count the hypotheses: the pose is the heaviest one's
             self._sync_origin()
             self.counters["retry_widened"] = self.counters.get("retry_widened", 0) + 1
@@ -182,13 +182,17 @@ class BeliefTracking:
             return
         if not self._predict():
             return  # nothing moved: the free-space evidence is in already
+        self._weigh_free_space()
+        self._sync_origin()
+
+    def _weigh_free_space(self) -> None:
+        """Weigh the belief by the free-space model on the server's map (if any)."""
         field = self._distance_field()
-        if field is not None:
+        if field is not None and self.belief is not None:
             body = (self.length_cm, self.width_cm)
             self.belief.update(free_space_log_likelihood(field, self.belief.particles, body),
                                self._rng)
-            self._spread = None
-        self._sync_origin()
+        self._spread = None
 
     def _predict(self) -> bool:
         """Move the belief by the counted motion since the last prediction; False when

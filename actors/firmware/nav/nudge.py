@@ -26,7 +26,7 @@ from server.protocol.pose import Pose
 __all__ = ["Block", "Nudge", "NUDGE_STEP_MAX_CM", "MAX_NUDGES", "NUDGE_REACH_CM",
            "PROBE_WIDTH_CM", "PROBE_PROGRESS_CM", "nudge_step", "series_offset",
            "on_free_ground", "nudged_route", "probe_route", "with_sidestep", "progress",
-           "near_block", "in_passage", "probe_step"]
+           "near_block", "in_passage", "at_mouth", "probe_step"]
 
 Block = tuple[float, float, float]
 """Where a move ended blocked: (x [cm], y [cm], heading [deg]), map frame."""
@@ -230,6 +230,26 @@ def in_passage(grid: GridMap, pose: Pose, nose_cm: float) -> bool:
     return False
 
 
+def _narrow(grid: GridMap, x: float, y: float, heading_deg: float) -> float | None:
+    """The map's free width across ``heading_deg`` at (x, y) [cm] when under
+    ``PROBE_WIDTH_CM``, else None."""
+    w = passage_width(grid, x, y, heading_deg, max_cm=PROBE_WIDTH_CM)
+    return w if w is not None and w < PROBE_WIDTH_CM else None
+
+
+def at_mouth(grid: GridMap, pose: Pose, nose_cm: float) -> bool:
+    """A narrow passage begins ahead of ``pose``: the map's walls are narrower than
+    ``PROBE_WIDTH_CM`` across its heading at its nose (``nose_cm`` [cm] ahead) or a cell
+    beyond, not at the body's centre. A rover blocked there met the face beside the
+    mouth; one blocked with its centre in the passage scraped a side wall inside."""
+    h = math.radians(pose.heading_deg)
+    if _narrow(grid, pose.x, pose.y, pose.heading_deg) is not None:
+        return False
+    return any(_narrow(grid, pose.x + a * math.cos(h), pose.y + a * math.sin(h),
+                       pose.heading_deg) is not None
+               for a in (nose_cm, nose_cm + grid.resolution_cm))
+
+
 def probe_step(grid: GridMap, pose: Pose, length_cm: float, width_cm: float, *,
                heading_doubt_deg: float, floor_cm: float) -> float | None:
     """The step of a probe series at a narrow passage [cm]: the passage's play for a body
@@ -249,12 +269,9 @@ def probe_step(grid: GridMap, pose: Pose, length_cm: float, width_cm: float, *,
     h = math.radians(pose.heading_deg)
     ux, uy = math.cos(h), math.sin(h)
     nose = 0.5 * length_cm
-    widths = []
-    for ahead in (0.0, nose, nose + grid.resolution_cm):
-        w = passage_width(grid, pose.x + ahead * ux, pose.y + ahead * uy, pose.heading_deg,
-                          max_cm=PROBE_WIDTH_CM)
-        if w is not None and w < PROBE_WIDTH_CM:
-            widths.append(w)
+    widths = [w for a in (0.0, nose, nose + grid.resolution_cm)
+              if (w := _narrow(grid, pose.x + a * ux, pose.y + a * uy, pose.heading_deg))
+              is not None]
     if not widths:
         return None
     a = math.radians(min(abs(heading_doubt_deg), 90.0))

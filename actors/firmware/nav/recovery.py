@@ -19,6 +19,7 @@ from actors.firmware.nav.nudge import (
     PROBE_PROGRESS_CM,
     Block,
     Nudge,
+    at_mouth,
     in_passage,
     near_block,
     nudge_step,
@@ -61,6 +62,7 @@ class RouteRecovery:
             return probe_route(pts, nudge, self.map, drift_cm=self.drift_cm, at=(p.x, p.y),
                                through_cm=self.length_cm, tol_cm=self.o.waypoint_tol_cm)
         return nudged_route(pts, nudge, self.map, drift_cm=self.drift_cm,
+                            sidestep_from=(p.x, p.y) if self._sidestep else None,
                             tol_cm=self.o.waypoint_tol_cm)
 
     def _here(self) -> Block:
@@ -98,12 +100,12 @@ class RouteRecovery:
         if self._nudges == 0:  # a new series: first toward the side that helped last
             self._nudge_first = 1.0 if self._nudge_off >= 0 else -1.0
         step = nudge_step(self.o.nudge_step_cm, self.drift_cm)
-        if self._sidestep and self._probe_step is not None:
+        if self._sidestep and self._mouth and self._probe_step is not None:
             step = self._probe_step
         while self._nudges < MAX_NUDGES:
             off = series_offset(self._nudges, step, self._nudge_first)
             self._nudges += 1
-            self._nudge = Nudge(self._anchor, off, self._sidestep)
+            self._nudge = Nudge(self._anchor, off, self._sidestep and self._mouth)
             self._nudge_off = off
             if self._plan():
                 self.counters["nudges"] += 1
@@ -142,17 +144,18 @@ class RouteRecovery:
         here = self._here()
         moved = why == "blocked" and self.contact_update()
         passage = why == "blocked" and (self._in_passage() or self._nudging_here())
-        if passage and (self._anchor is not None or not moved):
-            # a narrow passage's mouth met again, or met with the pose unchanged: drift,
-            # nothing to learn (an obstacle would close the passage); probe sideways round
-            # the place of the series' first block
-            self._last_block = here
+        mouth = passage and self._at_mouth()
+        if passage and (not moved or (mouth and self._anchor is not None)):
+            # a passage met with the pose unchanged, or its mouth met again after a
+            # contact fix: drift, nothing to learn (an obstacle would close the passage);
+            # probe sideways (at a mouth, round the place of the series' first block)
+            self._last_block, self._mouth = here, mouth
             self._probe = True
         elif moved:
             # a mapped wall stopped it: the pose is corrected, nothing to learn; at a
-            # passage the corrected route is tried first, and a probe series round this
-            # place follows if the passage is missed again
-            if passage:
+            # passage's mouth the corrected route is tried first, and a probe series round
+            # this place follows if the mouth is missed again
+            if mouth:
                 self._last_block = self._anchor = here
         elif why == "blocked":
             # a second block near the first: something the map does not show is there
@@ -188,6 +191,14 @@ class RouteRecovery:
         if m is None or m.kind != "move" or m.amount <= 0 or self.map is None:
             return False
         return in_passage(self.map, self.map_pose, 0.5 * self.length_cm)
+
+    def _at_mouth(self) -> bool:
+        """The last forward move was blocked at a narrow passage's mouth, its centre not
+        yet in the passage (`nudge.at_mouth`)."""
+        m = self.last_motion
+        if m is None or m.kind != "move" or m.amount <= 0 or self.map is None:
+            return False
+        return at_mouth(self.map, self.map_pose, 0.5 * self.length_cm)
 
     def _wall_within_drift(self) -> bool:
         """A mapped wall lies within the body's radius plus ``drift_cm`` of the believed
@@ -230,7 +241,7 @@ class RouteRecovery:
         q = self.pose
         if self._anchor is None or progress(self._anchor, q.x, q.y) > PROBE_PROGRESS_CM:
             self._anchor, self._nudge, self._nudges = self._last_block, None, 0
-        if self._nudges == 0 and self.map is not None:  # a new series: step by the play
+        if self._nudges == 0 and self.map is not None and self._mouth:  # step by the play
             s = self.spread
             self._probe_step = probe_step(
                 self.map, self.map_pose, self.length_cm, self.width_cm,

@@ -77,6 +77,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self._nudge_first = 1.0  # the side a series of nudges tries first
         self._sidestep = False  # the nudge in flight starts with a sidestep (`_nudged`)
         self._probe_step: float | None = None  # the probe series' step (`nudge.probe_step`)
+        self._mouth = False  # the probe series is at a passage's mouth (`nudge.at_mouth`)
         self.map_requests = 0
         """``map_request`` frames sent (see ``MAP_RETRY_S``)."""
         self._map_wait = 0.0  # the wait before the next request [s]
@@ -155,7 +156,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.stop_short_cm = stop_short_cm
         self.replans = 0
         self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
-        self._probe, self._nudge_off = False, 0.0
+        self._probe, self._nudge_off, self._mouth = False, 0.0, False
         if not self._plan():
             return False
         await self.set_state("driving", f"to ({goal[0]:.0f}, {goal[1]:.0f})")
