@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -47,4 +49,39 @@ def test_a_new_origin_starts_a_new_belief_round_it() -> None:
     nav.track_belief()
     p = nav.map_pose
     assert (p.x, p.y, p.heading_deg) == pytest.approx((-100.0, 250.0, 90.0))
+    assert nav.drift_cm < 4.0
+
+
+def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
+    """The server sends the same ``origin`` with every ``hide``. After a route that
+    drove and turned (the belief grew wide), the same origin again keeps the belief,
+    widened by dead reckoning alone: its 95 % radius is not smaller, and the pose stays
+    within it; it does not fall back to the start's 1 cm. A different origin is a new
+    placement: a new, narrow belief round it."""
+    nav = scraped_nav(0.0)
+    nav.map = nav.work_map = None  # the open floor: no wall weighs the belief
+    start = Pose(50.0, 50.0, 0.0)
+    nav.pose = Pose(0.0, 0.0, 0.0)
+    nav.set_origin(start)
+    nav.on_server_origin()
+    assert nav.drift_cm < 4.0
+    heading = 0.0
+    for k in range(12):
+        nav.last_motion = Motion("turn", 30.0) if k % 3 == 2 else Motion("move", 20.0)
+        p = nav.pose
+        if k % 3 == 2:
+            heading += 30.0
+            nav.pose = Pose(p.x, p.y, heading)
+        else:
+            nav.pose = advance(p, 20.0, 20.0, 13.0)
+        nav.track_belief()
+    tried, pose = nav.drift_cm, nav.map_pose
+    assert tried > 4.0
+    nav.set_origin(start)  # what the base does with the frame, before the hook
+    nav.on_server_origin()
+    assert nav.drift_cm >= tried
+    assert math.dist((nav.map_pose.x, nav.map_pose.y), (pose.x, pose.y)) <= nav.drift_cm
+    assert nav.counters["retry_widened"] == 1
+    nav.set_origin(Pose(60.0, 40.0, 0.0))
+    nav.on_server_origin()
     assert nav.drift_cm < 4.0

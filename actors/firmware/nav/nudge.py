@@ -258,9 +258,11 @@ def probe_step(grid: GridMap, pose: Pose, length_cm: float, width_cm: float, *,
 
     The passage's width is the map's free width across ``pose``'s heading at the body's
     centre, its nose, or a cell beyond the nose (a rover blocked at a mouth has its nose
-    on the face beside it), the narrowest under ``PROBE_WIDTH_CM``. A body turned by
-    ``a`` from the passage's direction spans ``width cos a + length sin a`` across it;
-    the play is what the width leaves of that.
+    on the face beside it), the narrowest under ``PROBE_WIDTH_CM``, plus one cell: a
+    LIDAR hit on a face lands in the cell on the free side, so each mapped face lies up
+    to a cell (half a cell on average) in front of the wall. A body turned by ``a`` from
+    the passage's direction spans ``width cos a + length sin a`` across it; the play is
+    what the width leaves of that.
 
     Why the play: the lateral places from which the body passes form a band as wide
     as the play; probes that step by no more than it cannot jump over the band, and
@@ -276,4 +278,4 @@ def probe_step(grid: GridMap, pose: Pose, length_cm: float, width_cm: float, *,
         return None
     a = math.radians(min(abs(heading_doubt_deg), 90.0))
     span = width_cm * math.cos(a) + length_cm * math.sin(a)
-    return min(NUDGE_STEP_MAX_CM, max(floor_cm, min(widths) - span))
+    return min(NUDGE_STEP_MAX_CM, max(floor_cm, min(widths) + grid.resolution_cm - span))
