@@ -97,6 +97,8 @@ class BeliefTracking:
         self._field: DistanceField | None = None
         self._field_of: GridMap | None = None
         self._dead: PoseBelief | None = None  # the belief moved by the counts alone
+        # its own generator: the belief's draws do not depend on whether it is kept
+        self._dead_rng = np.random.default_rng(zlib.crc32(f"dead reckoning:{self.role}".encode()))
         self._given: Pose | None = None  # the server's origin the belief started from
 
     # ------------------------------------------------------------------ reading
@@ -208,7 +210,7 @@ class BeliefTracking:
         motion = TreadMotion(left, right, driven[0], driven[1], *self._reports)
         self.belief.predict(motion, w, self.o.motion, self._rng)
         if self._dead is not None:
-            self._dead.predict(motion, w, self.o.motion, self._rng)
+            self._dead.predict(motion, w, self.o.motion, self._dead_rng)
         self._belief_odom, self._spread = self.pose, None
         self._reports = [TreadReport.OK, TreadReport.OK]
         return True
