@@ -486,15 +486,8 @@ async def test_a_rover_off_a_corridors_mouth_probes_both_sides_and_gets_through(
     face first (the side the belief's contact fix and the series start with), then the
     right, and gets through and drives on down the corridor."""
     mouth = Mouth(190.0, (88.0, 96.0))
-    body = Body(script=mouth)
-    mouth.body = body
-    pool = BufferPool(64)
-    async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
-                                                 options=NARROW), "hider")
-        await send_route(system, pool, "hider", CORRIDOR_ORIGIN, CORRIDOR_GOAL,
-                         room_map(CORRIDOR))
-        assert await wait_for(lambda: any(p.x > 400.0 for _, p in body.published), 200.0)
+    body = await drive_corridor(mouth, after_s=60.0)  # no scripted blocks: the mouth's
+    assert any(p.x > 400.0 for _, p in body.published)
     blocks = [own_pose_at_block(body, k, mouth) for k in range(len(mouth.at))]
     first = blocks[0]
     assert first.x == pytest.approx(190.0, abs=1.0) and first.y == pytest.approx(99.2, abs=1.0)

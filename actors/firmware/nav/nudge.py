@@ -5,8 +5,10 @@ A route blocked where the map shows a way through was most likely missed by the
 rover's own dead-reckoning error (a gap ~20 cm wider than the body is missed by a
 heading drift of a few degrees over a few metres). The search shifts the route near
 the block sideways, across the heading of the block, by a series of offsets (+s, -s,
-+2s, -2s, ...), one per block. `recovery.RouteRecovery` keeps the series' state and
-calls these functions; they are pure (no actor, no messages, no clock).
++2s, -2s, ...), one per block. At a passage's mouth (`at_mouth`) the series is a probe
+(`probe_route`): a line drawn from the block itself, stepped by the passage's play
+(`probe_step`). `recovery.RouteRecovery` keeps the series' state and calls these
+functions; they are pure (no actor, no messages, no clock).
 
 Frame and units: the map frame [cm]; headings [deg] counter-clockwise from +x; a
 block is where a move ended blocked, ``(x, y, heading)``; an offset is signed, left
