@@ -28,7 +28,7 @@ from server.protocol.pose import Pose
 __all__ = ["Block", "Nudge", "NUDGE_STEP_MAX_CM", "MAX_NUDGES", "NUDGE_REACH_CM",
            "PROBE_WIDTH_CM", "PROBE_PROGRESS_CM", "nudge_step", "series_offset",
            "on_free_ground", "nudged_route", "probe_route", "with_sidestep", "progress",
-           "near_block", "in_passage", "at_mouth", "probe_step"]
+           "near_block", "in_passage", "at_mouth", "probe_step", "through_distance"]
 
 Block = tuple[float, float, float]
 """Where a move ended blocked: (x [cm], y [cm], heading [deg]), map frame."""
@@ -281,3 +281,28 @@ def probe_step(grid: GridMap, pose: Pose, length_cm: float, width_cm: float, *,
     a = math.radians(min(abs(heading_doubt_deg), 90.0))
     span = width_cm * math.cos(a) + length_cm * math.sin(a)
     return min(NUDGE_STEP_MAX_CM, max(floor_cm, min(widths) + grid.resolution_cm - span))
+
+
+def through_distance(grid: GridMap, nudge: Nudge, length_cm: float) -> float:
+    """How far beyond ``nudge.block``, along its heading and on its shifted line, the
+    body is through the passage it met [cm]: where the line's free width across the
+    heading is no longer under ``PROBE_WIDTH_CM``, plus half the body's ``length_cm``;
+    at least ``length_cm``, at most ``NUDGE_REACH_CM``.
+
+    Why: a probe's route turns toward the rest of the route at this point; turned while
+    its body is still between the mouth's walls, the rover scrapes them, and the turn
+    the encoders count is not the one the body made.
+    """
+    bx, by, bh = nudge.block
+    h = math.radians(bh)
+    ux, uy = math.cos(h), math.sin(h)
+    dx, dy = nudge.shift
+    step = grid.resolution_cm
+    d, seen = 0.0, False
+    while d <= NUDGE_REACH_CM:
+        narrow = _narrow(grid, bx + d * ux + dx, by + d * uy + dy, bh) is not None
+        if seen and not narrow:
+            break
+        seen = seen or narrow
+        d += step
+    return min(NUDGE_REACH_CM, max(length_cm, d + 0.5 * length_cm))

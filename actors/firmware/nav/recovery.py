@@ -16,6 +16,7 @@ import trio
 
 from actors.firmware.nav.nudge import (
     MAX_NUDGES,
+    NUDGE_REACH_CM,
     PROBE_PROGRESS_CM,
     Block,
     Nudge,
@@ -28,6 +29,7 @@ from actors.firmware.nav.nudge import (
     probe_step,
     progress,
     series_offset,
+    through_distance,
 )
 from actors.firmware.nav.route import Motion, with_obstacle
 from actors.firmware.planning.clearance import occupied_near
@@ -39,7 +41,9 @@ __all__ = ["RouteRecovery", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM", "STALL_TURN_DEG
 # and how a back-off reads a stalled tread. The geometry of the sideways search is in
 # `nudge`.
 REPLAN_LIMIT = 10
-"""Replans after being blocked before a route is given up."""
+"""Blocks a route may meet without coming ``PROBE_PROGRESS_CM`` nearer its goal before it
+is given up: a long narrow passage entered with some heading doubt scrapes its walls
+every few tens of cm, each scrape a block, and is still being passed."""
 BACKOFF_REPEAT_CM = 20.0
 """Reverse this far after a second block at one place: room to come back sideways [cm]."""
 STALL_TURN_DEG = 8.0
@@ -59,8 +63,10 @@ class RouteRecovery:
         p = self.map_pose
         nudge = Nudge(self._in_map(self._nudge.block), self._nudge.off, self._nudge.probe)
         if nudge.probe:
+            through = NUDGE_REACH_CM if self.map is None else \
+                through_distance(self.map, nudge, self.length_cm)
             return probe_route(pts, nudge, self.map, drift_cm=self.drift_cm, at=(p.x, p.y),
-                               through_cm=self.length_cm, tol_cm=self.o.waypoint_tol_cm)
+                               through_cm=through, tol_cm=self.o.waypoint_tol_cm)
         return nudged_route(pts, nudge, self.map, drift_cm=self.drift_cm,
                             sidestep_from=(p.x, p.y) if self._sidestep else None,
                             tol_cm=self.o.waypoint_tol_cm)
@@ -114,6 +120,11 @@ class RouteRecovery:
         return False
 
     async def _blocked_route(self, why: str) -> None:
+        if self.goal is not None:
+            p = self.map_pose
+            to_goal = math.dist((p.x, p.y), self.goal)
+            if to_goal <= self._best_to_goal - PROBE_PROGRESS_CM:  # progress: a new count
+                self.replans, self._best_to_goal = 0, to_goal
         self.replans += 1
         if await self.on_blocked():
             return
