@@ -41,9 +41,7 @@ __all__ = ["RouteRecovery", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM", "STALL_TURN_DEG
 # and how a back-off reads a stalled tread. The geometry of the sideways search is in
 # `nudge`.
 REPLAN_LIMIT = 10
-"""Blocks a route may meet without coming ``PROBE_PROGRESS_CM`` nearer its goal before it
-is given up: a long narrow passage entered with some heading doubt scrapes its walls
-every few tens of cm, each scrape a block, and is still being passed."""
+"""Replans after being blocked before a route is given up."""
 BACKOFF_REPEAT_CM = 20.0
 """Reverse this far after a second block at one place: room to come back sideways [cm]."""
 STALL_TURN_DEG = 8.0
@@ -120,11 +118,6 @@ class RouteRecovery:
         return False
 
     async def _blocked_route(self, why: str) -> None:
-        if self.goal is not None:
-            p = self.map_pose
-            to_goal = math.dist((p.x, p.y), self.goal)
-            if to_goal <= self._best_to_goal - PROBE_PROGRESS_CM:  # progress: a new count
-                self.replans, self._best_to_goal = 0, to_goal
         self.replans += 1
         if await self.on_blocked():
             return

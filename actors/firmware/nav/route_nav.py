@@ -62,8 +62,6 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.goal: tuple[float, float] | None = None
         self.goal_heading: float | None = None
         self.replans = 0
-        """Blocks since the route last came ``PROBE_PROGRESS_CM`` nearer its goal."""
-        self._best_to_goal = math.inf  # the distance to the goal at which that count began
         self.stop_short_cm = 0.0
         """The current route ends this far before its goal [cm] (see `goto`)."""
         self.tier: tuple[float, float] | None = None
@@ -157,8 +155,6 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.goal, self.goal_heading = goal, heading
         self.stop_short_cm = stop_short_cm
         self.replans = 0
-        p = self.map_pose
-        self._best_to_goal = math.dist((p.x, p.y), goal)
         self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
         self._probe, self._nudge_off, self._mouth = False, 0.0, False
         if not self._plan():
