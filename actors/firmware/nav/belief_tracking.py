@@ -46,6 +46,7 @@ from actors.firmware.localisation.contact import stalled_side
 from actors.firmware.localisation.contact_model import (
     ContactOptions,
     contact_gap_cm,
+    contact_log_likelihood,
 )
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import free_space_log_likelihood
@@ -272,13 +273,11 @@ class BeliefTracking:
         o, body = ContactOptions(), (self.length_cm, self.width_cm)
         particles = self.belief.particles
         gap = contact_gap_cm(field, particles, body, direction, side)
-        near = np.exp(-0.5 * (gap / o.sigma_cm) ** 2)
-        touch = float(self.belief.weights @ near)
+        touch = float(self.belief.weights @ np.exp(-0.5 * (gap / o.sigma_cm) ** 2))
         if touch <= o.unmapped_weight:
             return False  # the walls explain the stop worse than something unmapped
-        # the touch term alone: "not inside a wall" weighed this pose already
-        # (`track_belief`); `contact_log_likelihood` has it too, for a belief weighed once
-        self.belief.update(np.log(near + o.unmapped_weight), self._rng)
+        self.belief.update(contact_log_likelihood(field, particles, body, direction, side, o),
+                           self._rng)
         self._spread = None
         _ = self.spread  # a contact may leave several hypotheses: count them
         self._sync_origin()
