@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -47,4 +49,44 @@ def test_a_new_origin_starts_a_new_belief_round_it() -> None:
     nav.track_belief()
     p = nav.map_pose
     assert (p.x, p.y, p.heading_deg) == pytest.approx((-100.0, 250.0, 90.0))
+    assert nav.drift_cm < 4.0
+
+
+def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
+    """The server sends the same ``origin`` with every ``hide``. After a route that
+    turned (its doubt grew) and ended against the room's left wall (the contact narrowed
+    the belief across it), the same origin again keeps the belief, widened by dead
+    reckoning alone (which no contact narrowed): its 95 % radius grows, and the pose
+    stays within it of where it was; it does not fall back to the start's 1 cm. A
+    different origin is a new placement: a new, narrow belief round it."""
+    nav = scraped_nav(0.0)
+    start = Pose(150.0, 150.0, 0.0)  # own (0, 0), in the room left of the corridor
+    nav.pose = Pose(0.0, 0.0, 0.0)
+    nav.set_origin(start)
+    nav.on_server_origin()
+    assert nav.drift_cm < 4.0
+    for _ in range(6):  # a square's worth of turns and legs: the heading doubt grows
+        nav.last_motion = Motion("turn", 90.0)
+        nav.pose = Pose(nav.pose.x, nav.pose.y, nav.pose.heading_deg + 90.0)
+        nav.track_belief()
+        nav.last_motion = Motion("move", 20.0)
+        nav.pose = advance(nav.pose, 20.0, 20.0, 13.0)
+        nav.track_belief()
+    nav.last_motion = Motion("turn", 180.0 - nav.pose.heading_deg)
+    nav.pose = Pose(nav.pose.x, nav.pose.y, 180.0)
+    nav.track_belief()
+    nav.motion_from = nav.map_pose
+    nav.last_motion = Motion("move", 200.0)  # toward the left wall: blocked, nose on it
+    nav.pose = Pose(10.0 - start.x, nav.pose.y, 180.0)
+    nav.contact_update()
+    assert nav.counters["contacts"] == 1
+    tried, pose = nav.drift_cm, nav.map_pose
+    assert tried > 4.0 and pose.x == pytest.approx(10.0, abs=3.0)
+    nav.set_origin(start)  # what the base does with the frame, before the hook
+    nav.on_server_origin()
+    assert nav.drift_cm > tried
+    assert math.dist((nav.map_pose.x, nav.map_pose.y), (pose.x, pose.y)) <= nav.drift_cm
+    assert nav.counters["retry_widened"] == 1
+    nav.set_origin(Pose(60.0, 40.0, 0.0))
+    nav.on_server_origin()
     assert nav.drift_cm < 4.0

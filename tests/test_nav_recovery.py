@@ -23,6 +23,7 @@ from actors.firmware.nav.nudge import (
     NUDGE_STEP_MAX_CM,
     PROBE_PROGRESS_CM,
     Nudge,
+    at_mouth,
     in_passage,
     near_block,
     nudge_step,
@@ -32,7 +33,7 @@ from actors.firmware.nav.nudge import (
 )
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
-from server.protocol.pose import Pose
+from server.protocol.pose import Pose, compose, inverse
 from tests.test_nav_common import (
     Body,
     Truth,
@@ -185,7 +186,7 @@ async def test_a_block_in_a_narrow_passage_probes_sideways_and_gets_through(
     4 cm to the left (a turn under 45 deg: the narrow belief's step, joined at a slant),
     and in the end it drives on through the corridor."""
     blocks = Blocks((250.0, 0.0), (250.0, 0.0), (300.0, 0.0))
-    body = await drive_corridor(blocks, after_s=6.0)
+    body = await drive_corridor(blocks, after_s=12.0)
     for k in range(3):
         assert motions_after(body, k, blocks)[0][1:] == ("MOTOR_MOVE", -6.0)
     first = next(v for _, c, v in motions_after(body, 0, blocks)[1:] if c == "MOTOR_TURN")
@@ -444,3 +445,82 @@ def test_a_gap_whose_walls_are_close_is_a_passage() -> None:
     assert in_passage(gap, Pose(395.0, 312.5, 0.0), 10.0)
     assert in_passage(gap, Pose(392.0, 317.5, 0.0), 10.0)
     assert not in_passage(gap, Pose(300.0, 317.5, 0.0), 10.0)
+
+
+# ---------------------------------------------------------------- a corridor's mouth
+def own_pose_at_block(body: Body, k: int, blocks: Blocks) -> Pose:
+    """Motor Control's pose (the rover's own frame) when block ``k`` ended its move."""
+    t = blocks.at[k][0]
+    return next(p for tp, p in body.published if tp >= t - 1e-9)
+
+
+class Mouth(Blocks):
+    """A mouth the rover meets off its believed place: a forward move whose centre
+    crosses own x ``face`` is blocked there unless it crosses with own y in ``passes``
+    (the lateral band from which the body gets through); other moves go as commanded."""
+
+    def __init__(self, face: float, passes: tuple[float, float]) -> None:
+        super().__init__()
+        self.face, self.passes = face, passes
+
+    def __call__(self, pose: Pose, cm: float) -> tuple[float, float] | None:
+        assert self.body is not None
+        c, sn = math.cos(pose.heading_rad), math.sin(pose.heading_rad)
+        if cm <= 0 or c <= 1e-6 or pose.x >= self.face or pose.x + cm * c < self.face:
+            return None
+        done = (self.face - pose.x) / c
+        lo, hi = self.passes
+        if lo <= pose.y + done * sn <= hi:
+            return None
+        self.at.append((trio.current_time(), len(self.body.sent), len(self.body.motor_log)))
+        return done, 0.0
+
+
+@pytest.mark.trio
+async def test_a_rover_off_a_corridors_mouth_probes_both_sides_and_gets_through(
+        autojump_clock) -> None:
+    """The mouth lies right of where the rover believes: it passes only from own y 88 to
+    96, and it arrives on y 99 and meets the face beside the mouth at own x 190 (map
+    240). Nothing is learned as an obstacle (every back-off is the short 6 cm: an
+    obstacle would close the mouth); the rover tries the left of the place it met the
+    face first (the side the belief's contact fix and the series start with), then the
+    right, and gets through and drives on down the corridor."""
+    mouth = Mouth(190.0, (88.0, 96.0))
+    body = await drive_corridor(mouth, after_s=60.0)  # no scripted blocks: the mouth's
+    assert any(p.x > 400.0 for _, p in body.published)
+    blocks = [own_pose_at_block(body, k, mouth) for k in range(len(mouth.at))]
+    first = blocks[0]
+    assert first.x == pytest.approx(190.0, abs=1.0) and first.y == pytest.approx(99.2, abs=1.0)
+    assert any(b.y > first.y + 2.0 for b in blocks[1:])
+    through = next(p for _, p in body.published if p.x > 200.0)
+    assert 88.0 <= through.y <= 96.0
+    assert all(v == -6.0 for c, v in body.motor_log if c == "MOTOR_MOVE" and v < 0)
+    assert len(blocks) <= 6
+
+
+def test_probe_points_are_held_in_the_rovers_own_frame() -> None:
+    """A probe of the mouth is drawn from the series' first block, held in the rover's
+    own frame: when a contact moves the belief (the origin, map -> own frame, shifts 7
+    cm across the corridor, as a contact on the other wall's end would), the sidestep
+    and the point through the mouth stay where they were for the rover (its own frame);
+    the map-frame waypoints of the route do not drag them along."""
+    nav = scraped_nav(0.0, sigma_cm=5.0)
+    nav.pose = Pose(185.0, 100.0, 0.0)  # backed off from the block at own (190, 100)
+    nav._anchor = (190.0, 100.0, 0.0)
+    nav._nudge = Nudge(nav._anchor, 10.0, probe=True)
+    pts = [(270.0, 150.0), (600.0, 150.0)]  # through the corridor's axis (map frame)
+
+    def own(route: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        back = inverse(nav.origin)
+        return [c for q in (compose(back, Pose(x, y, 0.0)) for x, y in route)
+                for c in (q.x, q.y)]
+    before = nav._nudged(pts)
+    assert before is not None
+    held = own(before)[:4]
+    assert held[:2] == pytest.approx([185.0, 110.0]) and held[3] == pytest.approx(110.0)
+    assert held[2] > 210.0  # through the mouth on the line, the body past its walls
+    nav.origin = Pose(50.0, 57.0, 0.0)  # a contact fix: the believed map pose moved 7 cm
+    after = nav._nudged(pts)
+    assert after is not None and own(after)[:4] == pytest.approx(held)
+    assert at_mouth(nav.map, Pose(240.0, 150.0, 0.0), 10.0)
+    assert not at_mouth(nav.map, Pose(300.0, 150.0, 0.0), 10.0)  # inside: not a mouth

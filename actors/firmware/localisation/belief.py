@@ -139,25 +139,27 @@ class UpdateReport:
     as a whole expected it (a fall says the belief may be wrong)."""
 
 
-def low_variance_resample(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def low_variance_resample(weights: np.ndarray, rng: np.random.Generator,
+                          count: int | None = None) -> np.ndarray:
     """Indices of the particles drawn by the low-variance (systematic) sampler.
 
-    One uniform draw ``r`` in ``[0, 1/N)``; particle ``i`` is drawn once per
-    comb tooth ``r + k / N`` that falls in its share of the cumulative weight,
-    so a particle of weight ``w`` is drawn ``floor(N w)`` or ``ceil(N w)`` times.
+    One uniform draw ``r`` in ``[0, 1/n)``; particle ``i`` is drawn once per
+    comb tooth ``r + k / n`` that falls in its share of the cumulative weight,
+    so a particle of weight ``w`` is drawn ``floor(n w)`` or ``ceil(n w)`` times.
 
     Args:
         weights: (N,) non-negative, summing to 1.
         rng: the run's generator.
+        count: how many to draw (``n``); N when None.
 
     Returns:
-        (N,) int indices, non-decreasing.
+        (n,) int indices, non-decreasing.
     """
-    n = weights.shape[0]
+    n = weights.shape[0] if count is None else count
     cum = np.cumsum(weights)
     cum[-1] = 1.0  # rounding must not leave the last tooth past the end
     teeth = (rng.random() + np.arange(n)) / n
-    return np.minimum(np.searchsorted(cum, teeth, side="right"), n - 1)
+    return np.minimum(np.searchsorted(cum, teeth, side="right"), weights.shape[0] - 1)
 
 
 def _weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
@@ -308,6 +310,31 @@ class PoseBelief:
             self._p = self._p[idx]
             self._w = np.full(self._w.shape[0], 1.0 / self._w.shape[0])
         return UpdateReport(ess, resampled, log_mean)
+
+    def mixed_with(self, other: PoseBelief, share: float, rng: np.random.Generator
+                   ) -> PoseBelief:
+        """A belief of as many particles as this one, drawn from the mixture of this
+        belief (weight ``1 - share``) and ``other`` (weight ``share``).
+
+        What it is for: a belief that may have been led astray (a route given up after
+        its contacts) is widened by the prior it came from (dead reckoning alone, no
+        measurement): every hypothesis either held is kept, so the mixture is never
+        narrower than either part's support.
+
+        Args:
+            other: the second belief (any number of particles).
+            share: the weight of ``other`` in the mixture, in [0, 1].
+            rng: the run's generator (one draw: the low-variance sampler).
+
+        Raises:
+            ValueError: for a ``share`` outside [0, 1].
+        """
+        if not 0.0 <= share <= 1.0:
+            raise ValueError(f"share must be in [0, 1], got {share!r}")
+        p = np.vstack([self._p, other._p])
+        w = np.concatenate([(1.0 - share) * self._w, share * other._w])
+        w = w / w.sum()
+        return PoseBelief(p[low_variance_resample(w, rng, self._w.shape[0])], None, self.options)
 
     # -- clusters ---------------------------------------------------------------
 

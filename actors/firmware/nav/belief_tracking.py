@@ -61,6 +61,10 @@ START_SIGMA_CM = 1.0
 rover stands where the server placed it, to within its placement."""
 START_SIGMA_DEG = 1.0
 """Standard deviation of the heading of the belief at the server's ``origin`` [deg]."""
+RETRY_PRIOR_SHARE = 0.5
+"""Weight of dead reckoning alone in the belief a retried destination starts from [1]:
+the route before it was given up after its contacts, as likely misread as read right
+(see `BeliefTracking.on_server_origin`)."""
 
 
 def tread_motion(before: Pose, after: Pose, track_width_cm: float) -> tuple[float, float]:
@@ -71,6 +75,12 @@ def tread_motion(before: Pose, after: Pose, track_width_cm: float) -> tuple[floa
     ds = (after.x - before.x) * math.cos(mid) + (after.y - before.y) * math.sin(mid)
     half = 0.5 * track_width_cm * dtheta
     return ds - half, ds + half
+
+
+def _same_pose(a: Pose, b: Pose) -> bool:
+    """``a`` and ``b`` are one pose, to the precision a frame carries (0.01 cm, deg)."""
+    return math.dist((a.x, a.y), (b.x, b.y)) < 0.01 and \
+        abs(angle_diff_deg(a.heading_deg, b.heading_deg)) < 0.01
 
 
 class BeliefTracking:
@@ -86,6 +96,10 @@ class BeliefTracking:
         self._modes = 1  # clusters of the last spread computed
         self._field: DistanceField | None = None
         self._field_of: GridMap | None = None
+        self._dead: PoseBelief | None = None  # the belief moved by the counts alone
+        # its own generator: the belief's draws do not depend on whether it is kept
+        self._dead_rng = np.random.default_rng(zlib.crc32(f"dead reckoning:{self.role}".encode()))
+        self._given: Pose | None = None  # the server's origin the belief started from
 
     # ------------------------------------------------------------------ reading
     @property
@@ -118,7 +132,35 @@ class BeliefTracking:
     def forget_belief(self) -> None:
         """The map-frame pose is given anew (the server's origin): start a new belief."""
         self.belief, self._spread, self._belief_odom, self._modes = None, None, None, 1
+        self._dead = None
         self._reports = [TreadReport.OK, TreadReport.OK]
+
+    def on_server_origin(self) -> None:
+        """The server sent ``origin`` (its start pose for this rover; the base has set it).
+
+        A new origin starts a new belief round it. The same origin again is the
+        server's habit of sending it with every ``hide``: a retried destination. It
+        says nothing new about where the rover is, so it must not narrow the belief
+        to the start's 1 cm / 1 deg round dead reckoning (a retry surer than the try
+        that failed). Nor is the belief kept as it is: the route was given up after
+        its contacts, which may have led it astray. The retry's belief is the mixture
+        of the belief and dead reckoning alone (the same motions, no measurement),
+        ``RETRY_PRIOR_SHARE`` of its weight on the latter: every hypothesis either
+        holds is kept, so it is never narrower than either.
+        """
+        given = self.origin
+        if (given is not None and self.belief is not None and self._dead is not None
+                and self._given is not None and _same_pose(given, self._given)):
+            self.track_belief()
+            self.belief = self.belief.mixed_with(self._dead, RETRY_PRIOR_SHARE, self._rng)
+            self._weigh_free_space()  # the rover stands on free ground, whichever is right
+            _ = self.spread  # count the hypotheses: the pose is the heaviest one's
+            self._sync_origin()
+            self.counters["retry_widened"] = self.counters.get("retry_widened", 0) + 1
+            return
+        self._given = given
+        self.forget_belief()
+        self.track_belief()
 
     def note_tread_fault(self, fault: TreadFault) -> None:
         """Motor Control reported a tread during the motion in flight: the next
@@ -137,17 +179,22 @@ class BeliefTracking:
         if self.belief is None or self._belief_odom is None:
             self.belief = PoseBelief.around(self.map_pose, self._rng, sigma_cm=START_SIGMA_CM,
                                              sigma_deg=START_SIGMA_DEG)
+            self._dead = PoseBelief(self.belief.particles)
             self._belief_odom, self._spread = self.pose, None
             return
         if not self._predict():
             return  # nothing moved: the free-space evidence is in already
+        self._weigh_free_space()
+        self._sync_origin()
+
+    def _weigh_free_space(self) -> None:
+        """Weigh the belief by the free-space model on the server's map (if any)."""
         field = self._distance_field()
-        if field is not None:
+        if field is not None and self.belief is not None:
             body = (self.length_cm, self.width_cm)
             self.belief.update(free_space_log_likelihood(field, self.belief.particles, body),
                                self._rng)
-            self._spread = None
-        self._sync_origin()
+        self._spread = None
 
     def _predict(self) -> bool:
         """Move the belief by the counted motion since the last prediction; False when
@@ -162,6 +209,8 @@ class BeliefTracking:
             driven = self._driven(left, right, w)
         motion = TreadMotion(left, right, driven[0], driven[1], *self._reports)
         self.belief.predict(motion, w, self.o.motion, self._rng)
+        if self._dead is not None:
+            self._dead.predict(motion, w, self.o.motion, self._dead_rng)
         self._belief_odom, self._spread = self.pose, None
         self._reports = [TreadReport.OK, TreadReport.OK]
         return True

@@ -5,8 +5,10 @@ A route blocked where the map shows a way through was most likely missed by the
 rover's own dead-reckoning error (a gap ~20 cm wider than the body is missed by a
 heading drift of a few degrees over a few metres). The search shifts the route near
 the block sideways, across the heading of the block, by a series of offsets (+s, -s,
-+2s, -2s, ...), one per block. `recovery.RouteRecovery` keeps the series' state and
-calls these functions; they are pure (no actor, no messages, no clock).
++2s, -2s, ...), one per block. At a passage's mouth (`at_mouth`) the series is a probe
+(`probe_route`): a line drawn from the block itself, stepped by the passage's play
+(`probe_step`). `recovery.RouteRecovery` keeps the series' state and calls these
+functions; they are pure (no actor, no messages, no clock).
 
 Frame and units: the map frame [cm]; headings [deg] counter-clockwise from +x; a
 block is where a move ended blocked, ``(x, y, heading)``; an offset is signed, left
@@ -25,8 +27,8 @@ from server.protocol.pose import Pose
 
 __all__ = ["Block", "Nudge", "NUDGE_STEP_MAX_CM", "MAX_NUDGES", "NUDGE_REACH_CM",
            "PROBE_WIDTH_CM", "PROBE_PROGRESS_CM", "nudge_step", "series_offset",
-           "on_free_ground", "nudged_route", "with_sidestep", "progress", "near_block",
-           "in_passage"]
+           "on_free_ground", "nudged_route", "probe_route", "with_sidestep", "progress",
+           "near_block", "in_passage", "at_mouth", "probe_step", "through_distance"]
 
 Block = tuple[float, float, float]
 """Where a move ended blocked: (x [cm], y [cm], heading [deg]), map frame."""
@@ -57,6 +59,9 @@ class Nudge:
     """The series' first block (its anchor): the shift is across its heading."""
     off: float
     """The signed offset [cm], left of the block's heading positive."""
+    probe: bool = False
+    """A probe of a narrow passage (`probe_route`): the shifted line is drawn from the
+    block itself, not from the route's waypoints."""
 
     @property
     def shift(self) -> tuple[float, float]:
@@ -126,6 +131,43 @@ def nudged_route(pts: list[tuple[float, float]], nudge: Nudge, grid: GridMap | N
     return with_sidestep(out, nudge, sidestep_from, grid, tol_cm=tol_cm)
 
 
+def probe_route(pts: list[tuple[float, float]], nudge: Nudge, grid: GridMap | None, *,
+                drift_cm: float, at: tuple[float, float], through_cm: float,
+                tol_cm: float = 0.0) -> list[tuple[float, float]] | None:
+    """The route ``pts`` (waypoints [cm], the goal last) entered through a narrow
+    passage on the line ``nudge.off`` beside the block, from a sidestep where the
+    rover stands (``at``).
+
+    The line is drawn from the block alone: a sidestep onto it, then the point
+    ``through_cm`` beyond the block along its heading (the body through the mouth its
+    nose met), then the route's waypoints beyond that point. Why not the route's
+    own waypoints shifted (`nudged_route`): they lie where the map puts the passage,
+    seen from the pose belief; a contact that moves the belief between explanations
+    (one wall's end or the other's) would move every probe with it, and the probes
+    would search where the belief jumped to, not round the place the rover met the
+    wall. Drawn from the block, and the block held where the rover was (its own
+    frame), the probes are a fixed pattern round that place.
+
+    Returns:
+        The new route; ``pts`` itself when the rover is already past the mouth or
+        the goal lies before it; None when the point through the mouth is off free
+        ground of ``grid`` and the offset exceeds ``drift_cm`` [cm] (a wider search
+        than the pose's doubt must stay on free ground).
+    """
+    bx, by, bh = nudge.block
+    h = math.radians(bh)
+    ux, uy = math.cos(h), math.sin(h)
+    dx, dy = nudge.shift
+    if progress(nudge.block, *at) >= through_cm or progress(nudge.block, *pts[-1]) <= through_cm:
+        return pts
+    through = (bx + through_cm * ux + dx, by + through_cm * uy + dy)
+    if abs(nudge.off) > drift_cm and not on_free_ground(grid, *through):
+        return None
+    rest = [q for i, q in enumerate(pts)
+            if i == len(pts) - 1 or progress(nudge.block, *q) > through_cm]
+    return with_sidestep([through, *rest], nudge, at, grid, tol_cm=tol_cm)
+
+
 def with_sidestep(pts: list[tuple[float, float]], nudge: Nudge, at: tuple[float, float],
                   grid: GridMap | None, *, tol_cm: float) -> list[tuple[float, float]]:
     """``pts`` (a nudged route) preceded by a sidestep: the point beside the rover
@@ -188,3 +230,79 @@ def in_passage(grid: GridMap, pose: Pose, nose_cm: float) -> bool:
         if w is not None and w < PROBE_WIDTH_CM:
             return True
     return False
+
+
+def _narrow(grid: GridMap, x: float, y: float, heading_deg: float) -> float | None:
+    """The map's free width across ``heading_deg`` at (x, y) [cm] when under
+    ``PROBE_WIDTH_CM``, else None."""
+    w = passage_width(grid, x, y, heading_deg, max_cm=PROBE_WIDTH_CM)
+    return w if w is not None and w < PROBE_WIDTH_CM else None
+
+
+def at_mouth(grid: GridMap, pose: Pose, nose_cm: float) -> bool:
+    """A narrow passage begins ahead of ``pose``: the map's walls are narrower than
+    ``PROBE_WIDTH_CM`` across its heading at its nose (``nose_cm`` [cm] ahead) or a cell
+    beyond, not at the body's centre. A rover blocked there met the face beside the
+    mouth; one blocked with its centre in the passage scraped a side wall inside."""
+    h = math.radians(pose.heading_deg)
+    if _narrow(grid, pose.x, pose.y, pose.heading_deg) is not None:
+        return False
+    return any(_narrow(grid, pose.x + a * math.cos(h), pose.y + a * math.sin(h),
+                       pose.heading_deg) is not None
+               for a in (nose_cm, nose_cm + grid.resolution_cm))
+
+
+def probe_step(grid: GridMap, pose: Pose, length_cm: float, width_cm: float, *,
+               heading_doubt_deg: float, floor_cm: float) -> float | None:
+    """The step of a probe series at a narrow passage [cm]: the passage's play for a body
+    (``length_cm`` x ``width_cm``) whose heading may be off by ``heading_doubt_deg``,
+    between ``floor_cm`` and ``NUDGE_STEP_MAX_CM``; None when no passage is there.
+
+    The passage's width is the map's free width across ``pose``'s heading at the body's
+    centre, its nose, or a cell beyond the nose (a rover blocked at a mouth has its nose
+    on the face beside it), the narrowest under ``PROBE_WIDTH_CM``, plus one cell: a
+    LIDAR hit on a face lands in the cell on the free side, so each mapped face lies up
+    to a cell (half a cell on average) in front of the wall. A body turned by ``a`` from
+    the passage's direction spans ``width cos a + length sin a`` across it; the play is
+    what the width leaves of that.
+
+    Why the play: the lateral places from which the body passes form a band as wide
+    as the play; probes that step by no more than it cannot jump over the band, and
+    probes that step by less spend blocks on places a step before already ruled out.
+    """
+    h = math.radians(pose.heading_deg)
+    ux, uy = math.cos(h), math.sin(h)
+    nose = 0.5 * length_cm
+    widths = [w for a in (0.0, nose, nose + grid.resolution_cm)
+              if (w := _narrow(grid, pose.x + a * ux, pose.y + a * uy, pose.heading_deg))
+              is not None]
+    if not widths:
+        return None
+    a = math.radians(min(abs(heading_doubt_deg), 90.0))
+    span = width_cm * math.cos(a) + length_cm * math.sin(a)
+    return min(NUDGE_STEP_MAX_CM, max(floor_cm, min(widths) + grid.resolution_cm - span))
+
+
+def through_distance(grid: GridMap, nudge: Nudge, length_cm: float) -> float:
+    """How far beyond ``nudge.block``, along its heading and on its shifted line, the
+    body is through the passage it met [cm]: where the line's free width across the
+    heading is no longer under ``PROBE_WIDTH_CM``, plus half the body's ``length_cm``;
+    at least ``length_cm``, at most ``NUDGE_REACH_CM``.
+
+    Why: a probe's route turns toward the rest of the route at this point; turned while
+    its body is still between the mouth's walls, the rover scrapes them, and the turn
+    the encoders count is not the one the body made.
+    """
+    bx, by, bh = nudge.block
+    h = math.radians(bh)
+    ux, uy = math.cos(h), math.sin(h)
+    dx, dy = nudge.shift
+    step = grid.resolution_cm
+    d, seen = 0.0, False
+    while d <= NUDGE_REACH_CM:
+        narrow = _narrow(grid, bx + d * ux + dx, by + d * uy + dy, bh) is not None
+        if seen and not narrow:
+            break
+        seen = seen or narrow
+        d += step
+    return min(NUDGE_REACH_CM, max(length_cm, d + 0.5 * length_cm))

@@ -16,18 +16,24 @@ import trio
 
 from actors.firmware.nav.nudge import (
     MAX_NUDGES,
+    NUDGE_REACH_CM,
     PROBE_PROGRESS_CM,
+    Block,
     Nudge,
+    at_mouth,
     in_passage,
     near_block,
     nudge_step,
     nudged_route,
+    probe_route,
+    probe_step,
     progress,
     series_offset,
+    through_distance,
 )
 from actors.firmware.nav.route import Motion, with_obstacle
 from actors.firmware.planning.clearance import occupied_near
-from server.protocol.pose import Pose, angle_diff_deg
+from server.protocol.pose import Pose, angle_diff_deg, compose
 
 __all__ = ["RouteRecovery", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM", "STALL_TURN_DEG"]
 
@@ -48,13 +54,34 @@ class RouteRecovery:
     """What a `RouteNav` does when its route is blocked (a mixin; see the module docstring)."""
 
     def _nudged(self, pts: list[tuple[float, float]]) -> list[tuple[float, float]] | None:
-        """``pts`` with the series' current nudge applied (`nudge.nudged_route`), from a
-        sidestep where the rover stands when a probe asked for one."""
+        """``pts`` with the series' current nudge applied: a probe of a narrow passage
+        from a sidestep onto a line drawn from the block (`nudge.probe_route`), any other
+        nudge shifting the route's waypoints near the block (`nudge.nudged_route`)."""
         assert self._nudge is not None
         p = self.map_pose
-        return nudged_route(pts, self._nudge, self.map, drift_cm=self.drift_cm,
+        nudge = Nudge(self._in_map(self._nudge.block), self._nudge.off, self._nudge.probe)
+        if nudge.probe:
+            through = NUDGE_REACH_CM if self.map is None else \
+                through_distance(self.map, nudge, self.length_cm)
+            return probe_route(pts, nudge, self.map, drift_cm=self.drift_cm, at=(p.x, p.y),
+                               through_cm=through, tol_cm=self.o.waypoint_tol_cm)
+        return nudged_route(pts, nudge, self.map, drift_cm=self.drift_cm,
                             sidestep_from=(p.x, p.y) if self._sidestep else None,
                             tol_cm=self.o.waypoint_tol_cm)
+
+    def _here(self) -> Block:
+        """Where the rover stands in its own frame (Motor Control's dead reckoning):
+        blocks are held there, so a contact that moves the pose belief (and with it the
+        map -> own frame origin) does not move them under the rover."""
+        q = self.pose
+        return (q.x, q.y, q.heading_deg)
+
+    def _in_map(self, block: Block) -> Block:
+        """An own-frame ``block`` in the map frame, by the current origin."""
+        if self.origin is None:
+            return block
+        m = compose(self.origin, Pose(*block))
+        return (m.x, m.y, m.heading_deg)
 
     def _nudged_plan(self) -> bool:
         """Plan again on the server's map, the route shifted sideways near the block.
@@ -77,10 +104,12 @@ class RouteRecovery:
         if self._nudges == 0:  # a new series: first toward the side that helped last
             self._nudge_first = 1.0 if self._nudge_off >= 0 else -1.0
         step = nudge_step(self.o.nudge_step_cm, self.drift_cm)
+        if self._sidestep and self._mouth and self._probe_step is not None:
+            step = self._probe_step
         while self._nudges < MAX_NUDGES:
             off = series_offset(self._nudges, step, self._nudge_first)
             self._nudges += 1
-            self._nudge = Nudge(self._anchor, off)
+            self._nudge = Nudge(self._anchor, off, self._sidestep and self._mouth)
             self._nudge_off = off
             if self._plan():
                 self.counters["nudges"] += 1
@@ -116,17 +145,27 @@ class RouteRecovery:
         ahead = self.radius_cm + 8.0
         h = math.radians(p.heading_deg)
         back = self.o.backoff_cm
-        if why == "blocked" and self.contact_update():
-            pass  # a mapped wall stopped it: the pose is corrected, nothing to learn
-        elif why == "blocked" and (self._in_passage() or self._nudging_here()):
-            # a mapped wall on one side or the other: drift, nothing to learn; probe sideways
-            self._last_block = (p.x, p.y, p.heading_deg)
+        here = self._here()
+        moved = why == "blocked" and self.contact_update()
+        passage = why == "blocked" and (self._in_passage() or self._nudging_here())
+        mouth = passage and self._at_mouth()
+        if passage and (not moved or (mouth and self._anchor is not None)):
+            # a passage met with the pose unchanged, or its mouth met again after a
+            # contact fix: drift, nothing to learn (an obstacle would close the passage);
+            # probe sideways (at a mouth, round the place of the series' first block)
+            self._last_block, self._mouth = here, mouth
             self._probe = True
+        elif moved:
+            # a mapped wall stopped it: the pose is corrected, nothing to learn; at a
+            # passage's mouth the corrected route is tried first, and a probe series round
+            # this place follows if the mouth is missed again
+            if mouth:
+                self._last_block = self._anchor = here
         elif why == "blocked":
             # a second block near the first: something the map does not show is there
             # (one block alone may be a restarted motor cutting its command short)
-            last, self._last_block = self._last_block, (p.x, p.y, p.heading_deg)
-            if last is not None and math.dist(last[:2], (p.x, p.y)) <= 30.0:
+            last, self._last_block = self._last_block, here
+            if last is not None and math.dist(last[:2], here[:2]) <= 30.0:
                 self.work_map = with_obstacle(self.work_map, p.x + ahead * math.cos(h),
                                               p.y + ahead * math.sin(h), 8.0)
                 back = BACKOFF_REPEAT_CM
@@ -157,6 +196,14 @@ class RouteRecovery:
             return False
         return in_passage(self.map, self.map_pose, 0.5 * self.length_cm)
 
+    def _at_mouth(self) -> bool:
+        """The last forward move was blocked at a narrow passage's mouth, its centre not
+        yet in the passage (`nudge.at_mouth`)."""
+        m = self.last_motion
+        if m is None or m.kind != "move" or m.amount <= 0 or self.map is None:
+            return False
+        return at_mouth(self.map, self.map_pose, 0.5 * self.length_cm)
+
     def _wall_within_drift(self) -> bool:
         """A mapped wall lies within the body's radius plus ``drift_cm`` of the believed
         position: the rover may be touching it, though it believes itself clear.
@@ -183,8 +230,8 @@ class RouteRecovery:
         the block is the search's next step, not an obstacle to learn."""
         if self._nudge is None or self._anchor is None:
             return False
-        p = self.map_pose
-        return near_block(self._anchor, p.x, p.y)
+        q = self.pose
+        return near_block(self._anchor, q.x, q.y)
 
     def _probe_plan(self) -> bool:
         """Plan after a block in a narrow passage: the route shifted sideways at once.
@@ -195,9 +242,15 @@ class RouteRecovery:
         it. Once a probe made progress (the next block is ``PROBE_PROGRESS_CM``
         on, `nudge.progress`), a new series starts on the side that helped.
         """
-        p = self.map_pose
-        if self._anchor is None or progress(self._anchor, p.x, p.y) > PROBE_PROGRESS_CM:
+        q = self.pose
+        if self._anchor is None or progress(self._anchor, q.x, q.y) > PROBE_PROGRESS_CM:
             self._anchor, self._nudge, self._nudges = self._last_block, None, 0
+        if self._nudges == 0 and self.map is not None and self._mouth:  # step by the play
+            s = self.spread
+            self._probe_step = probe_step(
+                self.map, self.map_pose, self.length_cm, self.width_cm,
+                heading_doubt_deg=0.0 if s is None else s.heading95_deg,
+                floor_cm=self.o.nudge_step_cm)
         self._sidestep = True
         try:
             return self._nudged_plan()

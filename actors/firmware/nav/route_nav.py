@@ -67,6 +67,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.tier: tuple[float, float] | None = None
         """(radius, margin) [cm] of the planning tier the current route used (`plan_tiers`)."""
         self._replan = False  # replan after the backoff in flight
+        # blocks are held in the rover's own frame (`RouteRecovery._here`)
         self._last_block: tuple[float, float, float] | None = None  # (x, y, heading) of a block
         self._nudge: Nudge | None = None  # the offset of the series being driven
         self._anchor: tuple[float, float, float] | None = None  # the block nudges start from
@@ -75,6 +76,8 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self._nudge_off = 0.0  # the last sideways offset tried [cm], signed (left +)
         self._nudge_first = 1.0  # the side a series of nudges tries first
         self._sidestep = False  # the nudge in flight starts with a sidestep (`_nudged`)
+        self._probe_step: float | None = None  # the probe series' step (`nudge.probe_step`)
+        self._mouth = False  # the probe series is at a passage's mouth (`nudge.at_mouth`)
         self.map_requests = 0
         """``map_request`` frames sent (see ``MAP_RETRY_S``)."""
         self._map_wait = 0.0  # the wait before the next request [s]
@@ -153,7 +156,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.stop_short_cm = stop_short_cm
         self.replans = 0
         self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
-        self._probe, self._nudge_off = False, 0.0
+        self._probe, self._nudge_off, self._mouth = False, 0.0, False
         if not self._plan():
             return False
         await self.set_state("driving", f"to ({goal[0]:.0f}, {goal[1]:.0f})")
@@ -202,7 +205,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         pts = route_points(plan, (p.x, p.y))
         if plan.goal_snapped:
             pts.append(self.goal)  # the goal itself; the spot check vouched for it
-        if self._anchor is not None and math.dist(self._anchor[:2], (p.x, p.y)) > \
+        if self._anchor is not None and math.dist(self._anchor[:2], (self.pose.x, self.pose.y)) > \
                 2.0 * NUDGE_REACH_CM:
             self._nudge, self._anchor, self._nudges = None, None, 0  # past the tight spot
         if self._nudge is not None:
@@ -248,8 +251,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         await self._step()
 
     async def on_origin(self) -> None:
-        self.forget_belief()
-        self.track_belief()  # a new belief round the origin, if the pose is known
+        self.on_server_origin()  # a new belief round a new origin; a retry's widened
 
     def on_pose_at_rest(self) -> None:
         self.track_belief()
