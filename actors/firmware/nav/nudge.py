@@ -223,13 +223,7 @@ def in_passage(grid: GridMap, pose: Pose, nose_cm: float) -> bool:
     ``PROBE_WIDTH_CM`` across its heading), at the body's centre or at its nose
     ``nose_cm`` [cm] ahead: a rover stopped at a gap's mouth has only its nose in
     the gap."""
-    h = math.radians(pose.heading_deg)
-    for x, y in ((pose.x, pose.y),
-                 (pose.x + nose_cm * math.cos(h), pose.y + nose_cm * math.sin(h))):
-        w = passage_width(grid, x, y, pose.heading_deg, max_cm=PROBE_WIDTH_CM)
-        if w is not None and w < PROBE_WIDTH_CM:
-            return True
-    return False
+    return any(_narrow_ahead(grid, pose, a) is not None for a in (0.0, nose_cm))
 
 
 def _narrow(grid: GridMap, x: float, y: float, heading_deg: float) -> float | None:
@@ -239,16 +233,21 @@ def _narrow(grid: GridMap, x: float, y: float, heading_deg: float) -> float | No
     return w if w is not None and w < PROBE_WIDTH_CM else None
 
 
+def _narrow_ahead(grid: GridMap, pose: Pose, ahead_cm: float) -> float | None:
+    """`_narrow` at the point ``ahead_cm`` [cm] ahead of ``pose``, across its heading."""
+    h = math.radians(pose.heading_deg)
+    return _narrow(grid, pose.x + ahead_cm * math.cos(h), pose.y + ahead_cm * math.sin(h),
+                   pose.heading_deg)
+
+
 def at_mouth(grid: GridMap, pose: Pose, nose_cm: float) -> bool:
     """A narrow passage begins ahead of ``pose``: the map's walls are narrower than
     ``PROBE_WIDTH_CM`` across its heading at its nose (``nose_cm`` [cm] ahead) or a cell
     beyond, not at the body's centre. A rover blocked there met the face beside the
     mouth; one blocked with its centre in the passage scraped a side wall inside."""
-    h = math.radians(pose.heading_deg)
-    if _narrow(grid, pose.x, pose.y, pose.heading_deg) is not None:
+    if _narrow_ahead(grid, pose, 0.0) is not None:
         return False
-    return any(_narrow(grid, pose.x + a * math.cos(h), pose.y + a * math.sin(h),
-                       pose.heading_deg) is not None
+    return any(_narrow_ahead(grid, pose, a) is not None
                for a in (nose_cm, nose_cm + grid.resolution_cm))
 
 
@@ -270,12 +269,9 @@ def probe_step(grid: GridMap, pose: Pose, length_cm: float, width_cm: float, *,
     as the play; probes that step by no more than it cannot jump over the band, and
     probes that step by less spend blocks on places a step before already ruled out.
     """
-    h = math.radians(pose.heading_deg)
-    ux, uy = math.cos(h), math.sin(h)
     nose = 0.5 * length_cm
     widths = [w for a in (0.0, nose, nose + grid.resolution_cm)
-              if (w := _narrow(grid, pose.x + a * ux, pose.y + a * uy, pose.heading_deg))
-              is not None]
+              if (w := _narrow_ahead(grid, pose, a)) is not None]
     if not widths:
         return None
     a = math.radians(min(abs(heading_doubt_deg), 90.0))
