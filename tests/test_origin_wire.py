@@ -12,7 +12,6 @@ from actors.firmware.origin_wire import (
     CM,
     MM,
     OriginHalves,
-    origin_messages,
     pose_messages,
     xy_half,
 )
@@ -20,7 +19,7 @@ from server.protocol.pose import Pose
 
 
 def test_an_origin_goes_over_as_millimetres_and_degrees_and_comes_back() -> None:
-    xy, heading = origin_messages(Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING,
+    xy, heading = pose_messages(Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING,
                                   Pose(12.34, -5.66, 2.5))
     assert (xy.command, heading.command) == (Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING)
     assert xy.as_pair() == (123, -57)
@@ -30,7 +29,7 @@ def test_an_origin_goes_over_as_millimetres_and_degrees_and_comes_back() -> None
 
 
 def test_a_translation_beyond_int16_millimetres_is_clamped() -> None:
-    xy, _ = origin_messages(Cmd.MAP_ORIGIN_XY, Cmd.MAP_ORIGIN_HEADING, Pose(5000.0, -5000.0, 0))
+    xy, _ = pose_messages(Cmd.MAP_ORIGIN_XY, Cmd.MAP_ORIGIN_HEADING, Pose(5000.0, -5000.0, 0))
     assert xy.as_pair() == (32767, -32767)
 
 

@@ -25,7 +25,7 @@ import math
 from actors import Message
 from server.protocol.pose import Pose
 
-__all__ = ["CM", "MM", "OriginHalves", "origin_messages", "pose_messages", "xy_half"]
+__all__ = ["CM", "MM", "OriginHalves", "pose_messages", "xy_half"]
 
 _INT16 = 32767
 
@@ -53,11 +53,6 @@ def xy_half(message: Message, per_cm: int = MM) -> tuple[float, float]:
     """
     x, y = message.as_pair()
     return (x / per_cm, y / per_cm)
-
-
-origin_messages = pose_messages
-"""The map origin's halves (`pose_messages` in millimetres): the name the mapper's
-actors use."""
 
 
 class OriginHalves:

@@ -67,7 +67,7 @@ from actors.firmware.mapping.scan_match import (
     match_scan,
     relocalise,
 )
-from actors.firmware.origin_wire import OriginHalves, origin_messages
+from actors.firmware.origin_wire import OriginHalves, pose_messages
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
 
@@ -403,7 +403,7 @@ class MapManagement(Actor):
         if abs(c.x - old.x) < 1.0 and abs(c.y - old.y) < 1.0 and abs(
                 c.heading_deg - old.heading_deg) < 0.5:
             return
-        xy, heading = origin_messages(Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING, c)
+        xy, heading = pose_messages(Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING, c)
         if self._send(self._nav, xy) and self._send(self._nav, heading):
             self._sent_correction = c
 

@@ -64,7 +64,7 @@ from actors.firmware.nav.homing import Homing
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.sensor_watch import SensorWatch
-from actors.firmware.origin_wire import OriginHalves, origin_messages
+from actors.firmware.origin_wire import OriginHalves, pose_messages
 from server.protocol.grid_map import UNKNOWN, GridMap
 from server.protocol.pose import ZERO_POSE
 
@@ -169,7 +169,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         # drops scans until the origin arrives); its count restarts at 0
         self._probe_scans = None
         self._scans_at_start = self._scans_at_change = self.scans = 0
-        xy, heading = origin_messages(Cmd.MAP_ORIGIN_XY, Cmd.MAP_ORIGIN_HEADING,
+        xy, heading = pose_messages(Cmd.MAP_ORIGIN_XY, Cmd.MAP_ORIGIN_HEADING,
                                       self.origin or ZERO_POSE)
         if await self.post(self.map_name, xy):
             await self.post(self.map_name, heading)
