@@ -20,7 +20,7 @@ from server.protocol.pose import Pose
 
 def test_an_origin_goes_over_as_millimetres_and_degrees_and_comes_back() -> None:
     xy, heading = pose_messages(Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING,
-                                  Pose(12.34, -5.66, 2.5))
+                                Pose(12.34, -5.66, 2.5))
     assert (xy.command, heading.command) == (Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING)
     assert xy.as_pair() == (123, -57)
     halves = OriginHalves()

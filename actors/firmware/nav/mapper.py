@@ -170,7 +170,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         self._probe_scans = None
         self._scans_at_start = self._scans_at_change = self.scans = 0
         xy, heading = pose_messages(Cmd.MAP_ORIGIN_XY, Cmd.MAP_ORIGIN_HEADING,
-                                      self.origin or ZERO_POSE)
+                                    self.origin or ZERO_POSE)
         if await self.post(self.map_name, xy):
             await self.post(self.map_name, heading)
         if self.grid is not None:
