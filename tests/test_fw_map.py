@@ -172,10 +172,10 @@ def _send_room_scan(system, pool: BufferPool, odom, taken_at) -> None:
 
 @pytest.mark.trio
 async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_clock) -> None:
-    """Odometry says 4 deg more than the truth: the scan is registered onto the walls the
-    reference scans drew, the correction (about -4 deg) goes to navigation as its origin
-    (Motor Control hears nothing of it), and the wall stays one band thick instead of being
-    drawn twice."""
+    """Odometry creeps to 4 deg more than the truth, a degree a batch: each scan is
+    registered onto the walls the reference scans drew, the correction (about -4 deg) goes
+    to navigation as its origin (Motor Control hears nothing of it), and the wall stays one
+    band thick instead of being drawn twice."""
     from server.protocol.pose import Pose
 
     pool, log, motor_log = BufferPool(64), [], []
@@ -193,8 +193,8 @@ async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_cloc
         await trio.sleep(0.6)
         mm = system.whereis("mapper/map").actor
         before = mm.grid.cells()
-        for k in range(4):  # odometry creeps a little between batches, as when driving
-            odom = Pose(truth.x + 0.6 * k, truth.y, truth.heading_deg + 4.0)
+        for k in range(1, 9):  # odometry creeps a little between batches, as when driving
+            odom = Pose(truth.x + 0.6 * k, truth.y, truth.heading_deg + min(k, 4))
             system.send_nowait("mapper/map", Message.handle(
                 Cmd.MAP_SCAN, pool.put(Scan(odom, a.astype(np.float32), r.astype(np.float32)))))
             await trio.sleep(0.3)
@@ -374,12 +374,14 @@ def test_an_odometry_stamp_across_the_heading_wrap_is_the_same_pose() -> None:
 
 
 @pytest.mark.trio
-async def test_a_lost_pose_places_no_batch_until_two_searches_agree(autojump_clock) -> None:
-    """After MAP_POSE_LOST (both treads driven, neither counting: the rover turned unseen)
-    the batches of a rover that turned 50 deg while odometry stood still are not placed at
-    the stale pose (which would draw the room at every angle); the
-    wide search finds the heading, and only two searches in a row that agree move the
-    correction. The walls are not drawn a second time."""
+async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_the_pose(
+        autojump_clock) -> None:
+    """A 90 deg turn that ended with both treads silent (MAP_TREAD_FAULT: each tread driven
+    10 cm beyond its count of 0) while the rover really turned 50 deg: the belief's 95 %
+    heading grows past the local match's reach (by the motion model: two silent treads,
+    nothing added by hand), the batches are not placed at the stale pose (which would draw
+    the room turned), the wide search over the belief's bounds finds the heading, the
+    belief narrows again, and the walls are not drawn a second time."""
     from server.protocol.pose import Pose
 
     pool, log = BufferPool(64), []
@@ -396,26 +398,59 @@ async def test_a_lost_pose_places_no_batch_until_two_searches_agree(autojump_clo
         await trio.sleep(0.6)
         mm = system.whereis("mapper/map").actor
         before, scans = mm.grid.cells(), mm.scans
-        system.send_nowait("mapper/map", Message.uint(Cmd.MAP_POSE_LOST, 180))
-        send(system, turned)  # the first search: a candidate, not yet placed
-        await trio.sleep(0.1)
-        assert mm.scans == scans and mm.lost_scans == 1
-        assert mm.correction.heading_deg == pytest.approx(0.0, abs=1e-6)
-        for _ in range(12):  # 0.1 s apart: a search every 0.5 s
+        assert not mm.wide(mm.matching)
+        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -102, 102))
+        await trio.sleep(0.01)
+        assert mm.wide(mm.matching) and mm.belief.heading95_deg > 40.0
+        assert mm.belief.mean.heading_deg == pytest.approx(45.0, abs=1.0)  # halfway
+        for _ in range(12):  # 0.1 s apart: a search every 0.5 s, the rest dropped
             send(system, turned)
             await trio.sleep(0.1)
-        assert mm.refound == 1
+        assert mm.searched >= 1
         assert mm.correction.heading_deg == pytest.approx(50.0, abs=1.5)
+        assert not mm.wide(mm.matching) and mm.belief.heading95_deg < 3.0
         assert mm.scans > scans  # placed again once found
         assert _stray_walls(before, mm.grid.cells()) <= 3  # (2: rays 3 deg apart land elsewhere)
 
 
 @pytest.mark.trio
+async def test_a_match_outside_the_belief_is_refused_and_counted_not_placed(
+        autojump_clock) -> None:
+    """The rover stands still (odometry unchanged) and a batch arrives drawn from a pose
+    5 deg off: scan matching fits it there (a good fit), but the belief has not moved, so
+    the scan likelihood's gate refuses it. The batch is dropped and counted under its
+    reason, the correction stays, nothing goes to navigation; a batch from the true pose
+    is placed."""
+    from server.protocol.pose import Pose
+
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3, settle_s=10.0)
+    truth = Pose(120.0, 80.0, 0.0)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):
+            _send_room_scan(system, pool, truth, truth)
+        await trio.sleep(0.6)
+        mm = system.whereis("mapper/map").actor
+        log.clear()
+        scans = mm.scans
+        _send_room_scan(system, pool, truth, Pose(truth.x, truth.y, 5.0))
+        await trio.sleep(0.3)
+        assert mm.refusals == {"outside the belief": 1}
+        assert mm.scans == scans and mm.correction == Pose()
+        assert not [c for c, _ in log if c in (Cmd.NAV_MAP_ORIGIN_XY,
+                                                Cmd.NAV_MAP_ORIGIN_HEADING)]
+        _send_room_scan(system, pool, truth, truth)
+        await trio.sleep(0.3)
+        assert mm.scans == scans + 1 and mm.matched == 1, mm.refusals
+
+
+@pytest.mark.trio
 async def test_without_the_lost_notice_a_standing_rover_draws_its_unseen_turn(
         autojump_clock) -> None:
-    """The same batches without MAP_POSE_LOST: odometry stands, so after ``settle_s`` they
-    are placed at the stale heading and draw a rotated copy of the room (what the notice
-    prevents)."""
+    """The same batches without MAP_TREAD_FAULT: odometry stands and the belief is narrow,
+    so after ``settle_s`` they are placed at the stale heading and draw a rotated copy of
+    the room (what the relayed report prevents)."""
     from server.protocol.pose import Pose
 
     pool, log = BufferPool(64), []
@@ -432,33 +467,3 @@ async def test_without_the_lost_notice_a_standing_rover_draws_its_unseen_turn(
         assert _stray_walls(before, after) > 30  # (102)
 
 
-def test_a_refused_batch_whose_guess_fits_well_starts_the_relocalisation_count_over(
-        monkeypatch) -> None:
-    """Two batches refused with a guess that fits well (0.93, 0.84: the pose is right,
-    matching found nothing better) and one blurred by a turn (0.45) are not three lost
-    batches in a row: no wide search (which could take a pose 23 deg off in a healthy
-    hall). Three bad fits in a row still search."""
-    from actors.firmware.mapping import map_management as mapping
-    from actors.firmware.mapping.scan_match import MatchResult
-    from server.protocol.pose import Pose
-
-    searches = []
-
-    def fake_relocalise(fields, pts, guess, options=None, search=None, *, turn_deg=24.0):
-        searches.append(guess)
-        return MatchResult(guess, False, 0.45, 0.45, "ambiguous", True)
-
-    monkeypatch.setattr(mapping, "relocalise", fake_relocalise)
-    mm = MapManagement(BufferPool(4), size_cm=(200, 200))
-    mm._fields = object()  # (only the fake search reads it)
-    guess, pts = Pose(10.0, 5.0, 40.0), np.zeros((50, 2))
-
-    def refused(score_guess: float) -> MatchResult:
-        return MatchResult(guess, False, score_guess, score_guess, "the match fits worse", True)
-
-    for t, fit in ((1.0, 0.93), (1.05, 0.84), (1.1, 0.45)):
-        mm._relocalise(pts, guess, refused(fit), t)
-    assert searches == []
-    for t in (1.15, 1.2):
-        mm._relocalise(pts, guess, refused(0.3), t)
-    assert len(searches) == 1

@@ -169,7 +169,7 @@ class MapManagement(Actor):
         self._still_since = -float("inf")  # time odometry last changed between two batches
         self.belief = GaussianPose.at(Pose())
         """The pose belief (map frame) at the odometry stamp ``_belief_odom``."""
-        self._belief_odom = Pose()  # the odometry stamp the belief was last moved to
+        self._belief_odom: Pose | None = None  # the odometry stamp the belief was last moved to
         self.correction = Pose()
         """Odometry frame -> map frame: the belief's mean composed with the inverse of
         its odometry stamp (identity until a match or a report moves it)."""
@@ -250,7 +250,6 @@ class MapManagement(Actor):
             origin = self._origin_halves.take_heading(message)
             if origin is not None and trio.current_time() < self._await_correction_until:
                 self.correction = self._sent_correction = origin
-                self.belief = GaussianPose.at(compose(origin, self._belief_odom))
             self._await_correction_until = -float("inf")
         elif cmd == Cmd.MAP_TREAD_FAULT:
             left_mm, right_mm = message.as_pair()
@@ -264,14 +263,19 @@ class MapManagement(Actor):
         """Motor Control reported a tread (or both) in the motion that just ended; the
         travel each was driven beyond its count widens the belief (and moves its mean
         halfway), as the motion model says."""
-        if left_cm == 0.0 and right_cm == 0.0:
+        if (left_cm == 0.0 and right_cm == 0.0) or self._belief_odom is None:
             return
         self.belief = self.belief.predict(0.0, 0.0, self.track_width_cm, self.noise,
                                           (left_cm, right_cm))
         self.correction = compose(self.belief.mean, inverse(self._belief_odom))
 
     def _predict(self, odom: Pose) -> None:
-        """Move the belief by the treads' counted travel from its stamp to ``odom``."""
+        """Move the belief by the treads' counted travel from its stamp to ``odom`` (the
+        first batch of an incarnation puts it at the corrected stamp)."""
+        if self._belief_odom is None:
+            self._belief_odom = odom
+            self.belief = GaussianPose.at(compose(self.correction, odom))
+            return
         if _same_pose(odom, self._belief_odom):
             return
         left, right = tread_travel(self._belief_odom, odom, self.track_width_cm)
@@ -335,7 +339,10 @@ class MapManagement(Actor):
                 return guess
             return self._refuse(fit.verdict.value)
         info = scan_information(self._distance, result.pose, pts)
-        self.belief = self.belief.widened(odometry_floor()).update(result.pose, info)
+        # the match is the mean: it already weighed the scan against the guess (the
+        # matcher's pull toward it); the information narrows the covariance
+        self.belief = self.belief.widened(odometry_floor()).update(result.pose, info
+                                                                   ).moved_to(result.pose)
         self.matched += 1
         self.searched += wide
         self._last_odom = odom
