@@ -306,6 +306,7 @@ async def test_restarted_map_takes_the_correction_back_from_navigation(autojump_
         system.send_nowait("mapper/map", Message.handle(Cmd.MAP_SCAN, pool.put(ring_scan())))
         await trio.sleep(0.01)
         assert mm.correction == Pose(12.5, -4.0, 2.5)
+        assert mm.belief.mean == Pose(12.5, -4.0, 2.5)  # the belief starts from it
         assert mm.scans == 1
         assert pool.statistics().in_use == 0
         # the correction navigation has is not sent back to it

@@ -1,16 +1,14 @@
 """Scan likelihood for the mapper: how well a LIDAR scan fits the map at a pose.
 
 Why
-    The mapper places every LIDAR batch by scan matching (`mapping.scan_match`)
-    and today judges the match with counters: three refused batches in a row
-    start a re-localisation, a pose reported lost drops batches until two
-    searches agree. The fit itself is a measurement: the likelihood of the
-    scan at a pose, against the map built so far. As a likelihood it weighs
-    the pose belief's particles (the belief, not a counter, then says whether
-    the pose is known), and for one matched pose it gives the verdict that
-    replaces the counters: accepted, or refused with the reason as data
-    (too few hits, new ground, a bad fit, or a match outside what the belief
-    allows).
+    The mapper places every LIDAR batch by scan matching (`mapping.scan_match`).
+    The fit itself is a measurement: the likelihood of the scan at a pose,
+    against the map built so far. For one matched pose it gives the verdict
+    (`judge_fit`): accepted, or refused with the reason as data (too few hits,
+    new ground, a bad fit, or a match outside what the mapper's pose belief
+    allows); its curvature at the pose is what the scan says about the pose
+    (`scan_information`), with which the belief is updated; and over
+    particles it weighs a particle belief (`scan_log_likelihood`).
 
 Algorithm
     Likelihood field (Thrun et al.; Nav2 AMCL ``likelihood_field``): each hit,
