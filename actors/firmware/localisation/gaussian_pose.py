@@ -31,7 +31,9 @@ Algorithm
       curvature of the scan's log-likelihood at ``z``, `scan_likelihood.
       scan_information`), in information form so that a direction the scan
       does not constrain (along a corridor) keeps its doubt:
-      ``P' = (P^-1 + I)^-1``, ``mu' = mu + P' I (z - mu)``.
+      ``P' = (P^-1 + I)^-1``, ``mu' = mu + P' I (z - mu)``. The odometry stamp's own
+      error (its rounding to whole encoder interrupts) is the measurement's, not the
+      belief's: it widens ``I``'s covariance, so it never adds up in ``P``.
 
 Frame and units
     Map frame; the mean is a `Pose` ([cm], [deg]); the covariance is of (x [cm],
@@ -137,11 +139,23 @@ class GaussianPose:
         return np.array([pose.x - self.mean.x, pose.y - self.mean.y,
                          math.radians(angle_diff_deg(pose.heading_deg, self.mean.heading_deg))])
 
-    def update(self, pose: Pose, information: np.ndarray) -> GaussianPose:
+    def update(self, pose: Pose, information: np.ndarray,
+               stamp_covariance: np.ndarray | None = None) -> GaussianPose:
         """The belief after a measured pose with its information matrix (inverse
-        covariance; rank-deficient where the measurement says nothing)."""
+        covariance; rank-deficient where the measurement says nothing).
+
+        ``stamp_covariance`` (3 x 3) is an error the measurement shares with nothing
+        before it (an odometry stamp's rounding): it adds to the measurement's
+        covariance, ``I_eff = (I^-1 + S)^-1``, written so that a singular ``I`` is
+        fine (``S^-1 - S^-1 (I + S^-1)^-1 S^-1``), and never accumulates in the belief.
+        """
         info = np.asarray(information, dtype=float)
-        prior = np.linalg.inv(self.covariance)
+        if stamp_covariance is not None:
+            s_inv = np.linalg.inv(np.asarray(stamp_covariance, dtype=float))
+            info = s_inv - s_inv @ np.linalg.inv(info + s_inv) @ s_inv
+            info = 0.5 * (info + info.T)
+        # a belief with no doubt in some direction (the start) keeps it there
+        prior = np.linalg.inv(self.covariance + 1e-9 * np.eye(3))
         cov = np.linalg.inv(prior + info)
         cov = 0.5 * (cov + cov.T)
         step = cov @ info @ self.innovation(pose)

@@ -339,15 +339,17 @@ class MapManagement(Actor):
                 return guess
             return self._refuse(fit.verdict.value)
         info = scan_information(self._distance, result.pose, pts)
-        # the match is the mean: it already weighed the scan against the guess (the
-        # matcher's pull toward it); the information narrows the covariance
-        self.belief = self.belief.widened(odometry_floor()).update(result.pose, info
-                                                                   ).moved_to(result.pose)
+        stamp = odometry_floor()
+        # this batch's pose: the prediction (the belief and the stamp's own error) and the
+        # match, weighed; the belief (the correction's) takes the stamp's error as the
+        # match's, since it does not carry over to the next stamp
+        placed = self.belief.widened(stamp).update(result.pose, info).mean
+        self.belief = self.belief.update(result.pose, info, stamp)
         self.matched += 1
         self.searched += wide
         self._last_odom = odom
         self.correction = compose(self.belief.mean, inverse(odom))
-        return self.belief.mean
+        return placed
 
     def _refuse(self, reason: str) -> None:
         """Drop a batch, counting why."""
