@@ -11,11 +11,11 @@ while scans keep arriving" from "LIDAR stalled". ``MAP_GET`` publishes both
 at once.
 
 Scan matching (why: see `scan_match`)
-    Scans come stamped with the raw odometry pose. Each batch is placed at
+    Scans come stamped with the raw odometry pose. Each batch is guessed at
     ``correction (+) odometry`` and, once the first ``warmup_scans`` batches
     made a reference, registered against the obstacle surfaces of the map
-    built so far; an accepted match updates the correction (odometry -> map
-    frame). The matching fields are rebuilt from the grid at most every
+    built so far; an accepted match updates the pose belief and with it the
+    correction (odometry -> map frame). The matching fields are rebuilt from the grid at most every
     ``fields_s``. The correction goes to navigation (``NAV_MAP_ORIGIN_XY`` +
     ``NAV_MAP_ORIGIN_HEADING``) with the published updates: navigation keeps
     it as its ``origin`` (map -> odometry), so its map-frame pose is the
@@ -36,8 +36,10 @@ The pose belief (why: see `localisation.gaussian_pose`)
     (at most every ``_SEARCH_EVERY_S``: a bound on CPU). The matched pose is
     judged by the scan likelihood (`scan_likelihood.judge_fit`: enough hits,
     not new ground, the fit, and the belief's gate); accepted, it updates the
-    belief with the scan's information (`scan_likelihood.scan_information`)
-    and the batch is placed at the new mean. Refused, the batch is dropped
+    belief with the scan's information (`scan_likelihood.scan_information`),
+    and the batch is placed where the prediction and the match, weighed,
+    put it: the match across walls, the prediction along a corridor's walls
+    (which the scan does not constrain). Refused, the batch is dropped
     and the reason counted (`refusals`: data for metrics, never a trigger):
     its pose is in doubt, and one badly placed batch clears free space
     through walls. A batch that cannot be judged (too few hits, new ground)
@@ -78,7 +80,9 @@ from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.localisation.odometry import tread_travel
 from actors.firmware.localisation.scan_likelihood import (
+    MAX_BEAMS,
     FitVerdict,
+    ScanOptions,
     judge_fit,
     odometry_floor,
     scan_information,
@@ -103,6 +107,7 @@ _NOISE = MotionNoise()  # immutable default
 _CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for navigation's copy of the correction
 _SEARCH_EVERY_S = 0.5  # at most one wide search per this much time [s] (a CPU bound: 24 ms
 # for the default 24 deg either side, about 0.2 s for a whole turn)
+_EVERY_BEAM = ScanOptions(independent_hits=float(MAX_BEAMS))  # one scan's own precision
 _TRACK_WIDTH_CM = 13.0  # the rover's track width when no hardware spec is given [cm]
 
 
@@ -341,9 +346,12 @@ class MapManagement(Actor):
         info = scan_information(self._distance, result.pose, pts)
         stamp = odometry_floor()
         # this batch's pose: the prediction (the belief and the stamp's own error) and the
-        # match, weighed; the belief (the correction's) takes the stamp's error as the
-        # match's, since it does not carry over to the next stamp
-        placed = self.belief.widened(stamp).update(result.pose, info).mean
+        # match, weighed by what this one scan's hits say (each of its beams: `_EVERY_BEAM`);
+        # the belief (the correction's) counts the scan as `independent_hits` measurements
+        # (its errors repeat from scan to scan) and takes the stamp's error as the match's,
+        # since it does not carry over to the next stamp
+        placed = self.belief.widened(stamp).update(
+            result.pose, scan_information(self._distance, result.pose, pts, _EVERY_BEAM)).mean
         self.belief = self.belief.update(result.pose, info, stamp)
         self.matched += 1
         self.searched += wide
