@@ -175,6 +175,7 @@ class MapManagement(Actor):
         self.belief = GaussianPose.at(Pose())
         """The pose belief (map frame) at the odometry stamp ``_belief_odom``."""
         self._belief_odom: Pose | None = None  # the odometry stamp the belief was last moved to
+        self._step = (0.0, 0.0)  # the last step between two stamps: travel [cm], turn [rad]
         self.correction = Pose()
         """Odometry frame -> map frame: the belief's mean composed with the inverse of
         its odometry stamp (identity until a match or a report moves it)."""
@@ -284,6 +285,7 @@ class MapManagement(Actor):
         if _same_pose(odom, self._belief_odom):
             return
         left, right = tread_travel(self._belief_odom, odom, self.track_width_cm)
+        self._step = (0.5 * (left + right), (right - left) / self.track_width_cm)
         self.belief = self.belief.predict(left, right, self.track_width_cm, self.noise)
         self._belief_odom = odom
         # the mean moved with the counts: the correction is unchanged, up to rounding
@@ -338,13 +340,14 @@ class MapManagement(Actor):
             return self._refuse(result.reason.split(" (")[0])
         assert self._distance is not None
         fit = judge_fit(self._distance, result.pose, pts, belief_pose=guess,
-                        belief_covariance=self.belief.covariance)
+                        belief_covariance=self.belief.covariance + self._stamp_covariance(now)
+                        - odometry_floor())
         if not fit.accepted:
             if fit.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS) and not wide:
                 return guess
             return self._refuse(fit.verdict.value)
         info = scan_information(self._distance, result.pose, pts)
-        stamp = odometry_floor()
+        stamp = self._stamp_covariance(now)
         # this batch's pose: the prediction (the belief and the stamp's own error) and the
         # match, weighed by what this one scan's hits say (each of its beams: `_EVERY_BEAM`);
         # the belief (the correction's) counts the scan as `independent_hits` measurements
@@ -352,12 +355,22 @@ class MapManagement(Actor):
         # since it does not carry over to the next stamp
         placed = self.belief.widened(stamp).update(
             result.pose, scan_information(self._distance, result.pose, pts, _EVERY_BEAM)).mean
-        self.belief = self.belief.update(result.pose, info, stamp)
+        self.belief = self.belief.update(result.pose, info, stamp).moved_to(placed)
         self.matched += 1
         self.searched += wide
         self._last_odom = odom
         self.correction = compose(self.belief.mean, inverse(odom))
         return placed
+
+    def _stamp_covariance(self, now: float) -> np.ndarray:
+        """The covariance of this batch's stamp's own error: the encoders' rounding
+        (`odometry_floor`) and the motion within the batch's tick, uniform over the step
+        between two stamps (its variance: the step squared over 12). A tick with no Int E
+        keeps the last step (the rover moves on between interrupts) until the rover has
+        stood ``settle_s``."""
+        ds, dtheta = self._step if now - self._still_since < self.settle_s else (0.0, 0.0)
+        return odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
+                                           dtheta * dtheta / 12.0])
 
     def _refuse(self, reason: str) -> None:
         """Drop a batch, counting why."""
