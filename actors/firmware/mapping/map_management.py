@@ -15,8 +15,8 @@ Scan matching (why: see `scan_match`)
     ``correction (+) odometry`` and, once the first ``warmup_scans`` batches
     made a reference, registered against the obstacle surfaces of the map
     built so far; an accepted match updates the pose belief and with it the
-    correction (odometry -> map frame). The matching fields are rebuilt from the grid at most every
-    ``fields_s``. The correction goes to navigation (``NAV_MAP_ORIGIN_XY`` +
+    correction (odometry -> map frame). The matching fields are rebuilt from
+    the grid at most every ``fields_s``. The correction goes to navigation (``NAV_MAP_ORIGIN_XY`` +
     ``NAV_MAP_ORIGIN_HEADING``) with the published updates: navigation keeps
     it as its ``origin`` (map -> odometry), so its map-frame pose is the
     correction composed with Motor Control's odometry pose.
@@ -107,7 +107,7 @@ _NOISE = MotionNoise()  # immutable default
 _CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for navigation's copy of the correction
 _SEARCH_EVERY_S = 0.5  # at most one wide search per this much time [s] (a CPU bound: 24 ms
 # for the default 24 deg either side, about 0.2 s for a whole turn)
-_EVERY_BEAM = ScanOptions(independent_hits=float(MAX_BEAMS))  # one scan's own precision
+_SCAN = ScanOptions()  # immutable default: the scan likelihood's noise levels
 _TRACK_WIDTH_CM = 13.0  # the rover's track width when no hardware spec is given [cm]
 
 
@@ -346,15 +346,16 @@ class MapManagement(Actor):
             if fit.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS) and not wide:
                 return guess
             return self._refuse(fit.verdict.value)
-        info = scan_information(self._distance, result.pose, pts)
+        info = scan_information(self._distance, result.pose, pts, _SCAN)
         stamp = self._stamp_covariance(now)
         # this batch's pose: the prediction (the belief and the stamp's own error) and the
-        # match, weighed by what this one scan's hits say (each of its beams: `_EVERY_BEAM`);
+        # match, weighed by what this one scan's hits say (each of its beams counted);
         # the belief (the correction's) counts the scan as `independent_hits` measurements
         # (its errors repeat from scan to scan) and takes the stamp's error as the match's,
         # since it does not carry over to the next stamp
-        placed = self.belief.widened(stamp).update(
-            result.pose, scan_information(self._distance, result.pose, pts, _EVERY_BEAM)).mean
+        beams = min(len(pts), MAX_BEAMS)
+        every_beam = info * max(1.0, beams / _SCAN.independent_hits)
+        placed = self.belief.widened(stamp).update(result.pose, every_beam).mean
         self.belief = self.belief.update(result.pose, info, stamp).moved_to(placed)
         self.matched += 1
         self.searched += wide
