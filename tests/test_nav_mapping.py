@@ -386,9 +386,9 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
     """NAV_TREAD_FAULT during a move (Motor Control: the right tread is driven but does
     not count; the left, or both, count short): MOTOR_STOP at once, though the pose shows
     nothing yet, no Command A for the hold (``ODO_HOLD_S``; ``SHORT_HOLD_S`` for counting
-    short), an ``odometry_fault`` status naming the fault, then exploring goes on. Both
-    silent (value 4) also tells Map Management the pose is lost (MAP_POSE_LOST), and
-    only it: the LIDAR still sees where the rover is after the others."""
+    short), an ``odometry_fault`` status naming the fault, then exploring goes on. Every
+    report is relayed to Map Management (MAP_TREAD_FAULT: its pose belief widens by
+    it)."""
     import tests.test_nav_common as common
 
     class StuckEncoderMotor(common.FakeMotor):
@@ -420,7 +420,7 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
         details = [f.data.get("detail", "") for f in body.frames("status")]
         assert any(d.startswith(f"{text}; holding {hold:.0f} s") for d in details)
         assert "odometry hold over: driving on" in details
-        assert ("MAP_POSE_LOST" in body.map_msgs) == (value == 4)
+        assert "MAP_TREAD_FAULT" in body.map_msgs
 
 
 def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -> None:

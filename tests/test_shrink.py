@@ -274,9 +274,9 @@ def test_a_scenario_that_does_not_fail_is_one_line_and_status_2(tmp_path, capsys
 
 # ---------------------------------------------------------------------------- campaign --shrink
 
-#: game 4 of this campaign fails for real (mapping not done in 75 s: a noisy LIDAR)
+#: game 4 of this campaign fails for real (mapping not done in 60 s: a noisy LIDAR)
 _FAILING = ("--seed", "1", "--mode", "overlapping", "--scenarios", "empty", "--faults",
-            "lidar,motor,encoder", "--budget", "75", "--window", "5-40")
+            "lidar,motor,encoder", "--budget", "60", "--window", "5-40")
 
 
 def _only_game_4_real(ref: str, *, determinism: bool = False,

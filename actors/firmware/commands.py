@@ -121,10 +121,11 @@ class Cmd(enum.IntEnum):
     int16 pair (x, y) [mm]. Always followed by MAP_ORIGIN_HEADING."""
     MAP_ORIGIN_HEADING = 0x0404
     """The origin's rotation; value float32 [deg]."""
-    MAP_POSE_LOST = 0x0405
-    """From navigation: odometry missed a motion (both treads driven, neither counting), so
-    the heading may be off by up to value uint32 [deg]; place no batch until scan
-    matching finds the pose again (`map_management.MapManagement`)."""
+    MAP_TREAD_FAULT = 0x0405
+    """From navigation, relaying Motor Control's NAV_TREAD_FAULT for the motion that just
+    ended: value int16 pair (left, right) [mm], the travel Motor Control's model drove
+    each reported tread beyond its count (signed; 0 for a tread not reported). Map
+    Management widens its pose belief by it (`localisation.gaussian_pose`)."""
 
     # -- WiFly queue -------------------------------------------------------
     WIFLY_RX = 0x0500

@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import math
 
-from server.protocol.pose import Pose
+from server.protocol.pose import Pose, angle_diff_deg
 
-__all__ = ["advance", "Odometer"]
+__all__ = ["advance", "Odometer", "tread_travel"]
 
 
 def advance(pose: Pose, d_left_cm: float, d_right_cm: float, track_width_cm: float) -> Pose:
@@ -92,3 +92,14 @@ class Odometer:
             self.pending = [0.0, 0.0]
             return advance(pose, left, right, self.track_width_cm)
         return None
+
+
+def tread_travel(before: Pose, after: Pose, track_width_cm: float) -> tuple[float, float]:
+    """The (left, right) tread travel [cm] that takes ``before`` to ``after`` by the
+    midpoint rule of `advance`: its inverse (what the encoders counted between two
+    dead-reckoned poses)."""
+    dtheta = math.radians(angle_diff_deg(after.heading_deg, before.heading_deg))
+    mid = before.heading_rad + 0.5 * dtheta
+    ds = (after.x - before.x) * math.cos(mid) + (after.y - before.y) * math.sin(mid)
+    half = 0.5 * track_width_cm * dtheta
+    return ds - half, ds + half

@@ -1,16 +1,14 @@
 """Scan likelihood for the mapper: how well a LIDAR scan fits the map at a pose.
 
 Why
-    The mapper places every LIDAR batch by scan matching (`mapping.scan_match`)
-    and today judges the match with counters: three refused batches in a row
-    start a re-localisation, a pose reported lost drops batches until two
-    searches agree. The fit itself is a measurement: the likelihood of the
-    scan at a pose, against the map built so far. As a likelihood it weighs
-    the pose belief's particles (the belief, not a counter, then says whether
-    the pose is known), and for one matched pose it gives the verdict that
-    replaces the counters: accepted, or refused with the reason as data
-    (too few hits, new ground, a bad fit, or a match outside what the belief
-    allows).
+    The mapper places every LIDAR batch by scan matching (`mapping.scan_match`).
+    The fit itself is a measurement: the likelihood of the scan at a pose,
+    against the map built so far. For one matched pose it gives the verdict
+    (`judge_fit`): accepted, or refused with the reason as data (too few hits,
+    new ground, a bad fit, or a match outside what the mapper's pose belief
+    allows); its curvature at the pose is what the scan says about the pose
+    (`scan_information`), with which the belief is updated; and over
+    particles it weighs a particle belief (`scan_log_likelihood`).
 
 Algorithm
     Likelihood field (Thrun et al.; Nav2 AMCL ``likelihood_field``): each hit,
@@ -58,7 +56,8 @@ from actors.firmware.mapping.scan_match import MAX_RANGE_CM, MIN_POINTS, MatchOp
 from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_likelihood",
-           "judge_fit", "MAX_BEAMS", "UNKNOWN_HIT", "MIN_JUDGED", "MIN_FIT", "GATE_CHI2"]
+           "judge_fit", "scan_information", "odometry_floor", "MAX_BEAMS", "UNKNOWN_HIT",
+           "MIN_JUDGED", "MIN_FIT", "GATE_CHI2", "FLOOR_CM", "FLOOR_DEG"]
 
 
 # Structural constants of the likelihood and of the verdict: how many beams a particle's
@@ -80,6 +79,21 @@ walls: 0.67), which only the belief's gate can refuse."""
 GATE_CHI2 = 11.34
 """Largest squared Mahalanobis distance of a matched pose from the belief [1]: the
 chi-square 99 % point for 3 degrees of freedom (x, y, heading)."""
+FLOOR_CM = 1.0
+"""Standard deviation added to the belief's x and y when a pose is judged against it [cm]:
+a stamp's own error (a batch is stamped with the pose of its tick, not of each ray), so a
+collapsed belief still accepts its own mean."""
+FLOOR_DEG = 1.0
+"""Standard deviation added to the belief's heading when a pose is judged against it [deg]:
+the encoders' quantisation (one Int E of one tread turns the dead-reckoned heading by
+0.5 cm / 13 cm, 2.2 deg; the rounding of two treads leaves 0.9 deg), which does not add
+up from stamp to stamp as the motion noise does."""
+
+
+def odometry_floor() -> np.ndarray:
+    """The 3 x 3 covariance of one odometry stamp's own error (``FLOOR_CM``, ``FLOOR_DEG``)
+    of (x [cm], y [cm], heading [rad])."""
+    return np.diag([FLOOR_CM ** 2, FLOOR_CM ** 2, math.radians(FLOOR_DEG) ** 2])
 
 
 @dataclass(frozen=True, slots=True)
@@ -229,8 +243,8 @@ def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
         options: the model's parameters.
         belief_pose, belief_covariance: the belief's mean and 3 x 3 covariance of
             (x [cm], y [cm], heading [rad]) (`belief.Spread`); with them, a pose beyond
-            ``GATE_CHI2`` is refused. A floor of 1 cm and 1 deg is added to the
-            covariance (a collapsed belief must still accept its own mean).
+            ``GATE_CHI2`` is refused. The stamp's own error (`odometry_floor`) is added
+            to the covariance (a collapsed belief must still accept its own mean).
     """
     o = options or ScanOptions()
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -239,8 +253,7 @@ def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
     if belief_pose is not None and belief_covariance is not None:
         e = np.array([pose.x - belief_pose.x, pose.y - belief_pose.y,
                       math.radians(angle_diff_deg(pose.heading_deg, belief_pose.heading_deg))])
-        cov = np.asarray(belief_covariance, dtype=float) + np.diag(
-            [1.0, 1.0, math.radians(1.0) ** 2])
+        cov = np.asarray(belief_covariance, dtype=float) + odometry_floor()
         d2 = float(e @ np.linalg.solve(cov, e))
     if n < MIN_POINTS:
         return ScanFit(FitVerdict.TOO_FEW_HITS, 0.0, 0.0, n, d2)
@@ -258,3 +271,54 @@ def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
     else:
         verdict = FitVerdict.ACCEPTED
     return ScanFit(verdict, fit, judged_share, n, d2)
+
+
+def scan_information(field: DistanceField, pose: Pose, points: np.ndarray,
+                     options: ScanOptions | None = None) -> np.ndarray:
+    """The information matrix (3 x 3, of x [cm], y [cm], heading [rad]) a scan gives
+    about the pose at ``pose``: the negative curvature of `scan_log_likelihood` there.
+
+    Why: it is what the scan's fit says about the pose, in the likelihood's own terms
+    (``sigma_hit_cm``, ``independent_hits``), and it is small in any direction the scan
+    does not constrain (a shift along a corridor's walls moves no hit off them), so a
+    belief updated with it keeps that doubt instead of pretending the match settled it.
+
+    Algorithm: central second differences of the log-likelihood over steps of one
+    cell in x and y (the hit term is flat within half a cell of a face: a smaller step
+    would read no curvature) and the same arc, at the beams' root-mean-square range,
+    in heading, all 19 poses in one vectorised call; the matrix is made positive
+    semi-definite (a saddle says nothing in that direction, not less than nothing).
+    The flat bottom makes the curvature an underestimate (the belief stays wider than
+    the fit alone would make it, not narrower).
+    """
+    o = options or ScanOptions()
+    pts = _beams(np.asarray(points, dtype=float).reshape(-1, 2), MAX_BEAMS)
+    if pts.shape[0] < MIN_POINTS:
+        return np.zeros((3, 3))
+    rms = math.sqrt(float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2)))
+    h = np.array([field.resolution_cm, field.resolution_cm, field.resolution_cm / max(rms, 1.0)])
+    base = np.array([pose.x, pose.y, pose.heading_rad])
+    offsets = [np.zeros(3)]
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = h[i]
+        offsets += [e, -e]
+    for i in range(3):
+        for j in range(i + 1, 3):
+            for si, sj in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+                e = np.zeros(3)
+                e[i], e[j] = si * h[i], sj * h[j]
+                offsets.append(e)
+    ll = scan_log_likelihood(field, base + np.array(offsets), pts, o)
+    f0 = ll[0]
+    hess = np.empty((3, 3))
+    for i in range(3):
+        hess[i, i] = (ll[1 + 2 * i] + ll[2 + 2 * i] - 2.0 * f0) / h[i] ** 2
+    k = 7
+    for i in range(3):
+        for j in range(i + 1, 3):
+            pp, pm, mp, mm = ll[k:k + 4]
+            hess[i, j] = hess[j, i] = (pp - pm - mp + mm) / (4.0 * h[i] * h[j])
+            k += 4
+    vals, vecs = np.linalg.eigh(-hess)
+    return (vecs * np.maximum(vals, 0.0)) @ vecs.T

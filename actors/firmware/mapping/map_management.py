@@ -11,22 +11,40 @@ while scans keep arriving" from "LIDAR stalled". ``MAP_GET`` publishes both
 at once.
 
 Scan matching (why: see `scan_match`)
-    Scans come stamped with the raw odometry pose. Each batch is placed at
+    Scans come stamped with the raw odometry pose. Each batch is guessed at
     ``correction (+) odometry`` and, once the first ``warmup_scans`` batches
     made a reference, registered against the obstacle surfaces of the map
-    built so far; an accepted match updates the correction (odometry -> map
-    frame). The matching fields are rebuilt from the grid at most every
-    ``fields_s``. The correction goes to navigation (``NAV_MAP_ORIGIN_XY`` +
+    built so far; an accepted match updates the pose belief and with it the
+    correction (odometry -> map frame). The matching fields are rebuilt from
+    the grid at most every ``fields_s``. The correction goes to navigation (``NAV_MAP_ORIGIN_XY`` +
     ``NAV_MAP_ORIGIN_HEADING``) with the published updates: navigation keeps
     it as its ``origin`` (map -> odometry), so its map-frame pose is the
     correction composed with Motor Control's odometry pose.
 
-Re-localisation
-    A stuck or slipping encoder can turn the rover further than matching may
-    correct (``max_turn_deg``): then every batch that sees the map is refused
-    and the pose never comes back. After ``_RELOCALISE_AFTER`` such batches in
-    a row whose guess fits badly, `scan_match.relocalise` searches headings
-    within 24 deg (at most every ``_RELOCALISE_EVERY_S``; about 24 ms each).
+The pose belief (why: see `localisation.gaussian_pose`)
+    Map Management holds the mapper's pose belief, a Gaussian over its
+    map-frame pose (`GaussianPose`), and the correction is its mean composed
+    with the inverse of the odometry stamp. Each batch first moves the belief
+    by the treads' counted motion since the last batch (the motion model's
+    noise); a tread Motor Control reported (``MAP_TREAD_FAULT``, relayed by
+    navigation with the travel driven beyond the count) widens it as the
+    model says, and a both-silent turn is two such treads. Then the batch is
+    matched: from the mean (`scan_match.match_scan`) while the belief is
+    within the local match's reach (its 95 % heading under ``max_turn_deg``
+    and radius under ``max_shift_cm``), or by the wide search
+    (`scan_match.relocalise`) over the belief's 95 % bounds when it is wider
+    (at most every ``_SEARCH_EVERY_S``: a bound on CPU). The matched pose is
+    judged by the scan likelihood (`scan_likelihood.judge_fit`: enough hits,
+    not new ground, the fit, and the belief's gate); accepted, it updates the
+    belief with the scan's information (`scan_likelihood.scan_information`),
+    and the batch is placed where the prediction and the match, weighed,
+    put it: the match across walls, the prediction along a corridor's walls
+    (which the scan does not constrain). Refused, the batch is dropped
+    and the reason counted (`refusals`: data for metrics, never a trigger):
+    its pose is in doubt, and one badly placed batch clears free space
+    through walls. A batch that cannot be judged (too few hits, new ground)
+    is placed at the mean while the belief is within the local reach, and
+    dropped while it is wider.
 
 Restart: the grid is lost with the incarnation (it is the thread's working
 memory). The new incarnation starts empty, integrates scans from then on and
@@ -46,7 +64,7 @@ queue slots and dropped scans, never a restart.
 from __future__ import annotations
 
 import contextlib
-import math
+from collections import Counter
 
 import numpy as np
 import trio
@@ -57,12 +75,23 @@ from actors.firmware.arrays import pad_border
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
 from actors.firmware.handles import post
+from actors.firmware.localisation.distance_field import DistanceField
+from actors.firmware.localisation.gaussian_pose import GaussianPose
+from actors.firmware.localisation.motion_model import MotionNoise
+from actors.firmware.localisation.odometry import tread_travel
+from actors.firmware.localisation.scan_likelihood import (
+    MAX_BEAMS,
+    FitVerdict,
+    ScanOptions,
+    judge_fit,
+    odometry_floor,
+    scan_information,
+)
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import (
     BLUR_WIDE,
     MatchFields,
     MatchOptions,
-    MatchResult,
     hits_to_local,
     match_scan,
     relocalise,
@@ -74,14 +103,12 @@ from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
 __all__ = ["MapManagement"]
 
 _MATCH = MatchOptions()  # immutable default
+_NOISE = MotionNoise()  # immutable default
 _CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for navigation's copy of the correction
-_RELOCALISE_AFTER = 3  # supported batches refused in a row before the wider search
-_RELOCALISE_EVERY_S = 0.5  # at most one wider search per this much time [s] (24 ms each)
-_RELOCALISE_BELOW = 0.6  # ...and only when the guess scores below this (lost poses: 0.3-0.45)
-_LOST_MAX_S = 30.0  # after MAP_POSE_LOST, place no batch for at most this long [s]
-_LOST_EVERY_S = 0.5  # ...and search for the pose at most this often (a full turn: ~0.2 s CPU)
-_LOST_AGREE_CM = 8.0  # two searches in a row must agree on the correction this well [cm]
-_LOST_AGREE_DEG = 3.0  # ...and [deg]
+_SEARCH_EVERY_S = 0.5  # at most one wide search per this much time [s] (a CPU bound: 24 ms
+# for the default 24 deg either side, about 0.2 s for a whole turn)
+_SCAN = ScanOptions()  # immutable default: the scan likelihood's noise levels
+_TRACK_WIDTH_CM = 13.0  # the rover's track width when no hardware spec is given [cm]
 
 
 def _max3(values: np.ndarray) -> np.ndarray:
@@ -113,12 +140,16 @@ class MapManagement(Actor):
         settle_s: a batch is placed unmatched (the correction kept) only when odometry
             has not changed between batches for this long [s] and the last matched
             batch was taken at the same odometry pose: the rover stands.
+        track_width_cm: distance between the treads' contact lines [cm] (the motion
+            model's geometry).
+        noise: the motion model's noise levels.
     """
 
     def __init__(self, pool: BufferPool, *, size_cm: tuple[float, float] = (2400.0, 2400.0),
                  resolution_cm: float = 5.0, publish_s: float = 0.25,
                  restarted: bool = False, matching: MatchOptions | None = _MATCH,
                  fields_s: float = 0.5, warmup_scans: int = 20, settle_s: float = 1.0,
+                 track_width_cm: float = _TRACK_WIDTH_CM, noise: MotionNoise = _NOISE,
                  addresses: Addresses | None = None) -> None:
         self.pool = pool
         self._addresses = addresses
@@ -137,13 +168,29 @@ class MapManagement(Actor):
         self.fields_s = fields_s
         self.warmup_scans = warmup_scans
         self.settle_s = settle_s
+        self.track_width_cm = track_width_cm
+        self.noise = noise
         self._prev_odom: Pose | None = None  # odometry pose of the previous batch
         self._still_since = -float("inf")  # time odometry last changed between two batches
+        self.belief = GaussianPose.at(Pose())
+        """The pose belief (map frame) at the odometry stamp ``_belief_odom``."""
+        self._belief_odom: Pose | None = None  # the odometry stamp the belief was last moved to
+        self._step = (0.0, 0.0)  # the last step between two stamps: travel [cm], turn [rad]
         self.correction = Pose()
-        """Odometry frame -> map frame, from scan matching (identity until a match)."""
+        """Odometry frame -> map frame: the belief's mean composed with the inverse of
+        its odometry stamp (identity until a match or a report moves it)."""
         self.matched = 0
-        """Scan batches placed by a match (the others at the corrected odometry pose)."""
+        """Scan batches placed by a match (the others at the belief's mean)."""
+        self.searched = 0
+        """Batches placed by the wide search (`scan_match.relocalise`)."""
+        self.refusals: Counter[str] = Counter()
+        """Batches dropped, by reason: a matched pose the scan likelihood refused
+        (`FitVerdict`'s value), a match refused by the matcher, or a wide belief that
+        the batch could not settle. Data for metrics, never a trigger."""
+        self.held_scans = 0
+        """Batches dropped while waiting for the correction after a restart."""
         self._fields: MatchFields | None = None
+        self._distance: DistanceField | None = None
         self._fields_at = -float("inf")
         self._fields_stale = True  # the grid changed since the fields were built
         self._last_odom: Pose | None = None  # odometry pose of the last matched batch
@@ -151,25 +198,16 @@ class MapManagement(Actor):
         self._origin_halves = OriginHalves()  # MAP_ORIGIN_XY waiting for its heading
         # a restarted incarnation waits (a bounded time) for the correction navigation kept
         self._await_correction_until = -float("inf")
-        self.unplaced = 0
-        """Batches dropped because they see the map but match nowhere near dead reckoning."""
-        self.held_scans = 0
-        """Batches dropped while waiting for the correction after a restart."""
-        self.relocalised = 0
-        """Batches placed by the wider search (`scan_match.relocalise`)."""
-        self._refused = 0  # supported batches refused in a row
-        self._lost_until = -float("inf")  # MAP_POSE_LOST: no batch placed before a re-find
-        self._lost_deg = 180.0  # ...and how far the heading may be off [deg]
-        self._lost_candidate: Pose | None = None  # the correction the last search found
-        self.lost_scans = 0
-        """Batches dropped while the pose was lost (MAP_POSE_LOST, not found again yet)."""
-        self.refound = 0
-        """Times the pose was found again after MAP_POSE_LOST."""
-        self._relocalise_at = -float("inf")  # time of the last wider search
+        self._search_at = -float("inf")  # time of the last wide search
         self._changed = True  # a cell changed class since the last update
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
         self._timer_armed = False
+
+    @property
+    def unplaced(self) -> int:
+        """Batches dropped (all reasons together)."""
+        return sum(self.refusals.values())
 
     async def on_start(self) -> None:
         names = self._addresses or Addresses.beside(self.ctx.name)
@@ -197,8 +235,7 @@ class MapManagement(Actor):
                 return
             pose = self._place(scan)
             if pose is None:
-                self.unplaced += 1  # it sees mapped walls but fits nowhere: a bad pose
-                return
+                return  # its pose is in doubt (the reason is counted in `refusals`)
             if self.grid.integrate(pose, scan.angles_deg, scan.ranges_cm):
                 self._changed = self._fields_stale = True
             self.scans += 1
@@ -220,53 +257,125 @@ class MapManagement(Actor):
             if origin is not None and trio.current_time() < self._await_correction_until:
                 self.correction = self._sent_correction = origin
             self._await_correction_until = -float("inf")
-        elif cmd == Cmd.MAP_POSE_LOST:
-            self._lost_until = trio.current_time() + _LOST_MAX_S
-            self._lost_deg = float(min(180, max(int(message.value), 6)))
-            self._relocalise_at = -float("inf")
-            self._lost_candidate = None
+        elif cmd == Cmd.MAP_TREAD_FAULT:
+            left_mm, right_mm = message.as_pair()
+            self._tread_fault(left_mm / 10.0, right_mm / 10.0)
         elif cmd == Cmd.NOOP:
             self.noops += 1  # a flood fault: costs a queue slot, never a restart
         else:
             raise ValueError(f"map management got an unknown command 0x{cmd:04x}")
 
-    def _place(self, scan: Scan) -> Pose | None:
-        """The map-frame pose of a batch: corrected odometry, refined by scan matching.
+    def _tread_fault(self, left_cm: float, right_cm: float) -> None:
+        """Motor Control reported a tread (or both) in the motion that just ended; the
+        travel each was driven beyond its count widens the belief (and moves its mean
+        halfway), as the motion model says."""
+        if (left_cm == 0.0 and right_cm == 0.0) or self._belief_odom is None:
+            return
+        self.belief = self.belief.predict(0.0, 0.0, self.track_width_cm, self.noise,
+                                          (left_cm, right_cm))
+        self.correction = compose(self.belief.mean, inverse(self._belief_odom))
 
-        A batch keeps the correction unmatched when the rover stands: odometry has not
-        changed for ``settle_s`` and the last matched batch was taken at the same
-        odometry pose (within 5 mm and 0.3 deg); so does one that cannot be matched
-        (too few hits, unmapped view). An unchanged odometry stamp alone does not
-        mean the rover stands: one Int E turns the heading by 2.2 deg, so a turning
+    def _predict(self, odom: Pose) -> None:
+        """Move the belief by the treads' counted travel from its stamp to ``odom`` (the
+        first batch of an incarnation puts it at the corrected stamp)."""
+        if self._belief_odom is None:
+            self._belief_odom = odom
+            self.belief = GaussianPose.at(compose(self.correction, odom))
+            return
+        if _same_pose(odom, self._belief_odom):
+            return
+        left, right = tread_travel(self._belief_odom, odom, self.track_width_cm)
+        self._step = (0.5 * (left + right), (right - left) / self.track_width_cm)
+        self.belief = self.belief.predict(left, right, self.track_width_cm, self.noise)
+        self._belief_odom = odom
+        # the mean moved with the counts: the correction is unchanged, up to rounding
+        self.belief = self.belief.moved_to(compose(self.correction, odom))
+
+    def wide(self, opts: MatchOptions) -> bool:
+        """Whether the belief is wider than the local match reaches (its 95 % heading over
+        ``max_turn_deg`` or its 95 % radius over ``max_shift_cm``): then only the wide
+        search may place a batch."""
+        b = self.belief
+        return b.heading95_deg > opts.max_turn_deg or b.radius95_cm > opts.max_shift_cm
+
+    def _place(self, scan: Scan) -> Pose | None:
+        """The map-frame pose of a batch, or None when it is dropped (the module docstring).
+
+        A batch is placed at the belief's mean unmatched when the rover stands: odometry
+        has not changed for ``settle_s`` and the last matched batch was taken at the same
+        odometry pose (within 5 mm and 0.3 deg). An unchanged odometry stamp alone does
+        not mean the rover stands: one Int E turns the heading by 2.2 deg, so a turning
         rover's batch can carry the previous tick's stamp, and after a turn the rover
         keeps turning by up to an interrupt's worth (or swings back) unseen by its
-        encoders. Placed without matching, such batches were 2-9 deg off and drew
-        walls a cell or two off (in a furnished room: map accuracy 0.968 against
-        0.996 with the matched batches alone).
-        None for a batch that sees mapped obstacles but whose match was refused: its
-        pose is in doubt, and one badly placed batch clears free space through walls
-        (outside the room, where no later ray can repair it).
+        encoders; such batches are matched.
         """
         odom = scan.pose
-        guess = compose(self.correction, odom)
         opts = self.matching
         now = trio.current_time()
         if not _same_pose(odom, self._prev_odom):
             self._still_since = now
         self._prev_odom = odom
-        if now < self._lost_until and opts is not None and self.scans >= self.warmup_scans:
-            return self._refind(scan, guess, odom, opts, now)
-        if opts is None or self.scans < self.warmup_scans or (
-                now - self._still_since >= self.settle_s and _same_pose(odom, self._last_odom)):
+        self._predict(odom)
+        guess = self.belief.mean
+        if opts is None or self.scans < self.warmup_scans:
+            return guess
+        wide = self.wide(opts)
+        if not wide and now - self._still_since >= self.settle_s and _same_pose(
+                odom, self._last_odom):
             return guess  # standing still: matching again would only add its own jitter
         fields = self._current_fields(opts, now)
         pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
-        result = match_scan(fields, pts, guess, opts)
-        if not result.accepted and result.supported:
-            result = self._relocalise(pts, guess, result, now)
+        if wide:
+            if now - self._search_at < _SEARCH_EVERY_S:
+                return self._refuse("searching")
+            self._search_at = now
+            b = self.belief
+            result = relocalise(fields, pts, guess, opts, turn_deg=min(180.0, b.heading95_deg),
+                                max_shift_cm=max(opts.max_shift_cm, b.radius95_cm))
+        else:
+            result = match_scan(fields, pts, guess, opts)
         if not result.accepted:
-            return None if result.supported else guess
-        return self._accept(result.pose, odom)
+            if not result.supported and not wide:
+                return guess  # new ground, or too few hits: nothing to judge it by
+            return self._refuse(result.reason.split(" (")[0])
+        assert self._distance is not None
+        fit = judge_fit(self._distance, result.pose, pts, belief_pose=guess,
+                        belief_covariance=self.belief.covariance + self._stamp_covariance(now)
+                        - odometry_floor())
+        if not fit.accepted:
+            if fit.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS) and not wide:
+                return guess
+            return self._refuse(fit.verdict.value)
+        info = scan_information(self._distance, result.pose, pts, _SCAN)
+        stamp = self._stamp_covariance(now)
+        # this batch's pose: the prediction (the belief and the stamp's own error) and the
+        # match, weighed by what this one scan's hits say (each of its beams counted);
+        # the belief (the correction's) counts the scan as `independent_hits` measurements
+        # (its errors repeat from scan to scan) and takes the stamp's error as the match's,
+        # since it does not carry over to the next stamp
+        beams = min(len(pts), MAX_BEAMS)
+        every_beam = info * max(1.0, beams / _SCAN.independent_hits)
+        placed = self.belief.widened(stamp).update(result.pose, every_beam).mean
+        self.belief = self.belief.update(result.pose, info, stamp).moved_to(placed)
+        self.matched += 1
+        self.searched += wide
+        self._last_odom = odom
+        self.correction = compose(self.belief.mean, inverse(odom))
+        return placed
+
+    def _stamp_covariance(self, now: float) -> np.ndarray:
+        """The covariance of this batch's stamp's own error: the encoders' rounding
+        (`odometry_floor`) and the motion within the batch's tick, uniform over the step
+        between two stamps (its variance: the step squared over 12). A tick with no Int E
+        keeps the last step (the rover moves on between interrupts) until the rover has
+        stood ``settle_s``."""
+        ds, dtheta = self._step if now - self._still_since < self.settle_s else (0.0, 0.0)
+        return odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
+                                           dtheta * dtheta / 12.0])
+
+    def _refuse(self, reason: str) -> None:
+        """Drop a batch, counting why."""
+        self.refusals[reason] += 1
 
     def _current_fields(self, opts: MatchOptions, now: float) -> MatchFields:
         """The matching fields, rebuilt first when stale for ``fields_s`` (or never built)."""
@@ -274,76 +383,6 @@ class MapManagement(Actor):
             self._build_fields(opts, now)
         assert self._fields is not None
         return self._fields
-
-    def _accept(self, pose: Pose, odom: Pose) -> Pose:
-        """A batch placed at ``pose`` by matching: the correction follows it."""
-        self._refused = 0
-        self.matched += 1
-        self._last_odom = odom
-        self.correction = compose(pose, inverse(odom))
-        return pose
-
-    def _refind(self, scan: Scan, guess: Pose, odom: Pose, opts: MatchOptions, now: float
-                ) -> Pose | None:
-        """A batch while the pose is lost (``MAP_POSE_LOST``): placed only when the wide
-        search (`scan_match.relocalise`, headings within ``_lost_deg`` of the guess) finds
-        where it fits; then the pose is found and matching goes on from there.
-
-        Why: both encoders stuck while the treads are driven (for 9 s, say) turn the
-        rover unseen; odometry stands still, so every batch would be placed unmatched
-        at the standing pose ("the rover stands") while the rover spins: each draws
-        the room turned by a different angle, and matching later locks onto that smear 180
-        deg off (map accuracy about 0.5, hiding spots inside
-        phantom walls). Navigation knows it from Motor Control's report (both treads
-        silent in a turn) and says so; a batch that cannot be placed is dropped, as a
-        refused match is (`_place`).
-        """
-        fields = self._current_fields(opts, now)
-        if now - self._relocalise_at < _LOST_EVERY_S:
-            self.lost_scans += 1
-            return None
-        self._relocalise_at = now
-        pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
-        wide = relocalise(fields, pts, guess, opts, turn_deg=self._lost_deg)
-        if not wide.accepted:
-            self.lost_scans += 1
-            return None
-        found = compose(wide.pose, inverse(odom))  # the correction it implies
-        seen, self._lost_candidate = self._lost_candidate, found
-        if seen is None or math.hypot(found.x - seen.x, found.y - seen.y) > _LOST_AGREE_CM or \
-                abs(angle_diff_deg(found.heading_deg, seen.heading_deg)) > _LOST_AGREE_DEG:
-            self.lost_scans += 1  # one batch (a 100 deg sector) alone can fit a smear
-            return None
-        self._lost_until = -float("inf")
-        self._lost_candidate = None
-        self.refound += 1
-        return self._accept(wide.pose, odom)
-
-    def _relocalise(self, pts: np.ndarray, guess: Pose, refused: MatchResult, now: float
-                    ) -> MatchResult:
-        """After a few supported batches refused in a row, each with a guess that fits
-        badly (the pose is lost: a stuck or slipping encoder), try the wider search, at
-        most every ``_RELOCALISE_EVERY_S``.
-
-        A refused batch whose guess fits well (``_RELOCALISE_BELOW``) says the pose is
-        right (matching only found no better fit) and starts the count over. Counting it,
-        two such batches and one blurred by the start of a turn (fit 0.45) are enough
-        to start a search in a healthy hall, which can accept a pose 23 deg off and
-        draw the rest of the map turned by that much (accuracy 0.82).
-        """
-        if refused.score_guess >= _RELOCALISE_BELOW:
-            self._refused = 0  # a guess that fits this well is not lost
-            return refused
-        self._refused += 1
-        if self._refused < _RELOCALISE_AFTER or now - self._relocalise_at < _RELOCALISE_EVERY_S:
-            return refused
-        self._relocalise_at = now
-        assert self._fields is not None
-        wide = relocalise(self._fields, pts, guess, self.matching)
-        if wide.accepted:
-            self.relocalised += 1
-            return wide
-        return refused
 
     def _build_fields(self, opts: MatchOptions, now: float) -> None:
         """Matching fields of the grid's obstacle surfaces (known part only).
@@ -373,6 +412,7 @@ class MapManagement(Actor):
             weights = hits / np.maximum(_max3(hits), 1.0)
             origin = (grid.origin_cm[0] + c0 * res, grid.origin_cm[1] + r0 * res)
             self._fields = MatchFields(weights, origin, res)
+        self._distance = DistanceField.from_grid(grid.snapshot())
         self._fields_at = now
         self._fields_stale = False
 

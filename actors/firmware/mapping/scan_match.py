@@ -18,9 +18,12 @@ Algorithm
     gradient. Two passes: a wide blur first (a basin of about three cells),
     then a narrow one (precision). Levenberg damping keeps a direction the
     scan does not constrain (one straight wall) at the guess. The result is
-    refused (the guess kept) when too few hits, when it moved further than
-    ``max_shift_cm`` / ``max_turn_deg``, or when it fits the map worse than
-    the guess.
+    refused (the guess kept) when too few hits, when too few of them land on
+    mapped obstacles, or when it fits the map worse than the guess. How far a
+    match may move from the guess is not judged here: the mapper's pose belief
+    judges it (`localisation.scan_likelihood.judge_fit`), and ``max_shift_cm``
+    / ``max_turn_deg`` say how far from the guess this local search reaches
+    (beyond, the wide search `relocalise`).
 
 Frame and units
     Map frame [cm], poses as `odometry.Pose` (heading [deg]); fields are crops
@@ -40,7 +43,7 @@ from actors.firmware.mapping.sensor_model import LogOddsModel
 from server.protocol.pose import Pose
 
 __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",
-           "match_scan", "RelocaliseOptions", "relocalise", "ITERATIONS", "BLUR_WIDE",
+           "match_scan", "relocalise", "ITERATIONS", "BLUR_WIDE",
            "BLUR_NARROW", "DAMPING", "MIN_POINTS", "MIN_SUPPORT", "MAX_RANGE_CM",
            "RELOCALISE_TURN_DEG", "RELOCALISE_STEP_DEG", "RELOCALISE_MIN_SCORE",
            "RELOCALISE_MIN_SUPPORT", "RELOCALISE_MARGIN"]
@@ -73,9 +76,13 @@ class MatchOptions:
     """Physical quantities of `match_scan`."""
 
     max_shift_cm: float = 12.0
-    """Largest accepted correction of the position [cm]."""
+    """How far from the guess the local match reaches in position [cm]: the wide field's
+    basin (about three cells) with a margin. A pose belief whose 95 % radius is wider
+    is searched by `relocalise`."""
     max_turn_deg: float = 6.0
-    """Largest accepted correction of the heading [deg]."""
+    """How far from the guess the local match reaches in heading [deg]: the basin's
+    three cells seen at 1.5 m. A pose belief whose 95 % heading is wider is searched by
+    `relocalise`."""
     min_range_cm: float = 12.0
     """Hits nearer than this are ignored [cm] (too close to tell direction well)."""
     prior_per_point: float = 2e-4
@@ -108,7 +115,7 @@ class MatchResult:
     """Why the match was refused (empty when accepted)."""
     supported: bool = False
     """Whether enough hits fell on mapped obstacles to judge the scan: a supported scan
-    that was refused (too large a correction, a worse fit) is suspect, its pose unknown."""
+    that was refused (a worse fit, an ambiguous view) is suspect, its pose unknown."""
 
 
 def _binomial(passes: int) -> np.ndarray:
@@ -371,14 +378,9 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
     score0, support0 = _score(fields, hom, guess.x, guess.y, theta0)
     start = np.array([guess.x, guess.y, theta0])
     est, score1, support1 = _fit(fields, hom, start, _prior(pts, o), o)
-    shift = math.hypot(est[0] - guess.x, est[1] - guess.y)
-    turn = abs(math.degrees(est[2] - theta0))
     if max(support0, support1) < MIN_SUPPORT:
         return MatchResult(guess, False, score0, score0,
                            f"only {max(support0, support1):.0%} of the hits on mapped obstacles")
-    if shift > o.max_shift_cm or turn > o.max_turn_deg:
-        return MatchResult(guess, False, score0, score0,
-                           f"correction too large ({shift:.1f} cm, {turn:.1f} deg)", True)
     if score1 < score0:
         return MatchResult(guess, False, score0, score0, "the match fits worse than the guess",
                            True)
@@ -390,8 +392,8 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
 # wide field's basin of each other) and how clearly the winner must win; structural, like
 # the solver's constants above.
 RELOCALISE_TURN_DEG = 24.0
-"""Search headings up to this far either side of the guess by default [deg]; a lost pose
-(`map_management`) searches as far as navigation says the heading may be off."""
+"""Search headings up to this far either side of the guess by default [deg]; the mapper
+searches its belief's 95 % heading (`map_management`)."""
 RELOCALISE_STEP_DEG = 3.0
 """Between the headings tried [deg] (within the wide field's basin of each other)."""
 RELOCALISE_MIN_SCORE = 0.45
@@ -404,24 +406,16 @@ away in heading, by this much (an ambiguous view, such as a round wall, is not
 re-localised)."""
 
 
-@dataclass(frozen=True, slots=True)
-class RelocaliseOptions:
-    """Physical quantities of `relocalise`."""
-
-    max_shift_cm: float = 40.0
-    """Largest accepted correction of the position [cm]."""
-
-
 def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
-               options: MatchOptions | None = None,
-               search: RelocaliseOptions | None = None, *,
-               turn_deg: float = RELOCALISE_TURN_DEG) -> MatchResult:
+               options: MatchOptions | None = None, *,
+               turn_deg: float = RELOCALISE_TURN_DEG,
+               max_shift_cm: float = 40.0) -> MatchResult:
     """A wider search than `match_scan`, for a pose odometry has lost (a stuck or slipping
     encoder turned the rover where dead reckoning did not, or the other way round).
 
-    Why: `match_scan` refuses corrections over ``max_turn_deg``, so once the heading is
-    further off every batch that sees the map is dropped and the pose never comes back.
-    Here Gauss-Newton starts from headings every ``RELOCALISE_STEP_DEG`` within
+    Why: `match_scan`'s Gauss-Newton starts from the guess and reaches about
+    ``max_turn_deg`` from it; a pose further off (a belief widened by a tread fault) lies
+    outside its basin. Here Gauss-Newton starts from headings every ``RELOCALISE_STEP_DEG`` within
     ``turn_deg`` of the guess; the best fit is accepted only when it is good in itself,
     clearly better than the guess, and unambiguous (``RELOCALISE_MIN_SCORE``,
     ``RELOCALISE_MIN_SUPPORT``, ``RELOCALISE_MARGIN``). Use it while the rover stands.
@@ -431,14 +425,14 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
         points: hits in the rover frame, (n, 2) [cm].
         guess: dead reckoning's pose (map frame).
         options: matching's quantities (the hits' range, the prior).
-        search: the search's quantities.
         turn_deg: search headings up to this far either side of the guess [deg].
+        max_shift_cm: fits further than this from the guess are not taken [cm] (the
+            mapper passes its belief's 95 % radius).
 
     Returns:
         The re-localised pose (accepted), or the guess with the reason it was refused.
     """
     o = options or MatchOptions()
-    r = search or RelocaliseOptions()
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if len(pts) < MIN_POINTS or fields.empty:
         return MatchResult(guess, False, 0.0, 0.0, "too few hits or nothing mapped")
@@ -451,7 +445,7 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     for k in range(-n, n + 1):
         start = np.array([guess.x, guess.y, theta0 + math.radians(k * RELOCALISE_STEP_DEG)])
         est, score, support = _fit(fields, hom, start, prior, o)
-        if math.hypot(est[0] - guess.x, est[1] - guess.y) <= r.max_shift_cm:
+        if math.hypot(est[0] - guess.x, est[1] - guess.y) <= max_shift_cm:
             fits.append((score, support, est))
     if not fits:
         return MatchResult(guess, False, score0, score0, "no fit near the guess", True)

@@ -27,10 +27,11 @@ Odometry that scan matching contradicts (a stuck encoder draws the map from a wr
     the same hold at once, a second or more before the pose shows it; one
     saying a tread, or both, count short (a slipping encoder, or a weak motor)
     stops the motion too and holds ``SHORT_HOLD_S`` (see `on_tread_fault`).
-    A turn that ended with both treads silent (`TreadFault.BOTH_SILENT`: the rover may have
-    turned tens of degrees unseen) holds as a silent tread does and tells Map
-    Management the pose is lost (``MAP_POSE_LOST``): it places no batch until
-    scan matching finds the pose again (`map_management.MapManagement`).
+    Every report is relayed to Map Management (``MAP_TREAD_FAULT``, `relay_tread_fault`)
+    with the travel each reported tread was driven beyond its count: its pose belief
+    widens by what the motion model makes of it (a both-silent turn: two silent
+    treads, the commanded turn's travel each), and while the belief is wider than
+    the local match reaches, only the wide search places batches.
 """
 
 from __future__ import annotations
@@ -43,11 +44,12 @@ from actors import Message
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.localisation.odometry import tread_travel
 from actors.firmware.nav.mapping_options import MappingOptions
 from server.protocol.pose import angle_diff_deg
 
-__all__ = ["SensorWatch", "LIDAR_SILENT_S", "ODO_TURN_SHIFT_CM", "ODO_MOVE_TURN_DEG",
-           "ODO_HOLD_S", "ODO_HOLD_MAX_S", "SHORT_HOLD_S", "BLIND_TURN_DEG"]
+__all__ = ["SensorWatch", "uncounted_travel", "LIDAR_SILENT_S", "ODO_TURN_SHIFT_CM",
+           "ODO_MOVE_TURN_DEG", "ODO_HOLD_S", "ODO_HOLD_MAX_S", "SHORT_HOLD_S"]
 
 # The thresholds and holds of the two watches, fixed beside them: they judge and wait for
 # scan matching (which owns the mapper's pose), not a property of the rover.
@@ -67,11 +69,33 @@ ODO_HOLD_MAX_S = ODO_HOLD_S * 2 ** 3
 SHORT_HOLD_S = 2.0
 """Hold still this long after Motor Control saw a tread (or both) count short [s]: about
 eight scan batches for scan matching to catch up with what was not counted."""
-BLIND_TURN_DEG = 180
-"""After a turn that ended with both treads silent, Map Management searches this far
-either side of dead reckoning's heading for the pose (``MAP_POSE_LOST``) [deg]: one such
-turn can go 50 deg unseen, and backing off and turning again on two stuck encoders spins
-the rover several turns in a few seconds."""
+_INT16 = 32767
+
+
+def uncounted_travel(fault: TreadFault, counted: tuple[float, float], kind: str,
+                     amount: float, track_width_cm: float) -> tuple[float, float]:
+    """The (left, right) travel [cm] Motor Control drove each reported tread beyond its
+    count in a motion (0 for a tread not reported), signed as the tread was driven.
+
+    A reported tread was driven as far as the other one counted (one tread reported:
+    the two are driven alike in size), or as far as the command asked (both reported:
+    no tread counted to compare with). ``counted`` is each tread's count over the
+    motion [cm]; ``kind`` and ``amount`` are the command's (``"turn"`` [deg] or
+    ``"move"`` [cm])."""
+    if kind == "turn":
+        sign = (-1.0, 1.0) if amount >= 0 else (1.0, -1.0)
+        size = 0.5 * track_width_cm * math.radians(abs(amount))
+    else:
+        sign = (1.0, 1.0) if amount >= 0 else (-1.0, -1.0)
+        size = abs(amount)
+    reported = (True, True) if fault.both else (
+        (False, True) if fault & TreadFault.RIGHT else (True, False))
+    out = [0.0, 0.0]
+    for t in (0, 1):
+        if reported[t]:
+            ref = size if reported[1 - t] else abs(counted[1 - t])
+            out[t] = sign[t] * max(0.0, ref - abs(counted[t]))
+    return out[0], out[1]
 
 
 class SensorWatch:
@@ -178,8 +202,10 @@ class SensorWatch:
         motor reads the same and its odometry is right, so the hold is short: it costs a
         weak motor a pause per motion, not the game."""
         now = trio.current_time()
-        if self.state not in ("exploring", "homing") or not self.moving \
-                or now < self._odo_hold_until:
+        if self.state not in ("exploring", "homing") or not self.moving:
+            return
+        await self.relay_tread_fault(fault)
+        if now < self._odo_hold_until:
             return
         if fault.both:
             if fault.counts_short:
@@ -190,14 +216,26 @@ class SensorWatch:
                 # 9 s the mapper spins about five turns unseen in such blocks, and the
                 # map comes out at half accuracy
                 await self._odometry_hold(now, "both treads are driven but do not count")
-                await self.post(self.map_name, Message.uint(Cmd.MAP_POSE_LOST,
-                                                            BLIND_TURN_DEG))
             return
         side = fault.side
         if fault.counts_short:
             await self._odometry_hold(now, f"the {side} tread counts short", SHORT_HOLD_S)
             return
         await self._odometry_hold(now, f"the {side} tread is driven but does not count")
+
+    async def relay_tread_fault(self, fault: TreadFault) -> None:
+        """Tell Map Management how far the motion in flight drove the reported tread(s)
+        beyond their count (``MAP_TREAD_FAULT``, `uncounted_travel`): its pose belief
+        widens by it."""
+        motion, start = self.last_motion, self.motion_from
+        if motion is None or start is None:
+            return
+        w = self.spec.track_width_cm if self.spec is not None else 13.0
+        counted = tread_travel(start, self.map_pose, w)
+        left, right = uncounted_travel(fault, counted, motion.kind, motion.amount, w)
+        await self.post(self.map_name, Message.pair(
+            Cmd.MAP_TREAD_FAULT, max(-_INT16, min(_INT16, round(left * 10))),
+            max(-_INT16, min(_INT16, round(right * 10)))))
 
     async def _odometry_hold(self, now: float, what: str, hold: float | None = None) -> None:
         """Stop the motor and hold still for odometry (see the module docstring); ``hold``

@@ -1,0 +1,122 @@
+"""The mapper's Gaussian pose belief in isolation: prediction by the tread motion model,
+the scan's information, and the update."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.localisation.distance_field import DistanceField
+from actors.firmware.localisation.gaussian_pose import GaussianPose
+from actors.firmware.localisation.motion_model import (
+    MotionNoise,
+    TreadMotion,
+    TreadReport,
+    sample_motion,
+)
+from actors.firmware.localisation.scan_likelihood import hits_to_points, scan_information
+from actors.firmware.nav.sensor_watch import uncounted_travel
+from server.protocol.grid_map import GridMap
+from server.protocol.pose import Pose
+
+from .test_scan_match import ORIGIN, RES, ray_scan, room_map
+
+W = 13.0
+NOISE = MotionNoise()
+
+
+def _sampled(motion: TreadMotion, n: int = 40000) -> np.ndarray:
+    """The motion model's own particles after ``motion`` from the origin."""
+    rng = np.random.default_rng(3)
+    return sample_motion(np.zeros((n, 3)), motion, W, NOISE, rng)
+
+
+@pytest.mark.parametrize("motion, uncounted", [
+    (TreadMotion(-10.0, 10.0), (0.0, 0.0)),
+    (TreadMotion(20.0, 20.0), (0.0, 0.0)),
+    (TreadMotion(0.0, 3.0, 3.0, None, TreadReport.SILENT), (3.0, 0.0)),
+    (TreadMotion(0.0, 0.0, -10.0, 10.0, TreadReport.SILENT, TreadReport.SILENT), (-10.0, 10.0)),
+], ids=["turn", "move", "left-silent", "both-silent-turn"])
+def test_prediction_matches_the_motion_models_samples(motion, uncounted) -> None:
+    """The belief's predicted heading spread is the sampled motion model's (within 10 %),
+    healthy or reported: the Gaussian is the same model in moments, not a second one."""
+    b = GaussianPose.at(Pose()).predict(motion.left_cm, motion.right_cm, W, NOISE, uncounted)
+    p = _sampled(motion)
+    assert math.degrees(math.sqrt(b.covariance[2, 2])) == pytest.approx(
+        math.degrees(p[:, 2].std()), rel=0.1)
+    assert b.mean.heading_deg == pytest.approx(math.degrees(p[:, 2].mean()), abs=0.5)
+
+
+def test_a_reported_tread_widens_the_heading_by_its_doubt_not_by_added_degrees() -> None:
+    """The same 90 deg turn, healthy and with both treads silent (10 cm each driven unseen):
+    healthy, the 95 % heading is the scrub's few degrees; both silent, the mean moves on
+    by half the unseen turn and the 95 % heading covers it from none to all."""
+    healthy = GaussianPose.at(Pose()).predict(-10.2, 10.2, W, NOISE)
+    assert healthy.heading95_deg < 5.0
+    blind = GaussianPose.at(Pose()).predict(0.0, 0.0, W, NOISE, (-10.2, 10.2))
+    assert blind.mean.heading_deg == pytest.approx(45.0, abs=0.1)
+    assert 45.0 < blind.heading95_deg < 60.0
+
+
+def test_the_belief_widens_with_every_unmatched_motion() -> None:
+    """Motion after motion with no update, the doubt only grows: heading with each turn,
+    position with each move."""
+    b = GaussianPose.at(Pose())
+    h, r = [], []
+    for _ in range(6):
+        b = b.predict(-5.0, 5.0, W, NOISE).predict(30.0, 30.0, W, NOISE)
+        h.append(b.heading95_deg)
+        r.append(b.radius95_cm)
+    assert np.all(np.diff(h) > 0) and np.all(np.diff(r) > 0)
+
+
+def _room_field() -> tuple[DistanceField, np.ndarray]:
+    occ = room_map()
+    cells = np.where(occ, 100, 0).astype(np.int8)
+    return DistanceField.from_grid(GridMap(cells, RES, ORIGIN)), occ
+
+
+def test_a_scans_information_is_sharp_across_walls_and_nil_along_a_corridor() -> None:
+    """In a box room the scan pins x, y and heading; seen as two parallel walls only (a
+    corridor), it says nothing along them: the update keeps that doubt."""
+    field, occ = _room_field()
+    truth = Pose(120.0, 80.0, 0.0)
+    a, r = ray_scan(occ, truth)
+    info = scan_information(field, truth, hits_to_points(a, r))
+    cov = np.linalg.inv(info)
+    assert math.sqrt(cov[0, 0]) < 3.0 and math.sqrt(cov[1, 1]) < 3.0
+    assert math.degrees(math.sqrt(cov[2, 2])) < 2.0
+    side = np.abs(np.sin(np.radians(a))) > 0.9  # only the beams that meet the long walls
+    corridor = scan_information(field, truth, hits_to_points(a[side], r[side]))
+    along = np.array([1.0, 0.0, 0.0])
+    assert along @ corridor @ along < 0.01 * (along @ info @ along)
+    wide = GaussianPose.at(truth, 20.0, 10.0)
+    after = wide.update(truth, corridor)
+    assert after.covariance[0, 0] == pytest.approx(wide.covariance[0, 0], rel=0.05)
+    assert after.covariance[1, 1] < 0.1 * wide.covariance[1, 1]
+
+
+def test_an_update_moves_the_mean_toward_the_measurement_by_the_weights() -> None:
+    """Equal doubt before and in the measurement: the mean moves halfway, and the
+    covariance halves."""
+    b = GaussianPose.at(Pose(0.0, 0.0, 0.0), 2.0, 2.0)
+    z = Pose(2.0, -2.0, 2.0)
+    after = b.update(z, np.linalg.inv(b.covariance))
+    assert (after.mean.x, after.mean.y, after.mean.heading_deg) == pytest.approx(
+        (1.0, -1.0, 1.0))
+    assert np.allclose(after.covariance, 0.5 * b.covariance)
+
+
+def test_navigation_relays_the_travel_driven_beyond_the_count() -> None:
+    """One tread silent: driven as far as the other counted; both silent in a turn: the
+    commanded turn's travel each, signed as driven; a tread counting short: the rest."""
+    assert uncounted_travel(TreadFault(0), (0.0, 3.0), "move", 20.0, W) == (3.0, 0.0)
+    left, right = uncounted_travel(TreadFault.BOTH_SILENT, (0.0, 0.0), "turn", 90.0, W)
+    assert (left, right) == pytest.approx((-10.21, 10.21), abs=0.01)
+    assert uncounted_travel(TreadFault.SHORT | TreadFault.RIGHT, (8.0, 4.0), "move", 20.0,
+                            W) == (0.0, 4.0)
+    assert uncounted_travel(TreadFault.BOTH_SHORT, (-6.0, -6.0), "move", -20.0, W) == (
+        -14.0, -14.0)
