@@ -56,8 +56,8 @@ from actors.firmware.mapping.scan_match import MAX_RANGE_CM, MIN_POINTS, MatchOp
 from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_likelihood",
-           "judge_fit", "scan_information", "odometry_floor", "MAX_BEAMS", "UNKNOWN_HIT",
-           "MIN_JUDGED", "MIN_FIT", "GATE_CHI2", "FLOOR_CM", "FLOOR_DEG"]
+           "judge_fit", "acceptable_log_fit", "scan_information", "odometry_floor", "MAX_BEAMS",
+           "UNKNOWN_HIT", "MIN_JUDGED", "MIN_FIT", "GATE_CHI2", "FLOOR_CM", "FLOOR_DEG"]
 
 
 # Structural constants of the likelihood and of the verdict: how many beams a particle's
@@ -158,6 +158,9 @@ class ScanFit:
     """Hits judged [1]."""
     mahalanobis2: float | None
     """Squared Mahalanobis distance from the belief, when one was given [1]."""
+    log_fit: float = 0.0
+    """Mean log hit likelihood ``log(z_hit * term + z_rand)`` over the judged hits [1]:
+    the scan's log-likelihood per measurement, what `odometry_fault` weighs."""
 
     @property
     def accepted(self) -> bool:
@@ -262,6 +265,7 @@ def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
     term, judged = _hit_terms(field, x[0], y[0], o)
     judged_share = float(judged.mean())
     fit = float(term[judged].mean()) if judged.any() else 0.0
+    log_fit = float(np.log(o.z_hit * term[judged] + o.z_rand).mean()) if judged.any() else 0.0
     if judged_share < MIN_JUDGED:
         verdict = FitVerdict.NEW_GROUND
     elif fit < MIN_FIT:
@@ -270,7 +274,14 @@ def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
         verdict = FitVerdict.OUTSIDE_BELIEF
     else:
         verdict = FitVerdict.ACCEPTED
-    return ScanFit(verdict, fit, judged_share, n, d2)
+    return ScanFit(verdict, fit, judged_share, n, d2, log_fit)
+
+
+def acceptable_log_fit(options: ScanOptions | None = None) -> float:
+    """The mean log hit likelihood [1] of a scan whose every judged hit has the hit term
+    ``MIN_FIT``: what a just acceptable fit scores (`ScanFit.log_fit`)."""
+    o = options or ScanOptions()
+    return math.log(o.z_hit * MIN_FIT + o.z_rand)
 
 
 def scan_information(field: DistanceField, pose: Pose, points: np.ndarray,

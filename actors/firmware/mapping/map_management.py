@@ -79,10 +79,19 @@ from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.localisation.odometry import tread_travel
+from actors.firmware.localisation.odometry_fault import (
+    FitEvidence,
+    OdometryFaultNoise,
+    broken_spread,
+    evidence,
+    hazard,
+    posterior,
+)
 from actors.firmware.localisation.scan_likelihood import (
     MAX_BEAMS,
     FitVerdict,
     ScanOptions,
+    acceptable_log_fit,
     judge_fit,
     odometry_floor,
     scan_information,
@@ -92,6 +101,7 @@ from actors.firmware.mapping.scan_match import (
     BLUR_WIDE,
     MatchFields,
     MatchOptions,
+    MatchResult,
     hits_to_local,
     match_scan,
     relocalise,
@@ -104,10 +114,12 @@ __all__ = ["MapManagement"]
 
 _MATCH = MatchOptions()  # immutable default
 _NOISE = MotionNoise()  # immutable default
+_FAULT = OdometryFaultNoise()  # immutable default
 _CORRECTION_WAIT_S = 1.0  # a restarted map waits this long for navigation's copy of the correction
 _SEARCH_EVERY_S = 0.5  # at most one wide search per this much time [s] (a CPU bound: 24 ms
 # for the default 24 deg either side, about 0.2 s for a whole turn)
 _SCAN = ScanOptions()  # immutable default: the scan likelihood's noise levels
+_ACCEPTABLE = acceptable_log_fit(_SCAN)  # what a just acceptable fit scores per measurement
 _TRACK_WIDTH_CM = 13.0  # the rover's track width when no hardware spec is given [cm]
 
 
@@ -143,6 +155,7 @@ class MapManagement(Actor):
         track_width_cm: distance between the treads' contact lines [cm] (the motion
             model's geometry).
         noise: the motion model's noise levels.
+        fault_noise: the prior of the "odometry broke unseen" hypothesis.
     """
 
     def __init__(self, pool: BufferPool, *, size_cm: tuple[float, float] = (2400.0, 2400.0),
@@ -150,6 +163,7 @@ class MapManagement(Actor):
                  restarted: bool = False, matching: MatchOptions | None = _MATCH,
                  fields_s: float = 0.5, warmup_scans: int = 20, settle_s: float = 1.0,
                  track_width_cm: float = _TRACK_WIDTH_CM, noise: MotionNoise = _NOISE,
+                 fault_noise: OdometryFaultNoise = _FAULT,
                  addresses: Addresses | None = None) -> None:
         self.pool = pool
         self._addresses = addresses
@@ -170,11 +184,16 @@ class MapManagement(Actor):
         self.settle_s = settle_s
         self.track_width_cm = track_width_cm
         self.noise = noise
+        self.fault_noise = fault_noise
         self._prev_odom: Pose | None = None  # odometry pose of the previous batch
         self._still_since = -float("inf")  # time odometry last changed between two batches
         self.belief = GaussianPose.at(Pose())
         """The pose belief (map frame) at the odometry stamp ``_belief_odom``."""
         self._belief_odom: Pose | None = None  # the odometry stamp the belief was last moved to
+        self.broken = 0.0
+        """Weight of the "odometry broke unseen" hypothesis (`odometry_fault`) [1]."""
+        self.switches = 0
+        """Times the belief became the broken component (data for metrics)."""
         self._step = (0.0, 0.0)  # the last step between two stamps: travel [cm], turn [rad]
         self.correction = Pose()
         """Odometry frame -> map frame: the belief's mean composed with the inverse of
@@ -287,6 +306,8 @@ class MapManagement(Actor):
         left, right = tread_travel(self._belief_odom, odom, self.track_width_cm)
         self._step = (0.5 * (left + right), (right - left) / self.track_width_cm)
         self.belief = self.belief.predict(left, right, self.track_width_cm, self.noise)
+        self.broken += (1.0 - self.broken) * hazard(0.5 * (abs(left) + abs(right)),
+                                                    self.fault_noise)
         self._belief_odom = odom
         # the mean moved with the counts: the correction is unchanged, up to rounding
         self.belief = self.belief.moved_to(compose(self.correction, odom))
@@ -334,6 +355,8 @@ class MapManagement(Actor):
                                 max_shift_cm=max(opts.max_shift_cm, b.radius95_cm))
         else:
             result = match_scan(fields, pts, guess, opts)
+            if self._odometry_broken(pts, result, now):
+                return self._refuse("odometry in doubt")
         if not result.accepted:
             if not result.supported and not wide:
                 return guess  # new ground, or too few hits: nothing to judge it by
@@ -362,6 +385,35 @@ class MapManagement(Actor):
         self._last_odom = odom
         self.correction = compose(self.belief.mean, inverse(odom))
         return placed
+
+    def _odometry_broken(self, pts: np.ndarray, result: MatchResult, now: float) -> bool:
+        """Weigh this batch's scan as evidence for "odometry broke unseen"
+        (`odometry_fault`); when that is the more probable hypothesis, the belief becomes
+        its wide component and True is returned (the batch's pose is in doubt)."""
+        assert self._distance is not None
+        at_mean = judge_fit(self._distance, self.belief.mean, pts, _SCAN)
+        if at_mean.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
+            return False  # nothing to judge the pose by
+        narrow = self.belief.covariance + self._stamp_covariance(now)
+        spread = broken_spread(self.matching.max_shift_cm if self.matching else 12.0)
+        wide = narrow + spread
+        log_match, d2, d2_wide = None, 0.0, 0.0
+        if result.accepted:
+            at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
+            if at_match.verdict not in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
+                e = self.belief.innovation(result.pose)
+                log_match = at_match.log_fit
+                d2 = float(e @ np.linalg.solve(narrow, e))
+                d2_wide = float(e @ np.linalg.solve(wide, e))
+        ev = FitEvidence(min(float(at_mean.hits), _SCAN.independent_hits), at_mean.log_fit,
+                         log_match, d2, d2_wide)
+        self.broken = posterior(self.broken, evidence(ev, narrow, wide, _ACCEPTABLE))
+        if self.broken <= 0.5:
+            return False
+        self.belief = self.belief.widened(spread)
+        self.broken = 0.0
+        self.switches += 1
+        return True
 
     def _stamp_covariance(self, now: float) -> np.ndarray:
         """The covariance of this batch's stamp's own error: the encoders' rounding
