@@ -17,8 +17,9 @@ Why
 
     Its weight is a probability, updated by Bayes' rule from each batch's scan:
 
-    * **prior**: before each batch, the hazard of an unseen fault over the tread travel
-      since the last batch, ``w <- w + (1 - w) (1 - exp(-rate * travel))``;
+    * **prior**: before each batch, the hazard of an unseen fault over the time since
+      the last, ``w <- w + (1 - w) (1 - exp(-rate * dt))`` (per time, not per counted
+      travel: an encoder that counts nothing while its tread turns counts no travel);
     * **evidence**: the likelihood of the scan under each component (`evidence`). Under
       "right", the scan fits where the narrow Gaussian allows: at its mean, or at the
       local match weighed by its density there. Under "broken", it fits where the wide
@@ -56,15 +57,15 @@ __all__ = ["OdometryFaultNoise", "FitEvidence", "broken_spread", "hazard", "evid
 class OdometryFaultNoise:
     """The noise level of the "odometry broken" hypothesis."""
 
-    unseen_fault_per_m: float = 0.05
-    """Rate of encoder faults Motor Control does not report, per metre of tread travel
-    [1/m] (the prior of the hypothesis; a high rate only makes the mapper search
-    sooner)."""
+    unseen_fault_per_s: float = 0.01
+    """Rate of odometry faults Motor Control does not report (a slip it does not see)
+    [1/s]: the prior of the hypothesis, a pessimistic one per 100 s of mapping (a higher
+    rate makes the mapper search sooner, on less evidence)."""
 
     def __post_init__(self) -> None:
-        if not self.unseen_fault_per_m >= 0:
-            raise ValueError(f"unseen_fault_per_m must be >= 0, got "
-                             f"{self.unseen_fault_per_m!r}")
+        if not self.unseen_fault_per_s >= 0:
+            raise ValueError(f"unseen_fault_per_s must be >= 0, got "
+                             f"{self.unseen_fault_per_s!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,10 +91,9 @@ def broken_spread(max_shift_cm: float) -> np.ndarray:
     return np.diag([s * s, s * s, (math.pi / Z_95) ** 2])
 
 
-def hazard(travel_cm: float, noise: OdometryFaultNoise) -> float:
-    """Probability [1] that an unseen encoder fault happened over ``travel_cm`` of tread
-    travel."""
-    return 1.0 - math.exp(-noise.unseen_fault_per_m * abs(travel_cm) / 100.0)
+def hazard(dt_s: float, noise: OdometryFaultNoise) -> float:
+    """Probability [1] that an unseen odometry fault happened within ``dt_s`` [s]."""
+    return 1.0 - math.exp(-noise.unseen_fault_per_s * max(dt_s, 0.0))
 
 
 def _half_logdet(cov: np.ndarray) -> float:

@@ -90,6 +90,7 @@ from actors.firmware.localisation.odometry_fault import (
 from actors.firmware.localisation.scan_likelihood import (
     MAX_BEAMS,
     FitVerdict,
+    ScanFit,
     ScanOptions,
     acceptable_log_fit,
     judge_fit,
@@ -193,6 +194,7 @@ class MapManagement(Actor):
         self.broken = 0.0
         """Weight of the "odometry broke unseen" hypothesis (`odometry_fault`) [1]."""
         self.switches = 0
+        self._weighed_at = -float("inf")  # time of the last batch weighed by `_weigh_odometry`
         """Times the belief became the broken component (data for metrics)."""
         self._step = (0.0, 0.0)  # the last step between two stamps: travel [cm], turn [rad]
         self.correction = Pose()
@@ -306,8 +308,6 @@ class MapManagement(Actor):
         left, right = tread_travel(self._belief_odom, odom, self.track_width_cm)
         self._step = (0.5 * (left + right), (right - left) / self.track_width_cm)
         self.belief = self.belief.predict(left, right, self.track_width_cm, self.noise)
-        self.broken += (1.0 - self.broken) * hazard(0.5 * (abs(left) + abs(right)),
-                                                    self.fault_noise)
         self._belief_odom = odom
         # the mean moved with the counts: the correction is unchanged, up to rounding
         self.belief = self.belief.moved_to(compose(self.correction, odom))
@@ -353,12 +353,15 @@ class MapManagement(Actor):
             b = self.belief
             result = relocalise(fields, pts, guess, opts, turn_deg=min(180.0, b.heading95_deg),
                                 max_shift_cm=max(opts.max_shift_cm, b.radius95_cm))
+            at_mean = None
         else:
             result = match_scan(fields, pts, guess, opts)
-            if self._odometry_broken(pts, result, now):
+            at_mean = self._weigh_odometry(pts, result, now)
+            if at_mean is None:
                 return self._refuse("odometry in doubt")
         if not result.accepted:
-            if not result.supported and not wide:
+            if not result.supported and at_mean is not None and (
+                    at_mean.verdict is not FitVerdict.BAD_FIT):
                 return guess  # new ground, or too few hits: nothing to judge it by
             return self._refuse(result.reason.split(" (")[0])
         assert self._distance is not None
@@ -386,14 +389,19 @@ class MapManagement(Actor):
         self.correction = compose(self.belief.mean, inverse(odom))
         return placed
 
-    def _odometry_broken(self, pts: np.ndarray, result: MatchResult, now: float) -> bool:
+    def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float
+                        ) -> ScanFit | None:
         """Weigh this batch's scan as evidence for "odometry broke unseen"
-        (`odometry_fault`); when that is the more probable hypothesis, the belief becomes
-        its wide component and True is returned (the batch's pose is in doubt)."""
+        (`odometry_fault`) and return its fit at the belief's mean; when that hypothesis
+        is the more probable, the belief becomes its wide component and None is
+        returned (the batch's pose is in doubt)."""
         assert self._distance is not None
+        if self._weighed_at > -float("inf"):
+            self.broken += (1.0 - self.broken) * hazard(now - self._weighed_at, self.fault_noise)
+        self._weighed_at = now
         at_mean = judge_fit(self._distance, self.belief.mean, pts, _SCAN)
         if at_mean.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
-            return False  # nothing to judge the pose by
+            return at_mean  # nothing to judge the pose by
         narrow = self.belief.covariance + self._stamp_covariance(now)
         spread = broken_spread(self.matching.max_shift_cm if self.matching else 12.0)
         wide = narrow + spread
@@ -409,11 +417,11 @@ class MapManagement(Actor):
                          log_match, d2, d2_wide)
         self.broken = posterior(self.broken, evidence(ev, narrow, wide, _ACCEPTABLE))
         if self.broken <= 0.5:
-            return False
+            return at_mean
         self.belief = self.belief.widened(spread)
         self.broken = 0.0
         self.switches += 1
-        return True
+        return None
 
     def _stamp_covariance(self, now: float) -> np.ndarray:
         """The covariance of this batch's stamp's own error: the encoders' rounding
