@@ -76,12 +76,16 @@ class FitEvidence:
     """Independent measurements the scan counts as [1]."""
     log_fit_mean: float
     """Mean log hit likelihood of the scan at the belief's mean [1]."""
-    log_fit_match: float | None
+    log_fit_match: float | None = None
     """The same at the local match, when the matcher found one [1]."""
-    d2_match: float
+    d2_match: float = 0.0
     """The match's squared Mahalanobis distance from the narrow component [1]."""
-    d2_match_wide: float
+    d2_match_wide: float = 0.0
     """The same from the broken component [1]."""
+    log_fit_alt: float | None = None
+    """Mean log hit likelihood at the broken component's learnt pose, when it has one [1]."""
+    d2_match_alt: float = 0.0
+    """The match's squared Mahalanobis distance from that pose (narrow covariance) [1]."""
 
 
 def broken_spread(max_shift_cm: float) -> np.ndarray:
@@ -102,21 +106,40 @@ def _half_logdet(cov: np.ndarray) -> float:
 
 
 def evidence(ev: FitEvidence, narrow: np.ndarray, wide: np.ndarray,
-             log_fit_acceptable: float) -> float:
+             log_fit_acceptable: float, *, charged: bool = False) -> float:
     """Log likelihood ratio (broken over right) [1] of one batch's scan.
 
     Each hypothesis explains the scan by the best of the poses it holds, weighed by its
     density there: the mean (d2 = 0) and the local match (``d2`` from each component);
     the broken one also by a pose elsewhere in its region (density of a typical point,
     ``exp(-3/2)`` below the peak for three dimensions) fitting as an acceptable fit does.
+
+    The Occam factor is paid once per run of scans that weigh for "broken"
+    (``charged``: the batches before paid it): every scan of the run was taken from the
+    same unknown pose, so the wide prior's volume is spent once, and after it the broken
+    component stands for that one pose, a pose away from the mean that fits as an
+    acceptable fit does (or its learnt pose: a confident fit away from the mean showed
+    where it is, and it moves with odometry since). The caller clears ``charged`` when a
+    scan weighs for "right".
     """
     n = ev.n_eff
     ok = [n * ev.log_fit_mean]
-    br = [n * ev.log_fit_mean, n * log_fit_acceptable - 1.5]
     if ev.log_fit_match is not None:
         ok.append(n * ev.log_fit_match - 0.5 * ev.d2_match)
-        br.append(n * ev.log_fit_match - 0.5 * ev.d2_match_wide)
-    return (max(br) - _half_logdet(wide)) - (max(ok) - _half_logdet(narrow))
+    right = max(ok) - _half_logdet(narrow)
+    if charged:
+        broken = n * log_fit_acceptable - 1.5 - _half_logdet(narrow)
+    else:
+        br = [n * ev.log_fit_mean, n * log_fit_acceptable - 1.5]
+        if ev.log_fit_match is not None:
+            br.append(n * ev.log_fit_match - 0.5 * ev.d2_match_wide)
+        broken = max(br) - _half_logdet(wide)
+    if ev.log_fit_alt is not None:
+        alt = [n * ev.log_fit_alt]
+        if ev.log_fit_match is not None:
+            alt.append(n * ev.log_fit_match - 0.5 * ev.d2_match_alt)
+        broken = max(broken, max(alt) - _half_logdet(narrow))
+    return broken - right
 
 
 def posterior(prior: float, log_ratio: float) -> float:

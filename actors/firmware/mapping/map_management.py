@@ -65,6 +65,7 @@ from __future__ import annotations
 
 import contextlib
 from collections import Counter
+from dataclasses import replace
 
 import numpy as np
 import trio
@@ -88,7 +89,9 @@ from actors.firmware.localisation.odometry_fault import (
     posterior,
 )
 from actors.firmware.localisation.scan_likelihood import (
+    GATE_CHI2,
     MAX_BEAMS,
+    MIN_FIT,
     FitVerdict,
     ScanFit,
     ScanOptions,
@@ -195,6 +198,11 @@ class MapManagement(Actor):
         """Weight of the "odometry broke unseen" hypothesis (`odometry_fault`) [1]."""
         self.switches = 0
         self._weighed_at = -float("inf")  # time of the last batch weighed by `_weigh_odometry`
+        # odometry -> map frame under "broken", learnt from a confident fit the narrow
+        # belief could not hold (None: not learnt, the broken component is wide)
+        self._alt_correction: Pose | None = None
+        self._charged = False  # the scans since the last that weighed for "right" paid the
+        # broken component's Occam factor (`odometry_fault.evidence`)
         """Times the belief became the broken component (data for metrics)."""
         self._step = (0.0, 0.0)  # the last step between two stamps: travel [cm], turn [rad]
         self.correction = Pose()
@@ -393,7 +401,8 @@ class MapManagement(Actor):
                         ) -> ScanFit | None:
         """Weigh this batch's scan as evidence for "odometry broke unseen"
         (`odometry_fault`) and return its fit at the belief's mean; when that hypothesis
-        is the more probable, the belief becomes its wide component and None is
+        is the more probable, the belief becomes its component (round the pose a confident
+        fit away from the mean showed, or, with none, wide round the mean) and None is
         returned (the batch's pose is in doubt)."""
         assert self._distance is not None
         if self._weighed_at > -float("inf"):
@@ -405,21 +414,42 @@ class MapManagement(Actor):
         narrow = self.belief.covariance + self._stamp_covariance(now)
         spread = broken_spread(self.matching.max_shift_cm if self.matching else 12.0)
         wide = narrow + spread
-        log_match, d2, d2_wide = None, 0.0, 0.0
+        odom = self._belief_odom
+        assert odom is not None
+        alt = None if self._alt_correction is None else compose(self._alt_correction, odom)
+        ev = FitEvidence(min(float(at_mean.hits), _SCAN.independent_hits), at_mean.log_fit)
+        if alt is not None:
+            at_alt = judge_fit(self._distance, alt, pts, _SCAN)
+            if at_alt.fit < MIN_FIT:
+                alt = self._alt_correction = None  # the scan refutes it
+            else:
+                ev = replace(ev, log_fit_alt=at_alt.log_fit)
         if result.accepted:
             at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
             if at_match.verdict not in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
                 e = self.belief.innovation(result.pose)
-                log_match = at_match.log_fit
                 d2 = float(e @ np.linalg.solve(narrow, e))
-                d2_wide = float(e @ np.linalg.solve(wide, e))
-        ev = FitEvidence(min(float(at_mean.hits), _SCAN.independent_hits), at_mean.log_fit,
-                         log_match, d2, d2_wide)
-        self.broken = posterior(self.broken, evidence(ev, narrow, wide, _ACCEPTABLE))
+                ev = replace(ev, log_fit_match=at_match.log_fit, d2_match=d2,
+                             d2_match_wide=float(e @ np.linalg.solve(wide, e)))
+                if alt is not None:
+                    ea = GaussianPose(alt, narrow).innovation(result.pose)
+                    ev = replace(ev, d2_match_alt=float(ea @ np.linalg.solve(narrow, ea)))
+                if at_match.fit >= MIN_FIT and d2 > GATE_CHI2:
+                    # a confident fit the narrow belief cannot hold: where "broken" would be
+                    self._alt_correction = compose(result.pose, inverse(odom))
+        step = evidence(ev, narrow, wide, _ACCEPTABLE, charged=self._charged)
+        self._charged = step > 0.0  # a run of scans for "broken" pays its Occam factor once
+        self.broken = posterior(self.broken, step)
         if self.broken <= 0.5:
             return at_mean
-        self.belief = self.belief.widened(spread)
+        if self._alt_correction is not None:
+            self.belief = GaussianPose(compose(self._alt_correction, odom), narrow)
+        else:
+            self.belief = self.belief.widened(spread)
+        self.correction = compose(self.belief.mean, inverse(odom))
         self.broken = 0.0
+        self._alt_correction = None
+        self._charged = False
         self.switches += 1
         return None
 
