@@ -449,11 +449,13 @@ async def test_a_match_outside_the_belief_is_refused_and_counted_not_placed(
 
 
 @pytest.mark.trio
-async def test_without_the_lost_notice_a_standing_rover_draws_its_unseen_turn(
-        autojump_clock) -> None:
-    """The same batches without MAP_TREAD_FAULT: odometry stands and the belief is narrow,
-    so after ``settle_s`` they are placed at the stale heading and draw a rotated copy of
-    the room (what the relayed report prevents)."""
+async def test_an_unseen_turn_of_a_standing_rover_is_refound_not_drawn(autojump_clock) -> None:
+    """The same batches without MAP_TREAD_FAULT: odometry stands and the narrow belief says
+    0 deg while the rover turned 50 deg. The scans fit badly at the mean and the local
+    match cannot reach the truth: they are dropped, not placed at the stale heading, and
+    they weigh for the "odometry broke unseen" hypothesis until it is the more probable.
+    The belief then becomes its wide component, the wide search re-finds the heading,
+    and the room is not drawn a second time (the gate does not lock the truth out)."""
     from server.protocol.pose import Pose
 
     pool, log = BufferPool(64), []
@@ -465,8 +467,42 @@ async def test_without_the_lost_notice_a_standing_rover_draws_its_unseen_turn(
             _send_room_scan(system, pool, truth, truth if k < 3 else turned)
             await trio.sleep(0.1)
             if k == 2:
-                before = system.whereis("mapper/map").actor.grid.cells()
-        after = system.whereis("mapper/map").actor.grid.cells()
-        assert _stray_walls(before, after) > 30  # (102)
+                mm = system.whereis("mapper/map").actor
+                before, scans = mm.grid.cells(), mm.scans
+            elif k == 3:  # the first bad scan alone does not outweigh the prior
+                assert mm.switches == 0 and 0.0 < mm.broken < 0.5 and mm.scans == scans
+        assert mm.switches == 1 and mm.refusals["odometry in doubt"] == 1
+        assert mm.searched >= 1 and mm.scans > scans
+        assert mm.correction.heading_deg == pytest.approx(50.0, abs=1.5)
+        assert not mm.wide(mm.matching)
+        assert _stray_walls(before, mm.grid.cells()) <= 3  # (the rotated copy drew 102)
 
 
+@pytest.mark.trio
+async def test_a_slip_the_encoders_did_not_report_is_recovered(autojump_clock) -> None:
+    """A 90 deg turn counted as 60 (an encoder slipping unseen, Motor Control reporting
+    nothing): batch by batch the odometry falls behind the truth, the narrow belief's
+    gate refuses what the scans say, and the scans weigh for "odometry broke unseen".
+    The mapper re-finds the heading within a few batches after the turn instead of
+    mapping the room rotated, and its belief holds the truth again."""
+    from server.protocol.pose import Pose
+
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3)
+    x, y = 120.0, 80.0
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):
+            _send_room_scan(system, pool, Pose(x, y, 0.0), Pose(x, y, 0.0))
+            await trio.sleep(0.1)
+        mm = system.whereis("mapper/map").actor
+        before = mm.grid.cells()
+        for k in range(1, 4):  # the turn: 20 deg counted, 30 deg turned per batch
+            _send_room_scan(system, pool, Pose(x, y, 20.0 * k), Pose(x, y, 30.0 * k))
+            await trio.sleep(0.05)
+        for _ in range(30):  # standing at 90 deg, odometry at 60
+            _send_room_scan(system, pool, Pose(x, y, 60.0), Pose(x, y, 90.0))
+            await trio.sleep(0.1)
+        assert mm.correction.heading_deg == pytest.approx(30.0, abs=2.0)
+        assert mm.belief.mean.heading_deg == pytest.approx(90.0, abs=2.0)
+        assert _stray_walls(before, mm.grid.cells()) <= 6
