@@ -9,7 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.odometry_fault import (
     FitEvidence,
     OdometryFaultNoise,
@@ -25,12 +24,9 @@ from actors.firmware.localisation.scan_likelihood import (
     judge_fit,
 )
 from server.protocol.pose import Pose
-from tests.localisation_rooms import cast, room
+from tests.localisation_rooms import cast
+from tests.test_localisation_scan import ANGLES, FIELD, ROOM, TRUTH
 
-ROOM = room(300.0, 200.0, (180.0, 60.0, 40.0, 30.0), (40.0, 140.0, 60.0, 20.0))
-FIELD = DistanceField.from_grid(ROOM)
-TRUTH = Pose(110.0, 80.0, 20.0)
-ANGLES = np.arange(0.0, 360.0, 1.0)
 POINTS = hits_to_points(ANGLES, cast(ROOM, TRUTH, ANGLES))
 NARROW = np.diag([1.0, 1.0, math.radians(1.0) ** 2])
 WIDE = NARROW + broken_spread(12.0)
