@@ -30,7 +30,7 @@ Why
       mean, do.
 
     When "broken" is the more probable (``w > 1/2``), the belief becomes the broken
-    component (`switched`): it is then wider than the local match reaches, so Map
+    component, wide round the mean: it is then wider than the local match reaches, so Map
     Management places nothing unmatched and searches the wide region for an
     unambiguous fit, which narrows it again. No count of refusals is a trigger: a run
     of good fits away from the mean and a run of bad fits are both evidence, weighed

@@ -401,9 +401,8 @@ class MapManagement(Actor):
                         ) -> ScanFit | None:
         """Weigh this batch's scan as evidence for "odometry broke unseen"
         (`odometry_fault`) and return its fit at the belief's mean; when that hypothesis
-        is the more probable, the belief becomes its component (round the pose a confident
-        fit away from the mean showed, or, with none, wide round the mean) and None is
-        returned (the batch's pose is in doubt)."""
+        is the more probable, the belief becomes its wide component and None is returned
+        (the batch's pose is in doubt)."""
         assert self._distance is not None
         if self._weighed_at > -float("inf"):
             self.broken += (1.0 - self.broken) * hazard(now - self._weighed_at, self.fault_noise)
@@ -442,11 +441,10 @@ class MapManagement(Actor):
         self.broken = posterior(self.broken, step)
         if self.broken <= 0.5:
             return at_mean
-        if self._alt_correction is not None:
-            self.belief = GaussianPose(compose(self._alt_correction, odom), narrow)
-        else:
-            self.belief = self.belief.widened(spread)
-        self.correction = compose(self.belief.mean, inverse(odom))
+        # wide round the mean, not narrow round the learnt pose: one match (a scan blurred
+        # by a turn) may have put it a few degrees off; the wide search's unambiguous fit
+        # decides where the rover is
+        self.belief = self.belief.widened(spread)
         self.broken = 0.0
         self._alt_correction = None
         self._charged = False
