@@ -103,6 +103,18 @@ def test_relocalise_finds_a_pose_10_to_20_deg_off(dx, dy, dh) -> None:
     assert abs(result.pose.heading_deg - truth.heading_deg) < 1.0
 
 
+def test_relocalise_finds_a_guess_that_was_right() -> None:
+    """A wide belief whose mean is the truth: the search's winner is at the guess, and
+    no other heading rivals it, so it is accepted (the guess is no rival to itself)."""
+    occ = room_map()
+    truth = Pose(120.0, 80.0, 20.0)
+    angles, ranges = ray_scan(occ, truth)
+    pts = hits_to_local(angles, ranges, MatchOptions())
+    result = relocalise(MatchFields(occ, ORIGIN, RES), pts, truth, turn_deg=180.0)
+    assert result.accepted, result.reason
+    assert abs(result.pose.heading_deg - truth.heading_deg) < 1.0
+
+
 def test_relocalise_refuses_an_ambiguous_view() -> None:
     """In a round room every heading fits as well: nothing to re-localise by."""
     yy, xx = np.mgrid[0:80, 0:100]

@@ -401,9 +401,9 @@ RELOCALISE_MIN_SCORE = 0.45
 RELOCALISE_MIN_SUPPORT = 0.6
 """...and this share of its hits must land on mapped obstacles..."""
 RELOCALISE_MARGIN = 0.08
-"""...and it must beat the guess, and any other fit more than 2 ``RELOCALISE_STEP_DEG``
-away in heading, by this much (an ambiguous view, such as a round wall, is not
-re-localised)."""
+"""...and it must beat any other fit more than 2 ``RELOCALISE_STEP_DEG`` away in heading
+(the guess among them, when the winner lies that far from it) by this much (an ambiguous
+view, such as a round wall, is not re-localised)."""
 
 
 def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
@@ -458,7 +458,11 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     if score < RELOCALISE_MIN_SCORE or support < RELOCALISE_MIN_SUPPORT:
         return MatchResult(guess, False, score0, score0,
                            f"best fit too weak ({score:.2f}, {support:.0%} on obstacles)", True)
-    if score < score0 + RELOCALISE_MARGIN or score < rival + RELOCALISE_MARGIN:
+    # the guess is a rival only when the winner lies away from it: a wide belief whose
+    # mean is right must be able to find its own mean
+    near_guess = abs(math.degrees(est[2] - theta0)) <= 2.0 * RELOCALISE_STEP_DEG
+    if score < rival + RELOCALISE_MARGIN or (
+            not near_guess and score < score0 + RELOCALISE_MARGIN):
         return MatchResult(guess, False, score0, score0,
                            f"ambiguous ({score:.2f} against {max(score0, rival):.2f})", True)
     return MatchResult(Pose(float(est[0]), float(est[1]), math.degrees(est[2])), True,
