@@ -336,8 +336,8 @@ class OccupancyGrid:
         fx, fy = gx - c0, gy - r0
         ex, ey = 1 - fx, 1 - fy
         r1, c1 = r0 + 1, c0 + 1
-        # the four corners in the order (0, 0), (0, 1), (1, 0), (1, 1), each cell's
-        # additions in that sequence (the same float32 roundings as four `np.add.at`)
+        # the four corners in one ufunc.at call, in the order (0, 0), (0, 1), (1, 0),
+        # (1, 1): it adds in sequence, as four calls would (same float32 roundings)
         rows = np.concatenate([r0, r0, r1, r1])
         cols = np.concatenate([c0, c1, c0, c1])
         weights = np.concatenate([ex * ey, fx * ey, ex * fy, fx * fy])
@@ -346,30 +346,7 @@ class OccupancyGrid:
         flat = rows * nx + cols
         if not np.logical_and.reduce(inside):
             flat, weights = flat[inside], weights[inside]
-        self._add_in_sequence(self._hits.reshape(-1), flat, weights)
-
-    def _add_in_sequence(self, target: np.ndarray, flat_idx: np.ndarray,
-                         values: np.ndarray) -> None:
-        """``np.add.at(target, flat_idx, values)`` for a float32 ``target`` and float64
-        ``values``: each addition rounded to float32 in turn.
-
-        Why: `np.add.at` converts between the two types element by element (about
-        65 ns each, twenty times its plain speed). Each cell's first addition is one
-        vectorised gather, add and scatter (the same rounding per element); only a
-        cell's later additions, in their order, go through `np.add.at`.
-        """
-        n = flat_idx.size
-        if n > self._positions.size:
-            self._positions = np.arange(max(n, 2 * self._positions.size), dtype=np.int32)
-        pos = self._positions[:n]
-        scratch = self._scratch
-        scratch[flat_idx[::-1]] = pos[::-1]  # the last write wins: each cell's first
-        first = scratch[flat_idx] == pos
-        cells = flat_idx.compress(first)
-        target[cells] = target[cells] + values.compress(first)
-        if cells.size < n:
-            later = ~first
-            np.add.at(target, flat_idx.compress(later), values.compress(later))
+        np.add.at(self._hits.reshape(-1), flat, weights)
 
     def _set_classes(self, flat_idx: np.ndarray, free: np.ndarray, occupied: np.ndarray) -> None:
         """Record the new classes of the cells ``flat_idx`` (their log-odds just changed)."""
