@@ -163,6 +163,21 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         await self._step()
         return True
 
+    async def goto_as(self, goal: tuple[float, float], heading: float | None, state: str,
+                      detail: str, *, stop_short_cm: float = 0.0) -> bool:
+        """`goto`, then say ``state`` (``detail``) while the route is driven.
+
+        A route may end as it starts (the goal already within tolerance): `goto` then
+        calls `on_arrived`, which moves on to the next state (a scan). Only a route
+        still being driven is relabelled; relabelling after that would leave the rover
+        in a state that nothing ends (no motion in flight, no scan running).
+        """
+        if not await self.goto(goal, heading, stop_short_cm=stop_short_cm):
+            return False
+        if self.state == "driving":
+            await self.set_state(state, detail)
+        return True
+
     def plan_tiers(self) -> tuple[tuple[float, float], ...]:
         """(radius, margin) pairs to plan with, most cautious first [cm] (the first that
         gives a path is used).
