@@ -11,6 +11,7 @@ from actors import BufferPool
 from actors.firmware.localisation.odometry import advance
 from actors.firmware.nav.belief_tracking import tread_motion
 from actors.firmware.nav.factory import make_nav
+from actors.firmware.nav.options import NavMemory
 from actors.firmware.nav.route import Motion
 from server.protocol.pose import Pose
 from tests.test_nav_recovery import scraped_nav
@@ -90,3 +91,53 @@ def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
     nav.set_origin(Pose(60.0, 40.0, 0.0))
     nav.on_server_origin()
     assert nav.drift_cm < 4.0
+
+
+def test_a_restarted_navigation_goes_on_from_its_belief_and_its_given_origin() -> None:
+    """A navigation restarted after a contact corrected and widened its belief takes the
+    belief up from the retained `NavMemory` (same pose, same doubt) and moves it by what
+    Motor Control counted meanwhile; the retried destination's ``origin`` that follows
+    is known as the one it was given (the belief widened, not put back on dead
+    reckoning from the start with the start's 1 cm)."""
+    memory = NavMemory()
+    nav = scraped_nav(0.0, memory=memory)
+    start = Pose(150.0, 150.0, 0.0)
+    nav.pose = Pose(0.0, 0.0, 0.0)
+    nav.set_origin(start)
+    nav.on_server_origin()
+    for _ in range(3):
+        nav.last_motion = Motion("turn", 90.0)
+        nav.pose = Pose(nav.pose.x, nav.pose.y, nav.pose.heading_deg + 90.0)
+        nav.track_belief()
+        nav.last_motion = Motion("move", 20.0)
+        nav.pose = advance(nav.pose, 20.0, 20.0, 13.0)
+        nav.track_belief()
+    nav.last_motion = Motion("turn", 180.0 - nav.pose.heading_deg)
+    nav.pose = Pose(nav.pose.x, nav.pose.y, 180.0)
+    nav.track_belief()
+    nav.motion_from = nav.map_pose
+    nav.last_motion = Motion("move", 200.0)  # blocked against the room's left wall
+    nav.pose = Pose(10.0 - start.x, nav.pose.y, 180.0)
+    nav.contact_update()
+    assert nav.counters["contacts"] == 1
+    learned, doubt = nav.map_pose, nav.drift_cm
+    assert doubt > 4.0
+
+    again = make_nav("hider", pool=BufferPool(4), memory=memory)  # the new incarnation
+    again.map = again.work_map = nav.map
+    again.origin = Pose(*memory.origin)  # as `NavBase.on_start` takes it
+    again.pose, again.pose_known = nav.pose, True
+    p = again.map_pose
+    assert (p.x, p.y, p.heading_deg) == pytest.approx((learned.x, learned.y, learned.heading_deg))
+    assert again.drift_cm == pytest.approx(doubt)
+    again.last_motion = Motion("move", -6.0)  # driven while it restarted
+    again.pose = advance(again.pose, -6.0, -6.0, 13.0)
+    again.track_belief()
+    assert again.map_pose.x == pytest.approx(learned.x + 6.0, abs=1.0)
+    before = again.drift_cm
+    again.set_origin(start)
+    again.on_server_origin()
+    assert again.counters["retry_widened"] == 1
+    assert again.drift_cm > before
+    assert math.dist((again.map_pose.x, again.map_pose.y),
+                     (learned.x + 6.0, learned.y)) <= again.drift_cm
