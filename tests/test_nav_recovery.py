@@ -32,6 +32,7 @@ from actors.firmware.nav.nudge import (
     series_offset,
 )
 from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.recovery import REPLAN_LIMIT
 from actors.firmware.nav.route import Motion
 from server.protocol.pose import Pose, compose, inverse
 from tests.test_nav_common import (
@@ -529,3 +530,31 @@ def test_probe_points_are_held_in_the_rovers_own_frame() -> None:
     assert after is not None and own(after)[:4] == pytest.approx(held)
     assert at_mouth(nav.map, Pose(240.0, 150.0, 0.0), 10.0)
     assert not at_mouth(nav.map, Pose(300.0, 150.0, 0.0), 10.0)  # inside: not a mouth
+
+
+LONG_CORRIDOR = Truth(0, 0, 1000, 300, boxes=((150, 0, 650, 135), (150, 165, 650, 135)))
+"""A 6.5 m corridor (map x 150..800), 30 cm wide like the short one."""
+
+
+@pytest.mark.trio
+async def test_scrapes_all_along_a_long_passage_do_not_use_up_the_route(autojump_clock) -> None:
+    """Blocked every 45 cm along a 6.5 m passage (a scrape of its side wall, 3 deg yaw
+    each): 13 blocks, more than `REPLAN_LIMIT`, but each after the route got nearer its
+    goal, so the count starts afresh and the hider drives out of the far end and
+    arrives; the same blocks at one place would give the route up."""
+    scrapes = [(120.0 + 45.0 * k, 3.0 if k % 2 else -3.0) for k in range(13)]
+    assert len(scrapes) > REPLAN_LIMIT
+    blocks = Blocks(*scrapes)
+    body = Body(script=blocks)
+    blocks.body = body
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
+                                                 options=NARROW), "hider")
+        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
+                         {"x": 900.0, "y": 150.0, "heading": None}, room_map(LONG_CORRIDOR))
+        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
+                              600.0)
+    assert len(blocks.at) == len(scrapes)
+    assert body.frames("invalid_spot") == [], body.frames("invalid_spot")
+    assert body.frames("arrived")
