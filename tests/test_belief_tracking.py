@@ -53,20 +53,17 @@ def test_a_new_origin_starts_a_new_belief_round_it() -> None:
     assert nav.drift_cm < 4.0
 
 
-def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
-    """The server sends the same ``origin`` with every ``hide``. After a route that
-    turned (its doubt grew) and ended against the room's left wall (the contact narrowed
-    the belief across it), the same origin again keeps the belief, widened by dead
-    reckoning alone (which no contact narrowed): its 95 % radius grows, and the pose
-    stays within it of where it was; it does not fall back to the start's 1 cm. A
-    different origin is a new placement: a new, narrow belief round it."""
-    nav = scraped_nav(0.0)
-    start = Pose(150.0, 150.0, 0.0)  # own (0, 0), in the room left of the corridor
+def _to_the_left_wall(nav, legs: int) -> Pose:
+    """Start ``nav`` at the server's origin (map (150, 150) @ 0, its own (0, 0)), drive
+    ``legs`` quarter turns and 20 cm legs (the heading doubt grows), then west until
+    blocked with the nose on the room's left wall (the contact narrows the belief across
+    it); returns the origin."""
+    start = Pose(150.0, 150.0, 0.0)  # in the room left of the corridor
     nav.pose = Pose(0.0, 0.0, 0.0)
     nav.set_origin(start)
     nav.on_server_origin()
     assert nav.drift_cm < 4.0
-    for _ in range(6):  # a square's worth of turns and legs: the heading doubt grows
+    for _ in range(legs):
         nav.last_motion = Motion("turn", 90.0)
         nav.pose = Pose(nav.pose.x, nav.pose.y, nav.pose.heading_deg + 90.0)
         nav.track_belief()
@@ -81,6 +78,18 @@ def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
     nav.pose = Pose(10.0 - start.x, nav.pose.y, 180.0)
     nav.contact_update()
     assert nav.counters["contacts"] == 1
+    return start
+
+
+def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
+    """The server sends the same ``origin`` with every ``hide``. After a route that
+    turned (its doubt grew) and ended against the room's left wall (the contact narrowed
+    the belief across it), the same origin again keeps the belief, widened by dead
+    reckoning alone (which no contact narrowed): its 95 % radius grows, and the pose
+    stays within it of where it was; it does not fall back to the start's 1 cm. A
+    different origin is a new placement: a new, narrow belief round it."""
+    nav = scraped_nav(0.0)
+    start = _to_the_left_wall(nav, 6)
     tried, pose = nav.drift_cm, nav.map_pose
     assert tried > 4.0 and pose.x == pytest.approx(10.0, abs=3.0)
     nav.set_origin(start)  # what the base does with the frame, before the hook
@@ -101,25 +110,7 @@ def test_a_restarted_navigation_goes_on_from_its_belief_and_its_given_origin() -
     reckoning from the start with the start's 1 cm)."""
     memory = NavMemory()
     nav = scraped_nav(0.0, memory=memory)
-    start = Pose(150.0, 150.0, 0.0)
-    nav.pose = Pose(0.0, 0.0, 0.0)
-    nav.set_origin(start)
-    nav.on_server_origin()
-    for _ in range(3):
-        nav.last_motion = Motion("turn", 90.0)
-        nav.pose = Pose(nav.pose.x, nav.pose.y, nav.pose.heading_deg + 90.0)
-        nav.track_belief()
-        nav.last_motion = Motion("move", 20.0)
-        nav.pose = advance(nav.pose, 20.0, 20.0, 13.0)
-        nav.track_belief()
-    nav.last_motion = Motion("turn", 180.0 - nav.pose.heading_deg)
-    nav.pose = Pose(nav.pose.x, nav.pose.y, 180.0)
-    nav.track_belief()
-    nav.motion_from = nav.map_pose
-    nav.last_motion = Motion("move", 200.0)  # blocked against the room's left wall
-    nav.pose = Pose(10.0 - start.x, nav.pose.y, 180.0)
-    nav.contact_update()
-    assert nav.counters["contacts"] == 1
+    start = _to_the_left_wall(nav, 3)
     learned, doubt = nav.map_pose, nav.drift_cm
     assert doubt > 4.0
 
