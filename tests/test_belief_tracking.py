@@ -11,6 +11,7 @@ from actors import BufferPool
 from actors.firmware.localisation.odometry import advance
 from actors.firmware.nav.belief_tracking import tread_motion
 from actors.firmware.nav.factory import make_nav
+from actors.firmware.nav.options import NavMemory
 from actors.firmware.nav.route import Motion
 from server.protocol.pose import Pose
 from tests.test_nav_recovery import scraped_nav
@@ -52,20 +53,17 @@ def test_a_new_origin_starts_a_new_belief_round_it() -> None:
     assert nav.drift_cm < 4.0
 
 
-def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
-    """The server sends the same ``origin`` with every ``hide``. After a route that
-    turned (its doubt grew) and ended against the room's left wall (the contact narrowed
-    the belief across it), the same origin again keeps the belief, widened by dead
-    reckoning alone (which no contact narrowed): its 95 % radius grows, and the pose
-    stays within it of where it was; it does not fall back to the start's 1 cm. A
-    different origin is a new placement: a new, narrow belief round it."""
-    nav = scraped_nav(0.0)
-    start = Pose(150.0, 150.0, 0.0)  # own (0, 0), in the room left of the corridor
+def _to_the_left_wall(nav, legs: int) -> Pose:
+    """Start ``nav`` at the server's origin (map (150, 150) @ 0, its own (0, 0)), drive
+    ``legs`` quarter turns and 20 cm legs (the heading doubt grows), then west until
+    blocked with the nose on the room's left wall (the contact narrows the belief across
+    it); returns the origin."""
+    start = Pose(150.0, 150.0, 0.0)  # in the room left of the corridor
     nav.pose = Pose(0.0, 0.0, 0.0)
     nav.set_origin(start)
     nav.on_server_origin()
     assert nav.drift_cm < 4.0
-    for _ in range(6):  # a square's worth of turns and legs: the heading doubt grows
+    for _ in range(legs):
         nav.last_motion = Motion("turn", 90.0)
         nav.pose = Pose(nav.pose.x, nav.pose.y, nav.pose.heading_deg + 90.0)
         nav.track_belief()
@@ -80,6 +78,18 @@ def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
     nav.pose = Pose(10.0 - start.x, nav.pose.y, 180.0)
     nav.contact_update()
     assert nav.counters["contacts"] == 1
+    return start
+
+
+def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
+    """The server sends the same ``origin`` with every ``hide``. After a route that
+    turned (its doubt grew) and ended against the room's left wall (the contact narrowed
+    the belief across it), the same origin again keeps the belief, widened by dead
+    reckoning alone (which no contact narrowed): its 95 % radius grows, and the pose
+    stays within it of where it was; it does not fall back to the start's 1 cm. A
+    different origin is a new placement: a new, narrow belief round it."""
+    nav = scraped_nav(0.0)
+    start = _to_the_left_wall(nav, 6)
     tried, pose = nav.drift_cm, nav.map_pose
     assert tried > 4.0 and pose.x == pytest.approx(10.0, abs=3.0)
     nav.set_origin(start)  # what the base does with the frame, before the hook
@@ -90,3 +100,35 @@ def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
     nav.set_origin(Pose(60.0, 40.0, 0.0))
     nav.on_server_origin()
     assert nav.drift_cm < 4.0
+
+
+def test_a_restarted_navigation_goes_on_from_its_belief_and_its_given_origin() -> None:
+    """A navigation restarted after a contact corrected and widened its belief takes the
+    belief up from the retained `NavMemory` (same pose, same doubt) and moves it by what
+    Motor Control counted meanwhile; the retried destination's ``origin`` that follows
+    is known as the one it was given (the belief widened, not put back on dead
+    reckoning from the start with the start's 1 cm)."""
+    memory = NavMemory()
+    nav = scraped_nav(0.0, memory=memory)
+    start = _to_the_left_wall(nav, 3)
+    learned, doubt = nav.map_pose, nav.drift_cm
+    assert doubt > 4.0
+
+    again = make_nav("hider", pool=BufferPool(4), memory=memory)  # the new incarnation
+    again.map = again.work_map = nav.map
+    again.origin = Pose(*memory.origin)  # as `NavBase.on_start` takes it
+    again.pose, again.pose_known = nav.pose, True
+    p = again.map_pose
+    assert (p.x, p.y, p.heading_deg) == pytest.approx((learned.x, learned.y, learned.heading_deg))
+    assert again.drift_cm == pytest.approx(doubt)
+    again.last_motion = Motion("move", -6.0)  # driven while it restarted
+    again.pose = advance(again.pose, -6.0, -6.0, 13.0)
+    again.track_belief()
+    assert again.map_pose.x == pytest.approx(learned.x + 6.0, abs=1.0)
+    before = again.drift_cm
+    again.set_origin(start)
+    again.on_server_origin()
+    assert again.counters["retry_widened"] == 1
+    assert again.drift_cm > before
+    assert math.dist((again.map_pose.x, again.map_pose.y),
+                     (learned.x + 6.0, learned.y)) <= again.drift_cm

@@ -86,6 +86,14 @@ def test_a_body_overlapping_a_wall_is_unlikely_and_unknown_ground_is_not() -> No
     assert free_space_log_likelihood(half_known, _particles((150.0, 50.0, 0.0)), BODY)[0] == 0.0
 
 
+def test_a_body_up_to_a_cell_past_a_mapped_face_is_not_inside_the_wall() -> None:
+    """A mapped face lies up to a cell (5 cm) in front of the wall's face, so a rover
+    touching the wall overlaps the wall's cells by up to a cell: its front edge 4 cm past
+    the face (x 100, or the top wall's y 95) is free ground, 6 cm past it is inside."""
+    p = _particles((94.0, 20.0, 0.0), (96.0, 20.0, 0.0), (20.0, 89.0, 90.0))
+    assert inside_obstacle(FIELD, p, BODY).tolist() == [False, True, False]
+
+
 def test_the_gap_is_zero_for_a_body_touching_a_face_and_grows_with_distance() -> None:
     """Front edge on the wall's face (x 100): 0; 10 cm short: 10 cm; backward: the rear."""
     gaps = contact_gap_cm(FIELD, _particles((90.0, 25.0, 0.0), (80.0, 25.0, 0.0)), BODY)

@@ -32,6 +32,7 @@ from actors.firmware.nav.nudge import (
     series_offset,
 )
 from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.recovery import REPLAN_LIMIT
 from actors.firmware.nav.route import Motion
 from server.protocol.pose import Pose, compose, inverse
 from tests.test_nav_common import (
@@ -198,14 +199,17 @@ async def test_a_block_in_a_narrow_passage_probes_sideways_and_gets_through(
 async def test_a_nudge_mid_corridor_shifts_the_route_left_and_drives_on(autojump_clock) -> None:
     """Blocked mid-corridor with no waypoint near the block: after the back-off the rover
     turns a little left (toward the route shifted 4 cm that way) and drives on to the
-    end of the corridor, left of its axis."""
+    end of the corridor, left of where dead reckoning had it at the block (the pose it
+    reports is the belief's, which the contact split across the corridor)."""
     blocks = Blocks((250.0, 0.0))
     body = await drive_corridor(blocks, after_s=6.0)
     motions = [(c, v) for _, c, v in motions_after(body, 0, blocks)]
     assert motions[0] == ("MOTOR_MOVE", -6.0)
     assert motions[1][0] == "MOTOR_TURN" and 0.0 < motions[1][1] < 45.0
     track = poses_after(body, 0, blocks)
-    assert track[-1][0] > 400.0 and track[-1][1] > 150.0
+    assert track[-1][0] > 400.0
+    blocked_at = dead_reckoned_after_back_off(body, 0, blocks)
+    assert body.published[-1][1].y + CORRIDOR_ORIGIN["y"] > blocked_at.y + 2.0
 
 
 @pytest.mark.trio
@@ -252,11 +256,13 @@ async def test_a_back_off_that_did_not_move_replans_instead_of_reversing_again(
     assert any(c == "MOTOR_MOVE" and v > 0 for _, c, v in after[:3])
 
 
-def scraped_nav(yaw_deg: float, sigma_cm: float = 4.0, **options: Any) -> Any:
+def scraped_nav(yaw_deg: float, sigma_cm: float = 4.0, memory: NavMemory | None = None,
+                **options: Any) -> Any:
     """A hider navigation (not started) mid-corridor by dead reckoning (map (300, 150) @ 0,
     own frame (250, 100) @ 0), whose last forward move ended blocked after yawing
-    ``yaw_deg``; its belief is ``sigma_cm`` wide round that pose."""
-    nav = make_nav("hider", pool=BufferPool(4), options=NavOptions(**options))
+    ``yaw_deg``; its belief is ``sigma_cm`` wide round that pose (``memory``: its
+    retained `NavMemory`)."""
+    nav = make_nav("hider", pool=BufferPool(4), options=NavOptions(**options), memory=memory)
     nav.map = nav.work_map = room_map(
         Truth(0, 0, 700, 300, boxes=((250, 0, 200, 135), (250, 165, 200, 135))))
     nav.origin = Pose(50.0, 50.0, 0.0)
@@ -524,3 +530,31 @@ def test_probe_points_are_held_in_the_rovers_own_frame() -> None:
     assert after is not None and own(after)[:4] == pytest.approx(held)
     assert at_mouth(nav.map, Pose(240.0, 150.0, 0.0), 10.0)
     assert not at_mouth(nav.map, Pose(300.0, 150.0, 0.0), 10.0)  # inside: not a mouth
+
+
+LONG_CORRIDOR = Truth(0, 0, 1000, 300, boxes=((150, 0, 650, 135), (150, 165, 650, 135)))
+"""A 6.5 m corridor (map x 150..800), 30 cm wide like the short one."""
+
+
+@pytest.mark.trio
+async def test_scrapes_all_along_a_long_passage_do_not_use_up_the_route(autojump_clock) -> None:
+    """Blocked every 45 cm along a 6.5 m passage (a scrape of its side wall, 3 deg yaw
+    each): 13 blocks, more than `REPLAN_LIMIT`, but each after the route got nearer its
+    goal, so the count starts afresh and the hider drives out of the far end and
+    arrives; the same blocks at one place would give the route up."""
+    scrapes = [(120.0 + 45.0 * k, 3.0 if k % 2 else -3.0) for k in range(13)]
+    assert len(scrapes) > REPLAN_LIMIT
+    blocks = Blocks(*scrapes)
+    body = Body(script=blocks)
+    blocks.body = body
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
+                                                 options=NARROW), "hider")
+        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
+                         {"x": 900.0, "y": 150.0, "heading": None}, room_map(LONG_CORRIDOR))
+        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
+                              600.0)
+    assert len(blocks.at) == len(scrapes)
+    assert body.frames("invalid_spot") == [], body.frames("invalid_spot")
+    assert body.frames("arrived")

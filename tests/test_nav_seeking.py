@@ -373,3 +373,26 @@ async def test_a_wider_search_sweeps_by_touch_when_its_pose_is_wrong(autojump_cl
     assert wider.frames("found")
     states = [fr.data.get("state") for fr in wider.frames("status")]
     assert "sweeping" in states and "searching" not in states
+
+
+@pytest.mark.trio
+async def test_a_search_point_where_the_seeker_stands_is_scanned_and_the_search_goes_on(
+        autojump_clock, monkeypatch) -> None:
+    """A ring point the seeker already stands on (it was blocked on the ring's radius, and
+    the ring starts on its side): the route ends as it starts, the scan from that point
+    runs, and the search goes on to an answer instead of waiting in ``searching`` with
+    nothing in flight."""
+    plan = SeekingNav._plan_search
+
+    def here_first(self: SeekingNav) -> bool:
+        if not plan(self):
+            return False
+        self.search_points.insert(0, (self.map_pose.x, self.map_pose.y))
+        return True
+
+    monkeypatch.setattr(SeekingNav, "_plan_search", here_first)
+    body = await _seek_far_guess(WIDE, None)
+    assert body.frames("found") or body.frames("not_found")
+    details = [fr.data.get("detail", "") for fr in body.frames("status")]
+    first = details.index("looking with the IR sensor from the search ring")
+    assert not details[first + 1].startswith("round the place")

@@ -11,13 +11,26 @@ Why
 
 Algorithm
     The body (a ``length`` x ``width`` rectangle centred on the pose, the
-    rover's `HardwareSpec` body), shrunk by half a cell on each side (a wall's
-    face may lie anywhere in the cell that holds it), is sampled on a regular
-    lattice of points at most half a cell apart; each particle's points are put
+    rover's `HardwareSpec` body), shrunk by one cell on each side, is sampled
+    on a regular lattice of points at most half a cell apart; each particle's points are put
     in the map frame at once and looked up in the grid. A particle with any
     point in an occupied cell gets the likelihood ``inside_likelihood``, every
     other one 1. Unknown cells and points off the map are not obstacles (no
     evidence).
+
+Why a cell of shrink
+    A mapped face lies up to a cell in front of the wall's face: a LIDAR hit
+    on a face lands in the cell on the free side of it when the range noise or
+    the mapper's pose error puts it short, and the face lies anywhere in the
+    cell that holds it. A rover touching a wall, or passing close by, then
+    overlaps the map's occupied cells by up to a cell. Measured on the
+    server's maps (the true poses of hider and seeker at rest, at every pose
+    frame of three games in generated rooms and three in built-in ones, 2368
+    poses): with half a cell of shrink 4 % of them overlapped an occupied cell
+    (6 % in the generated rooms, by up to 1.5 cm more), each weighing the
+    belief a thousandfold against the truth, away from the wall it touched;
+    with a cell none did, save a rover standing on the outline the mapper
+    scanned of it while it was parked there (every particle alike: no bias).
 
 Reference
     Thrun, Burgard, Fox, *Probabilistic Robotics*, section 6.6 (map
@@ -93,8 +106,8 @@ def _check_body(body_cm: tuple[float, float]) -> tuple[float, float]:
 
 def inside_obstacle(field: DistanceField, particles: np.ndarray,
                     body_cm: tuple[float, float]) -> np.ndarray:
-    """Whether each particle's body, shrunk by half a cell on each side (a wall's face
-    may lie anywhere in its occupied cell), overlaps an occupied cell: bool (N,).
+    """Whether each particle's body, shrunk by a cell on each side (a mapped face lies up
+    to a cell in front of the wall's face), overlaps an occupied cell: bool (N,).
 
     Args:
         field: the map's distance field.
@@ -103,7 +116,7 @@ def inside_obstacle(field: DistanceField, particles: np.ndarray,
     """
     length, width = _check_body(body_cm)
     res = field.resolution_cm
-    pts = body_points(length, width, 0.5 * res, 0.5 * res)
+    pts = body_points(length, width, res, 0.5 * res)
     x, y = to_map(np.asarray(particles, dtype=float), pts)
     return field.occupied_at(x, y).any(axis=1)
 

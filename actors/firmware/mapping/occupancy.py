@@ -111,7 +111,8 @@ class OccupancyGrid:
         self._log_odds = np.zeros((ny, nx), dtype=np.float32)
         self._hits = np.zeros((ny, nx), dtype=np.float32)
         self._scratch = np.zeros(ny * nx, dtype=np.int32)  # `_distinct`'s work space
-        self._mark = np.zeros(ny * nx, dtype=bool)  # hit cells of a batch, cleared after use
+        self._ramp_cache = np.zeros(0)  # `_ramp`'s 0, step, 2 step, ...
+        self._positions = np.zeros(0, dtype=np.int32)  # `_distinct`'s 0, 1, 2, ...
         # the cells' classes, kept up to date by every write of the log-odds (see `snapshot`)
         self._classes = np.full((ny, nx), UNKNOWN, dtype=np.int8)
         self._snap: GridMap | None = None  # the last snapshot, while no cell changed class
@@ -216,12 +217,8 @@ class OccupancyGrid:
                                        np.floor(hx).astype(np.int64)))
         if hit_idx.size > 1:
             hit_idx = hit_idx[np.concatenate(([True], hit_idx[1:] != hit_idx[:-1]))]
-        free_idx = self._distinct(free_flat)
-        if hit_idx.size:  # a cell hit by a ray of the batch is not also cleared by another
-            mark = self._mark
-            mark[hit_idx] = True
-            free_idx = free_idx[~mark[free_idx]]
-            mark[hit_idx] = False
+        # a cell hit by a ray of the batch is not also cleared by another
+        free_idx = self._distinct(free_flat, hit_idx)
 
         changed = self._update(free_idx, hit_idx)
         self._splat_hits(hx, hy)
@@ -235,26 +232,50 @@ class OccupancyGrid:
                       free_c: np.ndarray) -> np.ndarray:
         """Flat indices (in the grid, with repeats) of the samples of every ray at
         t = 0, step, 2 step, ... strictly before its free length ``free_c`` [cells],
-        from the ray origin (``px``, ``py``) [cells] along (``cos``, ``sin``)."""
+        from the ray origin (``px``, ``py``) [cells] along (``cos``, ``sin``).
+
+        A sample in the cell of the sample before it is left out (half-cell steps put
+        about two samples in each cell): the same cells, half the indices for
+        `_distinct`.
+        """
         step = self.model.ray_step
         n_samples = np.ceil(np.maximum(free_c, 0.0) / step).astype(np.int64)
         total = int(np.add.reduce(n_samples))
-        # sample k of its ray at t = k step; each ray's cos and sin repeated per sample
-        # (cheaper than gathering them by a ray index), the arithmetic in place: the
-        # same operations in the same order, so the same cells
-        k = np.arange(total)
-        # (the array methods, not the `np.repeat` / `np.cumsum` wrappers around them)
-        k -= (n_samples.cumsum() - n_samples).repeat(n_samples)
-        t = k * step
-        x = cos.repeat(n_samples)
-        x *= t
-        x += px
-        y = sin.repeat(n_samples)
-        y *= t
-        y += py
-        fc = np.floor(x, out=x).astype(np.int64)
-        fr = np.floor(y, out=y).astype(np.int64)
-        return self._inside(fr, fc)
+        if total == 0:
+            return np.empty(0, dtype=np.int64)
+        # sample k of its ray at t = k step, as a ramp over the whole batch less each
+        # ray's offset (all exact multiples of the step: the same floats as k * step);
+        # both axes at once, each ray's (cos, sin) repeated per sample (cheaper than
+        # gathering them by a ray index), the arithmetic in place: the same operations
+        # in the same order as x = cos * t + px, so the same cells
+        start = n_samples.cumsum()
+        start -= n_samples
+        t = self._ramp(total) - (start * step).repeat(n_samples)
+        xy = np.stack((cos, sin)).repeat(n_samples, axis=1)
+        xy *= t
+        xy += np.array([[px], [py]])
+        np.floor(xy, out=xy)
+        fx, fy = xy
+        ny, nx = self._log_odds.shape
+        # |cos t| <= t for every sample, and rounding is monotonic: all of them lie
+        # within the farthest sample's t of the origin, so when that square is on the
+        # grid, so is every sample, and the flat index is formed in floats (whole
+        # numbers far below 2**53: exact)
+        reach = (int(np.maximum.reduce(n_samples)) - 1) * step
+        if not (px - reach >= 0 and py - reach >= 0 and px + reach < nx and py + reach < ny):
+            return self._inside(fy.astype(np.int64), fx.astype(np.int64))
+        fy *= nx
+        fy += fx
+        if total > 1:  # a sample in the cell of the sample before it adds nothing
+            # (`compress`, not a boolean index: twice as fast on an irregular mask)
+            fy = fy.compress(np.concatenate(([True], fy[1:] != fy[:-1])))
+        return fy.astype(np.int64)
+
+    def _ramp(self, n: int) -> np.ndarray:
+        """0, step, 2 step, ... (n values), from a cached ramp grown as needed."""
+        if n > self._ramp_cache.size:
+            self._ramp_cache = np.arange(max(n, 2 * self._ramp_cache.size)) * self.model.ray_step
+        return self._ramp_cache[:n]
 
     def _update(self, free_idx: np.ndarray, hit_idx: np.ndarray) -> int:
         """Add ``l_free`` to the cells ``free_idx`` and ``l_occ`` to ``hit_idx`` (flat,
@@ -277,18 +298,25 @@ class OccupancyGrid:
             self._set_classes(idx[moved], now_free[moved], now_occ[moved])
         return changed
 
-    def _distinct(self, flat_idx: np.ndarray) -> np.ndarray:
-        """The distinct values of ``flat_idx`` (cell indices), in no particular order.
+    def _distinct(self, flat_idx: np.ndarray, exclude: np.ndarray) -> np.ndarray:
+        """The distinct values of ``flat_idx`` (cell indices) that are not in ``exclude``,
+        in no particular order.
 
-        Why not `np.unique`: it sorts (the rays of a batch give tens of thousands of
-        samples), and a mask over the whole grid costs a pass over every cell. Here
-        each sample writes its position into a scratch cell; whichever write of a cell
-        won, exactly one of that cell's samples reads its own position back.
+        Why not `np.unique`: it sorts (the rays of a batch give thousands of samples),
+        and a mask over the whole grid costs a pass over every cell. Here each sample
+        writes its position into a scratch cell, and the excluded cells a -1; whichever
+        write of a cell won, exactly one of that cell's samples reads its own position
+        back, and none of an excluded cell's.
         """
-        pos = np.arange(flat_idx.size, dtype=np.int32)
+        if flat_idx.size > self._positions.size:
+            self._positions = np.arange(max(flat_idx.size, 2 * self._positions.size),
+                                        dtype=np.int32)
+        pos = self._positions[:flat_idx.size]
         scratch = self._scratch
         scratch[flat_idx] = pos
-        return flat_idx[scratch[flat_idx] == pos]
+        scratch[exclude] = -1
+        # (`compress`, not a boolean index: twice as fast on an irregular mask)
+        return flat_idx.compress(scratch[flat_idx] == pos)
 
     def _inside(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """Flat indices of the (row, col) cells that lie on the grid (the others dropped)."""

@@ -77,12 +77,15 @@ def grazing_shortening(angles_deg: np.ndarray, ranges_cm: np.ndarray, has_hit: n
     ``sin(incidence) = r dtheta / hypot(dr, r dtheta)``. A depth jump to the neighbour
     reads as grazing too, which only makes that ray more careful.
     """
-    order = np.argsort(angles_deg, kind="stable")
-    a = np.radians(angles_deg[order])
-    r = ranges_cm[order]
-    hit = has_hit[order]
-    da = np.diff(a)
-    dr = np.abs(np.diff(r))
+    # a batch usually comes in angle order (argsort's identity, no gathers needed)
+    in_order = np.logical_and.reduce(angles_deg[1:] >= angles_deg[:-1])
+    order = None if in_order else np.argsort(angles_deg, kind="stable")
+    a = np.radians(angles_deg if in_order else angles_deg[order])
+    r = ranges_cm if in_order else ranges_cm[order]
+    hit = has_hit if in_order else has_hit[order]
+    # the differences as `np.diff` takes them, without its Python wrapper
+    da = a[1:] - a[:-1]
+    dr = np.abs(r[1:] - r[:-1])
     ok = (da > 0) & (da <= np.radians(3.0)) & hit[:-1] & hit[1:]
     arc = np.maximum(r[:-1], r[1:]) * da
     sin_pair = np.where(ok, arc / np.maximum(np.hypot(dr, arc), 1e-9), 1.0)
@@ -90,8 +93,11 @@ def grazing_shortening(angles_deg: np.ndarray, ranges_cm: np.ndarray, has_hit: n
     sin_inc[:-1] = sin_pair
     sin_inc[1:] = np.minimum(sin_inc[1:], sin_pair)
     pull = np.where(hit, margin_cells / np.maximum(sin_inc, 0.05), 0.0)
+    pull = np.minimum(pull, r / resolution_cm)
+    if in_order:
+        return pull
     out = np.empty_like(pull)
-    out[order] = np.minimum(pull, r / resolution_cm)
+    out[order] = pull
     return out
 
 
@@ -109,8 +115,9 @@ def check_batch(angles_deg: np.ndarray, ranges_cm: np.ndarray) -> tuple[np.ndarr
                          f"{angles.shape} and {ranges.shape}")
     if angles.size == 0:
         return angles, ranges
-    if not np.isfinite(angles).all():
+    # the ufuncs' own reductions, without the array methods' Python wrappers
+    if not np.logical_and.reduce(np.isfinite(angles)):
         raise ValueError("angles_deg must be finite")
-    if not (np.isfinite(ranges).all() and (ranges >= 0).all()):
+    if not (np.logical_and.reduce(np.isfinite(ranges)) and np.logical_and.reduce(ranges >= 0)):
         raise ValueError("ranges_cm must be finite and >= 0")
     return angles, ranges

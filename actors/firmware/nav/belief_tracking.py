@@ -31,12 +31,23 @@ heaviest hypothesis's mean (`Spread.best`); Motor Control's dead reckoning is
 left continuous. Randomness: one generator per navigation incarnation, seeded
 from the rover's role (the firmware has no other random source), so a seed
 gives the same game.
+
+Restart: the belief (its particles, the dead-reckoning set beside it, the
+own-frame pose they were last moved to) and the server's origin it started
+from are kept in the retained `NavMemory` after every update (`BeliefMemory`).
+A restarted navigation goes on from them: Motor Control's dead reckoning ran
+on meanwhile, so the next pose at rest moves the belief by everything driven
+since, and a retried destination's origin is still known for what it is.
+Drawn afresh round the retained origin, the belief would lose its doubt (the
+start's 1 cm), and the first ``origin`` frame after the restart would look like
+a new placement and put the rover back on dead reckoning from its start.
 """
 
 from __future__ import annotations
 
 import math
 import zlib
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -54,7 +65,7 @@ from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
 
-__all__ = ["BeliefTracking", "tread_motion"]
+__all__ = ["BeliefTracking", "BeliefMemory", "tread_motion"]
 
 START_SIGMA_CM = 1.0
 """Standard deviation of x and y of the belief at the server's ``origin`` [cm]: the
@@ -83,6 +94,18 @@ def _same_pose(a: Pose, b: Pose) -> bool:
         abs(angle_diff_deg(a.heading_deg, b.heading_deg)) < 0.01
 
 
+@dataclass(frozen=True, slots=True)
+class BeliefMemory:
+    """The pose belief as a restarted navigation takes it up (kept in `NavMemory.belief`)."""
+
+    belief: PoseBelief
+    """The belief (map frame)."""
+    dead: PoseBelief | None
+    """The particle set moved by the counts alone (`BeliefTracking._dead`)."""
+    odom: Pose
+    """The own-frame pose (Motor Control's) both were last moved to."""
+
+
 class BeliefTracking:
     """The pose belief of a `RouteNav` (a mixin; see the module docstring)."""
 
@@ -99,7 +122,12 @@ class BeliefTracking:
         self._dead: PoseBelief | None = None  # the belief moved by the counts alone
         # its own generator: the belief's draws do not depend on whether it is kept
         self._dead_rng = np.random.default_rng(zlib.crc32(f"dead reckoning:{self.role}".encode()))
-        self._given: Pose | None = None  # the server's origin the belief started from
+        given = self.memory.given
+        self._given: Pose | None = Pose(*given) if given is not None else None
+        # the server's origin the belief started from
+        kept = self.memory.belief
+        if isinstance(kept, BeliefMemory):  # a restart: go on from what was learned
+            self.belief, self._dead, self._belief_odom = kept.belief, kept.dead, kept.odom
 
     # ------------------------------------------------------------------ reading
     @property
@@ -134,6 +162,7 @@ class BeliefTracking:
         self.belief, self._spread, self._belief_odom, self._modes = None, None, None, 1
         self._dead = None
         self._reports = [TreadReport.OK, TreadReport.OK]
+        self._retain()
 
     def on_server_origin(self) -> None:
         """The server sent ``origin`` (its start pose for this rover; the base has set it).
@@ -181,6 +210,7 @@ class BeliefTracking:
                                              sigma_deg=START_SIGMA_DEG)
             self._dead = PoseBelief(self.belief.particles)
             self._belief_odom, self._spread = self.pose, None
+            self._retain()
             return
         if not self._predict():
             return  # nothing moved: the free-space evidence is in already
@@ -251,6 +281,14 @@ class BeliefTracking:
             target = self.belief.mean_pose()
         origin = compose(target, inverse(self.pose))
         self.set_origin(origin)
+        self._retain()
+
+    def _retain(self) -> None:
+        """Keep the belief and the origin it started from in the retained `NavMemory`."""
+        g = self._given
+        self.memory.given = None if g is None else (g.x, g.y, g.heading_deg)
+        self.memory.belief = None if self.belief is None or self._belief_odom is None else \
+            BeliefMemory(self.belief, self._dead, self._belief_odom)
 
     def contact_update(self) -> bool:
         """After a straight move ended blocked: weigh the belief by the contact model.

@@ -4,6 +4,7 @@ instructions (`NavMemory`) that survives a navigation restart."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from actors.firmware.localisation.motion_model import MotionNoise
 
@@ -70,10 +71,11 @@ class NavMemory:
     """What the server told navigation, in a retained RAM section (made by the rover tree).
 
     Like Motor Control's `PoseMemory`: C firmware keeps statics across a task
-    restart, not across a rover reset. Only the server's small instructions
-    live here (whether the game started, the origin, the destination being
-    worked on); everything else a restarted navigation asks its neighbours for
-    (pose, map) or the server (the map, again).
+    restart, not across a rover reset. The server's small instructions live
+    here (whether the game started, the origin, the destination being worked
+    on), and the hider's and seeker's pose belief (`belief`): what they learned
+    of where they are cannot be asked for again. Everything else a restarted
+    navigation asks its neighbours for (pose, map) or the server (the map, again).
     """
 
     started: bool = False
@@ -83,3 +85,9 @@ class NavMemory:
     within: float | None = None
     """The destination's ``within`` [cm]: how far round it a seeker searches (None: its
     IR range)."""
+    given: tuple[float, float, float] | None = None
+    """The server's ``origin`` (the rover's start pose, map frame) the pose belief started
+    from: the same origin again is a retried destination, not a new placement."""
+    belief: Any = None
+    """The pose belief as it was last updated (`belief_tracking.BeliefMemory`), None
+    before the first."""

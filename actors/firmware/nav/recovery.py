@@ -41,7 +41,9 @@ __all__ = ["RouteRecovery", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM", "STALL_TURN_DEG
 # and how a back-off reads a stalled tread. The geometry of the sideways search is in
 # `nudge`.
 REPLAN_LIMIT = 10
-"""Replans after being blocked before a route is given up."""
+"""Blocks without progress before a route is given up: a block that comes after the
+route got ``PROBE_PROGRESS_CM`` nearer its goal than at the last block counted afresh
+(`RouteRecovery._count_block`)."""
 BACKOFF_REPEAT_CM = 20.0
 """Reverse this far after a second block at one place: room to come back sideways [cm]."""
 STALL_TURN_DEG = 8.0
@@ -117,8 +119,25 @@ class RouteRecovery:
         self._nudge = None
         return False
 
-    async def _blocked_route(self, why: str) -> None:
+    def _count_block(self) -> None:
+        """Count a block toward ``REPLAN_LIMIT``, afresh when the route made progress.
+
+        Why: a rover with a few degrees of heading doubt scrapes the side walls of a
+        long passage every metre or so; each scrape is a block, but one that comes
+        after the route got nearer its goal is not the same place tried again. What
+        the limit bounds is trying one place: the count starts again once the route's
+        remaining length is ``PROBE_PROGRESS_CM`` under what it was at the block that
+        last started it. Still bounded: that mark only falls, by that much each time.
+        """
+        left = self.follower.remaining_cm(self.map_pose) if self.follower is not None \
+            else math.inf
+        if left < self._progress_mark - PROBE_PROGRESS_CM:
+            self.replans = 0
+            self._progress_mark = left
         self.replans += 1
+
+    async def _blocked_route(self, why: str) -> None:
+        self._count_block()
         if await self.on_blocked():
             return
         if self.replans > REPLAN_LIMIT:

@@ -44,7 +44,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
     A* on the map (obstacles inflated by the rover's radius) and follows the
     route with the ADP loop. When the motor reports blocked, something the map
     does not show is ahead (another rover): it is added to a working copy of the
-    map, the rover backs off and replans, at most ``REPLAN_LIMIT`` times.
+    map, the rover backs off and replans, at most ``REPLAN_LIMIT`` times at one place.
     """
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
@@ -62,6 +62,8 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.goal: tuple[float, float] | None = None
         self.goal_heading: float | None = None
         self.replans = 0
+        """Blocks counted toward ``REPLAN_LIMIT`` (`RouteRecovery._count_block`)."""
+        self._progress_mark = math.inf  # the route's remaining length when the count started
         self.stop_short_cm = 0.0
         """The current route ends this far before its goal [cm] (see `goto`)."""
         self.tier: tuple[float, float] | None = None
@@ -154,13 +156,28 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         assert self.work_map is not None
         self.goal, self.goal_heading = goal, heading
         self.stop_short_cm = stop_short_cm
-        self.replans = 0
+        self.replans, self._progress_mark = 0, math.inf
         self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
         self._probe, self._nudge_off, self._mouth = False, 0.0, False
         if not self._plan():
             return False
         await self.set_state("driving", f"to ({goal[0]:.0f}, {goal[1]:.0f})")
         await self._step()
+        return True
+
+    async def goto_as(self, goal: tuple[float, float], heading: float | None, state: str,
+                      detail: str, *, stop_short_cm: float = 0.0) -> bool:
+        """`goto`, then say ``state`` (``detail``) while the route is driven.
+
+        A route may end as it starts (the goal already within tolerance): `goto` then
+        calls `on_arrived`, which moves on to the next state (a scan). Only a route
+        still being driven is relabelled; relabelling after that would leave the rover
+        in a state that nothing ends (no motion in flight, no scan running).
+        """
+        if not await self.goto(goal, heading, stop_short_cm=stop_short_cm):
+            return False
+        if self.state == "driving":
+            await self.set_state(state, detail)
         return True
 
     def plan_tiers(self) -> tuple[tuple[float, float], ...]:

@@ -220,8 +220,8 @@ class Search:
             self.search_points = []  # out of time: answer while the operator still listens
         while self.search_points:
             q = self.search_points.pop(0)
-            if await self.goto(q, None):
-                await self.set_state("searching", f"round the place, ring {self.ring_cm:.0f} cm")
+            if await self.goto_as(q, None, "searching",
+                                  f"round the place, ring {self.ring_cm:.0f} cm"):
                 return
         if self.memory.within is not None and now < self.search_until < math.inf:
             await self._sweep()

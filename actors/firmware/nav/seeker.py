@@ -223,8 +223,8 @@ class SeekingNav(Search, RouteNav):
         if self._distance() <= self.s.close_cm + self.o.goal_tol_cm:
             await self._confirm()
             return
-        if await self.goto(self.place, None, stop_short_cm=self.s.close_cm):
-            await self.set_state("approaching", "to the place itself")
+        if await self.goto_as(self.place, None, "approaching", "to the place itself",
+                              stop_short_cm=self.s.close_cm):
             return
         x, y = self.place
         await self._not_found(f"no reachable point near ({x:.0f}, {y:.0f})")
