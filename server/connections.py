@@ -209,7 +209,12 @@ class Connections(ServerCore):
                     self._bad(conn, exc, frame)
                     continue
             rover = conn.rover
-            for f in rover.session.receive(frame, now):
+            try:
+                received = rover.session.receive(frame, now)
+            except FrameError as exc:
+                self._bad(conn, exc, frame)
+                continue
+            for f in received:
                 for observer in self._frame_observers:
                     observer(rover.id, rover.role, f)
                 self._on_frame(rover, f, now)

@@ -197,3 +197,22 @@ def test_bad_parameters_are_refused() -> None:
     """A heartbeat not shorter than the down time is a configuration error."""
     with pytest.raises(ValueError, match="need 0 < heartbeat_s < down_after_s, got 5, 5"):
         ReliableSession(heartbeat_s=5, down_after_s=5)
+
+
+def test_a_reliable_frame_corrupted_inside_its_envelope_is_resent_not_lost() -> None:
+    """A frame whose seq survives but whose cmd was corrupted is answered with error,
+    not acknowledged nor delivered; the sender's resend then delivers the frame."""
+    a, b = _pair()
+    a.send(make_frame("destination", {"x": 200.0, "y": 150.0, "heading": None}))
+    line = a.transmit(0.1)
+    corrupted = line.replace(b'"destination"', b'"des?ination"')
+    assert corrupted != line
+    assert b.feed(corrupted, 0.1) == []
+    reply = _frames(b.transmit(0.1))
+    assert [f.cmd for f in reply] == ["error"]
+    assert all(f.ack in (None, 0) for f in reply)
+    a.feed(b"".join(encode_frame(f) for f in reply), 0.1)
+    assert a.stats(0.1).unacked == 1
+    got = _run(a, b, until=5.0)
+    assert [(f.cmd, f.seq) for f in got] == [("destination", 1)]
+    assert a.stats(5.0).unacked == 0

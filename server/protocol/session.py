@@ -19,6 +19,10 @@ Rules (the spec in docs/protocol.md says the same):
   order; a frame ahead of a gap is held (at most ``2 * window`` of them),
   one at or below the cumulative ack is a duplicate: dropped, counted, and
   acknowledged again. Frames without ``seq`` are delivered at once.
+* **check**: a frame with ``seq`` that fails the catalogue check (a byte
+  corrupted inside an envelope that still decodes) is answered with
+  ``error`` and neither acknowledged nor delivered, and its ``ack`` is not
+  believed: the peer resends it.
 * **lost** counts the ``seq`` numbers missing in gaps when a gap is first seen
   (a later resend may still fill it; ``lost`` then says how many were lost
   on the first try).
@@ -42,7 +46,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
-from .catalogue import ACK, CATALOGUE, HEARTBEAT
+from .catalogue import ACK, CATALOGUE, HEARTBEAT, read_data
 from .frame import MAX_SEQ, Frame, FrameError, decode_line, encode_frame, error_frame
 from .lines import TOO_LONG, LineBuffer
 
@@ -315,14 +319,22 @@ class ReliableSession:
                 continue
             try:
                 frame = decode_line(line)  # type: ignore[arg-type]
+                delivered.extend(self.receive(frame, now))
             except FrameError as exc:
                 self._bad(exc)
-                continue
-            delivered.extend(self.receive(frame, now))
         return delivered
 
     def receive(self, frame: Frame, now: float) -> list[Frame]:
-        """Take one decoded frame; return the frames now deliverable, in order."""
+        """Take one decoded frame; return the frames now deliverable, in order.
+
+        Raises:
+            FrameError: a reliable frame (one with ``seq``) that fails the
+                catalogue check. It is neither acknowledged nor delivered, and its
+                ``ack`` is not believed, so the peer resends it: a frame whose
+                envelope survived a corrupted byte is not lost for its payload.
+        """
+        if frame.seq is not None:
+            read_data(frame)
         self._c["frames_in"] += 1
         was_down = not self.is_up(now)
         self._last_heard = now
