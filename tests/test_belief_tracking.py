@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from actors import BufferPool
-from actors.firmware.localisation.odometry import advance
-from actors.firmware.nav.belief_tracking import tread_motion
+from actors.firmware.localisation.odometry import advance, tread_travel
 from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.options import NavMemory
 from actors.firmware.nav.route import Motion
@@ -18,11 +17,11 @@ from tests.test_nav_recovery import scraped_nav
 
 
 @pytest.mark.parametrize("left, right", [(10.0, 10.0), (-6.0, 6.0), (3.0, 12.0), (-8.0, -2.0)])
-def test_tread_motion_inverts_the_odometry_step(left: float, right: float) -> None:
+def test_tread_travel_inverts_the_odometry_step(left: float, right: float) -> None:
     """The tread travel recovered from two poses is the one dead reckoning stepped with."""
     before = Pose(40.0, -20.0, 130.0)
     after = advance(before, left, right, 13.0)
-    assert tread_motion(before, after, 13.0) == pytest.approx((left, right), abs=1e-9)
+    assert tread_travel(before, after, 13.0) == pytest.approx((left, right), abs=1e-9)
 
 
 def test_the_same_role_draws_the_same_belief() -> None:

@@ -62,10 +62,11 @@ from actors.firmware.localisation.contact_model import (
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import free_space_log_likelihood
 from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
+from actors.firmware.localisation.odometry import tread_travel
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
 
-__all__ = ["BeliefTracking", "BeliefMemory", "tread_motion"]
+__all__ = ["BeliefTracking", "BeliefMemory"]
 
 START_SIGMA_CM = 1.0
 """Standard deviation of x and y of the belief at the server's ``origin`` [cm]: the
@@ -76,16 +77,6 @@ RETRY_PRIOR_SHARE = 0.5
 """Weight of dead reckoning alone in the belief a retried destination starts from [1]:
 the route before it was given up after its contacts, as likely misread as read right
 (see `BeliefTracking.on_server_origin`)."""
-
-
-def tread_motion(before: Pose, after: Pose, track_width_cm: float) -> tuple[float, float]:
-    """The (left, right) tread travel [cm] that takes ``before`` to ``after`` (own frame)
-    by the midpoint rule of `odometry.advance`: the inverse of the motion model's step."""
-    dtheta = math.radians(angle_diff_deg(after.heading_deg, before.heading_deg))
-    mid = before.heading_rad + 0.5 * dtheta
-    ds = (after.x - before.x) * math.cos(mid) + (after.y - before.y) * math.sin(mid)
-    half = 0.5 * track_width_cm * dtheta
-    return ds - half, ds + half
 
 
 def _same_pose(a: Pose, b: Pose) -> bool:
@@ -231,7 +222,7 @@ class BeliefTracking:
         there was none."""
         assert self.belief is not None and self._belief_odom is not None
         w = self._track_width()
-        left, right = tread_motion(self._belief_odom, self.pose, w)
+        left, right = tread_travel(self._belief_odom, self.pose, w)
         if abs(left) + abs(right) < 1e-6 and self._reports == [TreadReport.OK, TreadReport.OK]:
             return False
         driven: list[float | None] = [None, None]
