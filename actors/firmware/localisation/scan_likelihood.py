@@ -56,8 +56,9 @@ from actors.firmware.mapping.scan_match import MAX_RANGE_CM, MIN_POINTS, MatchOp
 from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_likelihood",
-           "judge_fit", "acceptable_log_fit", "scan_information", "odometry_floor", "MAX_BEAMS",
-           "UNKNOWN_HIT", "MIN_JUDGED", "MIN_FIT", "GATE_CHI2", "FLOOR_CM", "FLOOR_DEG"]
+           "judge_fit", "gate_fit", "acceptable_log_fit", "scan_information", "odometry_floor",
+           "MAX_BEAMS", "UNKNOWN_HIT", "MIN_JUDGED", "MIN_FIT", "GATE_CHI2", "FLOOR_CM",
+           "FLOOR_DEG"]
 
 
 # Structural constants of the likelihood and of the verdict: how many beams a particle's
@@ -248,35 +249,61 @@ def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
         options: the model's parameters.
         belief_pose, belief_covariance: the belief's mean and 3 x 3 covariance of
             (x [cm], y [cm], heading [rad]) (`belief.Spread`); with them, a pose beyond
-            ``GATE_CHI2`` is refused. The stamp's own error (`odometry_floor`) is added
-            to the covariance (a collapsed belief must still accept its own mean).
+            ``GATE_CHI2`` is refused (`gate_fit`).
     """
     o = options or ScanOptions()
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     n = int(pts.shape[0])
-    d2 = None
-    if belief_pose is not None and belief_covariance is not None:
-        e = np.array([pose.x - belief_pose.x, pose.y - belief_pose.y,
-                      math.radians(angle_diff_deg(pose.heading_deg, belief_pose.heading_deg))])
-        cov = np.asarray(belief_covariance, dtype=float) + odometry_floor()
-        d2 = float(e @ np.linalg.solve(cov, e))
     if n < MIN_POINTS:
-        return ScanFit(FitVerdict.TOO_FEW_HITS, 0.0, 0.0, n, d2)
-    one = np.array([[pose.x, pose.y, pose.heading_rad]])
-    x, y = to_map(one, pts)
-    term, judged = _hit_terms(field, x[0], y[0], o)
-    judged_share = float(judged.mean())
-    fit = float(term[judged].mean()) if judged.any() else 0.0
-    log_fit = float(np.log(o.z_hit * term[judged] + o.z_rand).mean()) if judged.any() else 0.0
-    if judged_share < MIN_JUDGED:
-        verdict = FitVerdict.NEW_GROUND
-    elif fit < MIN_FIT:
-        verdict = FitVerdict.BAD_FIT
-    elif d2 is not None and d2 > GATE_CHI2:
-        verdict = FitVerdict.OUTSIDE_BELIEF
+        fit = ScanFit(FitVerdict.TOO_FEW_HITS, 0.0, 0.0, n, None)
     else:
-        verdict = FitVerdict.ACCEPTED
-    return ScanFit(verdict, fit, judged_share, n, d2, log_fit)
+        # the hits put at the pose as `to_map` puts them at one particle (same floats)
+        th = pose.heading_rad
+        c, s = np.cos(th), np.sin(th)
+        px, py = pts[:, 0], pts[:, 1]
+        term, judged = _hit_terms(field, pose.x + c * px - s * py, pose.y + s * px + c * py, o)
+        k = int(np.count_nonzero(judged))
+        fit_mean = log_fit = 0.0
+        if k:
+            # a mean is the sum over the count (what `ndarray.mean` computes)
+            t = term.compress(judged)
+            fit_mean = float(np.add.reduce(t)) / k
+            t *= o.z_hit
+            t += o.z_rand
+            log_fit = float(np.add.reduce(np.log(t, out=t))) / k
+        share = k / n
+        if share < MIN_JUDGED:
+            verdict = FitVerdict.NEW_GROUND
+        elif fit_mean < MIN_FIT:
+            verdict = FitVerdict.BAD_FIT
+        else:
+            verdict = FitVerdict.ACCEPTED
+        fit = ScanFit(verdict, fit_mean, share, n, None, log_fit)
+    if belief_pose is None or belief_covariance is None:
+        return fit
+    return gate_fit(fit, pose, belief_pose, belief_covariance)
+
+
+def gate_fit(fit: ScanFit, pose: Pose, belief_pose: Pose, belief_covariance: np.ndarray
+             ) -> ScanFit:
+    """``fit`` (`judge_fit` at ``pose`` without a belief) judged against the belief too:
+    its squared Mahalanobis distance from the belief's mean ``belief_pose`` under
+    ``belief_covariance`` (3 x 3, of x [cm], y [cm], heading [rad]) is recorded, and an
+    accepted fit beyond ``GATE_CHI2`` is refused as outside the belief.
+
+    Why apart: the gate needs only the pose, so a caller that judged the pose already
+    (the evidence for "odometry broke unseen") gates that fit instead of reading every
+    hit again. The stamp's own error (`odometry_floor`) is added to the covariance (a
+    collapsed belief must still accept its own mean).
+    """
+    e = np.array([pose.x - belief_pose.x, pose.y - belief_pose.y,
+                  math.radians(angle_diff_deg(pose.heading_deg, belief_pose.heading_deg))])
+    cov = np.asarray(belief_covariance, dtype=float) + odometry_floor()
+    d2 = float(e @ np.linalg.solve(cov, e))
+    verdict = fit.verdict
+    if verdict is FitVerdict.ACCEPTED and d2 > GATE_CHI2:
+        verdict = FitVerdict.OUTSIDE_BELIEF
+    return ScanFit(verdict, fit.fit, fit.judged, fit.hits, d2, fit.log_fit)
 
 
 def acceptable_log_fit(options: ScanOptions | None = None) -> float:
