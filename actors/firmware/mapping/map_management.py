@@ -96,6 +96,7 @@ from actors.firmware.localisation.scan_likelihood import (
     ScanFit,
     ScanOptions,
     acceptable_log_fit,
+    gate_fit,
     judge_fit,
     odometry_floor,
     scan_information,
@@ -361,21 +362,23 @@ class MapManagement(Actor):
             b = self.belief
             result = relocalise(fields, pts, guess, opts, turn_deg=min(180.0, b.heading95_deg),
                                 max_shift_cm=max(opts.max_shift_cm, b.radius95_cm))
-            at_mean = None
+            at_mean = at_match = None
         else:
             result = match_scan(fields, pts, guess, opts)
-            at_mean = self._weigh_odometry(pts, result, now)
-            if at_mean is None:
+            weighed = self._weigh_odometry(pts, result, now)
+            if weighed is None:
                 return self._refuse("odometry in doubt")
+            at_mean, at_match = weighed
         if not result.accepted:
             if not result.supported and at_mean is not None and (
                     at_mean.verdict is not FitVerdict.BAD_FIT):
                 return guess  # new ground, or too few hits: nothing to judge it by
             return self._refuse(result.reason.split(" (")[0])
         assert self._distance is not None
-        fit = judge_fit(self._distance, result.pose, pts, belief_pose=guess,
-                        belief_covariance=self.belief.covariance + self._stamp_covariance(now)
-                        - odometry_floor())
+        if at_match is None:
+            at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
+        fit = gate_fit(at_match, result.pose, guess, self.belief.covariance
+                       + self._stamp_covariance(now) - odometry_floor())
         if not fit.accepted:
             if fit.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS) and not wide:
                 return guess
@@ -398,18 +401,19 @@ class MapManagement(Actor):
         return placed
 
     def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float
-                        ) -> ScanFit | None:
+                        ) -> tuple[ScanFit, ScanFit | None] | None:
         """Weigh this batch's scan as evidence for "odometry broke unseen"
-        (`odometry_fault`) and return its fit at the belief's mean; when that hypothesis
-        is the more probable, the belief becomes its wide component and None is returned
-        (the batch's pose is in doubt)."""
+        (`odometry_fault`) and return its fit at the belief's mean and, when it was
+        judged, at the match (`judge_fit` without the belief: `_place` gates it); when
+        that hypothesis is the more probable, the belief becomes its wide component and
+        None is returned (the batch's pose is in doubt)."""
         assert self._distance is not None
         if self._weighed_at > -float("inf"):
             self.broken += (1.0 - self.broken) * hazard(now - self._weighed_at, self.fault_noise)
         self._weighed_at = now
         at_mean = judge_fit(self._distance, self.belief.mean, pts, _SCAN)
         if at_mean.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
-            return at_mean  # nothing to judge the pose by
+            return at_mean, None  # nothing to judge the pose by
         narrow = self.belief.covariance + self._stamp_covariance(now)
         spread = broken_spread(self.matching.max_shift_cm if self.matching else 12.0)
         wide = narrow + spread
@@ -423,6 +427,7 @@ class MapManagement(Actor):
                 alt = self._alt_correction = None  # the scan refutes it
             else:
                 ev = replace(ev, log_fit_alt=at_alt.log_fit)
+        at_match = None
         if result.accepted:
             at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
             if at_match.verdict not in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
@@ -440,7 +445,7 @@ class MapManagement(Actor):
         self._charged = step > 0.0  # a run of scans for "broken" pays its Occam factor once
         self.broken = posterior(self.broken, step)
         if self.broken <= 0.5:
-            return at_mean
+            return at_mean, at_match
         # wide round the mean, not narrow round the learnt pose: one match (a scan blurred
         # by a turn) may have put it a few degrees off; the wide search's unambiguous fit
         # decides where the rover is
