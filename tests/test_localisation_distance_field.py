@@ -1,6 +1,7 @@
-"""The distance field's reads: one pass for distance and knownness, the floats of a
-point-by-point reading of the definition (bilinear between the four nearest cell centres,
-the cap where that box leaves the window; the cell holding the point for knownness)."""
+"""The distance field: its capped transform gives scipy's floats, and its reads (one pass
+for distance and knownness) the floats of a point-by-point reading of the definition
+(bilinear between the four nearest cell centres, the cap where that box leaves the
+window; the cell holding the point for knownness)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,9 @@ import math
 
 import numpy as np
 import pytest
+from scipy.ndimage import distance_transform_edt
 
+from actors.firmware.localisation.capped_edt import capped_distance
 from actors.firmware.localisation.distance_field import DistanceField
 from tests.localisation_rooms import room
 
@@ -93,3 +96,25 @@ def test_reads_keep_the_points_shape() -> None:
     one = field.at(np.float64(x[0]), np.float64(y[0]))
     assert np.shape(one) == () and float(one) == _reference(field, x[0], y[0])[0]
 
+
+@pytest.mark.parametrize(("resolution", "cap"), [(5.0, 50.0), (5.0, 47.0), (2.5, 30.0),
+                                                 (3.3, 40.0), (5.0, 1000.0)],
+                         ids=["5cm-50cm", "5cm-47cm", "2.5cm", "3.3cm", "wide-cap"])
+def test_the_capped_transform_gives_scipys_floats(resolution: float, cap: float) -> None:
+    """Separable and limited to the cap, or scipy's where offsets of one squared length
+    round apart: the distances are scipy's, capped, bit for bit (sparse obstacles, walls,
+    a single cell, a full row)."""
+    rng = np.random.default_rng(int(resolution * 10 + cap))
+    masks = [rng.random((60, 75)) < p for p in (0.002, 0.02, 0.3)]
+    walls = np.zeros((50, 40), bool)
+    walls[5, 3:30] = walls[5:45, 30] = True
+    one = np.zeros((30, 1), bool)
+    one[17, 0] = True
+    row = np.zeros((3, 50), bool)
+    row[1] = True
+    for occupied in [*masks, walls, one, row]:
+        if not occupied.any():
+            continue
+        want = np.minimum(distance_transform_edt(~occupied, sampling=resolution), cap)
+        got = capped_distance(occupied, resolution, cap)
+        assert got.dtype == np.float64 and np.array_equal(got, want)

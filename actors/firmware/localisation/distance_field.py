@@ -10,10 +10,11 @@ Why
     model, before the Gaussian is applied.
 
 Algorithm
-    Exact Euclidean distance transform (``scipy.ndimage.distance_transform_edt``)
-    of the grid's non-occupied cells, in [cm] (``sampling`` = the cell side):
-    the distance from each cell's centre to the nearest occupied cell's
-    centre, 0 on occupied cells, capped at ``max_dist_cm``. Read at any point
+    Exact Euclidean distance transform of the grid's non-occupied cells, in
+    [cm]: the distance from each cell's centre to the nearest occupied cell's
+    centre, 0 on occupied cells, capped at ``max_dist_cm`` (`capped_edt`: only
+    obstacles within the cap are looked for; the floats of
+    ``scipy.ndimage.distance_transform_edt``). Read at any point
     by bilinear interpolation between the four nearest cell centres, so the
     distance is continuous (a point moving across a cell does not jump by half
     a cell). Points off the grid read ``max_dist_cm`` and "unknown".
@@ -33,8 +34,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
+from actors.firmware.localisation.capped_edt import capped_distance
 from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap
 
 __all__ = ["DistanceField"]
@@ -105,8 +106,7 @@ class DistanceField:
         cells, origin = _known_window(grid, max_dist_cm)
         occupied = cells == OCCUPIED
         if occupied.any():
-            dist = distance_transform_edt(~occupied, sampling=grid.resolution_cm)
-            dist = np.minimum(dist, max_dist_cm)
+            dist = capped_distance(occupied, grid.resolution_cm, max_dist_cm)
         else:
             dist = np.full(cells.shape, float(max_dist_cm))
         dist.flags.writeable = False
