@@ -44,6 +44,7 @@ Frame and units
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from enum import Enum
@@ -91,10 +92,15 @@ the encoders' quantisation (one Int E of one tread turns the dead-reckoned headi
 up from stamp to stamp as the motion noise does."""
 
 
+_FLOOR = np.diag([FLOOR_CM ** 2, FLOOR_CM ** 2, math.radians(FLOOR_DEG) ** 2])
+_FLOOR.flags.writeable = False
+
+
 def odometry_floor() -> np.ndarray:
     """The 3 x 3 covariance of one odometry stamp's own error (``FLOOR_CM``, ``FLOOR_DEG``)
-    of (x [cm], y [cm], heading [rad])."""
-    return np.diag([FLOOR_CM ** 2, FLOOR_CM ** 2, math.radians(FLOOR_DEG) ** 2])
+    of (x [cm], y [cm], heading [rad]): one read-only array (it is added to every batch's
+    covariances, so it is not built again for each)."""
+    return _FLOOR
 
 
 @dataclass(frozen=True, slots=True)
@@ -206,10 +212,21 @@ def _hit_terms(field: DistanceField, x: np.ndarray, y: np.ndarray, o: ScanOption
 
 
 def _beams(points: np.ndarray, max_beams: int) -> np.ndarray:
+    """At most ``max_beams`` of the points, taken evenly along the scan."""
     k = points.shape[0]
     if k <= max_beams:
         return points
-    return points[np.linspace(0, k - 1, max_beams).round().astype(np.int64)]
+    return points.take(_beam_index(k, max_beams), axis=0)
+
+
+@functools.lru_cache(maxsize=512)
+def _beam_index(k: int, max_beams: int) -> np.ndarray:
+    """The indices `_beams` takes of ``k`` points (read-only). Cached: a scan's count of
+    usable hits takes a few hundred values at most, and ``np.linspace`` costs more
+    than the rest of a scan's information matrix's bookkeeping."""
+    index = np.linspace(0, k - 1, max_beams).round().astype(np.int64)
+    index.flags.writeable = False
+    return index
 
 
 def scan_log_likelihood(field: DistanceField, particles: np.ndarray, points: np.ndarray,
@@ -232,9 +249,11 @@ def scan_log_likelihood(field: DistanceField, particles: np.ndarray, points: np.
         return np.zeros(p.shape[0])
     x, y = to_map(p, pts)
     term, judged = _hit_terms(field, x, y, o)
-    term = np.where(judged, term, np.maximum(term, UNKNOWN_HIT))
+    np.maximum(term, UNKNOWN_HIT, out=term, where=~judged)
+    term *= o.z_hit
+    term += o.z_rand
     scale = min(1.0, o.independent_hits / pts.shape[0])
-    return scale * np.log(o.z_hit * term + o.z_rand).sum(axis=1)
+    return scale * np.add.reduce(np.log(term, out=term), axis=1)
 
 
 def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
@@ -313,6 +332,28 @@ def acceptable_log_fit(options: ScanOptions | None = None) -> float:
     return math.log(o.z_hit * MIN_FIT + o.z_rand)
 
 
+def _steps() -> np.ndarray:
+    """The 19 poses of `scan_information` as steps of -1, 0 or 1 per coordinate: the
+    pose, then +- each coordinate, then the four diagonal steps of each pair."""
+    steps = [np.zeros(3)]
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = 1.0
+        steps += [e, -e]
+    for i in range(3):
+        for j in range(i + 1, 3):
+            for si, sj in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+                e = np.zeros(3)
+                e[i], e[j] = si, sj
+                steps.append(e)
+    table = np.array(steps)
+    table.flags.writeable = False
+    return table
+
+
+_STEPS = _steps()
+
+
 def scan_information(field: DistanceField, pose: Pose, points: np.ndarray,
                      options: ScanOptions | None = None) -> np.ndarray:
     """The information matrix (3 x 3, of x [cm], y [cm], heading [rad]) a scan gives
@@ -335,21 +376,11 @@ def scan_information(field: DistanceField, pose: Pose, points: np.ndarray,
     pts = _beams(np.asarray(points, dtype=float).reshape(-1, 2), MAX_BEAMS)
     if pts.shape[0] < MIN_POINTS:
         return np.zeros((3, 3))
-    rms = math.sqrt(float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2)))
+    # the mean square range as ``np.mean`` computes it (the sum, then one division)
+    rms = math.sqrt(float(np.add.reduce(pts[:, 0] ** 2 + pts[:, 1] ** 2)) / pts.shape[0])
     h = np.array([field.resolution_cm, field.resolution_cm, field.resolution_cm / max(rms, 1.0)])
     base = np.array([pose.x, pose.y, pose.heading_rad])
-    offsets = [np.zeros(3)]
-    for i in range(3):
-        e = np.zeros(3)
-        e[i] = h[i]
-        offsets += [e, -e]
-    for i in range(3):
-        for j in range(i + 1, 3):
-            for si, sj in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-                e = np.zeros(3)
-                e[i], e[j] = si * h[i], sj * h[j]
-                offsets.append(e)
-    ll = scan_log_likelihood(field, base + np.array(offsets), pts, o)
+    ll = scan_log_likelihood(field, base + _STEPS * h, pts, o)
     f0 = ll[0]
     hess = np.empty((3, 3))
     for i in range(3):
