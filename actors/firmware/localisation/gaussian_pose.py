@@ -59,6 +59,12 @@ Z_95 = 1.96
 """The normal 95 % two-sided point: the 95 % interval of the heading [1]."""
 
 
+_TINY = 1e-9 * np.eye(3)
+"""Added to the covariance before it is inverted: a direction the belief has no doubt in
+(the start) stays so, instead of making the inverse singular [cm^2, rad^2]."""
+_TINY.flags.writeable = False
+
+
 def _tread_moments(counted: float, uncounted: float, report: TreadReport,
                    noise: MotionNoise) -> tuple[float, float]:
     """Mean and variance [cm], [cm^2] of one tread's true travel (`motion_model`'s
@@ -155,7 +161,7 @@ class GaussianPose:
             info = s_inv - s_inv @ np.linalg.inv(info + s_inv) @ s_inv
             info = 0.5 * (info + info.T)
         # a belief with no doubt in some direction (the start) keeps it there
-        prior = np.linalg.inv(self.covariance + 1e-9 * np.eye(3))
+        prior = np.linalg.inv(self.covariance + _TINY)
         cov = np.linalg.inv(prior + info)
         cov = 0.5 * (cov + cov.T)
         step = cov @ info @ self.innovation(pose)
