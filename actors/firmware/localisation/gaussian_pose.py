@@ -100,6 +100,19 @@ class GaussianPose:
         top = float(np.linalg.eigvalsh(self.covariance[:2, :2])[-1])
         return math.sqrt(CHI2_2D_95 * max(top, 0.0))
 
+    def radius95_over(self, limit_cm: float) -> bool:
+        """Whether `radius95_cm` exceeds ``limit_cm``.
+
+        Why: the mapper asks it of every batch, and the ellipse's top eigenvalue is at
+        most the position covariance's trace, so a belief well inside the limit (its
+        trace's radius under 99 % of it) is answered without an eigenvalue solver; any
+        other is answered by `radius95_cm` itself (the same answer either way).
+        """
+        c = self.covariance
+        if CHI2_2D_95 * float(c[0, 0] + c[1, 1]) < 0.98 * limit_cm * limit_cm:
+            return False
+        return self.radius95_cm > limit_cm
+
     @property
     def heading95_deg(self) -> float:
         """Half-width of the heading's 95 % interval [deg]."""

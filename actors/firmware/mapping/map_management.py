@@ -326,7 +326,7 @@ class MapManagement(Actor):
         ``max_turn_deg`` or its 95 % radius over ``max_shift_cm``): then only the wide
         search may place a batch."""
         b = self.belief
-        return b.heading95_deg > opts.max_turn_deg or b.radius95_cm > opts.max_shift_cm
+        return b.heading95_deg > opts.max_turn_deg or b.radius95_over(opts.max_shift_cm)
 
     def _place(self, scan: Scan) -> Pose | None:
         """The map-frame pose of a batch, or None when it is dropped (the module docstring).
