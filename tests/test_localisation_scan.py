@@ -125,3 +125,15 @@ def test_bad_scan_arrays_are_refused() -> None:
     """Angles and ranges must be 1-D of one length."""
     with pytest.raises(ValueError, match="must be 1-D of one length"):
         hits_to_points(np.zeros(3), np.zeros(4))
+
+
+def test_the_beams_taken_are_those_evenly_spaced_by_linspace() -> None:
+    """At most ``max_beams`` hits, taken where ``np.linspace`` over the scan's indices
+    rounds to (the first and last always), for every scan length up to 2,000 hits."""
+    from actors.firmware.localisation.scan_likelihood import _beams  # noqa: PLC0415
+
+    for k in range(1, 2000):
+        pts = np.arange(2.0 * k).reshape(k, 2)
+        for beams in (2, 7, 60):
+            want = pts if k <= beams else pts[np.linspace(0, k - 1, beams).round().astype(int)]
+            assert np.array_equal(_beams(pts, beams), want)

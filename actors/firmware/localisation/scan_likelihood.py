@@ -44,7 +44,6 @@ Frame and units
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from enum import Enum
@@ -212,21 +211,18 @@ def _hit_terms(field: DistanceField, x: np.ndarray, y: np.ndarray, o: ScanOption
 
 
 def _beams(points: np.ndarray, max_beams: int) -> np.ndarray:
-    """At most ``max_beams`` of the points, taken evenly along the scan."""
+    """At most ``max_beams`` of the points, taken evenly along the scan: the indices
+    ``np.linspace(0, k - 1, max_beams)`` rounds to, formed as linspace forms them (the
+    step ``(k - 1) / (max_beams - 1)`` times 0, 1, ..., the last set to ``k - 1``)
+    without its wrapper, which costs more than the rest of a scan's information
+    matrix's bookkeeping."""
     k = points.shape[0]
     if k <= max_beams:
         return points
-    return points.take(_beam_index(k, max_beams), axis=0)
-
-
-@functools.lru_cache(maxsize=512)
-def _beam_index(k: int, max_beams: int) -> np.ndarray:
-    """The indices `_beams` takes of ``k`` points (read-only). Cached: a scan's count of
-    usable hits takes a few hundred values at most, and ``np.linspace`` costs more
-    than the rest of a scan's information matrix's bookkeeping."""
-    index = np.linspace(0, k - 1, max_beams).round().astype(np.int64)
-    index.flags.writeable = False
-    return index
+    at = np.arange(max_beams, dtype=float)
+    at *= (k - 1) / (max_beams - 1)
+    at[-1] = k - 1
+    return points.take(at.round().astype(np.int64), axis=0)
 
 
 def scan_log_likelihood(field: DistanceField, particles: np.ndarray, points: np.ndarray,
