@@ -118,3 +118,17 @@ def test_the_capped_transform_gives_scipys_floats(resolution: float, cap: float)
         want = np.minimum(distance_transform_edt(~occupied, sampling=resolution), cap)
         got = capped_distance(occupied, resolution, cap)
         assert got.dtype == np.float64 and np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("index", range(4))
+def test_known_or_near_is_known_or_within_the_distance(index: int) -> None:
+    """With ``near_cm``, the second answer is "known, or within ``near_cm`` of an
+    obstacle", whether every point is that near (no cell looked up) or not."""
+    field = _fields()[index]
+    x, y = _points(field, 2000, 10 + index)
+    dist, known = field.at_known(x, y)
+    assert known is not None
+    for near_cm in (0.0, 7.5, 15.0, field.max_dist_cm + 1.0):
+        got_dist, judged = field.at_known(x, y, near_cm=near_cm)
+        assert np.array_equal(got_dist, dist)
+        assert np.array_equal(judged, known | (dist <= near_cm))

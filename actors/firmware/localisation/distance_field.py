@@ -121,8 +121,8 @@ class DistanceField:
         """
         return self.at_known(x, y, known=False)[0]
 
-    def at_known(self, x: np.ndarray, y: np.ndarray, *, known: bool = True
-                 ) -> tuple[np.ndarray, np.ndarray | None]:
+    def at_known(self, x: np.ndarray, y: np.ndarray, *, known: bool = True,
+                 near_cm: float | None = None) -> tuple[np.ndarray, np.ndarray | None]:
         """`at` and `known_at` of the same points (x, y) [cm] (any shape), in one pass.
 
         Why: a scan's likelihood reads both for every hit, and with a hundred hits a
@@ -137,6 +137,9 @@ class DistanceField:
 
         Args:
             known: False skips the second answer (None).
+            near_cm: when given, the second answer is whether the cell is known or the
+                point lies within ``near_cm`` of an obstacle (what a scan's likelihood
+                judges), and the cells are looked up only when some point is farther.
         """
         shape = np.shape(x)
         ox, oy = self.origin_cm
@@ -158,13 +161,22 @@ class DistanceField:
         dist = np.where(inside, v, self.max_dist_cm).reshape(shape)
         if not known:
             return dist, None
+        near = None
+        if near_cm is not None:
+            near = dist <= near_cm
+            if near.all():
+                return dist, near
         if self._rim_unknown:
             flat += fx >= 0.5
             flat += (fy >= 0.5) * nx
             cell_known = self._known_flat.take(flat)
             cell_known &= inside
-            return dist, cell_known.reshape(shape)
-        return dist, self.known_at(x, y)
+            cell_known = cell_known.reshape(shape)
+        else:
+            cell_known = self.known_at(x, y)
+        if near is not None:
+            cell_known |= near
+        return dist, cell_known
 
     def occupied_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whether the cell holding each point (x, y) [cm] is occupied (False off the grid)."""

@@ -202,12 +202,10 @@ def _hit_terms(field: DistanceField, x: np.ndarray, y: np.ndarray, o: ScanOption
                ) -> tuple[np.ndarray, np.ndarray]:
     """The hit term exp(-g^2 / 2 sigma^2) of each hit and whether it is judged (not on
     new ground)."""
-    d, known = field.at_known(x, y)
-    assert known is not None
+    d, judged = field.at_known(x, y, near_cm=o.new_ground_cm)
+    assert judged is not None
     gap = np.maximum(d - 0.5 * field.resolution_cm, 0.0)
-    term = np.exp(-0.5 * (gap / o.sigma_hit_cm) ** 2)
-    known |= d <= o.new_ground_cm
-    return term, known
+    return np.exp(-0.5 * (gap / o.sigma_hit_cm) ** 2), judged
 
 
 def _beams(points: np.ndarray, max_beams: int) -> np.ndarray:
