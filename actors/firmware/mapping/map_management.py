@@ -65,7 +65,6 @@ from __future__ import annotations
 
 import contextlib
 from collections import Counter
-from dataclasses import replace
 
 import numpy as np
 import trio
@@ -206,6 +205,8 @@ class MapManagement(Actor):
         # broken component's Occam factor (`odometry_fault.evidence`)
         """Times the belief became the broken component (data for metrics)."""
         self._step = (0.0, 0.0)  # the last step between two stamps: travel [cm], turn [rad]
+        # the last `_stamp_covariance` asked and its answer (a read-only array)
+        self._stamp: tuple[tuple[float, tuple[float, float], float], np.ndarray] | None = None
         self.correction = Pose()
         """Odometry frame -> map frame: the belief's mean composed with the inverse of
         its odometry stamp (identity until a match or a report moves it)."""
@@ -420,27 +421,29 @@ class MapManagement(Actor):
         odom = self._belief_odom
         assert odom is not None
         alt = None if self._alt_correction is None else compose(self._alt_correction, odom)
-        ev = FitEvidence(min(float(at_mean.hits), _SCAN.independent_hits), at_mean.log_fit)
+        found: dict[str, float] = {}  # `FitEvidence`'s optional fields this batch fills
         if alt is not None:
             at_alt = judge_fit(self._distance, alt, pts, _SCAN)
             if at_alt.fit < MIN_FIT:
                 alt = self._alt_correction = None  # the scan refutes it
             else:
-                ev = replace(ev, log_fit_alt=at_alt.log_fit)
+                found["log_fit_alt"] = at_alt.log_fit
         at_match = None
         if result.accepted:
             at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
             if at_match.verdict not in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
                 e = self.belief.innovation(result.pose)
                 d2 = float(e @ np.linalg.solve(narrow, e))
-                ev = replace(ev, log_fit_match=at_match.log_fit, d2_match=d2,
+                found.update(log_fit_match=at_match.log_fit, d2_match=d2,
                              d2_match_wide=float(e @ np.linalg.solve(wide, e)))
                 if alt is not None:
                     ea = GaussianPose(alt, narrow).innovation(result.pose)
-                    ev = replace(ev, d2_match_alt=float(ea @ np.linalg.solve(narrow, ea)))
+                    found["d2_match_alt"] = float(ea @ np.linalg.solve(narrow, ea))
                 if at_match.fit >= MIN_FIT and d2 > GATE_CHI2:
                     # a confident fit the narrow belief cannot hold: where "broken" would be
                     self._alt_correction = compose(result.pose, inverse(odom))
+        ev = FitEvidence(min(float(at_mean.hits), _SCAN.independent_hits), at_mean.log_fit,
+                         **found)
         step = evidence(ev, narrow, wide, _ACCEPTABLE, charged=self._charged)
         self._charged = step > 0.0  # a run of scans for "broken" pays its Occam factor once
         self.broken = posterior(self.broken, step)
@@ -462,9 +465,15 @@ class MapManagement(Actor):
         between two stamps (its variance: the step squared over 12). A tick with no Int E
         keeps the last step (the rover moves on between interrupts) until the rover has
         stood ``settle_s``."""
+        key = (now, self._step, self._still_since)
+        if self._stamp is not None and self._stamp[0] == key:
+            return self._stamp[1]  # a batch asks up to three times
         ds, dtheta = self._step if now - self._still_since < self.settle_s else (0.0, 0.0)
-        return odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
-                                           dtheta * dtheta / 12.0])
+        cov = odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
+                                          dtheta * dtheta / 12.0])
+        cov.flags.writeable = False
+        self._stamp = (key, cov)
+        return cov
 
     def _refuse(self, reason: str) -> None:
         """Drop a batch, counting why."""
