@@ -91,7 +91,7 @@ class Cmd(enum.IntEnum):
     """The origin's rotation; value float32 [deg]."""
     NAV_TREAD_DRIVEN = 0x0210
     """How far Motor Control's drive model says each tread went in a Command A that had a
-    NAV_TREAD_FAULT (the counts of a reported tread are not its travel); value int16 pair
+    NAV_TREAD_FAULT, or a turn that ended blocked (its counts are not its travel); value int16 pair
     (left, right) [mm], signed as driven, including the coast to rest after the stop.
     Sent once, just before that command's NAV_MOTION_DONE / NAV_MOTION_BLOCKED."""
 

@@ -30,6 +30,13 @@ Blocked
     off and turning again on two stuck encoders drives the rover on unseen;
     navigation holds instead for a tread fault during a turn.
 
+Driven travel (``NAV_TREAD_DRIVEN``)
+    After a command with a tread report, or a turn that ended blocked, Motor
+    Control tells navigation how far its model says each tread went (to rest,
+    the coast behind the lag included), just before the command's end: the
+    counts of such a command are not its travel, and the treads went on past
+    the command (the model gives a silent tread up only after ``blocked_cm``).
+
 Dead reckoning
     This actor owns the pose: every tread increment goes through an
     `odometry.Odometer` (one `odometry.advance` step per burst of Int E, with
