@@ -13,6 +13,7 @@ from actors import Actor, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.motor import MotorControl, PoseMemory
 from actors.firmware.hardware import HardwareSpec, Interrupt, encode_counter
+from actors.firmware.origin_wire import MM, xy_half
 from server.protocol.pose import Pose, angle_diff_deg
 from supervisors import ChildSpec, SupervisorSpec
 from world import World, load_scenario, run_world
@@ -377,6 +378,32 @@ async def test_both_encoders_silent_block_within_a_few_cm(autojump_clock, counts
     # a turn blocked without a single Int E is a tread fault too (value 4: both
     # silent), sent before its end; moves are not (a rover against a wall)
     assert [r for r in tread_reports(log) if r == 4] == ([4, 4] if blocked else [])
+
+
+def driven_reports(log: list) -> list[tuple[float, float]]:
+    """The NAV_TREAD_DRIVEN values navigation got [cm], in order."""
+    return [xy_half(x, MM) for _, x in log if x.command == Cmd.NAV_TREAD_DRIVEN]
+
+
+@pytest.mark.trio
+async def test_a_turn_on_stuck_encoders_reports_how_far_the_drive_model_went(
+        autojump_clock) -> None:
+    """Both encoders stuck in a 23 deg turn (2.6 cm a tread commanded): Motor Control
+    ends it by its model once a tread went about 3 cm unseen, and the treads coast on
+    after the stop, so the turn went beyond the command. NAV_TREAD_DRIVEN says how far
+    (signed as driven: left back, right forward), after the report;
+    healthy treads send none."""
+    log, outcomes = await run_commands((0.0, 0.0), [(Cmd.MOTOR_TURN, 23.0)], horizon=10.0)
+    kinds = [x.command for _, x in log if x.command in (
+        Cmd.NAV_TREAD_FAULT, Cmd.NAV_TREAD_DRIVEN)]
+    assert kinds == [Cmd.NAV_TREAD_FAULT, Cmd.NAV_TREAD_DRIVEN]
+    assert outcomes[0][0] == Cmd.NAV_MOTION_BLOCKED
+    [(left, right)] = driven_reports(log)
+    commanded = 0.5 * 13.0 * math.radians(23.0)
+    assert left < 0.0 < right
+    assert commanded + 1.0 < right < 3.0 * commanded and left == pytest.approx(-right, abs=0.2)
+    healthy, _ = await run_commands((1.0, 1.0), FOUR, horizon=20.0)
+    assert driven_reports(healthy) == []
 
 
 @pytest.mark.trio

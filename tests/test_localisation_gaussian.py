@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pytest
 
-from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.localisation.motion_model import (
@@ -111,15 +110,15 @@ def test_an_update_moves_the_mean_toward_the_measurement_by_the_weights() -> Non
 
 
 def test_navigation_relays_the_travel_driven_beyond_the_count() -> None:
-    """One tread silent: driven as far as the other counted; both silent in a turn: the
-    commanded turn's travel each, signed as driven; a tread counting short: the rest."""
-    assert uncounted_travel(TreadFault(0), (0.0, 3.0), "move", 20.0, W) == (3.0, 0.0)
-    left, right = uncounted_travel(TreadFault.BOTH_SILENT, (0.0, 0.0), "turn", 90.0, W)
-    assert (left, right) == pytest.approx((-10.21, 10.21), abs=0.01)
-    assert uncounted_travel(TreadFault.SHORT | TreadFault.RIGHT, (8.0, 4.0), "move", 20.0,
-                            W) == (0.0, 4.0)
-    assert uncounted_travel(TreadFault.BOTH_SHORT, (-6.0, -6.0), "move", -20.0, W) == (
-        -14.0, -14.0)
+    """Each reported tread's travel beyond its count by Motor Control's drive model
+    (``NAV_TREAD_DRIVEN``), signed as driven; a tread not reported, or one that counted
+    as far as the model, relays nothing."""
+    assert uncounted_travel((True, False), (0.0, 3.0), (3.2, 3.2)) == pytest.approx((3.2, 0.0))
+    assert uncounted_travel((True, True), (-1.0, 1.0), (-4.5, 4.5)) == pytest.approx(
+        (-3.5, 3.5))
+    assert uncounted_travel((False, True), (8.0, 4.0), (8.0, 8.5)) == pytest.approx((0.0, 4.5))
+    assert uncounted_travel((True, True), (-6.0, -6.0), (-5.0, -14.0)) == pytest.approx(
+        (0.0, -8.0))
 
 
 def test_whether_the_95_radius_exceeds_a_limit_is_what_the_radius_says() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from contextlib import asynccontextmanager
 
+import numpy as np
 import pytest
 import trio
 
@@ -13,6 +14,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
+from actors.firmware.origin_wire import length_pair
 from server.protocol.pose import Pose
 from tests.test_nav_common import (
     Body,
@@ -249,6 +251,8 @@ async def test_both_treads_silent_in_a_turn_holds_and_doubts_the_heading_more(
         h0 = nav.spread.heading95_deg
         await system.send("hider/nav",
                           Message.uint(Cmd.NAV_TREAD_FAULT, int(TreadFault.BOTH_SILENT)))
+        # Motor Control's drive model of the stopped turn: 5 cm a tread (44 deg)
+        await system.send("hider/nav", length_pair(Cmd.NAV_TREAD_DRIVEN, -5.0, 5.0))
         await trio.sleep(0.1)
         assert nav.tread_faults == 1 and nav.moving
         await trio.sleep(11.0)  # within the hold: nothing new commanded
@@ -258,15 +262,19 @@ async def test_both_treads_silent_in_a_turn_holds_and_doubts_the_heading_more(
         assert await wait_for(lambda: body.frames("arrived"), 60.0)
 
 
-def _reported(motion: Motion, value: int | None, left: float, right: float) -> object:
+def _reported(motion: Motion, value: int | None, left: float, right: float,
+              driven: tuple[float, float] | None = None) -> object:
     """A hider's belief after ``motion``, which Motor Control counted as ``left`` /
     ``right`` [cm] of tread travel (its dead reckoning by the midpoint rule on a 13 cm
-    track), with the tread fault ``value`` reported (None: none)."""
+    track), with the tread fault ``value`` reported (None: none) and ``driven`` its drive
+    model's travel of each tread (``NAV_TREAD_DRIVEN``; None: not sent)."""
     nav = scraped_nav(0.0, sigma_cm=1.0)
     believe(nav, 1.0, 1.0)
     nav.last_motion = motion
     if value is not None:
         nav.note_tread_fault(TreadFault(value))
+    if driven is not None:
+        nav.note_tread_driven(*driven)
     dtheta, ds = (right - left) / 13.0, 0.5 * (left + right)
     nav.pose = Pose(250.0 + ds * math.cos(0.5 * dtheta), 100.0 + ds * math.sin(0.5 * dtheta),
                     math.degrees(dtheta))
@@ -284,9 +292,41 @@ def test_one_tread_silent_in_a_turn_turns_the_believed_heading_on() -> None:
     quiet = _reported(Motion("turn", 90.0), None, 0.0, 10.0)
     assert quiet.map_pose.heading_deg == pytest.approx(counted, abs=2.0)
     assert quiet.spread.heading95_deg < 6.0
-    silent = _reported(Motion("turn", 90.0), 0, 0.0, 10.0)
+    silent = _reported(Motion("turn", 90.0), 0, 0.0, 10.0, (-10.0, 10.0))
     assert counted + 10.0 < silent.map_pose.heading_deg < 2.0 * counted
     assert silent.spread.heading95_deg > 15.0
+
+
+def _heading_range(nav) -> tuple[float, float]:
+    """The 2.5 % and 97.5 % quantiles of the belief's heading [deg]."""
+    p, w = nav.belief.particles, nav.belief.weights
+    order = np.argsort(p[:, 2])
+    cum = np.cumsum(w[order])
+    lo, hi = (p[order[np.searchsorted(cum, q)], 2] for q in (0.025, 0.975))
+    return math.degrees(lo), math.degrees(hi)
+
+
+def test_a_turn_on_two_stuck_encoders_is_believed_as_far_as_the_drive_model_went() -> None:
+    """Both encoders stuck in a 23 deg turn: Motor Control ends it by its model, not the
+    counts, after 4.5 cm a tread (40 deg), so the turn went beyond what was commanded.
+    The belief's heading spans nothing counted to the model's 40 deg; were the command
+    taken as the far end, the true turn would lie outside the belief."""
+    turn = Motion("turn", -23.0)
+    nav = _reported(turn, int(TreadFault.BOTH_SILENT), 0.0, 0.0, (4.5, -4.5))
+    lo, hi = _heading_range(nav)
+    assert lo < -36.0 and hi > -4.0
+
+
+def test_a_turn_that_ended_blocked_unreported_doubts_both_treads() -> None:
+    """A turn that ended blocked after counting some (1 cm a tread) with no report: a
+    jammed rover and two encoders that stopped read the same, so Motor Control's model
+    (5 cm a tread, NAV_TREAD_DRIVEN) is the far end of both treads' travel."""
+    turn = Motion("turn", 60.0)
+    counted = _reported(turn, None, -1.0, 1.0)
+    doubted = _reported(turn, None, -1.0, 1.0, (-5.0, 5.0))
+    assert counted.spread.heading95_deg < 5.0
+    lo, hi = _heading_range(doubted)
+    assert lo < 12.0 and hi > 38.0
 
 
 def test_both_short_in_a_straight_move_keeps_the_heading() -> None:
@@ -294,8 +334,8 @@ def test_both_short_in_a_straight_move_keeps_the_heading() -> None:
     (they err alike): the move's length is in doubt, the heading is not. One tread
     short (8 counted, the other 20) doubts the heading."""
     move = Motion("move", 20.0)
-    both = _reported(move, int(TreadFault.BOTH_SHORT), 8.0, 8.0).spread
-    one = _reported(move, int(TreadFault.short(0)), 8.0, 20.0).spread
+    both = _reported(move, int(TreadFault.BOTH_SHORT), 8.0, 8.0, (20.0, 20.0)).spread
+    one = _reported(move, int(TreadFault.short(0)), 8.0, 20.0, (20.0, 20.0)).spread
     assert both.heading95_deg < 5.0 < 15.0 < one.heading95_deg
     assert both.radius95_cm > 5.0  # 8 to 20 cm driven: the length is in doubt by 6
 

@@ -12,6 +12,7 @@ from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.nav.mapper import MappingOptions
+from actors.firmware.origin_wire import length_pair
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
 
@@ -387,8 +388,8 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
     not count; the left, or both, count short): MOTOR_STOP at once, though the pose shows
     nothing yet, no Command A for the hold (``ODO_HOLD_S``; ``SHORT_HOLD_S`` for counting
     short), an ``odometry_fault`` status naming the fault, then exploring goes on. Every
-    report is relayed to Map Management (MAP_TREAD_FAULT: its pose belief widens by
-    it)."""
+    report is relayed to Map Management with Motor Control's drive model of the stopped
+    motion (MAP_TREAD_FAULT: its pose belief widens by it)."""
     import tests.test_nav_common as common
 
     class StuckEncoderMotor(common.FakeMotor):
@@ -400,6 +401,8 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
                 self.body.motor_log.append((Cmd(message.command).name, float(message.value)))
                 self.ctx.send_nowait(self.nav, Message.uint(Cmd.NAV_TREAD_FAULT, value))
                 return  # the move never ends by itself: only the stop ends it
+            if message.command == Cmd.MOTOR_STOP:  # its drive model of the stopped move
+                self.ctx.send_nowait(self.nav, length_pair(Cmd.NAV_TREAD_DRIVEN, 5.0, 5.0))
             await super().handle(message)
 
     monkeypatch.setattr(common, "FakeMotor", StuckEncoderMotor)

@@ -78,8 +78,8 @@ class Cmd(enum.IntEnum):
     stalled tread), or counts short (a slipping encoder, or a weak motor), while the other
     one counts; value uint32: bit 0 the tread (0 left, 1 right), bit 1 set for "counts
     short" (so 0/1 silent, 2/3 short), bit 2 for both treads: 4 a turn blocked without
-    one Int E (both silent; its NAV_MOTION_BLOCKED follows), 6 both count short (mapper
-    only). At most once of each per tread per Command A; the command goes on (navigation
+    one Int E (both silent; its NAV_MOTION_BLOCKED follows), 6 both count short. At
+    most once of each per tread per Command A; the command goes on (navigation
     decides). See motor.py."""
 
     NAV_MAP_ORIGIN_XY = 0x020E
@@ -89,6 +89,11 @@ class Cmd(enum.IntEnum):
     ``origin`` (map pose = origin (+) Motor Control's pose), retained in `NavMemory`."""
     NAV_MAP_ORIGIN_HEADING = 0x020F
     """The origin's rotation; value float32 [deg]."""
+    NAV_TREAD_DRIVEN = 0x0210
+    """How far Motor Control's drive model says each tread went in a Command A that had a
+    NAV_TREAD_FAULT, or a turn that ended blocked (its counts are not its travel); value int16 pair
+    (left, right) [mm], signed as driven, including the coast to rest after the stop.
+    Sent once, just before that command's NAV_MOTION_DONE / NAV_MOTION_BLOCKED."""
 
     # -- LIDAR queue -------------------------------------------------------
     LIDAR_SAMPLE = 0x0300

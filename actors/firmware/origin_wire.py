@@ -25,7 +25,7 @@ import math
 from actors import Message
 from server.protocol.pose import Pose
 
-__all__ = ["CM", "MM", "OriginHalves", "pose_messages", "xy_half"]
+__all__ = ["CM", "MM", "OriginHalves", "length_pair", "pose_messages", "xy_half"]
 
 _INT16 = 32767
 
@@ -45,8 +45,15 @@ def pose_messages(xy_command: int, heading_command: int, pose: Pose, per_cm: int
             Message.float(heading_command, pose.heading_deg))
 
 
+def length_pair(command: int, a_cm: float, b_cm: float, per_cm: int = MM) -> Message:
+    """Two lengths [cm] as one int16 pair message, rounded to ``1 / per_cm`` cm and
+    clamped (a pose's translation, or one length per tread); `xy_half` reads it back."""
+    return Message.pair(command, max(-_INT16, min(_INT16, round(a_cm * per_cm))),
+                        max(-_INT16, min(_INT16, round(b_cm * per_cm))))
+
+
 def xy_half(message: Message, per_cm: int = MM) -> tuple[float, float]:
-    """The translation half made by `pose_messages`, back in cm.
+    """The translation half made by `pose_messages` (or a `length_pair`), back in cm.
 
     Raises:
         ValueError: ``message`` is not an int16 pair.

@@ -30,6 +30,13 @@ Blocked
     off and turning again on two stuck encoders drives the rover on unseen;
     navigation holds instead for a tread fault during a turn.
 
+Driven travel (``NAV_TREAD_DRIVEN``)
+    After a command with a tread report, or a turn that ended blocked, Motor
+    Control tells navigation how far its model says each tread went (to rest,
+    the coast behind the lag included), just before the command's end: the
+    counts of such a command are not its travel, and the treads went on past
+    the command (the model gives a silent tread up only after ``blocked_cm``).
+
 Dead reckoning
     This actor owns the pose: every tread increment goes through an
     `odometry.Odometer` (one `odometry.advance` step per burst of Int E, with
@@ -80,7 +87,7 @@ from actors.firmware.drivers.isr import MotorCounterIsr
 from actors.firmware.drivers.tread_monitor import TreadFault, TreadMonitor, TreadVerdict
 from actors.firmware.hardware import Interrupt, RoverHardware, decode_counter
 from actors.firmware.localisation.odometry import Odometer
-from actors.firmware.origin_wire import CM, MM, pose_messages
+from actors.firmware.origin_wire import CM, MM, length_pair, pose_messages
 from server.protocol.pose import Pose
 
 __all__ = ["MotorTuning", "PoseMemory", "MotorControl"]
@@ -184,6 +191,8 @@ class MotorControl(Actor):
         self._odometer = Odometer(self._unit, self._track)
         self._monitor = TreadMonitor(self.tuning, self._unit, self._vmax, mapper=lidar)
         self._ticked = False            # an Int E was in the burst being handled
+        self._signs = (1.0, 1.0)           # direction each tread is driven in
+        self._reported = False              # a NAV_TREAD_FAULT was sent in this command
         self.tread_faults = 0
         """NAV_TREAD_FAULT reports sent (this incarnation)."""
         self._period: Timer | Any = None  # the control period's timer while it runs, else None
@@ -309,10 +318,13 @@ class MotorControl(Actor):
         if not math.isfinite(amount):
             raise ValueError(f"Command A amount must be finite, got {amount!r}")
         self.commands += 1
+        forward = 1.0 if amount >= 0 else -1.0
         if kind == Cmd.MOTOR_MOVE:
             self._target = (amount, amount)
+            self._signs = (forward, forward)
             length = abs(amount)
         else:
+            self._signs = (-forward, forward)
             # quantise the turn to whole encoder interrupts on the *sum* of both treads
             # (one tread may go one interrupt further), halving the heading quantum
             n = round(math.radians(amount) * self._track / self._unit)
@@ -321,6 +333,7 @@ class MotorControl(Actor):
             length = abs(n) * self._unit / 2
         now = self._now()
         self._kind = kind
+        self._reported = False
         self._progress = [0.0, 0.0]
         self._monitor.begin(now)
         self._started_t = self._last_progress_t = now
@@ -362,9 +375,7 @@ class MotorControl(Actor):
         if self._monitor.both_silent():
             if self._kind == Cmd.MOTOR_TURN and not any(self._monitor.counted):
                 # a turn that never counted: both encoders stuck, most likely (see above)
-                self.tread_faults += 1
-                self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT,
-                                                   int(TreadFault.BOTH_SILENT)))
+                self._report(TreadFault.BOTH_SILENT)
             self._finish(Cmd.NAV_MOTION_BLOCKED)
             return
         if now >= self._deadline or now - self._last_progress_t >= t.blocked_after_s:
@@ -399,8 +410,13 @@ class MotorControl(Actor):
             if verdict is TreadVerdict.PUSH:
                 self._finish(Cmd.NAV_MOTION_BLOCKED)
                 continue
-            self.tread_faults += 1
-            self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, int(fault)))
+            self._report(fault)
+
+    def _report(self, fault: TreadFault) -> None:
+        """Send ``NAV_TREAD_FAULT``; the command's end then carries ``NAV_TREAD_DRIVEN``."""
+        self.tread_faults += 1
+        self._reported = True
+        self._send(self._nav, Message.uint(Cmd.NAV_TREAD_FAULT, int(fault)))
 
     def _speed(self, remaining: float, cruise: float) -> float:
         t = self.tuning
@@ -414,6 +430,9 @@ class MotorControl(Actor):
         return max(-1.0, min(1.0, v / self._vmax))
 
     def _finish(self, outcome: int) -> None:
+        driven = None
+        if self._reported or (self._kind == Cmd.MOTOR_TURN and outcome == Cmd.NAV_MOTION_BLOCKED):
+            driven = self._driven_message()
         self._set_pwm(0.0, 0.0)
         pl, pr = self._progress
         if self._kind == Cmd.MOTOR_TURN:
@@ -422,11 +441,30 @@ class MotorControl(Actor):
             done = (pl + pr) / 2
         self._kind = None
         self.memory.active = False
+        if driven is not None:  # before the pose at rest, which the belief moves by
+            self._send(self._nav, driven)
         if self._pose_dirty:
             self._publish()
         # must not be lost: when navigation's queue is full, retry every control period
         message = Message.float(outcome, done)
         self._outcome = None if self._send(self._nav, message) else message
+
+    def _driven_message(self) -> Message:
+        """``NAV_TREAD_DRIVEN``: each tread's travel in this command by the drive model,
+        up to now and on through the coast to rest once the PWM is off (a first-order
+        lag at speed ``v`` goes ``v * motor_tau_s`` further), signed as driven [mm].
+
+        Why: a command ended by the counts drives a tread that does not count on until
+        the model gives it up, well past what was commanded (a turn on two stuck
+        encoders turns 40-65 deg for a 23-90 deg command), so the command's amount is
+        not what the tread went; the model is the one estimate there is.
+        """
+        m = self._monitor
+        m.advance(self._now())
+        tau = self.tuning.motor_tau_s
+        left, right = (sign * (travel + abs(v) * tau)
+                       for sign, travel, v in zip(self._signs, m.modelled, m.model_v, strict=True))
+        return length_pair(Cmd.NAV_TREAD_DRIVEN, left, right, MM)
 
     @staticmethod
     def _now() -> float:

@@ -192,6 +192,8 @@ class NavBase(TreadFaults, Actor):
             await self._on_tick()
         elif cmd == Cmd.NAV_TREAD_FAULT:
             await self.on_tread_fault(TreadFault(int(message.value)))
+        elif cmd == Cmd.NAV_TREAD_DRIVEN:
+            self.note_tread_driven(*xy_half(message, MM))
         elif cmd == Cmd.NAV_NET:
             frame = self._take(message)
             if isinstance(frame, Frame):

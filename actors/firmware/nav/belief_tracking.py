@@ -63,6 +63,7 @@ from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import free_space_log_likelihood
 from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
 from actors.firmware.localisation.odometry import tread_travel
+from actors.firmware.nav.route import Motion
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
 
@@ -106,6 +107,8 @@ class BeliefTracking:
         self._rng = np.random.default_rng(zlib.crc32(f"belief:{self.role}".encode()))
         self._belief_odom: Pose | None = None  # own-frame pose the belief was last moved to
         self._reports = [TreadReport.OK, TreadReport.OK]  # tread reports since then
+        self._modelled: tuple[float, float] | None = None  # Motor Control's driven travel [cm]
+        self._reported_motion: Motion | None = None  # its NAV_TREAD_DRIVEN is still to come
         self._spread: Spread | None = None  # cached until the belief changes
         self._modes = 1  # clusters of the last spread computed
         self._field: DistanceField | None = None
@@ -153,6 +156,7 @@ class BeliefTracking:
         self.belief, self._spread, self._belief_odom, self._modes = None, None, None, 1
         self._dead = None
         self._reports = [TreadReport.OK, TreadReport.OK]
+        self._modelled = self._reported_motion = None
         self._retain()
 
     def on_server_origin(self) -> None:
@@ -190,6 +194,20 @@ class BeliefTracking:
         for t in treads:
             if self._reports[t] != TreadReport.SILENT:
                 self._reports[t] = kind
+        self._reported_motion = self.last_motion
+
+    def note_tread_driven(self, left_cm: float, right_cm: float) -> None:
+        """Motor Control's drive model says how far each tread went in the motion that
+        ended (``NAV_TREAD_DRIVEN``): the far end of a reported tread's travel. Sent
+        without a report for a turn that ended blocked: a rover jammed in a turn and one
+        whose encoders both stopped read the same, so both treads' travel lies between
+        their counts and the model."""
+        m = self.last_motion
+        if self._reports == [TreadReport.OK, TreadReport.OK] and m is not None \
+                and m.kind == "turn":
+            self._reports = [TreadReport.SHORT, TreadReport.SHORT]
+        self._modelled = (left_cm, right_cm)
+        self._reported_motion = None
 
     def track_belief(self) -> None:
         """At a pose at rest: move the belief by the motion since the last one, weigh it
@@ -221,6 +239,8 @@ class BeliefTracking:
         """Move the belief by the counted motion since the last prediction; False when
         there was none."""
         assert self.belief is not None and self._belief_odom is not None
+        if self._reported_motion is not None and self._reported_motion is self.last_motion:
+            return False  # the reported motion's driven travel comes with its end
         w = self._track_width()
         left, right = tread_travel(self._belief_odom, self.pose, w)
         if abs(left) + abs(right) < 1e-6 and self._reports == [TreadReport.OK, TreadReport.OK]:
@@ -234,11 +254,19 @@ class BeliefTracking:
             self._dead.predict(motion, w, self.o.motion, self._dead_rng)
         self._belief_odom, self._spread = self.pose, None
         self._reports = [TreadReport.OK, TreadReport.OK]
+        self._modelled = self._reported_motion = None
         return True
 
     def _driven(self, left: float, right: float, w: float) -> list[float | None]:
-        """Modelled travel [cm] of each reported tread: the other tread's count in size
-        when that one counted well, else the last motion's commanded travel."""
+        """Modelled travel [cm] of each reported tread: Motor Control's drive model
+        (`note_tread_driven`), at least the count; without it (the message was lost)
+        the other tread's count in size when that one counted well, else the last
+        motion's commanded travel."""
+        counts = (left, right)
+        if self._modelled is not None:
+            return [None if self._reports[t] == TreadReport.OK else
+                    math.copysign(max(abs(self._modelled[t]), abs(counts[t])), self._modelled[t])
+                    for t in (0, 1)]
         m = self.last_motion
         if m is None:
             sign, size = (1.0, 1.0), 0.0
@@ -248,7 +276,6 @@ class BeliefTracking:
         else:
             sign = (1.0, 1.0) if m.amount >= 0 else (-1.0, -1.0)
             size = abs(m.amount)
-        counts = (left, right)
         out: list[float | None] = [None, None]
         for t in (0, 1):
             if self._reports[t] == TreadReport.OK:

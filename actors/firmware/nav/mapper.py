@@ -64,7 +64,7 @@ from actors.firmware.nav.homing import Homing
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.sensor_watch import SensorWatch
-from actors.firmware.origin_wire import OriginHalves, pose_messages
+from actors.firmware.origin_wire import MM, OriginHalves, pose_messages, xy_half
 from server.protocol.grid_map import UNKNOWN, GridMap
 from server.protocol.pose import ZERO_POSE
 
@@ -136,6 +136,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         self._odo_hold_until = -math.inf  # holding still for odometry until then
         self._odo_last = -math.inf  # when the last disagreement was seen
         self._odo_strikes = 0  # disagreements in a row, each within 60 s of the last
+        self._relayed = (False, False)  # treads reported in this motion, to relay at its end
         self._origin_halves = OriginHalves()  # NAV_MAP_ORIGIN_XY waiting for its heading
 
     # ------------------------------------------------------------------ dispatch
@@ -145,6 +146,8 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
             await self.on_lidar_health(int(message.value))
         elif cmd == Cmd.NAV_TREAD_FAULT:
             await self.on_tread_fault(TreadFault(int(message.value)))
+        elif cmd == Cmd.NAV_TREAD_DRIVEN:
+            await self.relay_tread_driven(*xy_half(message, MM))
         elif cmd == Cmd.NAV_MAP_ORIGIN_XY:
             self._origin_halves.take_xy(message)
         elif cmd == Cmd.NAV_MAP_ORIGIN_HEADING:

@@ -27,11 +27,12 @@ Odometry that scan matching contradicts (a stuck encoder draws the map from a wr
     the same hold at once, a second or more before the pose shows it; one
     saying a tread, or both, count short (a slipping encoder, or a weak motor)
     stops the motion too and holds ``SHORT_HOLD_S`` (see `on_tread_fault`).
-    Every report is relayed to Map Management (``MAP_TREAD_FAULT``, `relay_tread_fault`)
-    with the travel each reported tread was driven beyond its count: its pose belief
-    widens by what the motion model makes of it (a both-silent turn: two silent
-    treads, the commanded turn's travel each), and while the belief is wider than
-    the local match reaches, only the wide search places batches.
+    Every report is relayed to Map Management when the motion ends
+    (``MAP_TREAD_FAULT``, `relay_tread_driven`) with the travel Motor Control's
+    drive model says each reported tread went beyond its count (``NAV_TREAD_DRIVEN``;
+    a turn that ended blocked, reported or not, has both treads so relayed): its pose
+    belief widens by what the motion model makes of it, and while the belief is
+    wider than the local match reaches, only the wide search places batches.
 """
 
 from __future__ import annotations
@@ -40,12 +41,12 @@ import math
 
 import trio
 
-from actors import Message
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.odometry import tread_travel
 from actors.firmware.nav.mapping_options import MappingOptions
+from actors.firmware.origin_wire import MM, length_pair
 from server.protocol.pose import angle_diff_deg
 
 __all__ = ["SensorWatch", "uncounted_travel", "LIDAR_SILENT_S", "ODO_TURN_SHIFT_CM",
@@ -69,33 +70,18 @@ ODO_HOLD_MAX_S = ODO_HOLD_S * 2 ** 3
 SHORT_HOLD_S = 2.0
 """Hold still this long after Motor Control saw a tread (or both) count short [s]: about
 eight scan batches for scan matching to catch up with what was not counted."""
-_INT16 = 32767
 
 
-def uncounted_travel(fault: TreadFault, counted: tuple[float, float], kind: str,
-                     amount: float, track_width_cm: float) -> tuple[float, float]:
+def uncounted_travel(reported: tuple[bool, bool], counted: tuple[float, float],
+                     driven: tuple[float, float]) -> tuple[float, float]:
     """The (left, right) travel [cm] Motor Control drove each reported tread beyond its
     count in a motion (0 for a tread not reported), signed as the tread was driven.
 
-    A reported tread was driven as far as the other one counted (one tread reported:
-    the two are driven alike in size), or as far as the command asked (both reported:
-    no tread counted to compare with). ``counted`` is each tread's count over the
-    motion [cm]; ``kind`` and ``amount`` are the command's (``"turn"`` [deg] or
-    ``"move"`` [cm])."""
-    if kind == "turn":
-        sign = (-1.0, 1.0) if amount >= 0 else (1.0, -1.0)
-        size = 0.5 * track_width_cm * math.radians(abs(amount))
-    else:
-        sign = (1.0, 1.0) if amount >= 0 else (-1.0, -1.0)
-        size = abs(amount)
-    reported = (True, True) if fault.both else (
-        (False, True) if fault & TreadFault.RIGHT else (True, False))
-    out = [0.0, 0.0]
-    for t in (0, 1):
-        if reported[t]:
-            ref = size if reported[1 - t] else abs(counted[1 - t])
-            out[t] = sign[t] * max(0.0, ref - abs(counted[t]))
-    return out[0], out[1]
+    ``counted`` is each tread's count over the motion [cm]; ``driven`` Motor Control's
+    drive model of it (``NAV_TREAD_DRIVEN``), which a tread that does not count (or
+    counts short) goes as far as, at most."""
+    return tuple(math.copysign(max(0.0, abs(d) - abs(c)), d) if r else 0.0
+                 for r, c, d in zip(reported, counted, driven, strict=True))  # type: ignore[return-value]
 
 
 class SensorWatch:
@@ -204,7 +190,9 @@ class SensorWatch:
         now = trio.current_time()
         if self.state not in ("exploring", "homing") or not self.moving:
             return
-        await self.relay_tread_fault(fault)
+        side = (True, True) if fault.both else (
+            (False, True) if fault & TreadFault.RIGHT else (True, False))
+        self._relayed = (self._relayed[0] or side[0], self._relayed[1] or side[1])
         if now < self._odo_hold_until:
             return
         if fault.both:
@@ -223,19 +211,24 @@ class SensorWatch:
             return
         await self._odometry_hold(now, f"the {side} tread is driven but does not count")
 
-    async def relay_tread_fault(self, fault: TreadFault) -> None:
-        """Tell Map Management how far the motion in flight drove the reported tread(s)
-        beyond their count (``MAP_TREAD_FAULT``, `uncounted_travel`): its pose belief
-        widens by it."""
+    async def relay_tread_driven(self, left_cm: float, right_cm: float) -> None:
+        """Motor Control's drive model of the motion that is ending (``NAV_TREAD_DRIVEN``):
+        tell Map Management how far it drove each tread reported in it beyond the count
+        (``MAP_TREAD_FAULT``, `uncounted_travel`), so its pose belief widens by it. A turn
+        that ended blocked without a report has both treads in doubt (a jammed rover
+        and two stuck encoders read the same)."""
+        reported, self._relayed = self._relayed, (False, False)
         motion, start = self.last_motion, self.motion_from
         if motion is None or start is None:
             return
+        if reported == (False, False):
+            if motion.kind != "turn":
+                return
+            reported = (True, True)
         w = self.spec.track_width_cm if self.spec is not None else 13.0
         counted = tread_travel(start, self.map_pose, w)
-        left, right = uncounted_travel(fault, counted, motion.kind, motion.amount, w)
-        await self.post(self.map_name, Message.pair(
-            Cmd.MAP_TREAD_FAULT, max(-_INT16, min(_INT16, round(left * 10))),
-            max(-_INT16, min(_INT16, round(right * 10)))))
+        left, right = uncounted_travel(reported, counted, (left_cm, right_cm))
+        await self.post(self.map_name, length_pair(Cmd.MAP_TREAD_FAULT, left, right, MM))
 
     async def _odometry_hold(self, now: float, what: str, hold: float | None = None) -> None:
         """Stop the motor and hold still for odometry (see the module docstring); ``hold``

@@ -94,6 +94,11 @@ class TreadFaults:
         """Hook: a tread was reported during the motion in flight (the pose belief's
         motion model widens that tread's travel). The mapper has no belief here."""
 
+    def note_tread_driven(self, left_cm: float, right_cm: float) -> None:
+        """Hook: Motor Control's drive model says how far each tread went [cm] in the
+        motion that is ending (``NAV_TREAD_DRIVEN``: after a tread report, or a turn
+        that ended blocked)."""
+
     def _wall_within_drift(self) -> bool:
         """Hook: a mapped wall may touch the body (see `recovery.RouteRecovery._wall_within_drift`).
         Without the server's map (the mapper) there is none to know of."""
