@@ -33,9 +33,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap
+from actors.firmware.ndimage import distance_transform_edt
 
 __all__ = ["DistanceField"]
 
