@@ -120,3 +120,17 @@ def test_navigation_relays_the_travel_driven_beyond_the_count() -> None:
                             W) == (0.0, 4.0)
     assert uncounted_travel(TreadFault.BOTH_SHORT, (-6.0, -6.0), "move", -20.0, W) == (
         -14.0, -14.0)
+
+
+def test_whether_the_95_radius_exceeds_a_limit_is_what_the_radius_says() -> None:
+    """Answered from the trace when the belief is well inside the limit, else from the
+    eigenvalues: the same answer as comparing `radius95_cm`, at limits on both sides of
+    the radius and right at it, for round, long and tilted ellipses."""
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        a = rng.normal(0.0, rng.uniform(0.1, 20.0), (3, 3))
+        cov = a @ a.T + np.diag([1e-6, 1e-6, 1e-6])
+        belief = GaussianPose(Pose(), cov)
+        r = belief.radius95_cm
+        for limit in (0.5 * r, 0.97 * r, r, np.nextafter(r, 0.0), 1.001 * r, 1.2 * r, 3.0 * r):
+            assert belief.radius95_over(limit) == (r > limit)

@@ -13,6 +13,7 @@ from actors.firmware.localisation.scan_likelihood import (
     MIN_FIT,
     MIN_JUDGED,
     FitVerdict,
+    gate_fit,
     hits_to_points,
     judge_fit,
     scan_log_likelihood,
@@ -80,6 +81,27 @@ def test_a_good_fit_far_outside_the_belief_is_refused() -> None:
     assert near.verdict is FitVerdict.ACCEPTED
 
 
+def test_gating_a_judged_fit_keeps_the_fit_and_its_first_reason() -> None:
+    """A fit judged without the belief, gated afterwards, reads as judged with it: the
+    fit figures are kept and the distance recorded; a pose outside the belief is
+    refused only when nothing refused it before (a bad fit or too few hits stay so)."""
+    belief = Pose(TRUTH.x + 30.0, TRUTH.y, TRUTH.heading_deg)
+    tight = np.diag([25.0, 25.0, math.radians(2.0) ** 2])
+    scan = _scan()
+    good = judge_fit(FIELD, TRUTH, scan)
+    gated = gate_fit(good, TRUTH, belief, tight)
+    assert gated == judge_fit(FIELD, TRUTH, scan, belief_pose=belief, belief_covariance=tight)
+    assert gated.verdict is FitVerdict.OUTSIDE_BELIEF
+    assert (gated.fit, gated.judged, gated.hits, gated.log_fit) == (
+        good.fit, good.judged, good.hits, good.log_fit)
+    assert gated.mahalanobis2 is not None and gated.mahalanobis2 > 11.34
+    off = Pose(TRUTH.x + 15.0, TRUTH.y + 10.0, TRUTH.heading_deg)
+    bad = gate_fit(judge_fit(FIELD, off, scan), off, belief, tight)
+    assert bad.verdict is FitVerdict.BAD_FIT and bad.mahalanobis2 is not None
+    few = gate_fit(judge_fit(FIELD, TRUTH, scan[:11]), TRUTH, belief, tight)
+    assert few.verdict is FitVerdict.TOO_FEW_HITS
+
+
 def test_the_scan_likelihood_is_highest_at_the_truth() -> None:
     """Among poses on a grid round the truth (+-10 cm, +-6 deg) the truth scores best."""
     dx, dy, dh = np.meshgrid([-10.0, -5.0, 0.0, 5.0, 10.0], [-10.0, -5.0, 0.0, 5.0, 10.0],
@@ -103,3 +125,15 @@ def test_bad_scan_arrays_are_refused() -> None:
     """Angles and ranges must be 1-D of one length."""
     with pytest.raises(ValueError, match="must be 1-D of one length"):
         hits_to_points(np.zeros(3), np.zeros(4))
+
+
+def test_the_beams_taken_are_those_evenly_spaced_by_linspace() -> None:
+    """At most ``max_beams`` hits, taken where ``np.linspace`` over the scan's indices
+    rounds to (the first and last always), for every scan length up to 2,000 hits."""
+    from actors.firmware.localisation.scan_likelihood import _beams  # noqa: PLC0415
+
+    for k in range(1, 2000):
+        pts = np.arange(2.0 * k).reshape(k, 2)
+        for beams in (2, 7, 60):
+            want = pts if k <= beams else pts[np.linspace(0, k - 1, beams).round().astype(int)]
+            assert np.array_equal(_beams(pts, beams), want)

@@ -10,10 +10,11 @@ Why
     model, before the Gaussian is applied.
 
 Algorithm
-    Exact Euclidean distance transform (``scipy.ndimage.distance_transform_edt``)
-    of the grid's non-occupied cells, in [cm] (``sampling`` = the cell side):
-    the distance from each cell's centre to the nearest occupied cell's
-    centre, 0 on occupied cells, capped at ``max_dist_cm``. Read at any point
+    Exact Euclidean distance transform of the grid's non-occupied cells, in
+    [cm]: the distance from each cell's centre to the nearest occupied cell's
+    centre, 0 on occupied cells, capped at ``max_dist_cm`` (`capped_edt`: only
+    obstacles within the cap are looked for; the floats of
+    ``scipy.ndimage.distance_transform_edt``). Read at any point
     by bilinear interpolation between the four nearest cell centres, so the
     distance is continuous (a point moving across a cell does not jump by half
     a cell). Points off the grid read ``max_dist_cm`` and "unknown".
@@ -34,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from actors.firmware.localisation.capped_edt import capped_distance
 from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap
 from actors.firmware.ndimage import distance_transform_edt
 
@@ -61,11 +63,32 @@ class DistanceField:
     """Lower-left corner of cell [0, 0] (the window's) in the map frame [cm]."""
     max_dist_cm: float
     """The cap: no obstacle within this distance reads as this distance [cm]."""
-    _occupied: np.ndarray = field(init=False, repr=False)
-    # flat bool (ny * nx): the distance is 0 (an occupied cell), for `occupied_at`
+    _corners: np.ndarray = field(init=False, repr=False)
+    # (4, ny * nx): row k of each column is the distance at the cell (r, c), (r, c + 1),
+    # (r + 1, c), (r + 1, c + 1) of flat index r * nx + c: one gather reads a point's
+    # four bilinear corners (past the last column or row it reads the cap, never used)
+    _known_flat: np.ndarray = field(init=False, repr=False)
+    # flat bool (ny * nx): `known`, raveled
+    _rim_unknown: bool = field(init=False, repr=False)
+    # the window's outermost cells are all unknown (what `_known_window` leaves round
+    # the known cells): a point whose bilinear box leaves the window is then unknown
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "_occupied", (self.distance_cm == 0.0).reshape(-1))
+        d = self.distance_cm
+        ny, nx = d.shape
+        n = d.size
+        flat = d.reshape(-1)
+        corners = np.empty((4, n))
+        corners[0] = flat
+        for row, shift in ((1, 1), (2, nx), (3, nx + 1)):
+            corners[row, :max(n - shift, 0)] = flat[shift:]
+            corners[row, max(n - shift, 0):] = self.max_dist_cm
+        known = self.known
+        rim = ny >= 2 and nx >= 2 and not (known[0].any() or known[-1].any()
+                                           or known[:, 0].any() or known[:, -1].any())
+        object.__setattr__(self, "_corners", corners)
+        object.__setattr__(self, "_known_flat", known.reshape(-1))
+        object.__setattr__(self, "_rim_unknown", rim)
 
     @classmethod
     def from_grid(cls, grid: GridMap, max_dist_cm: float = 50.0) -> DistanceField:
@@ -84,8 +107,7 @@ class DistanceField:
         cells, origin = _known_window(grid, max_dist_cm)
         occupied = cells == OCCUPIED
         if occupied.any():
-            dist = distance_transform_edt(~occupied, sampling=grid.resolution_cm)
-            dist = np.minimum(dist, max_dist_cm)
+            dist = capped_distance(occupied, grid.resolution_cm, max_dist_cm)
         else:
             dist = np.full(cells.shape, float(max_dist_cm))
         dist.flags.writeable = False
@@ -98,24 +120,69 @@ class DistanceField:
 
         Bilinear between the four nearest cell centres; ``max_dist_cm`` off the grid.
         """
-        gx, gy, c0, r0 = self._corners(x, y)
-        fx, fy = gx - c0, gy - r0
-        d = self.distance_cm
-        ny, nx = d.shape
-        # clamp the corners onto the grid; points whose box leaves it read the cap
-        inside = (c0 >= 0) & (r0 >= 0) & (c0 + 1 < nx) & (r0 + 1 < ny)
-        c0c = np.clip(c0, 0, nx - 2) if nx > 1 else np.zeros_like(c0)
-        r0c = np.clip(r0, 0, ny - 2) if ny > 1 else np.zeros_like(r0)
-        c1c = np.minimum(c0c + 1, nx - 1)
-        r1c = np.minimum(r0c + 1, ny - 1)
-        v = ((1 - fx) * (1 - fy) * d[r0c, c0c] + fx * (1 - fy) * d[r0c, c1c]
-             + (1 - fx) * fy * d[r1c, c0c] + fx * fy * d[r1c, c1c])
-        return np.where(inside, v, self.max_dist_cm)
+        return self.at_known(x, y, known=False)[0]
+
+    def at_known(self, x: np.ndarray, y: np.ndarray, *, known: bool = True,
+                 near_cm: float | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """`at` and `known_at` of the same points (x, y) [cm] (any shape), in one pass.
+
+        Why: a scan's likelihood reads both for every hit, and with a hundred hits a
+        numpy call's fixed cost outweighs its arithmetic. The point's cell-centre
+        coordinate ``g`` (what `at` interpolates at) gives its cell too: for a point
+        whose bilinear box lies on the window, ``g >= 0`` holds and ``g + 1/2`` is the
+        exact coordinate, so the cell is the box's lower-left corner plus one where
+        the fraction is at least a half. A point whose box leaves the window lies in
+        its outermost cells or off it; those cells are unknown (`_rim_unknown`) in
+        every field `from_grid` builds away from the grid's edge, else the cell is
+        found as `known_at` does. Same floats as `at` and `known_at` apart.
+
+        Args:
+            known: False skips the second answer (None).
+            near_cm: when given, the second answer is whether the cell is known or the
+                point lies within ``near_cm`` of an obstacle (what a scan's likelihood
+                judges), and the cells are looked up only when some point is farther.
+        """
+        shape = np.shape(x)
+        ox, oy = self.origin_cm
+        res = self.resolution_cm
+        gx = (np.asarray(x, dtype=float).reshape(-1) - ox) / res - 0.5
+        gy = (np.asarray(y, dtype=float).reshape(-1) - oy) / res - 0.5
+        cx, cy = np.floor(gx), np.floor(gy)
+        fx, fy = gx - cx, gy - cy
+        c0, r0 = cx.astype(np.int64), cy.astype(np.int64)
+        ny, nx = self.distance_cm.shape
+        # a negative index reads as a huge unsigned one: one comparison per axis
+        inside = (c0.view(np.uint64) < nx - 1) & (r0.view(np.uint64) < ny - 1)
+        flat = r0 * nx
+        flat += c0
+        flat *= inside  # off the window: any cell (the value read is replaced by the cap)
+        d00, d01, d10, d11 = self._corners.take(flat, axis=1)
+        ax, ay = 1 - fx, 1 - fy
+        v = ax * ay * d00 + fx * ay * d01 + ax * fy * d10 + fx * fy * d11
+        dist = np.where(inside, v, self.max_dist_cm).reshape(shape)
+        if not known:
+            return dist, None
+        near = None
+        if near_cm is not None:
+            near = dist <= near_cm
+            if near.all():
+                return dist, near
+        if self._rim_unknown:
+            flat += fx >= 0.5
+            flat += (fy >= 0.5) * nx
+            cell_known = self._known_flat.take(flat)
+            cell_known &= inside
+            cell_known = cell_known.reshape(shape)
+        else:
+            cell_known = self.known_at(x, y)
+        if near is not None:
+            cell_known |= near
+        return dist, cell_known
 
     def occupied_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whether the cell holding each point (x, y) [cm] is occupied (False off the grid)."""
         flat, inside = self._cell(x, y)
-        return inside & self._occupied[flat]
+        return inside & (self.distance_cm.reshape(-1)[flat] == 0.0)
 
     def known_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whether the cell holding each point (x, y) [cm] is known (False off the grid)."""
@@ -133,15 +200,6 @@ class DistanceField:
         # a negative index reads as a huge unsigned one: one comparison per axis
         inside = (r.view(np.uint64) < ny) & (c.view(np.uint64) < nx)
         return np.where(inside, r * nx + c, 0), inside
-
-    def _corners(self, x: np.ndarray, y: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Point positions in cell-centre units and their lower-left neighbour centre."""
-        ox, oy = self.origin_cm
-        res = self.resolution_cm
-        gx = (np.asarray(x, dtype=float) - ox) / res - 0.5
-        gy = (np.asarray(y, dtype=float) - oy) / res - 0.5
-        return gx, gy, np.floor(gx).astype(np.int64), np.floor(gy).astype(np.int64)
 
 
 def _known_window(grid: GridMap, max_dist_cm: float) -> tuple[np.ndarray, tuple[float, float]]:

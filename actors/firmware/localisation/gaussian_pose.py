@@ -59,6 +59,12 @@ Z_95 = 1.96
 """The normal 95 % two-sided point: the 95 % interval of the heading [1]."""
 
 
+_TINY = 1e-9 * np.eye(3)
+"""Added to the covariance before it is inverted: a direction the belief has no doubt in
+(the start) stays so, instead of making the inverse singular [cm^2, rad^2]."""
+_TINY.flags.writeable = False
+
+
 def _tread_moments(counted: float, uncounted: float, report: TreadReport,
                    noise: MotionNoise) -> tuple[float, float]:
     """Mean and variance [cm], [cm^2] of one tread's true travel (`motion_model`'s
@@ -93,6 +99,19 @@ class GaussianPose:
         """Semi-major axis of the position's 95 % ellipse [cm]."""
         top = float(np.linalg.eigvalsh(self.covariance[:2, :2])[-1])
         return math.sqrt(CHI2_2D_95 * max(top, 0.0))
+
+    def radius95_over(self, limit_cm: float) -> bool:
+        """Whether `radius95_cm` exceeds ``limit_cm``.
+
+        Why: the mapper asks it of every batch, and the ellipse's top eigenvalue is at
+        most the position covariance's trace, so a belief well inside the limit (its
+        trace's radius under 99 % of it) is answered without an eigenvalue solver; any
+        other is answered by `radius95_cm` itself (the same answer either way).
+        """
+        c = self.covariance
+        if CHI2_2D_95 * float(c[0, 0] + c[1, 1]) < 0.98 * limit_cm * limit_cm:
+            return False
+        return self.radius95_cm > limit_cm
 
     @property
     def heading95_deg(self) -> float:
@@ -155,7 +174,7 @@ class GaussianPose:
             info = s_inv - s_inv @ np.linalg.inv(info + s_inv) @ s_inv
             info = 0.5 * (info + info.T)
         # a belief with no doubt in some direction (the start) keeps it there
-        prior = np.linalg.inv(self.covariance + 1e-9 * np.eye(3))
+        prior = np.linalg.inv(self.covariance + _TINY)
         cov = np.linalg.inv(prior + info)
         cov = 0.5 * (cov + cov.T)
         step = cov @ info @ self.innovation(pose)

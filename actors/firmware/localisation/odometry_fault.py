@@ -123,12 +123,13 @@ def evidence(ev: FitEvidence, narrow: np.ndarray, wide: np.ndarray,
     scan weighs for "right".
     """
     n = ev.n_eff
+    half_narrow = _half_logdet(narrow)
     ok = [n * ev.log_fit_mean]
     if ev.log_fit_match is not None:
         ok.append(n * ev.log_fit_match - 0.5 * ev.d2_match)
-    right = max(ok) - _half_logdet(narrow)
+    right = max(ok) - half_narrow
     if charged:
-        broken = n * log_fit_acceptable - 1.5 - _half_logdet(narrow)
+        broken = n * log_fit_acceptable - 1.5 - half_narrow
     else:
         br = [n * ev.log_fit_mean, n * log_fit_acceptable - 1.5]
         if ev.log_fit_match is not None:
@@ -138,7 +139,7 @@ def evidence(ev: FitEvidence, narrow: np.ndarray, wide: np.ndarray,
         alt = [n * ev.log_fit_alt]
         if ev.log_fit_match is not None:
             alt.append(n * ev.log_fit_match - 0.5 * ev.d2_match_alt)
-        broken = max(broken, max(alt) - _half_logdet(narrow))
+        broken = max(broken, max(alt) - half_narrow)
     return broken - right
 
 

@@ -56,8 +56,9 @@ from actors.firmware.mapping.scan_match import MAX_RANGE_CM, MIN_POINTS, MatchOp
 from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_likelihood",
-           "judge_fit", "acceptable_log_fit", "scan_information", "odometry_floor", "MAX_BEAMS",
-           "UNKNOWN_HIT", "MIN_JUDGED", "MIN_FIT", "GATE_CHI2", "FLOOR_CM", "FLOOR_DEG"]
+           "judge_fit", "gate_fit", "acceptable_log_fit", "scan_information", "odometry_floor",
+           "MAX_BEAMS", "UNKNOWN_HIT", "MIN_JUDGED", "MIN_FIT", "GATE_CHI2", "FLOOR_CM",
+           "FLOOR_DEG"]
 
 
 # Structural constants of the likelihood and of the verdict: how many beams a particle's
@@ -90,10 +91,15 @@ the encoders' quantisation (one Int E of one tread turns the dead-reckoned headi
 up from stamp to stamp as the motion noise does."""
 
 
+_FLOOR = np.diag([FLOOR_CM ** 2, FLOOR_CM ** 2, math.radians(FLOOR_DEG) ** 2])
+_FLOOR.flags.writeable = False
+
+
 def odometry_floor() -> np.ndarray:
     """The 3 x 3 covariance of one odometry stamp's own error (``FLOOR_CM``, ``FLOOR_DEG``)
-    of (x [cm], y [cm], heading [rad])."""
-    return np.diag([FLOOR_CM ** 2, FLOOR_CM ** 2, math.radians(FLOOR_DEG) ** 2])
+    of (x [cm], y [cm], heading [rad]): one read-only array (it is added to every batch's
+    covariances, so it is not built again for each)."""
+    return _FLOOR
 
 
 @dataclass(frozen=True, slots=True)
@@ -196,17 +202,25 @@ def _hit_terms(field: DistanceField, x: np.ndarray, y: np.ndarray, o: ScanOption
                ) -> tuple[np.ndarray, np.ndarray]:
     """The hit term exp(-g^2 / 2 sigma^2) of each hit and whether it is judged (not on
     new ground)."""
-    d = field.at(x, y)
+    d, judged = field.at_known(x, y, near_cm=o.new_ground_cm)
+    assert judged is not None
     gap = np.maximum(d - 0.5 * field.resolution_cm, 0.0)
-    term = np.exp(-0.5 * (gap / o.sigma_hit_cm) ** 2)
-    return term, field.known_at(x, y) | (d <= o.new_ground_cm)
+    return np.exp(-0.5 * (gap / o.sigma_hit_cm) ** 2), judged
 
 
 def _beams(points: np.ndarray, max_beams: int) -> np.ndarray:
+    """At most ``max_beams`` of the points, taken evenly along the scan: the indices
+    ``np.linspace(0, k - 1, max_beams)`` rounds to, formed as linspace forms them (the
+    step ``(k - 1) / (max_beams - 1)`` times 0, 1, ..., the last set to ``k - 1``)
+    without its wrapper, which costs more than the rest of a scan's information
+    matrix's bookkeeping."""
     k = points.shape[0]
     if k <= max_beams:
         return points
-    return points[np.linspace(0, k - 1, max_beams).round().astype(np.int64)]
+    at = np.arange(max_beams, dtype=float)
+    at *= (k - 1) / (max_beams - 1)
+    at[-1] = k - 1
+    return points.take(at.round().astype(np.int64), axis=0)
 
 
 def scan_log_likelihood(field: DistanceField, particles: np.ndarray, points: np.ndarray,
@@ -229,9 +243,11 @@ def scan_log_likelihood(field: DistanceField, particles: np.ndarray, points: np.
         return np.zeros(p.shape[0])
     x, y = to_map(p, pts)
     term, judged = _hit_terms(field, x, y, o)
-    term = np.where(judged, term, np.maximum(term, UNKNOWN_HIT))
+    np.maximum(term, UNKNOWN_HIT, out=term, where=~judged)
+    term *= o.z_hit
+    term += o.z_rand
     scale = min(1.0, o.independent_hits / pts.shape[0])
-    return scale * np.log(o.z_hit * term + o.z_rand).sum(axis=1)
+    return scale * np.add.reduce(np.log(term, out=term), axis=1)
 
 
 def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
@@ -246,35 +262,61 @@ def judge_fit(field: DistanceField, pose: Pose, points: np.ndarray,
         options: the model's parameters.
         belief_pose, belief_covariance: the belief's mean and 3 x 3 covariance of
             (x [cm], y [cm], heading [rad]) (`belief.Spread`); with them, a pose beyond
-            ``GATE_CHI2`` is refused. The stamp's own error (`odometry_floor`) is added
-            to the covariance (a collapsed belief must still accept its own mean).
+            ``GATE_CHI2`` is refused (`gate_fit`).
     """
     o = options or ScanOptions()
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     n = int(pts.shape[0])
-    d2 = None
-    if belief_pose is not None and belief_covariance is not None:
-        e = np.array([pose.x - belief_pose.x, pose.y - belief_pose.y,
-                      math.radians(angle_diff_deg(pose.heading_deg, belief_pose.heading_deg))])
-        cov = np.asarray(belief_covariance, dtype=float) + odometry_floor()
-        d2 = float(e @ np.linalg.solve(cov, e))
     if n < MIN_POINTS:
-        return ScanFit(FitVerdict.TOO_FEW_HITS, 0.0, 0.0, n, d2)
-    one = np.array([[pose.x, pose.y, pose.heading_rad]])
-    x, y = to_map(one, pts)
-    term, judged = _hit_terms(field, x[0], y[0], o)
-    judged_share = float(judged.mean())
-    fit = float(term[judged].mean()) if judged.any() else 0.0
-    log_fit = float(np.log(o.z_hit * term[judged] + o.z_rand).mean()) if judged.any() else 0.0
-    if judged_share < MIN_JUDGED:
-        verdict = FitVerdict.NEW_GROUND
-    elif fit < MIN_FIT:
-        verdict = FitVerdict.BAD_FIT
-    elif d2 is not None and d2 > GATE_CHI2:
-        verdict = FitVerdict.OUTSIDE_BELIEF
+        fit = ScanFit(FitVerdict.TOO_FEW_HITS, 0.0, 0.0, n, None)
     else:
-        verdict = FitVerdict.ACCEPTED
-    return ScanFit(verdict, fit, judged_share, n, d2, log_fit)
+        # the hits put at the pose as `to_map` puts them at one particle (same floats)
+        th = pose.heading_rad
+        c, s = np.cos(th), np.sin(th)
+        px, py = pts[:, 0], pts[:, 1]
+        term, judged = _hit_terms(field, pose.x + c * px - s * py, pose.y + s * px + c * py, o)
+        k = int(np.count_nonzero(judged))
+        fit_mean = log_fit = 0.0
+        if k:
+            # a mean is the sum over the count (what `ndarray.mean` computes)
+            t = term.compress(judged)
+            fit_mean = float(np.add.reduce(t)) / k
+            t *= o.z_hit
+            t += o.z_rand
+            log_fit = float(np.add.reduce(np.log(t, out=t))) / k
+        share = k / n
+        if share < MIN_JUDGED:
+            verdict = FitVerdict.NEW_GROUND
+        elif fit_mean < MIN_FIT:
+            verdict = FitVerdict.BAD_FIT
+        else:
+            verdict = FitVerdict.ACCEPTED
+        fit = ScanFit(verdict, fit_mean, share, n, None, log_fit)
+    if belief_pose is None or belief_covariance is None:
+        return fit
+    return gate_fit(fit, pose, belief_pose, belief_covariance)
+
+
+def gate_fit(fit: ScanFit, pose: Pose, belief_pose: Pose, belief_covariance: np.ndarray
+             ) -> ScanFit:
+    """``fit`` (`judge_fit` at ``pose`` without a belief) judged against the belief too:
+    its squared Mahalanobis distance from the belief's mean ``belief_pose`` under
+    ``belief_covariance`` (3 x 3, of x [cm], y [cm], heading [rad]) is recorded, and an
+    accepted fit beyond ``GATE_CHI2`` is refused as outside the belief.
+
+    Why apart: the gate needs only the pose, so a caller that judged the pose already
+    (the evidence for "odometry broke unseen") gates that fit instead of reading every
+    hit again. The stamp's own error (`odometry_floor`) is added to the covariance (a
+    collapsed belief must still accept its own mean).
+    """
+    e = np.array([pose.x - belief_pose.x, pose.y - belief_pose.y,
+                  math.radians(angle_diff_deg(pose.heading_deg, belief_pose.heading_deg))])
+    cov = np.asarray(belief_covariance, dtype=float) + odometry_floor()
+    d2 = float(e @ np.linalg.solve(cov, e))
+    verdict = fit.verdict
+    if verdict is FitVerdict.ACCEPTED and d2 > GATE_CHI2:
+        verdict = FitVerdict.OUTSIDE_BELIEF
+    return ScanFit(verdict, fit.fit, fit.judged, fit.hits, d2, fit.log_fit)
 
 
 def acceptable_log_fit(options: ScanOptions | None = None) -> float:
@@ -282,6 +324,28 @@ def acceptable_log_fit(options: ScanOptions | None = None) -> float:
     ``MIN_FIT``: what a just acceptable fit scores (`ScanFit.log_fit`)."""
     o = options or ScanOptions()
     return math.log(o.z_hit * MIN_FIT + o.z_rand)
+
+
+def _steps() -> np.ndarray:
+    """The 19 poses of `scan_information` as steps of -1, 0 or 1 per coordinate: the
+    pose, then +- each coordinate, then the four diagonal steps of each pair."""
+    steps = [np.zeros(3)]
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = 1.0
+        steps += [e, -e]
+    for i in range(3):
+        for j in range(i + 1, 3):
+            for si, sj in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+                e = np.zeros(3)
+                e[i], e[j] = si, sj
+                steps.append(e)
+    table = np.array(steps)
+    table.flags.writeable = False
+    return table
+
+
+_STEPS = _steps()
 
 
 def scan_information(field: DistanceField, pose: Pose, points: np.ndarray,
@@ -306,21 +370,11 @@ def scan_information(field: DistanceField, pose: Pose, points: np.ndarray,
     pts = _beams(np.asarray(points, dtype=float).reshape(-1, 2), MAX_BEAMS)
     if pts.shape[0] < MIN_POINTS:
         return np.zeros((3, 3))
-    rms = math.sqrt(float(np.mean(pts[:, 0] ** 2 + pts[:, 1] ** 2)))
+    # the mean square range as ``np.mean`` computes it (the sum, then one division)
+    rms = math.sqrt(float(np.add.reduce(pts[:, 0] ** 2 + pts[:, 1] ** 2)) / pts.shape[0])
     h = np.array([field.resolution_cm, field.resolution_cm, field.resolution_cm / max(rms, 1.0)])
     base = np.array([pose.x, pose.y, pose.heading_rad])
-    offsets = [np.zeros(3)]
-    for i in range(3):
-        e = np.zeros(3)
-        e[i] = h[i]
-        offsets += [e, -e]
-    for i in range(3):
-        for j in range(i + 1, 3):
-            for si, sj in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-                e = np.zeros(3)
-                e[i], e[j] = si * h[i], sj * h[j]
-                offsets.append(e)
-    ll = scan_log_likelihood(field, base + np.array(offsets), pts, o)
+    ll = scan_log_likelihood(field, base + _STEPS * h, pts, o)
     f0 = ll[0]
     hess = np.empty((3, 3))
     for i in range(3):

@@ -65,7 +65,6 @@ from __future__ import annotations
 
 import contextlib
 from collections import Counter
-from dataclasses import replace
 
 import numpy as np
 import trio
@@ -96,6 +95,7 @@ from actors.firmware.localisation.scan_likelihood import (
     ScanFit,
     ScanOptions,
     acceptable_log_fit,
+    gate_fit,
     judge_fit,
     odometry_floor,
     scan_information,
@@ -205,6 +205,8 @@ class MapManagement(Actor):
         # broken component's Occam factor (`odometry_fault.evidence`)
         """Times the belief became the broken component (data for metrics)."""
         self._step = (0.0, 0.0)  # the last step between two stamps: travel [cm], turn [rad]
+        # the last `_stamp_covariance` asked and its answer (a read-only array)
+        self._stamp: tuple[tuple[float, tuple[float, float], float], np.ndarray] | None = None
         self.correction = Pose()
         """Odometry frame -> map frame: the belief's mean composed with the inverse of
         its odometry stamp (identity until a match or a report moves it)."""
@@ -325,7 +327,7 @@ class MapManagement(Actor):
         ``max_turn_deg`` or its 95 % radius over ``max_shift_cm``): then only the wide
         search may place a batch."""
         b = self.belief
-        return b.heading95_deg > opts.max_turn_deg or b.radius95_cm > opts.max_shift_cm
+        return b.heading95_deg > opts.max_turn_deg or b.radius95_over(opts.max_shift_cm)
 
     def _place(self, scan: Scan) -> Pose | None:
         """The map-frame pose of a batch, or None when it is dropped (the module docstring).
@@ -361,21 +363,23 @@ class MapManagement(Actor):
             b = self.belief
             result = relocalise(fields, pts, guess, opts, turn_deg=min(180.0, b.heading95_deg),
                                 max_shift_cm=max(opts.max_shift_cm, b.radius95_cm))
-            at_mean = None
+            at_mean = at_match = None
         else:
             result = match_scan(fields, pts, guess, opts)
-            at_mean = self._weigh_odometry(pts, result, now)
-            if at_mean is None:
+            weighed = self._weigh_odometry(pts, result, now)
+            if weighed is None:
                 return self._refuse("odometry in doubt")
+            at_mean, at_match = weighed
         if not result.accepted:
             if not result.supported and at_mean is not None and (
                     at_mean.verdict is not FitVerdict.BAD_FIT):
                 return guess  # new ground, or too few hits: nothing to judge it by
             return self._refuse(result.reason.split(" (")[0])
         assert self._distance is not None
-        fit = judge_fit(self._distance, result.pose, pts, belief_pose=guess,
-                        belief_covariance=self.belief.covariance + self._stamp_covariance(now)
-                        - odometry_floor())
+        if at_match is None:
+            at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
+        fit = gate_fit(at_match, result.pose, guess, self.belief.covariance
+                       + self._stamp_covariance(now) - odometry_floor())
         if not fit.accepted:
             if fit.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS) and not wide:
                 return guess
@@ -398,49 +402,53 @@ class MapManagement(Actor):
         return placed
 
     def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float
-                        ) -> ScanFit | None:
+                        ) -> tuple[ScanFit, ScanFit | None] | None:
         """Weigh this batch's scan as evidence for "odometry broke unseen"
-        (`odometry_fault`) and return its fit at the belief's mean; when that hypothesis
-        is the more probable, the belief becomes its wide component and None is returned
-        (the batch's pose is in doubt)."""
+        (`odometry_fault`) and return its fit at the belief's mean and, when it was
+        judged, at the match (`judge_fit` without the belief: `_place` gates it); when
+        that hypothesis is the more probable, the belief becomes its wide component and
+        None is returned (the batch's pose is in doubt)."""
         assert self._distance is not None
         if self._weighed_at > -float("inf"):
             self.broken += (1.0 - self.broken) * hazard(now - self._weighed_at, self.fault_noise)
         self._weighed_at = now
         at_mean = judge_fit(self._distance, self.belief.mean, pts, _SCAN)
         if at_mean.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
-            return at_mean  # nothing to judge the pose by
+            return at_mean, None  # nothing to judge the pose by
         narrow = self.belief.covariance + self._stamp_covariance(now)
         spread = broken_spread(self.matching.max_shift_cm if self.matching else 12.0)
         wide = narrow + spread
         odom = self._belief_odom
         assert odom is not None
         alt = None if self._alt_correction is None else compose(self._alt_correction, odom)
-        ev = FitEvidence(min(float(at_mean.hits), _SCAN.independent_hits), at_mean.log_fit)
+        found: dict[str, float] = {}  # `FitEvidence`'s optional fields this batch fills
         if alt is not None:
             at_alt = judge_fit(self._distance, alt, pts, _SCAN)
             if at_alt.fit < MIN_FIT:
                 alt = self._alt_correction = None  # the scan refutes it
             else:
-                ev = replace(ev, log_fit_alt=at_alt.log_fit)
+                found["log_fit_alt"] = at_alt.log_fit
+        at_match = None
         if result.accepted:
             at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
             if at_match.verdict not in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
                 e = self.belief.innovation(result.pose)
                 d2 = float(e @ np.linalg.solve(narrow, e))
-                ev = replace(ev, log_fit_match=at_match.log_fit, d2_match=d2,
+                found.update(log_fit_match=at_match.log_fit, d2_match=d2,
                              d2_match_wide=float(e @ np.linalg.solve(wide, e)))
                 if alt is not None:
                     ea = GaussianPose(alt, narrow).innovation(result.pose)
-                    ev = replace(ev, d2_match_alt=float(ea @ np.linalg.solve(narrow, ea)))
+                    found["d2_match_alt"] = float(ea @ np.linalg.solve(narrow, ea))
                 if at_match.fit >= MIN_FIT and d2 > GATE_CHI2:
                     # a confident fit the narrow belief cannot hold: where "broken" would be
                     self._alt_correction = compose(result.pose, inverse(odom))
+        ev = FitEvidence(min(float(at_mean.hits), _SCAN.independent_hits), at_mean.log_fit,
+                         **found)
         step = evidence(ev, narrow, wide, _ACCEPTABLE, charged=self._charged)
         self._charged = step > 0.0  # a run of scans for "broken" pays its Occam factor once
         self.broken = posterior(self.broken, step)
         if self.broken <= 0.5:
-            return at_mean
+            return at_mean, at_match
         # wide round the mean, not narrow round the learnt pose: one match (a scan blurred
         # by a turn) may have put it a few degrees off; the wide search's unambiguous fit
         # decides where the rover is
@@ -457,9 +465,15 @@ class MapManagement(Actor):
         between two stamps (its variance: the step squared over 12). A tick with no Int E
         keeps the last step (the rover moves on between interrupts) until the rover has
         stood ``settle_s``."""
+        key = (now, self._step, self._still_since)
+        if self._stamp is not None and self._stamp[0] == key:
+            return self._stamp[1]  # a batch asks up to three times
         ds, dtheta = self._step if now - self._still_since < self.settle_s else (0.0, 0.0)
-        return odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
-                                           dtheta * dtheta / 12.0])
+        cov = odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
+                                          dtheta * dtheta / 12.0])
+        cov.flags.writeable = False
+        self._stamp = (key, cov)
+        return cov
 
     def _refuse(self, reason: str) -> None:
         """Drop a batch, counting why."""
