@@ -37,7 +37,6 @@ import numpy as np
 
 from actors.firmware.localisation.capped_edt import capped_distance
 from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap
-from actors.firmware.ndimage import distance_transform_edt
 
 __all__ = ["DistanceField"]
 
