@@ -1,6 +1,7 @@
 """Statistical CPU profile of one headless game: where the CPU goes.
 
-Run as ``python -m benchmarks.sample --scenario hall --seed 1 [--every-ms 2] [--top 40]``.
+Run as ``python -m benchmarks.sample --scenario hall --seed 1 [--every-ms 2] [--top 40]
+[--phase mapping|hiding|seeking]``.
 
 Why not cProfile: it charges every Python-level call, so numpy-heavy code that
 goes through numpy's Python wrappers looks several times dearer than it is. A
@@ -13,6 +14,11 @@ wherever it is; the handler only counts the interrupted stack:
 - *innermost project line*: the innermost frame in this repository, with its line;
 - *area*: the outermost project frame below the runtime (firmware module, world
   module, or "runtime" when only actors/ and Trio are on the stack).
+
+The first line after the summary counts the samples per game phase (the server
+game's phase when the sample was taken: mapping until the map is ready, hiding
+until the hider is hidden, seeking until the hider is found); ``--phase`` keeps
+only the samples of one phase in the tables.
 
 The game is the one ``hideseek run --scenario S --seed N`` plays (same trace hash:
 the handler reads frames only, and Trio's signal wake-up fd is unset so the
@@ -54,6 +60,34 @@ def _area(labels: list[str]) -> str:
     return "runtime (actors/, trio)"
 
 
+_PHASE_OF = {"idle": "start", "mapping": "mapping", "map_ready": "hiding", "hiding": "hiding",
+             "hidden": "seeking", "seeking": "seeking", "found": "end", "not_found": "end"}
+"""The server game's phases, as the phases of the game the samples are counted in."""
+
+
+class _PhaseWatch:
+    """A `run_game` observer that keeps the system, so the sampler can read the server
+    game's phase (a plain attribute read, safe in a signal handler)."""
+
+    def __init__(self) -> None:
+        self._system: Any = None
+        self._over = False
+
+    def started(self, system: Any) -> None:
+        self._system = system
+
+    def finished(self, system: Any, report: Any) -> None:
+        self._system = None
+        self._over = True
+
+    def phase(self) -> str:
+        """start, mapping, hiding, seeking or end."""
+        system = self._system
+        if system is None:
+            return "end" if self._over else "start"
+        return _PHASE_OF.get(str(system.server.game.phase), "end")
+
+
 async def _quiet(game: Any) -> Any:
     """Await ``game`` with Trio's signal wake-up fd unset: each SIGPROF would otherwise
     wake Trio's I/O wait and change the order of events (another game)."""
@@ -68,6 +102,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--every-ms", type=float, default=2.0)
     ap.add_argument("--top", type=int, default=40)
+    ap.add_argument("--phase", default="", choices=("", "mapping", "hiding", "seeking"),
+                    help="count only the samples taken in this phase of the game")
     ap.add_argument("--callers", default="",
                     help="also count the callers (two frames up) of innermost frames "
                          "whose label contains this text")
@@ -85,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
     line: collections.Counter[str] = collections.Counter()
     callers: collections.Counter[str] = collections.Counter()
     total = [0]
+    phases: collections.Counter[str] = collections.Counter()
+    game = _PhaseWatch()
 
     def on_prof(_sig: int, frame: FrameType | None) -> None:
         labels: list[str] = []
@@ -93,6 +131,10 @@ def main(argv: list[str] | None = None) -> int:
             labels.append(_label(f))
             f = f.f_back
         if not labels:
+            return
+        phase = game.phase()
+        phases[phase] += 1
+        if args.phase and phase != args.phase:
             return
         total[0] += 1
         own[labels[0]] += 1
@@ -116,7 +158,8 @@ def main(argv: list[str] | None = None) -> int:
     cpu0 = time.process_time()
     signal.setitimer(signal.ITIMER_PROF, every, every)
     try:
-        report = trio.run(_quiet, run_game(scenario, args.seed), clock=virtual_clock())
+        report = trio.run(_quiet, run_game(scenario, args.seed, observers=(game,)),
+                          clock=virtual_clock())
     finally:
         signal.setitimer(signal.ITIMER_PROF, 0.0, 0.0)
     cpu = time.process_time() - cpu0
@@ -124,6 +167,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.scenario} seed {args.seed}: outcome {report.outcome}, sim "
           f"{report.sim_seconds:.0f} s, CPU {cpu:.1f} s, RTFc {report.sim_seconds / cpu:.1f}, "
           f"hash {report.trace_hash}, {total[0]} samples", file=sys.stdout)
+    print("samples per phase: " + ", ".join(f"{k} {100.0 * v / max(1, sum(phases.values())):.0f} %"
+                                             for k, v in phases.items()))
     for title, counter in (("area", area), ("self", own), ("inclusive", incl),
                            ("innermost project line", line), ("callers", callers)):
         print(f"\n-- {title} --")

@@ -38,7 +38,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
+
+from actors.firmware.ndimage import distance_transform_edt
 
 __all__ = ["capped_distance"]
 

@@ -44,7 +44,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
+
+from actors.firmware.ndimage import gaussian_filter1d
 
 __all__ = ["cluster_labels", "CELL_CM", "CELL_DEG", "SMOOTH_CELLS", "PEAK_FLOOR", "VALLEY",
            "MAX_PEAKS", "MAX_LATTICE_CELLS"]

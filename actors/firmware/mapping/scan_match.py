@@ -36,8 +36,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
+from actors.firmware import ndimage
 from actors.firmware.arrays import pad_border
 from actors.firmware.mapping.sensor_model import LogOddsModel
 from server.protocol.pose import Pose
@@ -128,7 +128,7 @@ def _binomial(passes: int) -> np.ndarray:
 
 def _blur(field: np.ndarray, passes: int) -> np.ndarray:
     """Separable binomial blur equal to ``passes`` [1, 2, 1] / 4 blurs (zeros outside):
-    one `scipy.ndimage.correlate1d` per axis."""
+    one `scipy.ndimage.correlate1d` per axis (`actors.firmware.ndimage`)."""
     if passes == 0:
         return field.copy()
     k = _binomial(passes)

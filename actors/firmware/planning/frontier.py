@@ -40,8 +40,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
+from actors.firmware import ndimage
 from actors.firmware.arrays import pad_border
 from actors.firmware.planning.grid_search import bfs_steps
 from actors.firmware.planning.planner import snap_to_passable, traversable
