@@ -76,9 +76,14 @@ def face_information(field: DistanceField, pose: Pose, points: np.ndarray,
     th = pose.heading_rad
     x, y = to_map(np.array([[pose.x, pose.y, th]]), pts)
     x, y = x[0], y[0]
-    e = 0.5 * field.resolution_cm
-    gx = (field.at(x + e, y) - field.at(x - e, y)) / (2.0 * e)
-    gy = (field.at(x, y + e) - field.at(x, y - e)) / (2.0 * e)
+    # the face's normal: the field's gradient a cell in front of the hit, on the ray's
+    # free side (at the hit itself it reads the wall band's flat or V-shaped inside)
+    res = field.resolution_cm
+    rng = np.maximum(np.hypot(pts[:, 0], pts[:, 1]), 1e-9)
+    qx, qy = x - res * (x - pose.x) / rng, y - res * (y - pose.y) / rng
+    e = 0.5 * res
+    gx = (field.at(qx + e, qy) - field.at(qx - e, qy)) / (2.0 * e)
+    gy = (field.at(qx, qy + e) - field.at(qx, qy - e)) / (2.0 * e)
     norm = np.hypot(gx, gy)
     has_normal = norm >= MIN_NORMAL
     nx = np.where(has_normal, gx / np.maximum(norm, 1e-9), 0.0)
