@@ -7,28 +7,29 @@ Why
     and pins the heading by the lever of its range: a wall seen at 2 m turns a
     1 deg heading error into 3.5 cm. The likelihood's own curvature (`scan_likelihood.
     scan_information`) cannot read this at a match: the hit term is flat within half
-    a cell of a face, so a second difference over one cell reads the tails, and with
-    its cross terms it comes out indefinite (in the built-in rooms its smallest
-    eigenvalue is negative in almost every scan, along a mostly heading direction,
-    which the positive semi-definite projection then zeroes). A belief updated with it
-    learns the heading only from odometry, and its batches are placed at the
-    prediction's heading rather than the match's: the map turns with the encoders'
-    drift round the start, a wall 4 m away a few cm per degree. The Fisher
-    information keeps what each hit says, in every direction.
+    a cell of a face, so a second difference over one cell reads only the tails, and
+    with its cross terms it comes out indefinite. On a drawn map it is rank-deficient
+    in most matched scans, along a mostly heading direction, which the positive
+    semi-definite projection zeroes; a belief updated with it learns the heading from
+    odometry, its batches are placed at the prediction's heading, and the map turns
+    round the start with the heading odometry carries (a wall 4 m away a few cm per
+    degree). The Fisher information keeps what each hit says, in every direction.
 
 Algorithm
     Gauss-Newton information of the likelihood field (Thrun et al. 6.4; the
     covariance of ICP-style scan matching, Censi 2007's first-order term): each hit,
     put in the map frame at the pose, has the unit normal ``n`` of its nearest face
-    (the distance field's gradient, central differences over a cell) and the
-    Jacobian ``J = [n_x, n_y, n . dR/dtheta p]`` of its distance to the face; the
+    (the distance field's gradient, central differences over a cell, read a cell in
+    front of the hit on the ray's free side: at the hit itself a wall band's inside
+    is flat or V-shaped) and the Jacobian ``J = [n_x, n_y, n . dR/dtheta p]`` of its
+    distance to the face; the
     information is ``sum r J^T J / sigma_hit**2``, each hit weighed by its
     responsibility ``r = z_hit term / (z_hit term + z_rand)`` (a hit the map does not
     explain says nothing; a hit on new ground is not judged), over at most
     ``MAX_BEAMS`` hits, scaled to ``independent_hits`` measurements like the
     likelihood (`scan_likelihood.scan_log_likelihood`). Where the distance field is
-    flat (no face within its reach, or a hit inside an occupied cell's plateau) the
-    hit has no normal and adds nothing. A scan along a corridor's walls gives no
+    flat in front of a hit (no face within its reach) the hit has no normal and adds
+    nothing. A scan along a corridor's walls gives no
     information along them: the matrix is rank-deficient there, as it should be.
 
 Frame and units

@@ -36,7 +36,7 @@ The pose belief (why: see `localisation.gaussian_pose`)
     (at most every ``_SEARCH_EVERY_S``: a bound on CPU). The matched pose is
     judged by the scan likelihood (`scan_likelihood.judge_fit`: enough hits,
     not new ground, the fit, and the belief's gate); accepted, it updates the
-    belief with the scan's information (`scan_likelihood.scan_information`),
+    belief with the scan's information (`face_information`: its hits on faces),
     and the batch is placed where the prediction and the match, weighed,
     put it: the match across walls, the prediction along a corridor's walls
     (which the scan does not constrain). Refused, the batch is dropped
