@@ -43,7 +43,12 @@ import numpy as np
 
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import to_map
-from actors.firmware.localisation.scan_likelihood import MAX_BEAMS, ScanOptions, _beams
+from actors.firmware.localisation.scan_likelihood import (
+    MAX_BEAMS,
+    ScanOptions,
+    _beams,
+    _hit_terms,
+)
 from actors.firmware.mapping.scan_match import MIN_POINTS
 from server.protocol.pose import Pose
 
@@ -51,8 +56,7 @@ __all__ = ["face_information", "MIN_NORMAL"]
 
 MIN_NORMAL = 0.5
 """Least length of the distance field's gradient for a hit to have a face normal [1]: the
-field is 1 cm per cm along a face's normal, and flat on an occupied cell's plateau or
-beyond its reach."""
+field is 1 cm per cm along a face's normal, and flat where no face is within its reach."""
 
 
 def face_information(field: DistanceField, pose: Pose, points: np.ndarray,
@@ -89,10 +93,7 @@ def face_information(field: DistanceField, pose: Pose, points: np.ndarray,
     has_normal = norm >= MIN_NORMAL
     nx = np.where(has_normal, gx / np.maximum(norm, 1e-9), 0.0)
     ny = np.where(has_normal, gy / np.maximum(norm, 1e-9), 0.0)
-    d = field.at(x, y)
-    gap = np.maximum(d - e, 0.0)
-    term = np.exp(-0.5 * (gap / o.sigma_hit_cm) ** 2)
-    judged = field.known_at(x, y) | (d <= o.new_ground_cm)
+    term, judged = _hit_terms(field, x, y, o)
     # a hit on new ground is no evidence about the pose
     resp = np.where(judged, o.z_hit * term / (o.z_hit * term + o.z_rand), 0.0)
     c, s = np.cos(th), np.sin(th)
