@@ -28,8 +28,8 @@ Algorithm
       ``turn_sigma**2 * |dtheta|`` to the heading. No degrees are added by hand:
       a tread's doubt over the track width is the heading's.
     * ``update``: a matched pose ``z`` with its information matrix ``I`` (the
-      curvature of the scan's log-likelihood at ``z``, `scan_likelihood.
-      scan_information`), in information form so that a direction the scan
+      Fisher information of the scan's hits on their faces, `face_information`),
+      in information form so that a direction the scan
       does not constrain (along a corridor) keeps its doubt:
       ``P' = (P^-1 + I)^-1``, ``mu' = mu + P' I (z - mu)``. The odometry stamp's own
       error (its rounding to whole encoder interrupts) is the measurement's, not the

@@ -6,9 +6,11 @@ Why
     against the map built so far. For one matched pose it gives the verdict
     (`judge_fit`): accepted, or refused with the reason as data (too few hits,
     new ground, a bad fit, or a match outside what the mapper's pose belief
-    allows); its curvature at the pose is what the scan says about the pose
-    (`scan_information`), with which the belief is updated; and over
-    particles it weighs a particle belief (`scan_log_likelihood`).
+    allows); its curvature at the pose (`scan_information`) is one reading of
+    what the scan says about the pose (the mapper's belief takes the hits'
+    Fisher information, `face_information`, which the likelihood's flat bottom
+    does not blur); and over particles it weighs a particle belief
+    (`scan_log_likelihood`).
 
 Algorithm
     Likelihood field (Thrun et al.; Nav2 AMCL ``likelihood_field``): each hit,

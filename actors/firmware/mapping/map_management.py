@@ -36,7 +36,7 @@ The pose belief (why: see `localisation.gaussian_pose`)
     (at most every ``_SEARCH_EVERY_S``: a bound on CPU). The matched pose is
     judged by the scan likelihood (`scan_likelihood.judge_fit`: enough hits,
     not new ground, the fit, and the belief's gate); accepted, it updates the
-    belief with the scan's information (`scan_likelihood.scan_information`),
+    belief with the scan's information (`face_information`: its hits on faces),
     and the batch is placed where the prediction and the match, weighed,
     put it: the match across walls, the prediction along a corridor's walls
     (which the scan does not constrain). Refused, the batch is dropped
@@ -76,6 +76,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
 from actors.firmware.handles import post
 from actors.firmware.localisation.distance_field import DistanceField
+from actors.firmware.localisation.face_information import face_information
 from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.localisation.odometry import tread_travel
@@ -98,7 +99,6 @@ from actors.firmware.localisation.scan_likelihood import (
     gate_fit,
     judge_fit,
     odometry_floor,
-    scan_information,
 )
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import (
@@ -384,7 +384,7 @@ class MapManagement(Actor):
             if fit.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS) and not wide:
                 return guess
             return self._refuse(fit.verdict.value)
-        info = scan_information(self._distance, result.pose, pts, _SCAN)
+        info = face_information(self._distance, result.pose, pts, _SCAN)
         stamp = self._stamp_covariance(now)
         # this batch's pose: the prediction (the belief and the stamp's own error) and the
         # match, weighed by what this one scan's hits say (each of its beams counted);
