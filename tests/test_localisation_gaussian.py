@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from actors.firmware.localisation.distance_field import DistanceField
+from actors.firmware.localisation.face_information import face_information
 from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.localisation.motion_model import (
     MotionNoise,
@@ -16,7 +17,7 @@ from actors.firmware.localisation.motion_model import (
     TreadReport,
     sample_motion,
 )
-from actors.firmware.localisation.scan_likelihood import hits_to_points, scan_information
+from actors.firmware.localisation.scan_likelihood import hits_to_points
 from actors.firmware.nav.sensor_watch import uncounted_travel
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose
@@ -84,12 +85,12 @@ def test_a_scans_information_is_sharp_across_walls_and_nil_along_a_corridor() ->
     field, occ = _room_field()
     truth = Pose(120.0, 80.0, 0.0)
     a, r = ray_scan(occ, truth)
-    info = scan_information(field, truth, hits_to_points(a, r))
+    info = face_information(field, truth, hits_to_points(a, r))
     cov = np.linalg.inv(info)
     assert math.sqrt(cov[0, 0]) < 3.0 and math.sqrt(cov[1, 1]) < 3.0
     assert math.degrees(math.sqrt(cov[2, 2])) < 2.0
     side = np.abs(np.sin(np.radians(a))) > 0.9  # only the beams that meet the long walls
-    corridor = scan_information(field, truth, hits_to_points(a[side], r[side]))
+    corridor = face_information(field, truth, hits_to_points(a[side], r[side]))
     along = np.array([1.0, 0.0, 0.0])
     assert along @ corridor @ along < 0.01 * (along @ info @ along)
     wide = GaussianPose.at(truth, 20.0, 10.0)

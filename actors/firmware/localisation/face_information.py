@@ -5,9 +5,10 @@ Why
     information matrix. A hit on a mapped face pins the pose along that face's
     normal, to the spread of a hit round a face (``ScanOptions.sigma_hit_cm``),
     and pins the heading by the lever of its range: a wall seen at 2 m turns a
-    1 deg heading error into 3.5 cm. The likelihood's own curvature (`scan_likelihood.
-    scan_information`) cannot read this at a match: the hit term is flat within half
-    a cell of a face, so a second difference over one cell reads only the tails, and
+    1 deg heading error into 3.5 cm. The likelihood's own curvature (second
+    differences of `scan_likelihood.scan_log_likelihood`) cannot read this at a
+    match: the hit term is flat within half a cell of a face, so a second
+    difference over one cell reads only the tails, and
     with its cross terms it comes out indefinite. On a drawn map it is rank-deficient
     in most matched scans, along a mostly heading direction, which the positive
     semi-definite projection zeroes; a belief updated with it learns the heading from

@@ -6,11 +6,9 @@ Why
     against the map built so far. For one matched pose it gives the verdict
     (`judge_fit`): accepted, or refused with the reason as data (too few hits,
     new ground, a bad fit, or a match outside what the mapper's pose belief
-    allows); its curvature at the pose (`scan_information`) is one reading of
-    what the scan says about the pose (the mapper's belief takes the hits'
-    Fisher information, `face_information`, which the likelihood's flat bottom
-    does not blur); and over particles it weighs a particle belief
-    (`scan_log_likelihood`).
+    allows); over particles it weighs a particle belief
+    (`scan_log_likelihood`). What a matched scan says about the pose is the
+    hits' Fisher information (`face_information`).
 
 Algorithm
     Likelihood field (Thrun et al.; Nav2 AMCL ``likelihood_field``): each hit,
@@ -58,7 +56,7 @@ from actors.firmware.mapping.scan_match import MAX_RANGE_CM, MIN_POINTS, MatchOp
 from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_likelihood",
-           "judge_fit", "gate_fit", "acceptable_log_fit", "scan_information", "odometry_floor",
+           "judge_fit", "gate_fit", "acceptable_log_fit", "odometry_floor",
            "MAX_BEAMS", "UNKNOWN_HIT", "MIN_JUDGED", "MIN_FIT", "GATE_CHI2", "FLOOR_CM",
            "FLOOR_DEG"]
 
@@ -326,66 +324,3 @@ def acceptable_log_fit(options: ScanOptions | None = None) -> float:
     ``MIN_FIT``: what a just acceptable fit scores (`ScanFit.log_fit`)."""
     o = options or ScanOptions()
     return math.log(o.z_hit * MIN_FIT + o.z_rand)
-
-
-def _steps() -> np.ndarray:
-    """The 19 poses of `scan_information` as steps of -1, 0 or 1 per coordinate: the
-    pose, then +- each coordinate, then the four diagonal steps of each pair."""
-    steps = [np.zeros(3)]
-    for i in range(3):
-        e = np.zeros(3)
-        e[i] = 1.0
-        steps += [e, -e]
-    for i in range(3):
-        for j in range(i + 1, 3):
-            for si, sj in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-                e = np.zeros(3)
-                e[i], e[j] = si, sj
-                steps.append(e)
-    table = np.array(steps)
-    table.flags.writeable = False
-    return table
-
-
-_STEPS = _steps()
-
-
-def scan_information(field: DistanceField, pose: Pose, points: np.ndarray,
-                     options: ScanOptions | None = None) -> np.ndarray:
-    """The information matrix (3 x 3, of x [cm], y [cm], heading [rad]) a scan gives
-    about the pose at ``pose``: the negative curvature of `scan_log_likelihood` there.
-
-    Why: it is what the scan's fit says about the pose, in the likelihood's own terms
-    (``sigma_hit_cm``, ``independent_hits``), and it is small in any direction the scan
-    does not constrain (a shift along a corridor's walls moves no hit off them), so a
-    belief updated with it keeps that doubt instead of pretending the match settled it.
-
-    Algorithm: central second differences of the log-likelihood over steps of one
-    cell in x and y (the hit term is flat within half a cell of a face: a smaller step
-    would read no curvature) and the same arc, at the beams' root-mean-square range,
-    in heading, all 19 poses in one vectorised call; the matrix is made positive
-    semi-definite (a saddle says nothing in that direction, not less than nothing).
-    The flat bottom makes the curvature an underestimate (the belief stays wider than
-    the fit alone would make it, not narrower).
-    """
-    o = options or ScanOptions()
-    pts = _beams(np.asarray(points, dtype=float).reshape(-1, 2), MAX_BEAMS)
-    if pts.shape[0] < MIN_POINTS:
-        return np.zeros((3, 3))
-    # the mean square range as ``np.mean`` computes it (the sum, then one division)
-    rms = math.sqrt(float(np.add.reduce(pts[:, 0] ** 2 + pts[:, 1] ** 2)) / pts.shape[0])
-    h = np.array([field.resolution_cm, field.resolution_cm, field.resolution_cm / max(rms, 1.0)])
-    base = np.array([pose.x, pose.y, pose.heading_rad])
-    ll = scan_log_likelihood(field, base + _STEPS * h, pts, o)
-    f0 = ll[0]
-    hess = np.empty((3, 3))
-    for i in range(3):
-        hess[i, i] = (ll[1 + 2 * i] + ll[2 + 2 * i] - 2.0 * f0) / h[i] ** 2
-    k = 7
-    for i in range(3):
-        for j in range(i + 1, 3):
-            pp, pm, mp, mm = ll[k:k + 4]
-            hess[i, j] = hess[j, i] = (pp - pm - mp + mm) / (4.0 * h[i] * h[j])
-            k += 4
-    vals, vecs = np.linalg.eigh(-hess)
-    return (vecs * np.maximum(vals, 0.0)) @ vecs.T
