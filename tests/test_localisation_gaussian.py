@@ -1,5 +1,6 @@
 """The mapper's Gaussian pose belief in isolation: prediction by the tread motion model,
-the scan's information, and the update."""
+the relayed travel of a reported tread, and the update (the scan's information is
+`tests/test_localisation_face_information.py`'s)."""
 
 from __future__ import annotations
 
@@ -8,8 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from actors.firmware.localisation.distance_field import DistanceField
-from actors.firmware.localisation.face_information import face_information
 from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.localisation.motion_model import (
     MotionNoise,
@@ -17,12 +16,8 @@ from actors.firmware.localisation.motion_model import (
     TreadReport,
     sample_motion,
 )
-from actors.firmware.localisation.scan_likelihood import hits_to_points
 from actors.firmware.nav.sensor_watch import uncounted_travel
-from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose
-
-from .test_scan_match import ORIGIN, RES, ray_scan, room_map
 
 W = 13.0
 NOISE = MotionNoise()
@@ -71,32 +66,6 @@ def test_the_belief_widens_with_every_unmatched_motion() -> None:
         h.append(b.heading95_deg)
         r.append(b.radius95_cm)
     assert np.all(np.diff(h) > 0) and np.all(np.diff(r) > 0)
-
-
-def _room_field() -> tuple[DistanceField, np.ndarray]:
-    occ = room_map()
-    cells = np.where(occ, 100, 0).astype(np.int8)
-    return DistanceField.from_grid(GridMap(cells, RES, ORIGIN)), occ
-
-
-def test_a_scans_information_is_sharp_across_walls_and_nil_along_a_corridor() -> None:
-    """In a box room the scan pins x, y and heading; seen as two parallel walls only (a
-    corridor), it says nothing along them: the update keeps that doubt."""
-    field, occ = _room_field()
-    truth = Pose(120.0, 80.0, 0.0)
-    a, r = ray_scan(occ, truth)
-    info = face_information(field, truth, hits_to_points(a, r))
-    cov = np.linalg.inv(info)
-    assert math.sqrt(cov[0, 0]) < 3.0 and math.sqrt(cov[1, 1]) < 3.0
-    assert math.degrees(math.sqrt(cov[2, 2])) < 2.0
-    side = np.abs(np.sin(np.radians(a))) > 0.9  # only the beams that meet the long walls
-    corridor = face_information(field, truth, hits_to_points(a[side], r[side]))
-    along = np.array([1.0, 0.0, 0.0])
-    assert along @ corridor @ along < 0.01 * (along @ info @ along)
-    wide = GaussianPose.at(truth, 20.0, 10.0)
-    after = wide.update(truth, corridor)
-    assert after.covariance[0, 0] == pytest.approx(wide.covariance[0, 0], rel=0.05)
-    assert after.covariance[1, 1] < 0.1 * wide.covariance[1, 1]
 
 
 def test_an_update_moves_the_mean_toward_the_measurement_by_the_weights() -> None:
