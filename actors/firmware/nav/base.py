@@ -138,6 +138,9 @@ class NavBase(TreadFaults, Actor):
         """The last motion commanded."""
         self.motion_from: Pose | None = None
         """The map-frame pose the last motion was commanded from."""
+        self.odometry_from: Pose | None = None
+        """Motor Control's own-frame pose when the last motion was commanded: what its
+        counts moved from (the map-frame ``motion_from`` also moves with the origin)."""
         self._motion_deadline = math.inf
         self._blocked = False
         self._done = 0.0
@@ -262,6 +265,7 @@ class NavBase(TreadFaults, Actor):
         self._motion = motion
         self.last_motion = motion
         self.motion_from = self.map_pose
+        self.odometry_from = self.pose
         self.counters["motions"] += 1
         nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \
             else abs(motion.amount) / 90.0

@@ -218,7 +218,9 @@ class SensorWatch:
         that ended blocked without a report has both treads in doubt (a jammed rover
         and two stuck encoders read the same)."""
         reported, self._relayed = self._relayed, (False, False)
-        motion, start = self.last_motion, self.motion_from
+        # counted in the own frame: the map-frame pose also moves by the origin's
+        # corrections, which are no tread's travel
+        motion, start = self.last_motion, self.odometry_from
         if motion is None or start is None:
             return
         if reported == (False, False):
@@ -226,7 +228,7 @@ class SensorWatch:
                 return
             reported = (True, True)
         w = self.spec.track_width_cm if self.spec is not None else 13.0
-        counted = tread_travel(start, self.map_pose, w)
+        counted = tread_travel(start, self.pose, w)
         left, right = uncounted_travel(reported, counted, (left_cm, right_cm))
         await self.post(self.map_name, length_pair(Cmd.MAP_TREAD_FAULT, left, right, MM))
 
