@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+import trio
 
 from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.localisation.motion_model import (
@@ -16,7 +17,9 @@ from actors.firmware.localisation.motion_model import (
     TreadReport,
     sample_motion,
 )
-from actors.firmware.nav.sensor_watch import uncounted_travel
+from actors.firmware.nav.route import Motion
+from actors.firmware.nav.sensor_watch import SensorWatch, uncounted_travel
+from actors.firmware.origin_wire import MM, xy_half
 from server.protocol.pose import Pose
 
 W = 13.0
@@ -89,6 +92,38 @@ def test_navigation_relays_the_travel_driven_beyond_the_count() -> None:
     assert uncounted_travel((False, True), (8.0, 4.0), (8.0, 8.5)) == pytest.approx((0.0, 4.5))
     assert uncounted_travel((True, True), (-6.0, -6.0), (-5.0, -14.0)) == pytest.approx(
         (0.0, -8.0))
+
+
+class _RelayingNav(SensorWatch):
+    """The mapper's navigation state `SensorWatch.relay_tread_driven` reads, and what it
+    posts to Map Management."""
+
+    def __init__(self, odometry_from: Pose, pose: Pose, motion_from: Pose,
+                 map_pose: Pose) -> None:
+        self._relayed = (True, True)
+        self.last_motion = Motion("turn", 90.0)
+        self.odometry_from, self.pose = odometry_from, pose
+        self.motion_from, self.map_pose = motion_from, map_pose
+        self.spec, self.map_name = None, "mapper/map"
+        self.posted: list[tuple[float, float]] = []
+
+    async def post(self, name: str, message: object) -> bool:
+        self.posted.append(xy_half(message, MM))
+        return True
+
+
+def test_the_relayed_travel_is_counted_in_the_own_frame_not_the_map_frame() -> None:
+    """Motor Control's counts move its own-frame pose; the map-frame pose also moves by
+    Map Management's corrections, which are no tread's travel. Two stuck encoders in a
+    turn (nothing counted, the model drove 7.1 cm a tread) relay all of the 7.1 cm,
+    whatever the origin did meanwhile."""
+    still = Pose(10.0, 20.0, 30.0)
+    # meanwhile the correction moved the map-frame pose 3 cm along the heading
+    nav = _RelayingNav(still, still, Pose(40.0, 50.0, 30.0),
+                       Pose(40.0 + 3.0 * math.cos(math.radians(30.0)),
+                            50.0 + 3.0 * math.sin(math.radians(30.0)), 30.0))
+    trio.run(nav.relay_tread_driven, -7.1, 7.1)
+    assert nav.posted == [pytest.approx((-7.1, 7.1))]
 
 
 def test_whether_the_95_radius_exceeds_a_limit_is_what_the_radius_says() -> None:
