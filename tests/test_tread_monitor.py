@@ -60,3 +60,9 @@ def test_tread_fault_names_read_as_the_payload_bits() -> None:
         == [0, 1, 2, 3, 4, 6]
     assert TreadFault(3).side == "right" and TreadFault(3).counts_short
     assert TreadFault(6).both and TreadFault(4).side == "both" and not TreadFault(4).counts_short
+
+
+def test_a_fault_names_the_treads_it_reports() -> None:
+    """Values 0/2 report the left tread, 1/3 the right, 4/6 both (what the beliefs widen)."""
+    assert [TreadFault(v).treads for v in (0, 1, 2, 3, 4, 6)] == [
+        (True, False), (False, True), (True, False), (False, True), (True, True), (True, True)]

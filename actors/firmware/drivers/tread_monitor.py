@@ -104,6 +104,13 @@ class TreadFault(enum.IntFlag):
         """``left``, ``right`` or ``both``."""
         return "both" if self.both else "right" if self & TreadFault.RIGHT else "left"
 
+    @property
+    def treads(self) -> tuple[bool, bool]:
+        """Whether the (left, right) tread is reported."""
+        if self.both:
+            return True, True
+        return (False, True) if self & TreadFault.RIGHT else (True, False)
+
 
 class TreadVerdict(enum.Enum):
     """What Motor Control does about a finding, in the order found."""

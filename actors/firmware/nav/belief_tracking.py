@@ -190,9 +190,8 @@ class BeliefTracking:
         """Motor Control reported a tread during the motion in flight: the next
         prediction samples that tread's travel between its count and its drive."""
         kind = TreadReport.SHORT if fault.counts_short else TreadReport.SILENT
-        treads = (0, 1) if fault.both else (1 if fault & TreadFault.RIGHT else 0,)
-        for t in treads:
-            if self._reports[t] != TreadReport.SILENT:
+        for t, reported in enumerate(fault.treads):
+            if reported and self._reports[t] != TreadReport.SILENT:
                 self._reports[t] = kind
         self._reported_motion = self.last_motion
 

@@ -190,9 +190,8 @@ class SensorWatch:
         now = trio.current_time()
         if self.state not in ("exploring", "homing") or not self.moving:
             return
-        side = (True, True) if fault.both else (
-            (False, True) if fault & TreadFault.RIGHT else (True, False))
-        self._relayed = (self._relayed[0] or side[0], self._relayed[1] or side[1])
+        treads = fault.treads
+        self._relayed = (self._relayed[0] or treads[0], self._relayed[1] or treads[1])
         if now < self._odo_hold_until:
             return
         if fault.both:
