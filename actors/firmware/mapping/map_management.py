@@ -205,8 +205,6 @@ class MapManagement(Actor):
         # broken component's Occam factor (`odometry_fault.evidence`)
         """Times the belief became the broken component (data for metrics)."""
         self._step = (0.0, 0.0)  # the last step between two stamps: travel [cm], turn [rad]
-        # the last `_stamp_covariance` asked and its answer (a read-only array)
-        self._stamp: tuple[tuple[float, tuple[float, float], float], np.ndarray] | None = None
         self.correction = Pose()
         """Odometry frame -> map frame: the belief's mean composed with the inverse of
         its odometry stamp (identity until a match or a report moves it)."""
@@ -354,6 +352,7 @@ class MapManagement(Actor):
         if not wide and now - self._still_since >= self.settle_s and _same_pose(
                 odom, self._last_odom):
             return guess  # standing still: matching again would only add its own jitter
+        stamp = self._stamp_covariance(now)
         fields = self._current_fields(opts, now)
         pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
         if wide:
@@ -366,7 +365,7 @@ class MapManagement(Actor):
             at_mean = at_match = None
         else:
             result = match_scan(fields, pts, guess, opts)
-            weighed = self._weigh_odometry(pts, result, now)
+            weighed = self._weigh_odometry(pts, result, now, stamp)
             if weighed is None:
                 return self._refuse("odometry in doubt")
             at_mean, at_match = weighed
@@ -379,13 +378,12 @@ class MapManagement(Actor):
         if at_match is None:
             at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
         fit = gate_fit(at_match, result.pose, guess, self.belief.covariance
-                       + self._stamp_covariance(now) - odometry_floor())
+                       + stamp - odometry_floor())
         if not fit.accepted:
             if fit.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS) and not wide:
                 return guess
             return self._refuse(fit.verdict.value)
         info = face_information(self._distance, result.pose, pts, _SCAN)
-        stamp = self._stamp_covariance(now)
         # this batch's pose: the prediction (the belief and the stamp's own error) and the
         # match, weighed by what this one scan's hits say (each of its beams counted);
         # the belief (the correction's) counts the scan as `independent_hits` measurements
@@ -401,8 +399,8 @@ class MapManagement(Actor):
         self.correction = compose(self.belief.mean, inverse(odom))
         return placed
 
-    def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float
-                        ) -> tuple[ScanFit, ScanFit | None] | None:
+    def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float,
+                        stamp: np.ndarray) -> tuple[ScanFit, ScanFit | None] | None:
         """Weigh this batch's scan as evidence for "odometry broke unseen"
         (`odometry_fault`) and return its fit at the belief's mean and, when it was
         judged, at the match (`judge_fit` without the belief: `_place` gates it); when
@@ -415,7 +413,7 @@ class MapManagement(Actor):
         at_mean = judge_fit(self._distance, self.belief.mean, pts, _SCAN)
         if at_mean.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
             return at_mean, None  # nothing to judge the pose by
-        narrow = self.belief.covariance + self._stamp_covariance(now)
+        narrow = self.belief.covariance + stamp
         spread = broken_spread(self.matching.max_shift_cm if self.matching else 12.0)
         wide = narrow + spread
         odom = self._belief_odom
@@ -465,15 +463,9 @@ class MapManagement(Actor):
         between two stamps (its variance: the step squared over 12). A tick with no Int E
         keeps the last step (the rover moves on between interrupts) until the rover has
         stood ``settle_s``."""
-        key = (now, self._step, self._still_since)
-        if self._stamp is not None and self._stamp[0] == key:
-            return self._stamp[1]  # a batch asks up to three times
         ds, dtheta = self._step if now - self._still_since < self.settle_s else (0.0, 0.0)
-        cov = odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
-                                          dtheta * dtheta / 12.0])
-        cov.flags.writeable = False
-        self._stamp = (key, cov)
-        return cov
+        return odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
+                                           dtheta * dtheta / 12.0])
 
     def _refuse(self, reason: str) -> None:
         """Drop a batch, counting why."""
