@@ -113,3 +113,14 @@ def test_bad_map_is_refused() -> None:
     _, origin, start, truth = perfect_map("empty")
     with pytest.raises(ValueError, match="cells must be a 2-D array"):
         coverage(np.zeros(5, dtype=np.int8), 5.0, origin, start, truth)
+
+
+def test_cells_under_a_rover_body_count_neither_right_nor_wrong() -> None:
+    """A parked rover the LIDAR outlined is not an error: the truth raster has no rovers."""
+    cells, origin, start, truth = perfect_map("furniture")
+    marked = cells.copy()
+    marked[60:64, 10:14] = 100  # a rover's outline, 20 x 20 cm, in open floor
+    centre = Pose(12 * 5.0, 62 * 5.0, 0.0)  # room frame: the box's centre
+    assert accuracy(marked, 5.0, origin, start, truth) < 1.0
+    assert accuracy(marked, 5.0, origin, start, truth,
+                    [(centre, 20.0, 20.0)]) == pytest.approx(1.0)

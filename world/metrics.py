@@ -10,7 +10,11 @@ take the mapper's start pose in the room to place the map on the truth raster.
   map cell.
 * accuracy: share of known map cells whose claim (free / occupied) matches the
   truth within one truth cell (a 3 x 3 neighbourhood; outside the room counts
-  as occupied), so an edge drawn one cell off is not an error.
+  as occupied), so an edge drawn one cell off is not an error. Cells under a
+  rover's body when the map was made (``bodies``) are left out: the rasterised
+  truth holds the room, not the rovers standing in it, so a parked rover the
+  LIDAR outlined (or the mapper's own body, marked where it parks) is neither
+  right nor wrong there.
 * T90 / T99: first time the coverage series reaches 90 % / 99 %.
 * path length: sum of the distances between consecutive poses.
 """
@@ -92,15 +96,19 @@ class CoverageProbe:
 
 
 def accuracy(cells: np.ndarray, resolution_cm: float, origin_cm: tuple[float, float],
-             start: Pose, truth: TruthGrid) -> float:
+             start: Pose, truth: TruthGrid,
+             bodies: Sequence[tuple[Pose, float, float]] = ()) -> float:
     """Share [0..1] of known map cells that agree with the truth (one cell of tolerance).
+
+    Args:
+        bodies: the rovers standing in the room when the map was made, each (room-frame
+            pose, length, width [cm]); known cells whose centre lies within one truth
+            cell of a body are not counted.
 
     Returns 1.0 for a map with no known cells (nothing claimed, nothing wrong).
     """
     cells = _check_map(cells, resolution_cm)
     mr, mc = np.nonzero(cells >= 0)
-    if len(mr) == 0:
-        return 1.0
     # map cell centres in the mapper frame -> room frame
     xm = origin_cm[0] + (mc + 0.5) * resolution_cm
     ym = origin_cm[1] + (mr + 0.5) * resolution_cm
@@ -108,6 +116,10 @@ def accuracy(cells: np.ndarray, resolution_cm: float, origin_cm: tuple[float, fl
     c, s = math.cos(h), math.sin(h)
     xr = start.x + c * xm - s * ym
     yr = start.y + s * xm + c * ym
+    keep = ~_under_bodies(xr, yr, bodies, truth.resolution_cm)
+    mr, mc, xr, yr = mr[keep], mc[keep], xr[keep], yr[keep]
+    if len(mr) == 0:
+        return 1.0
     occ = np.pad(truth.occupied, 2, constant_values=True)  # outside the room: walls
     near_occ = _dilate(occ)
     near_free = _dilate(~occ)
@@ -117,6 +129,21 @@ def accuracy(cells: np.ndarray, resolution_cm: float, origin_cm: tuple[float, fl
     claims_occ = cells[mr, mc] >= 50
     ok = np.where(claims_occ, near_occ[tj, ti], near_free[tj, ti])
     return float(ok.mean())
+
+
+def _under_bodies(x: np.ndarray, y: np.ndarray, bodies: Sequence[tuple[Pose, float, float]],
+                  margin_cm: float) -> np.ndarray:
+    """Whether each room-frame point lies within ``margin_cm`` of one of the ``bodies``'
+    rectangles (pose, length along its heading, width [cm])."""
+    under = np.zeros(x.shape, dtype=bool)
+    for pose, length, width in bodies:
+        h = math.radians(pose.heading_deg)
+        dx, dy = x - pose.x, y - pose.y
+        along = dx * math.cos(h) + dy * math.sin(h)
+        across = -dx * math.sin(h) + dy * math.cos(h)
+        under |= ((np.abs(along) <= 0.5 * length + margin_cm)
+                  & (np.abs(across) <= 0.5 * width + margin_cm))
+    return under
 
 
 def _dilate(a: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ from actors import Trace
 from server.store import Store
 from supervisors.system import SimSystem, open_sim_system
 from world.metrics import CoverageProbe, accuracy, coverage, path_length, t90, t99
+from world.params import ROLES
 from world.scenario import Scenario
 from world.truth import truth_raster
 
@@ -200,7 +201,11 @@ async def play_game(system: SimSystem, report: GameReport, budget: Budget) -> No
     if grid is not None:
         start = scenario.starts["mapper"]
         report.coverage = coverage(grid.cells, grid.resolution_cm, grid.origin_cm, start, truth)
-        report.accuracy = accuracy(grid.cells, grid.resolution_cm, grid.origin_cm, start, truth)
+        world = system.world
+        bodies = [(world.true_pose(role), world.params.length_cm, world.params.width_cm)
+                  for role in ROLES]
+        report.accuracy = accuracy(grid.cells, grid.resolution_cm, grid.origin_cm, start, truth,
+                                   bodies)
     if scenario.hide_at is None:
         return fail("the scenario has no [game] hide_at")
     hide = scenario.hide_at
