@@ -84,6 +84,9 @@ async def test_homing_disabled_uploads_where_the_mapper_stands(autojump_clock) -
         states = [f.data["state"] for f in body.frames("status")]
         assert "homing" not in states and states[-2:] == ["uploading", "mapped"]
         assert math.hypot(body.pose.x, body.pose.y) > 50.0
+        # the map marks the mapper's body where it stays parked, though no scan saw it
+        grid = next(o for c, o in body.sent if c == "WIFLY_SEND_MAP")
+        assert grid.cells[grid.world_to_cell(body.pose.x, body.pose.y)] == OCCUPIED
 
 
 def _motions(body: Body) -> int:

@@ -58,6 +58,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
+from actors.firmware.mapping.parked_body import with_parked_body
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.exploration import Exploration, ExplorationState
 from actors.firmware.nav.homing import Homing
@@ -302,7 +303,9 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         if self.grid is None or self.grid.known_bounds() is None:
             await self.set_state("idle", f"{reason}; nothing mapped to upload")
             return
-        grid = self.grid.crop_known(margin_cells=1)
+        # it stays parked here: hider and seeker plan round it (`parked_body`)
+        grid = with_parked_body(self.grid.crop_known(margin_cells=1), self.map_pose,
+                                self.length_cm, self.width_cm)
         await self.send_map(grid)
         known = int(np.count_nonzero(grid.cells != UNKNOWN))
         await self.set_state("mapped", f"{reason}; {known} cells known")
