@@ -32,18 +32,22 @@ import trio
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
 from actors.firmware.planning.clearance import obstacle_ahead
-from actors.firmware.planning.frontier import Frontier, choose_frontier, find_frontiers
+from actors.firmware.planning.viewpoint import Viewpoint, viewpoints
 from server.protocol.grid_map import UNKNOWN
 
-__all__ = ["Exploration", "ExplorationState", "MIN_FRONTIER_CELLS", "RECHOOSE_STEPS",
-           "OBSTACLE_TURNS", "MAX_CHOICES", "BLACKLIST", "TRIP_MAX_S", "FUTILE_TRIPS",
-           "MIN_GAIN_CELLS", "MIN_GAIN_SHARE", "FUTILE_MIN_CELLS", "FUTILE_OPEN_SHARE"]
+__all__ = ["Exploration", "ExplorationState", "MAX_INCIDENCE_DEG",
+           "RECHOOSE_STEPS", "OBSTACLE_TURNS", "MAX_CHOICES", "KEEP_CM", "KEEP_SHARE",
+           "BLACKLIST", "BLACKLIST_RADIUS_CM", "TRIP_MAX_S", "FUTILE_TRIPS", "MIN_GAIN_CELLS",
+           "MIN_GAIN_SHARE"]
 
 # Counts, bounds and shares of frontier exploration and of the futile-trip rule: how the
 # algorithm chooses and when it stops looking, fixed here beside it; the distances a rover
 # keeps are `MappingOptions`.
-MIN_FRONTIER_CELLS = 6
-"""Smallest useful frontier [cells] (30 cm of 5 cm cells)."""
+MAX_INCIDENCE_DEG = 70.0
+"""Steepest angle between a ray and the frontier's normal that still reveals what lies
+behind it [deg]: a ray meeting a surface at 20 deg or less stops clearing 1.5 cells
+before it (the occupancy model's grazing margin), and a degree of heading error moves
+it a cell at 3 m."""
 RECHOOSE_STEPS = 3
 """Re-choose the frontier after this many ADP steps (the map grew meanwhile)."""
 OBSTACLE_TURNS = 3
@@ -51,8 +55,16 @@ OBSTACLE_TURNS = 3
 target is blacklisted (the route passes where the rover will not drive)."""
 MAX_CHOICES = 8
 """Frontiers tried per decision before waiting for the map to change."""
+KEEP_CM = 40.0
+"""A viewpoint this near the current target is that target [cm]..."""
+KEEP_SHARE = 0.8
+"""...and the route to it is kept while its score is at least this share of the best
+(a new best must be clearly better to turn the rover round)."""
 BLACKLIST = 256
 """Most blacklisted points kept."""
+BLACKLIST_RADIUS_CM = 30.0
+"""No viewpoint is chosen this near a blacklisted point [cm] (what one sees, its
+neighbours see too)."""
 TRIP_MAX_S = 90.0
 """A trip also ends after this long [s] (a rover switching frontiers on the way never
 reaches a target)."""
@@ -62,17 +74,13 @@ revealed fewer than the least gain (`MIN_GAIN_CELLS`, `MIN_GAIN_SHARE`) each on 
 the frontiers left are not worth visiting (pockets behind furniture, noise at edges):
 exploration treats them as not useful, and completion may follow."""
 MIN_GAIN_CELLS = 30
-"""A trip that made fewer cells known than this was futile [cells]..."""
+"""A viewpoint that would reveal less is not worth a trip, and a trip that made fewer
+cells known than this was futile [cells]..."""
 MIN_GAIN_SHARE = 0.003
 """...or fewer than this share of the cells already known (a big hall's ragged far edges
 give a few dozen cells per visit for ever). Counted per visit, not per minute: crossing a
 big hall to a far frontier reveals nothing for a while."""
-FUTILE_MIN_CELLS = 16
-"""After futile trips, frontiers at least this long still count as useful [cells]: a big
-room's far part, one long frontier, stays worth a visit after visits to small pockets."""
-FUTILE_OPEN_SHARE = 0.5
-"""...and at least this share of their cells in the open (no obstacle within 30 cm): a
-ragged edge along a wall or a pocket behind furniture is long too."""
+
 
 
 @dataclass
@@ -200,41 +208,50 @@ class Exploration:
         return Motion("turn", -90.0 if ob.bearing_deg >= 0 else 90.0)
 
     def _choose(self, *, keep: bool) -> bool:
-        """Choose a frontier and a route to it; False (and ``no_frontier``) when none."""
+        """Choose a viewpoint and a route to it; False (and ``no_frontier``) when no
+        reachable pose sees enough of the unknown."""
         assert self.grid is not None
         ex = self.ex
-        pose = self.map_pose
-        # after futile visits only long frontiers in the open still count (what an obstacle
+        # after futile visits only viewpoints revealing much still count (what an obstacle
         # hid in a big room), and each is blacklisted once reached (below), so this ends
-        futile = self._futile()
-        min_size = FUTILE_MIN_CELLS if futile else MIN_FRONTIER_CELLS
-        # reachability with the narrowest tier the rover can drive (a corridor barely wider
-        # than the body); the route itself tries the roomier tiers first
-        radius, margin = self._tiers()[-1]
-        frontiers = find_frontiers(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
-                                   margin_cm=margin, approach_cm=self.m.approach_cm)
-        if futile:
-            frontiers = [f for f in frontiers if f.open_share >= FUTILE_OPEN_SHARE]
-        for _ in range(MAX_CHOICES):
-            f = choose_frontier(frontiers, min_size_cells=min_size,
-                                blacklist=ex.blacklist, blacklist_radius_cm=self.m.approach_cm)
-            if f is None:
-                ex.no_frontier = True
-                ex.follower = None
-                return False
-            ex.no_frontier = False
-            assert f.target_cm is not None
-            if keep and ex.target is not None and math.dist(f.target_cm, ex.target) <= 40.0:
-                return True  # still the same frontier: keep the route
-            if any(math.dist(f.target_cm, r) <= self.m.reach_cm * 2 for r in ex.reached):
-                self._blacklist(f.target_cm)  # reached and still a frontier: cannot be seen
+        least = self._min_gain(self._known())
+        if self._futile():
+            least *= FUTILE_TRIPS  # as much as the futile visits together should have shown
+        views = [v for v in self._viewpoints() if v.gain_cells >= least and not any(
+            math.dist(v.point_cm, b) <= BLACKLIST_RADIUS_CM for b in ex.blacklist)]
+        if not views:
+            ex.no_frontier = True
+            ex.follower = None
+            return False
+        ex.no_frontier = False
+        if keep and ex.target is not None:
+            current = [v for v in views if math.dist(v.point_cm, ex.target) <= KEEP_CM]
+            if current and current[0].score >= KEEP_SHARE * views[0].score:
+                return True  # the target still sees about as much: keep the route
+        for v in views[:MAX_CHOICES]:
+            if any(math.dist(v.point_cm, r) <= self.m.reach_cm * 2 for r in ex.reached):
+                self._blacklist(v.point_cm)  # reached, and still not seen from there
                 continue
-            if self._route_to(f):
+            if self._route_to(v.point_cm):
                 return True
-            self._blacklist(f.target_cm)
+            self._blacklist(v.point_cm)
         ex.follower = None
         self._wait_map = True
         return False
+
+    def _viewpoints(self) -> list[Viewpoint]:
+        """The viewpoints of the current map from the current pose (`viewpoint.viewpoints`),
+        with the current target among the candidates; reachability with the narrowest
+        tier the rover can drive (a corridor barely wider than the body), the route
+        itself tries the roomier tiers first."""
+        assert self.grid is not None
+        pose = self.map_pose
+        radius, margin = self._tiers()[-1]
+        also = [self.ex.target] if self.ex.target is not None else []
+        return viewpoints(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
+                          margin_cm=margin, stand_radius_cm=self.radius_cm,
+                          range_cm=self.m.view_range_cm,
+                          max_incidence_deg=MAX_INCIDENCE_DEG, also_cm=also)
 
     def _tiers(self) -> list[tuple[float, float]]:
         """(radius, margin) to plan with, roomiest first [cm]: turning radius plus margin,
@@ -270,12 +287,12 @@ class Exploration:
         assert self.grid is not None
         return int(np.count_nonzero(self.grid.cells != UNKNOWN))
 
-    def _route_to(self, f: Frontier) -> bool:
-        assert self.grid is not None and f.target_cm is not None
+    def _route_to(self, target: tuple[float, float]) -> bool:
+        assert self.grid is not None
         pose = self.map_pose
         plan = None
         for radius, margin in self._tiers():
-            plan = plan_route(self.grid, (pose.x, pose.y), f.target_cm, radius_cm=radius,
+            plan = plan_route(self.grid, (pose.x, pose.y), target, radius_cm=radius,
                               margin_cm=margin)
             if plan is not None:
                 break
@@ -286,7 +303,7 @@ class Exploration:
             ex.trip_known = self._known()
             ex.trip_started = trio.current_time()
         ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
-        ex.target = f.target_cm
+        ex.target = target
         ex.steps = 0
         ex.blocks = 0
         ex.budget = ex.follower.budget(pose)
