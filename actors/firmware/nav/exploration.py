@@ -32,17 +32,20 @@ import trio
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
 from actors.firmware.planning.clearance import obstacle_ahead
-from actors.firmware.planning.viewpoint import Viewpoint, viewpoints
+from actors.firmware.planning.viewpoint import Viewpoint, seen_face, viewpoints
 from server.protocol.grid_map import UNKNOWN
 
-__all__ = ["Exploration", "ExplorationState", "MAX_INCIDENCE_DEG",
+__all__ = ["Exploration", "ExplorationState", "MIN_FACE_CELLS", "MAX_INCIDENCE_DEG",
            "RECHOOSE_STEPS", "OBSTACLE_TURNS", "MAX_CHOICES", "KEEP_CM", "KEEP_SHARE",
-           "BLACKLIST", "BLACKLIST_RADIUS_CM", "TRIP_MAX_S", "FUTILE_TRIPS", "MIN_GAIN_CELLS",
-           "MIN_GAIN_SHARE"]
+           "BLACKLIST", "BLACKLIST_RADIUS_CM", "SIGHTINGS", "UNSEEABLE", "TRIP_MAX_S",
+           "FUTILE_TRIPS", "MIN_GAIN_CELLS", "MIN_GAIN_SHARE"]
 
 # Counts, bounds and shares of frontier exploration and of the futile-trip rule: how the
 # algorithm chooses and when it stops looking, fixed here beside it; the distances a rover
 # keeps are `MappingOptions`.
+MIN_FACE_CELLS = 2
+"""A viewpoint must see at least this many face cells [cells]: one alone is a hole a cell
+wide, deep from anywhere and seldom revealed (a pocket 20 cm wide shows two)."""
 MAX_INCIDENCE_DEG = 70.0
 """Steepest angle between a ray and the frontier's normal that still reveals what lies
 behind it [deg]: a ray meeting a surface at 20 deg or less stops clearing 1.5 cells
@@ -57,11 +60,16 @@ MAX_CHOICES = 8
 """Frontiers tried per decision before waiting for the map to change."""
 KEEP_CM = 40.0
 """A viewpoint this near the current target is that target [cm]..."""
-KEEP_SHARE = 0.8
+KEEP_SHARE = 0.5
 """...and the route to it is kept while its score is at least this share of the best
 (a new best must be clearly better to turn the rover round)."""
 BLACKLIST = 256
 """Most blacklisted points kept."""
+SIGHTINGS = 3
+"""A face cell seen from the rover's pose at this many decisions and still unknown cannot be
+revealed by looking (a decision comes every ADP step, a second or two)."""
+UNSEEABLE = 2048
+"""Most unseeable face cells kept (and most cells counted toward it)."""
 BLACKLIST_RADIUS_CM = 30.0
 """No viewpoint is chosen this near a blacklisted point [cm] (what one sees, its
 neighbours see too)."""
@@ -100,6 +108,10 @@ class ExplorationState:
     gains: list[int] = field(default_factory=list)  # cells each recent trip made known
     turned_away: int = 0  # turns away from an obstacle toward this target, no move between
     turned_target: tuple[float, float] | None = None  # the target they were toward
+    sightings: dict[tuple[float, float], int] = field(default_factory=dict)  # face cell
+    # [cm] -> decisions it was seen at, still unknown
+    unseeable: list[tuple[float, float]] = field(default_factory=list)  # face cells [cm]
+    # seen ``SIGHTINGS`` times and not revealed
 
 
 class Exploration:
@@ -214,6 +226,7 @@ class Exploration:
         ex = self.ex
         # after futile visits only viewpoints revealing much still count (what an obstacle
         # hid in a big room), and each is blacklisted once reached (below), so this ends
+        self._judge_sightings()
         least = self._min_gain(self._known())
         if self._futile():
             least *= FUTILE_TRIPS  # as much as the futile visits together should have shown
@@ -251,7 +264,31 @@ class Exploration:
         return viewpoints(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
                           margin_cm=margin, stand_radius_cm=self.radius_cm,
                           range_cm=self.m.view_range_cm,
-                          max_incidence_deg=MAX_INCIDENCE_DEG, also_cm=also)
+                          max_incidence_deg=MAX_INCIDENCE_DEG, also_cm=also,
+                          min_face_cells=MIN_FACE_CELLS,
+                          unseeable_cm=self.ex.unseeable)
+
+    def _judge_sightings(self) -> None:
+        """Count, per face cell the rover sees from where it stands (within half the view
+        range, steeply enough: `viewpoint.seen_face`), the decisions it was seen at; one
+        seen at ``SIGHTINGS`` decisions and still unknown cannot be revealed by looking
+        (an obstacle's inside behind a gap in its mapped surface, a pocket only grazing
+        rays enter), so it leaves the face for good. What no pose sees then ends
+        exploration instead of more drives that reveal nothing."""
+        ex = self.ex
+        assert self.grid is not None
+        pose = self.map_pose
+        for cell in seen_face(self.grid, (pose.x, pose.y), range_cm=0.5 * self.m.view_range_cm,
+                              max_incidence_deg=MAX_INCIDENCE_DEG, unseeable_cm=ex.unseeable):
+            n = ex.sightings.get(cell, 0) + 1
+            if n >= SIGHTINGS:
+                ex.unseeable.append(cell)
+                ex.sightings.pop(cell, None)
+            else:
+                ex.sightings[cell] = n
+        del ex.unseeable[:-UNSEEABLE]
+        while len(ex.sightings) > UNSEEABLE:
+            del ex.sightings[next(iter(ex.sightings))]
 
     def _tiers(self) -> list[tuple[float, float]]:
         """(radius, margin) to plan with, roomiest first [cm]: turning radius plus margin,

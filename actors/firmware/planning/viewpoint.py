@@ -10,7 +10,8 @@ Why poses, not frontier cells
 
 Model (physical quantities)
     * The frontier's *face*: unknown cells with a known-free 4-neighbour (where a ray
-      leaves the known free space). Its normal, pointing into the unknown, is the
+      leaves the known free space), except those beside an occupied cell (a mapped
+      surface's flickering edge, `face_mask`). Its normal, pointing into the unknown, is the
       gradient of the blurred unknown mask.
     * A candidate pose sees along ``RAYS`` rays (the LIDAR spins: heading does not
       matter) out to ``range_cm``, stepping one cell. A ray crosses known-free cells;
@@ -66,7 +67,7 @@ from actors.firmware.planning.frontier import steps_from
 from actors.firmware.planning.planner import inflate
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 
-__all__ = ["Viewpoint", "viewpoints", "face_mask", "face_normals", "RAYS",
+__all__ = ["Viewpoint", "viewpoints", "seen_face", "face_mask", "face_normals", "RAYS",
            "REVEAL_DEPTH_CELLS", "FACE_SAMPLES", "LATTICE_SAMPLES", "TRAVEL_FLOOR_CM"]
 
 RAYS = 72
@@ -102,6 +103,8 @@ class Viewpoint:
     """Unknown area it would reveal [cells]."""
     travel_cm: float
     """Step distance from the rover [cm]."""
+    face_cells: int = 0
+    """Distinct face cells its rays enter [cells]."""
 
     @property
     def score(self) -> float:
@@ -110,10 +113,24 @@ class Viewpoint:
 
 
 def face_mask(cells: np.ndarray) -> np.ndarray:
-    """Unknown cells with a free 4-neighbour: bool, the shape of ``cells``."""
+    """Unknown cells with a free 4-neighbour and no occupied 8-neighbour: bool, the shape
+    of ``cells``.
+
+    Why not beside an occupied cell: there the unknown is a mapped surface's edge, whose
+    cells pass through "unknown" as hits and grazing rays argue (and a gap of a cell or
+    two in a mapped surface leads only into the obstacle's unknown inside); no pose
+    settles them, and a rover sent to look would find them unknown again. A pocket's
+    mouth is wider (20 cm between a sofa and a wall maps three or four cells wide), so
+    its middle stays on the face."""
     free = pad_border(cells == FREE, 1, False)
     near = free[:-2, 1:-1] | free[2:, 1:-1] | free[1:-1, :-2] | free[1:-1, 2:]
-    return (cells == UNKNOWN) & near
+    occ = pad_border(cells == OCCUPIED, 1, False)
+    ny, nx = cells.shape
+    beside = np.zeros(cells.shape, dtype=bool)
+    for dr in (0, 1, 2):
+        for dc in (0, 1, 2):
+            beside |= occ[dr:dr + ny, dc:dc + nx]
+    return (cells == UNKNOWN) & near & ~beside
 
 
 def face_normals(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -152,10 +169,12 @@ def viewpoints(
     max_incidence_deg: float,
     stand_radius_cm: float | None = None,
     min_gain_cells: float = 1.0,
+    min_face_cells: int = 1,
     blacklist: Iterable[tuple[float, float]] = (),
     blacklist_radius_cm: float = 0.0,
     snap_radius_cm: float = 30.0,
     also_cm: Sequence[tuple[float, float]] = (),
+    unseeable_cm: Sequence[tuple[float, float]] = (),
 ) -> list[Viewpoint]:
     """Reachable viewpoints revealing at least ``min_gain_cells``, best score first.
 
@@ -170,12 +189,17 @@ def viewpoints(
         range_cm: the sensor's useful range for seeing the unknown [cm].
         max_incidence_deg: steepest angle between a ray and the face's normal that
             still reveals what lies behind [deg].
-        min_gain_cells: a viewpoint revealing less is left out [cells].
+        min_gain_cells: a viewpoint revealing less is left out [cells]...
+        min_face_cells: ...and one seeing fewer face cells [cells] (a gap of a cell or
+            two in a mapped surface, with an obstacle's unknown inside behind it, looks
+            deep from anywhere).
         blacklist: points [cm] near which no viewpoint is offered...
         blacklist_radius_cm: ...within this distance [cm].
         snap_radius_cm: how far the rover's cell may move to a passable one [cm].
         also_cm: more points [cm] to score where reachable (the current target, so
             that it can be compared with the others).
+        unseeable_cm: face cells [cm] a viewpoint that saw them did not reveal
+            (`seen_face`): no longer part of the face.
 
     Returns:
         The viewpoints in decreasing score (ties: row-major order of their cells);
@@ -185,7 +209,7 @@ def viewpoints(
     n_steps = max(1, math.ceil(range_cm / res))
     sub = grid.crop_known(margin_cells=2)
     cells = sub.cells
-    face = face_mask(cells)
+    face = _face(sub, unseeable_cm)
     if not face.any():
         return []
     travel = steps_from(sub, rover_cm, robot_radius_cm, margin_cm, snap_radius_cm)
@@ -205,19 +229,56 @@ def viewpoints(
     cand = _candidates(face, reach, nxn, nyn, n_steps, anchor, extra)
     if cand.size == 0:
         return []
-    gain = _gains(cells, face, nxn, nyn, cand, n_steps, max_incidence_deg)
+    gain, _, faces = _gains(cells, face, nxn, nyn, cand, n_steps, max_incidence_deg)
     ny, nx = cells.shape
     rows, cols = cand // nx, cand % nx
     out: list[Viewpoint] = []
     bl = list(blacklist)
     for i in np.argsort(-gain / (travel[rows, cols] * res + TRAVEL_FLOOR_CM), kind="stable"):
-        if gain[i] < min_gain_cells:
+        if gain[i] < min_gain_cells or faces[i] < min_face_cells:
             continue
         point = sub.cell_to_world(int(rows[i]), int(cols[i]))
         if any(math.dist(point, b) <= blacklist_radius_cm for b in bl):
             continue
-        out.append(Viewpoint(point, float(gain[i]), float(travel[rows[i], cols[i]]) * res))
+        out.append(Viewpoint(point, float(gain[i]), float(travel[rows[i], cols[i]]) * res,
+                             int(faces[i])))
     return out
+
+
+def seen_face(grid: GridMap, point_cm: tuple[float, float], *, range_cm: float,
+              max_incidence_deg: float,
+              unseeable_cm: Sequence[tuple[float, float]] = ()) -> list[tuple[float, float]]:
+    """The face cells [cm] a pose at ``point_cm`` sees (rays meet them first, steeply
+    enough, within ``range_cm``): what a viewpoint was chosen to reveal. Those still
+    unknown after the rover stood there cannot be revealed, and leave the face."""
+    res = grid.resolution_cm
+    sub = grid.crop_known(margin_cells=2)
+    cells = sub.cells
+    face = _face(sub, unseeable_cm)
+    r, c = sub.world_to_cell(*point_cm)
+    ny, nx = cells.shape
+    if not (face.any() and 0 <= r < ny and 0 <= c < nx):
+        return []
+    nxn, nyn = face_normals(cells)
+    _, entries, _ = _gains(cells, face, nxn, nyn, np.array([r * nx + c]),
+                        max(1, math.ceil(range_cm / res)), max_incidence_deg)
+    # centres rounded to a mm, so that the same cell gives the same point in every crop
+    return [(round(x, 1), round(y, 1)) for x, y in (
+        sub.cell_to_world(int(k) // nx, int(k) % nx) for k in np.unique(entries))]
+
+
+def _face(sub: GridMap, unseeable_cm: Sequence[tuple[float, float]]) -> np.ndarray:
+    """`face_mask` of ``sub`` less the cells holding an ``unseeable_cm`` point."""
+    face = face_mask(sub.cells)
+    if len(unseeable_cm):
+        pts = np.asarray(unseeable_cm, dtype=np.float64)
+        ox, oy = sub.origin_cm
+        rows = np.floor((pts[:, 1] - oy) / sub.resolution_cm).astype(np.int64)
+        cols = np.floor((pts[:, 0] - ox) / sub.resolution_cm).astype(np.int64)
+        ny, nx = face.shape
+        keep = (rows >= 0) & (rows < ny) & (cols >= 0) & (cols < nx)
+        face[rows[keep], cols[keep]] = False
+    return face
 
 
 def _candidates(face: np.ndarray, reach: np.ndarray, nxn: np.ndarray, nyn: np.ndarray,
@@ -282,8 +343,11 @@ def _spread(mask: np.ndarray, most: int, anchor: tuple[int, int]
 
 
 def _gains(cells: np.ndarray, face: np.ndarray, nxn: np.ndarray, nyn: np.ndarray,
-           cand: np.ndarray, n_steps: int, max_incidence_deg: float) -> np.ndarray:
-    """Unknown area [cells] each candidate would reveal (module docstring)."""
+           cand: np.ndarray, n_steps: int, max_incidence_deg: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unknown area [cells] each candidate would reveal (module docstring), the flat crop
+    indices of the face cells the counted rays enter (unsorted, repeated), and per
+    candidate how many distinct face cells they enter."""
     ny, nx = cells.shape
     pad = n_steps + REVEAL_DEPTH_CELLS + 1
     code = np.full(cells.shape, _CODE_UNKNOWN, dtype=np.int8)
@@ -316,4 +380,12 @@ def _gains(cells: np.ndarray, face: np.ndarray, nxn: np.ndarray, nyn: np.ndarray
     after = code[base[:, None, None] + offsets[ray_index, depth]]
     open_ = np.logical_and.accumulate(after != _CODE_OCC, axis=2) & (after >= _CODE_UNKNOWN)
     area = (open_ * weight[depth]).sum(axis=2)
-    return (area * ray_ok).sum(axis=1)
+    entries = (er * nx + ec)[ray_ok]
+    return (area * ray_ok).sum(axis=1), entries, _distinct(er * nx + ec, ray_ok, ny * nx)
+
+
+def _distinct(cell: np.ndarray, ok: np.ndarray, n_cells: int) -> np.ndarray:
+    """Per candidate (row of ``cell``), how many distinct cells its ``ok`` rays enter."""
+    who = np.broadcast_to(np.arange(cell.shape[0])[:, None], cell.shape)[ok]
+    pairs = np.unique(who.astype(np.int64) * n_cells + cell[ok])
+    return np.bincount(pairs // n_cells, minlength=cell.shape[0])
