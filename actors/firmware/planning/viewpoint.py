@@ -41,7 +41,7 @@ Model (physical quantities)
 
 Cost
     One breadth-first search and one gather of ``candidates x RAYS x steps`` cells
-    (about 64 x 72 x 50) per decision: a few ms on the known part of a room's map.
+    (at most 72 x 72 x 50) per decision: a few ms on the known part of a room's map.
 
 Reference
     Gonzalez-Banos and Latombe, "Navigation Strategies for Exploring Indoor
@@ -76,9 +76,9 @@ REVEAL_DEPTH_CELLS = 16
 """How far past the face a ray's unknown cells count [cells]: what lies deeper is not
 known to be open (a wall may stand one cell behind the face), and a cap keeps a ragged
 edge from weighing like a doorway into the unknown."""
-FACE_SAMPLES = 24
+FACE_SAMPLES = 16
 """Face cells whose views are candidates, at most."""
-LATTICE_SAMPLES = 32
+LATTICE_SAMPLES = 24
 """Candidates spread over the reachable cells within range of the face, at most."""
 TRAVEL_FLOOR_CM = 100.0
 """Travel a stop costs anyway [cm] (turning toward the route, the moves' stops, waiting
@@ -332,7 +332,8 @@ def _spread(mask: np.ndarray, most: int, anchor: tuple[int, int]
     ragged edges along walls, and cells taken evenly along the list would miss a short
     frontier; every part of the face gets its sample."""
     rows, cols = np.nonzero(mask)
-    side = 1
+    side = max(1, math.isqrt(rows.size // max(1, most)))  # blocks of side^2 cells hold
+    # at least one each, so fewer sides are never enough
     while True:
         key = ((rows + anchor[0]) // side) * (1 << 20) + (cols + anchor[1]) // side
         _, first = np.unique(key, return_index=True)
