@@ -1,16 +1,17 @@
 """The mapper's exploration: where to go next, and the route there.
 
 Choosing where to go
-    `frontier.find_frontiers` + `frontier.choose_frontier` on the latest
-    NAV_MAP_UPDATE (cost trades distance against frontier size and favours less
-    explored areas; long frontiers come cut into 1 m pieces); `route.plan_route`
-    for the path, trying tiers of clearance from the turning radius plus a margin
-    down to half the body width (a 30 cm corridor maps 25 cm wide on a 5 cm grid);
-    reachability uses the narrowest tier. A frontier whose
-    target cannot be planned to, which blocks the rover twice, which takes more
-    ADP steps than its route deserves, or which is chosen again after being
-    reached, is blacklisted (by its target point [cm], which survives
-    map growth).
+    `viewpoint.viewpoints` on the latest NAV_MAP_UPDATE: poses the rover may stand on
+    from which the LIDAR sees the frontier steeply enough, best gain (unknown area
+    revealed) per unit of travel first; none worth a trip ends exploring.
+    `route.plan_route` for the path, trying tiers of clearance from the turning
+    radius plus a margin down to half the body width (a 30 cm corridor maps 25 cm
+    wide on a 5 cm grid); reachability uses the narrowest tier. A viewpoint that
+    cannot be planned to, which blocks the rover twice, which takes more ADP steps
+    than its route deserves, or which is chosen again after being reached, is
+    blacklisted (by its point [cm], which survives map growth). Face cells seen
+    from where the rover stands at ``SIGHTINGS`` decisions and still unknown leave
+    the face for good: looking does not reveal them.
 
 Obstacles ahead
     Before each straight move, `clearance.obstacle_ahead` looks ``move +

@@ -25,7 +25,7 @@ class MappingOptions:
     poses that see the frontier from no farther (at 2.5 m one revolution's 1 deg
     samples are 4.4 cm apart, under a cell, so what a pose sees is mapped)."""
     reach_cm: float = 10.0
-    """A frontier target counts as reached this close [cm]."""
+    """A viewpoint counts as reached this close [cm]."""
     stop_cm: float = 20.0
     """Stop this far before an obstacle ahead (centre to cell centre) [cm]."""
     stable_window_s: float = 10.0
