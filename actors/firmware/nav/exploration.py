@@ -150,6 +150,7 @@ class Exploration:
             return
         ex = self.ex
         pose = self.map_pose
+        self._judge_sightings()
         if ex.trip_known is not None and trio.current_time() - ex.trip_started >= \
                 TRIP_MAX_S:
             # a rover that keeps switching to new frontiers on the way never ends a trip
@@ -227,7 +228,6 @@ class Exploration:
         ex = self.ex
         # after futile visits only viewpoints revealing much still count (what an obstacle
         # hid in a big room), and each is blacklisted once reached (below), so this ends
-        self._judge_sightings()
         least = self._min_gain(self._known())
         if self._futile():
             least *= FUTILE_TRIPS  # as much as the futile visits together should have shown

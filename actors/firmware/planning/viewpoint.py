@@ -10,8 +10,8 @@ Why poses, not frontier cells
 
 Model (physical quantities)
     * The frontier's *face*: unknown cells with a known-free 4-neighbour (where a ray
-      leaves the known free space), except those beside an occupied cell (a mapped
-      surface's flickering edge, `face_mask`). Its normal, pointing into the unknown, is the
+      leaves the known free space), except gaps of one or two cells in a mapped
+      surface (`face_mask`). Its normal, pointing into the unknown, is the
       gradient of the blurred unknown mask.
     * A candidate pose sees along ``RAYS`` rays (the LIDAR spins: heading does not
       matter) out to ``range_cm``, stepping one cell. A ray crosses known-free cells;
@@ -22,7 +22,11 @@ Model (physical quantities)
       surface they reach (`mapping.sensor_model`'s grazing margin) and a fraction of
       a degree of pose error moves them a cell.
     * What such a ray reveals: the unknown cells along it, from the face up to
-      ``REVEAL_DEPTH_CELLS`` into the unknown or the first occupied cell. Each step is
+      ``REVEAL_DEPTH_CELLS`` into the unknown, the first occupied cell, or the first
+      unknown cell beside an occupied one (that one counted): behind a mapped surface's
+      edge lies most likely more of that surface, or the obstacle's inside, not open
+      ground (a ragged edge along a wall is worth its own cells, not a doorway's).
+      Each step is
       weighed by the area it stands for (``r * d_theta * dr``, in cells), so the gain
       is the visible unknown area [cells], whatever the number of rays.
     * Candidates (bounded): the first reachable cell a few cells back along a face
@@ -91,6 +95,9 @@ _VIEW_TURNS_DEG = (0.0, -40.0, 40.0)
 turned within the incidence a ray may have (a pocket's mouth may be seen only from one
 side)."""
 _CODE_FREE, _CODE_OCC, _CODE_UNKNOWN, _CODE_FACE = 0, 1, 2, 3
+_KIND, _EDGE = 3, 4
+"""A cell's code: its kind (the low two bits), plus ``_EDGE`` for an unknown cell beside an
+occupied one."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -113,24 +120,24 @@ class Viewpoint:
 
 
 def face_mask(cells: np.ndarray) -> np.ndarray:
-    """Unknown cells with a free 4-neighbour and no occupied 8-neighbour: bool, the shape
-    of ``cells``.
+    """Unknown cells with a free 4-neighbour, except those in a gap of one or two cells
+    between occupied cells along a row or a column: bool, the shape of ``cells``.
 
-    Why not beside an occupied cell: there the unknown is a mapped surface's edge, whose
-    cells pass through "unknown" as hits and grazing rays argue (and a gap of a cell or
-    two in a mapped surface leads only into the obstacle's unknown inside); no pose
-    settles them, and a rover sent to look would find them unknown again. A pocket's
-    mouth is wider (20 cm between a sofa and a wall maps three or four cells wide), so
-    its middle stays on the face."""
+    Why the gaps go: a mapped surface missing a cell or two is a surface the scans did
+    not hit squarely there, not a way into the unknown; behind it lies the obstacle's
+    unknown inside, which no pose reveals. A pocket's mouth is wider (20 cm between a
+    sofa and a wall maps three or four cells wide)."""
     free = pad_border(cells == FREE, 1, False)
     near = free[:-2, 1:-1] | free[2:, 1:-1] | free[1:-1, :-2] | free[1:-1, 2:]
-    occ = pad_border(cells == OCCUPIED, 1, False)
+    occ = pad_border(cells == OCCUPIED, 2, False)
     ny, nx = cells.shape
-    beside = np.zeros(cells.shape, dtype=bool)
-    for dr in (0, 1, 2):
-        for dc in (0, 1, 2):
-            beside |= occ[dr:dr + ny, dc:dc + nx]
-    return (cells == UNKNOWN) & near & ~beside
+    pinched = np.zeros(cells.shape, dtype=bool)
+    for dr, dc in ((0, 1), (1, 0)):
+        def at(k: int, dr: int = dr, dc: int = dc) -> np.ndarray:
+            return occ[2 + k * dr:2 + k * dr + ny, 2 + k * dc:2 + k * dc + nx]
+        pinched |= at(-1) & (at(1) | at(2))
+        pinched |= at(1) & at(-2)
+    return (cells == UNKNOWN) & near & ~pinched
 
 
 def face_normals(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -355,6 +362,7 @@ def _gains(cells: np.ndarray, face: np.ndarray, nxn: np.ndarray, nyn: np.ndarray
     code[cells == FREE] = _CODE_FREE
     code[cells == OCCUPIED] = _CODE_OCC
     code[face] = _CODE_FACE
+    code[(code >= _CODE_UNKNOWN) & _beside(cells == OCCUPIED)] += _EDGE
     code = pad_border(code, pad, _CODE_UNKNOWN).reshape(-1)
     width = nx + 2 * pad
     dr, dc, direction, weight = _ray_offsets(n_steps + REVEAL_DEPTH_CELLS)
@@ -369,20 +377,34 @@ def _gains(cells: np.ndarray, face: np.ndarray, nxn: np.ndarray, nyn: np.ndarray
     # the entry cell's normal: a face cell lies inside the crop
     hit = np.take_along_axis(idx, first[..., None], axis=2)[..., 0]
     er, ec = hit // width - pad, hit % width - pad
-    is_face = entry == _CODE_FACE
+    is_face = (entry & _KIND) == _CODE_FACE
     er, ec = np.where(is_face, er, 0), np.where(is_face, ec, 0)
     enx, eny = nxn[er, ec], nyn[er, ec]
     cos_in = direction[None, :, 0] * enx + direction[None, :, 1] * eny
     steep = (cos_in >= math.cos(math.radians(max_incidence_deg))) | ((enx == 0) & (eny == 0))
     ray_ok = is_face & steep
-    # the unknown cells from the entry on, up to the depth or the first occupied cell
+    # the unknown cells from the entry on, up to the depth, the first occupied cell or
+    # the first unknown cell beside an occupied one (that one counted)
     depth = first[..., None] + np.arange(REVEAL_DEPTH_CELLS)  # (N, RAYS, depth)
     ray_index = np.arange(rays)[None, :, None]
     after = code[base[:, None, None] + offsets[ray_index, depth]]
-    open_ = np.logical_and.accumulate(after != _CODE_OCC, axis=2) & (after >= _CODE_UNKNOWN)
+    go_on = after != _CODE_OCC
+    go_on[..., 1:] &= after[..., :-1] < _EDGE
+    open_ = np.logical_and.accumulate(go_on, axis=2) & ((after & _KIND) >= _CODE_UNKNOWN)
     area = (open_ * weight[depth]).sum(axis=2)
     entries = (er * nx + ec)[ray_ok]
     return (area * ray_ok).sum(axis=1), entries, _distinct(er * nx + ec, ray_ok, ny * nx)
+
+
+def _beside(mask: np.ndarray) -> np.ndarray:
+    """Cells with a ``mask`` cell among their 8 neighbours or themselves."""
+    pad = pad_border(mask, 1, False)
+    ny, nx = mask.shape
+    out = np.zeros(mask.shape, dtype=bool)
+    for dr in (0, 1, 2):
+        for dc in (0, 1, 2):
+            out |= pad[dr:dr + ny, dc:dc + nx]
+    return out
 
 
 def _distinct(cell: np.ndarray, ok: np.ndarray, n_cells: int) -> np.ndarray:
