@@ -29,9 +29,9 @@ Model (physical quantities)
       Each step is
       weighed by the area it stands for (``r * d_theta * dr``, in cells), so the gain
       is the visible unknown area [cells], whatever the number of rays.
-    * Candidates (bounded): the first reachable cell a few cells back along a face
-      cell's normal and along two directions turned from it (the views that see a
-      pocket), for at most
+    * Candidates (bounded): the standable cell nearest a point a few cells back from a
+      face cell along its normal and along two directions turned from it (the views
+      that see a pocket), for at most
       ``FACE_SAMPLES`` face cells, and at most ``LATTICE_SAMPLES`` reachable cells within
       range of the face; both spread over the map in blocks (`_spread`).
     * Reachable: the rover's centre may be there (obstacles inflated by the rover's
@@ -87,9 +87,12 @@ LATTICE_SAMPLES = 24
 TRAVEL_FLOOR_CM = 100.0
 """Travel a stop costs anyway [cm] (turning toward the route, the moves' stops, waiting
 for a revolution): the score's denominator is travel plus this."""
-_BACKOFF_CELLS = (3, 5, 8, 12)
-"""Distances [cells] back along a face cell's normal tried for its head-on candidate, nearest
-first: the first reachable one is taken."""
+_BACKOFF_CELLS = (3, 6, 10, 16)
+"""Distances [cells] back from a face cell along a view direction tried for its candidate,
+nearest first: the first with a standable cell within ``_SNAP_CELLS`` is taken."""
+_SNAP_CELLS = 3
+"""How far a point back along a view direction may move to a standable cell [cells] (a
+pose beside a wall that looks down a pocket along it)."""
 _VIEW_TURNS_DEG = (0.0, -40.0, 40.0)
 """Directions from a face cell to its candidate poses, from its normal [deg]: head-on, and
 turned within the incidence a ray may have (a pocket's mouth may be seen only from one
@@ -297,7 +300,8 @@ def _candidates(face: np.ndarray, reach: np.ndarray, nxn: np.ndarray, nyn: np.nd
     ny, nx = face.shape
     fr, fc = _spread(face, FACE_SAMPLES, anchor)
     # per face cell and view direction (the normal, and turned either way by
-    # _VIEW_TURNS), the first reachable cell back along it
+    # _VIEW_TURNS), the standable cell nearest a point back along it (within
+    # _SNAP_CELLS), the nearest such point first
     back = np.asarray(_BACKOFF_CELLS, dtype=np.float64)
     turn = np.radians(np.asarray(_VIEW_TURNS_DEG, dtype=np.float64))
     cos_t, sin_t = np.cos(turn), np.sin(turn)
@@ -306,14 +310,20 @@ def _candidates(face: np.ndarray, reach: np.ndarray, nxn: np.ndarray, nyn: np.nd
     vy = ux[:, None] * sin_t + uy[:, None] * cos_t
     pr = np.rint(fr[:, None, None] - vy[..., None] * back).astype(np.int64)
     pc = np.rint(fc[:, None, None] - vx[..., None] * back).astype(np.int64)
-    inside = (pr >= 0) & (pr < ny) & (pc >= 0) & (pc < nx)
-    ok = np.zeros(pr.shape, dtype=bool)
-    ok[inside] = reach[pr[inside], pc[inside]]
+    k = _SNAP_CELLS
+    dr, dc = np.mgrid[-k:k + 1, -k:k + 1]
+    order = np.argsort(dr.ravel() ** 2 + dc.ravel() ** 2, kind="stable")
+    dr, dc = dr.ravel()[order], dc.ravel()[order]  # nearest offsets first
+    sr, sc = pr[..., None] + dr, pc[..., None] + dc  # (faces, turns, backs, offsets)
+    inside = (sr >= 0) & (sr < ny) & (sc >= 0) & (sc < nx)
+    ok = np.zeros(sr.shape, dtype=bool)
+    ok[inside] = reach[sr[inside], sc[inside]]
     ok[(ux == 0) & (uy == 0)] = False
-    first = np.argmax(ok, axis=2)[..., None]
-    has = np.take_along_axis(ok, first, axis=2)[..., 0]
-    head_on = (np.take_along_axis(pr, first, axis=2)[..., 0][has] * nx
-               + np.take_along_axis(pc, first, axis=2)[..., 0][has])
+    flat_ok = ok.reshape(*ok.shape[:2], -1)  # backs x offsets, nearest back first
+    first = np.argmax(flat_ok, axis=2)[..., None]
+    has = np.take_along_axis(flat_ok, first, axis=2)[..., 0]
+    head_on = (np.take_along_axis(sr.reshape(flat_ok.shape), first, axis=2)[..., 0][has] * nx
+               + np.take_along_axis(sc.reshape(flat_ok.shape), first, axis=2)[..., 0][has])
 
     # reachable cells with a face cell in the square of half-side n_steps around them
     integral = np.zeros((ny + 1, nx + 1), dtype=np.int32)
