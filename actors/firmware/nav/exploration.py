@@ -36,8 +36,7 @@ from actors.firmware.planning.clearance import obstacle_ahead
 from actors.firmware.planning.viewpoint import Viewpoint, seen_face, viewpoints
 from server.protocol.grid_map import UNKNOWN
 
-__all__ = ["Exploration", "ExplorationState", "LEAST_GAIN_TRAVEL_CM", "MIN_FACE_CELLS",
-           "MAX_INCIDENCE_DEG",
+__all__ = ["Exploration", "ExplorationState", "MIN_FACE_CELLS", "MAX_INCIDENCE_DEG",
            "RECHOOSE_STEPS", "OBSTACLE_TURNS", "MAX_CHOICES", "KEEP_CM", "KEEP_SHARE",
            "BLACKLIST", "BLACKLIST_RADIUS_CM", "SIGHTINGS", "UNSEEABLE", "TRIP_MAX_S",
            "FUTILE_TRIPS", "MIN_GAIN_CELLS", "MIN_GAIN_SHARE"]
@@ -45,11 +44,6 @@ __all__ = ["Exploration", "ExplorationState", "LEAST_GAIN_TRAVEL_CM", "MIN_FACE_
 # Counts, bounds and shares of frontier exploration and of the futile-trip rule: how the
 # algorithm chooses and when it stops looking, fixed here beside it; the distances a rover
 # keeps are `MappingOptions`.
-LEAST_GAIN_TRAVEL_CM = 200.0
-"""A viewpoint must promise the least useful gain once more for each this much travel [cm]:
-its gain is an optimistic estimate (what lies behind the face is assumed open), and a
-long drive on an optimistic estimate wastes the more (a hall's far ragged edge is not
-worth crossing the hall)."""
 MIN_FACE_CELLS = 2
 """A viewpoint must see at least this many face cells [cells]: one alone is a hole a cell
 wide, deep from anywhere and seldom revealed (a pocket 20 cm wide shows two)."""
@@ -237,8 +231,7 @@ class Exploration:
         least = self._min_gain(self._known())
         if self._futile():
             least *= FUTILE_TRIPS  # as much as the futile visits together should have shown
-        views = [v for v in self._viewpoints()
-                 if v.gain_cells >= least * (1.0 + v.travel_cm / LEAST_GAIN_TRAVEL_CM) and not any(
+        views = [v for v in self._viewpoints() if v.gain_cells >= least and not any(
             math.dist(v.point_cm, b) <= BLACKLIST_RADIUS_CM for b in ex.blacklist)]
         if not views:
             ex.no_frontier = True
@@ -277,8 +270,8 @@ class Exploration:
                           unseeable_cm=self.ex.unseeable)
 
     def _judge_sightings(self) -> None:
-        """Count, per face cell the rover sees from where it stands (within half the view
-        range, steeply enough: `viewpoint.seen_face`), the decisions it was seen at; one
+        """Count, per face cell the rover sees from where it stands (within the view range,
+        steeply enough: `viewpoint.seen_face`), the decisions it was seen at; one
         seen at ``SIGHTINGS`` decisions and still unknown cannot be revealed by looking
         (an obstacle's inside behind a gap in its mapped surface, a pocket only grazing
         rays enter), so it leaves the face for good. What no pose sees then ends
@@ -286,7 +279,7 @@ class Exploration:
         ex = self.ex
         assert self.grid is not None
         pose = self.map_pose
-        for cell in seen_face(self.grid, (pose.x, pose.y), range_cm=0.5 * self.m.view_range_cm,
+        for cell in seen_face(self.grid, (pose.x, pose.y), range_cm=self.m.view_range_cm,
                               max_incidence_deg=MAX_INCIDENCE_DEG, unseeable_cm=ex.unseeable):
             n = ex.sightings.get(cell, 0) + 1
             if n >= SIGHTINGS:
