@@ -9,12 +9,24 @@ import numpy as np
 
 from actors import BufferPool
 from actors.firmware.nav.mapper import MappingNav
-from actors.firmware.planning.viewpoint import face_mask, seen_face, viewpoints
+from actors.firmware.planning.viewpoint import face_field, face_mask, seen_face, viewpoints
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 
 RES = 5.0
 VIEW = {"robot_radius_cm": 7.5, "margin_cm": 0.0, "stand_radius_cm": 12.5,
-        "range_cm": 250.0, "max_incidence_deg": 70.0, "min_face_cells": 2}
+        "max_incidence_deg": 70.0, "min_face_cells": 2}
+RANGE_CM = 250.0
+
+
+def _views(grid: GridMap, rover: tuple[float, float], **kw: object) -> list:
+    """`viewpoints` of ``grid`` with the mapper's quantities, ``kw`` overriding them."""
+    return viewpoints(face_field(grid, range_cm=RANGE_CM), rover, **{**VIEW, **kw})
+
+
+def _seen(grid: GridMap, point: tuple[float, float], max_incidence_deg: float = 70.0
+          ) -> list[tuple[float, float]]:
+    return seen_face(face_field(grid, range_cm=RANGE_CM), point,
+                     max_incidence_deg=max_incidence_deg)
 
 
 def _room(rows: int, cols: int) -> np.ndarray:
@@ -50,11 +62,11 @@ def test_a_frontier_hidden_behind_an_obstacle_is_approached_from_a_pose_that_see
     graze past the box."""
     grid = _grid(_shadowed_room())
     rover = (40.0, 125.0)
-    views = viewpoints(grid, rover, **VIEW)
+    views = _views(grid, rover)
     assert views
     best = views[0]
     assert best.point_cm[0] > 25 * RES  # east of the box's west face
-    seen = seen_face(grid, best.point_cm, range_cm=250.0, max_incidence_deg=70.0)
+    seen = _seen(grid, best.point_cm)
     assert len(seen) >= 2
     assert all(175.0 <= x <= 225.0 and 100.0 <= y <= 150.0 for x, y in seen)  # the shadow
     # it stands where the rover can turn: its turning radius (2.5 cells) all known free
@@ -72,8 +84,8 @@ def test_rays_that_graze_the_frontier_do_not_count() -> None:
     cells[20:30, 35:45] = UNKNOWN
     grid = _grid(cells)
     point = grid.cell_to_world(34, 28)
-    steep = set(seen_face(grid, point, range_cm=250.0, max_incidence_deg=60.0))
-    loose = set(seen_face(grid, point, range_cm=250.0, max_incidence_deg=89.0))
+    steep = set(_seen(grid, point, 60.0))
+    loose = set(_seen(grid, point, 89.0))
     north_row = grid.cell_to_world(29, 0)[1]
     assert steep and steep < loose
     assert all(y == north_row and x > grid.cell_to_world(0, 36)[0] for x, y in loose - steep)
@@ -99,7 +111,7 @@ def test_a_frontier_no_reachable_pose_can_see_ends_exploration() -> None:
     cells = _nook_room()
     grid = _grid(cells, AT_ROVER)
     assert face_mask(cells)[40, 56:58].all()  # the frontier exists...
-    assert viewpoints(grid, (0.0, 0.0), **VIEW) == []  # ...but no pose sees it
+    assert _views(grid, (0.0, 0.0)) == []  # ...but no pose sees it
     nav = MappingNav(pool=BufferPool(4))
     nav.grid = grid
     assert not nav._choose(keep=False)
@@ -113,7 +125,7 @@ def test_a_gap_of_a_cell_or_two_in_a_mapped_surface_is_not_a_frontier() -> None:
         cells = _room(30, 30)
         cells[15:15 + gap, 2] = UNKNOWN
         assert face_mask(cells)[15:15 + gap, 2].any() == expected
-        assert bool(viewpoints(_grid(cells), (80.0, 80.0), **VIEW)) == expected
+        assert bool(_views(_grid(cells), (80.0, 80.0))) == expected
 
 
 def test_face_cells_seen_repeatedly_and_never_revealed_leave_the_face() -> None:
@@ -143,6 +155,6 @@ def test_scoring_viewpoints_takes_a_few_ms() -> None:
     best = float("inf")
     for _ in range(5):
         t0 = time.process_time()
-        viewpoints(grid, (100.0, 100.0), **VIEW)
+        _views(grid, (100.0, 100.0))
         best = min(best, time.process_time() - t0)
     assert best < 0.015

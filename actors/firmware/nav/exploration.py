@@ -33,7 +33,13 @@ import trio
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
 from actors.firmware.planning.clearance import obstacle_ahead
-from actors.firmware.planning.viewpoint import Viewpoint, seen_face, viewpoints
+from actors.firmware.planning.viewpoint import (
+    FaceField,
+    Viewpoint,
+    face_field,
+    seen_face,
+    viewpoints,
+)
 from server.protocol.grid_map import UNKNOWN
 
 __all__ = ["Exploration", "ExplorationState", "MIN_FACE_CELLS", "MAX_INCIDENCE_DEG",
@@ -113,6 +119,8 @@ class ExplorationState:
     # [cm] -> decisions it was seen at, still unknown
     unseeable: list[tuple[float, float]] = field(default_factory=list)  # face cells [cm]
     # seen ``SIGHTINGS`` times and not revealed
+    view_field: FaceField | None = None  # the face field of...
+    view_key: tuple | None = None  # ...this map and unseeable list
 
 
 class Exploration:
@@ -262,12 +270,23 @@ class Exploration:
         pose = self.map_pose
         radius, margin = self._tiers()[-1]
         also = [self.ex.target] if self.ex.target is not None else []
-        return viewpoints(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
+        return viewpoints(self._field(), (pose.x, pose.y), robot_radius_cm=radius,
                           margin_cm=margin, stand_radius_cm=self.radius_cm,
-                          range_cm=self.m.view_range_cm,
                           max_incidence_deg=MAX_INCIDENCE_DEG, also_cm=also,
-                          min_face_cells=MIN_FACE_CELLS,
-                          unseeable_cm=self.ex.unseeable)
+                          min_face_cells=MIN_FACE_CELLS)
+
+    def _field(self) -> FaceField:
+        """The current map's `FaceField`, made again only when the map or the unseeable
+        cells changed (a decision judges sightings and may choose on the same map)."""
+        assert self.grid is not None
+        ex = self.ex
+        key = (self.grid, len(ex.unseeable), ex.unseeable[-1] if ex.unseeable else None)
+        if ex.view_field is None or ex.view_key is None or ex.view_key[0] is not key[0] \
+                or ex.view_key[1:] != key[1:]:
+            ex.view_field = face_field(self.grid, range_cm=self.m.view_range_cm,
+                                       unseeable_cm=ex.unseeable)
+            ex.view_key = key
+        return ex.view_field
 
     def _judge_sightings(self) -> None:
         """Count, per face cell the rover sees from where it stands (within the view range,
@@ -279,8 +298,8 @@ class Exploration:
         ex = self.ex
         assert self.grid is not None
         pose = self.map_pose
-        for cell in seen_face(self.grid, (pose.x, pose.y), range_cm=self.m.view_range_cm,
-                              max_incidence_deg=MAX_INCIDENCE_DEG, unseeable_cm=ex.unseeable):
+        for cell in seen_face(self._field(), (pose.x, pose.y),
+                              max_incidence_deg=MAX_INCIDENCE_DEG):
             n = ex.sightings.get(cell, 0) + 1
             if n >= SIGHTINGS:
                 ex.unseeable.append(cell)

@@ -71,8 +71,9 @@ from actors.firmware.planning.frontier import steps_from
 from actors.firmware.planning.planner import inflate
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 
-__all__ = ["Viewpoint", "viewpoints", "seen_face", "face_mask", "face_normals", "RAYS",
-           "REVEAL_DEPTH_CELLS", "FACE_SAMPLES", "LATTICE_SAMPLES", "TRAVEL_FLOOR_CM"]
+__all__ = ["Viewpoint", "FaceField", "face_field", "viewpoints", "seen_face", "face_mask",
+           "face_normals", "RAYS", "REVEAL_DEPTH_CELLS", "FACE_SAMPLES", "LATTICE_SAMPLES",
+           "TRAVEL_FLOOR_CM"]
 
 RAYS = 72
 """Rays per candidate pose (5 deg apart: a 20 cm gap subtends more than that from 2 m)."""
@@ -169,13 +170,66 @@ def _ray_offsets(steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     return dr, dc, np.column_stack([dx, dy]), weight
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class FaceField:
+    """What every pose's view of one map needs, made once per map (`face_field`): the
+    known part of the map, its face and normals, and the cells coded and padded for the
+    ray gathers."""
+
+    grid: GridMap
+    """The whole map."""
+    sub: GridMap
+    """Its known part, with a margin."""
+    face: np.ndarray
+    """`face_mask` of ``sub``, less the unseeable cells."""
+    nxn: np.ndarray
+    """Face normal x per cell of ``sub``."""
+    nyn: np.ndarray
+    """Face normal y per cell of ``sub``."""
+    n_steps: int
+    """Ray steps within the range [cells]."""
+    code: np.ndarray
+    """Flat cell codes of ``sub`` padded by ``pad`` cells of unknown."""
+    pad: int
+    """Padding [cells]."""
+    offsets: np.ndarray
+    """Flat offsets per ray and step (RAYS, n_steps + REVEAL_DEPTH_CELLS) in ``code``."""
+    direction: np.ndarray
+    """Each ray's direction (x, y), (RAYS, 2)."""
+    weight: np.ndarray
+    """Each step's area weight [cells]."""
+
+
+def face_field(grid: GridMap, *, range_cm: float,
+               unseeable_cm: Sequence[tuple[float, float]] = ()) -> FaceField:
+    """The `FaceField` of ``grid`` for a sensor of ``range_cm``, without the face cells
+    holding an ``unseeable_cm`` point [cm] (`seen_face`)."""
+    res = grid.resolution_cm
+    n_steps = max(1, math.ceil(range_cm / res))
+    sub = grid.crop_known(margin_cells=2)
+    cells = sub.cells
+    face = _face(sub, unseeable_cm)
+    nxn, nyn = face_normals(cells)
+    pad = n_steps + REVEAL_DEPTH_CELLS + 1
+    code = np.full(cells.shape, _CODE_UNKNOWN, dtype=np.int8)
+    code[cells == FREE] = _CODE_FREE
+    code[cells == OCCUPIED] = _CODE_OCC
+    code[face] = _CODE_FACE
+    code[(code >= _CODE_UNKNOWN) & _beside(cells == OCCUPIED)] += _EDGE
+    code = pad_border(code, pad, _CODE_UNKNOWN).reshape(-1)
+    width = cells.shape[1] + 2 * pad
+    dr, dc, direction, weight = _ray_offsets(n_steps + REVEAL_DEPTH_CELLS)
+    offsets = (dr * width + dc).astype(np.int32)
+    return FaceField(grid, sub, face, nxn, nyn, n_steps, code, pad, offsets, direction,
+                     weight)
+
+
 def viewpoints(
-    grid: GridMap,
+    field: FaceField,
     rover_cm: tuple[float, float],
     *,
     robot_radius_cm: float,
     margin_cm: float,
-    range_cm: float,
     max_incidence_deg: float,
     stand_radius_cm: float | None = None,
     min_gain_cells: float = 1.0,
@@ -184,21 +238,19 @@ def viewpoints(
     blacklist_radius_cm: float = 0.0,
     snap_radius_cm: float = 30.0,
     also_cm: Sequence[tuple[float, float]] = (),
-    unseeable_cm: Sequence[tuple[float, float]] = (),
 ) -> list[Viewpoint]:
     """Reachable viewpoints revealing at least ``min_gain_cells``, best score first.
 
     Args:
-        grid: the map snapshot.
+        field: the map's `FaceField` (its range is the sensor's useful range).
         rover_cm: rover position (x, y) [cm].
         robot_radius_cm: the rover's footprint radius for reachability [cm].
         margin_cm: extra clearance from obstacles [cm].
+        max_incidence_deg: steepest angle between a ray and the face's normal that
+            still reveals what lies behind [deg].
         stand_radius_cm: a viewpoint needs this much known-free ground around it [cm]
             (the turning radius: the rover turns there to leave); None: only
             reachability counts.
-        range_cm: the sensor's useful range for seeing the unknown [cm].
-        max_incidence_deg: steepest angle between a ray and the face's normal that
-            still reveals what lies behind [deg].
         min_gain_cells: a viewpoint revealing less is left out [cells]...
         min_face_cells: ...and one seeing fewer face cells [cells] (a gap of a cell or
             two in a mapped surface, with an obstacle's unknown inside behind it, looks
@@ -208,18 +260,14 @@ def viewpoints(
         snap_radius_cm: how far the rover's cell may move to a passable one [cm].
         also_cm: more points [cm] to score where reachable (the current target, so
             that it can be compared with the others).
-        unseeable_cm: face cells [cm] a viewpoint that saw them did not reveal
-            (`seen_face`): no longer part of the face.
 
     Returns:
         The viewpoints in decreasing score (ties: row-major order of their cells);
         empty when the map has no face or the rover reaches no cell that sees one.
     """
-    res = grid.resolution_cm
-    n_steps = max(1, math.ceil(range_cm / res))
-    sub = grid.crop_known(margin_cells=2)
+    sub, face = field.sub, field.face
     cells = sub.cells
-    face = _face(sub, unseeable_cm)
+    res = sub.resolution_cm
     if not face.any():
         return []
     travel = steps_from(sub, rover_cm, robot_radius_cm, margin_cm, snap_radius_cm)
@@ -230,16 +278,16 @@ def viewpoints(
         reach &= ~inflate(cells != FREE, stand_radius_cm / res)
     if not reach.any():
         return []
-    nxn, nyn = face_normals(cells)
     # samples are spread in blocks of the whole grid's cells, so they do not move as the
     # known part (the crop) grows
+    grid = field.grid
     anchor = (round((sub.origin_cm[1] - grid.origin_cm[1]) / res),
               round((sub.origin_cm[0] - grid.origin_cm[0]) / res))
     extra = [sub.world_to_cell(*p) for p in also_cm]
-    cand = _candidates(face, reach, nxn, nyn, n_steps, anchor, extra)
+    cand = _candidates(face, reach, field.nxn, field.nyn, field.n_steps, anchor, extra)
     if cand.size == 0:
         return []
-    gain, _, faces = _gains(cells, face, nxn, nyn, cand, n_steps, max_incidence_deg)
+    gain, _, faces = _gains(field, cand, max_incidence_deg)
     ny, nx = cells.shape
     rows, cols = cand // nx, cand % nx
     out: list[Viewpoint] = []
@@ -255,23 +303,18 @@ def viewpoints(
     return out
 
 
-def seen_face(grid: GridMap, point_cm: tuple[float, float], *, range_cm: float,
-              max_incidence_deg: float,
-              unseeable_cm: Sequence[tuple[float, float]] = ()) -> list[tuple[float, float]]:
+def seen_face(field: FaceField, point_cm: tuple[float, float], *,
+              max_incidence_deg: float) -> list[tuple[float, float]]:
     """The face cells [cm] a pose at ``point_cm`` sees (rays meet them first, steeply
-    enough, within ``range_cm``): what a viewpoint was chosen to reveal. Those still
-    unknown after the rover stood there cannot be revealed, and leave the face."""
-    res = grid.resolution_cm
-    sub = grid.crop_known(margin_cells=2)
-    cells = sub.cells
-    face = _face(sub, unseeable_cm)
+    enough, within the field's range): what a viewpoint was chosen to reveal. Those
+    still unknown after the rover looked at them cannot be revealed, and leave the
+    face."""
+    sub = field.sub
     r, c = sub.world_to_cell(*point_cm)
-    ny, nx = cells.shape
-    if not (face.any() and 0 <= r < ny and 0 <= c < nx):
+    ny, nx = sub.cells.shape
+    if not (field.face.any() and 0 <= r < ny and 0 <= c < nx):
         return []
-    nxn, nyn = face_normals(cells)
-    _, entries, _ = _gains(cells, face, nxn, nyn, np.array([r * nx + c]),
-                        max(1, math.ceil(range_cm / res)), max_incidence_deg)
+    _, entries, _ = _gains(field, np.array([r * nx + c]), max_incidence_deg)
     # centres rounded to a mm, so that the same cell gives the same point in every crop
     return [(round(x, 1), round(y, 1)) for x, y in (
         sub.cell_to_world(int(k) // nx, int(k) % nx) for k in np.unique(entries))]
@@ -360,23 +403,15 @@ def _spread(mask: np.ndarray, most: int, anchor: tuple[int, int]
         side += 1
 
 
-def _gains(cells: np.ndarray, face: np.ndarray, nxn: np.ndarray, nyn: np.ndarray,
-           cand: np.ndarray, n_steps: int, max_incidence_deg: float
+def _gains(field: FaceField, cand: np.ndarray, max_incidence_deg: float
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unknown area [cells] each candidate would reveal (module docstring), the flat crop
     indices of the face cells the counted rays enter (unsorted, repeated), and per
     candidate how many distinct face cells they enter."""
-    ny, nx = cells.shape
-    pad = n_steps + REVEAL_DEPTH_CELLS + 1
-    code = np.full(cells.shape, _CODE_UNKNOWN, dtype=np.int8)
-    code[cells == FREE] = _CODE_FREE
-    code[cells == OCCUPIED] = _CODE_OCC
-    code[face] = _CODE_FACE
-    code[(code >= _CODE_UNKNOWN) & _beside(cells == OCCUPIED)] += _EDGE
-    code = pad_border(code, pad, _CODE_UNKNOWN).reshape(-1)
+    ny, nx = field.sub.cells.shape
+    pad, code, offsets, n_steps = field.pad, field.code, field.offsets, field.n_steps
+    direction, weight, nxn, nyn = field.direction, field.weight, field.nxn, field.nyn
     width = nx + 2 * pad
-    dr, dc, direction, weight = _ray_offsets(n_steps + REVEAL_DEPTH_CELLS)
-    offsets = (dr * width + dc).astype(np.int32)  # (RAYS, steps + depth)
     base = ((cand // nx + pad) * width + cand % nx + pad).astype(np.int32)
     idx = base[:, None, None] + offsets[None, :, :n_steps]  # (N, RAYS, steps)
     seen = code[idx]
