@@ -235,7 +235,7 @@ def test_a_seeker_waits_for_an_ir_sensor_pinned_for_a_while_and_then_finds_the_h
     reads again, finds the hider truly in view."""
     base = load_scenario("empty")
     stuck = dataclasses.replace(base, faults=(
-        ScheduledFault(at_s=60.0, target="seeker/ir", kind="stuck_high", duration_s=40.0),))
+        ScheduledFault(at_s=40.0, target="seeker/ir", kind="stuck_high", duration_s=40.0),))
     report = play(stuck)
     assert report.outcome == "found", report.reason
     assert not any("pinned" in e for e in report.events if "report=not_found" in e)

@@ -283,27 +283,26 @@ def _walled_room(gaps: dict[str, int]) -> GridMap:
 
 
 @pytest.mark.trio
-async def test_after_futile_visits_long_frontiers_still_count(autojump_clock,
-                                                               monkeypatch) -> None:
-    """Futile visits dismiss short frontiers only: a long one (a big room's unseen part) is
-    still chosen, and with it blacklisted nothing useful is left."""
+async def test_after_futile_visits_only_viewpoints_worth_the_whole_window_count(
+        autojump_clock, monkeypatch) -> None:
+    """Futile visits raise the least gain to what the futile window together should have
+    shown: a small opening is dismissed, a big one (a room's unseen part) still chosen,
+    and a fruitful visit lets the small one count again."""
     from actors.firmware.nav import exploration
     from actors.firmware.nav.mapper import MappingNav
 
     monkeypatch.setattr(exploration, "FUTILE_TRIPS", 2)
+    monkeypatch.setattr(exploration, "MIN_GAIN_CELLS", 200)
     nav = MappingNav(pool=BufferPool(4))
-    nav.grid = _walled_room({"west": 8, "east": 40})  # east: two 1 m pieces of 20 cells
-    assert nav._choose(keep=False)  # not futile: any useful frontier
+    nav.grid = _walled_room({"west": 8})  # viewpoints reveal about 290 cells
+    assert nav._choose(keep=False) and nav.ex.target[0] < 0.0
     nav.ex = type(nav.ex)(gains=[0, 0])
     assert nav._futile()
-    chosen = []
-    while nav._choose(keep=False) and len(chosen) < 5:
-        chosen.append(nav.ex.target)
-        nav.ex.blacklist.append(nav.ex.target)  # reached, and still a frontier
-        nav.ex.follower = None
-    assert len(chosen) == 2 and all(x > 0.0 for x, _ in chosen)  # the east opening's pieces
-    assert nav.ex.no_frontier
-    nav.ex.gains = [500, 0]  # a fruitful visit: short frontiers count again
+    assert not nav._choose(keep=False) and nav.ex.no_frontier  # less than 2 x 200
+    nav.grid = _walled_room({"west": 8, "east": 40})  # the east opening: about 700
+    assert nav._choose(keep=False) and nav.ex.target[0] > -100.0
+    nav.grid = _walled_room({"west": 8})
+    nav.ex.gains = [500, 0]  # a fruitful visit: the small opening counts again
     assert nav._choose(keep=False) and nav.ex.target[0] < 0.0
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -166,14 +167,15 @@ def _run_fork(live: ForkLiveSystem) -> list[Snapshot]:
 
 def test_a_fork_into_the_live_console_follows_the_recording_to_its_time(
         recording: Any) -> None:
-    """The console's fork plays the recorded game to T (every second checked), then stands
-    paused at T with the fault catalogue offered."""
-    rec, _ = recording
-    live = ForkLiveSystem(rec, 30.0, log_messages=False)
+    """The console's fork plays the recorded game to T, a time while mapping (every second
+    checked), then stands paused at T with the fault catalogue offered."""
+    rec, report = recording
+    t = float(math.floor(report.phases["mapping"] * 0.75))
+    live = ForkLiveSystem(rec, t, log_messages=False)
     snaps = _run_fork(live)
-    assert live.checker.compared == 30 and live.checker.diverged is None
+    assert live.checker.compared == int(t) and live.checker.diverged is None
     (snap,) = snaps
-    assert 30.0 <= snap.time_s < 30.1 and snap.paused and snap.speed == 1.0
+    assert t <= snap.time_s < t + 0.1 and snap.paused and snap.speed == 1.0
     assert snap.phase == "mapping" and snap.catalogue
     assert any("forked" in e.text for e in snap.timeline)
 

@@ -196,7 +196,7 @@ class RoverView:
     path: tuple[Point, ...] = ()
     """Planned path, from the rover towards its goal, map frame [cm]."""
     target: Point | None = None
-    """Current goal: the mapper's frontier target, or the hider's / seeker's destination."""
+    """Current goal: the mapper's viewpoint, or the hider's / seeker's destination."""
     link: str = "memory"
     """How the rover is attached: ``memory``, ``serial:/dev/pts/3``, ``tcp:...``."""
 

@@ -1,16 +1,17 @@
 """The mapper's exploration: where to go next, and the route there.
 
 Choosing where to go
-    `frontier.find_frontiers` + `frontier.choose_frontier` on the latest
-    NAV_MAP_UPDATE (cost trades distance against frontier size and favours less
-    explored areas; long frontiers come cut into 1 m pieces); `route.plan_route`
-    for the path, trying tiers of clearance from the turning radius plus a margin
-    down to half the body width (a 30 cm corridor maps 25 cm wide on a 5 cm grid);
-    reachability uses the narrowest tier. A frontier whose
-    target cannot be planned to, which blocks the rover twice, which takes more
-    ADP steps than its route deserves, or which is chosen again after being
-    reached, is blacklisted (by its target point [cm], which survives
-    map growth).
+    `viewpoint.viewpoints` on the latest NAV_MAP_UPDATE: poses the rover may stand on
+    from which the LIDAR sees the frontier steeply enough, best gain (unknown area
+    revealed) per unit of travel first; none worth a trip ends exploring.
+    `route.plan_route` for the path, trying tiers of clearance from the turning
+    radius plus a margin down to half the body width (a 30 cm corridor maps 25 cm
+    wide on a 5 cm grid); reachability uses the narrowest tier. A viewpoint that
+    cannot be planned to, which blocks the rover twice, which takes more ADP steps
+    than its route deserves, or which is chosen again after being reached, is
+    blacklisted (by its point [cm], which survives map growth). Face cells seen
+    from where the rover stands at ``SIGHTINGS`` decisions and still unknown leave
+    the face for good: looking does not reveal them.
 
 Obstacles ahead
     Before each straight move, `clearance.obstacle_ahead` looks ``move +
@@ -32,18 +33,31 @@ import trio
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
 from actors.firmware.planning.clearance import obstacle_ahead
-from actors.firmware.planning.frontier import Frontier, choose_frontier, find_frontiers
+from actors.firmware.planning.viewpoint import (
+    FaceField,
+    Viewpoint,
+    face_field,
+    seen_face,
+    viewpoints,
+)
 from server.protocol.grid_map import UNKNOWN
 
-__all__ = ["Exploration", "ExplorationState", "MIN_FRONTIER_CELLS", "RECHOOSE_STEPS",
-           "OBSTACLE_TURNS", "MAX_CHOICES", "BLACKLIST", "TRIP_MAX_S", "FUTILE_TRIPS",
-           "MIN_GAIN_CELLS", "MIN_GAIN_SHARE", "FUTILE_MIN_CELLS", "FUTILE_OPEN_SHARE"]
+__all__ = ["Exploration", "ExplorationState", "MIN_FACE_CELLS", "MAX_INCIDENCE_DEG",
+           "RECHOOSE_STEPS", "OBSTACLE_TURNS", "MAX_CHOICES", "KEEP_CM", "KEEP_SHARE",
+           "BLACKLIST", "BLACKLIST_RADIUS_CM", "SIGHTINGS", "UNSEEABLE", "TRIP_MAX_S",
+           "FUTILE_TRIPS", "MIN_GAIN_CELLS", "MIN_GAIN_SHARE"]
 
 # Counts, bounds and shares of frontier exploration and of the futile-trip rule: how the
 # algorithm chooses and when it stops looking, fixed here beside it; the distances a rover
 # keeps are `MappingOptions`.
-MIN_FRONTIER_CELLS = 6
-"""Smallest useful frontier [cells] (30 cm of 5 cm cells)."""
+MIN_FACE_CELLS = 2
+"""A viewpoint must see at least this many face cells [cells]: one alone is a hole a cell
+wide, deep from anywhere and seldom revealed (a pocket 20 cm wide shows two)."""
+MAX_INCIDENCE_DEG = 70.0
+"""Steepest angle between a ray and the frontier's normal that still reveals what lies
+behind it [deg]: a ray meeting a surface at 20 deg or less stops clearing 1.5 cells
+before it (the occupancy model's grazing margin), and a degree of heading error moves
+it a cell at 3 m."""
 RECHOOSE_STEPS = 3
 """Re-choose the frontier after this many ADP steps (the map grew meanwhile)."""
 OBSTACLE_TURNS = 3
@@ -51,8 +65,21 @@ OBSTACLE_TURNS = 3
 target is blacklisted (the route passes where the rover will not drive)."""
 MAX_CHOICES = 8
 """Frontiers tried per decision before waiting for the map to change."""
+KEEP_CM = 40.0
+"""A viewpoint this near the current target is that target [cm]..."""
+KEEP_SHARE = 0.5
+"""...and the route to it is kept while its score is at least this share of the best
+(a new best must be clearly better to turn the rover round)."""
 BLACKLIST = 256
 """Most blacklisted points kept."""
+SIGHTINGS = 3
+"""A face cell seen from the rover's pose at this many decisions and still unknown cannot be
+revealed by looking (a decision comes every ADP step, a second or two)."""
+UNSEEABLE = 2048
+"""Most unseeable face cells kept (and most cells counted toward it)."""
+BLACKLIST_RADIUS_CM = 30.0
+"""No viewpoint is chosen this near a blacklisted point [cm] (what one sees, its
+neighbours see too)."""
 TRIP_MAX_S = 90.0
 """A trip also ends after this long [s] (a rover switching frontiers on the way never
 reaches a target)."""
@@ -62,17 +89,13 @@ revealed fewer than the least gain (`MIN_GAIN_CELLS`, `MIN_GAIN_SHARE`) each on 
 the frontiers left are not worth visiting (pockets behind furniture, noise at edges):
 exploration treats them as not useful, and completion may follow."""
 MIN_GAIN_CELLS = 30
-"""A trip that made fewer cells known than this was futile [cells]..."""
+"""A viewpoint that would reveal less is not worth a trip, and a trip that made fewer
+cells known than this was futile [cells]..."""
 MIN_GAIN_SHARE = 0.003
 """...or fewer than this share of the cells already known (a big hall's ragged far edges
 give a few dozen cells per visit for ever). Counted per visit, not per minute: crossing a
 big hall to a far frontier reveals nothing for a while."""
-FUTILE_MIN_CELLS = 16
-"""After futile trips, frontiers at least this long still count as useful [cells]: a big
-room's far part, one long frontier, stays worth a visit after visits to small pockets."""
-FUTILE_OPEN_SHARE = 0.5
-"""...and at least this share of their cells in the open (no obstacle within 30 cm): a
-ragged edge along a wall or a pocket behind furniture is long too."""
+
 
 
 @dataclass
@@ -92,6 +115,12 @@ class ExplorationState:
     gains: list[int] = field(default_factory=list)  # cells each recent trip made known
     turned_away: int = 0  # turns away from an obstacle toward this target, no move between
     turned_target: tuple[float, float] | None = None  # the target they were toward
+    sightings: dict[tuple[float, float], int] = field(default_factory=dict)  # face cell
+    # [cm] -> decisions it was seen at, still unknown
+    unseeable: list[tuple[float, float]] = field(default_factory=list)  # face cells [cm]
+    # seen ``SIGHTINGS`` times and not revealed
+    view_field: FaceField | None = None  # the face field of...
+    view_key: tuple | None = None  # ...this map and unseeable list
 
 
 class Exploration:
@@ -129,6 +158,7 @@ class Exploration:
             return
         ex = self.ex
         pose = self.map_pose
+        self._judge_sightings()
         if ex.trip_known is not None and trio.current_time() - ex.trip_started >= \
                 TRIP_MAX_S:
             # a rover that keeps switching to new frontiers on the way never ends a trip
@@ -200,41 +230,85 @@ class Exploration:
         return Motion("turn", -90.0 if ob.bearing_deg >= 0 else 90.0)
 
     def _choose(self, *, keep: bool) -> bool:
-        """Choose a frontier and a route to it; False (and ``no_frontier``) when none."""
+        """Choose a viewpoint and a route to it; False (and ``no_frontier``) when no
+        reachable pose sees enough of the unknown."""
         assert self.grid is not None
         ex = self.ex
-        pose = self.map_pose
-        # after futile visits only long frontiers in the open still count (what an obstacle
+        # after futile visits only viewpoints revealing much still count (what an obstacle
         # hid in a big room), and each is blacklisted once reached (below), so this ends
-        futile = self._futile()
-        min_size = FUTILE_MIN_CELLS if futile else MIN_FRONTIER_CELLS
-        # reachability with the narrowest tier the rover can drive (a corridor barely wider
-        # than the body); the route itself tries the roomier tiers first
-        radius, margin = self._tiers()[-1]
-        frontiers = find_frontiers(self.grid, (pose.x, pose.y), robot_radius_cm=radius,
-                                   margin_cm=margin, approach_cm=self.m.approach_cm)
-        if futile:
-            frontiers = [f for f in frontiers if f.open_share >= FUTILE_OPEN_SHARE]
-        for _ in range(MAX_CHOICES):
-            f = choose_frontier(frontiers, min_size_cells=min_size,
-                                blacklist=ex.blacklist, blacklist_radius_cm=self.m.approach_cm)
-            if f is None:
-                ex.no_frontier = True
-                ex.follower = None
-                return False
-            ex.no_frontier = False
-            assert f.target_cm is not None
-            if keep and ex.target is not None and math.dist(f.target_cm, ex.target) <= 40.0:
-                return True  # still the same frontier: keep the route
-            if any(math.dist(f.target_cm, r) <= self.m.reach_cm * 2 for r in ex.reached):
-                self._blacklist(f.target_cm)  # reached and still a frontier: cannot be seen
+        least = self._min_gain(self._known())
+        if self._futile():
+            least *= FUTILE_TRIPS  # as much as the futile visits together should have shown
+        views = [v for v in self._viewpoints() if v.gain_cells >= least and not any(
+            math.dist(v.point_cm, b) <= BLACKLIST_RADIUS_CM for b in ex.blacklist)]
+        if not views:
+            ex.no_frontier = True
+            ex.follower = None
+            return False
+        ex.no_frontier = False
+        if keep and ex.target is not None:
+            current = [v for v in views if math.dist(v.point_cm, ex.target) <= KEEP_CM]
+            if current and current[0].score >= KEEP_SHARE * views[0].score:
+                return True  # the target still sees about as much: keep the route
+        for v in views[:MAX_CHOICES]:
+            if any(math.dist(v.point_cm, r) <= self.m.reach_cm * 2 for r in ex.reached):
+                self._blacklist(v.point_cm)  # reached, and still not seen from there
                 continue
-            if self._route_to(f):
+            if self._route_to(v.point_cm):
                 return True
-            self._blacklist(f.target_cm)
+            self._blacklist(v.point_cm)
         ex.follower = None
         self._wait_map = True
         return False
+
+    def _viewpoints(self) -> list[Viewpoint]:
+        """The viewpoints of the current map from the current pose (`viewpoint.viewpoints`),
+        with the current target among the candidates; reachability with the narrowest
+        tier the rover can drive (a corridor barely wider than the body), the route
+        itself tries the roomier tiers first."""
+        assert self.grid is not None
+        pose = self.map_pose
+        radius, margin = self._tiers()[-1]
+        also = [self.ex.target] if self.ex.target is not None else []
+        return viewpoints(self._field(), (pose.x, pose.y), robot_radius_cm=radius,
+                          margin_cm=margin, stand_radius_cm=self.radius_cm,
+                          max_incidence_deg=MAX_INCIDENCE_DEG, also_cm=also,
+                          min_face_cells=MIN_FACE_CELLS)
+
+    def _field(self) -> FaceField:
+        """The current map's `FaceField`, made again only when the map or the unseeable
+        cells changed (a decision judges sightings and may choose on the same map)."""
+        assert self.grid is not None
+        ex = self.ex
+        key = (self.grid, len(ex.unseeable), ex.unseeable[-1] if ex.unseeable else None)
+        if ex.view_field is None or ex.view_key is None or ex.view_key[0] is not key[0] \
+                or ex.view_key[1:] != key[1:]:
+            ex.view_field = face_field(self.grid, range_cm=self.m.view_range_cm,
+                                       unseeable_cm=ex.unseeable)
+            ex.view_key = key
+        return ex.view_field
+
+    def _judge_sightings(self) -> None:
+        """Count, per face cell the rover sees from where it stands (within the view range,
+        steeply enough: `viewpoint.seen_face`), the decisions it was seen at; one
+        seen at ``SIGHTINGS`` decisions and still unknown cannot be revealed by looking
+        (an obstacle's inside behind a gap in its mapped surface, a pocket only grazing
+        rays enter), so it leaves the face for good. What no pose sees then ends
+        exploration instead of more drives that reveal nothing."""
+        ex = self.ex
+        assert self.grid is not None
+        pose = self.map_pose
+        for cell in seen_face(self._field(), (pose.x, pose.y),
+                              max_incidence_deg=MAX_INCIDENCE_DEG):
+            n = ex.sightings.get(cell, 0) + 1
+            if n >= SIGHTINGS:
+                ex.unseeable.append(cell)
+                ex.sightings.pop(cell, None)
+            else:
+                ex.sightings[cell] = n
+        del ex.unseeable[:-UNSEEABLE]
+        while len(ex.sightings) > UNSEEABLE:
+            del ex.sightings[next(iter(ex.sightings))]
 
     def _tiers(self) -> list[tuple[float, float]]:
         """(radius, margin) to plan with, roomiest first [cm]: turning radius plus margin,
@@ -270,12 +344,12 @@ class Exploration:
         assert self.grid is not None
         return int(np.count_nonzero(self.grid.cells != UNKNOWN))
 
-    def _route_to(self, f: Frontier) -> bool:
-        assert self.grid is not None and f.target_cm is not None
+    def _route_to(self, target: tuple[float, float]) -> bool:
+        assert self.grid is not None
         pose = self.map_pose
         plan = None
         for radius, margin in self._tiers():
-            plan = plan_route(self.grid, (pose.x, pose.y), f.target_cm, radius_cm=radius,
+            plan = plan_route(self.grid, (pose.x, pose.y), target, radius_cm=radius,
                               margin_cm=margin)
             if plan is not None:
                 break
@@ -286,7 +360,7 @@ class Exploration:
             ex.trip_known = self._known()
             ex.trip_started = trio.current_time()
         ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
-        ex.target = f.target_cm
+        ex.target = target
         ex.steps = 0
         ex.blocks = 0
         ex.budget = ex.follower.budget(pose)

@@ -12,13 +12,12 @@ Flow
     mapped (WIFLY_SEND_MAP with the map cropped to its known part).
 
 Complete when both hold (either alone can lie)
-    * no reachable frontier of useful size remains (a stalled LIDAR would also
-      give "no change"); after ``FUTILE_TRIPS`` trips in a row that made
-      fewer than ``MIN_GAIN_CELLS`` cells known each on average (a window, so one
-      trip just above the limit does not start the count over), only frontiers of at least
-      ``FUTILE_MIN_CELLS`` lying mostly in the open (``FUTILE_OPEN_SHARE``)
-      still count as useful (the rest are pockets nobody can see into, ragged
-      edges along walls), and
+    * no reachable viewpoint would reveal the least useful gain (`exploration`: what
+      remains of the frontier cannot be seen from any pose the rover may stand on; a
+      stalled LIDAR would also give "no change"); after ``FUTILE_TRIPS`` trips in a
+      row that made fewer than ``MIN_GAIN_CELLS`` cells known each on average (a
+      window, so one trip just above the limit does not start the count over), a
+      viewpoint must promise as much as those trips together should have shown, and
     * the map's count of known cells has not moved for ``stable_window_s``
       while the scan count kept rising (a stalled LIDAR gives no scans, so it
       never reads as done).

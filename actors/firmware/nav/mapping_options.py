@@ -20,11 +20,12 @@ class MappingOptions:
     lidar_duty: float = 0.5
     """LIDAR rotation PWM for mapping (Command B) [1]: 5.5 rev/s with the calibrated
     motor."""
-    approach_cm: float = 30.0
-    """How near a frontier the rover must get [cm]; also the radius round a blacklisted
-    target within which frontiers are not chosen again."""
+    view_range_cm: float = 250.0
+    """The LIDAR's useful range for seeing into the unknown [cm]: exploration chooses
+    poses that see the frontier from no farther (at 2.5 m one revolution's 1 deg
+    samples are 4.4 cm apart, under a cell, so what a pose sees is mapped)."""
     reach_cm: float = 10.0
-    """A frontier target counts as reached this close [cm]."""
+    """A viewpoint counts as reached this close [cm]."""
     stop_cm: float = 20.0
     """Stop this far before an obstacle ahead (centre to cell centre) [cm]."""
     stable_window_s: float = 10.0

@@ -57,6 +57,7 @@ __all__ = [
     "is_blacklisted",
     "choose_frontier",
     "no_useful_frontier",
+    "steps_from",
 ]
 
 
@@ -208,7 +209,7 @@ def find_frontiers(
     if split_cm is not None and split_cm > 0:
         labels, count = _split_clusters(labels, max(1, round(split_cm / res)))
 
-    steps = _steps_from(sub, rover_cm, robot_radius_cm, margin_cm, snap_radius_cm)
+    steps = steps_from(sub, rover_cm, robot_radius_cm, margin_cm, snap_radius_cm)
     big = np.iinfo(np.int32).max
     reach_steps = np.where(steps >= 0, steps, big)
     near_steps = _min_filter(reach_steps, k_app)
@@ -241,7 +242,7 @@ def find_frontiers(
     return out
 
 
-def _steps_from(sub: GridMap, rover_cm: tuple[float, float], robot_radius_cm: float,
+def steps_from(sub: GridMap, rover_cm: tuple[float, float], robot_radius_cm: float,
                 margin_cm: float, snap_radius_cm: float) -> np.ndarray:
     """BFS steps from the rover's cell (snapped to a passable one) to every cell the
     inflated map lets it reach; -1 elsewhere, and everywhere when no cell is near."""
