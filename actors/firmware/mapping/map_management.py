@@ -64,6 +64,7 @@ queue slots and dropped scans, never a restart.
 from __future__ import annotations
 
 import contextlib
+import math
 from collections import Counter
 
 import numpy as np
@@ -106,10 +107,10 @@ from actors.firmware.mapping.scan_match import (
     MatchFields,
     MatchOptions,
     MatchResult,
-    hits_to_local,
     match_scan,
     relocalise,
 )
+from actors.firmware.mapping.scan_window import ScanWindow
 from actors.firmware.origin_wire import OriginHalves, pose_messages
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
@@ -232,6 +233,9 @@ class MapManagement(Actor):
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
         self._timer_armed = False
+        self._window = ScanWindow()  # batches waiting to be fused as one (`scan_window`)
+        self._window_standing = False  # whether they were taken while the rover stood
+        self._moving = False  # whether the last batch's stamp differed from the one before
 
     @property
     def unplaced(self) -> int:
@@ -259,23 +263,20 @@ class MapManagement(Actor):
         cmd = message.command
         if cmd == Cmd.MAP_SCAN:
             scan = self.pool.take(int(message.value))
-            if trio.current_time() < self._await_correction_until:
+            now = trio.current_time()
+            if now < self._await_correction_until:
                 self.held_scans += 1  # placed in the wrong frame, it would smear the map
                 return
-            pose = self._place(scan)
-            if pose is None:
-                return  # its pose is in doubt (the reason is counted in `refusals`)
-            if self.grid.integrate(pose, scan.angles_deg, scan.ranges_cm):
-                self._changed = self._fields_stale = True
-            self.scans += 1
-            self._maybe_publish()
+            self._take_batch(scan, now)
         elif cmd == Cmd.MAP_GET:  # from navigation (value 0), or our deferred timer (1)
             if message.value == 1:
                 self._timer_armed = False
                 self._publish(force=False)
             else:
+                self._flush()  # navigation wants the map as it is now (an upload)
                 self._publish()
         elif cmd == Cmd.MAP_RESTORE:
+            self._flush()
             self._restore(self.pool.take(int(message.value)))
             self._publish()
         elif cmd == Cmd.MAP_ORIGIN_XY:
@@ -288,6 +289,7 @@ class MapManagement(Actor):
             self._await_correction_until = -float("inf")
         elif cmd == Cmd.MAP_TREAD_FAULT:
             left_mm, right_mm = message.as_pair()
+            self._flush()  # the batches before the report are placed as the counts say
             self._tread_fault(left_mm / 10.0, right_mm / 10.0)
         elif cmd == Cmd.NOOP:
             self.noops += 1  # a flood fault: costs a queue slot, never a restart
@@ -327,34 +329,86 @@ class MapManagement(Actor):
         b = self.belief
         return b.heading95_deg > opts.max_turn_deg or b.radius95_over(opts.max_shift_cm)
 
-    def _place(self, scan: Scan) -> Pose | None:
-        """The map-frame pose of a batch, or None when it is dropped (the module docstring).
+    def _take_batch(self, scan: Scan, now: float) -> None:
+        """Add a batch to the window, and fuse the window when it is cut (the module
+        docstring, `scan_window`).
 
-        A batch is placed at the belief's mean unmatched when the rover stands: odometry
-        has not changed for ``settle_s`` and the last matched batch was taken at the same
-        odometry pose (within 5 mm and 0.3 deg). An unchanged odometry stamp alone does
-        not mean the rover stands: one Int E turns the heading by 2.2 deg, so a turning
-        rover's batch can carry the previous tick's stamp, and after a turn the rover
-        keeps turning by up to an interrupt's worth (or swings back) unseen by its
-        encoders; such batches are matched.
+        The rover stands when odometry has not changed for ``settle_s`` and the last
+        matched window ended at the same odometry pose (within 5 mm and 0.3 deg, the
+        belief within the local reach): a standing window is placed at the belief's mean
+        unmatched. An unchanged stamp alone does not mean the rover stands: one Int E
+        turns the heading by 2.2 deg, so a turning rover's batch can carry the previous
+        tick's stamp, and after a turn the rover keeps turning by up to an interrupt's
+        worth (or swings back) unseen by its encoders; such batches are matched. The
+        first batch whose stamp did not change after one that did ends a motion (or
+        pauses it): the window is cut there, so navigation gets the pose a motion ended
+        at without waiting for the next window.
         """
         odom = scan.pose
-        opts = self.matching
-        now = trio.current_time()
-        if not _same_pose(odom, self._prev_odom):
+        moved = not _same_pose(odom, self._prev_odom)
+        ended = self._moving and not moved
+        self._moving = moved
+        if moved:
             self._still_since = now
         self._prev_odom = odom
+        opts = self.matching
+        if opts is None or self.scans + len(self._window) < self.warmup_scans:
+            self._predict(odom)  # the reference is built batch by batch
+            window = ScanWindow()
+            window.add(scan)
+            self._fuse(window, now, standing=False)
+            return
+        # (evaluated before the prediction: a batch whose stamp moved never stands, and
+        # one whose stamp did not leaves the belief where it is)
+        standing = not self.wide(opts) and now - self._still_since >= self.settle_s and (
+            _same_pose(odom, self._last_odom))
+        if self._window and standing != self._window_standing:
+            self._flush(now)
         self._predict(odom)
+        self._window.add(scan)
+        self._window_standing = standing
+        if ended or self._window.full():
+            self._flush(now)
+
+    def _flush(self, now: float | None = None) -> None:
+        """Fuse the window gathered so far (if any), and start a new one."""
+        window = self._window
+        if not window:
+            return
+        self._window = ScanWindow()
+        self._fuse(window, trio.current_time() if now is None else now,
+                   standing=self._window_standing)
+
+    def _fuse(self, window: ScanWindow, now: float, *, standing: bool) -> None:
+        """Place a window and fuse it into the grid (each beam from its own batch's
+        origin), or drop it when its pose is in doubt."""
+        pose = self._place(window, now, standing)
+        if pose is None:
+            return  # its pose is in doubt (the reason is counted in `refusals`)
+        angles, ranges = window.beams()
+        if len(window) == 1:
+            changed = self.grid.integrate(pose, angles, ranges)
+        else:
+            changed = self.grid.integrate_beams(window.beam_poses(pose), angles, ranges)
+        if changed:
+            self._changed = self._fields_stale = True
+        self.scans += len(window)
+        self._maybe_publish()
+
+    def _place(self, window: ScanWindow, now: float, standing: bool) -> Pose | None:
+        """The map-frame pose of a window's last batch, or None when the window is
+        dropped (the module docstring): the belief's mean while the reference is built
+        and while the rover stands; else the window's de-skewed hits matched, judged
+        and weighed once."""
+        opts = self.matching
         guess = self.belief.mean
-        if opts is None or self.scans < self.warmup_scans:
-            return guess
-        wide = self.wide(opts)
-        if not wide and now - self._still_since >= self.settle_s and _same_pose(
-                odom, self._last_odom):
+        if opts is None or self.scans < self.warmup_scans or standing:
             return guess  # standing still: matching again would only add its own jitter
-        stamp = self._stamp_covariance(now)
+        odom = window.last
+        wide = self.wide(opts)
+        stamp = self._stamp_covariance(now, window)
         fields = self._current_fields(opts, now)
-        pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
+        pts = window.local_points(opts)
         if wide:
             if now - self._search_at < _SEARCH_EVERY_S:
                 return self._refuse("searching")
@@ -384,15 +438,16 @@ class MapManagement(Actor):
                 return guess
             return self._refuse(fit.verdict.value)
         info = face_information(self._distance, result.pose, pts, _SCAN)
-        # this batch's pose: the prediction (the belief and the stamp's own error) and the
+        # this window's pose: the prediction (the belief and the stamp's own error) and the
         # match, weighed by what this one scan's hits say (each of its beams counted);
-        # the belief (the correction's) counts the scan as `independent_hits` measurements
-        # (its errors repeat from scan to scan) and takes the stamp's error as the match's,
-        # since it does not carry over to the next stamp
+        # the belief (the correction's) counts each batch of the window as
+        # `independent_hits` measurements (its errors repeat from scan to scan) and takes
+        # the stamp's error as the match's, since it does not carry over to the next stamp
         beams = min(len(pts), MAX_BEAMS)
         every_beam = info * max(1.0, beams / _SCAN.independent_hits)
         placed = self.belief.widened(stamp).update(result.pose, every_beam).mean
-        self.belief = self.belief.update(result.pose, info, stamp).moved_to(placed)
+        self.belief = self.belief.update(result.pose, info * len(window), stamp).moved_to(
+            placed)
         self.matched += 1
         self.searched += wide
         self._last_odom = odom
@@ -457,15 +512,24 @@ class MapManagement(Actor):
         self.switches += 1
         return None
 
-    def _stamp_covariance(self, now: float) -> np.ndarray:
-        """The covariance of this batch's stamp's own error: the encoders' rounding
-        (`odometry_floor`) and the motion within the batch's tick, uniform over the step
-        between two stamps (its variance: the step squared over 12). A tick with no Int E
-        keeps the last step (the rover moves on between interrupts) until the rover has
-        stood ``settle_s``."""
+    def _stamp_covariance(self, now: float, window: ScanWindow) -> np.ndarray:
+        """The covariance of a window's stamps' own error: the encoders' rounding
+        (`odometry_floor`), the motion within the last batch's tick, uniform over the step
+        between two stamps (its variance: the step squared over 12; a tick with no Int E
+        keeps the last step, since the rover moves on between interrupts, until the rover
+        has stood ``settle_s``), and the odometry's error over the window's counted travel
+        and turn (the motion model's noise: it misplaces the earlier batches against the
+        last)."""
         ds, dtheta = self._step if now - self._still_since < self.settle_s else (0.0, 0.0)
-        return odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
-                                           dtheta * dtheta / 12.0])
+        cov = odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
+                                          dtheta * dtheta / 12.0])
+        if window.moved:
+            half = 0.5 * self.track_width_cm * math.radians(window.turn_deg)
+            travel = window.travel_cm
+            within = GaussianPose(self.belief.mean, np.zeros((3, 3))).predict(
+                travel - half, travel + half, self.track_width_cm, self.noise)
+            cov += within.covariance
+        return cov
 
     def _refuse(self, reason: str) -> None:
         """Drop a batch, counting why."""
