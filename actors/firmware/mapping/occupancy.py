@@ -383,10 +383,12 @@ class OccupancyGrid:
         ex, ey = 1 - fx, 1 - fy
         r1, c1 = r0 + 1, c0 + 1
         # the four corners in one ufunc.at call, in the order (0, 0), (0, 1), (1, 0),
-        # (1, 1): it adds in sequence, as four calls would (same float32 roundings)
+        # (1, 1): it adds in sequence, as four calls would; the weights in the counts'
+        # own float32, since `np.add.at` with weights of another type casts each addition
+        # on its slow path (108 against 2.3 us for 1,600 additions)
         rows = np.concatenate([r0, r0, r1, r1])
         cols = np.concatenate([c0, c1, c0, c1])
-        weights = np.concatenate([ex * ey, fx * ey, ex * fy, fx * fy])
+        weights = np.concatenate([ex * ey, fx * ey, ex * fy, fx * fy]).astype(np.float32)
         ny, nx = self._hits.shape
         inside = (rows.view(np.uint64) < ny) & (cols.view(np.uint64) < nx)
         flat = rows * nx + cols
