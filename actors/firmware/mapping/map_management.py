@@ -389,7 +389,8 @@ class MapManagement(Actor):
         if len(window) == 1:
             changed = self.grid.integrate(pose, angles, ranges)
         else:
-            changed = self.grid.integrate_beams(window.beam_poses(pose), angles, ranges)
+            changed = self.grid.integrate_batches(window.beam_poses(pose), window.sizes(),
+                                                  angles, ranges)
         if changed:
             self._changed = self._fields_stale = True
         self.scans += len(window)

@@ -114,12 +114,15 @@ class ScanWindow:
         last = self.last
         return [relative(last, s.pose) for s in self.scans]
 
+    def sizes(self) -> list[int]:
+        """Beams per batch, in order."""
+        return [s.angles_deg.size for s in self.scans]
+
     def _per_beam(self, poses: list[Pose]) -> np.ndarray:
         """The rows x [cm], y [cm], heading [deg] of each beam's batch pose, (3, n)."""
-        sizes = [s.angles_deg.size for s in self.scans]
         rows = np.array([[p.x for p in poses], [p.y for p in poses],
                          [p.heading_deg for p in poses]])
-        return rows.repeat(sizes, axis=1)
+        return rows.repeat(self.sizes(), axis=1)
 
     def local_points(self, options: MatchOptions) -> np.ndarray:
         """The hits usable for matching, (n, 2) [cm], in the last batch's frame: each
