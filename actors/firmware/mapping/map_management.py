@@ -210,9 +210,12 @@ class MapManagement(Actor):
         """Odometry frame -> map frame: the belief's mean composed with the inverse of
         its odometry stamp (identity until a match or a report moves it)."""
         self.matched = 0
-        """Scan batches placed by a match (the others at the belief's mean)."""
+        """Windows of batches placed by a match (the others at the belief's mean)."""
+        self.windows = 0
+        """Windows of batches fused into the grid (`scan_window`; a batch of the
+        reference is a window of its own)."""
         self.searched = 0
-        """Batches placed by the wide search (`scan_match.relocalise`)."""
+        """Windows placed by the wide search (`scan_match.relocalise`)."""
         self.refusals: Counter[str] = Counter()
         """Batches dropped, by reason: a matched pose the scan likelihood refused
         (`FitVerdict`'s value), a match refused by the matcher, or a wide belief that
@@ -394,6 +397,7 @@ class MapManagement(Actor):
         if changed:
             self._changed = self._fields_stale = True
         self.scans += len(window)
+        self.windows += 1
         self._maybe_publish()
 
     def _place(self, window: ScanWindow, now: float, standing: bool) -> Pose | None:
@@ -412,7 +416,7 @@ class MapManagement(Actor):
         pts = window.local_points(opts)
         if wide:
             if now - self._search_at < _SEARCH_EVERY_S:
-                return self._refuse("searching")
+                return self._refuse("searching", len(window))
             self._search_at = now
             b = self.belief
             result = relocalise(fields, pts, guess, opts, turn_deg=min(180.0, b.heading95_deg),
@@ -422,13 +426,13 @@ class MapManagement(Actor):
             result = match_scan(fields, pts, guess, opts)
             weighed = self._weigh_odometry(pts, result, now, stamp)
             if weighed is None:
-                return self._refuse("odometry in doubt")
+                return self._refuse("odometry in doubt", len(window))
             at_mean, at_match = weighed
         if not result.accepted:
             if not result.supported and at_mean is not None and (
                     at_mean.verdict is not FitVerdict.BAD_FIT):
                 return guess  # new ground, or too few hits: nothing to judge it by
-            return self._refuse(result.reason.split(" (")[0])
+            return self._refuse(result.reason.split(" (")[0], len(window))
         assert self._distance is not None
         if at_match is None:
             at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
@@ -437,7 +441,7 @@ class MapManagement(Actor):
         if not fit.accepted:
             if fit.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS) and not wide:
                 return guess
-            return self._refuse(fit.verdict.value)
+            return self._refuse(fit.verdict.value, len(window))
         info = face_information(self._distance, result.pose, pts, _SCAN)
         # this window's pose: the prediction (the belief and the stamp's own error) and the
         # match, weighed by what this one scan's hits say (each of its beams counted);
@@ -532,9 +536,9 @@ class MapManagement(Actor):
             cov += within.covariance
         return cov
 
-    def _refuse(self, reason: str) -> None:
-        """Drop a batch, counting why."""
-        self.refusals[reason] += 1
+    def _refuse(self, reason: str, batches: int) -> None:
+        """Drop a window of ``batches`` batches, counting why (per batch)."""
+        self.refusals[reason] += batches
 
     def _current_fields(self, opts: MatchOptions, now: float) -> MatchFields:
         """The matching fields, rebuilt first when stale for ``fields_s`` (or never built)."""
