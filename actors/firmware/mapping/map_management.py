@@ -365,7 +365,8 @@ class MapManagement(Actor):
         # one whose stamp did not leaves the belief where it is)
         standing = not self.wide(opts) and now - self._still_since >= self.settle_s and (
             _same_pose(odom, self._last_odom))
-        if self._window and standing != self._window_standing:
+        if self._window and (standing != self._window_standing
+                             or not self._window.fits(scan)):
             self._flush(now)
         self._predict(odom)
         self._window.add(scan)
