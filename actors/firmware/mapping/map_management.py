@@ -10,12 +10,23 @@ whenever scans arrived, changed or not, so navigation can tell "map unchanged
 while scans keep arriving" from "LIDAR stalled". ``MAP_GET`` publishes both
 at once.
 
+Windows of batches (why: see `scan_window`)
+    Batches come stamped with the raw odometry pose. Once the first
+    ``warmup_scans`` batches made a reference (fused one by one), consecutive
+    batches are gathered into a window of about a revolution, de-skewed into the
+    last batch's frame by the odometry counted between the stamps, and matched,
+    judged, weighed and fused once per window. A window is cut before a batch
+    that would turn it by a heading quantum, after a revolution's sweep or its
+    travel budget (`scan_window`), at a motion's end (the first batch whose
+    stamp did not move after one that did), before a tread fault report, a
+    restore or navigation's ``MAP_GET``, and when the rover starts or stops
+    standing.
+
 Scan matching (why: see `scan_match`)
-    Scans come stamped with the raw odometry pose. Each batch is guessed at
-    ``correction (+) odometry`` and, once the first ``warmup_scans`` batches
-    made a reference, registered against the obstacle surfaces of the map
-    built so far; an accepted match updates the pose belief and with it the
-    correction (odometry -> map frame). The matching fields are rebuilt from
+    A window is guessed at ``correction (+) odometry`` (its last stamp) and
+    registered against the obstacle surfaces of the map built so far; an
+    accepted match updates the pose belief and with it the correction
+    (odometry -> map frame). The matching fields are rebuilt from
     the grid at most every ``fields_s``. The correction goes to navigation (``NAV_MAP_ORIGIN_XY`` +
     ``NAV_MAP_ORIGIN_HEADING``) with the published updates: navigation keeps
     it as its ``origin`` (map -> odometry), so its map-frame pose is the
@@ -28,7 +39,7 @@ The pose belief (why: see `localisation.gaussian_pose`)
     by the treads' counted motion since the last batch (the motion model's
     noise); a tread Motor Control reported (``MAP_TREAD_FAULT``, relayed by
     navigation with the travel driven beyond the count) widens it as the
-    model says, and a both-silent turn is two such treads. Then the batch is
+    model says, and a both-silent turn is two such treads. Then each window is
     matched: from the mean (`scan_match.match_scan`) while the belief is
     within the local match's reach (its 95 % heading under ``max_turn_deg``
     and radius under ``max_shift_cm``), or by the wide search
@@ -37,12 +48,12 @@ The pose belief (why: see `localisation.gaussian_pose`)
     judged by the scan likelihood (`scan_likelihood.judge_fit`: enough hits,
     not new ground, the fit, and the belief's gate); accepted, it updates the
     belief with the scan's information (`face_information`: its hits on faces),
-    and the batch is placed where the prediction and the match, weighed,
+    and the window is placed where the prediction and the match, weighed,
     put it: the match across walls, the prediction along a corridor's walls
-    (which the scan does not constrain). Refused, the batch is dropped
+    (which the scan does not constrain). Refused, the window is dropped
     and the reason counted (`refusals`: data for metrics, never a trigger):
     its pose is in doubt, and one badly placed batch clears free space
-    through walls. A batch that cannot be judged (too few hits, new ground)
+    through walls. A window that cannot be judged (too few hits, new ground)
     is placed at the mean while the belief is within the local reach, and
     dropped while it is wider.
 
@@ -154,9 +165,9 @@ class MapManagement(Actor):
         matching: scan-to-map matching options; None turns matching off.
         fields_s: rebuild the matching fields from the grid at most this often [s].
         warmup_scans: integrate this many batches unmatched first (the reference).
-        settle_s: a batch is placed unmatched (the correction kept) only when odometry
+        settle_s: a window is placed unmatched (the correction kept) only when odometry
             has not changed between batches for this long [s] and the last matched
-            batch was taken at the same odometry pose: the rover stands.
+            window ended at the same odometry pose: the rover stands.
         track_width_cm: distance between the treads' contact lines [cm] (the motion
             model's geometry).
         noise: the motion model's noise levels.
@@ -198,7 +209,7 @@ class MapManagement(Actor):
         self.broken = 0.0
         """Weight of the "odometry broke unseen" hypothesis (`odometry_fault`) [1]."""
         self.switches = 0
-        self._weighed_at = -float("inf")  # time of the last batch weighed by `_weigh_odometry`
+        self._weighed_at = -float("inf")  # time of the last window weighed by `_weigh_odometry`
         # odometry -> map frame under "broken", learnt from a confident fit the narrow
         # belief could not hold (None: not learnt, the broken component is wide)
         self._alt_correction: Pose | None = None
@@ -217,16 +228,17 @@ class MapManagement(Actor):
         self.searched = 0
         """Windows placed by the wide search (`scan_match.relocalise`)."""
         self.refusals: Counter[str] = Counter()
-        """Batches dropped, by reason: a matched pose the scan likelihood refused
-        (`FitVerdict`'s value), a match refused by the matcher, or a wide belief that
-        the batch could not settle. Data for metrics, never a trigger."""
+        """Batches dropped (a window counts its batches), by reason: a matched pose the
+        scan likelihood refused (`FitVerdict`'s value), a match refused by the matcher,
+        or a wide belief that the window could not settle. Data for metrics, never a
+        trigger."""
         self.held_scans = 0
         """Batches dropped while waiting for the correction after a restart."""
         self._fields: MatchFields | None = None
         self._distance: DistanceField | None = None
         self._fields_at = -float("inf")
         self._fields_stale = True  # the grid changed since the fields were built
-        self._last_odom: Pose | None = None  # odometry pose of the last matched batch
+        self._last_odom: Pose | None = None  # last odometry stamp of the last matched window
         self._sent_correction = Pose()  # the correction navigation has (as far as we know)
         self._origin_halves = OriginHalves()  # MAP_ORIGIN_XY waiting for its heading
         # a restarted incarnation waits (a bounded time) for the correction navigation kept
@@ -328,7 +340,7 @@ class MapManagement(Actor):
     def wide(self, opts: MatchOptions) -> bool:
         """Whether the belief is wider than the local match reaches (its 95 % heading over
         ``max_turn_deg`` or its 95 % radius over ``max_shift_cm``): then only the wide
-        search may place a batch."""
+        search may place a window."""
         b = self.belief
         return b.heading95_deg > opts.max_turn_deg or b.radius95_over(opts.max_shift_cm)
 
@@ -462,11 +474,11 @@ class MapManagement(Actor):
 
     def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float,
                         stamp: np.ndarray) -> tuple[ScanFit, ScanFit | None] | None:
-        """Weigh this batch's scan as evidence for "odometry broke unseen"
+        """Weigh this window's scan as evidence for "odometry broke unseen"
         (`odometry_fault`) and return its fit at the belief's mean and, when it was
         judged, at the match (`judge_fit` without the belief: `_place` gates it); when
         that hypothesis is the more probable, the belief becomes its wide component and
-        None is returned (the batch's pose is in doubt)."""
+        None is returned (the window's pose is in doubt)."""
         assert self._distance is not None
         if self._weighed_at > -float("inf"):
             self.broken += (1.0 - self.broken) * hazard(now - self._weighed_at, self.fault_noise)
