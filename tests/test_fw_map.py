@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import pytest
 import trio
@@ -518,12 +520,35 @@ def _send_room_part(system, pool: BufferPool, odom, taken_at, part: int) -> None
         Scan(odom, a[quarter].astype(np.float32), r[quarter].astype(np.float32)))))
 
 
-async def _reference(system, pool: BufferPool, truth) -> MapManagement:
-    """Three whole revolutions at ``truth`` (the reference); Map Management once settled."""
-    for _ in range(3):
-        _send_room_scan(system, pool, truth, truth)
-    await trio.sleep(0.6)
-    return system.whereis("mapper/map").actor
+@contextlib.asynccontextmanager
+async def _mapped(**options):
+    """Map Management (``options``, 3 warm-up batches) with its reference: three whole
+    revolutions at the true pose (120, 80) @ 0; yields (system, pool, map, true pose)."""
+    from server.protocol.pose import Pose
+
+    pool, log = BufferPool(64), []
+    truth = Pose(120.0, 80.0, 0.0)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(_map_tree(pool, log, warmup_scans=3, **options),
+                                      "mapper")
+        for _ in range(3):
+            _send_room_scan(system, pool, truth, truth)
+        await trio.sleep(0.6)
+        yield system, pool, system.whereis("mapper/map").actor, truth
+
+
+async def _drive(system, pool: BufferPool, truth, mm: MapManagement, batches: int = 2):
+    """``batches`` quarter revolutions while driving 1 cm per tick along x from
+    ``truth``; none is fused yet (the window gathers them). Returns the last stamp."""
+    from server.protocol.pose import Pose
+
+    scans, matched = mm.scans, mm.matched
+    for k in range(batches):
+        pose = Pose(truth.x + k + 1.0, truth.y, 0.0)
+        _send_room_part(system, pool, pose, pose, k)
+        await trio.sleep(0.05)
+        assert (mm.scans, mm.matched) == (scans, matched)  # gathered
+    return pose
 
 
 @pytest.mark.trio
@@ -531,20 +556,9 @@ async def test_a_window_is_cut_at_a_motions_end(autojump_clock) -> None:
     """Batches whose stamps move are gathered, not matched one by one; the first batch
     whose stamp did not move (the motion ended) closes the window, which is then matched
     once and fused whole."""
-    from server.protocol.pose import Pose
-
-    pool, log = BufferPool(64), []
-    spec = _map_tree(pool, log, warmup_scans=3)
-    truth = Pose(120.0, 80.0, 0.0)
-    async with open_actor_system(1) as system:
-        await system.start_supervisor(spec, "mapper")
-        mm = await _reference(system, pool, truth)
+    async with _mapped() as (system, pool, mm, truth):
         scans, matched = mm.scans, mm.matched
-        for k in range(2):  # driving: 1 cm per tick
-            pose = Pose(truth.x + k + 1.0, truth.y, 0.0)
-            _send_room_part(system, pool, pose, pose, k)
-            await trio.sleep(0.05)
-            assert (mm.scans, mm.matched) == (scans, matched)  # gathered
+        pose = await _drive(system, pool, truth, mm)
         _send_room_part(system, pool, pose, pose, 2)  # the stamp did not move: stopped
         await trio.sleep(0.05)
         assert (mm.scans, mm.matched, mm.windows) == (scans + 3, matched + 1, 4)
@@ -556,20 +570,9 @@ async def test_a_window_is_cut_at_a_tread_fault_report(autojump_clock) -> None:
     """A tread fault report closes the window first: the batches taken before it are
     matched and fused where the counts put them, and only then does the report widen
     the belief."""
-    from server.protocol.pose import Pose
-
-    pool, log = BufferPool(64), []
-    spec = _map_tree(pool, log, warmup_scans=3)
-    truth = Pose(120.0, 80.0, 0.0)
-    async with open_actor_system(1) as system:
-        await system.start_supervisor(spec, "mapper")
-        mm = await _reference(system, pool, truth)
+    async with _mapped() as (system, pool, mm, truth):
         scans, matched = mm.scans, mm.matched
-        for k in range(2):
-            pose = Pose(truth.x + k + 1.0, truth.y, 0.0)
-            _send_room_part(system, pool, pose, pose, k)
-            await trio.sleep(0.05)
-        assert mm.scans == scans
+        await _drive(system, pool, truth, mm)
         narrow = mm.belief.heading95_deg
         system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -50, 50))
         await trio.sleep(0.01)
@@ -585,12 +588,7 @@ async def test_a_standing_rover_fuses_its_batches_in_windows_without_matching(
     mean, unmatched, and every batch is counted."""
     from server.protocol.pose import Pose
 
-    pool, log = BufferPool(64), []
-    spec = _map_tree(pool, log, warmup_scans=3, settle_s=1.0)
-    truth = Pose(120.0, 80.0, 0.0)
-    async with open_actor_system(1) as system:
-        await system.start_supervisor(spec, "mapper")
-        mm = await _reference(system, pool, truth)
+    async with _mapped(settle_s=1.0) as (system, pool, mm, truth):
         stamp = Pose(truth.x + 1.0, truth.y, 0.0)
         for k in range(40):  # 2 s, 20 batches a second, a quarter revolution each
             _send_room_part(system, pool, stamp, stamp, k)
