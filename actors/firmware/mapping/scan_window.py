@@ -15,12 +15,12 @@ Why
 
 Where a window is cut (`ScanWindow.fits` before a batch, `ScanWindow.full` after it,
 and Map Management's own cuts)
-    * before a batch that would take the window's counted turn to ``WINDOW_TURN_DEG``:
-      the dead-reckoned heading moves in quanta of one encoder interrupt of one tread
-      (0.5 cm over the 13 cm track: 2.2 deg), so the turn counted between two stamps
-      is off by up to a quantum, and de-skewing by it smears the window (a turning
-      rover's batches are then matched one by one, each placed by its own fit; a
-      straight drive whose heading flickers by one quantum keeps its window);
+    * before a batch whose stamp turned (``WINDOW_TURN_DEG``): the dead-reckoned
+      heading moves in quanta of one encoder interrupt of one tread (0.5 cm over the
+      13 cm track: 2.2 deg), so the turn counted between two stamps is off by up to a
+      quantum (a straight drive's heading flickers by one), and de-skewing by it
+      smears the window; so a window's stamps share one heading, and a turning
+      rover's batches are matched one by one, each placed by its own fit;
     * once its beams swept a revolution (``WINDOW_SWEEP_DEG``): beyond it a direction
       is seen twice, from stamps that disagree by the odometry's error;
     * once its counted travel reached ``WINDOW_TRAVEL_CM`` (a drive after a gap in
@@ -29,10 +29,10 @@ and Map Management's own cuts)
       change after one that did), before a tread fault report (``MAP_TREAD_FAULT``),
       a restore, an upload's ``MAP_GET``, and when the rover starts or stops standing.
 
-Measured (hall seed 1, one game each, the map's accuracy against the room): windows
+Measured (one game each, the map's accuracy against the room): hall seed 1, windows
 of one batch 0.9989, of two 0.9960, of a revolution (about four batches) with turns
-inside them 0.992 to 0.994, of a revolution cut before a turn 0.9956 (hall seed 2:
-0.9963); see docs/speed.md for what they cost.
+inside them 0.992 to 0.994; corridor seed 4, windows that may hold one heading
+quantum of turn 0.9868, windows of one heading 0.9961 (docs/speed.md).
 
 Frame and units
     Stamps are odometry poses ([cm], [deg]); relative poses are in the last batch's
@@ -53,10 +53,9 @@ __all__ = ["ScanWindow", "WINDOW_SWEEP_DEG", "WINDOW_TURN_DEG", "WINDOW_TRAVEL_C
 
 WINDOW_SWEEP_DEG = 360.0
 """A window holds at most about one revolution of the rotor's sweep [deg]."""
-WINDOW_TURN_DEG = 2.5
-"""A window's counted turn stays under this [deg]: just over one heading quantum of the
-odometry (2.2 deg), so a heading that flickers by one quantum keeps its window and a
-turn does not."""
+WINDOW_TURN_DEG = 0.3
+"""A window's counted turn stays under this [deg]: its stamps share one heading (within
+their rounding; the odometry's heading moves in quanta of 2.2 deg)."""
 WINDOW_TRAVEL_CM = 10.0
 """A window is cut once the odometry counted this much travel within it [cm]."""
 
