@@ -602,3 +602,31 @@ async def test_a_standing_rover_fuses_its_batches_in_windows_without_matching(
         assert mm.windows == windows + 10  # ...but fused, a revolution at a time
         assert mm.scans == scans + 40
         assert mm.scans + mm.unplaced == 3 + 80  # (a refused window counts its batches)
+
+
+@pytest.mark.trio
+async def test_a_standing_rover_whose_match_ends_worse_than_the_guess_still_stands(
+        autojump_clock, monkeypatch) -> None:
+    """When every local match ends a hair worse than the guess (refused), a rover that has
+    stood ``settle_s`` with its scan fitting well at the belief's mean is still taken as
+    standing: its windows are fused unmatched from then on, instead of all being dropped
+    (which navigation would read as a silent LIDAR)."""
+    from actors.firmware.mapping import map_management
+    from actors.firmware.mapping.scan_match import MatchResult
+    from server.protocol.pose import Pose
+
+    def no_better(fields, points, guess, options=None):
+        return MatchResult(guess, False, 0.9, 0.9, "the match fits worse than the guess", True)
+
+    async with _mapped(settle_s=1.0) as (system, pool, mm, truth):
+        monkeypatch.setattr(map_management, "match_scan", no_better)
+        stamp = Pose(truth.x + 1.0, truth.y, 0.0)  # moved once, then stands
+        for k in range(30):  # 1.5 s
+            _send_room_part(system, pool, stamp, stamp, k)
+            await trio.sleep(0.05)
+        assert mm.refusals["the match fits worse than the guess"] > 0
+        scans = mm.scans
+        for k in range(20):
+            _send_room_part(system, pool, stamp, stamp, k)
+            await trio.sleep(0.05)
+        assert mm.scans == scans + 20  # every batch fused while it stands

@@ -445,6 +445,13 @@ class MapManagement(Actor):
             if not result.supported and at_mean is not None and (
                     at_mean.verdict is not FitVerdict.BAD_FIT):
                 return guess  # new ground, or too few hits: nothing to judge it by
+            if result.supported and at_mean is not None and at_mean.accepted and (
+                    now - self._still_since >= self.settle_s):
+                # the rover has stood settle_s, its scan fits well at the mean and the
+                # match found nothing better nearby: its resting pose is judged, so it
+                # stands from the next window on (else a match that keeps ending a
+                # hair worse than the guess would keep a standing rover unplaced)
+                self._last_odom = odom
             return self._refuse(result.reason.split(" (")[0], len(window))
         assert self._distance is not None
         if at_match is None:
