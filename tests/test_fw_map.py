@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import pytest
 import trio
@@ -506,3 +508,125 @@ async def test_a_slip_the_encoders_did_not_report_is_recovered(autojump_clock) -
         assert mm.correction.heading_deg == pytest.approx(30.0, abs=2.0)
         assert mm.belief.mean.heading_deg == pytest.approx(90.0, abs=2.0)
         assert _stray_walls(before, mm.grid.cells()) <= 6
+
+
+def _send_room_part(system, pool: BufferPool, odom, taken_at, part: int) -> None:
+    """A quarter of a box-room revolution (rays ``part * 90`` to ``part * 90 + 90`` deg
+    of the rover frame) taken at ``taken_at``, sent as taken at ``odom``: one world tick's
+    batch."""
+    a, r = _room_scans(taken_at)
+    quarter = slice((part % 4) * 30, (part % 4) * 30 + 30)
+    system.send_nowait("mapper/map", Message.handle(Cmd.MAP_SCAN, pool.put(
+        Scan(odom, a[quarter].astype(np.float32), r[quarter].astype(np.float32)))))
+
+
+@contextlib.asynccontextmanager
+async def _mapped(**options):
+    """Map Management (``options``, 3 warm-up batches) with its reference: three whole
+    revolutions at the true pose (120, 80) @ 0; yields (system, pool, map, true pose)."""
+    from server.protocol.pose import Pose
+
+    pool, log = BufferPool(64), []
+    truth = Pose(120.0, 80.0, 0.0)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(_map_tree(pool, log, warmup_scans=3, **options),
+                                      "mapper")
+        for _ in range(3):
+            _send_room_scan(system, pool, truth, truth)
+        await trio.sleep(0.6)
+        yield system, pool, system.whereis("mapper/map").actor, truth
+
+
+async def _drive(system, pool: BufferPool, truth, mm: MapManagement, batches: int = 2):
+    """``batches`` quarter revolutions while driving 1 cm per tick along x from
+    ``truth``; none is fused yet (the window gathers them). Returns the last stamp."""
+    from server.protocol.pose import Pose
+
+    scans, matched = mm.scans, mm.matched
+    for k in range(batches):
+        pose = Pose(truth.x + k + 1.0, truth.y, 0.0)
+        _send_room_part(system, pool, pose, pose, k)
+        await trio.sleep(0.05)
+        assert (mm.scans, mm.matched) == (scans, matched)  # gathered
+    return pose
+
+
+@pytest.mark.trio
+async def test_a_window_is_cut_at_a_motions_end(autojump_clock) -> None:
+    """Batches whose stamps move are gathered, not matched one by one; the first batch
+    whose stamp did not move (the motion ended) closes the window, which is then matched
+    once and fused whole."""
+    async with _mapped() as (system, pool, mm, truth):
+        scans, matched = mm.scans, mm.matched
+        pose = await _drive(system, pool, truth, mm)
+        _send_room_part(system, pool, pose, pose, 2)  # the stamp did not move: stopped
+        await trio.sleep(0.05)
+        assert (mm.scans, mm.matched, mm.windows) == (scans + 3, matched + 1, 4)
+        assert mm.belief.mean.x == pytest.approx(truth.x + 2.0, abs=1.0)
+
+
+@pytest.mark.trio
+async def test_a_window_is_cut_at_a_tread_fault_report(autojump_clock) -> None:
+    """A tread fault report closes the window first: the batches taken before it are
+    matched and fused where the counts put them, and only then does the report widen
+    the belief."""
+    async with _mapped() as (system, pool, mm, truth):
+        scans, matched = mm.scans, mm.matched
+        await _drive(system, pool, truth, mm)
+        narrow = mm.belief.heading95_deg
+        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -50, 50))
+        await trio.sleep(0.01)
+        assert (mm.scans, mm.matched) == (scans + 2, matched + 1)
+        assert mm.belief.heading95_deg > narrow + 5.0  # then the report widened it
+
+
+@pytest.mark.trio
+async def test_a_standing_rover_fuses_its_batches_in_windows_without_matching(
+        autojump_clock) -> None:
+    """While odometry stands still, the batches are matched (in windows of a revolution)
+    only until ``settle_s`` has passed; after that whole windows are fused at the belief's
+    mean, unmatched, and every batch is counted."""
+    from server.protocol.pose import Pose
+
+    async with _mapped(settle_s=1.0) as (system, pool, mm, truth):
+        stamp = Pose(truth.x + 1.0, truth.y, 0.0)
+        for k in range(40):  # 2 s, 20 batches a second, a quarter revolution each
+            _send_room_part(system, pool, stamp, stamp, k)
+            await trio.sleep(0.05)
+        matched, windows, scans = mm.matched, mm.windows, mm.scans
+        assert 1 <= matched <= 6  # the first second: a window per revolution, matched
+        for k in range(40):
+            _send_room_part(system, pool, stamp, stamp, k)
+            await trio.sleep(0.05)
+        assert mm.matched == matched  # standing: not matched again
+        assert mm.windows == windows + 10  # ...but fused, a revolution at a time
+        assert mm.scans == scans + 40
+        assert mm.scans + mm.unplaced == 3 + 80  # (a refused window counts its batches)
+
+
+@pytest.mark.trio
+async def test_a_standing_rover_whose_match_ends_worse_than_the_guess_still_stands(
+        autojump_clock, monkeypatch) -> None:
+    """When every local match ends a hair worse than the guess (refused), a rover that has
+    stood ``settle_s`` with its scan fitting well at the belief's mean is still taken as
+    standing: its windows are fused unmatched from then on, instead of all being dropped
+    (which navigation would read as a silent LIDAR)."""
+    from actors.firmware.mapping import map_management
+    from actors.firmware.mapping.scan_match import MatchResult
+    from server.protocol.pose import Pose
+
+    def no_better(fields, points, guess, options=None):
+        return MatchResult(guess, False, 0.9, 0.9, "the match fits worse than the guess", True)
+
+    async with _mapped(settle_s=1.0) as (system, pool, mm, truth):
+        monkeypatch.setattr(map_management, "match_scan", no_better)
+        stamp = Pose(truth.x + 1.0, truth.y, 0.0)  # moved once, then stands
+        for k in range(30):  # 1.5 s
+            _send_room_part(system, pool, stamp, stamp, k)
+            await trio.sleep(0.05)
+        assert mm.refusals["the match fits worse than the guess"] > 0
+        scans = mm.scans
+        for k in range(20):
+            _send_room_part(system, pool, stamp, stamp, k)
+            await trio.sleep(0.05)
+        assert mm.scans == scans + 20  # every batch fused while it stands

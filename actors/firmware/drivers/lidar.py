@@ -60,14 +60,35 @@ __all__ = ["Scan", "LidarHealth", "HealthOptions", "roughness_cm", "batch_health
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Scan:
-    """One batch of LIDAR returns taken at ``pose`` (what ``MAP_SCAN`` points to)."""
+    """One batch of LIDAR returns taken at ``pose`` (what ``MAP_SCAN`` points to).
+
+    A batch is one world tick's samples, in the rotor's sweep order, stamped with the
+    odometry pose Motor Control published for that tick (pose association, in the
+    module docstring). Consecutive batches' stamps are in one odometry frame, so the
+    odometry counted between two stamps (``relative(stamp_a, stamp_b)``) brings one
+    batch into another's frame: Map Management de-skews windows of about a revolution
+    of batches that way (`mapping.scan_window`), each batch keeping its own stamp.
+    """
 
     pose: Pose
-    """Rover pose in its own frame when the batch was taken."""
+    """Rover pose in its own (odometry) frame when the batch was taken: its stamp."""
     angles_deg: np.ndarray
-    """Ray angles from the rover heading, counter-clockwise [deg], float32 (n,)."""
+    """Ray angles from the rover heading, counter-clockwise [deg], float32 (n,), in the
+    rotor's sweep order."""
     ranges_cm: np.ndarray
     """Ranges [cm], float32 (n,); 0 means no return."""
+
+    @property
+    def sweep_deg(self) -> float:
+        """The rotor's sweep the batch covers [deg]: from its first sample to its last,
+        plus one mean step between samples (each sample stands for one step of the
+        sweep), so n samples 1 deg apart sweep n deg. At the mapping duty a batch is
+        about a hundred samples; a batch of a whole revolution sweeps 360 deg."""
+        a = self.angles_deg
+        n = a.size
+        if n < 2:
+            return 0.0
+        return float((a[-1] - a[0]) % 360.0) * n / (n - 1)
 
 
 class LidarHealth(enum.IntEnum):

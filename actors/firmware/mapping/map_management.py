@@ -10,12 +10,23 @@ whenever scans arrived, changed or not, so navigation can tell "map unchanged
 while scans keep arriving" from "LIDAR stalled". ``MAP_GET`` publishes both
 at once.
 
+Windows of batches (why: see `scan_window`)
+    Batches come stamped with the raw odometry pose. Once the first
+    ``warmup_scans`` batches made a reference (fused one by one), consecutive
+    batches are gathered into a window of about a revolution, de-skewed into the
+    last batch's frame by the odometry counted between the stamps, and matched,
+    judged, weighed and fused once per window. A window is cut before a batch
+    that would turn it by a heading quantum, after a revolution's sweep or its
+    travel budget (`scan_window`), at a motion's end (the first batch whose
+    stamp did not move after one that did), before a tread fault report, a
+    restore or navigation's ``MAP_GET``, and when the rover starts or stops
+    standing.
+
 Scan matching (why: see `scan_match`)
-    Scans come stamped with the raw odometry pose. Each batch is guessed at
-    ``correction (+) odometry`` and, once the first ``warmup_scans`` batches
-    made a reference, registered against the obstacle surfaces of the map
-    built so far; an accepted match updates the pose belief and with it the
-    correction (odometry -> map frame). The matching fields are rebuilt from
+    A window is guessed at ``correction (+) odometry`` (its last stamp) and
+    registered against the obstacle surfaces of the map built so far; an
+    accepted match updates the pose belief and with it the correction
+    (odometry -> map frame). The matching fields are rebuilt from
     the grid at most every ``fields_s``. The correction goes to navigation (``NAV_MAP_ORIGIN_XY`` +
     ``NAV_MAP_ORIGIN_HEADING``) with the published updates: navigation keeps
     it as its ``origin`` (map -> odometry), so its map-frame pose is the
@@ -28,7 +39,7 @@ The pose belief (why: see `localisation.gaussian_pose`)
     by the treads' counted motion since the last batch (the motion model's
     noise); a tread Motor Control reported (``MAP_TREAD_FAULT``, relayed by
     navigation with the travel driven beyond the count) widens it as the
-    model says, and a both-silent turn is two such treads. Then the batch is
+    model says, and a both-silent turn is two such treads. Then each window is
     matched: from the mean (`scan_match.match_scan`) while the belief is
     within the local match's reach (its 95 % heading under ``max_turn_deg``
     and radius under ``max_shift_cm``), or by the wide search
@@ -37,12 +48,12 @@ The pose belief (why: see `localisation.gaussian_pose`)
     judged by the scan likelihood (`scan_likelihood.judge_fit`: enough hits,
     not new ground, the fit, and the belief's gate); accepted, it updates the
     belief with the scan's information (`face_information`: its hits on faces),
-    and the batch is placed where the prediction and the match, weighed,
+    and the window is placed where the prediction and the match, weighed,
     put it: the match across walls, the prediction along a corridor's walls
-    (which the scan does not constrain). Refused, the batch is dropped
+    (which the scan does not constrain). Refused, the window is dropped
     and the reason counted (`refusals`: data for metrics, never a trigger):
     its pose is in doubt, and one badly placed batch clears free space
-    through walls. A batch that cannot be judged (too few hits, new ground)
+    through walls. A window that cannot be judged (too few hits, new ground)
     is placed at the mean while the belief is within the local reach, and
     dropped while it is wider.
 
@@ -64,6 +75,7 @@ queue slots and dropped scans, never a restart.
 from __future__ import annotations
 
 import contextlib
+import math
 from collections import Counter
 
 import numpy as np
@@ -106,10 +118,10 @@ from actors.firmware.mapping.scan_match import (
     MatchFields,
     MatchOptions,
     MatchResult,
-    hits_to_local,
     match_scan,
     relocalise,
 )
+from actors.firmware.mapping.scan_window import ScanWindow
 from actors.firmware.origin_wire import OriginHalves, pose_messages
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
@@ -153,9 +165,9 @@ class MapManagement(Actor):
         matching: scan-to-map matching options; None turns matching off.
         fields_s: rebuild the matching fields from the grid at most this often [s].
         warmup_scans: integrate this many batches unmatched first (the reference).
-        settle_s: a batch is placed unmatched (the correction kept) only when odometry
+        settle_s: a window is placed unmatched (the correction kept) only when odometry
             has not changed between batches for this long [s] and the last matched
-            batch was taken at the same odometry pose: the rover stands.
+            window ended at the same odometry pose: the rover stands.
         track_width_cm: distance between the treads' contact lines [cm] (the motion
             model's geometry).
         noise: the motion model's noise levels.
@@ -197,7 +209,7 @@ class MapManagement(Actor):
         self.broken = 0.0
         """Weight of the "odometry broke unseen" hypothesis (`odometry_fault`) [1]."""
         self.switches = 0
-        self._weighed_at = -float("inf")  # time of the last batch weighed by `_weigh_odometry`
+        self._weighed_at = -float("inf")  # time of the last window weighed by `_weigh_odometry`
         # odometry -> map frame under "broken", learnt from a confident fit the narrow
         # belief could not hold (None: not learnt, the broken component is wide)
         self._alt_correction: Pose | None = None
@@ -209,20 +221,24 @@ class MapManagement(Actor):
         """Odometry frame -> map frame: the belief's mean composed with the inverse of
         its odometry stamp (identity until a match or a report moves it)."""
         self.matched = 0
-        """Scan batches placed by a match (the others at the belief's mean)."""
+        """Windows of batches placed by a match (the others at the belief's mean)."""
+        self.windows = 0
+        """Windows of batches fused into the grid (`scan_window`; a batch of the
+        reference is a window of its own)."""
         self.searched = 0
-        """Batches placed by the wide search (`scan_match.relocalise`)."""
+        """Windows placed by the wide search (`scan_match.relocalise`)."""
         self.refusals: Counter[str] = Counter()
-        """Batches dropped, by reason: a matched pose the scan likelihood refused
-        (`FitVerdict`'s value), a match refused by the matcher, or a wide belief that
-        the batch could not settle. Data for metrics, never a trigger."""
+        """Batches dropped (a window counts its batches), by reason: a matched pose the
+        scan likelihood refused (`FitVerdict`'s value), a match refused by the matcher,
+        or a wide belief that the window could not settle. Data for metrics, never a
+        trigger."""
         self.held_scans = 0
         """Batches dropped while waiting for the correction after a restart."""
         self._fields: MatchFields | None = None
         self._distance: DistanceField | None = None
         self._fields_at = -float("inf")
         self._fields_stale = True  # the grid changed since the fields were built
-        self._last_odom: Pose | None = None  # odometry pose of the last matched batch
+        self._last_odom: Pose | None = None  # last odometry stamp of the last matched window
         self._sent_correction = Pose()  # the correction navigation has (as far as we know)
         self._origin_halves = OriginHalves()  # MAP_ORIGIN_XY waiting for its heading
         # a restarted incarnation waits (a bounded time) for the correction navigation kept
@@ -232,6 +248,9 @@ class MapManagement(Actor):
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
         self._timer_armed = False
+        self._window = ScanWindow()  # batches waiting to be fused as one (`scan_window`)
+        self._window_standing = False  # whether they were taken while the rover stood
+        self._moving = False  # whether the last batch's stamp differed from the one before
 
     @property
     def unplaced(self) -> int:
@@ -259,23 +278,20 @@ class MapManagement(Actor):
         cmd = message.command
         if cmd == Cmd.MAP_SCAN:
             scan = self.pool.take(int(message.value))
-            if trio.current_time() < self._await_correction_until:
+            now = trio.current_time()
+            if now < self._await_correction_until:
                 self.held_scans += 1  # placed in the wrong frame, it would smear the map
                 return
-            pose = self._place(scan)
-            if pose is None:
-                return  # its pose is in doubt (the reason is counted in `refusals`)
-            if self.grid.integrate(pose, scan.angles_deg, scan.ranges_cm):
-                self._changed = self._fields_stale = True
-            self.scans += 1
-            self._maybe_publish()
+            self._take_batch(scan, now)
         elif cmd == Cmd.MAP_GET:  # from navigation (value 0), or our deferred timer (1)
             if message.value == 1:
                 self._timer_armed = False
                 self._publish(force=False)
             else:
+                self._flush()  # navigation wants the map as it is now (an upload)
                 self._publish()
         elif cmd == Cmd.MAP_RESTORE:
+            self._flush()
             self._restore(self.pool.take(int(message.value)))
             self._publish()
         elif cmd == Cmd.MAP_ORIGIN_XY:
@@ -288,6 +304,7 @@ class MapManagement(Actor):
             self._await_correction_until = -float("inf")
         elif cmd == Cmd.MAP_TREAD_FAULT:
             left_mm, right_mm = message.as_pair()
+            self._flush()  # the batches before the report are placed as the counts say
             self._tread_fault(left_mm / 10.0, right_mm / 10.0)
         elif cmd == Cmd.NOOP:
             self.noops += 1  # a flood fault: costs a queue slot, never a restart
@@ -323,41 +340,96 @@ class MapManagement(Actor):
     def wide(self, opts: MatchOptions) -> bool:
         """Whether the belief is wider than the local match reaches (its 95 % heading over
         ``max_turn_deg`` or its 95 % radius over ``max_shift_cm``): then only the wide
-        search may place a batch."""
+        search may place a window."""
         b = self.belief
         return b.heading95_deg > opts.max_turn_deg or b.radius95_over(opts.max_shift_cm)
 
-    def _place(self, scan: Scan) -> Pose | None:
-        """The map-frame pose of a batch, or None when it is dropped (the module docstring).
+    def _take_batch(self, scan: Scan, now: float) -> None:
+        """Add a batch to the window, and fuse the window when it is cut (the module
+        docstring, `scan_window`).
 
-        A batch is placed at the belief's mean unmatched when the rover stands: odometry
-        has not changed for ``settle_s`` and the last matched batch was taken at the same
-        odometry pose (within 5 mm and 0.3 deg). An unchanged odometry stamp alone does
-        not mean the rover stands: one Int E turns the heading by 2.2 deg, so a turning
-        rover's batch can carry the previous tick's stamp, and after a turn the rover
-        keeps turning by up to an interrupt's worth (or swings back) unseen by its
-        encoders; such batches are matched.
+        The rover stands when odometry has not changed for ``settle_s`` and the last
+        matched window ended at the same odometry pose (within 5 mm and 0.3 deg, the
+        belief within the local reach): a standing window is placed at the belief's mean
+        unmatched. An unchanged stamp alone does not mean the rover stands: one Int E
+        turns the heading by 2.2 deg, so a turning rover's batch can carry the previous
+        tick's stamp, and after a turn the rover keeps turning by up to an interrupt's
+        worth (or swings back) unseen by its encoders; such batches are matched. The
+        first batch whose stamp did not change after one that did ends a motion (or
+        pauses it): the window is cut there, so navigation gets the pose a motion ended
+        at without waiting for the next window.
         """
         odom = scan.pose
-        opts = self.matching
-        now = trio.current_time()
-        if not _same_pose(odom, self._prev_odom):
+        moved = not _same_pose(odom, self._prev_odom)
+        ended = self._moving and not moved
+        self._moving = moved
+        if moved:
             self._still_since = now
         self._prev_odom = odom
+        opts = self.matching
+        if opts is None or self.scans + len(self._window) < self.warmup_scans:
+            self._predict(odom)  # the reference is built batch by batch
+            window = ScanWindow()
+            window.add(scan)
+            self._fuse(window, now, standing=False)
+            return
+        # (evaluated before the prediction: a batch whose stamp moved never stands, and
+        # one whose stamp did not leaves the belief where it is)
+        standing = not self.wide(opts) and now - self._still_since >= self.settle_s and (
+            _same_pose(odom, self._last_odom))
+        if self._window and (standing != self._window_standing
+                             or not self._window.fits(scan)):
+            self._flush(now)
         self._predict(odom)
+        self._window.add(scan)
+        self._window_standing = standing
+        if ended or self._window.full():
+            self._flush(now)
+
+    def _flush(self, now: float | None = None) -> None:
+        """Fuse the window gathered so far (if any), and start a new one."""
+        window = self._window
+        if not window:
+            return
+        self._window = ScanWindow()
+        self._fuse(window, trio.current_time() if now is None else now,
+                   standing=self._window_standing)
+
+    def _fuse(self, window: ScanWindow, now: float, *, standing: bool) -> None:
+        """Place a window and fuse it into the grid (each beam from its own batch's
+        origin), or drop it when its pose is in doubt."""
+        pose = self._place(window, now, standing)
+        if pose is None:
+            return  # its pose is in doubt (the reason is counted in `refusals`)
+        angles, ranges = window.beams()
+        if len(window) == 1:
+            changed = self.grid.integrate(pose, angles, ranges)
+        else:
+            changed = self.grid.integrate_batches(window.beam_poses(pose), window.sizes(),
+                                                  angles, ranges)
+        if changed:
+            self._changed = self._fields_stale = True
+        self.scans += len(window)
+        self.windows += 1
+        self._maybe_publish()
+
+    def _place(self, window: ScanWindow, now: float, standing: bool) -> Pose | None:
+        """The map-frame pose of a window's last batch, or None when the window is
+        dropped (the module docstring): the belief's mean while the reference is built
+        and while the rover stands; else the window's de-skewed hits matched, judged
+        and weighed once."""
+        opts = self.matching
         guess = self.belief.mean
-        if opts is None or self.scans < self.warmup_scans:
-            return guess
-        wide = self.wide(opts)
-        if not wide and now - self._still_since >= self.settle_s and _same_pose(
-                odom, self._last_odom):
+        if opts is None or self.scans < self.warmup_scans or standing:
             return guess  # standing still: matching again would only add its own jitter
-        stamp = self._stamp_covariance(now)
+        odom = window.last
+        wide = self.wide(opts)
+        stamp = self._stamp_covariance(now, window)
         fields = self._current_fields(opts, now)
-        pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
+        pts = window.local_points(opts)
         if wide:
             if now - self._search_at < _SEARCH_EVERY_S:
-                return self._refuse("searching")
+                return self._refuse("searching", len(window))
             self._search_at = now
             b = self.belief
             result = relocalise(fields, pts, guess, opts, turn_deg=min(180.0, b.heading95_deg),
@@ -367,13 +439,20 @@ class MapManagement(Actor):
             result = match_scan(fields, pts, guess, opts)
             weighed = self._weigh_odometry(pts, result, now, stamp)
             if weighed is None:
-                return self._refuse("odometry in doubt")
+                return self._refuse("odometry in doubt", len(window))
             at_mean, at_match = weighed
         if not result.accepted:
             if not result.supported and at_mean is not None and (
                     at_mean.verdict is not FitVerdict.BAD_FIT):
                 return guess  # new ground, or too few hits: nothing to judge it by
-            return self._refuse(result.reason.split(" (")[0])
+            if result.supported and at_mean is not None and at_mean.accepted and (
+                    now - self._still_since >= self.settle_s):
+                # the rover has stood settle_s, its scan fits well at the mean and the
+                # match found nothing better nearby: its resting pose is judged, so it
+                # stands from the next window on (else a match that keeps ending a
+                # hair worse than the guess would keep a standing rover unplaced)
+                self._last_odom = odom
+            return self._refuse(result.reason.split(" (")[0], len(window))
         assert self._distance is not None
         if at_match is None:
             at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
@@ -382,17 +461,18 @@ class MapManagement(Actor):
         if not fit.accepted:
             if fit.verdict in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS) and not wide:
                 return guess
-            return self._refuse(fit.verdict.value)
+            return self._refuse(fit.verdict.value, len(window))
         info = face_information(self._distance, result.pose, pts, _SCAN)
-        # this batch's pose: the prediction (the belief and the stamp's own error) and the
+        # this window's pose: the prediction (the belief and the stamp's own error) and the
         # match, weighed by what this one scan's hits say (each of its beams counted);
-        # the belief (the correction's) counts the scan as `independent_hits` measurements
-        # (its errors repeat from scan to scan) and takes the stamp's error as the match's,
-        # since it does not carry over to the next stamp
+        # the belief (the correction's) counts each batch of the window as
+        # `independent_hits` measurements (its errors repeat from scan to scan) and takes
+        # the stamp's error as the match's, since it does not carry over to the next stamp
         beams = min(len(pts), MAX_BEAMS)
         every_beam = info * max(1.0, beams / _SCAN.independent_hits)
         placed = self.belief.widened(stamp).update(result.pose, every_beam).mean
-        self.belief = self.belief.update(result.pose, info, stamp).moved_to(placed)
+        self.belief = self.belief.update(result.pose, info * len(window), stamp).moved_to(
+            placed)
         self.matched += 1
         self.searched += wide
         self._last_odom = odom
@@ -401,11 +481,11 @@ class MapManagement(Actor):
 
     def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float,
                         stamp: np.ndarray) -> tuple[ScanFit, ScanFit | None] | None:
-        """Weigh this batch's scan as evidence for "odometry broke unseen"
+        """Weigh this window's scan as evidence for "odometry broke unseen"
         (`odometry_fault`) and return its fit at the belief's mean and, when it was
         judged, at the match (`judge_fit` without the belief: `_place` gates it); when
         that hypothesis is the more probable, the belief becomes its wide component and
-        None is returned (the batch's pose is in doubt)."""
+        None is returned (the window's pose is in doubt)."""
         assert self._distance is not None
         if self._weighed_at > -float("inf"):
             self.broken += (1.0 - self.broken) * hazard(now - self._weighed_at, self.fault_noise)
@@ -457,19 +537,28 @@ class MapManagement(Actor):
         self.switches += 1
         return None
 
-    def _stamp_covariance(self, now: float) -> np.ndarray:
-        """The covariance of this batch's stamp's own error: the encoders' rounding
-        (`odometry_floor`) and the motion within the batch's tick, uniform over the step
-        between two stamps (its variance: the step squared over 12). A tick with no Int E
-        keeps the last step (the rover moves on between interrupts) until the rover has
-        stood ``settle_s``."""
+    def _stamp_covariance(self, now: float, window: ScanWindow) -> np.ndarray:
+        """The covariance of a window's stamps' own error: the encoders' rounding
+        (`odometry_floor`), the motion within the last batch's tick, uniform over the step
+        between two stamps (its variance: the step squared over 12; a tick with no Int E
+        keeps the last step, since the rover moves on between interrupts, until the rover
+        has stood ``settle_s``), and the odometry's error over the window's counted travel
+        and turn (the motion model's noise: it misplaces the earlier batches against the
+        last)."""
         ds, dtheta = self._step if now - self._still_since < self.settle_s else (0.0, 0.0)
-        return odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
-                                           dtheta * dtheta / 12.0])
+        cov = odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
+                                          dtheta * dtheta / 12.0])
+        if window.moved:
+            half = 0.5 * self.track_width_cm * math.radians(window.turn_deg)
+            travel = window.travel_cm
+            within = GaussianPose(self.belief.mean, np.zeros((3, 3))).predict(
+                travel - half, travel + half, self.track_width_cm, self.noise)
+            cov += within.covariance
+        return cov
 
-    def _refuse(self, reason: str) -> None:
-        """Drop a batch, counting why."""
-        self.refusals[reason] += 1
+    def _refuse(self, reason: str, batches: int) -> None:
+        """Drop a window of ``batches`` batches, counting why (per batch)."""
+        self.refusals[reason] += batches
 
     def _current_fields(self, opts: MatchOptions, now: float) -> MatchFields:
         """The matching fields, rebuilt first when stale for ``fields_s`` (or never built)."""

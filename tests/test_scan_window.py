@@ -1,0 +1,112 @@
+"""A window of LIDAR batches de-skewed into one frame by the odometry between its stamps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from actors.firmware.drivers.lidar import Scan
+from actors.firmware.mapping.scan_match import MatchOptions
+from actors.firmware.mapping.scan_window import (
+    WINDOW_SWEEP_DEG,
+    WINDOW_TRAVEL_CM,
+    WINDOW_TURN_DEG,
+    ScanWindow,
+)
+from server.protocol.pose import Pose, compose
+
+WALL_X = 150.0  # a straight wall along y at x = 150 cm (odometry frame)
+
+
+def wall_batch(pose: Pose, first_deg: float, n: int = 60) -> Scan:
+    """``n`` samples 1 deg apart from ``first_deg`` (rover frame), taken at ``pose``,
+    each the range to the wall x = ``WALL_X`` (0, no return, where the ray misses it)."""
+    angles = (first_deg + np.arange(n, dtype=np.float64)) % 360.0
+    t = np.radians(angles + pose.heading_deg)
+    c = np.cos(t)
+    with np.errstate(divide="ignore"):
+        r = np.where(c > 0.2, (WALL_X - pose.x) / c, 0.0)
+    return Scan(pose, angles.astype(np.float32), r.astype(np.float32))
+
+
+def turning_window() -> tuple[ScanWindow, list[Pose]]:
+    """Four batches taken while the rover turns 0.8 deg and drives 1.5 cm per tick (a
+    curve), the rotor sweeping on: each stamp is where the batch was taken. (Map
+    Management cuts its windows before a turn of the counted heading, whose quanta
+    are coarser than this; the geometry is the same for any stamps.)"""
+    stamps = [Pose(10.0 + 1.5 * k, 5.0, -6.0 + 0.8 * k) for k in range(4)]
+    window = ScanWindow()
+    for k, stamp in enumerate(stamps):
+        window.add(wall_batch(stamp, -40.0 + 20.0 * k, n=20))
+    return window, stamps
+
+
+def test_a_window_taken_while_turning_is_deskewed_onto_one_straight_wall() -> None:
+    """The batches of a turning rover, each brought into the last batch's frame by the
+    odometry between the stamps, put the wall's hits on one line (within float
+    rounding); read as if all were taken at the last stamp, they spread over cm."""
+    window, stamps = turning_window()
+    pts = window.local_points(MatchOptions())
+    assert len(pts) == 80
+    last = stamps[-1]
+    xs = np.array([last.to_parent(float(x), float(y))[0] for x, y in pts])
+    assert np.abs(xs - WALL_X).max() < 1e-3
+    # not de-skewed: every batch's beams from the last stamp
+    skewed = [last.to_parent(r * math.cos(math.radians(a)), r * math.sin(math.radians(a)))[0]
+              for s in window.scans for a, r in zip(s.angles_deg.tolist(), s.ranges_cm.tolist(),
+                                                    strict=True) if r > 0]
+    assert np.abs(np.array(skewed) - WALL_X).max() > 4.0
+
+
+def test_each_beam_of_a_placed_window_starts_at_its_own_batch_pose() -> None:
+    """Placed at a map-frame pose, the window's last batch lies there and every other
+    batch where the odometry between the stamps puts it."""
+    window, stamps = turning_window()
+    placed = Pose(300.0, -20.0, 75.0)
+    origins = window.beam_poses(placed)
+    assert origins.shape == (3, 80)
+    first = compose(placed, compose(Pose(*_inverse_xy(stamps[-1])), stamps[0]))
+    np.testing.assert_allclose(origins[:, 0], [first.x, first.y, first.heading_deg], atol=1e-9)
+    np.testing.assert_allclose(origins[:, -1], [placed.x, placed.y, placed.heading_deg],
+                               atol=1e-9)
+    assert window.sizes() == [20, 20, 20, 20]
+
+
+def _inverse_xy(p: Pose) -> tuple[float, float, float]:
+    """``inverse(p)`` as a tuple (written out, so the test does not use what it checks)."""
+    c, s = math.cos(p.heading_rad), math.sin(p.heading_rad)
+    return -(c * p.x + s * p.y), -(-s * p.x + c * p.y), -p.heading_deg
+
+
+@pytest.mark.parametrize("budget", ["sweep", "travel"])
+def test_a_window_is_full_at_a_revolution_or_its_travel_budget(budget) -> None:
+    """A window is full once its batches swept a revolution, or the odometry counted its
+    travel budget within it; before that it is not."""
+    window = ScanWindow()
+    step = {"sweep": Pose(), "travel": Pose(WINDOW_TRAVEL_CM / 2.5, 0.0, 0.0)}[budget]
+    pose = Pose()
+    k = 0
+    while not window.full():
+        window.add(wall_batch(pose, 30.0 * k, n=30))
+        pose = compose(pose, step)
+        k += 1
+    expected = {"sweep": math.ceil(WINDOW_SWEEP_DEG / 30.0), "travel": 4}[budget]
+    assert len(window) == expected
+    assert window.moved == (budget != "sweep")
+
+
+def test_a_batch_whose_stamp_turned_starts_a_new_window() -> None:
+    """Batches driving straight on share a window; a batch whose stamp turned by a
+    quantum of the dead-reckoned heading (2.2 deg: one encoder interrupt of one tread,
+    or a straight drive's flicker) does not join it: the turn counted between two stamps
+    is off by up to a quantum, which de-skewing would smear over the window."""
+    window = ScanWindow()
+    window.add(wall_batch(Pose(), 0.0))
+    straight = wall_batch(Pose(1.2, 0.0, 0.1), 60.0)  # (within the stamps' rounding)
+    assert window.fits(straight)
+    window.add(straight)
+    assert not window.fits(wall_batch(Pose(2.4, 0.0, 2.2), 120.0))
+    assert not window.fits(wall_batch(Pose(2.4, 0.0, -2.1), 120.0))
+    assert WINDOW_TURN_DEG < 2.2
