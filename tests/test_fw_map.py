@@ -420,6 +420,43 @@ async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_
 
 
 @pytest.mark.trio
+async def test_a_batch_taken_while_the_rover_coasts_after_a_tread_report_is_not_its_rest_pose(
+        autojump_clock) -> None:
+    """Both encoders stuck (odometry has not changed for over ``settle_s``) in a turn:
+    MAP_TREAD_FAULT comes as the PWM stops, with the travel the drive model gives up to
+    rest, and the belief widens round the halfway heading. The rover still coasts: the
+    first batches after the report show it at 30 deg, then it rests at 50. A batch taken
+    before rest is not the pose the report predicts, so no wide search runs for
+    ``settle_s`` after the report; the search on the rover at rest finds 50 deg, the
+    batches are placed there (not at the coasting pose, which the frozen stamps would
+    keep as "standing"), and the walls are not drawn a second time."""
+    from server.protocol.pose import Pose
+
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3, settle_s=1.0)
+    truth = Pose(120.0, 80.0, 0.0)
+    coasting, resting = Pose(120.0, 80.0, 30.0), Pose(120.0, 80.0, 50.0)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):  # the reference, at the true pose
+            _send_room_scan(system, pool, truth, truth)
+        await trio.sleep(1.2)  # the stamps stand still longer than settle_s
+        mm = system.whereis("mapper/map").actor
+        before = mm.grid.cells()
+        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -102, 102))
+        await trio.sleep(0.01)
+        assert mm.wide(mm.matching)
+        for k in range(30):  # the stamp never changes (both encoders stuck)
+            _send_room_scan(system, pool, truth, coasting if k < 3 else resting)
+            await trio.sleep(0.1)
+        assert mm.refusals["coasting"] >= 3
+        assert mm.searched >= 1
+        assert mm.belief.mean.heading_deg == pytest.approx(50.0, abs=1.5)
+        assert not mm.wide(mm.matching)
+        assert _stray_walls(before, mm.grid.cells()) <= 3
+
+
+@pytest.mark.trio
 async def test_a_match_outside_the_belief_is_refused_and_counted_not_placed(
         autojump_clock) -> None:
     """The rover stands still (odometry unchanged) and a batch arrives drawn from a pose

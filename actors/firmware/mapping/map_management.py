@@ -228,6 +228,7 @@ class MapManagement(Actor):
         # a restarted incarnation waits (a bounded time) for the correction navigation kept
         self._await_correction_until = -float("inf")
         self._search_at = -float("inf")  # time of the last wide search
+        self._reported_at = -float("inf")  # time of the last MAP_TREAD_FAULT that moved the belief
         self._changed = True  # a cell changed class since the last update
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
@@ -297,12 +298,20 @@ class MapManagement(Actor):
     def _tread_fault(self, left_cm: float, right_cm: float) -> None:
         """Motor Control reported a tread (or both) in the motion that just ended; the
         travel each was driven beyond its count widens the belief (and moves its mean
-        halfway), as the motion model says."""
+        halfway), as the motion model says.
+
+        The report comes as the PWM stops and predicts the pose at rest (the drive
+        model's travel includes the coast), while the rover still coasts, unseen by an
+        encoder that does not count. So for ``settle_s`` after it no wide search runs (a
+        batch taken mid-coast fits where the rover was then, not where it comes to
+        rest), and the rover counts as standing only ``settle_s`` after it (the frozen
+        stamps of stuck encoders say nothing of whether it moves)."""
         if (left_cm == 0.0 and right_cm == 0.0) or self._belief_odom is None:
             return
         self.belief = self.belief.predict(0.0, 0.0, self.track_width_cm, self.noise,
                                           (left_cm, right_cm))
         self.correction = compose(self.belief.mean, inverse(self._belief_odom))
+        self._reported_at = self._still_since = trio.current_time()
 
     def _predict(self, odom: Pose) -> None:
         """Move the belief by the treads' counted travel from its stamp to ``odom`` (the
@@ -356,6 +365,8 @@ class MapManagement(Actor):
         fields = self._current_fields(opts, now)
         pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
         if wide:
+            if now - self._reported_at < self.settle_s:
+                return self._refuse("coasting")  # not yet at the pose the report predicts
             if now - self._search_at < _SEARCH_EVERY_S:
                 return self._refuse("searching")
             self._search_at = now
