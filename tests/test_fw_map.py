@@ -516,6 +516,44 @@ async def test_an_unseen_turn_of_a_standing_rover_is_refound_not_drawn(autojump_
 
 
 @pytest.mark.trio
+async def test_frozen_stamps_of_a_rover_that_turns_unseen_are_not_read_as_standing(
+        autojump_clock) -> None:
+    """The rover stood and its batches were placed unmatched (odometry unchanged for
+    ``settle_s``, the last match at the same stamp). Both encoders then stop counting
+    and the rover turns 30 deg before Motor Control says anything: the stamps stay
+    frozen, but the scans fit badly at the belief's mean, so they are not placed there;
+    they are matched and weighed, the "odometry broke unseen" hypothesis takes over,
+    the wide search finds the heading, and the room is not drawn a second time."""
+    from server.protocol.pose import Pose
+
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3, settle_s=1.0)
+    truth, turned = Pose(120.0, 80.0, 0.0), Pose(120.0, 80.0, 30.0)
+    odom = Pose(truth.x + 0.6, truth.y, 0.0)  # a stamp off the reference's: matched
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):  # the reference
+            _send_room_scan(system, pool, truth, truth)
+        await trio.sleep(0.1)
+        mm = system.whereis("mapper/map").actor
+        for _ in range(15):  # standing: matched, then placed unmatched after settle_s
+            _send_room_scan(system, pool, odom, truth)
+            await trio.sleep(0.1)
+        matched, before, unplaced = mm.matched, mm.grid.cells(), mm.unplaced
+        assert matched >= 1
+        for _ in range(3):
+            _send_room_scan(system, pool, odom, truth)
+            await trio.sleep(0.1)
+        assert (mm.matched, mm.unplaced) == (matched, unplaced)  # the standing shortcut
+        for _ in range(30):  # turned unseen: the same stamp
+            _send_room_scan(system, pool, odom, turned)
+            await trio.sleep(0.1)
+        assert mm.switches >= 1 and mm.searched >= 1
+        assert mm.belief.mean.heading_deg == pytest.approx(30.0, abs=1.5)
+        assert _stray_walls(before, mm.grid.cells()) <= 3
+
+
+@pytest.mark.trio
 async def test_a_slip_the_encoders_did_not_report_is_recovered(autojump_clock) -> None:
     """A 90 deg turn counted as 60 (an encoder slipping unseen, Motor Control reporting
     nothing): batch by batch the odometry falls behind the truth, the narrow belief's

@@ -341,7 +341,8 @@ class MapManagement(Actor):
 
         A batch is placed at the belief's mean unmatched when the rover stands: odometry
         has not changed for ``settle_s`` and the last matched batch was taken at the same
-        odometry pose (within 5 mm and 0.3 deg). An unchanged odometry stamp alone does
+        odometry pose (within 5 mm and 0.3 deg), and the scan does not fit badly there
+        (`_fits_at`). An unchanged odometry stamp alone does
         not mean the rover stands: one Int E turns the heading by 2.2 deg, so a turning
         rover's batch can carry the previous tick's stamp, and after a turn the rover
         keeps turning by up to an interrupt's worth (or swings back) unseen by its
@@ -358,12 +359,12 @@ class MapManagement(Actor):
         if opts is None or self.scans < self.warmup_scans:
             return guess
         wide = self.wide(opts)
+        pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
         if not wide and now - self._still_since >= self.settle_s and _same_pose(
-                odom, self._last_odom):
+                odom, self._last_odom) and self._fits_at(guess, pts):
             return guess  # standing still: matching again would only add its own jitter
         stamp = self._stamp_covariance(now)
         fields = self._current_fields(opts, now)
-        pts = hits_to_local(scan.angles_deg, scan.ranges_cm, opts)
         if wide:
             if now - self._reported_at < self.settle_s:
                 return self._refuse("coasting")  # not yet at the pose the report predicts
@@ -409,6 +410,15 @@ class MapManagement(Actor):
         self._last_odom = odom
         self.correction = compose(self.belief.mean, inverse(odom))
         return placed
+
+    def _fits_at(self, pose: Pose, pts: np.ndarray) -> bool:
+        """Whether the scan does not fit badly at ``pose`` (`judge_fit`: too few hits or
+        new ground say nothing against it). Why: frozen stamps read as standing also
+        when both encoders stopped counting while the rover moves; a scan that fits
+        badly where the belief stands shows the rover moved, and is matched and weighed
+        instead of placed there."""
+        return self._distance is None or judge_fit(self._distance, pose, pts, _SCAN).verdict \
+            is not FitVerdict.BAD_FIT
 
     def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float,
                         stamp: np.ndarray) -> tuple[ScanFit, ScanFit | None] | None:
