@@ -456,6 +456,69 @@ async def test_a_batch_taken_while_the_rover_coasts_after_a_tread_report_is_not_
         assert _stray_walls(before, mm.grid.cells()) <= 3
 
 
+def _symmetric_room(kind: str) -> np.ndarray:
+    """Occupied cells (origin (-100, -100), 5 cm, as `room_map`) of a room whose view
+    from (150, 100) fits several headings alike: a 200 x 200 cm square (four headings
+    90 deg apart), or a 400 cm corridor 100 cm wide (two headings 180 deg apart)."""
+    occ = np.zeros((80, 100), dtype=bool)
+    if kind == "square":  # x 50..250, y 0..200
+        occ[20, 30:71] = occ[60, 30:71] = True
+        occ[20:61, 30] = occ[20:61, 70] = True
+    else:  # corridor: x -50..350, y 50..150
+        occ[30, 10:91] = occ[50, 10:91] = True
+        occ[30:51, 10] = occ[30:51, 90] = True
+    return occ
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize("room", ["square", "corridor", "box room"])
+async def test_a_wide_search_narrows_the_belief_only_on_a_view_that_tells_headings_apart(
+        room, autojump_clock) -> None:
+    """A belief widened to every heading (two silent treads driven 40 cm beyond their
+    counts) is searched wide. In a square room, or a corridor seen from its middle, the
+    scan fits several headings alike: none is taken, the belief stays wide and the
+    batches are dropped (`ambiguous`), nothing is drawn. In the box room the box tells
+    the headings apart: the search finds the one the rover has and the belief narrows."""
+    from server.protocol.pose import Pose
+
+    from .test_scan_match import ray_scan, room_map
+
+    occ = room_map() if room == "box room" else _symmetric_room(room)
+    truth = Pose(150.0, 100.0, 0.0) if room != "box room" else Pose(120.0, 80.0, 0.0)
+    turned = Pose(truth.x, truth.y, 90.0 if room == "square" else 180.0)
+    if room == "box room":
+        turned = Pose(truth.x, truth.y, 120.0)
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3)
+
+    def send(system, taken_at: Pose) -> None:
+        a, r = ray_scan(occ, taken_at, 120)
+        system.send_nowait("mapper/map", Message.handle(
+            Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
+
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):  # the reference, at the true pose
+            send(system, truth)
+        await trio.sleep(0.6)
+        mm = system.whereis("mapper/map").actor
+        before, scans = mm.grid.cells(), mm.scans
+        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -400, 400))
+        await trio.sleep(0.01)
+        assert mm.belief.heading95_deg > 180.0
+        for _ in range(40):
+            send(system, turned)
+            await trio.sleep(0.1)
+        if room == "box room":
+            assert mm.searched >= 1 and not mm.wide(mm.matching)
+            assert mm.belief.mean.heading_deg == pytest.approx(120.0, abs=1.5)
+            assert _stray_walls(before, mm.grid.cells()) <= 3
+        else:
+            assert mm.searched == 0 and mm.refusals["ambiguous"] >= 3
+            assert mm.wide(mm.matching) and mm.belief.heading95_deg > 180.0
+            assert mm.scans == scans and (mm.grid.cells() == before).all()
+
+
 @pytest.mark.trio
 async def test_a_match_outside_the_belief_is_refused_and_counted_not_placed(
         autojump_clock) -> None:
