@@ -379,6 +379,18 @@ def test_an_odometry_stamp_across_the_heading_wrap_is_the_same_pose() -> None:
     assert not _same_pose(Pose(10.0, 5.0, 0.0), None)
 
 
+async def _reference(system, spec: SupervisorSpec, send_truth) -> tuple:
+    """Start the map tree ``spec`` and give it three reference batches (``send_truth``
+    sends one taken at the true pose); returns Map Management, its grid's cells and its
+    scan count then."""
+    await system.start_supervisor(spec, "mapper")
+    for _ in range(3):
+        send_truth()
+    await trio.sleep(0.6)
+    mm = system.whereis("mapper/map").actor
+    return mm, mm.grid.cells(), mm.scans
+
+
 @pytest.mark.trio
 async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_the_pose(
         autojump_clock) -> None:
@@ -398,12 +410,7 @@ async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_
         _send_room_scan(system, pool, truth, taken_at)
 
     async with open_actor_system(1) as system:
-        await system.start_supervisor(spec, "mapper")
-        for _ in range(3):  # the reference, at the true pose
-            send(system, truth)
-        await trio.sleep(0.6)
-        mm = system.whereis("mapper/map").actor
-        before, scans = mm.grid.cells(), mm.scans
+        mm, before, scans = await _reference(system, spec, lambda: send(system, truth))
         assert not mm.wide(mm.matching)
         system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -102, 102))
         await trio.sleep(0.01)
@@ -497,12 +504,7 @@ async def test_a_wide_search_narrows_the_belief_only_on_a_view_that_tells_headin
             Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
 
     async with open_actor_system(1) as system:
-        await system.start_supervisor(spec, "mapper")
-        for _ in range(3):  # the reference, at the true pose
-            send(system, truth)
-        await trio.sleep(0.6)
-        mm = system.whereis("mapper/map").actor
-        before, scans = mm.grid.cells(), mm.scans
+        mm, before, scans = await _reference(system, spec, lambda: send(system, truth))
         system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -400, 400))
         await trio.sleep(0.01)
         assert mm.belief.heading95_deg > 180.0
