@@ -381,6 +381,18 @@ def test_an_odometry_stamp_across_the_heading_wrap_is_the_same_pose() -> None:
     assert not _same_pose(Pose(10.0, 5.0, 0.0), None)
 
 
+async def _reference(system, spec: SupervisorSpec, send_truth) -> tuple:
+    """Start the map tree ``spec`` and give it three reference batches (``send_truth``
+    sends one taken at the true pose); returns Map Management, its grid's cells and its
+    scan count then."""
+    await system.start_supervisor(spec, "mapper")
+    for _ in range(3):
+        send_truth()
+    await trio.sleep(0.6)
+    mm = system.whereis("mapper/map").actor
+    return mm, mm.grid.cells(), mm.scans
+
+
 @pytest.mark.trio
 async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_the_pose(
         autojump_clock) -> None:
@@ -400,12 +412,7 @@ async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_
         _send_room_scan(system, pool, truth, taken_at)
 
     async with open_actor_system(1) as system:
-        await system.start_supervisor(spec, "mapper")
-        for _ in range(3):  # the reference, at the true pose
-            send(system, truth)
-        await trio.sleep(0.6)
-        mm = system.whereis("mapper/map").actor
-        before, scans = mm.grid.cells(), mm.scans
+        mm, before, scans = await _reference(system, spec, lambda: send(system, truth))
         assert not mm.wide(mm.matching)
         system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -102, 102))
         await trio.sleep(0.01)
@@ -419,6 +426,101 @@ async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_
         assert not mm.wide(mm.matching) and mm.belief.heading95_deg < 3.0
         assert mm.scans > scans  # placed again once found
         assert _stray_walls(before, mm.grid.cells()) <= 3  # (2: rays 3 deg apart land elsewhere)
+
+
+@pytest.mark.trio
+async def test_a_batch_taken_while_the_rover_coasts_after_a_tread_report_is_not_its_rest_pose(
+        autojump_clock) -> None:
+    """Both encoders stuck (odometry has not changed for over ``settle_s``) in a turn:
+    MAP_TREAD_FAULT comes as the PWM stops, with the travel the drive model gives up to
+    rest, and the belief widens round the halfway heading. The rover still coasts: the
+    first batches after the report show it at 30 deg, then it rests at 50. A batch taken
+    before rest is not the pose the report predicts, so no wide search runs for
+    ``settle_s`` after the report; the search on the rover at rest finds 50 deg, the
+    batches are placed there (not at the coasting pose, which the frozen stamps would
+    keep as "standing"), and the walls are not drawn a second time."""
+    from server.protocol.pose import Pose
+
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3, settle_s=1.0)
+    truth = Pose(120.0, 80.0, 0.0)
+    coasting, resting = Pose(120.0, 80.0, 30.0), Pose(120.0, 80.0, 50.0)
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):  # the reference, at the true pose
+            _send_room_scan(system, pool, truth, truth)
+        await trio.sleep(1.2)  # the stamps stand still longer than settle_s
+        mm = system.whereis("mapper/map").actor
+        before = mm.grid.cells()
+        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -102, 102))
+        await trio.sleep(0.01)
+        assert mm.wide(mm.matching)
+        for k in range(30):  # the stamp never changes (both encoders stuck)
+            _send_room_scan(system, pool, truth, coasting if k < 3 else resting)
+            await trio.sleep(0.1)
+        assert mm.refusals["coasting"] >= 3
+        assert mm.searched >= 1
+        assert mm.belief.mean.heading_deg == pytest.approx(50.0, abs=1.5)
+        assert not mm.wide(mm.matching)
+        assert _stray_walls(before, mm.grid.cells()) <= 3
+
+
+def _symmetric_room(kind: str) -> np.ndarray:
+    """Occupied cells (origin (-100, -100), 5 cm, as `room_map`) of a room whose view
+    from (150, 100) fits several headings alike: a 200 x 200 cm square (four headings
+    90 deg apart), or a 400 cm corridor 100 cm wide (two headings 180 deg apart)."""
+    occ = np.zeros((80, 100), dtype=bool)
+    if kind == "square":  # x 50..250, y 0..200
+        occ[20, 30:71] = occ[60, 30:71] = True
+        occ[20:61, 30] = occ[20:61, 70] = True
+    else:  # corridor: x -50..350, y 50..150
+        occ[30, 10:91] = occ[50, 10:91] = True
+        occ[30:51, 10] = occ[30:51, 90] = True
+    return occ
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize("room", ["square", "corridor", "box room"])
+async def test_a_wide_search_narrows_the_belief_only_on_a_view_that_tells_headings_apart(
+        room, autojump_clock) -> None:
+    """A belief widened to every heading (two silent treads driven 40 cm beyond their
+    counts) is searched wide. In a square room, or a corridor seen from its middle, the
+    scan fits several headings alike: none is taken, the belief stays wide and the
+    batches are dropped (`ambiguous`), nothing is drawn. In the box room the box tells
+    the headings apart: the search finds the one the rover has and the belief narrows."""
+    from server.protocol.pose import Pose
+
+    from .test_scan_match import ray_scan, room_map
+
+    occ = room_map() if room == "box room" else _symmetric_room(room)
+    truth = Pose(150.0, 100.0, 0.0) if room != "box room" else Pose(120.0, 80.0, 0.0)
+    turned = Pose(truth.x, truth.y, 90.0 if room == "square" else 180.0)
+    if room == "box room":
+        turned = Pose(truth.x, truth.y, 120.0)
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3)
+
+    def send(system, taken_at: Pose) -> None:
+        a, r = ray_scan(occ, taken_at, 120)
+        system.send_nowait("mapper/map", Message.handle(
+            Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
+
+    async with open_actor_system(1) as system:
+        mm, before, scans = await _reference(system, spec, lambda: send(system, truth))
+        system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -400, 400))
+        await trio.sleep(0.01)
+        assert mm.belief.heading95_deg > 180.0
+        for _ in range(40):
+            send(system, turned)
+            await trio.sleep(0.1)
+        if room == "box room":
+            assert mm.searched >= 1 and not mm.wide(mm.matching)
+            assert mm.belief.mean.heading_deg == pytest.approx(120.0, abs=1.5)
+            assert _stray_walls(before, mm.grid.cells()) <= 3
+        else:
+            assert mm.searched == 0 and mm.refusals["ambiguous"] >= 3
+            assert mm.wide(mm.matching) and mm.belief.heading95_deg > 180.0
+            assert mm.scans == scans and (mm.grid.cells() == before).all()
 
 
 @pytest.mark.trio
@@ -478,6 +580,44 @@ async def test_an_unseen_turn_of_a_standing_rover_is_refound_not_drawn(autojump_
         assert mm.correction.heading_deg == pytest.approx(50.0, abs=1.5)
         assert not mm.wide(mm.matching)
         assert _stray_walls(before, mm.grid.cells()) <= 3  # (the rotated copy drew 102)
+
+
+@pytest.mark.trio
+async def test_frozen_stamps_of_a_rover_that_turns_unseen_are_not_read_as_standing(
+        autojump_clock) -> None:
+    """The rover stood and its batches were placed unmatched (odometry unchanged for
+    ``settle_s``, the last match at the same stamp). Both encoders then stop counting
+    and the rover turns 30 deg before Motor Control says anything: the stamps stay
+    frozen, but the scans fit badly at the belief's mean, so they are not placed there;
+    they are matched and weighed, the "odometry broke unseen" hypothesis takes over,
+    the wide search finds the heading, and the room is not drawn a second time."""
+    from server.protocol.pose import Pose
+
+    pool, log = BufferPool(64), []
+    spec = _map_tree(pool, log, warmup_scans=3, settle_s=1.0)
+    truth, turned = Pose(120.0, 80.0, 0.0), Pose(120.0, 80.0, 30.0)
+    odom = Pose(truth.x + 0.6, truth.y, 0.0)  # a stamp off the reference's: matched
+    async with open_actor_system(1) as system:
+        await system.start_supervisor(spec, "mapper")
+        for _ in range(3):  # the reference
+            _send_room_scan(system, pool, truth, truth)
+        await trio.sleep(0.1)
+        mm = system.whereis("mapper/map").actor
+        for _ in range(15):  # standing: matched, then placed unmatched after settle_s
+            _send_room_scan(system, pool, odom, truth)
+            await trio.sleep(0.1)
+        matched, before, unplaced = mm.matched, mm.grid.cells(), mm.unplaced
+        assert matched >= 1
+        for _ in range(3):
+            _send_room_scan(system, pool, odom, truth)
+            await trio.sleep(0.1)
+        assert (mm.matched, mm.unplaced) == (matched, unplaced)  # the standing shortcut
+        for _ in range(30):  # turned unseen: the same stamp
+            _send_room_scan(system, pool, odom, turned)
+            await trio.sleep(0.1)
+        assert mm.switches >= 1 and mm.searched >= 1
+        assert mm.belief.mean.heading_deg == pytest.approx(30.0, abs=1.5)
+        assert _stray_walls(before, mm.grid.cells()) <= 3
 
 
 @pytest.mark.trio

@@ -244,6 +244,7 @@ class MapManagement(Actor):
         # a restarted incarnation waits (a bounded time) for the correction navigation kept
         self._await_correction_until = -float("inf")
         self._search_at = -float("inf")  # time of the last wide search
+        self._reported_at = -float("inf")  # time of the last MAP_TREAD_FAULT that moved the belief
         self._changed = True  # a cell changed class since the last update
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
@@ -314,12 +315,20 @@ class MapManagement(Actor):
     def _tread_fault(self, left_cm: float, right_cm: float) -> None:
         """Motor Control reported a tread (or both) in the motion that just ended; the
         travel each was driven beyond its count widens the belief (and moves its mean
-        halfway), as the motion model says."""
+        halfway), as the motion model says.
+
+        The report comes as the PWM stops and predicts the pose at rest (the drive
+        model's travel includes the coast), while the rover still coasts, unseen by an
+        encoder that does not count. So for ``settle_s`` after it no wide search runs (a
+        batch taken mid-coast fits where the rover was then, not where it comes to
+        rest), and the rover counts as standing only ``settle_s`` after it (the frozen
+        stamps of stuck encoders say nothing of whether it moves)."""
         if (left_cm == 0.0 and right_cm == 0.0) or self._belief_odom is None:
             return
         self.belief = self.belief.predict(0.0, 0.0, self.track_width_cm, self.noise,
                                           (left_cm, right_cm))
         self.correction = compose(self.belief.mean, inverse(self._belief_odom))
+        self._reported_at = self._still_since = trio.current_time()
 
     def _predict(self, odom: Pose) -> None:
         """Move the belief by the treads' counted travel from its stamp to ``odom`` (the
@@ -351,13 +360,14 @@ class MapManagement(Actor):
         The rover stands when odometry has not changed for ``settle_s`` and the last
         matched window ended at the same odometry pose (within 5 mm and 0.3 deg, the
         belief within the local reach): a standing window is placed at the belief's mean
-        unmatched. An unchanged stamp alone does not mean the rover stands: one Int E
-        turns the heading by 2.2 deg, so a turning rover's batch can carry the previous
-        tick's stamp, and after a turn the rover keeps turning by up to an interrupt's
-        worth (or swings back) unseen by its encoders; such batches are matched. The
-        first batch whose stamp did not change after one that did ends a motion (or
-        pauses it): the window is cut there, so navigation gets the pose a motion ended
-        at without waiting for the next window.
+        unmatched when its scan does not fit badly there (`_fits_at`). An unchanged stamp
+        alone does not mean the rover stands: one Int E turns the heading by 2.2 deg, so
+        a turning rover's batch can carry the previous tick's stamp, and after a turn the
+        rover keeps turning by up to an interrupt's worth (or swings back) unseen by its
+        encoders; such batches are matched, and two stuck encoders freeze the stamps of a
+        rover that turns on. The first batch whose stamp did not change after one that
+        did ends a motion (or pauses it): the window is cut there, so navigation gets the
+        pose a motion ended at without waiting for the next window.
         """
         odom = scan.pose
         moved = not _same_pose(odom, self._prev_odom)
@@ -420,14 +430,18 @@ class MapManagement(Actor):
         and weighed once."""
         opts = self.matching
         guess = self.belief.mean
-        if opts is None or self.scans < self.warmup_scans or standing:
+        if opts is None or self.scans < self.warmup_scans:
+            return guess
+        pts = window.local_points(opts)
+        if standing and self._fits_at(guess, pts):
             return guess  # standing still: matching again would only add its own jitter
         odom = window.last
         wide = self.wide(opts)
         stamp = self._stamp_covariance(now, window)
         fields = self._current_fields(opts, now)
-        pts = window.local_points(opts)
         if wide:
+            if now - self._reported_at < self.settle_s:  # not yet at the pose the report predicts
+                return self._refuse("coasting", len(window))
             if now - self._search_at < _SEARCH_EVERY_S:
                 return self._refuse("searching", len(window))
             self._search_at = now
@@ -478,6 +492,15 @@ class MapManagement(Actor):
         self._last_odom = odom
         self.correction = compose(self.belief.mean, inverse(odom))
         return placed
+
+    def _fits_at(self, pose: Pose, pts: np.ndarray) -> bool:
+        """Whether the scan does not fit badly at ``pose`` (`judge_fit`: too few hits or
+        new ground say nothing against it). Why: frozen stamps read as standing also
+        when both encoders stopped counting while the rover moves; a scan that fits
+        badly where the belief stands shows the rover moved, and is matched and weighed
+        instead of placed there."""
+        return self._distance is None or judge_fit(self._distance, pose, pts, _SCAN).verdict \
+            is not FitVerdict.BAD_FIT
 
     def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float,
                         stamp: np.ndarray) -> tuple[ScanFit, ScanFit | None] | None:
