@@ -32,6 +32,12 @@ the range minus half the body length from the hider's centre). Steps of
 20 [deg] keep a hider close by inside the +-20 [deg] field of view as seen
 from the nose, not just from the centre.
 
+A look blocked by something unmapped: a scan's turn that ends blocked where the
+map shows free ground round the body (`SeekingNav._touching_unmapped`) backs off
+``look_backoff_cm`` the way the seeker came and looks again from there, once per
+look point: beside the hider, the turn that would point the nose at it is the one
+its body stops.
+
 IR on demand: while confirming, navigation holds a lease on the IR actor's
 sampling (`Cmd.IR_LEASE`, renewed every tick for ``IR_LEASE_TICKS`` ticks) and ends it
 when it answers, so the IR timer runs only while the seeker looks.
@@ -223,6 +229,7 @@ class SeekingNav(Search, RouteNav):
         self.place = (x, y)
         self.stage = "standoff"
         self.search_points = []
+        self._backing = None
         if self._distance() <= self.reach_cm:
             await self._confirm()
             return
