@@ -90,6 +90,7 @@ class Body:
     map_msgs: list = field(default_factory=list)
     ir_in_range: Any = None  # callable(pose) -> bool for the seeker's IR
     script: Any = None  # callable(pose, cm) -> (done cm, yaw deg) | None: a move's scripted end
+    turn_script: Any = None  # callable(pose, deg) -> done deg | None: a turn's blocked end
     motor_at: list = field(default_factory=list)  # the time of each motor_log entry [s]
     published: list = field(default_factory=list)  # (time, pose) Motor Control reported
 
@@ -122,9 +123,12 @@ class FakeMotor(Actor):
             self._publish()
         elif cmd == Cmd.MOTOR_TURN:
             await trio.sleep(abs(message.value) / 90.0)
-            b.pose = Pose(b.pose.x, b.pose.y, b.pose.heading_deg + message.value)
+            stop = b.turn_script(b.pose, float(message.value)) if b.turn_script else None
+            done = float(message.value) if stop is None else stop
+            b.pose = Pose(b.pose.x, b.pose.y, b.pose.heading_deg + done)
             self._publish()
-            self.ctx.send_nowait(self.nav, Message.float(Cmd.NAV_MOTION_DONE, message.value))
+            code = Cmd.NAV_MOTION_DONE if stop is None else Cmd.NAV_MOTION_BLOCKED
+            self.ctx.send_nowait(self.nav, Message.float(code, done))
         elif cmd == Cmd.MOTOR_MOVE:
             d = float(message.value)
             await trio.sleep(abs(d) / b.speed)

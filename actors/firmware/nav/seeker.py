@@ -32,6 +32,12 @@ the range minus half the body length from the hider's centre). Steps of
 20 [deg] keep a hider close by inside the +-20 [deg] field of view as seen
 from the nose, not just from the centre.
 
+A look blocked by something unmapped: a scan's turn that ends blocked where the
+map shows free ground round the body (`SeekingNav._touching_unmapped`) backs off
+``look_backoff_cm`` the way the seeker came and looks again from there, once per
+look point: beside the hider, the turn that would point the nose at it is the one
+its body stops.
+
 IR on demand: while confirming, navigation holds a lease on the IR actor's
 sampling (`Cmd.IR_LEASE`, renewed every tick for ``IR_LEASE_TICKS`` ticks) and ends it
 when it answers, so the IR timer runs only while the seeker looks.
@@ -101,8 +107,8 @@ class SeekingOptions:
     """Half-angle of the IR sensor's field of view [deg]. Scans turn in steps of it
     (a hider close by stays in view from the nose, not just from the centre); the
     standoff scan looks at 0, +-1 and +-2 steps from facing the place; the outward scans
-    of a wider search turn 1.5 steps at a time (30 deg: still overlapping, two thirds
-    of the scans' cost)."""
+    of a wider search and the sweep's turn by `wide_scan_step_deg` (about 20 deg for
+    the 20 x 15 cm body: no hole in the view even for a hider touching the body)."""
     range_cm: float = 60.0
     """The IR sensor's range from the nose: a guess "within IR range" has the hider's
     centre this close to it [cm]."""
@@ -120,11 +126,24 @@ class SeekingOptions:
         f = self.ir_half_fov_deg
         return (0.0, f, -f, 2.0 * f, -2.0 * f)
 
-    @property
-    def wide_scan_step_deg(self) -> float:
-        """Step of the outward scans of a wider search and of the sweep: 1.5
-        ``ir_half_fov_deg`` [deg]."""
-        return 1.5 * self.ir_half_fov_deg
+    def view_half_deg(self, length_cm: float, distance_cm: float) -> float:
+        """Half-width of the headings from which the IR sensor sees a hider whose centre
+        is ``distance_cm`` from the seeker's centre [deg]: the sensor sits on the nose,
+        half the body ``length_cm`` ahead, and sees centres within ``ir_half_fov_deg`` of
+        the heading as seen from there, so near by the window narrows (law of sines in
+        the triangle centre, nose, hider: ``fov - asin(nose sin(fov) / distance)``)."""
+        f = math.radians(self.ir_half_fov_deg)
+        ratio = min(1.0, 0.5 * length_cm * math.sin(f) / max(distance_cm, 1e-9))
+        return math.degrees(f - math.asin(ratio))
+
+    def wide_scan_step_deg(self, length_cm: float, width_cm: float) -> float:
+        """Step of the outward scans of a wider search and of the sweep [deg]: twice the
+        view's half-width (`view_half_deg`) for a hider touching the seeker's side (its
+        centre half the width plus the turning radius of a body like the seeker's away),
+        so consecutive headings leave no hole even beside it, and the hider is seen
+        whatever the heading's error; at most 1.5 ``ir_half_fov_deg``."""
+        near = 0.5 * width_cm + 0.5 * math.hypot(length_cm, width_cm)
+        return min(1.5 * self.ir_half_fov_deg, 2.0 * self.view_half_deg(length_cm, near))
 
     def reach_cm(self, length_cm: float) -> float:
         """How far from the seeker's centre an all-round scan sees a hider's centre
@@ -197,12 +216,20 @@ class SeekingNav(Search, RouteNav):
         self._check_from = math.inf
         self._check_until = math.inf
         self._pinned_since: float | None = None  # a look held for a pinned sensor, since [s]
+        self.look_backoff_cm = 2.0 * self.radius_cm
+        """How far a look blocked by something unmapped backs off before looking again [cm]:
+        the diameter of the circle the body sweeps turning in place, so a body of its own
+        size that touched it is clear of that circle, whichever side it touched."""
+        self._came_heading: float | None = None  # heading of the last forward move [deg], map
+        self._looked_again = False  # the look at this point has backed off once already
+        self._backing: str | None = None  # the back-off in progress: "turn", then "move"
 
     # ------------------------------------------------------------------ approach
     async def on_goal(self, x: float, y: float, heading: float | None) -> None:
         self.place = (x, y)
         self.stage = "standoff"
         self.search_points = []
+        self._backing = None
         if self._distance() <= self.reach_cm:
             await self._confirm()
             return
@@ -266,8 +293,11 @@ class SeekingNav(Search, RouteNav):
             await self._not_found(f"cannot get near the place: {reason}")
 
     # ------------------------------------------------------------------ IR confirmation
-    async def _confirm(self) -> None:
+    async def _confirm(self, again: bool = False) -> None:
+        """Look from here (a new look point unless ``again``: the look after a back-off)."""
         assert self.place is not None
+        self._looked_again = again
+        self._backing = None
         where = {"close": " all round", "search": " from the search ring",
                  "sweep": " all round, sweeping"}.get(self.stage, "")
         await self.set_state("confirming", "looking with the IR sensor" + where)
@@ -278,13 +308,14 @@ class SeekingNav(Search, RouteNav):
         else:
             base = p.heading_deg  # standing on the place: no bearing to it
         if self.stage == "sweep":  # all round from the heading it has, the place unknown
-            step = self.s.wide_scan_step_deg
+            step = self.s.wide_scan_step_deg(self.length_cm, self.width_cm)
             self._scan = tuple(p.heading_deg + step * k for k in range(round(360.0 / step)))
         elif self.stage == "search" and self._distance() > 2.0 * self.o.goal_tol_cm:
             # facing away from the place, swept from the end nearer the heading
             out = math.degrees(math.atan2(p.y - self.place[1], p.x - self.place[0]))
             wider = self.memory.within is not None
-            offsets = self.s.outward_deg(self.s.wide_scan_step_deg if wider else None)
+            offsets = self.s.outward_deg(
+                self.s.wide_scan_step_deg(self.length_cm, self.width_cm) if wider else None)
             if abs(angle_diff_deg(out + offsets[-1], p.heading_deg)) < \
                     abs(angle_diff_deg(out + offsets[0], p.heading_deg)):
                 offsets = offsets[::-1]
@@ -303,9 +334,19 @@ class SeekingNav(Search, RouteNav):
         else:
             await self.command(Motion("turn", turn))
 
+    async def command(self, motion: Motion) -> None:
+        if motion.kind == "move" and motion.amount > 0:
+            self._came_heading = self.map_pose.heading_deg  # the way back is free ground
+        await super().command(motion)
+
     async def after_other_motion(self, blocked: bool, done: float) -> None:
-        if self.state == "confirming":
-            self._start_check()
+        if self._backing is not None and self.state == "confirming":
+            await self._back_off_step()
+        elif self.state == "confirming":
+            if blocked and self._touching_unmapped():
+                await self._back_off()
+            else:
+                self._start_check()
         elif self.state == "sweeping" and not self._sweep_turned:
             self._sweep_turned = True
             await self.command(Motion("move", self.s.sweep_step_cm))
@@ -313,6 +354,45 @@ class SeekingNav(Search, RouteNav):
             self._sweep_blocked = blocked
             self._sweep_steps += 1
             await self._confirm()
+
+    def _touching_unmapped(self) -> bool:
+        """The look's turn ended blocked where the map shows free ground round the body
+        (no mapped wall within the turning radius plus ``drift_cm``), and the look at this
+        point has not backed off yet.
+
+        Why: something the map does not show touches the body, and while the seeker
+        looks for the hider the hider is the likeliest such thing. Beside it, the turn that
+        would point the nose (and the IR sensor) at it is the one its body blocks: the
+        seeker must step back to see it.
+        """
+        m = self.last_motion
+        return (m is not None and m.kind == "turn" and not self._looked_again
+                and self.map is not None and not self._wall_within_drift())
+
+    async def _back_off(self) -> None:
+        """Back off ``look_backoff_cm`` the way it came (first turning back to the heading
+        of its last forward move, through ground the turn just swept), then look again."""
+        self._looked_again = True
+        self._check_until = math.inf
+        self.counters["look_backoffs"] = self.counters.get("look_backoffs", 0) + 1
+        await self.status(self.state, "blocked turning to look: backing off to look again")
+        came = self._came_heading
+        turn = 0.0 if came is None else angle_diff_deg(came, self.map_pose.heading_deg)
+        if abs(turn) > self.o.heading_tol_deg:
+            self._backing = "turn"
+            await self.command(Motion("turn", turn))
+        else:
+            self._backing = "move"
+            await self.command(Motion("move", -self.look_backoff_cm))
+
+    async def _back_off_step(self) -> None:
+        """The back-off's turn ended: reverse; its reverse ended (blocked or not): look
+        again from where it stands."""
+        if self._backing == "turn":
+            self._backing = "move"
+            await self.command(Motion("move", -self.look_backoff_cm))
+        else:
+            await self._confirm(again=True)
 
     def _start_check(self) -> None:
         now = trio.current_time()
