@@ -229,19 +229,8 @@ class OccupancyGrid:
             raise ValueError(f"sizes must be positive and sum to {n}, got {counts}")
         if len(counts) == 1:
             return self._integrate(o[0], o[1], o[2], angles, ranges)
-        m = self.model
-        res = self.resolution_cm
-        ox, oy = self.origin_cm
-        has_hit = (ranges > 0) & (ranges <= m.max_range_cm)
-        length = np.where(has_hit, ranges, m.max_range_cm)  # [cm]
-        theta = np.radians(angles + o[2])
-        cos, sin = np.cos(theta), np.sin(theta)
-        px, py = (o[0] - ox) / res, (o[1] - oy) / res
-        length_c = length / res
-        free_c = length_c
-        if m.grazing_margin_cells > 0:
-            free_c = length_c - grazing_shortening(angles, ranges, has_hit, res,
-                                                    m.grazing_margin_cells)
+        has_hit, cos, sin, px, py, length_c, free_c = self._rays(o[0], o[1], o[2], angles,
+                                                                 ranges)
         first_ray = np.cumsum([0] + counts)
         free = self._free_samples(px, py, cos, sin, free_c, first_ray)
         hit_c = length_c[has_hit]
@@ -276,24 +265,8 @@ class OccupancyGrid:
         angles, ranges = check_batch(angles_deg, ranges_cm)
         if angles.size == 0:
             return 0
-        m = self.model
-        res = self.resolution_cm
-        ox, oy = self.origin_cm
-
-        has_hit = (ranges > 0) & (ranges <= m.max_range_cm)
-        length = np.where(has_hit, ranges, m.max_range_cm)  # [cm]
-        theta = np.radians(angles + heading_deg)
-        cos, sin = np.cos(theta), np.sin(theta)
-        # ray origin and geometry in cell units
-        px, py = (x - ox) / res, (y - oy) / res
-        length_c = length / res
-
-        # free samples: strictly before the ray's end, which is pulled back on rays
-        # that graze their surface (see `sensor_model.grazing_shortening`)
-        free_c = length_c
-        if m.grazing_margin_cells > 0 and angles.size > 1:
-            free_c = length_c - grazing_shortening(angles, ranges, has_hit, res,
-                                                    m.grazing_margin_cells)
+        has_hit, cos, sin, px, py, length_c, free_c = self._rays(x, y, heading_deg, angles,
+                                                                 ranges)
         free_flat = self._free_samples(px, py, cos, sin, free_c)[0]
 
         hit_c = length_c[has_hit]
@@ -316,6 +289,28 @@ class OccupancyGrid:
         self.rays += int(angles.size)
         self.changed_total += changed
         return changed
+
+    def _rays(self, x: float | np.ndarray, y: float | np.ndarray,
+              heading_deg: float | np.ndarray, angles: np.ndarray, ranges: np.ndarray
+              ) -> tuple[np.ndarray, ...]:
+        """The rays' geometry in cell units, from one pose (floats) or one per beam
+        (arrays): whether each ray hit, its direction (``cos``, ``sin``), its origin
+        (``px``, ``py``), its length and its free length (strictly before its end, which
+        is pulled back on rays that graze their surface, `sensor_model.grazing_shortening`)."""
+        m = self.model
+        res = self.resolution_cm
+        ox, oy = self.origin_cm
+        has_hit = (ranges > 0) & (ranges <= m.max_range_cm)
+        length = np.where(has_hit, ranges, m.max_range_cm)  # [cm]
+        theta = np.radians(angles + heading_deg)
+        cos, sin = np.cos(theta), np.sin(theta)
+        px, py = (x - ox) / res, (y - oy) / res
+        length_c = length / res
+        free_c = length_c
+        if m.grazing_margin_cells > 0 and angles.size > 1:
+            free_c = length_c - grazing_shortening(angles, ranges, has_hit, res,
+                                                    m.grazing_margin_cells)
+        return has_hit, cos, sin, px, py, length_c, free_c
 
     def _free_samples(self, px: float | np.ndarray, py: float | np.ndarray, cos: np.ndarray,
                       sin: np.ndarray, free_c: np.ndarray, first_ray: np.ndarray | None = None

@@ -225,12 +225,19 @@ class OccupancyField:
         return fx, fy, a, b, v10, v00 + a * fx
 
 
+def usable_hits(ranges_cm: np.ndarray, options: MatchOptions) -> np.ndarray:
+    """Which beams are hits usable for matching: within ``min_range_cm`` and
+    `MAX_RANGE_CM` (a boolean mask)."""
+    r = np.asarray(ranges_cm, dtype=np.float64)
+    return (r >= options.min_range_cm) & (r <= MAX_RANGE_CM)
+
+
 def hits_to_local(angles_deg: np.ndarray, ranges_cm: np.ndarray, options: MatchOptions
                   ) -> np.ndarray:
-    """Hits usable for matching as points (n, 2) in the rover frame [cm]."""
+    """Hits usable for matching (`usable_hits`) as points (n, 2) in the rover frame [cm]."""
     r = np.asarray(ranges_cm, dtype=np.float64)
     a = np.radians(np.asarray(angles_deg, dtype=np.float64))
-    keep = (r >= options.min_range_cm) & (r <= MAX_RANGE_CM)
+    keep = usable_hits(r, options)
     r, a = r[keep], a[keep]
     pts = np.empty((r.size, 2))  # the columns written in place (not `np.column_stack`)
     np.multiply(r, np.cos(a), out=pts[:, 0])

@@ -46,7 +46,7 @@ import math
 import numpy as np
 
 from actors.firmware.drivers.lidar import Scan
-from actors.firmware.mapping.scan_match import MAX_RANGE_CM, MatchOptions, hits_to_local
+from actors.firmware.mapping.scan_match import MatchOptions, hits_to_local, usable_hits
 from server.protocol.pose import Pose, angle_diff_deg, compose, relative
 
 __all__ = ["ScanWindow", "WINDOW_SWEEP_DEG", "WINDOW_TURN_DEG", "WINDOW_TRAVEL_CM"]
@@ -67,7 +67,7 @@ class ScanWindow:
     and `beam_poses`. A window is used once (Map Management starts a new one).
     """
 
-    __slots__ = ("scans", "sweep_deg", "turn_deg", "travel_cm", "moved", "_beams")
+    __slots__ = ("scans", "sweep_deg", "turn_deg", "travel_cm", "_beams")
 
     def __init__(self) -> None:
         self.scans: list[Scan] = []
@@ -78,12 +78,15 @@ class ScanWindow:
         """Turn counted between the first and the last stamp, summed per step [deg]."""
         self.travel_cm = 0.0
         """Travel counted between the first and the last stamp, summed per step [cm]."""
-        self.moved = False
-        """Whether any stamp differs from the one before it (the rover moved within)."""
         self._beams: tuple[np.ndarray, np.ndarray] | None = None
 
     def __len__(self) -> int:
         return len(self.scans)
+
+    @property
+    def moved(self) -> bool:
+        """Whether any stamp differs from the one before it (the rover moved within)."""
+        return self.turn_deg > 0.0 or self.travel_cm > 0.0
 
     @property
     def last(self) -> Pose:
@@ -98,7 +101,6 @@ class ScanWindow:
             step = math.hypot(scan.pose.x - before.x, scan.pose.y - before.y)
             self.turn_deg += turn
             self.travel_cm += step
-            self.moved = self.moved or turn > 0.0 or step > 0.0
         self.scans.append(scan)
         self.sweep_deg += scan.sweep_deg
         self._beams = None
@@ -148,15 +150,9 @@ class ScanWindow:
         angles, ranges = self.beams()
         if len(self.scans) == 1:
             return hits_to_local(angles, ranges, options)
-        r = np.asarray(ranges, dtype=np.float64)
-        keep = (r >= options.min_range_cm) & (r <= MAX_RANGE_CM)
-        at = self._per_beam(self.relative_poses()).compress(keep, axis=1)
-        r = r.compress(keep)
-        a = np.radians(at[2] + np.asarray(angles, dtype=np.float64).compress(keep))
-        pts = np.empty((r.size, 2))  # the columns written in place
-        np.multiply(r, np.cos(a), out=pts[:, 0])
-        np.multiply(r, np.sin(a), out=pts[:, 1])
-        pts += at[:2].T
+        at = self._per_beam(self.relative_poses())
+        pts = hits_to_local(at[2] + np.asarray(angles, dtype=np.float64), ranges, options)
+        pts += at[:2].compress(usable_hits(ranges, options), axis=1).T
         return pts
 
     def beam_poses(self, placed: Pose) -> np.ndarray:
