@@ -394,13 +394,22 @@ def _spread(mask: np.ndarray, most: int, anchor: tuple[int, int]
     rows, cols = np.nonzero(mask)
     side = max(1, math.isqrt(rows.size // max(1, most)))  # blocks of side^2 cells hold
     # at least one each, so fewer sides are never enough
-    while True:
-        key = ((rows + anchor[0]) // side) * (1 << 20) + (cols + anchor[1]) // side
-        _, first = np.unique(key, return_index=True)
-        if first.size <= most:
-            first.sort()
-            return rows[first], cols[first]
-        side += 1
+    if rows.size > most:
+        # count the blocks a side makes on a dense table of them (no sort), until few
+        # enough; the cells are then picked as below
+        r, c = rows + anchor[0], cols + anchor[1]
+        r_low, c_low, c_high = int(r.min()), int(c.min()), int(c.max())
+        while True:
+            width = c_high // side - c_low // side + 1
+            block = (r // side - r_low // side) * width
+            block += c // side - c_low // side
+            if np.count_nonzero(np.bincount(block)) <= most:
+                break
+            side += 1
+    key = ((rows + anchor[0]) // side) * (1 << 20) + (cols + anchor[1]) // side
+    _, first = np.unique(key, return_index=True)
+    first.sort()
+    return rows[first], cols[first]
 
 
 def _gains(field: FaceField, cand: np.ndarray, max_incidence_deg: float
