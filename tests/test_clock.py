@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 import trio
 from trio.testing import MockClock
@@ -129,6 +131,34 @@ def test_cheap_sleep_keeps_trios_deadline_heap_consistent() -> None:
     cancelled, slept = trio.run(main, clock=virtual_clock())
     assert cancelled == 3000
     assert slept == 2.5
+
+
+def test_an_endless_sleep_stays_out_of_trios_deadline_heap() -> None:
+    """``sleep(inf)`` parks until cancelled, as Trio's does, without an entry in the
+    heap (whose count of live deadlines Trio checks when it prunes)."""
+    from trio._core._run import GLOBAL_RUN_CONTEXT  # noqa: PLC0415
+
+    from actors import sleep  # noqa: PLC0415
+
+    async def main() -> tuple[bool, int]:
+        with trio.move_on_after(3.0) as scope:
+            active = GLOBAL_RUN_CONTEXT.runner.deadlines._active  # noqa: SLF001
+            async with trio.open_nursery() as nursery:
+                nursery.start_soon(sleep, math.inf)
+                await trio.sleep(1.0)
+                added = GLOBAL_RUN_CONTEXT.runner.deadlines._active - active  # noqa: SLF001
+        return scope.cancelled_caught, added
+
+    cancelled, added = trio.run(main, clock=virtual_clock())
+    assert cancelled
+    assert added == 0
+
+
+def test_outside_a_run_a_sleep_is_refused() -> None:
+    from actors import sleep  # noqa: PLC0415
+
+    with pytest.raises(RuntimeError):
+        sleep(1.0).send(None)
 
 
 def test_fast_instruments_keep_trios_instrument_hooks() -> None:
