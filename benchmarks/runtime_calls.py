@@ -10,6 +10,9 @@ process that times, on the virtual clock under the seeded scheduler:
 * ``arm_us``: a watchdog guard armed at a new instant (`actors.watchdog.Guard`),
   as for every message handled after the clock moved (the clock's jump between
   two arms, timed alone, subtracted);
+* ``timer_us``: one round of the server timer's wait that its deadline ends
+  (`server.kick.Kick.wait_until`; in a tree without it, a `trio.Event` waited on
+  in a `trio.move_on_at` scope, as the timer did there);
 * ``pose_us`` and ``compose_us``: making a `server.protocol.Pose` and composing two
   (the firmware's dead reckoning and the server's frames);
 
@@ -65,6 +68,18 @@ async def main():
         guard.arm()
     out["arm_us"] = (time.process_time() - t - jumps) / N * 1e6
     guard.disarm()
+    try:
+        from server.kick import Kick
+        kick = Kick()
+        wait = lambda deadline: kick.wait_until(deadline)
+    except ImportError:  # a tree whose server timer waited on an Event in a cancel scope
+        async def wait(deadline):
+            with trio.move_on_at(deadline):
+                await trio.Event().wait()
+    t = time.process_time()
+    for _ in range(N):
+        await wait(trio.current_time() + 0.01)
+    out["timer_us"] = (time.process_time() - t) / N * 1e6
 
 seed_trio_scheduler(1)
 trio.run(main, clock=virtual_clock())
@@ -123,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         for tree in (trees if r % 2 == 0 else trees[::-1]):
             runs[tree].append(measure(tree, args.calls))
     result: dict[str, dict[str, float]] = {}
-    names = ("sleep_us", "arm_us", "pose_us", "compose_us", "start_s")
+    names = ("sleep_us", "arm_us", "timer_us", "pose_us", "compose_us", "start_s")
     print(f"{'tree':<40}" + "".join(f"{n:>12}" for n in names))
     for tree in trees:
         result[tree] = {n: statistics.median(r[n] for r in runs[tree])

@@ -248,8 +248,7 @@ class Server(Connections, Hellos, GameFrames, Durability):
             for kind in self._bursts.due(now):
                 self._emit(kind + "_summary", data=self._bursts.take(kind, now))
             self._kick.clear()
-            with trio.move_on_at(max(deadline, now + 1e-3)):
-                await self._kick.wait()
+            await self._kick.wait_until(max(deadline, now + 1e-3))
 
 
 @contextlib.asynccontextmanager
