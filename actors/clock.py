@@ -292,7 +292,8 @@ async def _scope_sleep_until(deadline: float) -> None:
 
 
 async def sleep(seconds: float) -> None:
-    """`trio.sleep` built on `sleep_until` (0 is a checkpoint, as in Trio).
+    """`trio.sleep` with `sleep_until`'s wake-ups (0 is a checkpoint, as in Trio); its
+    body is repeated here rather than awaited, one coroutine fewer per sleep.
 
     Raises:
         ValueError: ``seconds`` is negative or NaN.
@@ -302,8 +303,7 @@ async def sleep(seconds: float) -> None:
     if seconds == 0:
         await checkpoint()
         return
-    # `sleep_until` inlined (one coroutine less per sleep), the clock read directly
-    try:
+    try:  # the run's clock read directly (`trio.current_time()` wraps it twice)
         deadline = GLOBAL_RUN_CONTEXT.runner.clock.current_time() + seconds
     except AttributeError:
         deadline = trio.current_time() + seconds  # another Trio (outside a run: raises)
