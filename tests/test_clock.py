@@ -21,6 +21,20 @@ def test_virtual_clock_jumps_when_idle() -> None:
     assert trio.run(main, clock=virtual_clock()) == 1000.0
 
 
+def test_virtual_clock_answers_as_trios_mock_clock() -> None:
+    """The virtual clock's shortcuts give `MockClock`'s values: the time, the sleep until
+    a deadline (0 when due, "forever" otherwise at rate 0), and after a jump."""
+    ours, trios = virtual_clock(), MockClock(autojump_threshold=0)
+    for clock in (ours, trios):
+        clock.jump(12.5)
+    assert ours.current_time() == trios.current_time() == 12.5
+    for deadline in (0.0, 12.5, 12.500001, 13.0, 1e9, math.inf):
+        assert ours.deadline_to_sleep_time(deadline) == trios.deadline_to_sleep_time(deadline)
+    ours.rate = trios.rate = 2.0  # a rate set later: Trio's formula, on the real clock
+    assert ours.deadline_to_sleep_time(1e9) == pytest.approx(
+        trios.deadline_to_sleep_time(1e9), abs=1.0)
+
+
 def test_real_clock_is_trios_default() -> None:
     assert real_clock() is None
 
