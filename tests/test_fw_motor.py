@@ -477,3 +477,35 @@ async def test_both_treads_hardly_counting_lately_in_a_move_is_a_push(autojump_c
             assert (m.command == Cmd.NAV_MOTION_BLOCKED) == push
             assert tread_reports(log) == ([] if push else [6])
             nursery.cancel_scope.cancel()
+
+
+@pytest.mark.trio
+async def test_the_lidar_gets_each_new_pose_once_and_the_last_one(autojump_clock) -> None:
+    """Turning on the mapper (every Int E turns the heading): each LIDAR_POSE pair the
+    LIDAR gets has a heading other than the one before (a pose is not sent again by the
+    control period), and the last is the pose at rest."""
+    hw = FakeHardware()
+    log: list = []
+    lidar_log: list = []
+    memory = PoseMemory()
+    spec = SupervisorSpec([
+        ChildSpec("nav", lambda: Recorder(log), mailbox=256),
+        ChildSpec("lidar", lambda: Recorder(lidar_log), mailbox=4096),
+        ChildSpec("map", lambda: Recorder([]), mailbox=256),
+        ChildSpec("motor", lambda: MotorControl(hw, memory, lidar=True), mailbox=256),
+    ])
+    async with open_actor_system(1) as system, trio.open_nursery() as nursery:
+        await system.start_supervisor(spec, "mapper")
+        await trio.sleep(0.1)
+        lidar_log.clear()  # the pose at start
+        nursery.start_soon(drive_fake_treads, hw, (1.0, 1.0), trio.current_time() + 4.0)
+        await system.send("mapper/motor", Message.float(Cmd.MOTOR_TURN, 90.0))
+        await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED})
+        await trio.sleep(0.5)
+        nursery.cancel_scope.cancel()
+    commands = [m.command for _, m in lidar_log]
+    assert commands == [Cmd.LIDAR_POSE_XY, Cmd.LIDAR_POSE_HEADING] * (len(commands) // 2)
+    headings = [m.value for _, m in lidar_log if m.command == Cmd.LIDAR_POSE_HEADING]
+    assert len(headings) > 10  # it turned: one pose per step's Int E
+    assert all(a != b for a, b in zip(headings, headings[1:], strict=False))
+    assert headings[-1] == pytest.approx(memory.pose.heading_deg, abs=1e-4)  # float32

@@ -223,3 +223,71 @@ async def test_a_poison_message_gives_its_pool_buffer_back(autojump_clock) -> No
         await trio.sleep(1.0)
         assert [c.restarts for c in tree.which_children() if c.id == "wifly"] == [1]
         assert pool.statistics().in_use == in_use
+
+
+def count_ticks(system) -> list[float]:
+    """Wrap the live WiFly's burst handler: the times of the WIFLY_TIMER ticks it handles."""
+    actor = system.whereis("hider/wifly").actor
+    ticks: list[float] = []
+    handle_burst = actor.handle_burst
+
+    async def counting(messages):
+        ticks.extend(trio.current_time() for m in messages if m.command == Cmd.WIFLY_TIMER)
+        await handle_burst(messages)
+
+    actor.handle_burst = counting
+    return ticks
+
+
+@pytest.mark.trio
+async def test_an_idle_linked_wifly_wakes_only_for_its_heartbeats(autojump_clock) -> None:
+    """Welcomed, with nothing to send: the timer fires about once per heartbeat (not
+    every tick_s), and a heartbeat still leaves within a tick of falling due, so the
+    link stays up on both ends."""
+    async with linked_wifly() as (system, server, _tree, _pool, log):
+        ticks = count_ticks(system)
+        sent: list[float] = []
+        to_server = server.hw.wifly_write
+
+        def wire(data: bytes) -> None:
+            sent.append(trio.current_time())
+            to_server(data)
+
+        server.hw.wifly_write = wire
+        await trio.sleep(10.0)
+        assert len(ticks) <= 12  # at most a heartbeat a second; ticking every 0.1 s made 100
+        assert len(sent) >= 9
+        assert max(b - a for a, b in zip(sent, sent[1:], strict=False)) <= 1.1 + 1e-6
+        assert [p for c, p in log if c == Cmd.NAV_LINK] == [1]
+        assert server.session.is_up(trio.current_time())
+
+
+@pytest.mark.trio
+async def test_a_deaf_server_takes_the_link_down_on_time(autojump_clock) -> None:
+    """With nothing heard, the link goes down at the first tick ``down_after_s`` (5 s)
+    after the server was last heard, and hellos follow with their backoff."""
+    async with linked_wifly() as (system, server, _tree, _pool, log):
+        actor = system.whereis("hider/wifly").actor
+        server.deaf = True
+        while actor.welcomed:
+            await trio.sleep(0.01)
+        heard = actor.session.last_heard
+        assert 5.0 <= trio.current_time() - heard <= 5.1 + 0.01
+        hellos = actor.hellos  # the first hello leaves as the link goes down
+        await trio.sleep(3.5)  # the next two about 1 and 3 s later (backoff from hello_s)
+        assert actor.hellos - hellos == 2
+
+
+@pytest.mark.trio
+async def test_a_tick_dropped_by_a_full_mailbox_does_not_stop_the_timer(
+        autojump_clock) -> None:
+    """The one-shot tick may find the mailbox full (a flood): the next burst arms the
+    timer again, so heartbeats go on after the flood."""
+    async with linked_wifly() as (system, server, _tree, _pool, log):
+        ticks = count_ticks(system)
+        system.flood("hider/wifly", 1000, Message.int(Cmd.NOOP, 0))
+        await trio.sleep(0.5)
+        ticks.clear()
+        await trio.sleep(5.0)
+        assert len(ticks) >= 4
+        assert [p for c, p in log if c == Cmd.NAV_LINK] == [1]

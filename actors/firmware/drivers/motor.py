@@ -41,10 +41,11 @@ Dead reckoning
     This actor owns the pose: every tread increment goes through an
     `odometry.Odometer` (one `odometry.advance` step per burst of Int E, with
     the track width from the hardware spec). The pose, in the rover's own
-    (odometry) frame, is published (``NAV_POSE_XY`` [mm] + ``NAV_POSE_HEADING``
-    [deg] to navigation; ``LIDAR_POSE_XY`` [cm] + ``LIDAR_POSE_HEADING`` to the
-    LIDAR on the mapper) when it changed, at most once per control period, and
-    at once on ``MOTOR_GET_POSE``. Motor Control knows nothing of the map frame:
+    (odometry) frame, is published to navigation (``NAV_POSE_XY`` [mm] +
+    ``NAV_POSE_HEADING`` [deg]) when it changed, at most once per control period;
+    to the LIDAR on the mapper (``LIDAR_POSE_XY`` [cm] + ``LIDAR_POSE_HEADING``)
+    once per change, as soon as the Int E that changed it are counted; to both at
+    once on ``MOTOR_GET_POSE``. Motor Control knows nothing of the map frame:
     each navigation keeps its own map -> odometry transform (its ``origin``:
     from the server, from its pose belief, or on the mapper from Map
     Management's scan matching).
@@ -190,7 +191,7 @@ class MotorControl(Actor):
         self._started_t = 0.0
         self._deadline = math.inf           # give up (blocked) after this [s]
         self._pose_dirty = True
-        self._lidar_dirty = False
+        self._lidar_dirty = True  # the LIDAR gets the pose at start, with navigation
         self._outcome: Message | None = None  # a DONE/BLOCKED report navigation refused
         self._odometer = Odometer(self._unit, self._track)
         self._monitor = TreadMonitor(self.tuning, self._unit, self._vmax, mapper=lidar)
@@ -245,7 +246,8 @@ class MotorControl(Actor):
             if self._kind is not None:
                 self._finish(Cmd.NAV_MOTION_DONE)
             self._set_pwm(0.0, 0.0)
-        elif cmd == Cmd.MOTOR_GET_POSE:
+        elif cmd == Cmd.MOTOR_GET_POSE:  # asked (a restarted neighbour): to both again
+            self._lidar_dirty = True
             self._publish()
         elif cmd == Cmd.NOOP:
             pass  # a flood fault: costs a queue slot, never a restart
@@ -312,11 +314,13 @@ class MotorControl(Actor):
         send(self._nav, xy)
         send(self._nav, heading)
         self._pose_dirty = False
-        self._publish_lidar()
+        if self._lidar_dirty:
+            self._publish_lidar()
 
     def _publish_lidar(self) -> None:
-        # The LIDAR gets every new pose at once (not once per control period): it
-        # stamps the samples of the same world tick with it (see lidar.py).
+        # The LIDAR gets every new pose at once (not once per control period), and once:
+        # it stamps the samples of the same world tick with it (see lidar.py), and a pose
+        # it already has stamps nothing differently (its own restart asks MOTOR_GET_POSE).
         if self._lidar_name is None:
             return
         xy, heading = pose_messages(Cmd.LIDAR_POSE_XY, Cmd.LIDAR_POSE_HEADING,

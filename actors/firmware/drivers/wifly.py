@@ -4,8 +4,19 @@ The seed's WiFly thread. Bytes from the WiFly UART ISR (Int B) arrive as
 ``WIFLY_RX`` (handle of the bytes); frames to send arrive from navigation as
 ``WIFLY_SEND`` (reliable), ``WIFLY_SEND_UNRELIABLE`` (telemetry) and
 ``WIFLY_SEND_MAP`` (a `GridMap` to upload in chunks, reliably), each a handle
-in the rover's `BufferPool`. A self-timer (``WIFLY_TIMER``, every ``tick_s``)
-drives heartbeats, resends and reconnects.
+in the rover's `BufferPool`. A self-timer (``WIFLY_TIMER``) drives heartbeats,
+resends and reconnects.
+
+Timer (why: a WiFly ticking every ``tick_s`` whatever was due made a fifth of a
+seeking phase's messages): every burst of messages ends by working out the
+earliest moment something falls due (`Wifly.due`: the next heartbeat or resend
+by `ReliableSession.next_deadline`, the next hello of the backoff, the moment
+the server counts as unheard) and arming one one-shot timer for it, rounded up
+to the ``tick_s`` grid that starts when the actor starts. The grid is the
+timer's resolution, so everything leaves at the tick it left at with a timer
+ticking every ``tick_s``; ticks with nothing due are not made. While something
+waits on a neighbour (navigation's mailbox full, the outbox with room for the
+backlog, a stalled link to be declared down) the timer polls every ``tick_s``.
 
 Protocol (server.protocol, docs/protocol.md)
     * **connect**: ``hello`` (id, role, token, ``seq_base``) is sent until the
@@ -49,7 +60,7 @@ from typing import Any
 
 import trio
 
-from actors import Actor, BufferPool, Message, PoolExhausted
+from actors import Actor, BufferPool, Message, PoolExhausted, Timer
 from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import WiflyUartIsr
@@ -72,9 +83,19 @@ from server.protocol import (
     read_data,
 )
 
+_TICK = Message.uint(Cmd.WIFLY_TIMER, 0)
+
 _HANDLE_COMMANDS = frozenset((Cmd.WIFLY_RX, Cmd.WIFLY_SEND, Cmd.WIFLY_SEND_UNRELIABLE,
                               Cmd.WIFLY_SEND_MAP))
 """Commands whose value is a pool handle (released by `Wifly.discard` when dropped)."""
+
+_GRID_TOLERANCE = 1e-6
+"""Times within this many grid steps of a grid point count as on it (a timer's due time
+is the sum of the clock and a delay, which may round a little off the grid)."""
+
+_MAX_STEPS = 10_000
+"""Grid steps walked one by one before `Wifly._arm` jumps by multiplication (bounds a
+wake-up's cost after a long gap)."""
 
 __all__ = ["LinkMemory", "Wifly"]
 
@@ -114,7 +135,7 @@ class Wifly(Actor):
         role: ``mapper``, ``hider`` or ``seeker``.
         token: the shared secret, when the server asks for one.
         isr: the WiFly UART ISR (its counters survive restarts); made here when None.
-        tick_s: timer period [s].
+        tick_s: the timer's resolution [s]: wake-ups fall on a grid of this step.
         hello_s: first hello retry interval [s].
         hello_max_s: the longest hello retry interval (backoff cap) [s].
         max_backlog: reliable frames waiting for the outbox at most.
@@ -153,6 +174,9 @@ class Wifly(Actor):
         self._assembler = MapAssembler()
         self._next_hello = -math.inf
         self._hello_wait = hello_s
+        self._timer: Timer | Any = None  # the one-shot timer armed for `_wake_at`
+        self._wake_at = -math.inf  # when the armed timer fires [s]
+        self._grid = 0.0  # the latest point of the tick grid not after the last burst [s]
 
     # ------------------------------------------------------------------ lifetime
     async def on_start(self) -> None:
@@ -163,7 +187,8 @@ class Wifly(Actor):
         if self._isr is None:
             self._isr = WiflyUartIsr(self._post, self.pool)
         self.hw.attach(Interrupt.INT_B, self._isr)
-        self.ctx.start_timer(0.0, Message.uint(Cmd.WIFLY_TIMER, 0), interval=self.tick_s)
+        self._grid = self._wake_at = trio.current_time()
+        self._timer = self.ctx.start_timer(0.0, _TICK)
 
     def _post(self, message: Message) -> bool:
         return self.ctx.system.send_nowait(self.ctx.name, message)
@@ -206,6 +231,7 @@ class Wifly(Actor):
             else:
                 raise ValueError(f"wifly got an unknown command 0x{cmd:04x}")
         self._service(now)
+        self._arm(now)
 
     def discard(self, message: Message) -> None:
         """A dropped poison message gives its pool buffer back (the handler may have taken it)."""
@@ -262,6 +288,52 @@ class Wifly(Actor):
         data = session.transmit(now)
         if data:
             self.hw.wifly_write(data)
+
+    # ------------------------------------------------------------------ timer
+    def due(self, now: float) -> float:
+        """The earliest time [s] at which the link needs servicing though no message
+        comes: ``now`` when something waits on a neighbour (poll at the next tick)."""
+        session = self.session
+        mem = self.memory
+        assert mem is not None
+        if self._to_nav or (mem.backlog and session.outbox_room() > 0):
+            return now  # navigation's mailbox was full, or the outbox has room again
+        if not self.welcomed:
+            if self.hold_until_welcome:
+                return self._next_hello  # only hello may leave
+            return min(self._next_hello, session.next_deadline(now))
+        if not session.is_up(now):
+            return now  # stalled: the link is down at the next tick
+        heard = session.last_heard
+        down = heard + session.down_after_s if heard is not None else math.inf
+        return min(down, session.next_deadline(now))
+
+    def _arm(self, now: float) -> None:
+        """Arm the timer for the first tick of the grid after ``now`` at or after `due`
+        (a pending timer for that tick stays; one for another is replaced)."""
+        due = self.due(now)
+        if not math.isfinite(due):
+            return
+        step = self.tick_s
+        # a timer armed for a grid point may fire a rounding error before it
+        at = now + step * _GRID_TOLERANCE
+        grid = self._grid
+        if now - grid > _MAX_STEPS * step:  # a long gap (no burst for a while): jump
+            grid += math.floor((now - grid) / step) * step
+        while grid + step <= at:
+            grid += step
+        self._grid = grid
+        wake = grid + step
+        if due - wake > _MAX_STEPS * step:
+            wake += math.floor((due - wake) / step) * step
+        while wake < due - step * _GRID_TOLERANCE:
+            wake += step
+        if wake == self._wake_at and self._wake_at > at and self._timer is not None:
+            return  # the timer armed for that tick is still pending
+        if self._timer is not None:
+            self._timer.cancel()
+        self._timer = self.ctx.start_timer(wake - now, _TICK)
+        self._wake_at = wake
 
     def _hello(self) -> Frame:
         return make_frame(HELLO, {"id": self.rover_id, "role": self.role, "token": self.token,
