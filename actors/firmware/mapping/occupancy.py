@@ -65,6 +65,18 @@ from server.protocol.pose import Pose
 __all__ = ["OccupancyGrid"]
 
 
+
+def _class_of_code() -> np.ndarray:
+    codes = np.array([FREE, UNKNOWN, OCCUPIED], dtype=np.int8)
+    codes.flags.writeable = False
+    return codes
+
+
+_CLASS_OF_CODE = _class_of_code()
+"""A cell's class from ``(log-odds >= free threshold) + (log-odds > occupied threshold)``
+(read-only)."""
+
+
 class OccupancyGrid:
     """Map Management's mutable log-odds grid with a fixed extent.
 
@@ -378,10 +390,14 @@ class OccupancyGrid:
             return fy.compress(keep).astype(np.int64), None
         # each batch's first sample is kept (it is its own observation); where each
         # batch's kept samples start: the kept samples before its first sample
-        first = np.append(start, total)[first_ray]
-        keep[first[:-1].compress(first[:-1] < total)] = True
-        kept = np.concatenate(([0], np.cumsum(keep)))[first]
-        return fy.compress(keep).astype(np.int64), kept
+        first = np.append(start, total)[first_ray].tolist()
+        kept = [0]
+        for a, b in zip(first[:-1], first[1:], strict=True):
+            if a < total:
+                keep[a] = True
+            # (a count per batch, not a cumulative sum over every sample: 2 against 43 us)
+            kept.append(kept[-1] + int(np.count_nonzero(keep[a:b])))
+        return fy.compress(keep).astype(np.int64), np.array(kept)
 
     def _ramp(self, n: int) -> np.ndarray:
         """0, step, 2 step, ... (n values), from a cached ramp grown as needed."""
@@ -425,8 +441,10 @@ class OccupancyGrid:
         vals = flat[idx]
         np.minimum(np.maximum(vals, m.l_min, out=vals), m.l_max, out=vals)  # clipped
         flat[idx] = vals  # a repeated cell writes the same value each time
-        after = np.where(vals < m.free_threshold, np.int8(FREE), np.where(
-            vals > m.occ_threshold, np.int8(OCCUPIED), np.int8(UNKNOWN)))
+        # the class as 0 free, 1 unknown, 2 occupied (two comparisons), then looked up
+        code = (vals >= m.free_threshold).view(np.uint8)
+        code += (vals > m.occ_threshold).view(np.uint8)
+        after = _CLASS_OF_CODE.take(code)
         moved = before != after
         if not np.logical_or.reduce(moved):
             return 0
