@@ -349,13 +349,18 @@ class LidarControl(Actor):
     def _flush(self) -> None:
         if not self._pending:
             return
-        parts_a = [c.angles for c in self._chunks]
-        parts_d = [c.distances for c in self._chunks]
-        if self._angles:
-            parts_a.append(np.asarray(self._angles, dtype=np.int32))
-            parts_d.append(np.asarray(self._ranges, dtype=np.int32))
-        angles = np.concatenate(parts_a).astype(np.float32) * np.float32(0.1)
-        ranges = np.concatenate(parts_d).astype(np.float32)
+        if len(self._chunks) == 1 and not self._angles:  # one interrupt's run: no joining
+            angles = self._chunks[0].angles.astype(np.float32)
+            ranges = self._chunks[0].distances.astype(np.float32)
+        else:
+            parts_a = [c.angles for c in self._chunks]
+            parts_d = [c.distances for c in self._chunks]
+            if self._angles:
+                parts_a.append(np.asarray(self._angles, dtype=np.int32))
+                parts_d.append(np.asarray(self._ranges, dtype=np.int32))
+            angles = np.concatenate(parts_a).astype(np.float32)
+            ranges = np.concatenate(parts_d).astype(np.float32)
+        angles *= np.float32(0.1)  # [0.1 deg] -> [deg]
         self._angles, self._ranges, self._chunks, self._pending = [], [], [], 0
         if not self._healthy(angles, ranges):
             self.withheld += 1

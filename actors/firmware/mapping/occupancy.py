@@ -241,15 +241,13 @@ class OccupancyGrid:
             raise ValueError(f"sizes must be positive and sum to {n}, got {counts}")
         if len(counts) == 1:
             return self._integrate(o[0], o[1], o[2], angles, ranges)
-        has_hit, cos, sin, px, py, length_c, free_c = self._rays(o[0], o[1], o[2], angles,
-                                                                 ranges)
+        has_hit, rays, origin, length_c, free_c = self._rays(o[0], o[1], o[2], angles, ranges)
         first_ray = np.cumsum([0] + counts)
-        free = self._free_samples(px, py, cos, sin, free_c, first_ray)
-        hit_c = length_c[has_hit]
-        hx = px[has_hit] + cos[has_hit] * hit_c  # hits [cells]
-        hy = py[has_hit] + sin[has_hit] * hit_c
-        cells = self._inside(np.floor(hy).astype(np.int64), np.floor(hx).astype(np.int64))
-        if free is None or cells.size != hx.size:  # off the grid: batch by batch
+        free = self._free_samples(rays, origin, free_c, first_ray)
+        hxy = self._hit_points(has_hit, rays, origin, length_c)
+        hit_rc = np.floor(hxy).astype(np.int64)
+        cells = self._inside(hit_rc[1], hit_rc[0])
+        if free is None or cells.size != hit_rc.shape[1]:  # off the grid: batch by batch
             return sum(self._integrate(o[0, a:b], o[1, a:b], o[2, a:b], angles[a:b], ranges[a:b])
                        for a, b in zip(first_ray[:-1], first_ray[1:], strict=True))
         flat_free, first_sample = free
@@ -264,7 +262,7 @@ class OccupancyGrid:
         free_parts = [self._distinct(flat_free[first_sample[k]:first_sample[k + 1]],
                                      hit_all[cut[k]:cut[k + 1]]) for k in range(len(counts))]
         changed = self._update_summed(np.concatenate(free_parts), hit_all)
-        self._splat_hits(hx, hy)
+        self._splat_hits(hxy[0], hxy[1])
         self.batches += len(counts)
         self.rays += n
         self.changed_total += changed
@@ -277,25 +275,20 @@ class OccupancyGrid:
         angles, ranges = check_batch(angles_deg, ranges_cm)
         if angles.size == 0:
             return 0
-        has_hit, cos, sin, px, py, length_c, free_c = self._rays(x, y, heading_deg, angles,
-                                                                 ranges)
-        free_flat = self._free_samples(px, py, cos, sin, free_c)[0]
+        has_hit, rays, origin, length_c, free_c = self._rays(x, y, heading_deg, angles, ranges)
+        free_flat = self._free_samples(rays, origin, free_c)[0]
 
-        hit_c = length_c[has_hit]
-        if isinstance(px, np.ndarray):
-            px, py = px[has_hit], py[has_hit]
-        hx = px + cos[has_hit] * hit_c  # hits [cells]
-        hy = py + sin[has_hit] * hit_c
+        hxy = self._hit_points(has_hit, rays, origin, length_c)
+        hit_rc = np.floor(hxy).astype(np.int64)
         # np.unique's result (sorted, distinct) without its overhead (17 -> 5 us per batch)
-        hit_idx = np.sort(self._inside(np.floor(hy).astype(np.int64),
-                                       np.floor(hx).astype(np.int64)))
+        hit_idx = np.sort(self._inside(hit_rc[1], hit_rc[0]))
         if hit_idx.size > 1:
             hit_idx = hit_idx[np.concatenate(([True], hit_idx[1:] != hit_idx[:-1]))]
         # a cell hit by a ray of the batch is not also cleared by another
         free_idx = self._distinct(free_flat, hit_idx)
 
         changed = self._update(free_idx, hit_idx)
-        self._splat_hits(hx, hy)
+        self._splat_hits(hxy[0], hxy[1])
 
         self.batches += 1
         self.rays += int(angles.size)
@@ -304,33 +297,58 @@ class OccupancyGrid:
 
     def _rays(self, x: float | np.ndarray, y: float | np.ndarray,
               heading_deg: float | np.ndarray, angles: np.ndarray, ranges: np.ndarray
-              ) -> tuple[np.ndarray, ...]:
+              ) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None, np.ndarray,
+                         np.ndarray]:
         """The rays' geometry in cell units, from one pose (floats) or one per beam
-        (arrays): whether each ray hit, its direction (``cos``, ``sin``), its origin
-        (``px``, ``py``), its length and its free length (strictly before its end, which
-        is pulled back on rays that graze their surface, `sensor_model.grazing_shortening`)."""
+        (arrays): whether each ray hit; ``rays``, the rows ``cos``, ``sin`` of each ray's
+        direction and, from one pose per beam, ``px``, ``py`` of its origin (one array:
+        the samples and the hits repeat or select all rows in one call); the origin
+        (``px``, ``py``) from one pose, else None; each ray's length and its free length
+        (strictly before its end, which is pulled back on rays that graze their surface,
+        `sensor_model.grazing_shortening`)."""
         m = self.model
         res = self.resolution_cm
         ox, oy = self.origin_cm
         has_hit = (ranges > 0) & (ranges <= m.max_range_cm)
         length = np.where(has_hit, ranges, m.max_range_cm)  # [cm]
         theta = np.radians(angles + heading_deg)
-        cos, sin = np.cos(theta), np.sin(theta)
-        px, py = (x - ox) / res, (y - oy) / res
+        per_beam = isinstance(x, np.ndarray)
+        rays = np.empty((4 if per_beam else 2, angles.size))
+        np.cos(theta, out=rays[0])
+        np.sin(theta, out=rays[1])
+        origin = None
+        if per_beam:
+            np.subtract(x, ox, out=rays[2])
+            rays[2] /= res
+            np.subtract(y, oy, out=rays[3])
+            rays[3] /= res
+        else:
+            origin = ((x - ox) / res, (y - oy) / res)
         length_c = length / res
         free_c = length_c
         if m.grazing_margin_cells > 0 and angles.size > 1:
             free_c = length_c - grazing_shortening(angles, ranges, has_hit, res,
                                                     m.grazing_margin_cells)
-        return has_hit, cos, sin, px, py, length_c, free_c
+        return has_hit, rays, origin, length_c, free_c
 
-    def _free_samples(self, px: float | np.ndarray, py: float | np.ndarray, cos: np.ndarray,
-                      sin: np.ndarray, free_c: np.ndarray, first_ray: np.ndarray | None = None
+    def _hit_points(self, has_hit: np.ndarray, rays: np.ndarray,
+                    origin: tuple[float, float] | None,
+              length_c: np.ndarray) -> np.ndarray:
+        """The hits [cells] of the rays that hit, (2, h): the rows x, y (``x = px + cos
+        length``; as its sum, ``cos length + px`` is the same float)."""
+        hit = rays.compress(has_hit, axis=1)
+        hxy = hit[:2]
+        hxy *= length_c.compress(has_hit)
+        hxy += hit[2:] if origin is None else np.array([[origin[0]], [origin[1]]])
+        return hxy
+
+    def _free_samples(self, rays: np.ndarray, origin: tuple[float, float] | None,
+                      free_c: np.ndarray, first_ray: np.ndarray | None = None
                       ) -> tuple[np.ndarray, np.ndarray | None] | None:
         """Flat indices (in the grid, with repeats) of the samples of every ray at
         t = 0, step, 2 step, ... strictly before its free length ``free_c`` [cells],
-        from the ray origin (``px``, ``py``) [cells; one for all rays, or one per ray]
-        along (``cos``, ``sin``).
+        from the ray origin (``px``, ``py``) [cells; ``origin`` for all rays, or the rows
+        of ``rays`` per ray] along (``cos``, ``sin``) (``rays``, as `_rays` gives them).
 
         A sample in the cell of the sample before it is left out (half-cell steps put
         about two samples in each cell): the same cells, half the indices for
@@ -356,19 +374,17 @@ class OccupancyGrid:
         # gathering them by a ray index), the arithmetic in place: the same operations
         # in the same order as x = cos * t + px, so the same cells
         t = self._ramp(total) - (start * step).repeat(n_samples)
-        if isinstance(px, np.ndarray):  # one origin per ray: repeated with the rest
-            rows = np.stack((cos, sin, px, py)).repeat(n_samples, axis=1)
-            xy = rows[:2]
-            xy *= t
+        rows = rays.repeat(n_samples, axis=1)
+        xy = rows[:2]
+        xy *= t
+        if origin is None:  # one origin per ray: repeated with the rest
             xy += rows[2:]
-            x0, x1 = float(np.minimum.reduce(px)), float(np.maximum.reduce(px))
-            y0, y1 = float(np.minimum.reduce(py)), float(np.maximum.reduce(py))
+            x0, y0 = np.minimum.reduce(rays[2:], axis=1).tolist()
+            x1, y1 = np.maximum.reduce(rays[2:], axis=1).tolist()
         else:
-            xy = np.stack((cos, sin)).repeat(n_samples, axis=1)
-            xy *= t
-            xy += np.array([[px], [py]])
-            x0 = x1 = px
-            y0 = y1 = py
+            xy += np.array([[origin[0]], [origin[1]]])
+            x0 = x1 = origin[0]
+            y0 = y1 = origin[1]
         np.floor(xy, out=xy)
         fx, fy = xy
         ny, nx = self._log_odds.shape
