@@ -126,6 +126,7 @@ class OccupancyGrid:
         self._scratch = np.zeros(ny * nx, dtype=np.int32)  # `_distinct`'s work space
         self._ramp_cache = np.zeros(0)  # `_ramp`'s 0, step, 2 step, ...
         self._positions = np.zeros(0, dtype=np.int32)  # `_distinct`'s 0, 1, 2, ...
+        self._marks = np.zeros(0, dtype=np.int32)  # `_distinct`'s -2, -3, -4, ...
         # the cells' classes, kept up to date by every write of the log-odds (see `snapshot`)
         self._classes = np.full((ny, nx), UNKNOWN, dtype=np.int8)
         self._snap: GridMap | None = None  # the last snapshot, while no cell changed class
@@ -251,17 +252,14 @@ class OccupancyGrid:
             return sum(self._integrate(o[0, a:b], o[1, a:b], o[2, a:b], angles[a:b], ranges[a:b])
                        for a, b in zip(first_ray[:-1], first_ray[1:], strict=True))
         flat_free, first_sample = free
-        # each batch's distinct hit cells: sorted by (batch, cell) in one sort
-        ncells = self._log_odds.size
-        batch = np.arange(len(counts)).repeat(counts).compress(has_hit)
-        keys = np.sort(batch * ncells + cells)
-        if keys.size > 1:
-            keys = keys.compress(np.concatenate(([True], keys[1:] != keys[:-1])))
-        cut = np.searchsorted(keys, np.arange(len(counts) + 1) * ncells)
-        hit_all = keys - (keys // ncells) * ncells
-        free_parts = [self._distinct(flat_free[first_sample[k]:first_sample[k + 1]],
-                                     hit_all[cut[k]:cut[k + 1]]) for k in range(len(counts))]
-        changed = self._update_summed(np.concatenate(free_parts), hit_all)
+        # each batch's hits are a run of the hits (they keep the beams' order)
+        first_hit = [0]
+        for a, b in zip(first_ray[:-1].tolist(), first_ray[1:].tolist(), strict=True):
+            first_hit.append(first_hit[-1] + int(np.count_nonzero(has_hit[a:b])))
+        parts = [self._distinct(flat_free[first_sample[k]:first_sample[k + 1]],
+                                cells[first_hit[k]:first_hit[k + 1]]) for k in range(len(counts))]
+        changed = self._update_summed(np.concatenate([f for f, _ in parts]),
+                                      np.concatenate([h for _, h in parts]))
         self._splat_hits(hxy[0], hxy[1])
         self.batches += len(counts)
         self.rays += n
@@ -280,12 +278,9 @@ class OccupancyGrid:
 
         hxy = self._hit_points(has_hit, rays, origin, length_c)
         hit_rc = np.floor(hxy).astype(np.int64)
-        # np.unique's result (sorted, distinct) without its overhead (17 -> 5 us per batch)
-        hit_idx = np.sort(self._inside(hit_rc[1], hit_rc[0]))
-        if hit_idx.size > 1:
-            hit_idx = hit_idx[np.concatenate(([True], hit_idx[1:] != hit_idx[:-1]))]
-        # a cell hit by a ray of the batch is not also cleared by another
-        free_idx = self._distinct(free_flat, hit_idx)
+        # the distinct hit cells, and the distinct free ones: a cell hit by a ray of the
+        # batch is not also cleared by another
+        free_idx, hit_idx = self._distinct(free_flat, self._inside(hit_rc[1], hit_rc[0]))
 
         changed = self._update(free_idx, hit_idx)
         self._splat_hits(hxy[0], hxy[1])
@@ -427,19 +422,21 @@ class OccupancyGrid:
         m = self.model
         # one gather, the update, one scatter (every index is distinct)
         flat = self._log_odds.reshape(-1)
+        classes = self._classes.reshape(-1)
         n_free = free_idx.size
         idx = np.concatenate([free_idx, hit_idx])
         vals = flat[idx]
-        was_free, was_occ = vals < m.free_threshold, vals > m.occ_threshold
+        before = classes[idx]
         vals[:n_free] += m.l_free
         vals[n_free:] += m.l_occ
         np.minimum(np.maximum(vals, m.l_min, out=vals), m.l_max, out=vals)  # clipped
         flat[idx] = vals
-        now_free, now_occ = vals < m.free_threshold, vals > m.occ_threshold
-        moved = (was_free != now_free) | (was_occ != now_occ)
+        after = self._class_of(vals)
+        moved = before != after
         changed = int(np.count_nonzero(moved))
         if changed:
-            self._set_classes(idx[moved], now_free[moved], now_occ[moved])
+            classes[idx.compress(moved)] = after.compress(moved)
+            self._snap = None
         return changed
 
     def _update_summed(self, free_idx: np.ndarray, hit_idx: np.ndarray) -> int:
@@ -457,10 +454,7 @@ class OccupancyGrid:
         vals = flat[idx]
         np.minimum(np.maximum(vals, m.l_min, out=vals), m.l_max, out=vals)  # clipped
         flat[idx] = vals  # a repeated cell writes the same value each time
-        # the class as 0 free, 1 unknown, 2 occupied (two comparisons), then looked up
-        code = (vals >= m.free_threshold).view(np.uint8)
-        code += (vals > m.occ_threshold).view(np.uint8)
-        after = _CLASS_OF_CODE.take(code)
+        after = self._class_of(vals)
         moved = before != after
         if not np.logical_or.reduce(moved):
             return 0
@@ -469,25 +463,36 @@ class OccupancyGrid:
         self._snap = None
         return int(np.unique(cells).size)
 
-    def _distinct(self, flat_idx: np.ndarray, exclude: np.ndarray) -> np.ndarray:
-        """The distinct values of ``flat_idx`` (cell indices) that are not in ``exclude``,
-        in no particular order.
+    def _class_of(self, vals: np.ndarray) -> np.ndarray:
+        """The classes (int8) of log-odds ``vals``: 0 free, 1 unknown, 2 occupied from two
+        comparisons, then looked up (nested `np.where` costs half as much again)."""
+        m = self.model
+        code = (vals >= m.free_threshold).view(np.uint8)
+        code += (vals > m.occ_threshold).view(np.uint8)
+        return _CLASS_OF_CODE.take(code)
+
+    def _distinct(self, flat_idx: np.ndarray, hits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The distinct values of ``flat_idx`` (cell indices) that are not in ``hits``, and
+        the distinct values of ``hits``, each in no particular order.
 
         Why not `np.unique`: it sorts (the rays of a batch give thousands of samples),
         and a mask over the whole grid costs a pass over every cell. Here each sample
-        writes its position into a scratch cell, and the excluded cells a -1; whichever
-        write of a cell won, exactly one of that cell's samples reads its own position
-        back, and none of an excluded cell's.
+        writes its position (0, 1, ...) into a scratch cell, then each hit its own mark
+        (-2, -3, ...); whichever write of a cell won, exactly one of that cell's
+        samples or hits reads its own value back, and no sample in a hit cell does.
         """
-        if flat_idx.size > self._positions.size:
-            self._positions = np.arange(max(flat_idx.size, 2 * self._positions.size),
-                                        dtype=np.int32)
+        n = max(flat_idx.size, hits.size)
+        if n > self._positions.size:
+            self._positions = np.arange(max(n, 2 * self._positions.size), dtype=np.int32)
+            self._marks = -2 - self._positions
         pos = self._positions[:flat_idx.size]
+        marks = self._marks[:hits.size]
         scratch = self._scratch
         scratch[flat_idx] = pos
-        scratch[exclude] = -1
+        scratch[hits] = marks
         # (`compress`, not a boolean index: twice as fast on an irregular mask)
-        return flat_idx.compress(scratch[flat_idx] == pos)
+        return (flat_idx.compress(scratch[flat_idx] == pos),
+                hits.compress(scratch[hits] == marks))
 
     def _inside(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """Flat indices of the (row, col) cells that lie on the grid (the others dropped)."""
@@ -520,12 +525,6 @@ class OccupancyGrid:
         if not np.logical_and.reduce(inside):
             flat, weights = flat[inside], weights[inside]
         np.add.at(self._hits.reshape(-1), flat, weights)
-
-    def _set_classes(self, flat_idx: np.ndarray, free: np.ndarray, occupied: np.ndarray) -> None:
-        """Record the new classes of the cells ``flat_idx`` (their log-odds just changed)."""
-        self._classes.reshape(-1)[flat_idx] = np.where(
-            free, np.int8(FREE), np.where(occupied, np.int8(OCCUPIED), np.int8(UNKNOWN)))
-        self._snap = None
 
     def fill_unknown(self, row0: int, col0: int, cells: np.ndarray) -> bool:
         """Seed the unknown cells of the box at (``row0``, ``col0``) from ``cells``
