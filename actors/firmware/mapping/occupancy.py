@@ -366,14 +366,20 @@ class OccupancyGrid:
         # sample k of its ray at t = k step, as a ramp over the whole batch less each
         # ray's offset (all exact multiples of the step: the same floats as k * step);
         # both axes at once, each ray's (cos, sin) repeated per sample (cheaper than
-        # gathering them by a ray index), the arithmetic in place: the same operations
-        # in the same order as x = cos * t + px, so the same cells
-        t = self._ramp(total) - (start * step).repeat(n_samples)
-        rows = rays.repeat(n_samples, axis=1)
+        # gathering them by a ray index) together with its origin and its offset (one
+        # repeat), the arithmetic in place: the same operations in the same order as
+        # x = cos * t + px, so the same cells
+        k = rays.shape[0]
+        per_ray = np.empty((k + 1, rays.shape[1]))
+        per_ray[:k] = rays
+        np.multiply(start, -step, out=per_ray[k])
+        rows = per_ray.repeat(n_samples, axis=1)
+        t = rows[k]
+        t += self._ramp(total)  # (-offset + ramp: the same float as ramp - offset)
         xy = rows[:2]
         xy *= t
         if origin is None:  # one origin per ray: repeated with the rest
-            xy += rows[2:]
+            xy += rows[2:k]
             x0, y0 = np.minimum.reduce(rays[2:], axis=1).tolist()
             x1, y1 = np.maximum.reduce(rays[2:], axis=1).tolist()
         else:
