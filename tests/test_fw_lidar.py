@@ -12,6 +12,7 @@ from actors import Actor, BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import (
     RECOVER_BATCHES,
+    STUCK_SPAN_DEG,
     HealthOptions,
     LidarControl,
     LidarHealth,
@@ -155,6 +156,23 @@ def test_roughness_of_a_flat_wall_is_the_quantum_and_noise_is_far_above() -> Non
 def test_batch_health_verdicts(angles, ranges, bad, verdict) -> None:
     """Each fault has its signature; a healthy sweep across 0 deg is not stuck or rough."""
     assert batch_health(angles, ranges, bad) == verdict
+
+
+def test_a_rotor_is_stuck_exactly_when_every_angle_lies_within_a_degree_of_the_first() -> None:
+    """Clusters of angles anywhere on the circle, across 0 deg too, narrow and a little
+    wider than a degree, and sweeps: the verdict is STUCK exactly when the circular
+    spread of every sample from the first is at most `STUCK_SPAN_DEG` (the shortcut on
+    the angles' extent never decides otherwise)."""
+    rng = np.random.default_rng(11)
+    for trial in range(600):
+        centre = rng.choice([0.0, 0.4, 359.6, 180.0, rng.uniform(0.0, 360.0)])
+        width = rng.choice([0.0, 0.5, 0.99, 1.0, 1.01, 2.0, 2.6, 40.0, 359.0])
+        angles = ((centre + rng.uniform(-width, width, 20)) % 360.0).astype(np.float32)
+        a = angles.astype(np.float64)
+        spread = np.abs((a - a[0] + 180.0) % 360.0 - 180.0).max()
+        expected = LidarHealth.STUCK if spread <= STUCK_SPAN_DEG else LidarHealth.OK
+        assert batch_health(angles, np.full(20, 200.0, dtype=np.float32), 0) == expected, (
+            f"trial {trial}: {angles.tolist()}")
 
 
 def _health_tree(log: list, pool: BufferPool, hw: FakeHardware) -> SupervisorSpec:

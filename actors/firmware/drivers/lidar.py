@@ -167,20 +167,39 @@ def roughness_cm(angles_deg: np.ndarray, ranges_cm: np.ndarray, *,
     r = np.asarray(ranges_cm, dtype=np.float64)
     if a.size < 3:
         return 0.0, 0
-    # per batch: slices and ufuncs, not np.diff's wrapper; the neighbours' conditions
-    # are and-ed per pair first (``pair[i]``: step i usable, returns i and i + 1 valid)
+    # per batch (a hundred values, so the count of numpy calls is the cost): slices and
+    # ufuncs, not np.diff's wrapper; the neighbours' conditions are and-ed per pair
+    # first (``pair[i]``: step i usable, returns i and i + 1 valid, i.e. the smaller > 0)
     step = np.abs((a[1:] - a[:-1] + 180.0) % 360.0 - 180.0)
-    valid = r > 0
-    pair = (step > 0.0) & (step <= max_step_deg) & valid[:-1] & valid[1:]
+    pair = (step > 0.0) & (step <= max_step_deg)
+    pair &= np.minimum(r[:-1], r[1:]) > 0.0
     use = pair[:-1] & pair[1:]
     n = int(np.count_nonzero(use))
     if n == 0:
         return 0.0, 0
-    d2 = np.sort(np.abs(r[:-2] - 2.0 * r[1:-1] + r[2:])[use])
+    # the second difference as the difference of the first ones (the same value on the
+    # sensor's whole centimetres; one numpy call fewer than r[i-1] - 2 r[i] + r[i+1])
+    dr = r[1:] - r[:-1]
+    d2 = np.abs(dr[1:] - dr[:-1]).compress(use)
+    d2.sort()
     # np.median's value (the middle one, or the mean of the middle two) at a tenth of
     # its cost on a hundred values (it is per batch)
     k = n // 2
     return (float(d2[k]) if n % 2 else float((d2[k - 1] + d2[k]) / 2.0)), n
+
+
+def _may_be_stuck(a: np.ndarray) -> bool:
+    """False when the angles ``a`` [deg] surely do not all lie within `STUCK_SPAN_DEG` of the
+    first one (around the circle): the usual sweep, told by its extent alone (two
+    reductions, where the circular spread of every sample costs five calls).
+
+    Angles in [0, 360) that all lie within ``s`` of one of them span at most ``2 s`` or,
+    across 0 deg, at least ``360 - 2 s``; a span between (with half a degree to spare)
+    rules the rotor stuck out.
+    """
+    lo, hi = float(np.minimum.reduce(a)), float(np.maximum.reduce(a))
+    margin = 2.0 * STUCK_SPAN_DEG + 0.5
+    return not (lo >= 0.0 and hi < 360.0 and margin < hi - lo < 360.0 - margin)
 
 
 def batch_health(angles_deg: np.ndarray, ranges_cm: np.ndarray, bad_frames: int,
@@ -200,9 +219,10 @@ def batch_health(angles_deg: np.ndarray, ranges_cm: np.ndarray, bad_frames: int,
     if n < MIN_SAMPLES:
         return LidarHealth.OK
     a = np.asarray(angles_deg, dtype=np.float64)
-    spread = np.abs((a - a[0] + 180.0) % 360.0 - 180.0)
-    if float(np.maximum.reduce(spread)) <= STUCK_SPAN_DEG:
-        return LidarHealth.STUCK
+    if _may_be_stuck(a):
+        spread = np.abs((a - a[0] + 180.0) % 360.0 - 180.0)
+        if float(np.maximum.reduce(spread)) <= STUCK_SPAN_DEG:
+            return LidarHealth.STUCK
     rough, triples = roughness_cm(a, ranges_cm)
     if triples >= MIN_TRIPLES and rough > o.noise_limit_cm:
         return LidarHealth.NOISY
@@ -329,13 +349,18 @@ class LidarControl(Actor):
     def _flush(self) -> None:
         if not self._pending:
             return
-        parts_a = [c.angles for c in self._chunks]
-        parts_d = [c.distances for c in self._chunks]
-        if self._angles:
-            parts_a.append(np.asarray(self._angles, dtype=np.int32))
-            parts_d.append(np.asarray(self._ranges, dtype=np.int32))
-        angles = np.concatenate(parts_a).astype(np.float32) * np.float32(0.1)
-        ranges = np.concatenate(parts_d).astype(np.float32)
+        if len(self._chunks) == 1 and not self._angles:  # one interrupt's run: no joining
+            angles = self._chunks[0].angles.astype(np.float32)
+            ranges = self._chunks[0].distances.astype(np.float32)
+        else:
+            parts_a = [c.angles for c in self._chunks]
+            parts_d = [c.distances for c in self._chunks]
+            if self._angles:
+                parts_a.append(np.asarray(self._angles, dtype=np.int32))
+                parts_d.append(np.asarray(self._ranges, dtype=np.int32))
+            angles = np.concatenate(parts_a).astype(np.float32)
+            ranges = np.concatenate(parts_d).astype(np.float32)
+        angles *= np.float32(0.1)  # [0.1 deg] -> [deg]
         self._angles, self._ranges, self._chunks, self._pending = [], [], [], 0
         if not self._healthy(angles, ranges):
             self.withheld += 1

@@ -65,6 +65,18 @@ from server.protocol.pose import Pose
 __all__ = ["OccupancyGrid"]
 
 
+
+def _class_of_code() -> np.ndarray:
+    codes = np.array([FREE, UNKNOWN, OCCUPIED], dtype=np.int8)
+    codes.flags.writeable = False
+    return codes
+
+
+_CLASS_OF_CODE = _class_of_code()
+"""A cell's class from ``(log-odds >= free threshold) + (log-odds > occupied threshold)``
+(read-only)."""
+
+
 class OccupancyGrid:
     """Map Management's mutable log-odds grid with a fixed extent.
 
@@ -114,6 +126,7 @@ class OccupancyGrid:
         self._scratch = np.zeros(ny * nx, dtype=np.int32)  # `_distinct`'s work space
         self._ramp_cache = np.zeros(0)  # `_ramp`'s 0, step, 2 step, ...
         self._positions = np.zeros(0, dtype=np.int32)  # `_distinct`'s 0, 1, 2, ...
+        self._marks = np.zeros(0, dtype=np.int32)  # `_distinct`'s -2, -3, -4, ...
         # the cells' classes, kept up to date by every write of the log-odds (see `snapshot`)
         self._classes = np.full((ny, nx), UNKNOWN, dtype=np.int8)
         self._snap: GridMap | None = None  # the last snapshot, while no cell changed class
@@ -229,30 +242,25 @@ class OccupancyGrid:
             raise ValueError(f"sizes must be positive and sum to {n}, got {counts}")
         if len(counts) == 1:
             return self._integrate(o[0], o[1], o[2], angles, ranges)
-        has_hit, cos, sin, px, py, length_c, free_c = self._rays(o[0], o[1], o[2], angles,
-                                                                 ranges)
+        has_hit, rays, origin, length_c, free_c = self._rays(o[0], o[1], o[2], angles, ranges)
         first_ray = np.cumsum([0] + counts)
-        free = self._free_samples(px, py, cos, sin, free_c, first_ray)
-        hit_c = length_c[has_hit]
-        hx = px[has_hit] + cos[has_hit] * hit_c  # hits [cells]
-        hy = py[has_hit] + sin[has_hit] * hit_c
-        cells = self._inside(np.floor(hy).astype(np.int64), np.floor(hx).astype(np.int64))
-        if free is None or cells.size != hx.size:  # off the grid: batch by batch
+        free = self._free_samples(rays, origin, free_c, first_ray)
+        hxy = self._hit_points(has_hit, rays, origin, length_c)
+        hit_rc = np.floor(hxy).astype(np.int64)
+        cells = self._inside(hit_rc[1], hit_rc[0])
+        if free is None or cells.size != hit_rc.shape[1]:  # off the grid: batch by batch
             return sum(self._integrate(o[0, a:b], o[1, a:b], o[2, a:b], angles[a:b], ranges[a:b])
                        for a, b in zip(first_ray[:-1], first_ray[1:], strict=True))
         flat_free, first_sample = free
-        # each batch's distinct hit cells: sorted by (batch, cell) in one sort
-        ncells = self._log_odds.size
-        batch = np.arange(len(counts)).repeat(counts).compress(has_hit)
-        keys = np.sort(batch * ncells + cells)
-        if keys.size > 1:
-            keys = keys.compress(np.concatenate(([True], keys[1:] != keys[:-1])))
-        cut = np.searchsorted(keys, np.arange(len(counts) + 1) * ncells)
-        hit_all = keys - (keys // ncells) * ncells
-        free_parts = [self._distinct(flat_free[first_sample[k]:first_sample[k + 1]],
-                                     hit_all[cut[k]:cut[k + 1]]) for k in range(len(counts))]
-        changed = self._update_summed(np.concatenate(free_parts), hit_all)
-        self._splat_hits(hx, hy)
+        # each batch's hits are a run of the hits (they keep the beams' order)
+        first_hit = [0]
+        for a, b in zip(first_ray[:-1].tolist(), first_ray[1:].tolist(), strict=True):
+            first_hit.append(first_hit[-1] + int(np.count_nonzero(has_hit[a:b])))
+        parts = [self._distinct(flat_free[first_sample[k]:first_sample[k + 1]],
+                                cells[first_hit[k]:first_hit[k + 1]]) for k in range(len(counts))]
+        changed = self._update_summed(np.concatenate([f for f, _ in parts]),
+                                      np.concatenate([h for _, h in parts]))
+        self._splat_hits(hxy[0], hxy[1])
         self.batches += len(counts)
         self.rays += n
         self.changed_total += changed
@@ -265,25 +273,17 @@ class OccupancyGrid:
         angles, ranges = check_batch(angles_deg, ranges_cm)
         if angles.size == 0:
             return 0
-        has_hit, cos, sin, px, py, length_c, free_c = self._rays(x, y, heading_deg, angles,
-                                                                 ranges)
-        free_flat = self._free_samples(px, py, cos, sin, free_c)[0]
+        has_hit, rays, origin, length_c, free_c = self._rays(x, y, heading_deg, angles, ranges)
+        free_flat = self._free_samples(rays, origin, free_c)[0]
 
-        hit_c = length_c[has_hit]
-        if isinstance(px, np.ndarray):
-            px, py = px[has_hit], py[has_hit]
-        hx = px + cos[has_hit] * hit_c  # hits [cells]
-        hy = py + sin[has_hit] * hit_c
-        # np.unique's result (sorted, distinct) without its overhead (17 -> 5 us per batch)
-        hit_idx = np.sort(self._inside(np.floor(hy).astype(np.int64),
-                                       np.floor(hx).astype(np.int64)))
-        if hit_idx.size > 1:
-            hit_idx = hit_idx[np.concatenate(([True], hit_idx[1:] != hit_idx[:-1]))]
-        # a cell hit by a ray of the batch is not also cleared by another
-        free_idx = self._distinct(free_flat, hit_idx)
+        hxy = self._hit_points(has_hit, rays, origin, length_c)
+        hit_rc = np.floor(hxy).astype(np.int64)
+        # the distinct hit cells, and the distinct free ones: a cell hit by a ray of the
+        # batch is not also cleared by another
+        free_idx, hit_idx = self._distinct(free_flat, self._inside(hit_rc[1], hit_rc[0]))
 
         changed = self._update(free_idx, hit_idx)
-        self._splat_hits(hx, hy)
+        self._splat_hits(hxy[0], hxy[1])
 
         self.batches += 1
         self.rays += int(angles.size)
@@ -292,33 +292,58 @@ class OccupancyGrid:
 
     def _rays(self, x: float | np.ndarray, y: float | np.ndarray,
               heading_deg: float | np.ndarray, angles: np.ndarray, ranges: np.ndarray
-              ) -> tuple[np.ndarray, ...]:
+              ) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None, np.ndarray,
+                         np.ndarray]:
         """The rays' geometry in cell units, from one pose (floats) or one per beam
-        (arrays): whether each ray hit, its direction (``cos``, ``sin``), its origin
-        (``px``, ``py``), its length and its free length (strictly before its end, which
-        is pulled back on rays that graze their surface, `sensor_model.grazing_shortening`)."""
+        (arrays): whether each ray hit; ``rays``, the rows ``cos``, ``sin`` of each ray's
+        direction and, from one pose per beam, ``px``, ``py`` of its origin (one array:
+        the samples and the hits repeat or select all rows in one call); the origin
+        (``px``, ``py``) from one pose, else None; each ray's length and its free length
+        (strictly before its end, which is pulled back on rays that graze their surface,
+        `sensor_model.grazing_shortening`)."""
         m = self.model
         res = self.resolution_cm
         ox, oy = self.origin_cm
         has_hit = (ranges > 0) & (ranges <= m.max_range_cm)
         length = np.where(has_hit, ranges, m.max_range_cm)  # [cm]
         theta = np.radians(angles + heading_deg)
-        cos, sin = np.cos(theta), np.sin(theta)
-        px, py = (x - ox) / res, (y - oy) / res
+        per_beam = isinstance(x, np.ndarray)
+        rays = np.empty((4 if per_beam else 2, angles.size))
+        np.cos(theta, out=rays[0])
+        np.sin(theta, out=rays[1])
+        origin = None
+        if per_beam:
+            np.subtract(x, ox, out=rays[2])
+            rays[2] /= res
+            np.subtract(y, oy, out=rays[3])
+            rays[3] /= res
+        else:
+            origin = ((x - ox) / res, (y - oy) / res)
         length_c = length / res
         free_c = length_c
         if m.grazing_margin_cells > 0 and angles.size > 1:
             free_c = length_c - grazing_shortening(angles, ranges, has_hit, res,
                                                     m.grazing_margin_cells)
-        return has_hit, cos, sin, px, py, length_c, free_c
+        return has_hit, rays, origin, length_c, free_c
 
-    def _free_samples(self, px: float | np.ndarray, py: float | np.ndarray, cos: np.ndarray,
-                      sin: np.ndarray, free_c: np.ndarray, first_ray: np.ndarray | None = None
+    def _hit_points(self, has_hit: np.ndarray, rays: np.ndarray,
+                    origin: tuple[float, float] | None,
+              length_c: np.ndarray) -> np.ndarray:
+        """The hits [cells] of the rays that hit, (2, h): the rows x, y (``x = px + cos
+        length``; as its sum, ``cos length + px`` is the same float)."""
+        hit = rays.compress(has_hit, axis=1)
+        hxy = hit[:2]
+        hxy *= length_c.compress(has_hit)
+        hxy += hit[2:] if origin is None else np.array([[origin[0]], [origin[1]]])
+        return hxy
+
+    def _free_samples(self, rays: np.ndarray, origin: tuple[float, float] | None,
+                      free_c: np.ndarray, first_ray: np.ndarray | None = None
                       ) -> tuple[np.ndarray, np.ndarray | None] | None:
         """Flat indices (in the grid, with repeats) of the samples of every ray at
         t = 0, step, 2 step, ... strictly before its free length ``free_c`` [cells],
-        from the ray origin (``px``, ``py``) [cells; one for all rays, or one per ray]
-        along (``cos``, ``sin``).
+        from the ray origin (``px``, ``py``) [cells; ``origin`` for all rays, or the rows
+        of ``rays`` per ray] along (``cos``, ``sin``) (``rays``, as `_rays` gives them).
 
         A sample in the cell of the sample before it is left out (half-cell steps put
         about two samples in each cell): the same cells, half the indices for
@@ -341,22 +366,26 @@ class OccupancyGrid:
         # sample k of its ray at t = k step, as a ramp over the whole batch less each
         # ray's offset (all exact multiples of the step: the same floats as k * step);
         # both axes at once, each ray's (cos, sin) repeated per sample (cheaper than
-        # gathering them by a ray index), the arithmetic in place: the same operations
-        # in the same order as x = cos * t + px, so the same cells
-        t = self._ramp(total) - (start * step).repeat(n_samples)
-        if isinstance(px, np.ndarray):  # one origin per ray: repeated with the rest
-            rows = np.stack((cos, sin, px, py)).repeat(n_samples, axis=1)
-            xy = rows[:2]
-            xy *= t
-            xy += rows[2:]
-            x0, x1 = float(np.minimum.reduce(px)), float(np.maximum.reduce(px))
-            y0, y1 = float(np.minimum.reduce(py)), float(np.maximum.reduce(py))
+        # gathering them by a ray index) together with its origin and its offset (one
+        # repeat), the arithmetic in place: the same operations in the same order as
+        # x = cos * t + px, so the same cells
+        k = rays.shape[0]
+        per_ray = np.empty((k + 1, rays.shape[1]))
+        per_ray[:k] = rays
+        np.multiply(start, -step, out=per_ray[k])
+        rows = per_ray.repeat(n_samples, axis=1)
+        t = rows[k]
+        t += self._ramp(total)  # (-offset + ramp: the same float as ramp - offset)
+        xy = rows[:2]
+        xy *= t
+        if origin is None:  # one origin per ray: repeated with the rest
+            xy += rows[2:k]
+            x0, y0 = np.minimum.reduce(rays[2:], axis=1).tolist()
+            x1, y1 = np.maximum.reduce(rays[2:], axis=1).tolist()
         else:
-            xy = np.stack((cos, sin)).repeat(n_samples, axis=1)
-            xy *= t
-            xy += np.array([[px], [py]])
-            x0 = x1 = px
-            y0 = y1 = py
+            xy += np.array([[origin[0]], [origin[1]]])
+            x0 = x1 = origin[0]
+            y0 = y1 = origin[1]
         np.floor(xy, out=xy)
         fx, fy = xy
         ny, nx = self._log_odds.shape
@@ -378,10 +407,14 @@ class OccupancyGrid:
             return fy.compress(keep).astype(np.int64), None
         # each batch's first sample is kept (it is its own observation); where each
         # batch's kept samples start: the kept samples before its first sample
-        first = np.append(start, total)[first_ray]
-        keep[first[:-1].compress(first[:-1] < total)] = True
-        kept = np.concatenate(([0], np.cumsum(keep)))[first]
-        return fy.compress(keep).astype(np.int64), kept
+        first = np.append(start, total)[first_ray].tolist()
+        kept = [0]
+        for a, b in zip(first[:-1], first[1:], strict=True):
+            if a < total:
+                keep[a] = True
+            # (a count per batch, not a cumulative sum over every sample: 2 against 43 us)
+            kept.append(kept[-1] + int(np.count_nonzero(keep[a:b])))
+        return fy.compress(keep).astype(np.int64), np.array(kept)
 
     def _ramp(self, n: int) -> np.ndarray:
         """0, step, 2 step, ... (n values), from a cached ramp grown as needed."""
@@ -395,19 +428,21 @@ class OccupancyGrid:
         m = self.model
         # one gather, the update, one scatter (every index is distinct)
         flat = self._log_odds.reshape(-1)
+        classes = self._classes.reshape(-1)
         n_free = free_idx.size
         idx = np.concatenate([free_idx, hit_idx])
         vals = flat[idx]
-        was_free, was_occ = vals < m.free_threshold, vals > m.occ_threshold
+        before = classes[idx]
         vals[:n_free] += m.l_free
         vals[n_free:] += m.l_occ
         np.minimum(np.maximum(vals, m.l_min, out=vals), m.l_max, out=vals)  # clipped
         flat[idx] = vals
-        now_free, now_occ = vals < m.free_threshold, vals > m.occ_threshold
-        moved = (was_free != now_free) | (was_occ != now_occ)
+        after = self._class_of(vals)
+        moved = before != after
         changed = int(np.count_nonzero(moved))
         if changed:
-            self._set_classes(idx[moved], now_free[moved], now_occ[moved])
+            classes[idx.compress(moved)] = after.compress(moved)
+            self._snap = None
         return changed
 
     def _update_summed(self, free_idx: np.ndarray, hit_idx: np.ndarray) -> int:
@@ -425,8 +460,7 @@ class OccupancyGrid:
         vals = flat[idx]
         np.minimum(np.maximum(vals, m.l_min, out=vals), m.l_max, out=vals)  # clipped
         flat[idx] = vals  # a repeated cell writes the same value each time
-        after = np.where(vals < m.free_threshold, np.int8(FREE), np.where(
-            vals > m.occ_threshold, np.int8(OCCUPIED), np.int8(UNKNOWN)))
+        after = self._class_of(vals)
         moved = before != after
         if not np.logical_or.reduce(moved):
             return 0
@@ -435,25 +469,36 @@ class OccupancyGrid:
         self._snap = None
         return int(np.unique(cells).size)
 
-    def _distinct(self, flat_idx: np.ndarray, exclude: np.ndarray) -> np.ndarray:
-        """The distinct values of ``flat_idx`` (cell indices) that are not in ``exclude``,
-        in no particular order.
+    def _class_of(self, vals: np.ndarray) -> np.ndarray:
+        """The classes (int8) of log-odds ``vals``: 0 free, 1 unknown, 2 occupied from two
+        comparisons, then looked up (nested `np.where` costs half as much again)."""
+        m = self.model
+        code = (vals >= m.free_threshold).view(np.uint8)
+        code += (vals > m.occ_threshold).view(np.uint8)
+        return _CLASS_OF_CODE.take(code)
+
+    def _distinct(self, flat_idx: np.ndarray, hits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The distinct values of ``flat_idx`` (cell indices) that are not in ``hits``, and
+        the distinct values of ``hits``, each in no particular order.
 
         Why not `np.unique`: it sorts (the rays of a batch give thousands of samples),
         and a mask over the whole grid costs a pass over every cell. Here each sample
-        writes its position into a scratch cell, and the excluded cells a -1; whichever
-        write of a cell won, exactly one of that cell's samples reads its own position
-        back, and none of an excluded cell's.
+        writes its position (0, 1, ...) into a scratch cell, then each hit its own mark
+        (-2, -3, ...); whichever write of a cell won, exactly one of that cell's
+        samples or hits reads its own value back, and no sample in a hit cell does.
         """
-        if flat_idx.size > self._positions.size:
-            self._positions = np.arange(max(flat_idx.size, 2 * self._positions.size),
-                                        dtype=np.int32)
+        n = max(flat_idx.size, hits.size)
+        if n > self._positions.size:
+            self._positions = np.arange(max(n, 2 * self._positions.size), dtype=np.int32)
+            self._marks = -2 - self._positions
         pos = self._positions[:flat_idx.size]
+        marks = self._marks[:hits.size]
         scratch = self._scratch
         scratch[flat_idx] = pos
-        scratch[exclude] = -1
+        scratch[hits] = marks
         # (`compress`, not a boolean index: twice as fast on an irregular mask)
-        return flat_idx.compress(scratch[flat_idx] == pos)
+        return (flat_idx.compress(scratch[flat_idx] == pos),
+                hits.compress(scratch[hits] == marks))
 
     def _inside(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """Flat indices of the (row, col) cells that lie on the grid (the others dropped)."""
@@ -486,12 +531,6 @@ class OccupancyGrid:
         if not np.logical_and.reduce(inside):
             flat, weights = flat[inside], weights[inside]
         np.add.at(self._hits.reshape(-1), flat, weights)
-
-    def _set_classes(self, flat_idx: np.ndarray, free: np.ndarray, occupied: np.ndarray) -> None:
-        """Record the new classes of the cells ``flat_idx`` (their log-odds just changed)."""
-        self._classes.reshape(-1)[flat_idx] = np.where(
-            free, np.int8(FREE), np.where(occupied, np.int8(OCCUPIED), np.int8(UNKNOWN)))
-        self._snap = None
 
     def fill_unknown(self, row0: int, col0: int, cells: np.ndarray) -> bool:
         """Seed the unknown cells of the box at (``row0``, ``col0``) from ``cells``

@@ -18,6 +18,7 @@ Units
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -115,9 +116,13 @@ def check_batch(angles_deg: np.ndarray, ranges_cm: np.ndarray) -> tuple[np.ndarr
                          f"{angles.shape} and {ranges.shape}")
     if angles.size == 0:
         return angles, ranges
-    # the ufuncs' own reductions, without the array methods' Python wrappers
-    if not np.logical_and.reduce(np.isfinite(angles)):
+    # the ufuncs' own reductions, without the array methods' Python wrappers, one per
+    # check where one tells: a sum is finite only when every term is (a NaN or an
+    # infinity carries through it; an overflowing sum of finite terms gets the full
+    # check), and the extremes propagate a NaN
+    if not (math.isfinite(np.add.reduce(angles))
+            or np.logical_and.reduce(np.isfinite(angles))):
         raise ValueError("angles_deg must be finite")
-    if not (np.logical_and.reduce(np.isfinite(ranges)) and np.logical_and.reduce(ranges >= 0)):
+    if not (np.minimum.reduce(ranges) >= 0 and np.maximum.reduce(ranges) < math.inf):
         raise ValueError("ranges_cm must be finite and >= 0")
     return angles, ranges
