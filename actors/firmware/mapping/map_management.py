@@ -254,7 +254,7 @@ class MapManagement(Actor):
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
         self._timer_armed = False
-        self._window = ScanWindow(self._quantum_deg)  # batches waiting to be fused as one (`scan_window`)
+        self._window = ScanWindow(self._quantum_deg)  # batches to fuse as one (`scan_window`)
         self._window_standing = False  # whether they were taken while the rover stood
         self._moving = False  # whether the last batch's stamp differed from the one before
 
