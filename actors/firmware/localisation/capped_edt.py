@@ -102,7 +102,8 @@ def _squared_cells(occupied: np.ndarray, k: int) -> np.ndarray:
     q = padded[k:k + ny].copy()
     shifted = np.empty_like(q)
     for dy in range(1, k + 1):
-        for row in (k + dy, k - dy):
-            np.add(padded[row:row + ny], dy * dy, out=shifted)
-            np.minimum(q, shifted, out=q)
+        # the rows dy below and dy above share dy**2: min(a, b) + c is min(a + c, b + c)
+        np.minimum(padded[k + dy:k + dy + ny], padded[k - dy:k - dy + ny], out=shifted)
+        shifted += dy * dy
+        np.minimum(q, shifted, out=q)
     return q

@@ -112,7 +112,7 @@ from actors.firmware.localisation.scan_likelihood import (
     judge_fit,
     odometry_floor,
 )
-from actors.firmware.mapping.occupancy import OccupancyGrid
+from actors.firmware.mapping.occupancy import OCCUPIED, OccupancyGrid
 from actors.firmware.mapping.scan_match import (
     BLUR_WIDE,
     MatchFields,
@@ -609,24 +609,28 @@ class MapManagement(Actor):
         by rays from behind) holds few returns, so it barely pulls.
         """
         grid = self.grid
-        lo = grid.log_odds()
-        m = grid.model
-        occupied = lo > m.occ_threshold
-        rows = np.flatnonzero(occupied.any(axis=1))
+        snap = grid.snapshot()  # its classes are the log-odds' (occupied: over the threshold)
+        known = snap.known_bounds()  # every occupied cell is known: one pass finds both
         res = grid.resolution_cm
+        rows = cols = np.zeros(0, dtype=np.int64)
+        if known is not None:
+            kr0, kr1, kc0, kc1 = known
+            occupied = snap.cells[kr0:kr1, kc0:kc1] == OCCUPIED
+            rows = np.flatnonzero(occupied.any(axis=1)) + kr0
+            cols = np.flatnonzero(occupied.any(axis=0)) + kc0
         if rows.size == 0:
-            self._fields = MatchFields(occupied[:1, :1], grid.origin_cm, res)
+            self._fields = MatchFields(np.zeros((1, 1), dtype=bool), grid.origin_cm, res)
         else:
-            cols = np.flatnonzero(occupied.any(axis=0))
             k = BLUR_WIDE + 2
             r0, r1 = max(0, int(rows[0]) - k), int(rows[-1]) + k + 1
             c0, c1 = max(0, int(cols[0]) - k), int(cols[-1]) + k + 1
-            near_occ = _max3(occupied[r0:r1, c0:c1].astype(np.float32)) > 0
+            occupied = snap.cells[r0:r1, c0:c1] == OCCUPIED
+            near_occ = _max3(occupied.astype(np.float32)) > 0
             hits = np.where(near_occ, grid.hit_counts()[r0:r1, c0:c1], 0.0)
             weights = hits / np.maximum(_max3(hits), 1.0)
             origin = (grid.origin_cm[0] + c0 * res, grid.origin_cm[1] + r0 * res)
             self._fields = MatchFields(weights, origin, res)
-        self._distance = DistanceField.from_grid(grid.snapshot())
+        self._distance = DistanceField.from_grid(snap, known_bounds=known)
         self._fields_at = now
         self._fields_stale = False
 
