@@ -15,15 +15,17 @@ Windows of batches (why: see `scan_window`)
     ``warmup_scans`` batches made a reference (fused one by one), consecutive
     batches are gathered into a window of about a revolution, de-skewed into the
     last batch's frame by the odometry counted between the stamps, and matched,
-    judged, weighed and fused once per window. A window is cut before a batch
-    that would turn it by a heading quantum, after a revolution's sweep or its
-    travel budget (`scan_window`), at a motion's end (the first batch whose
-    stamp did not move after one that did), before a tread fault report, a
-    restore or navigation's ``MAP_GET``, and when the rover starts or stops
-    standing.
+    judged, weighed and fused once per window. A window holds the drive's
+    heading across a straight drive's flicker of the counted heading, and is cut
+    before a batch whose stamp turned (a turn in place, or beyond the flicker),
+    after a revolution's sweep or its travel budget (`scan_window`), at a
+    motion's end (the first batch whose stamp did not move after one that did),
+    before a tread fault report, a restore or navigation's ``MAP_GET``, and when
+    the rover starts or stops standing.
 
 Scan matching (why: see `scan_match`)
-    A window is guessed at ``correction (+) odometry`` (its last stamp) and
+    A window is guessed at ``correction (+) odometry`` (its frame: the last
+    stamp, with the drive's heading across a flicker; the belief moves to it) and
     registered against the obstacle surfaces of the map built so far; an
     accepted match updates the pose belief and with it the correction
     (odometry -> map frame). The matching fields are rebuilt from
