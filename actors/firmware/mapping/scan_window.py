@@ -95,7 +95,8 @@ class ScanWindow:
             over the track) [deg].
     """
 
-    __slots__ = ("scans", "sweep_deg", "travel_cm", "quantum_deg", "_beams", "_deskew")
+    __slots__ = ("scans", "sweep_deg", "travel_cm", "quantum_deg", "_beams", "_deskew",
+                 "_relative")
 
     def __init__(self, quantum_deg: float = HEADING_QUANTUM_DEG) -> None:
         self.scans: list[Scan] = []
@@ -107,6 +108,7 @@ class ScanWindow:
         self.quantum_deg = quantum_deg
         self._beams: tuple[np.ndarray, np.ndarray] | None = None
         self._deskew: list[Pose] = []  # each stamp with the drive's heading
+        self._relative: list[Pose] | None = None  # `relative_poses`, once read
 
     def __len__(self) -> int:
         return len(self.scans)
@@ -167,7 +169,7 @@ class ScanWindow:
             self._deskew.append(pose)
         self.scans.append(scan)
         self.sweep_deg += scan.sweep_deg
-        self._beams = None
+        self._beams = self._relative = None
 
     def full(self) -> bool:
         """Whether the window swept a revolution or counted its travel budget."""
@@ -188,9 +190,11 @@ class ScanWindow:
     def relative_poses(self) -> list[Pose]:
         """Each batch's de-skew stamp (its position, the drive's heading) seen from the
         last one's (the last is the identity)."""
-        deskew = self._deskew
-        last = deskew[-1]
-        return [relative(last, p) for p in deskew]
+        if self._relative is None:  # (read for the match, and again for the fusion)
+            deskew = self._deskew
+            last = deskew[-1]
+            self._relative = [relative(last, p) for p in deskew]
+        return self._relative
 
     def sizes(self) -> list[int]:
         """Beams per batch, in order."""
