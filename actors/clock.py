@@ -14,6 +14,7 @@ Nothing in the project reads the wall clock; a headless run is simply
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import trio
@@ -42,24 +43,33 @@ def real_clock() -> None:
 def virtual_clock() -> MockClock:
     """A clock that jumps to the next deadline as soon as all tasks are blocked.
 
-    It is Trio's `MockClock` with two shortcuts on the hot path, same values (Trio's
-    class cannot be subclassed, so the instance gets them). Why: Trio reads the clock
-    several times per scheduler round and per sleep, and a `MockClock` reads the real
-    clock each time only to multiply the elapsed real time by its rate, 0 here; and
-    its jump to the next deadline built Trio's whole run statistics (together about
-    2 % of a game). While the rate is 0 the time is the virtual base; the jump reads
-    the next deadline from the runner as ``current_statistics`` does (Trio's own
-    path when that internal is missing). A rate set later (the console) goes through
-    Trio's code as before.
+    It is Trio's `MockClock` with three shortcuts on the hot path, same values
+    (Trio's class cannot be subclassed, so the instance gets them). Why: Trio reads
+    the clock several times per scheduler round and per sleep, and a `MockClock`
+    reads the real clock each time only to multiply the elapsed real time by its
+    rate, 0 here; it asks how long to sleep until the next deadline in every round
+    with nothing to run (a method that reads the time through another); and its
+    jump to the next deadline built Trio's whole run statistics (together about 2 %
+    of a game). While the rate is 0 the time is the virtual base, the sleep is 0 or
+    "forever" (Trio's own 999999999 s) and the jump adds to the base what
+    ``MockClock.jump`` adds; the jump reads the next deadline from the runner as
+    ``current_statistics`` does (Trio's own path when that internal is missing). A
+    rate set later (the console) goes through Trio's code as before.
     """
     clock = MockClock(autojump_threshold=0)
     trio_time = clock.current_time
+    trio_sleep_time = clock.deadline_to_sleep_time
     trio_jump = clock._autojump  # noqa: SLF001 - Trio's own path, the fallback
 
     def current_time() -> float:
         if clock._rate == 0.0:  # noqa: SLF001
             return clock._virtual_base  # noqa: SLF001 - what Trio's formula gives at rate 0
         return trio_time()
+
+    def deadline_to_sleep_time(deadline: float) -> float:
+        if clock._rate == 0.0:  # noqa: SLF001 - Trio's answers at rate 0
+            return 0 if deadline - clock._virtual_base <= 0 else 999999999  # noqa: SLF001
+        return trio_sleep_time(deadline)
 
     def autojump() -> None:
         try:
@@ -69,9 +79,10 @@ def virtual_clock() -> MockClock:
             return
         jump = deadlines.next_deadline() - current_time()
         if 0 < jump < math.inf:
-            clock.jump(jump)
+            clock._virtual_base += jump  # noqa: SLF001 - `MockClock.jump` for jump > 0
 
     clock.current_time = current_time  # type: ignore[method-assign]
+    clock.deadline_to_sleep_time = deadline_to_sleep_time  # type: ignore[method-assign]
     clock._autojump = autojump  # type: ignore[method-assign]  # noqa: SLF001
     return clock
 
@@ -165,6 +176,17 @@ def fast_instruments() -> None:
         runner.instruments = _DictInstruments(runner.instruments)
 
 
+def time_reader() -> Callable[[], float]:
+    """What ``trio.current_time()`` calls in the end: the running loop's clock's own
+    ``current_time`` (same values, without Trio's two wrapper calls), or
+    ``trio.current_time`` itself where Trio's internals are missing. Read it inside a
+    run (the clock is the run's); for callers that read the time per message."""
+    try:
+        return GLOBAL_RUN_CONTEXT.runner.clock.current_time
+    except AttributeError:
+        return trio.current_time
+
+
 class HeapEntry:
     """An entry of Trio's deadline heap that is not a cancel scope (the protocol that
     `_Alarm` and the actors' watchdog guard share).
@@ -205,9 +227,13 @@ class _Alarm(HeapEntry):
 
     __slots__ = ("_task",)
 
-    def __init__(self, task: object, deadlines: Any) -> None:
-        super().__init__(deadlines)
+    def __init__(self, task: object, deadlines: Any, deadline: float) -> None:
+        # in the heap at once (what `HeapEntry._enter` does, without its two calls: an
+        # alarm is made for every sleep of a game)
         self._task = task
+        self._deadlines = deadlines
+        self._registered_deadline = deadline
+        deadlines.add(deadline, self)
 
     def _cancel(self, _reason: object) -> None:
         """The deadline is due (called by Trio's `Deadlines.expire`): wake the sleeper."""
@@ -218,6 +244,21 @@ class _Alarm(HeapEntry):
         """Cancelled from outside while sleeping: leave the heap, let Trio raise."""
         self._leave()
         return Abort.SUCCEEDED
+
+
+def _alarm_until(deadline: float) -> _Alarm | None:
+    """An alarm in the running loop's deadline heap that wakes the current task at
+    ``deadline``, or None where a cancel scope must do it (another Trio, no run, or
+    ``deadline`` already due). Reads Trio's run context once, and the clock itself
+    instead of through ``trio.current_time()``'s two wrappers (same value)."""
+    try:
+        runner = GLOBAL_RUN_CONTEXT.runner
+        now = runner.clock.current_time()
+    except AttributeError:
+        return None
+    if not now < deadline < math.inf:  # due, or never: a scope (Trio keeps no infinite deadline)
+        return None
+    return _Alarm(GLOBAL_RUN_CONTEXT.task, runner.deadlines, deadline)
 
 
 async def sleep_until(deadline: float) -> None:
@@ -240,13 +281,11 @@ async def sleep_until(deadline: float) -> None:
     """
     if deadline != deadline:
         raise ValueError("deadline must not be NaN")
-    deadlines = deadline_heap()
-    if deadlines is None or not deadline > trio.current_time():
+    alarm = _alarm_until(deadline)
+    if alarm is None:
         await _scope_sleep_until(deadline)
-        return
-    alarm = _Alarm(current_task(), deadlines)
-    alarm._enter(deadline)  # noqa: SLF001
-    await wait_task_rescheduled(alarm.abort)
+    else:
+        await wait_task_rescheduled(alarm.abort)
 
 
 async def _scope_sleep_until(deadline: float) -> None:
@@ -263,7 +302,8 @@ async def _scope_sleep_until(deadline: float) -> None:
 
 
 async def sleep(seconds: float) -> None:
-    """`trio.sleep` built on `sleep_until` (0 is a checkpoint, as in Trio).
+    """`trio.sleep` with `sleep_until`'s wake-ups (0 is a checkpoint, as in Trio); its
+    body is repeated here rather than awaited, one coroutine fewer per sleep.
 
     Raises:
         ValueError: ``seconds`` is negative or NaN.
@@ -272,5 +312,13 @@ async def sleep(seconds: float) -> None:
         raise ValueError("`seconds` must be non-negative")
     if seconds == 0:
         await checkpoint()
+        return
+    try:  # the run's clock read directly (`trio.current_time()` wraps it twice)
+        deadline = GLOBAL_RUN_CONTEXT.runner.clock.current_time() + seconds
+    except AttributeError:
+        deadline = trio.current_time() + seconds  # another Trio (outside a run: raises)
+    alarm = _alarm_until(deadline)
+    if alarm is None:
+        await _scope_sleep_until(deadline)
     else:
-        await sleep_until(trio.current_time() + seconds)
+        await wait_task_rescheduled(alarm.abort)

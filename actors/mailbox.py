@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import trio
+from trio.lowlevel import Abort, current_task, reschedule, wait_task_rescheduled
 
 from .trace import EventKind, Trace
 
@@ -153,16 +154,16 @@ class Mailbox:
         """
         if self._receiver is not None:
             raise RuntimeError(f"mailbox {self.name!r} already has a parked receiver")
-        self._receiver = trio.lowlevel.current_task()
-        await trio.lowlevel.wait_task_rescheduled(self._abort_wait)
+        self._receiver = current_task()
+        await wait_task_rescheduled(self._abort_wait)
 
-    def _abort_wait(self, _raise_cancel: Any) -> trio.lowlevel.Abort:
+    def _abort_wait(self, _raise_cancel: Any) -> Abort:
         self._receiver = None
-        return trio.lowlevel.Abort.SUCCEEDED
+        return Abort.SUCCEEDED
 
     def _wake(self) -> None:
         task, self._receiver = self._receiver, None
-        trio.lowlevel.reschedule(task)
+        reschedule(task)
 
     def poke(self) -> None:
         """Wake a parked receiver without an item (to look at a stop or fault request)."""

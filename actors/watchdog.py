@@ -13,7 +13,7 @@ from typing import Any
 
 import trio
 
-from .clock import HeapEntry, deadline_heap
+from .clock import HeapEntry, deadline_heap, time_reader
 
 __all__ = ["Guard"]
 
@@ -40,18 +40,19 @@ class Guard(HeapEntry):
     scope's deadline is moved as before.
     """
 
-    __slots__ = ("scope", "watchdog", "since")
+    __slots__ = ("scope", "watchdog", "since", "_now")
 
     def __init__(self, watchdog: float | None) -> None:
         super().__init__(deadline_heap() if watchdog is not None else None)
         self.scope = trio.CancelScope()
         self.watchdog = watchdog
         self.since = math.inf  # when the deadline was last set [s]; inf: not armed
+        self._now = time_reader()  # read per handled message
 
     def arm(self) -> None:
         """A message starts now: its handling must end within the watchdog deadline."""
         if self.watchdog is not None:
-            now = trio.current_time()
+            now = self._now()
             if now != self.since:
                 self.since = now
                 if self._deadlines is None:

@@ -1,7 +1,7 @@
 """Whole-game speed of this tree against an earlier commit, side by side in one run.
 
-Run as ``python -m benchmarks.speedup [--base REV] [--rooms a,b] [--seeds 1-2]
-[--rounds N]``.
+Run as ``python -m benchmarks.speedup [--base REV | --base-tree DIR] [--rooms a,b]
+[--seeds 1-2] [--rounds N]``.
 
 Why side by side: on a shared machine a CPU second does more or less work with
 the load (shared cores and caches), so figures taken at different times do not
@@ -19,7 +19,10 @@ games; the ratio is this tree's rate over the base's (above 1: faster). The
 table also says whether the two trees played the same game (equal trace
 hashes): when they differ the mapping phase may be longer or shorter, and the
 ratio then also measures that. The last line is the figures as JSON. The
-worktree is removed afterwards, also when the run is interrupted.
+worktree is removed afterwards, also when the run is interrupted. ``--base-tree``
+names an earlier tree already on disk instead (a machine without the repository's
+history, such as a copy of the working tree): no worktree is made, and the base is
+named by its directory.
 """
 
 from __future__ import annotations
@@ -79,11 +82,22 @@ def rate(games: list[Game]) -> float:
     return sum(g.sim_s for g in games) / max(sum(g.cpu_s for g in games), 1e-9)
 
 
+def _describe_head() -> tuple[str, str]:
+    """This tree's short commit and a note on uncommitted changes ("", "" without git)."""
+    try:
+        head = _git("rev-parse", "--short", "HEAD")
+    except (OSError, subprocess.CalledProcessError):
+        return "(no git)", ""
+    return head, " (with uncommitted changes)" if _git("status", "--porcelain", "-uno") else ""
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.speedup", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--base", default=DEFAULT_BASE,
                     help=f"the earlier commit to compare with (default {DEFAULT_BASE})")
+    ap.add_argument("--base-tree", default="",
+                    help="an earlier tree already on disk, instead of --base")
     ap.add_argument("--rooms", default="", help="comma-separated rooms (default: every built-in)")
     ap.add_argument("--seeds", default="1", help="seeds per room, e.g. 1-3 (default 1)")
     ap.add_argument("--rounds", type=int, default=1, help="game pairs per room and seed")
@@ -97,20 +111,24 @@ def main(argv: list[str] | None = None) -> int:
         if unknown or args.rounds < 1:
             raise ValueError(f"unknown rooms {unknown} (known: {', '.join(known)})"
                              if unknown else "--rounds must be >= 1")
-        base_rev = _git("rev-parse", "--verify", f"{args.base}^{{commit}}")
+        if args.base_tree and not os.path.isfile(os.path.join(args.base_tree, "tui", "cli.py")):
+            raise ValueError(f"--base-tree {args.base_tree!r} holds no tree (no tui/cli.py)")
+        base_rev = (os.path.abspath(args.base_tree) if args.base_tree
+                    else _git("rev-parse", "--verify", f"{args.base}^{{commit}}"))
     except (ValueError, subprocess.CalledProcessError) as exc:
         msg = exc.stderr.strip() if isinstance(exc, subprocess.CalledProcessError) else exc
         print(f"speedup: {msg}", file=sys.stderr)
         return 2
 
-    head = _git("rev-parse", "--short", "HEAD")
-    dirty = " (with uncommitted changes)" if _git("status", "--porcelain", "-uno") else ""
+    head, dirty = _describe_head()
     with tempfile.TemporaryDirectory(prefix="speedup-") as tmp:
-        base_tree = os.path.join(tmp, "base")
-        _git("worktree", "add", "--detach", base_tree, base_rev)
+        base_tree = args.base_tree or os.path.join(tmp, "base")
+        if not args.base_tree:
+            _git("worktree", "add", "--detach", base_tree, base_rev)
         try:
             load0 = os.getloadavg()[0]
-            print(f"this tree {head}{dirty} against {base_rev[:9]}; load {load0:.1f} "
+            base_name = base_rev if args.base_tree else base_rev[:9]
+            print(f"this tree {head}{dirty} against {base_name}; load {load0:.1f} "
                   f"on {os.cpu_count()} cores", flush=True)
             trees = {"new": _ROOT, "base": base_tree}
             for tree in trees.values():  # bytecode first, so no game pays for compiling
@@ -130,9 +148,10 @@ def main(argv: list[str] | None = None) -> int:
                                   f"{g.cpu_s:6.1f} CPU s  {g.sim_s / g.cpu_s:6.1f}x  "
                                   f"{g.outcome}  {g.trace_hash[:8]}", flush=True)
         finally:
-            subprocess.run(["git", "-C", _ROOT, "worktree", "remove", "--force", base_tree],
-                           capture_output=True)
-            subprocess.run(["git", "-C", _ROOT, "worktree", "prune"], capture_output=True)
+            if not args.base_tree:
+                subprocess.run(["git", "-C", _ROOT, "worktree", "remove", "--force", base_tree],
+                               capture_output=True)
+                subprocess.run(["git", "-C", _ROOT, "worktree", "prune"], capture_output=True)
 
     load1 = os.getloadavg()[0]
     print(f"\n{'room':10s} {'base x':>7s} {'new x':>7s} {'ratio':>6s}  same games")

@@ -22,6 +22,7 @@ import trio
 from .config import ServerConfig
 from .game import Game
 from .guard import BurstLog, PeerBackoff
+from .kick import Kick
 from .peers import Conn, Rover
 from .protocol import Frame, Pose
 from .store import Store
@@ -44,7 +45,7 @@ class ServerCore:
         self._subscribers: list[trio.MemorySendChannel[ServerEvent]] = []
         self._frame_observers: list[Callable[[str, str, Frame], None]] = []
         self.dropped_events = 0
-        self._kick = trio.Event()
+        self._kick = Kick()  # the timer's wake-up (`Server._timer`)
         self._map_id = 0
         self._tcp: dict[Conn, None] = {}        # open TCP links, oldest first
         self._backoff = PeerBackoff(threshold=config.auth_failures)

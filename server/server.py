@@ -235,19 +235,20 @@ class Server(Connections, Hellos, GameFrames, Durability):
                     self._emit("link_up" if up else "link_down", rover.id,
                                {"link": rover.conn.link if rover.conn else ""})
                 if rover.conn is not None:
-                    if rover.session.next_deadline(now) <= now:
+                    due = rover.session.next_deadline(now)
+                    if due <= now:
                         self._flush_conn(rover.conn)
                         self._persist(rover)
-                    deadline = min(deadline, rover.session.next_deadline(now))
+                        due = rover.session.next_deadline(now)  # after what was sent
+                    deadline = min(deadline, due)
                 if up:
                     deadline = min(deadline, (rover.session.last_heard or now)
                                    + rover.session.down_after_s)
             self._reclaim(now)
             for kind in self._bursts.due(now):
                 self._emit(kind + "_summary", data=self._bursts.take(kind, now))
-            self._kick = trio.Event()
-            with trio.move_on_at(max(deadline, now + 1e-3)):
-                await self._kick.wait()
+            self._kick.clear()
+            await self._kick.wait_until(max(deadline, now + 1e-3))
 
 
 @contextlib.asynccontextmanager

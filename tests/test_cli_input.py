@@ -3,6 +3,7 @@ and SIGINT stop cleanly with status 0 and no traceback (run as subprocesses)."""
 
 from __future__ import annotations
 
+import ast
 import os
 import signal
 import socket
@@ -41,6 +42,44 @@ def test_bad_option_is_one_line_naming_it_and_status_2(args, named) -> None:
 def test_version_is_printed() -> None:
     p = hideseek("--version")
     assert p.returncode == 0 and p.stdout.startswith("hideseek ")
+
+
+_IMPORTS_OF = """
+import sys
+from tui import cli
+try:
+    cli.main(sys.argv[1:])
+except SystemExit:
+    pass
+print(sorted(m for m in sys.modules if m.startswith("tui.cmd_") or m == "importlib.metadata"))
+"""
+
+
+@pytest.mark.parametrize(("args", "loaded"), [
+    (("run", "--help"), ["tui.cmd_run"]),
+    (("ports", "--help"), ["tui.cmd_ports"]),
+    (("--help",), []),
+    (("--version",), ["importlib.metadata"]),
+])
+def test_a_command_imports_only_its_own_module(args, loaded) -> None:
+    """A game's process start pays only for its own command: the other commands' modules
+    (campaign, shrink, the console) are not imported, nor, for the top level's help,
+    the version lookup (a library of a command may import it for itself)."""
+    p = subprocess.run([sys.executable, "-c", _IMPORTS_OF, *args], capture_output=True,
+                       text=True, timeout=60, stdin=subprocess.DEVNULL)
+    assert p.returncode == 0, p.stderr
+    found = ast.literal_eval(p.stdout.strip().splitlines()[-1])
+    if args[0] not in ("--help", "--version"):
+        found = [m for m in found if m.startswith("tui.")]
+    assert found == loaded
+
+
+def test_help_lists_every_command_without_importing_them() -> None:
+    from tui.cli import COMMANDS  # noqa: PLC0415
+
+    p = hideseek("--help")
+    assert p.returncode == 0
+    assert all(name in p.stdout for name in COMMANDS)
 
 
 def test_busy_port_in_play_is_one_line_and_status_2() -> None:

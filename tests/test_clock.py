@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 import trio
 from trio.testing import MockClock
@@ -17,6 +19,20 @@ def test_virtual_clock_jumps_when_idle() -> None:
         return trio.current_time() - start
 
     assert trio.run(main, clock=virtual_clock()) == 1000.0
+
+
+def test_virtual_clock_answers_as_trios_mock_clock() -> None:
+    """The virtual clock's shortcuts give `MockClock`'s values: the time, the sleep until
+    a deadline (0 when due, "forever" otherwise at rate 0), and after a jump."""
+    ours, trios = virtual_clock(), MockClock(autojump_threshold=0)
+    for clock in (ours, trios):
+        clock.jump(12.5)
+    assert ours.current_time() == trios.current_time() == 12.5
+    for deadline in (0.0, 12.5, 12.500001, 13.0, 1e9, math.inf):
+        assert ours.deadline_to_sleep_time(deadline) == trios.deadline_to_sleep_time(deadline)
+    ours.rate = trios.rate = 2.0  # a rate set later: Trio's formula, on the real clock
+    assert ours.deadline_to_sleep_time(1e9) == pytest.approx(
+        trios.deadline_to_sleep_time(1e9), abs=1.0)
 
 
 def test_real_clock_is_trios_default() -> None:
@@ -129,6 +145,34 @@ def test_cheap_sleep_keeps_trios_deadline_heap_consistent() -> None:
     cancelled, slept = trio.run(main, clock=virtual_clock())
     assert cancelled == 3000
     assert slept == 2.5
+
+
+def test_an_endless_sleep_stays_out_of_trios_deadline_heap() -> None:
+    """``sleep(inf)`` parks until cancelled, as Trio's does, without an entry in the
+    heap (whose count of live deadlines Trio checks when it prunes)."""
+    from trio._core._run import GLOBAL_RUN_CONTEXT  # noqa: PLC0415
+
+    from actors import sleep  # noqa: PLC0415
+
+    async def main() -> tuple[bool, int]:
+        with trio.move_on_after(3.0) as scope:
+            active = GLOBAL_RUN_CONTEXT.runner.deadlines._active  # noqa: SLF001
+            async with trio.open_nursery() as nursery:
+                nursery.start_soon(sleep, math.inf)
+                await trio.sleep(1.0)
+                added = GLOBAL_RUN_CONTEXT.runner.deadlines._active - active  # noqa: SLF001
+        return scope.cancelled_caught, added
+
+    cancelled, added = trio.run(main, clock=virtual_clock())
+    assert cancelled
+    assert added == 0
+
+
+def test_outside_a_run_a_sleep_is_refused() -> None:
+    from actors import sleep  # noqa: PLC0415
+
+    with pytest.raises(RuntimeError):
+        sleep(1.0).send(None)
 
 
 def test_fast_instruments_keep_trios_instrument_hooks() -> None:

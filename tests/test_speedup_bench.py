@@ -22,3 +22,9 @@ def test_unknown_room_or_revision_is_one_error_line_and_status_2(capsys):
     assert main(["--base", "no-such-revision-xyz", "--rooms", "empty"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all(line.startswith("speedup: ") for line in err)
+
+
+def test_base_tree_that_holds_no_tree_is_one_error_line_and_status_2(capsys, tmp_path):
+    assert main(["--base-tree", str(tmp_path), "--rooms", "empty"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("speedup: ") and "no tui/cli.py" in err[0]

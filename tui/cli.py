@@ -1,9 +1,12 @@
 """The ``hideseek`` command line: one entry point, one module per subcommand.
 
 Each subcommand lives in its own module under ``tui/`` exposing
-``add_arguments(parser)`` and ``run(args) -> int`` (the exit status). Modules
-are imported only when their subcommand runs, so a slow import (Textual) never
-delays ``hideseek run``.
+``add_arguments(parser)`` and ``run(args) -> int`` (the exit status). Only the
+module of the subcommand being run is imported (its options are added to its
+parser alone; ``hideseek --help`` lists every subcommand from `COMMANDS`), and
+the installed version is looked up only for ``--version``: a game's process
+start pays for nothing but its own command (``importlib.metadata`` alone costs
+about 20 ms, the campaign and shrink modules as much again).
 """
 
 from __future__ import annotations
@@ -12,7 +15,8 @@ import argparse
 import importlib
 import signal
 import sys
-from importlib import metadata
+from collections.abc import Sequence
+from typing import Any
 
 #: subcommand -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -40,10 +44,37 @@ class _Parser(argparse.ArgumentParser):
 
 def version() -> str:
     """The installed distribution's version (``unknown`` when run from a bare checkout)."""
+    from importlib import metadata  # noqa: PLC0415 - only ``--version`` pays for it
+
     try:
         return metadata.version("hideseek")
     except metadata.PackageNotFoundError:
         return "unknown"
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: prints the version, looked up only when asked for."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS,
+                 default: Any = argparse.SUPPRESS, help: str | None = None) -> None:  # noqa: A002
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0,
+                         help=help or "show program's version number and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        parser._print_message(f"hideseek {version()}\n", sys.stdout)  # as argparse's own
+        parser.exit()
+
+
+def _command_in(argv: Sequence[str]) -> str | None:
+    """The subcommand ``argv`` names: its first word that is not an option (the top-level
+    options take no value), or None."""
+    for word in argv:
+        if word == "--":
+            return None
+        if not word.startswith("-"):
+            return word
+    return None
 
 
 def _stop_on_sigterm() -> None:
@@ -57,16 +88,20 @@ def _stop_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, lambda _sig, _frame: signal.raise_signal(signal.SIGINT))
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None, *, every: bool = True) -> argparse.ArgumentParser:
+    """The parser: every subcommand's options (``every``), or only ``command``'s (the
+    others are listed, with their help line, but their modules are not imported)."""
     parser = _Parser(
         prog="hideseek",
         description="Three-rover hide-and-seek on a supervised actor system.",
     )
-    parser.add_argument("--version", action="version", version=f"hideseek {version()}")
+    parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (module_name, help_text) in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(_module=module_name)
+        if not every and name != command:
+            continue
         try:
             importlib.import_module(module_name).add_arguments(p)
         except ImportError as exc:  # one broken command must not take the others down
@@ -75,8 +110,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = sys.argv[1:] if argv is None else argv
+    parser = build_parser(_command_in(words), every=False)
+    args = parser.parse_args(words)
     if getattr(args, "_broken", None):
         print(f"hideseek {args._broken}", file=sys.stderr)
         return 2

@@ -57,7 +57,14 @@ def angle_diff_deg(a_deg: float, b_deg: float) -> float:
     return wrap_deg(a_deg - b_deg)
 
 
-@dataclass(frozen=True, slots=True)
+def _finite(name: str, value: object) -> float:
+    """``value`` as a float, or ValueError naming the coordinate."""
+    if not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise ValueError(f"Pose.{name} must be a finite number, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True, slots=True, init=False)
 class Pose:
     """A pose: position [cm] and heading [deg], in whichever frame the holder says.
 
@@ -69,25 +76,29 @@ class Pose:
         ValueError: a coordinate that is not a finite number (the message names it).
     """
 
-    x: float = 0.0
+    x: float
     """Position along the frame's +x [cm]."""
-    y: float = 0.0
+    y: float
     """Position along the frame's +y [cm]."""
-    heading_deg: float = 0.0
+    heading_deg: float
     """Heading, counter-clockwise from +x [deg], in (-180, 180]."""
 
-    def __post_init__(self) -> None:
-        x, y, h = self.x, self.y, self.heading_deg
-        if type(x) is float and type(y) is float and type(h) is float \
-                and math.isfinite(x + y + h):  # the common case: three finite floats
-            object.__setattr__(self, "heading_deg", wrap_deg(h))
-            return
-        for name in ("x", "y", "heading_deg"):
-            value = getattr(self, name)
-            if not isinstance(value, numbers.Real) or not math.isfinite(value):
-                raise ValueError(f"Pose.{name} must be a finite number, got {value!r}")
-            object.__setattr__(self, name, float(value))
-        object.__setattr__(self, "heading_deg", wrap_deg(self.heading_deg))
+    def __init__(self, x: float = 0.0, y: float = 0.0, heading_deg: float = 0.0) -> None:
+        # Written out rather than generated with a ``__post_init__``: the firmware makes
+        # tens of thousands of poses a game, and the common case (three finite floats, a
+        # heading in range, which `wrap_deg` returns as is) sets each field once.
+        if type(x) is float and type(y) is float and type(heading_deg) is float \
+                and math.isfinite(x + y + heading_deg):
+            if not -180.0 < heading_deg <= 180.0:
+                heading_deg = wrap_deg(heading_deg)
+        else:
+            x, y, heading_deg = (_finite(name, value) for name, value in
+                                 (("x", x), ("y", y), ("heading_deg", heading_deg)))
+            heading_deg = wrap_deg(heading_deg)
+        _set = object.__setattr__
+        _set(self, "x", x)
+        _set(self, "y", y)
+        _set(self, "heading_deg", heading_deg)
 
     @property
     def heading_rad(self) -> float:
@@ -96,7 +107,8 @@ class Pose:
 
     def to_parent(self, x: float, y: float) -> tuple[float, float]:
         """A point given in this pose's frame, expressed in the parent frame [cm]."""
-        c, s = math.cos(self.heading_rad), math.sin(self.heading_rad)
+        rad = math.radians(self.heading_deg)
+        c, s = math.cos(rad), math.sin(rad)
         return self.x + c * x - s * y, self.y + s * x + c * y
 
     def distance_to(self, other: Pose) -> float:
@@ -117,7 +129,8 @@ def compose(a: Pose, b: Pose) -> Pose:
 def inverse(a: Pose) -> Pose:
     """The parent frame's origin expressed in ``a``'s frame: ``compose(a, inverse(a))``
     is the identity (within float rounding)."""
-    c, s = math.cos(a.heading_rad), math.sin(a.heading_rad)
+    rad = math.radians(a.heading_deg)
+    c, s = math.cos(rad), math.sin(rad)
     return Pose(-(c * a.x + s * a.y), -(-s * a.x + c * a.y), -a.heading_deg)
 
 

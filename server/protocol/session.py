@@ -262,7 +262,8 @@ class ReliableSession:
                     f.deadline = now + self._backoff(f.tries)
                     self._c["resent"] += 1
                     out.append(f.frame)
-            while self.is_up(now) and self._outbox and len(self._flight) < self.window:
+            up = self.is_up(now)  # a stall above takes the link down; nothing below can
+            while up and self._outbox and len(self._flight) < self.window:
                 if self._next_seq > MAX_SEQ:
                     raise RuntimeError("seq space exhausted: reset the session with hello")
                 frame = self._outbox.popleft()
