@@ -706,6 +706,44 @@ async def test_a_window_is_cut_at_a_motions_end(autojump_clock) -> None:
 
 
 @pytest.mark.trio
+async def test_a_drives_heading_flicker_is_one_window_placed_at_the_drives_heading(
+        autojump_clock) -> None:
+    """A straight drive whose stamps flicker a heading quantum off the drive's (one
+    tread's interrupt before the other's), the last of them too, while the rover's
+    heading does not move: its revolution is one window, matched once and placed at the
+    drive's heading, and the belief keeps it."""
+    from actors.firmware.mapping.scan_window import HEADING_QUANTUM_DEG
+    from server.protocol.pose import Pose
+
+    async with _mapped() as (system, pool, mm, truth):
+        scans, matched, windows = mm.scans, mm.matched, mm.windows
+        for k, flicker in enumerate([0.0, HEADING_QUANTUM_DEG, 0.0, HEADING_QUANTUM_DEG]):
+            taken = Pose(truth.x + k + 1.0, truth.y, 0.0)
+            _send_room_part(system, pool, Pose(taken.x, taken.y, flicker), taken, k)
+            await trio.sleep(0.05)
+        assert (mm.scans, mm.matched, mm.windows) == (scans + 4, matched + 1, windows + 1)
+        assert mm.belief.mean.heading_deg == pytest.approx(0.0, abs=0.5)
+
+
+@pytest.mark.trio
+async def test_a_turn_in_place_by_a_heading_quantum_cuts_the_window(autojump_clock) -> None:
+    """A stamp a quantum off the window's heading with the position still is a turn (the
+    treads went opposite ways), not a drive's flicker: the window is cut before it."""
+    from actors.firmware.mapping.scan_window import HEADING_QUANTUM_DEG
+    from server.protocol.pose import Pose
+
+    async with _mapped() as (system, pool, mm, truth):
+        scans = mm.scans + mm.unplaced
+        at = Pose(truth.x + 1.0, truth.y, 0.0)
+        _send_room_part(system, pool, at, at, 0)
+        await trio.sleep(0.05)
+        turned = Pose(at.x, at.y, HEADING_QUANTUM_DEG)
+        _send_room_part(system, pool, turned, turned, 1)
+        await trio.sleep(0.05)
+        assert mm.scans + mm.unplaced == scans + 1  # the first was placed (or dropped) alone
+
+
+@pytest.mark.trio
 async def test_a_window_is_cut_at_a_tread_fault_report(autojump_clock) -> None:
     """A tread fault report closes the window first: the batches taken before it are
     matched and fused where the counts put them, and only then does the report widen

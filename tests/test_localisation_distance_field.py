@@ -103,7 +103,7 @@ def test_reads_keep_the_points_shape() -> None:
 def test_the_capped_transform_gives_scipys_floats(resolution: float, cap: float) -> None:
     """Separable and limited to the cap, or scipy's where offsets of one squared length
     round apart: the distances are scipy's, capped, bit for bit (sparse obstacles, walls,
-    a single cell, a full row)."""
+    a single cell, a full row, a grid too wide for 16-bit column numbers)."""
     rng = np.random.default_rng(int(resolution * 10 + cap))
     masks = [rng.random((60, 75)) < p for p in (0.002, 0.02, 0.3)]
     walls = np.zeros((50, 40), bool)
@@ -112,7 +112,9 @@ def test_the_capped_transform_gives_scipys_floats(resolution: float, cap: float)
     one[17, 0] = True
     row = np.zeros((3, 50), bool)
     row[1] = True
-    for occupied in [*masks, walls, one, row]:
+    wide = np.zeros((4, 17_000), bool)  # column numbers beyond 16-bit integers
+    wide[2, ::997] = True
+    for occupied in [*masks, walls, one, row, wide]:
         if not occupied.any():
             continue
         want = np.minimum(distance_transform_edt(~occupied, sampling=resolution), cap)

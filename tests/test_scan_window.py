@@ -10,6 +10,7 @@ import pytest
 from actors.firmware.drivers.lidar import Scan
 from actors.firmware.mapping.scan_match import MatchOptions
 from actors.firmware.mapping.scan_window import (
+    HEADING_QUANTUM_DEG,
     WINDOW_SWEEP_DEG,
     WINDOW_TRAVEL_CM,
     WINDOW_TURN_DEG,
@@ -32,11 +33,12 @@ def wall_batch(pose: Pose, first_deg: float, n: int = 60) -> Scan:
 
 
 def turning_window() -> tuple[ScanWindow, list[Pose]]:
-    """Four batches taken while the rover turns 0.8 deg and drives 1.5 cm per tick (a
+    """Four batches taken while the rover turns 0.5 deg and drives 1.5 cm per tick (a
     curve), the rotor sweeping on: each stamp is where the batch was taken. (Map
     Management cuts its windows before a turn of the counted heading, whose quanta
-    are coarser than this; the geometry is the same for any stamps.)"""
-    stamps = [Pose(10.0 + 1.5 * k, 5.0, -6.0 + 0.8 * k) for k in range(4)]
+    are coarser than this; a stamp neither on the drive's heading nor a quantum off it
+    is de-skewed by its own heading.)"""
+    stamps = [Pose(10.0 + 1.5 * k, 5.0, -6.0 + 0.5 * k) for k in range(4)]
     window = ScanWindow()
     for k, stamp in enumerate(stamps):
         window.add(wall_batch(stamp, -40.0 + 20.0 * k, n=20))
@@ -98,15 +100,61 @@ def test_a_window_is_full_at_a_revolution_or_its_travel_budget(budget) -> None:
 
 
 def test_a_batch_whose_stamp_turned_starts_a_new_window() -> None:
-    """Batches driving straight on share a window; a batch whose stamp turned by a
-    quantum of the dead-reckoned heading (2.2 deg: one encoder interrupt of one tread,
-    or a straight drive's flicker) does not join it: the turn counted between two stamps
-    is off by up to a quantum, which de-skewing would smear over the window."""
+    """Batches driving straight on share a window; a stamp two quanta of the
+    dead-reckoned heading off the drive's (2.2 deg each: one encoder interrupt of one
+    tread), or one quantum off with the position still (a turn in place), does not join
+    it."""
     window = ScanWindow()
     window.add(wall_batch(Pose(), 0.0))
-    straight = wall_batch(Pose(1.2, 0.0, 0.1), 60.0)  # (within the stamps' rounding)
+    straight = wall_batch(Pose(1.0, 0.0, 0.1), 60.0)  # (within the stamps' rounding)
     assert window.fits(straight)
     window.add(straight)
-    assert not window.fits(wall_batch(Pose(2.4, 0.0, 2.2), 120.0))
-    assert not window.fits(wall_batch(Pose(2.4, 0.0, -2.1), 120.0))
-    assert WINDOW_TURN_DEG < 2.2
+    assert not window.fits(wall_batch(Pose(2.0, 0.0, 2 * HEADING_QUANTUM_DEG), 120.0))
+    assert not window.fits(wall_batch(Pose(1.0, 0.0, HEADING_QUANTUM_DEG), 120.0))
+    assert not window.fits(wall_batch(Pose(1.0, 0.0, -HEADING_QUANTUM_DEG), 120.0))
+    assert WINDOW_TURN_DEG < HEADING_QUANTUM_DEG / 2
+
+
+def flicker_drive() -> tuple[ScanWindow, list[Pose], list[Pose]]:
+    """A straight drive along x at -6 deg, 1 cm per tick, whose stamps' heading flickers
+    a quantum either side of the drive's (one tread's interrupt before the other's) while
+    the rover's does not move: (the window, the true poses, the stamps)."""
+    q = HEADING_QUANTUM_DEG
+    flicker = [0.0, q, 0.0, -q]
+    truths = [Pose(10.0 + k, 5.0, -6.0) for k in range(4)]
+    stamps = [Pose(p.x, p.y, p.heading_deg + f) for p, f in zip(truths, flicker, strict=True)]
+    window = ScanWindow()
+    for k, (truth, stamp) in enumerate(zip(truths, stamps, strict=True)):
+        batch = wall_batch(truth, -40.0 + 20.0 * k, n=20)
+        assert window.fits(Scan(stamp, batch.angles_deg, batch.ranges_cm))
+        window.add(Scan(stamp, batch.angles_deg, batch.ranges_cm))
+    return window, truths, stamps
+
+
+def test_a_straight_drives_heading_flicker_does_not_cut_a_window() -> None:
+    """Stamps a quantum off the drive's heading, reached while the position advanced (or
+    coming back to it), join the window."""
+    window, _, _ = flicker_drive()
+    assert len(window) == 4
+    assert window.moved
+
+
+def test_a_flickering_window_is_deskewed_by_the_drives_heading() -> None:
+    """A flickering drive's batches are not rotated against each other: read in the
+    window's frame (the last batch's position with the drive's heading) its wall hits lie
+    on one line; de-skewed by each stamp's own heading (as if each flicker were a turn)
+    they spread over cm."""
+    window, truths, stamps = flicker_drive()
+    frame = window.frame
+    assert (frame.x, frame.y, frame.heading_deg) == (stamps[-1].x, stamps[-1].y,
+                                                    stamps[0].heading_deg)
+    pts = window.local_points(MatchOptions())
+    last = truths[-1]
+    xs = np.array([last.to_parent(float(x), float(y))[0] for x, y in pts])
+    assert np.abs(xs - WALL_X).max() < 1e-3
+    by_stamp = ScanWindow(quantum_deg=90.0)  # no stamp is a flicker: each its own heading
+    for s in window.scans:
+        by_stamp.add(s)
+    pts = by_stamp.local_points(MatchOptions())
+    xs = np.array([last.to_parent(float(x), float(y))[0] for x, y in pts])
+    assert np.abs(xs - WALL_X).max() > 2.0

@@ -90,20 +90,25 @@ class DistanceField:
         object.__setattr__(self, "_rim_unknown", rim)
 
     @classmethod
-    def from_grid(cls, grid: GridMap, max_dist_cm: float = 50.0) -> DistanceField:
+    def from_grid(cls, grid: GridMap, max_dist_cm: float = 50.0, *,
+                  known_bounds: tuple[int, int, int, int] | None = None) -> DistanceField:
         """The field of a map snapshot.
 
         Args:
             grid: the map; only its occupied cells are obstacles.
             max_dist_cm: cap on the distance [cm] (a point this far from every
                 obstacle is "far"; Nav2 AMCL's ``laser_likelihood_max_dist``).
+            known_bounds: the grid's `GridMap.known_bounds` when the caller has it (a
+                pass over the whole grid saved); None finds it here.
 
         Raises:
             ValueError: when ``max_dist_cm`` is not a positive finite number.
         """
         if not (math.isfinite(max_dist_cm) and max_dist_cm > 0):
             raise ValueError(f"max_dist_cm must be positive, got {max_dist_cm!r}")
-        cells, origin = _known_window(grid, max_dist_cm)
+        if known_bounds is None:
+            known_bounds = grid.known_bounds()
+        cells, origin = _known_window(grid, max_dist_cm, known_bounds)
         occupied = cells == OCCUPIED
         if occupied.any():
             dist = capped_distance(occupied, grid.resolution_cm, max_dist_cm)
@@ -201,22 +206,23 @@ class DistanceField:
         return np.where(inside, r * nx + c, 0), inside
 
 
-def _known_window(grid: GridMap, max_dist_cm: float) -> tuple[np.ndarray, tuple[float, float]]:
-    """The part of ``grid`` the field needs, and that part's lower-left corner [cm].
+def _known_window(grid: GridMap, max_dist_cm: float,
+                  known: tuple[int, int, int, int] | None
+                  ) -> tuple[np.ndarray, tuple[float, float]]:
+    """The part of ``grid`` the field needs, and that part's lower-left corner [cm];
+    ``known`` is the grid's box of known cells (`GridMap.known_bounds`; None: none).
 
     Every occupied cell is known, so beyond the known cells' bounding box widened by
     the cap (and two cells, for the bilinear read) every cell is unknown and reads the
     cap: the same answers as the whole grid's field, which a mapper's grid (mostly
     unknown while it maps) would make costly to build every few batches.
     """
-    known = grid.cells != UNKNOWN
-    rows = np.flatnonzero(known.any(axis=1))
-    if rows.size == 0:
+    if known is None:
         return grid.cells, grid.origin_cm
-    cols = np.flatnonzero(known.any(axis=0))
+    row0, row1, col0, col1 = known
     res = grid.resolution_cm
     k = int(math.ceil(max_dist_cm / res)) + 2
-    r0, r1 = max(0, int(rows[0]) - k), int(rows[-1]) + k + 1
-    c0, c1 = max(0, int(cols[0]) - k), int(cols[-1]) + k + 1
+    r0, r1 = max(0, row0 - k), row1 + k
+    c0, c1 = max(0, col0 - k), col1 + k
     return grid.cells[r0:r1, c0:c1], (grid.origin_cm[0] + c0 * res, grid.origin_cm[1] + r0 * res)
 

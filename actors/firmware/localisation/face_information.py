@@ -88,8 +88,13 @@ def face_information(field: DistanceField, pose: Pose, points: np.ndarray,
     rng = np.maximum(np.hypot(pts[:, 0], pts[:, 1]), 1e-9)
     qx, qy = x - res * (x - pose.x) / rng, y - res * (y - pose.y) / rng
     e = 0.5 * res
-    gx = (field.at(qx + e, qy) - field.at(qx - e, qy)) / (2.0 * e)
-    gy = (field.at(qx, qy + e) - field.at(qx, qy - e)) / (2.0 * e)
+    # the four reads of the central differences in one pass (the same floats point by
+    # point: a hundred hits cost a numpy call's fixed cost more than its arithmetic)
+    ahead = field.at(np.concatenate((qx + e, qx - e, qx, qx)),
+                     np.concatenate((qy, qy, qy + e, qy - e)))
+    k = qx.shape[0]
+    gx = (ahead[:k] - ahead[k:2 * k]) / (2.0 * e)
+    gy = (ahead[2 * k:3 * k] - ahead[3 * k:]) / (2.0 * e)
     norm = np.hypot(gx, gy)
     has_normal = norm >= MIN_NORMAL
     nx = np.where(has_normal, gx / np.maximum(norm, 1e-9), 0.0)

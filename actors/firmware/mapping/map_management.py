@@ -15,15 +15,17 @@ Windows of batches (why: see `scan_window`)
     ``warmup_scans`` batches made a reference (fused one by one), consecutive
     batches are gathered into a window of about a revolution, de-skewed into the
     last batch's frame by the odometry counted between the stamps, and matched,
-    judged, weighed and fused once per window. A window is cut before a batch
-    that would turn it by a heading quantum, after a revolution's sweep or its
-    travel budget (`scan_window`), at a motion's end (the first batch whose
-    stamp did not move after one that did), before a tread fault report, a
-    restore or navigation's ``MAP_GET``, and when the rover starts or stops
-    standing.
+    judged, weighed and fused once per window. A window holds the drive's
+    heading across a straight drive's flicker of the counted heading, and is cut
+    before a batch whose stamp turned (a turn in place, or beyond the flicker),
+    after a revolution's sweep or its travel budget (`scan_window`), at a
+    motion's end (the first batch whose stamp did not move after one that did),
+    before a tread fault report, a restore or navigation's ``MAP_GET``, and when
+    the rover starts or stops standing.
 
 Scan matching (why: see `scan_match`)
-    A window is guessed at ``correction (+) odometry`` (its last stamp) and
+    A window is guessed at ``correction (+) odometry`` (its frame: the last
+    stamp, with the drive's heading across a flicker; the belief moves to it) and
     registered against the obstacle surfaces of the map built so far; an
     accepted match updates the pose belief and with it the correction
     (odometry -> map frame). The matching fields are rebuilt from
@@ -112,7 +114,7 @@ from actors.firmware.localisation.scan_likelihood import (
     judge_fit,
     odometry_floor,
 )
-from actors.firmware.mapping.occupancy import OccupancyGrid
+from actors.firmware.mapping.occupancy import OCCUPIED, OccupancyGrid
 from actors.firmware.mapping.scan_match import (
     BLUR_WIDE,
     MatchFields,
@@ -137,6 +139,7 @@ _SEARCH_EVERY_S = 0.5  # at most one wide search per this much time [s] (a CPU b
 _SCAN = ScanOptions()  # immutable default: the scan likelihood's noise levels
 _ACCEPTABLE = acceptable_log_fit(_SCAN)  # what a just acceptable fit scores per measurement
 _TRACK_WIDTH_CM = 13.0  # the rover's track width when no hardware spec is given [cm]
+_CM_PER_INTERRUPT = 0.5  # a tread's travel per Int E when no hardware spec is given [cm]
 
 
 def _max3(values: np.ndarray) -> np.ndarray:
@@ -170,6 +173,8 @@ class MapManagement(Actor):
             window ended at the same odometry pose: the rover stands.
         track_width_cm: distance between the treads' contact lines [cm] (the motion
             model's geometry).
+        cm_per_interrupt: a tread's travel per Int E [cm] (with the track, the
+            dead-reckoned heading's quantum a window's drive heading spans).
         noise: the motion model's noise levels.
         fault_noise: the prior of the "odometry broke unseen" hypothesis.
     """
@@ -178,7 +183,8 @@ class MapManagement(Actor):
                  resolution_cm: float = 5.0, publish_s: float = 0.25,
                  restarted: bool = False, matching: MatchOptions | None = _MATCH,
                  fields_s: float = 0.5, warmup_scans: int = 20, settle_s: float = 1.0,
-                 track_width_cm: float = _TRACK_WIDTH_CM, noise: MotionNoise = _NOISE,
+                 track_width_cm: float = _TRACK_WIDTH_CM,
+                 cm_per_interrupt: float = _CM_PER_INTERRUPT, noise: MotionNoise = _NOISE,
                  fault_noise: OdometryFaultNoise = _FAULT,
                  addresses: Addresses | None = None) -> None:
         self.pool = pool
@@ -199,6 +205,7 @@ class MapManagement(Actor):
         self.warmup_scans = warmup_scans
         self.settle_s = settle_s
         self.track_width_cm = track_width_cm
+        self._quantum_deg = math.degrees(cm_per_interrupt / track_width_cm)
         self.noise = noise
         self.fault_noise = fault_noise
         self._prev_odom: Pose | None = None  # odometry pose of the previous batch
@@ -249,7 +256,7 @@ class MapManagement(Actor):
         self._counted = 0  # scan count last sent
         self._last_publish = -float("inf")
         self._timer_armed = False
-        self._window = ScanWindow()  # batches waiting to be fused as one (`scan_window`)
+        self._window = ScanWindow(self._quantum_deg)  # batches to fuse as one (`scan_window`)
         self._window_standing = False  # whether they were taken while the rover stood
         self._moving = False  # whether the last batch's stamp differed from the one before
 
@@ -379,7 +386,7 @@ class MapManagement(Actor):
         opts = self.matching
         if opts is None or self.scans + len(self._window) < self.warmup_scans:
             self._predict(odom)  # the reference is built batch by batch
-            window = ScanWindow()
+            window = ScanWindow(self._quantum_deg)
             window.add(scan)
             self._fuse(window, now, standing=False)
             return
@@ -401,7 +408,7 @@ class MapManagement(Actor):
         window = self._window
         if not window:
             return
-        self._window = ScanWindow()
+        self._window = ScanWindow(self._quantum_deg)
         self._fuse(window, trio.current_time() if now is None else now,
                    standing=self._window_standing)
 
@@ -432,10 +439,14 @@ class MapManagement(Actor):
         guess = self.belief.mean
         if opts is None or self.scans < self.warmup_scans:
             return guess
+        odom = window.frame
+        if odom is not window.last:  # a flicker stamp: the belief takes the drive's heading
+            self._belief_odom = odom
+            guess = compose(self.correction, odom)
+            self.belief = self.belief.moved_to(guess)
         pts = window.local_points(opts)
         if standing and self._fits_at(guess, pts):
             return guess  # standing still: matching again would only add its own jitter
-        odom = window.last
         wide = self.wide(opts)
         stamp = self._stamp_covariance(now, window)
         fields = self._current_fields(opts, now)
@@ -566,16 +577,15 @@ class MapManagement(Actor):
         between two stamps (its variance: the step squared over 12; a tick with no Int E
         keeps the last step, since the rover moves on between interrupts, until the rover
         has stood ``settle_s``), and the odometry's error over the window's counted travel
-        and turn (the motion model's noise: it misplaces the earlier batches against the
-        last)."""
+        (the motion model's noise: it misplaces the earlier batches against the last;
+        the window turns only by its heading's flicker, which it does not de-skew)."""
         ds, dtheta = self._step if now - self._still_since < self.settle_s else (0.0, 0.0)
         cov = odometry_floor() + np.diag([ds * ds / 12.0, ds * ds / 12.0,
                                           dtheta * dtheta / 12.0])
-        if window.moved:
-            half = 0.5 * self.track_width_cm * math.radians(window.turn_deg)
+        if window.moved:  # a drive: its stamps hold the drive's heading (`scan_window`)
             travel = window.travel_cm
             within = GaussianPose(self.belief.mean, np.zeros((3, 3))).predict(
-                travel - half, travel + half, self.track_width_cm, self.noise)
+                travel, travel, self.track_width_cm, self.noise)
             cov += within.covariance
         return cov
 
@@ -601,24 +611,28 @@ class MapManagement(Actor):
         by rays from behind) holds few returns, so it barely pulls.
         """
         grid = self.grid
-        lo = grid.log_odds()
-        m = grid.model
-        occupied = lo > m.occ_threshold
-        rows = np.flatnonzero(occupied.any(axis=1))
+        snap = grid.snapshot()  # its classes are the log-odds' (occupied: over the threshold)
+        known = snap.known_bounds()  # every occupied cell is known: one pass finds both
         res = grid.resolution_cm
+        rows = cols = np.zeros(0, dtype=np.int64)
+        if known is not None:
+            kr0, kr1, kc0, kc1 = known
+            occupied = snap.cells[kr0:kr1, kc0:kc1] == OCCUPIED
+            rows = np.flatnonzero(occupied.any(axis=1)) + kr0
+            cols = np.flatnonzero(occupied.any(axis=0)) + kc0
         if rows.size == 0:
-            self._fields = MatchFields(occupied[:1, :1], grid.origin_cm, res)
+            self._fields = MatchFields(np.zeros((1, 1), dtype=bool), grid.origin_cm, res)
         else:
-            cols = np.flatnonzero(occupied.any(axis=0))
             k = BLUR_WIDE + 2
             r0, r1 = max(0, int(rows[0]) - k), int(rows[-1]) + k + 1
             c0, c1 = max(0, int(cols[0]) - k), int(cols[-1]) + k + 1
-            near_occ = _max3(occupied[r0:r1, c0:c1].astype(np.float32)) > 0
+            occupied = snap.cells[r0:r1, c0:c1] == OCCUPIED
+            near_occ = _max3(occupied.astype(np.float32)) > 0
             hits = np.where(near_occ, grid.hit_counts()[r0:r1, c0:c1], 0.0)
             weights = hits / np.maximum(_max3(hits), 1.0)
             origin = (grid.origin_cm[0] + c0 * res, grid.origin_cm[1] + r0 * res)
             self._fields = MatchFields(weights, origin, res)
-        self._distance = DistanceField.from_grid(grid.snapshot())
+        self._distance = DistanceField.from_grid(snap, known_bounds=known)
         self._fields_at = now
         self._fields_stale = False
 
