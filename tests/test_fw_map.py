@@ -13,6 +13,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
 from actors.firmware.mapping.map_management import MapManagement
 from server.protocol.grid_map import GridMap
+from server.protocol.pose import Pose
 from supervisors import ChildSpec, SupervisorSpec
 
 from .test_fw_lidar import Recorder
@@ -220,11 +221,12 @@ async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_cloc
 @pytest.mark.trio
 async def test_a_batch_with_an_unchanged_odometry_stamp_is_matched_until_the_rover_stands(
         autojump_clock) -> None:
-    """A turning rover's batch can carry the previous stamp (no Int E in its tick): it is
-    matched onto the walls, not placed at the old pose (the correction follows it most of
-    the way: a stamp's own error while turning is up to the step between two stamps);
-    only after ``settle_s`` of unchanged odometry are batches placed unmatched (the rover
-    stands)."""
+    """A turning rover's batch can carry the previous stamp (no Int E in its tick): once
+    the stamps stood three batches (a motion's end) the window is matched onto the walls,
+    not placed at the old pose (the correction follows it most of the way: a stamp's own
+    error while turning is up to the step between two stamps), and the stopped rover's
+    windows are matched until ``settle_s`` of unchanged odometry has passed; then they
+    are placed unmatched (the rover stands)."""
     from server.protocol.pose import Pose
 
     pool, log = BufferPool(64), []
@@ -241,24 +243,24 @@ async def test_a_batch_with_an_unchanged_odometry_stamp_is_matched_until_the_rov
         await trio.sleep(0.6)
         mm = system.whereis("mapper/map").actor
         odom = Pose(truth.x + 0.6, truth.y, 0.0)
-        send(system, odom, truth)  # odometry moved: matched
+        send(system, odom, truth)  # odometry moved: gathered
         await trio.sleep(0.05)
+        assert mm.matched == 0
+        for _ in range(3):  # turned 3 deg, same stamp: the third ends the motion
+            send(system, odom, Pose(truth.x, truth.y, 3.0))
+            await trio.sleep(0.05)
         assert mm.matched == 1
-        assert mm.correction.heading_deg == pytest.approx(0.0, abs=0.7)
-        send(system, odom, Pose(truth.x, truth.y, 3.0))  # turned 3 deg, same stamp
-        await trio.sleep(0.05)
-        assert mm.matched == 2
         assert 1.0 < mm.correction.heading_deg < 3.5  # (kept at 0 it would be 3 deg off)
         for _ in range(25):  # standing 1.25 s: matched for settle_s, then left alone
             send(system, odom, Pose(truth.x, truth.y, 3.0))
             await trio.sleep(0.05)
         standing = mm.matched
-        assert 2 < standing < 2 + 25
+        assert 1 < standing < 1 + 25
         for _ in range(5):
             send(system, odom, Pose(truth.x, truth.y, 3.0))
             await trio.sleep(0.05)
         assert mm.matched == standing
-        assert mm.scans + mm.unplaced == 3 + 2 + 25 + 5
+        assert mm.scans + mm.unplaced == 3 + 4 + 25 + 5
 
 
 @pytest.mark.trio
@@ -692,17 +694,84 @@ async def _drive(system, pool: BufferPool, truth, mm: MapManagement, batches: in
 
 
 @pytest.mark.trio
-async def test_a_window_is_cut_at_a_motions_end(autojump_clock) -> None:
-    """Batches whose stamps move are gathered, not matched one by one; the first batch
-    whose stamp did not move (the motion ended) closes the window, which is then matched
-    once and fused whole."""
-    async with _mapped() as (system, pool, mm, truth):
+async def test_a_window_is_cut_and_processed_at_a_motions_end(autojump_clock) -> None:
+    """Batches whose stamps move are gathered, not matched one by one; the third batch in
+    a row whose stamp did not move (the motion ended) closes the window, which is then
+    matched once and fused whole, though the rover moved less than ``update_min_cm``."""
+    async with _mapped(update_min_cm=0.0, update_min_deg=0.0) as (system, pool, mm, truth):
         scans, matched = mm.scans, mm.matched
         pose = await _drive(system, pool, truth, mm)
-        _send_room_part(system, pool, pose, pose, 2)  # the stamp did not move: stopped
+        _send_room_part(system, pool, pose, pose, 2)  # the stamp did not move: a pause
         await trio.sleep(0.05)
-        assert (mm.scans, mm.matched, mm.windows) == (scans + 3, matched + 1, 4)
+        assert (mm.scans, mm.matched) == (scans, matched)  # gathered
+        _send_room_part(system, pool, pose, pose, 3)
+        _send_room_part(system, pool, pose, pose, 0)  # the third: stopped
+        await trio.sleep(0.05)
+        assert mm.scans == scans + 5 and mm.matched == matched + 2  # a revolution, the end
         assert mm.belief.mean.x == pytest.approx(truth.x + 2.0, abs=1.0)
+
+
+@pytest.mark.trio
+async def test_a_motions_end_is_processed_though_the_rover_moved_less_than_update_min_cm(
+        autojump_clock) -> None:
+    """A 2 cm drive (under ``update_min_cm``): its revolution is a window that only
+    predicts, but the window that ends the motion is processed (matched and fused)."""
+    async with _mapped() as (system, pool, mm, truth):
+        scans, matched, windows = mm.scans, mm.matched, mm.windows
+        pose = await _drive(system, pool, truth, mm)
+        for part in (2, 3):
+            _send_room_part(system, pool, pose, pose, part)
+            await trio.sleep(0.05)
+        assert (mm.scans, mm.predicted, mm.windows) == (scans + 4, 1, windows)
+        _send_room_part(system, pool, pose, pose, 0)  # the third still batch: stopped
+        await trio.sleep(0.05)
+        assert (mm.scans, mm.matched, mm.windows) == (scans + 5, matched + 1, windows + 1)
+        assert mm.belief.mean.x == pytest.approx(truth.x + 2.0, abs=2.0)  # (a quarter turn)
+
+
+@pytest.mark.trio
+async def test_a_window_is_processed_after_the_rover_moved_update_min_cm(
+        autojump_clock) -> None:
+    """Driving 1 cm a batch (windows of a revolution: 4 cm) with ``update_min_cm`` 8: the
+    first window only predicts (the belief follows the odometry, the grid is left alone,
+    its batches are counted), the second, 8 cm from the last processed window, is
+    matched and fused."""
+    async with _mapped(update_min_cm=8.0) as (system, pool, mm, truth):
+        scans, matched, windows = mm.scans, mm.matched, mm.windows
+        before = mm.grid.cells()
+        pose = await _drive(system, pool, truth, mm, batches=2)
+        for k in (2, 3):
+            pose = Pose(truth.x + k + 1.0, truth.y, 0.0)
+            _send_room_part(system, pool, pose, pose, k)
+            await trio.sleep(0.05)
+        assert (mm.scans, mm.matched, mm.windows, mm.predicted) == (
+            scans + 4, matched, windows, 1)
+        assert np.array_equal(mm.grid.cells(), before)  # dropped from the grid
+        assert mm.belief.mean.x == pytest.approx(truth.x + 4.0, abs=0.1)  # the prediction
+        for k in range(4, 8):
+            pose = Pose(truth.x + k + 1.0, truth.y, 0.0)
+            _send_room_part(system, pool, pose, pose, k)
+            await trio.sleep(0.05)
+        assert (mm.scans, mm.matched, mm.windows, mm.predicted) == (
+            scans + 8, matched + 1, windows + 1, 1)
+        assert mm.belief.mean.x == pytest.approx(truth.x + 8.0, abs=2.5)
+
+
+@pytest.mark.trio
+async def test_a_turn_in_place_is_processed_every_update_min_deg(autojump_clock) -> None:
+    """A turn in place one heading quantum (2.2 deg) a batch: each batch is a window of its
+    own, and only one that turned ``update_min_deg`` (10 deg: the fifth quantum) since the
+    last processed window is matched; the ones between only predict."""
+    from actors.firmware.mapping.scan_window import HEADING_QUANTUM_DEG
+
+    async with _mapped(update_min_deg=10.0) as (system, pool, mm, truth):
+        windows = mm.windows
+        for k in range(1, 9):
+            at = Pose(truth.x, truth.y, k * HEADING_QUANTUM_DEG)
+            _send_room_part(system, pool, at, at, k)
+            await trio.sleep(0.05)
+        # windows of batches 1..7 were cut (each before the next turned): the 5th processed
+        assert (mm.windows, mm.predicted) == (windows + 1, 6)
 
 
 @pytest.mark.trio
@@ -715,7 +784,7 @@ async def test_a_drives_heading_flicker_is_one_window_placed_at_the_drives_headi
     from actors.firmware.mapping.scan_window import HEADING_QUANTUM_DEG
     from server.protocol.pose import Pose
 
-    async with _mapped() as (system, pool, mm, truth):
+    async with _mapped(update_min_cm=0.0) as (system, pool, mm, truth):
         scans, matched, windows = mm.scans, mm.matched, mm.windows
         for k, flicker in enumerate([0.0, HEADING_QUANTUM_DEG, 0.0, HEADING_QUANTUM_DEG]):
             taken = Pose(truth.x + k + 1.0, truth.y, 0.0)

@@ -393,6 +393,7 @@ class MapManagement(Actor):
         """
         odom = scan.pose
         moved = not _same_pose(odom, self._prev_odom)
+        still_before = self._still
         self._still = 0 if moved else self._still + 1
         ended = self._still == _END_BATCHES
         if moved:
@@ -411,35 +412,41 @@ class MapManagement(Actor):
             _same_pose(odom, self._last_odom))
         if self._window and (standing != self._window_standing
                              or not self._window.fits(scan)):
-            self._flush(now, required=standing != self._window_standing)
+            self._flush(now, required=standing != self._window_standing, still=still_before)
         self._predict(odom)
         self._window.add(scan)
         self._window_standing = standing
         if ended or self._window.full():
-            self._flush(now, required=ended)
+            self._flush(now, required=ended, still=self._still)
 
-    def _flush(self, now: float | None = None, *, required: bool = True) -> None:
-        """Process the window gathered so far (if any) when ``required`` or `_due`, else
-        let it only predict; start a new one."""
+    def _flush(self, now: float | None = None, *, required: bool = True,
+               still: int = 0) -> None:
+        """Process the window gathered so far (if any) when ``required`` or `_due` (its
+        last ``still`` batches in a row kept their stamp), else let it only predict; start
+        a new one."""
         window = self._window
         if not window:
             return
         self._window = ScanWindow(self._quantum_deg)
-        if required or self._due(window):
+        if required or self._due(window, still):
             self._fuse(window, trio.current_time() if now is None else now,
                        standing=self._window_standing)
         else:
             self._predict_only(window)
 
-    def _due(self, window: ScanWindow) -> bool:
+    def _due(self, window: ScanWindow, still: int) -> bool:
         """Whether a window is processed (matched, judged, fused): the rover moved at least
         ``update_min_cm`` or turned at least ``update_min_deg`` (counted odometry, the
         window's frame against the last processed window's) since the last processed
-        window, or it stands, or the belief is wider than the local match reaches (only a
-        scan settles it), or no window was processed yet."""
+        window; or its stamps stood still since a motion's end (every batch of it kept the
+        stamp, ``still`` covering the window and a motion's end: a stopped rover is matched
+        until it stands, as stuck encoders freeze the stamps of a rover that moves on); or
+        it stands; or the belief is wider than the local match reaches (only a scan
+        settles it); or no window was processed yet."""
         opts = self.matching
         last = self._updated_odom
-        if opts is None or last is None or self._window_standing or self.wide(opts):
+        if opts is None or last is None or self._window_standing or self.wide(opts) or (
+                still >= max(len(window), _END_BATCHES)):
             return True
         frame = window.frame
         return math.hypot(frame.x - last.x, frame.y - last.y) >= self.update_min_cm or abs(
