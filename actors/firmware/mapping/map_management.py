@@ -19,9 +19,19 @@ Windows of batches (why: see `scan_window`)
     heading across a straight drive's flicker of the counted heading, and is cut
     before a batch whose stamp turned (a turn in place, or beyond the flicker),
     after a revolution's sweep or its travel budget (`scan_window`), at a
-    motion's end (the first batch whose stamp did not move after one that did),
-    before a tread fault report, a restore or navigation's ``MAP_GET``, and when
-    the rover starts or stops standing.
+    motion's end (the third batch in a row whose stamp did not move after one
+    that did), before a tread fault report, a restore or navigation's
+    ``MAP_GET``, and when the rover starts or stops standing.
+
+Updates after enough motion (why: the matching, judging and fusing cost per window)
+    As Nav2 AMCL's ``update_min_d`` / ``update_min_a`` and gmapping's
+    ``linearUpdate`` / ``angularUpdate``, a window is processed only when the
+    counted odometry moved ``update_min_cm`` or turned ``update_min_deg`` since
+    the last processed window, or when something requires it (`_due`: a motion's
+    end, a tread report, a restore, ``MAP_GET``, a stopped or standing rover, a
+    wide belief). A window between only predicts: each batch moved the belief
+    already, and the window is dropped from the grid (fused at the predicted
+    pose, windows smeared the walls); its batches still count in ``scans``.
 
 Scan matching (why: see `scan_match`)
     A window is guessed at ``correction (+) odometry`` (its frame: the last

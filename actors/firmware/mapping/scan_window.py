@@ -40,8 +40,8 @@ and Map Management's own cuts)
       is seen twice, from stamps that disagree by the odometry's error;
     * once its counted travel reached ``WINDOW_TRAVEL_CM`` (a drive after a gap in
       the batches), for the same reason;
-    * Map Management cuts it at a motion's end (the first batch whose stamp did not
-      change after one that did), before a tread fault report (``MAP_TREAD_FAULT``),
+    * Map Management cuts it at a motion's end (the third batch in a row whose stamp
+      did not change after one that did), before a tread fault report (``MAP_TREAD_FAULT``),
       a restore, an upload's ``MAP_GET``, and when the rover starts or stops standing.
 
 Measured (one game each, the map's accuracy against the room): hall seed 1, windows
