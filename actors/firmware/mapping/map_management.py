@@ -397,9 +397,11 @@ class MapManagement(Actor):
         a turning rover's batch can carry the previous tick's stamp, and after a turn the
         rover keeps turning by up to an interrupt's worth (or swings back) unseen by its
         encoders; such batches are matched, and two stuck encoders freeze the stamps of a
-        rover that turns on. The first batch whose stamp did not change after one that
-        did ends a motion (or pauses it): the window is cut there, so navigation gets the
-        pose a motion ended at without waiting for the next window.
+        rover that turns on. The third batch in a row whose stamp did not change after
+        one that did ends a motion (one or two are a pause within a drive or a slow
+        turn): the window is cut and processed there, so navigation gets the pose a
+        motion ended at without waiting for the next window. A cut window is processed
+        or only predicts as `_due` says.
         """
         odom = scan.pose
         moved = not _same_pose(odom, self._prev_odom)
