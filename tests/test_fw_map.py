@@ -744,6 +744,29 @@ async def test_a_window_is_processed_after_the_rover_moved_update_min_cm(
 
 
 @pytest.mark.trio
+async def test_after_a_refused_window_the_next_window_is_processed(
+        autojump_clock, monkeypatch) -> None:
+    """The motion is counted from the last window placed: once a processed window is
+    refused (here every match ends worse than the guess), each following window is
+    processed too, not only every ``update_min_cm``, so a run of refusals does not
+    leave the belief uncorrected for many times that distance."""
+    from actors.firmware.mapping import map_management
+    from actors.firmware.mapping.scan_match import MatchResult
+
+    def no_better(fields, points, guess, options=None):
+        return MatchResult(guess, False, 0.9, 0.9, "the match fits worse than the guess", True)
+
+    async with _mapped(update_min_cm=8.0) as (system, pool, mm, truth):
+        monkeypatch.setattr(map_management, "match_scan", no_better)
+        for k in range(12):  # 1 cm a batch: windows end at 4, 8 and 12 cm
+            pose = Pose(truth.x + k + 1.0, truth.y, 0.0)
+            _send_room_part(system, pool, pose, pose, k)
+            await trio.sleep(0.05)
+        assert mm.predicted == 1  # only the first: the second was refused, the third due
+        assert mm.unplaced == 8
+
+
+@pytest.mark.trio
 async def test_a_turn_in_place_is_processed_every_update_min_deg(autojump_clock) -> None:
     """A turn in place one heading quantum (2.2 deg) a batch: each batch is a window of its
     own, and only one that turned ``update_min_deg`` (10 deg: the fifth quantum) since the

@@ -27,11 +27,12 @@ Updates after enough motion (why: the matching, judging and fusing cost per wind
     As Nav2 AMCL's ``update_min_d`` / ``update_min_a`` and gmapping's
     ``linearUpdate`` / ``angularUpdate``, a window is processed only when the
     counted odometry moved ``update_min_cm`` or turned ``update_min_deg`` since
-    the last processed window, or when something requires it (`_due`: a motion's
-    end, a tread report, a restore, ``MAP_GET``, a stopped or standing rover, a
-    wide belief). A window between only predicts: each batch moved the belief
-    already, and the window is dropped from the grid (fused at the predicted
-    pose, windows smeared the walls); its batches still count in ``scans``.
+    the last window placed (a refused window does not count), or when something
+    requires it (`_due`: a motion's end, a tread report, a restore, ``MAP_GET``,
+    a stopped or standing rover, a wide belief). A window between only predicts:
+    each batch moved the belief already, and the window is dropped from the grid
+    (fused at the predicted pose, windows smeared the walls); its batches still
+    count in ``scans``.
 
 Scan matching (why: see `scan_match`)
     A window is guessed at ``correction (+) odometry`` (its frame: the last
@@ -256,7 +257,7 @@ class MapManagement(Actor):
         self.predicted = 0
         """Windows only predicted (the rover moved less than ``update_min_cm`` and turned
         less than ``update_min_deg`` since the last processed window)."""
-        self._updated_odom: Pose | None = None  # the frame of the last processed window
+        self._updated_odom: Pose | None = None  # the frame of the last window placed
         self.searched = 0
         """Windows placed by the wide search (`scan_match.relocalise`)."""
         self.refusals: Counter[str] = Counter()
@@ -449,8 +450,10 @@ class MapManagement(Actor):
     def _due(self, window: ScanWindow, still: int) -> bool:
         """Whether a window is processed (matched, judged, fused): the rover moved at least
         ``update_min_cm`` or turned at least ``update_min_deg`` (counted odometry, the
-        window's frame against the last processed window's) since the last processed
-        window; or its stamps stood still since a motion's end (every batch of it kept the
+        window's frame against the last placed window's: after a refused window the next
+        is processed too, else a run of refusals would leave the belief uncorrected for
+        many times the distance, as in a corridor whose walls hold the match to few
+        fits); or its stamps stood still since a motion's end (every batch of it kept the
         stamp, ``still`` covering the window and a motion's end: a stopped rover is matched
         until it stands, as stuck encoders freeze the stamps of a rover that moves on); or
         it stands; or the belief is wider than the local match reaches (only a scan
@@ -478,10 +481,10 @@ class MapManagement(Actor):
     def _fuse(self, window: ScanWindow, now: float, *, standing: bool) -> None:
         """Place a window and fuse it into the grid (each beam from its own batch's
         origin), or drop it when its pose is in doubt."""
-        self._updated_odom = window.frame
         pose = self._place(window, now, standing)
         if pose is None:
             return  # its pose is in doubt (the reason is counted in `refusals`)
+        self._updated_odom = window.frame
         angles, ranges = window.beams()
         if len(window) == 1:
             changed = self.grid.integrate(pose, angles, ranges)
