@@ -153,7 +153,7 @@ _TRACK_WIDTH_CM = 13.0  # the rover's track width when no hardware spec is given
 _CM_PER_INTERRUPT = 0.5  # a tread's travel per Int E when no hardware spec is given [cm]
 UPDATE_MIN_CM = 8.0
 """A window is processed (matched, judged, fused) once the counted odometry moved this far
-since the last processed window [cm] (Nav2 AMCL's ``update_min_d``, gmapping's
+since the last window placed [cm] (Nav2 AMCL's ``update_min_d``, gmapping's
 ``linearUpdate``)."""
 UPDATE_MIN_DEG = 10.0
 """... or turned this much [deg] (AMCL's ``update_min_a``, gmapping's ``angularUpdate``)."""
@@ -213,7 +213,8 @@ class MapManagement(Actor):
         self.publish_s = publish_s
         self.restarted = restarted
         self.scans = 0
-        """Scan batches integrated by this incarnation."""
+        """Scan batches taken by this incarnation: fused, or in a window that only
+        predicted (`_due`); a dropped window's are counted in `refusals`."""
         self.updates = 0
         """Snapshots sent to navigation."""
         self.dropped_updates = 0
@@ -256,7 +257,7 @@ class MapManagement(Actor):
         reference is a window of its own)."""
         self.predicted = 0
         """Windows only predicted (the rover moved less than ``update_min_cm`` and turned
-        less than ``update_min_deg`` since the last processed window)."""
+        less than ``update_min_deg`` since the last window placed; `_due`)."""
         self._updated_odom: Pose | None = None  # the frame of the last window placed
         self.searched = 0
         """Windows placed by the wide search (`scan_match.relocalise`)."""
