@@ -372,15 +372,15 @@ async def test_flooding_the_map_mid_game_costs_drops_and_mapping_still_completes
             assert system.actors.whereis("mapper/map").actor.noops >= 2 * 64 - 10
 
 
-def test_an_odometry_stamp_across_the_heading_wrap_is_the_same_pose() -> None:
+def test_an_odometry_stamp_across_the_heading_wrap_is_the_same_stamp() -> None:
     """179.9 and -179.95 deg are 0.15 deg apart: a rover standing there stands (it was
     read as moved, so its batches were matched again for nothing)."""
-    from actors.firmware.mapping.map_management import _same_pose
+    from actors.firmware.mapping.scan_window import same_stamp
     from server.protocol.pose import Pose
 
-    assert _same_pose(Pose(10.0, 5.0, 179.9), Pose(10.2, 5.0, -179.95))
-    assert not _same_pose(Pose(10.0, 5.0, 179.9), Pose(10.0, 5.0, -179.0))
-    assert not _same_pose(Pose(10.0, 5.0, 0.0), None)
+    assert same_stamp(Pose(10.0, 5.0, 179.9), Pose(10.2, 5.0, -179.95))
+    assert not same_stamp(Pose(10.0, 5.0, 179.9), Pose(10.0, 5.0, -179.0))
+    assert not same_stamp(Pose(10.0, 5.0, 0.0), None)
 
 
 async def _reference(system, spec: SupervisorSpec, send_truth) -> tuple:

@@ -134,7 +134,7 @@ from actors.firmware.mapping.scan_match import (
     match_scan,
     relocalise,
 )
-from actors.firmware.mapping.scan_window import ScanWindow
+from actors.firmware.mapping.scan_window import ScanWindow, same_stamp
 from actors.firmware.origin_wire import OriginHalves, pose_messages
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
@@ -166,13 +166,6 @@ def _max3(values: np.ndarray) -> np.ndarray:
     p = pad_border(values)
     rows = np.maximum(np.maximum(p[:-2], p[1:-1]), p[2:])
     return np.maximum(np.maximum(rows[:, :-2], rows[:, 1:-1]), rows[:, 2:])
-
-
-def _same_pose(a: Pose, b: Pose | None) -> bool:
-    """Whether two odometry stamps are the same (within 5 mm and 0.3 deg; headings
-    compared across the wrap, so 179.9 and -179.9 deg are the same)."""
-    return b is not None and abs(a.x - b.x) < 0.5 and abs(a.y - b.y) < 0.5 and abs(
-        angle_diff_deg(a.heading_deg, b.heading_deg)) < 0.3
 
 
 class MapManagement(Actor):
@@ -371,7 +364,7 @@ class MapManagement(Actor):
             self._belief_odom = odom
             self.belief = GaussianPose.at(compose(self.correction, odom))
             return
-        if _same_pose(odom, self._belief_odom):
+        if same_stamp(odom, self._belief_odom):
             return
         left, right = tread_travel(self._belief_odom, odom, self.track_width_cm)
         self._step = (0.5 * (left + right), (right - left) / self.track_width_cm)
@@ -406,7 +399,7 @@ class MapManagement(Actor):
         or only predicts as `_due` says.
         """
         odom = scan.pose
-        moved = not _same_pose(odom, self._prev_odom)
+        moved = not same_stamp(odom, self._prev_odom)
         still_before = self._still
         self._still = 0 if moved else self._still + 1
         ended = self._still == _END_BATCHES
@@ -423,7 +416,7 @@ class MapManagement(Actor):
         # (evaluated before the prediction: a batch whose stamp moved never stands, and
         # one whose stamp did not leaves the belief where it is)
         standing = not self.wide(opts) and now - self._still_since >= self.settle_s and (
-            _same_pose(odom, self._last_odom))
+            same_stamp(odom, self._last_odom))
         if self._window and (standing != self._window_standing
                              or not self._window.fits(scan)):
             self._flush(now, required=standing != self._window_standing, still=still_before)

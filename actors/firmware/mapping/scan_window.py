@@ -67,7 +67,7 @@ from actors.firmware.mapping.scan_match import MatchOptions, hits_to_local, usab
 from server.protocol.pose import Pose, angle_diff_deg, compose, relative
 
 __all__ = ["HEADING_QUANTUM_DEG", "ScanWindow", "WINDOW_SWEEP_DEG", "WINDOW_TURN_DEG",
-           "WINDOW_TRAVEL_CM"]
+           "WINDOW_TRAVEL_CM", "same_stamp"]
 
 WINDOW_SWEEP_DEG = 360.0
 """A window holds at most about one revolution of the rotor's sweep [deg]."""
@@ -226,3 +226,11 @@ class ScanWindow:
 def _same_place(a: Pose, b: Pose) -> bool:
     """Whether two stamps' positions are the same (within their rounding)."""
     return abs(a.x - b.x) < _STILL_CM and abs(a.y - b.y) < _STILL_CM
+
+
+def same_stamp(a: Pose, b: Pose | None) -> bool:
+    """Whether two odometry stamps are the same: the same place and the same heading
+    quantum (within 5 mm and 0.3 deg; headings compared across the wrap, so 179.9 and
+    -179.9 deg are the same)."""
+    return b is not None and _same_place(a, b) and abs(
+        angle_diff_deg(a.heading_deg, b.heading_deg)) < WINDOW_TURN_DEG
