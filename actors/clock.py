@@ -54,7 +54,7 @@ def virtual_clock() -> MockClock:
     "forever" (Trio's own 999999999 s) and the jump adds to the base what
     ``MockClock.jump`` adds; the jump reads the next deadline from the runner as
     ``current_statistics`` does (Trio's own path when that internal is missing). A
-    rate set later (the console) goes through Trio's code as before.
+    rate set later (the console) goes through Trio's own methods.
     """
     clock = MockClock(autojump_threshold=0)
     trio_time = clock.current_time

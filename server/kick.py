@@ -1,18 +1,19 @@
 """`Kick`: the server timer's wake-up, re-armed each round instead of made anew.
 
 The timer task (`Server._timer`) sleeps until its next deadline or until work is
-queued for a link (`Kick.set`, on every flush). It used to make a `trio.Event`
-per round (one cannot be cleared; an attrs object and a parking lot) and wait on
-it in a `trio.move_on_at` cancel scope (made, entered, its deadline registered,
-left: the dearer part). A `Kick` is cleared instead, and `wait_until` bounds the
-wait by an entry in Trio's deadline heap (`actors.clock.HeapEntry`, as the
-actors' sleeps do), which wakes the timer with a plain value when due.
+queued for a link (`Kick.set`, on every flush). Why not a `trio.Event` waited on
+in a `trio.move_on_at` scope: an Event cannot be cleared, so each round would make
+one (an attrs object and a parking lot), and the scope is made, entered, has its
+deadline registered and is left every round (the dearer part). A `Kick` is
+cleared instead, and `wait_until` bounds the wait by an entry in Trio's deadline
+heap (`actors.clock.HeapEntry`, as the actors' sleeps do), which wakes the timer
+with a plain value when due.
 
-The wake-ups are the Event's and the scope's: a kick already given makes the
-wait a checkpoint; `set` reschedules the parked task at once; the deadline
-reschedules it in Trio's expiry pass, where the scope's cancellation would have.
-So the timer wakes in the same scheduler batches (the same game). Without Trio's
-internals the deadline is a cancel scope's, as before.
+The wake-ups are an Event's and a scope's: a kick already given makes the wait a
+checkpoint; `set` reschedules the parked task at once; the deadline reschedules it
+in Trio's expiry pass, where a scope's cancellation would. So the timer wakes in
+the same scheduler batches as with an Event in a scope (the same game). Without
+Trio's internals the deadline is a cancel scope's.
 """
 
 from __future__ import annotations
