@@ -29,10 +29,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
+
+from benchmarks.speedup import byte_compile, children_cpu_s, is_tree
 
 _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -98,11 +99,9 @@ print(json.dumps(out))
 
 def _child_cpu(cmd: list[str], cwd: str) -> tuple[float, str]:
     """Run ``cmd`` in ``cwd``; its CPU seconds (user + system) and its stdout."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    before = children_cpu_s()
     done = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, check=False)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return cpu, done.stdout
+    return children_cpu_s() - before, done.stdout
 
 
 def measure(tree: str, n: int) -> dict[str, float]:
@@ -129,10 +128,9 @@ def main(argv: list[str] | None = None) -> int:
     if not trees or args.rounds < 1 or args.calls < 1:
         parser.error("give at least one tree, --rounds >= 1 and --calls >= 1")
     for tree in trees:
-        if not os.path.isfile(os.path.join(tree, "tui", "cli.py")):
+        if not is_tree(tree):
             parser.error(f"{tree} is not a hideseek tree (no tui/cli.py)")
-        subprocess.run([sys.executable, "-m", "compileall", "-q", "-x", r"/\.", tree],
-                       capture_output=True, check=False)
+        byte_compile(tree)
     runs: dict[str, list[dict[str, float]]] = {t: [] for t in trees}
     for r in range(args.rounds):
         for tree in (trees if r % 2 == 0 else trees[::-1]):

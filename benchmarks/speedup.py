@@ -59,16 +59,33 @@ class Game:
     trace_hash: str
 
 
+def is_tree(path: str) -> bool:
+    """Whether ``path`` holds a hideseek tree (its ``tui/cli.py``)."""
+    return os.path.isfile(os.path.join(path, "tui", "cli.py"))
+
+
+def byte_compile(tree: str) -> None:
+    """Byte-compile ``tree``, so that no timed process pays for compiling it."""
+    subprocess.run([sys.executable, "-m", "compileall", "-q", "-x", r"/\.", tree],
+                   capture_output=True, check=False)
+
+
+def children_cpu_s() -> float:
+    """CPU seconds (user + system) of this process's finished children so far: the
+    difference around a child is that child's."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def play(tree: str, room: str, seed: int, timeout_s: float) -> Game:
     """Play one headless game in ``tree``'s directory and measure its child's CPU time."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    before = children_cpu_s()
     try:
         out = run_json(["--scenario", room, "--seed", str(seed)], cwd=tree,
                        timeout_s=timeout_s)
     except RuntimeError as exc:
         raise RuntimeError(f"{room} seed {seed} in {tree}: {exc}") from exc
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    cpu = children_cpu_s() - before
     return Game(float(out["sim_seconds"]), cpu, str(out["outcome"]), str(out["trace_hash"]))
 
 
@@ -111,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         if unknown or args.rounds < 1:
             raise ValueError(f"unknown rooms {unknown} (known: {', '.join(known)})"
                              if unknown else "--rounds must be >= 1")
-        if args.base_tree and not os.path.isfile(os.path.join(args.base_tree, "tui", "cli.py")):
+        if args.base_tree and not is_tree(args.base_tree):
             raise ValueError(f"--base-tree {args.base_tree!r} holds no tree (no tui/cli.py)")
         base_rev = (os.path.abspath(args.base_tree) if args.base_tree
                     else _git("rev-parse", "--verify", f"{args.base}^{{commit}}"))
@@ -131,9 +148,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"this tree {head}{dirty} against {base_name}; load {load0:.1f} "
                   f"on {os.cpu_count()} cores", flush=True)
             trees = {"new": _ROOT, "base": base_tree}
-            for tree in trees.values():  # bytecode first, so no game pays for compiling
-                subprocess.run([sys.executable, "-m", "compileall", "-q", "-x", r"/\.",
-                                tree], capture_output=True)
+            for tree in trees.values():
+                byte_compile(tree)
             games: dict[str, dict[str, list[Game]]] = {k: {r: [] for r in rooms} for k in trees}
             pair = 0
             for _ in range(args.rounds):
