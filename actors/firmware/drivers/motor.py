@@ -233,10 +233,15 @@ class MotorControl(Actor):
         return system.whereis(name) is not None and system.send_nowait(name, message)
 
     async def handle(self, message: Message) -> None:
+        self._dispatch(message)
+
+    def _dispatch(self, message: Message) -> None:
+        """One message's work (none of it waits: `handle_burst` calls it directly, without
+        a coroutine per message)."""
         cmd = message.command
-        if cmd == Cmd.MOTOR_TICK:
+        if cmd == _TICK_CMD:
             self._tick(int(message.value))
-        elif cmd == Cmd.MOTOR_CONTROL:
+        elif cmd == _CONTROL_CMD:
             self._control()
         elif cmd == Cmd.MOTOR_MOVE:
             self._begin(Cmd.MOTOR_MOVE, float(message.value))
@@ -274,14 +279,7 @@ class MotorControl(Actor):
     async def handle_burst(self, messages: list[Message]) -> None:
         self._ticked = False
         for message in messages:
-            # Int E and the control period (nearly every message) without a coroutine each
-            cmd = message.command
-            if cmd == _TICK_CMD:
-                self._tick(int(message.value))
-            elif cmd == _CONTROL_CMD:
-                self._control()
-            else:
-                await self.handle(message)
+            self._dispatch(message)
         if self._ticked and self._kind is not None:  # this step's Int E are all in
             self._watch_treads(period_pending=False)
         self._integrate()
