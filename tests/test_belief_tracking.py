@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from actors import BufferPool
+from actors.firmware.localisation.belief import PoseBelief
 from actors.firmware.localisation.odometry import advance, tread_travel
 from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.options import NavMemory
@@ -131,3 +132,25 @@ def test_a_restarted_navigation_goes_on_from_its_belief_and_its_given_origin() -
     assert again.drift_cm > before
     assert math.dist((again.map_pose.x, again.map_pose.y),
                      (learned.x + 6.0, learned.y)) <= again.drift_cm
+
+
+def test_the_pose_follows_the_heaviest_hypothesis_once_free_space_splits_the_belief() -> None:
+    """Three groups of particles, one of them inside a box of the map, that no one has
+    asked the spread of (the belief was counted as one hypothesis). A motion and its
+    free-space weighing cut the group in the box: the pose is then the heavier of the
+    two that remain, not their mean between them, though nothing read the spread."""
+    nav = scraped_nav(0.0)
+    n = 600
+    rng = np.random.default_rng(7)
+    centres = np.repeat(np.array([[100.0, 80.0, 0.0], [100.0, 220.0, 0.0],
+                                  [350.0, 60.0, 0.0]]), n // 3, axis=0)
+    particles = centres + rng.normal(0.0, [2.0, 2.0, 0.02], size=(n, 3))
+    weights = np.repeat(np.array([0.4, 0.3, 0.3]) / (n // 3), n // 3)
+    nav.belief = PoseBelief(particles, weights)
+    nav._belief_odom, nav._spread, nav._modes = nav.pose, None, 1
+    nav.last_motion = Motion("move", 2.0)
+    nav.pose = advance(nav.pose, 2.0, 2.0, 13.0)
+    nav.track_belief()
+    p = nav.map_pose
+    assert (p.x, p.y) == pytest.approx((102.0, 80.0), abs=3.0)
+    assert len(nav.spread.clusters) == 2
