@@ -11,7 +11,7 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
-from actors.firmware.nav.mapper import MappingOptions
+from actors.firmware.nav.mapper import MappingNav, MappingOptions
 from actors.firmware.origin_wire import length_pair
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from tests.test_nav_common import Body, Truth, net, rover_spec, wait_for
@@ -475,3 +475,97 @@ def test_the_mapper_steers_and_plans_home_from_its_map_frame_pose() -> None:
     assert nav._plan_home() and nav.ex.target == (0.0, 0.0)
     assert nav.ex.follower is not None
     assert nav.ex.follower.next_motion(nav.map_pose) == Motion("turn", pytest.approx(180.0))
+
+
+def _homing_nav() -> MappingNav:
+    """A mapper going home at (0, 0) @ 0 on free floor (x, y -100..100, 5 cm cells)."""
+    from server.protocol.pose import Pose
+
+    nav = MappingNav(pool=BufferPool(4))
+    _set_column(nav, None, FREE)
+    nav.pose, nav.pose_known = Pose(0.0, 0.0, 0.0), True
+    nav.set_origin(Pose(0.0, 0.0, 0.0))
+    nav.state = "homing"
+    return nav
+
+
+def _set_column(nav: MappingNav, col: int | None, value: int) -> None:
+    """The mapper's map with one column of cells (``col``, x from -100 + 5 col) set to
+    ``value`` (None: every cell)."""
+    cells = np.full((40, 40), FREE, dtype=np.int8) if nav.grid is None else \
+        nav.grid.cells.copy()
+    if col is None:
+        cells[:] = value
+    else:
+        cells[:, col] = value
+    nav.grid = GridMap(cells, 5.0, (-100.0, -100.0))
+
+
+def test_a_move_blocked_with_nothing_mapped_at_its_leading_edge_is_blocked_in_the_open(
+) -> None:
+    """Both encoders stuck end a move blocked as a wall would: the map tells them apart. A
+    move (forward or back) blocked with free floor and no mapped obstacle within
+    ``CONTACT_CELLS`` of its leading edge met nothing; a wall there, or unknown cells
+    there, may have stopped it. A turn that counted nothing is blocked in the open, one
+    that counted some turning is not."""
+    from actors.firmware.nav.route import Motion
+    from actors.firmware.nav.sensor_watch import CONTACT_CELLS
+
+    assert CONTACT_CELLS == 2
+    nav = _homing_nav()
+    nav.last_motion = Motion("move", 20.0)
+    assert nav._blocked_in_the_open(12.0)
+    _set_column(nav, 23, OCCUPIED)  # a wall x 15..20: 5 cm before the front (x 10)
+    assert not nav._blocked_in_the_open(12.0)
+    nav.last_motion = Motion("move", -6.0)  # backing off: the rear is the leading edge
+    assert nav._blocked_in_the_open(0.0)
+    _set_column(nav, 16, UNKNOWN)  # x -20..-15, just behind the rear (x -10)
+    assert not nav._blocked_in_the_open(0.0)
+    _set_column(nav, 16, FREE)
+    _set_column(nav, 23, FREE)
+    _set_column(nav, 25, OCCUPIED)  # x 25..30: 15 cm before the front, out of reach
+    nav.last_motion = Motion("move", 20.0)
+    assert nav._blocked_in_the_open(12.0)
+    nav.last_motion = Motion("turn", 30.0)
+    assert nav._blocked_in_the_open(0.0)
+    assert not nav._blocked_in_the_open(4.0)
+
+
+@pytest.mark.trio
+async def test_homing_holds_for_odometry_instead_of_counting_a_block_in_the_open(
+        monkeypatch) -> None:
+    """Going home, a move blocked in the open holds (an odometry fault) instead of backing
+    off blind and counting toward ``HOME_BLOCKS``: with both encoders stuck, three such
+    blocks made the mapper upload from the corridor the hider needed. A block at a mapped
+    wall backs off and counts as before; once the holds have doubled to the longest, a
+    block in the open counts too."""
+    from actors.firmware.nav import sensor_watch
+    from actors.firmware.nav.route import Motion
+
+    nav = _homing_nav()
+    holds: list[str] = []
+    commands: list[Motion] = []
+
+    async def hold(now: float, what: str, hold: float | None = None) -> None:
+        holds.append(what)
+        nav._odo_strikes += 1
+        nav._odo_last = now
+
+    async def command(motion: Motion) -> None:
+        commands.append(motion)
+
+    monkeypatch.setattr(nav, "_odometry_hold", hold)
+    monkeypatch.setattr(nav, "command", command)
+    nav.last_motion = Motion("move", 20.0)
+    await nav.after_motion(True, 14.0)
+    assert len(holds) == 1 and commands == [] and nav.ex.blocks == 0
+    _set_column(nav, 23, OCCUPIED)  # a wall at the front: a real block
+    await nav.after_motion(True, 14.0)
+    assert len(holds) == 1 and commands == [Motion("move", -nav.o.backoff_cm)]
+    assert nav.ex.blocks == 1
+    _set_column(nav, 23, FREE)
+    nav.last_motion = Motion("move", 20.0)
+    nav._odo_strikes = 1 + round(math.log2(sensor_watch.ODO_HOLD_MAX_S
+                                           / sensor_watch.ODO_HOLD_S))
+    await nav.after_motion(True, 14.0)  # held the longest already: it counts
+    assert len(holds) == 1 and nav.ex.blocks == 2

@@ -33,12 +33,29 @@ Odometry that scan matching contradicts (a stuck encoder draws the map from a wr
     a turn that ended blocked, reported or not, has both treads so relayed): its pose
     belief widens by what the motion model makes of it, and while the belief is
     wider than the local match reaches, only the wide search places batches.
+
+A motion that ended blocked in the open (both encoders stuck)
+    Motor Control ends a command blocked when neither tread counts: a rover pushing
+    a wall reads the same as one whose two encoders stopped while it drives on, and
+    it reports only a turn whose model caught it (`TreadFault.BOTH_SILENT`). On the
+    way home the map is complete and tells them apart: a move that ended blocked
+    with no mapped obstacle within ``CONTACT_CELLS`` of its leading edge, on known
+    free floor, met nothing the LIDAR sees, and a turn that counted nothing at all is
+    most likely two stuck encoders (as Motor Control judges one its model caught);
+    the odometry is in doubt (`_blocked_in_the_open`). Homing holds as for a
+    disagreement instead of backing off: a back-off or a turn on stuck encoders is
+    driven blind (a few cm, or tens of degrees, per try, unseen), and a mapper that
+    counted such blocks as its way home being blocked uploaded from where it stood,
+    in the corridor the hider needed. Holds count as strikes; once the hold has
+    doubled to ``ODO_HOLD_MAX_S`` (the fault outlasted about 45 s), such a block
+    counts as a block again.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 import trio
 
 from actors.firmware.commands import Cmd
@@ -47,10 +64,13 @@ from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.odometry import tread_travel
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.origin_wire import MM, length_pair
-from server.protocol.pose import angle_diff_deg
+from actors.firmware.planning.clearance import occupied_near
+from server.protocol.grid_map import UNKNOWN
+from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["SensorWatch", "uncounted_travel", "LIDAR_SILENT_S", "ODO_TURN_SHIFT_CM",
-           "ODO_MOVE_TURN_DEG", "ODO_HOLD_S", "ODO_HOLD_MAX_S", "SHORT_HOLD_S"]
+           "ODO_MOVE_TURN_DEG", "ODO_HOLD_S", "ODO_HOLD_MAX_S", "SHORT_HOLD_S",
+           "CONTACT_CELLS"]
 
 # The thresholds and holds of the two watches, fixed beside them: they judge and wait for
 # scan matching (which owns the mapper's pose), not a property of the rover.
@@ -70,6 +90,10 @@ ODO_HOLD_MAX_S = ODO_HOLD_S * 2 ** 3
 SHORT_HOLD_S = 2.0
 """Hold still this long after Motor Control saw a tread (or both) count short [s]: about
 eight scan batches for scan matching to catch up with what was not counted."""
+CONTACT_CELLS = 2
+"""A move that ended blocked met a mapped obstacle when one lies within this many cells of
+its leading edge (ahead, across the body's width and a cell either side) [cells]: a
+mapped face lies up to a cell in front of the wall's, and the pose is a cell or so off."""
 
 
 def uncounted_travel(reported: tuple[bool, bool], counted: tuple[float, float],
@@ -230,6 +254,56 @@ class SensorWatch:
         counted = tread_travel(start, self.pose, w)
         left, right = uncounted_travel(reported, counted, (left_cm, right_cm))
         await self.post(self.map_name, length_pair(Cmd.MAP_TREAD_FAULT, left, right, MM))
+
+    def _blocked_in_the_open(self, done: float) -> bool:
+        """Whether the last motion, which ended blocked having counted ``done`` [cm or
+        deg], met nothing the map holds: a turn that counted nothing (both encoders stuck,
+        as Motor Control's `TreadFault.BOTH_SILENT` says of one its model caught), or a
+        move with no occupied cell within ``CONTACT_CELLS`` of its leading edge (across the
+        body's width and a cell either side) and the cells there known free (an unknown
+        cell may hide what stopped it). See "A motion that ended blocked in the open" in
+        the module docstring."""
+        motion, grid = self.last_motion, self.grid
+        if motion is None or grid is None:
+            return False
+        if motion.kind == "turn":
+            return done == 0.0
+        p = self.map_pose
+        lead = p if motion.amount >= 0 else Pose(p.x, p.y, p.heading_deg + 180.0)
+        res = grid.resolution_cm
+        front = 0.5 * self.length_cm
+        reach = front + CONTACT_CELLS * res
+        side = 0.5 * self.width_cm + res
+        near = occupied_near(grid, lead, math.hypot(reach, side))
+        if near is not None:
+            _, _, fwd, lat = near
+            if bool(np.any((fwd > 0.0) & (fwd <= reach) & (np.abs(lat) <= side))):
+                return False
+        h = lead.heading_rad
+        ch, sh = math.cos(h), math.sin(h)
+        half = 0.5 * self.width_cm
+        for f in np.arange(front, reach + 1e-9, 0.5 * res):
+            for s in np.arange(-half, half + 1e-9, 0.5 * res):
+                r, c = grid.world_to_cell(p.x + f * ch - s * sh, p.y + f * sh + s * ch)
+                if not (0 <= r < grid.shape[0] and 0 <= c < grid.shape[1]) or (
+                        grid.cells[r, c] == UNKNOWN):
+                    return False
+        return True
+
+    async def _hold_if_blocked_in_the_open(self, done: float) -> bool:
+        """After a motion that ended blocked having counted ``done``: hold for odometry
+        when it met nothing the map holds (`_blocked_in_the_open`) and the hold has not
+        yet doubled to its longest; True when holding (the block is not the route's)."""
+        now = trio.current_time()
+        if now - self._odo_last <= 60.0 and (
+                ODO_HOLD_S * 2.0 ** (self._odo_strikes - 1) >= ODO_HOLD_MAX_S):
+            return False  # held the longest already: a fault this long, or a real block
+        if not self._blocked_in_the_open(done):
+            return False
+        await self._odometry_hold(
+            now, "a motion ended blocked with nothing mapped in its way: both encoders "
+            "may be stuck")
+        return True
 
     async def _odometry_hold(self, now: float, what: str, hold: float | None = None) -> None:
         """Stop the motor and hold still for odometry (see the module docstring); ``hold``
