@@ -11,6 +11,7 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import Scan
+from actors.firmware.localisation.scan_likelihood import GATE_CHI2, odometry_floor
 from actors.firmware.mapping.map_management import MapManagement
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose
@@ -886,3 +887,37 @@ async def test_a_standing_rover_whose_match_ends_worse_than_the_guess_still_stan
             _send_room_part(system, pool, stamp, stamp, k)
             await trio.sleep(0.05)
         assert mm.scans == scans + 20  # every batch fused while it stands
+
+
+@pytest.mark.trio
+async def test_frozen_stamps_of_a_rover_that_drives_on_a_little_are_not_read_as_standing(
+        autojump_clock) -> None:
+    """The rover stood and its windows were placed unmatched. Both encoders then stop
+    counting and it drives on 8 cm unseen: its scans still fit "not badly" at the
+    belief's mean (a few hits off by 8 cm), but their local match lies outside the
+    belief's gate, so they are not placed at the stale mean; they weigh for "odometry
+    broke unseen" until the belief widens and the wide search re-finds the rover, the
+    truth inside the belief's gate (the update weighs the search's fit against the
+    prediction: the mean lands 2-3 cm short of it)."""
+    from server.protocol.pose import Pose
+
+    async with _mapped(settle_s=1.0) as (system, pool, mm, truth):
+        stamp = Pose(truth.x + 1.0, truth.y, 0.0)
+        for k in range(40):  # stands: matched for settle_s, then placed unmatched
+            _send_room_part(system, pool, stamp, stamp, k)
+            await trio.sleep(0.05)
+        windows, before = mm.windows, mm.grid.cells()
+        moved = Pose(stamp.x + 8.0, stamp.y, 0.0)
+        for k in range(4):  # the first revolution there: a window placed nowhere yet
+            _send_room_part(system, pool, stamp, moved, k)
+            await trio.sleep(0.05)
+        assert mm.windows == windows and mm.unplaced > 0  # not placed at the stale mean
+        for k in range(4, 160):
+            _send_room_part(system, pool, stamp, moved, k)
+            await trio.sleep(0.05)
+        assert mm.switches >= 1
+        e = mm.belief.innovation(moved)  # the truth lies inside the belief's gate...
+        assert float(e @ np.linalg.solve(mm.belief.covariance + odometry_floor(), e)) \
+            <= GATE_CHI2
+        assert abs(mm.belief.mean.x - moved.x) <= 4.0  # ...not 8 cm behind it
+        assert _stray_walls(before, mm.grid.cells()) <= 3

@@ -387,7 +387,7 @@ class MapManagement(Actor):
         The rover stands when odometry has not changed for ``settle_s`` and the last
         matched window ended at the same odometry pose (within 5 mm and 0.3 deg, the
         belief within the local reach): a standing window is placed at the belief's mean
-        unmatched when its scan does not fit badly there (`_fits_at`). An unchanged stamp
+        unmatched when its scan says it stands there (`_stands_at`). An unchanged stamp
         alone does not mean the rover stands: one Int E turns the heading by 2.2 deg, so
         a turning rover's batch can carry the previous tick's stamp, and after a turn the
         rover keeps turning by up to an interrupt's worth (or swings back) unseen by its
@@ -506,11 +506,11 @@ class MapManagement(Actor):
             guess = compose(self.correction, odom)
             self.belief = self.belief.moved_to(guess)
         pts = window.local_points(opts)
-        if standing and self._fits_at(guess, pts):
-            return guess  # standing still: matching again would only add its own jitter
         wide = self.wide(opts)
         stamp = self._stamp_covariance(now, window)
         fields = self._current_fields(opts, now)
+        if standing and self._stands_at(guess, pts, fields, opts, stamp):
+            return guess  # standing still: placing it at the match would add its jitter
         if wide:
             if now - self._reported_at < self.settle_s:  # not yet at the pose the report predicts
                 return self._refuse("coasting", len(window))
@@ -565,14 +565,29 @@ class MapManagement(Actor):
         self.correction = compose(self.belief.mean, inverse(odom))
         return placed
 
-    def _fits_at(self, pose: Pose, pts: np.ndarray) -> bool:
-        """Whether the scan does not fit badly at ``pose`` (`judge_fit`: too few hits or
-        new ground say nothing against it). Why: frozen stamps read as standing also
-        when both encoders stopped counting while the rover moves; a scan that fits
-        badly where the belief stands shows the rover moved, and is matched and weighed
-        instead of placed there."""
-        return self._distance is None or judge_fit(self._distance, pose, pts, _SCAN).verdict \
-            is not FitVerdict.BAD_FIT
+    def _stands_at(self, pose: Pose, pts: np.ndarray, fields: MatchFields,
+                   opts: MatchOptions, stamp: np.ndarray) -> bool:
+        """Whether a standing window's scan says the rover stands at ``pose``, the belief's
+        mean: it does not fit badly there (`judge_fit`: too few hits or new ground say
+        nothing against it), and the local match does not land outside the belief's
+        gate (its covariance widened by the stamp's own error).
+
+        Why: frozen stamps read as standing also when both encoders stopped counting
+        while the rover moves on. A scan that fits badly at the mean shows it moved; so
+        does one whose match lies outside the gate, where the fit at the mean alone does
+        not: along a corridor, or turned a few degrees among near walls, the hits still
+        fit "not badly" 10 cm or 10 deg off. Such a window is matched and weighed (the
+        "odometry broke unseen" hypothesis) instead of placed at the mean."""
+        if self._distance is None:
+            return True
+        if judge_fit(self._distance, pose, pts, _SCAN).verdict is FitVerdict.BAD_FIT:
+            return False
+        result = match_scan(fields, pts, pose, opts)
+        if not result.accepted:
+            return True  # nothing better nearby
+        e = self.belief.innovation(result.pose)
+        cov = self.belief.covariance + stamp
+        return float(e @ np.linalg.solve(cov, e)) <= GATE_CHI2
 
     def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float,
                         stamp: np.ndarray) -> tuple[ScanFit, ScanFit | None] | None:

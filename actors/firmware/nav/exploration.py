@@ -130,7 +130,7 @@ class Exploration:
     ex: ExplorationState
 
     async def after_motion(self, blocked: bool, done: float) -> None:
-        if blocked and self.state == "homing" and not self.holding and (
+        if blocked and self.state in ("exploring", "homing") and not self.holding and (
                 await self._hold_if_blocked_in_the_open(done)):
             return  # odometry in doubt: the hold's end plans again (`sensor_watch`)
         if self.state == "homing":
