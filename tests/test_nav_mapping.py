@@ -536,7 +536,7 @@ async def test_homing_holds_for_odometry_instead_of_counting_a_block_in_the_open
         monkeypatch) -> None:
     """Going home, a move blocked in the open holds (an odometry fault) instead of backing
     off blind and counting toward ``HOME_BLOCKS``: with both encoders stuck, three such
-    blocks made the mapper upload from the corridor the hider needed. A block at a mapped
+    blocks would upload the map from wherever the mapper stands. A block at a mapped
     wall backs off and counts as before; once the holds have doubled to the longest, a
     block in the open counts too."""
     from actors.firmware.nav import sensor_watch

@@ -20,6 +20,12 @@ Obstacles ahead
     leaves nothing to drive the rover turns away from it and chooses again;
     after ``OBSTACLE_TURNS`` such turns toward one target without a move between,
     the target is blacklisted (the route passes where the rover will not drive).
+
+Blocked motions
+    A motion that ended blocked backs off (or turns, when a back-off was blocked too)
+    and counts toward the target's blacklisting; one blocked in the open (nothing
+    mapped in its way: both encoders stuck, most likely) holds for odometry instead
+    (`sensor_watch`), exploring or going home.
 """
 
 from __future__ import annotations

@@ -6,7 +6,9 @@ Homing
     gives up). So when mapping completes by itself, the mapper first drives
     back to its start pose, the LIDAR still scanning (scan matching keeps its
     pose honest), bounded by ``home_budget_s`` and ``HOME_BLOCKS``; then it
-    uploads. A stop from the server or the time budget uploads at once.
+    uploads. A motion blocked in the open (nothing mapped in its way: both encoders
+    stuck, most likely) is not one of those blocks: it holds for odometry
+    (`sensor_watch`). A stop from the server or the time budget uploads at once.
 """
 
 from __future__ import annotations

@@ -37,18 +37,18 @@ Odometry that scan matching contradicts (a stuck encoder draws the map from a wr
 A motion that ended blocked in the open (both encoders stuck)
     Motor Control ends a command blocked when neither tread counts: a rover pushing
     a wall reads the same as one whose two encoders stopped while it drives on, and
-    it reports only a turn whose model caught it (`TreadFault.BOTH_SILENT`). On the
-    way home the map is complete and tells them apart: a move that ended blocked
-    with no mapped obstacle within ``CONTACT_CELLS`` of its leading edge, on known
-    free floor, met nothing the LIDAR sees, and a turn that counted nothing at all is
-    most likely two stuck encoders (as Motor Control judges one its model caught);
-    the odometry is in doubt (`_blocked_in_the_open`). Homing holds as for a
+    it reports only a turn whose model caught it (`TreadFault.BOTH_SILENT`). The map
+    tells them apart: a move that ended blocked with no mapped obstacle within
+    ``CONTACT_CELLS`` of its leading edge, on known free floor, met nothing the LIDAR
+    sees, and a turn that counted nothing at all is most likely two stuck encoders
+    (as Motor Control judges one its model caught); the odometry is in doubt
+    (`_blocked_in_the_open`). Exploring or going home, the mapper then holds as for a
     disagreement instead of backing off: a back-off or a turn on stuck encoders is
-    driven blind (a few cm, or tens of degrees, per try, unseen), and a mapper that
-    counted such blocks as its way home being blocked uploaded from where it stood,
-    in the corridor the hider needed. Holds count as strikes; once the hold has
-    doubled to ``ODO_HOLD_MAX_S`` (the fault outlasted about 45 s), such a block
-    counts as a block again.
+    driven blind (a few cm, or tens of degrees, per try, unseen, in a corridor 30 cm
+    wide), and going home, counting such blocks as the way home being blocked would
+    upload the map from where the rover stands, maybe in the passage the hider needs. Holds
+    count as strikes; once the hold has doubled to ``ODO_HOLD_MAX_S`` (the fault
+    outlasted about 45 s), such a block counts as a block again.
 """
 
 from __future__ import annotations
