@@ -65,21 +65,22 @@ OPEN_ROOM = Truth(0, 0, 700, 300)
 class Blocks:
     """The script: forward moves that reach own-frame x ``at`` end there blocked, turned by
     ``yaw``, one entry per block in order; ``reverse`` scripts the end of the back-off
-    that follows the last block (``(done cm, yaw deg)``, None: as commanded)."""
+    that follows the last block (``(done cm, yaw deg)``, and a tread report Motor Control
+    sends in it if a third item; None: as commanded)."""
 
     def __init__(self, *blocks: tuple[float, float],
-                 reverse: tuple[float, float] | None = None) -> None:
+                 reverse: tuple[float, ...] | None = None) -> None:
         self.todo = list(blocks)
         self.reverse = reverse
         self.at: list[tuple[float, int, int]] = []  # (time, len(sent), len(motor_log))
         self.body: Body | None = None
 
-    def __call__(self, pose: Pose, cm: float) -> tuple[float, float] | None:
+    def __call__(self, pose: Pose, cm: float) -> tuple[float, ...] | None:
         assert self.body is not None
         if cm < 0 and self.reverse is not None and not self.todo and self.at:
-            done, yaw = self.reverse
+            done, *rest = self.reverse
             self.reverse = None
-            return -done, yaw
+            return -done, *rest
         if cm > 0 and self.todo and pose.x + cm * math.cos(pose.heading_rad) >= self.todo[0][0]:
             at, yaw = self.todo.pop(0)
             self.at.append((trio.current_time(), len(self.body.sent), len(self.body.motor_log)))
@@ -254,6 +255,78 @@ async def test_a_back_off_that_did_not_move_replans_instead_of_reversing_again(
     after = motions[1:]
     assert after and not any(c == "MOTOR_MOVE" and v < 0 for _, c, v in after[:3])
     assert any(c == "MOTOR_MOVE" and v > 0 for _, c, v in after[:3])
+
+
+@pytest.mark.trio
+async def test_a_back_off_with_a_silent_tread_holds_though_the_pose_hardly_turned(
+        autojump_clock) -> None:
+    """A back-off ends blocked with the right tread reported silent and the rover turned
+    only 4 deg (the belief follows a stalled tread's pivot by half): backing away over
+    the ground just driven, a silent tread is the motor's, not a wall's, so navigation
+    holds ``tread_hold_s`` instead of reversing again."""
+    blocks = Blocks((250.0, 0.0), reverse=(2.0, 4.0, TreadFault.silent(1)))
+    body = await drive_corridor(blocks, after_s=20.0)
+    assert "a tread stalls; holding 12 s" in [f.data.get("detail")
+                                               for f in body.frames("status")]
+    motions = motions_after(body, 0, blocks)
+    assert motions[1][0] >= motions[0][0] + NavOptions().tread_hold_s
+    assert not (motions[1][1] == "MOTOR_MOVE" and motions[1][2] < 0)
+
+
+@pytest.mark.trio
+async def test_a_back_off_that_did_not_move_on_open_ground_holds_for_a_stalled_motor(
+        autojump_clock) -> None:
+    """Blocked in the open room, then a back-off that did not move at all, no wall
+    anywhere near: nothing but the rover's own motor stops a reverse there, so it holds
+    (beside a mapped wall the same back-off is wedged and replans at once)."""
+    blocks = Blocks((250.0, 0.0), reverse=(0.0, 0.0))
+    body = await drive_corridor(blocks, room=OPEN_ROOM, after_s=20.0)
+    assert "a tread stalls; holding 12 s" in [f.data.get("detail")
+                                               for f in body.frames("status")]
+    motions = motions_after(body, 0, blocks)
+    assert motions[1][0] >= motions[0][0] + NavOptions().tread_hold_s
+
+
+class StalledMotor:
+    """Every motion between ``t0`` and ``t0 + duration_s`` [s] ends blocked where it
+    started: both treads stalled (nothing counts, nothing moves)."""
+
+    def __init__(self, t0: float, duration_s: float) -> None:
+        self.t0, self.t1 = t0, t0 + duration_s
+        self.blocked = 0
+
+    def _stalled(self) -> bool:
+        stalled = self.t0 <= trio.current_time() < self.t1
+        self.blocked += stalled
+        return stalled
+
+    def move(self, pose: Pose, cm: float) -> tuple[float, float] | None:
+        return (0.0, 0.0) if self._stalled() else None
+
+    def turn(self, pose: Pose, deg: float) -> float | None:
+        return 0.0 if self._stalled() else None
+
+
+@pytest.mark.trio
+async def test_a_motor_stalled_for_half_a_minute_is_waited_out_not_given_up(
+        autojump_clock) -> None:
+    """Both treads stalled for 30 s on open ground while the hider drives to its spot:
+    each motion ends blocked without moving. Those blocks are the motor's, so they do
+    not use up ``REPLAN_LIMIT``: the hider holds, tries again, and arrives once the
+    motor runs again."""
+    stall = StalledMotor(3.0, 30.0)
+    body = Body(script=stall.move, turn_script=stall.turn)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
+                                                 options=NARROW), "hider")
+        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
+                         {"x": 600.0, "y": 150.0, "heading": None}, room_map(OPEN_ROOM))
+        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
+                              600.0)
+    assert stall.blocked >= 2
+    assert body.frames("invalid_spot") == [], body.frames("invalid_spot")
+    assert body.frames("arrived")
 
 
 def scraped_nav(yaw_deg: float, sigma_cm: float = 4.0, memory: NavMemory | None = None,

@@ -13,6 +13,7 @@ from __future__ import annotations
 import trio
 
 from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.nav.route import Motion
 
 __all__ = ["TreadFaults", "TREAD_HOLDS", "TREAD_CONTACT_S", "TREAD_STOP_S"]
 
@@ -30,6 +31,17 @@ stopped motion's last pose and end arrive meanwhile and are ignored."""
 
 class TreadFaults:
     """Tread-fault handling and the pose doubt (a mixin of `base.NavBase`)."""
+
+    _reported: tuple[Motion, TreadFault] | None = None
+    """The last report and the motion it came in: (motion, fault); see `reported_in`."""
+
+    def reported_in(self, motion: Motion | None) -> TreadFault | None:
+        """The tread report Motor Control sent during ``motion``, if any (the last one,
+        when it sent several): what tells a stalled tread from a wall
+        (`recovery.RouteRecovery._stalled`)."""
+        if motion is None or self._reported is None or self._reported[0] is not motion:
+            return None
+        return self._reported[1]
 
     async def on_tread_fault(self, fault: TreadFault) -> None:
         """Motor Control saw a driven tread that does not count, or counts short
@@ -59,6 +71,7 @@ class TreadFaults:
         """
         if self._motion is None:
             return  # standing (or holding) already: the report is of a motion given up
+        self._reported = (self._motion, fault)
         now = trio.current_time()
         if fault == TreadFault.BOTH_SHORT and self._motion.kind == "move" \
                 and now - self._blocked_t > TREAD_CONTACT_S and self._wall_within_drift():
