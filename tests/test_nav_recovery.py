@@ -34,6 +34,7 @@ from actors.firmware.nav.nudge import (
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.recovery import REPLAN_LIMIT
 from actors.firmware.nav.route import Motion
+from actors.firmware.nav.tread_faults import TREAD_CHECK_CM
 from server.protocol.pose import Pose, compose, inverse
 from tests.test_nav_common import (
     Body,
@@ -289,10 +290,12 @@ async def test_a_back_off_that_did_not_move_on_open_ground_holds_for_a_stalled_m
 
 class StalledMotor:
     """Every motion between ``t0`` and ``t0 + duration_s`` [s] ends blocked where it
-    started: both treads stalled (nothing counts, nothing moves)."""
+    started: both treads stalled (nothing counts, nothing moves). A turn so ended is
+    reported `TreadFault.BOTH_SILENT` when ``report_turns`` (as Motor Control does)."""
 
-    def __init__(self, t0: float, duration_s: float) -> None:
+    def __init__(self, t0: float, duration_s: float, report_turns: bool = False) -> None:
         self.t0, self.t1 = t0, t0 + duration_s
+        self.report_turns = report_turns
         self.blocked = 0
 
     def _stalled(self) -> bool:
@@ -303,8 +306,10 @@ class StalledMotor:
     def move(self, pose: Pose, cm: float) -> tuple[float, float] | None:
         return (0.0, 0.0) if self._stalled() else None
 
-    def turn(self, pose: Pose, deg: float) -> float | None:
-        return 0.0 if self._stalled() else None
+    def turn(self, pose: Pose, deg: float) -> float | tuple[float, TreadFault] | None:
+        if not self._stalled():
+            return None
+        return (0.0, TreadFault.BOTH_SILENT) if self.report_turns else 0.0
 
 
 @pytest.mark.trio
@@ -326,6 +331,38 @@ async def test_a_motor_stalled_for_half_a_minute_is_waited_out_not_given_up(
                               600.0)
     assert stall.blocked >= 2
     assert body.frames("invalid_spot") == [], body.frames("invalid_spot")
+    assert body.frames("arrived")
+
+
+@pytest.mark.trio
+async def test_after_a_turn_on_silent_treads_a_short_move_checks_them_before_turning_again(
+        autojump_clock) -> None:
+    """The motor stalls for 30 s as the hider makes its first turn (both treads reported
+    silent). Turning again while the fault is on would add as much heading doubt once
+    more, so after each hold it checks the treads with a 2 cm straight move, holds again
+    (24 s) while that ends blocked, and drives on only once the check passes; it
+    arrives."""
+    stall = StalledMotor(0.0, 30.0, report_turns=True)
+    body = Body(script=stall.move, turn_script=stall.turn)
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
+                                                 options=NARROW), "hider")
+        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
+                         {"x": 600.0, "y": 150.0, "heading": None}, room_map(OPEN_ROOM))
+        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
+                              600.0)
+    motions = [(t, c, v) for t, (c, v) in zip(body.motor_at, body.motor_log, strict=True)
+               if c in ("MOTOR_TURN", "MOTOR_MOVE")]
+    assert motions[0][1] == "MOTOR_TURN"  # the turn the stall stops
+    hold = NavOptions().tread_hold_s
+    assert motions[1][1:] == ("MOTOR_MOVE", TREAD_CHECK_CM)
+    assert motions[1][0] >= motions[0][0] + hold
+    assert motions[2][1:] == ("MOTOR_MOVE", TREAD_CHECK_CM)  # the first check ended blocked
+    assert motions[2][0] >= motions[1][0] + 2.0 * hold
+    assert motions[2][0] >= stall.t1  # the second check passed: the route goes on
+    assert "the treads still do not count; holding 24 s" in [
+        f.data.get("detail") for f in body.frames("status")]
     assert body.frames("arrived")
 
 

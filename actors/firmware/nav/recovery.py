@@ -144,25 +144,28 @@ class RouteRecovery:
         self._count_block()
         if await self.on_blocked():
             return
-        stalled = why == "blocked" and self._stalled()
-        if stalled and self._stall_holds < STALL_HOLDS:
+        if why == "blocked" and self._stall_holds < STALL_HOLDS and self._stalled():
             # the motor, not a wall: neither this block nor the one backed off from is a
             # place tried again, so neither counts; wait the fault out
-            await self._stall_hold(uncount=2)
+            hold = self.o.tread_hold_s * 2.0 ** self._stall_holds
+            self._stall_holds += 1
+            await self._stall_hold(hold, uncount=2)
             return
         if self.replans > REPLAN_LIMIT:
             await self._give_up(f"{why} {self.replans} times")
             return
         assert self.work_map is not None
         p = self.map_pose
-        if stalled:
-            await self._stall_hold(uncount=0)  # holds enough: counted, the route bounds them
+        if why == "blocked" and self._backoff_turned():
+            # a tread still stalls after the holds above: backing off again only spins
+            # the rover where it stands; hold, counted
+            await self._stall_hold(self.o.tread_hold_s, uncount=0)
             return
         start = self._backoff_start()
         if why == "blocked" and start is not None and \
                 math.dist((p.x, p.y), (start.x, start.y)) < 1.0:
-            # a back-off that did not move beside a mapped wall: wedged behind; reversing
-            # again cannot help
+            # a back-off that did not move (beside a mapped wall, or after the stall
+            # holds): wedged behind; reversing again cannot help
             self._replan = True
             await self.after_motion(False, 0.0)
             return
@@ -229,22 +232,23 @@ class RouteRecovery:
         p = self.map_pose
         return math.dist((p.x, p.y), (start.x, start.y)) < 1.0 and not self._wall_within_drift()
 
-    async def _stall_hold(self, *, uncount: int) -> None:
-        """Hold still for a stalled tread or motor, then replan from the pose at rest.
+    async def _stall_hold(self, hold_s: float, *, uncount: int) -> None:
+        """Hold still ``hold_s`` for a stalled tread or motor, then replan from the pose
+        at rest; ``uncount`` blocks are taken back from the count toward
+        ``REPLAN_LIMIT`` (the back-off's and the one it backed off from).
 
-        The hold is ``tread_hold_s`` doubled for each hold before on this route (a stall
-        lasts 2-20 s: 12 s, then 24 s, then 48 s cover it). ``uncount`` blocks are taken
-        back from the count toward ``REPLAN_LIMIT`` (the back-off's and the one it backed
-        off from); at most ``STALL_HOLDS`` holds per route are free of the count.
+        The first ``STALL_HOLDS`` holds of a route hold ``tread_hold_s`` doubled each
+        time (a transient stall lasts up to 20 s: 12 s, then 24 s, then 48 s outlast
+        it) and are not counted; after them a stall is what it was before them: a
+        counted block (a back-off that turned holds ``tread_hold_s``; one that did not
+        move replans at once), so a motor stalled for good still ends the route.
         """
-        hold = self.o.tread_hold_s * 2.0 ** min(self._stall_holds, STALL_HOLDS - 1)
-        self._stall_holds += 1
         self.replans = max(0, self.replans - uncount)
         self.counters["stall_holds"] += 1
         self._replan = True
         self._blocked, self._done = False, 0.0
-        self._hold_until = trio.current_time() + hold
-        await self.status(self.state, f"a tread stalls; holding {hold:.0f} s")
+        self._hold_until = trio.current_time() + hold_s
+        await self.status(self.state, f"a tread stalls; holding {hold_s:.0f} s")
 
     def _backoff_turned(self) -> bool:
         """The last motion, a reverse (a back-off), ended blocked having turned the rover

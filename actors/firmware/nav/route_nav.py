@@ -158,6 +158,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.goal, self.goal_heading = goal, heading
         self.stop_short_cm = stop_short_cm
         self.replans, self._progress_mark, self._stall_holds = 0, math.inf, 0
+        self.forget_tread_check()
         self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
         self._probe, self._nudge_off, self._mouth = False, 0.0, False
         if not self._plan():
@@ -254,6 +255,8 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
     async def after_motion(self, blocked: bool, done: float) -> None:
         if self.follower is None:
             await self.after_other_motion(blocked, done)
+            return
+        if await self.check_treads(blocked):
             return
         if blocked:
             await self._blocked_route("blocked")
