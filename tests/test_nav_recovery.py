@@ -113,6 +113,19 @@ async def drive_corridor(blocks: Blocks, *, options: NavOptions | None = None,
     return body
 
 
+async def drive_until_answered(body: Body, goal_x: float, room: Truth) -> None:
+    """Send the hider from map (50, 50) to (``goal_x``, 150) in ``room`` (mapped whole)
+    and play until it answered (``arrived`` or ``invalid_spot``)."""
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
+                                                 options=NARROW), "hider")
+        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
+                         {"x": goal_x, "y": 150.0, "heading": None}, room_map(room))
+        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
+                              600.0)
+
+
 def poses_after(body: Body, k: int, blocks: Blocks) -> list[tuple[float, float, float]]:
     """The map-frame poses navigation reported after block ``k`` (x, y, heading)."""
     return [(f.data["x"], f.data["y"], f.data["heading"])
@@ -321,14 +334,7 @@ async def test_a_motor_stalled_for_half_a_minute_is_waited_out_not_given_up(
     motor runs again."""
     stall = StalledMotor(3.0, 30.0)
     body = Body(script=stall.move, turn_script=stall.turn)
-    pool = BufferPool(64)
-    async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
-                                                 options=NARROW), "hider")
-        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
-                         {"x": 600.0, "y": 150.0, "heading": None}, room_map(OPEN_ROOM))
-        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
-                              600.0)
+    await drive_until_answered(body, 600.0, OPEN_ROOM)
     assert stall.blocked >= 2
     assert body.frames("invalid_spot") == [], body.frames("invalid_spot")
     assert body.frames("arrived")
@@ -344,14 +350,7 @@ async def test_after_a_turn_on_silent_treads_a_short_move_checks_them_before_tur
     arrives."""
     stall = StalledMotor(0.0, 30.0, report_turns=True)
     body = Body(script=stall.move, turn_script=stall.turn)
-    pool = BufferPool(64)
-    async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
-                                                 options=NARROW), "hider")
-        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
-                         {"x": 600.0, "y": 150.0, "heading": None}, room_map(OPEN_ROOM))
-        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
-                              600.0)
+    await drive_until_answered(body, 600.0, OPEN_ROOM)
     motions = [(t, c, v) for t, (c, v) in zip(body.motor_at, body.motor_log, strict=True)
                if c in ("MOTOR_TURN", "MOTOR_MOVE")]
     assert motions[0][1] == "MOTOR_TURN"  # the turn the stall stops
@@ -657,14 +656,7 @@ async def test_scrapes_all_along_a_long_passage_do_not_use_up_the_route(autojump
     blocks = Blocks(*scrapes)
     body = Body(script=blocks)
     blocks.body = body
-    pool = BufferPool(64)
-    async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
-                                                 options=NARROW), "hider")
-        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
-                         {"x": 900.0, "y": 150.0, "heading": None}, room_map(LONG_CORRIDOR))
-        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
-                              600.0)
+    await drive_until_answered(body, 900.0, LONG_CORRIDOR)
     assert len(blocks.at) == len(scrapes)
     assert body.frames("invalid_spot") == [], body.frames("invalid_spot")
     assert body.frames("arrived")
