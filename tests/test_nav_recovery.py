@@ -365,6 +365,43 @@ async def test_after_a_turn_on_silent_treads_a_short_move_checks_them_before_tur
     assert body.frames("arrived")
 
 
+@pytest.mark.trio
+async def test_a_tread_check_that_counted_before_a_block_passes_and_the_route_takes_the_block(
+        autojump_clock) -> None:
+    """The first turn reports the right tread silent; the check after the hold counts
+    1.5 cm and then ends blocked: the treads count, so the fault is over and the block is
+    something in the way. No second hold: the route's block handling backs off at once."""
+    turns = [(0.0, TreadFault.silent(1))]
+    moves = [(1.5, 0.0)]
+    body = Body(script=lambda pose, cm: moves.pop(0) if moves else None,
+                turn_script=lambda pose, deg: turns.pop(0) if turns else None)
+    await drive_until_answered(body, 600.0, OPEN_ROOM)
+    motions = [(t, c, v) for t, (c, v) in zip(body.motor_at, body.motor_log, strict=True)
+               if c in ("MOTOR_TURN", "MOTOR_MOVE")]
+    assert motions[1][1:] == ("MOTOR_MOVE", TREAD_CHECK_CM)
+    assert motions[2][1:] == ("MOTOR_MOVE", -NavOptions().backoff_cm)
+    assert motions[2][0] - motions[1][0] < 2.0
+    assert not any("still do not count" in f.data.get("detail", "")
+                   for f in body.frames("status"))
+    assert body.frames("arrived")
+
+
+@pytest.mark.parametrize("x, heading, sign", [(680.0, 0.0, -1.0), (680.0, 180.0, 1.0),
+                                               (350.0, 0.0, 1.0)],
+                         ids=["facing-the-wall", "back-to-the-wall", "open-floor"])
+def test_the_tread_check_moves_away_from_the_nearer_mapped_wall(
+        x: float, heading: float, sign: float) -> None:
+    """The straight move that checks the treads after a turn on a silent tread goes in
+    reverse when the nearest mapped wall is ahead (the turn may have jammed on it, and a
+    check into it would end blocked with the treads well), else forward."""
+    nav = make_nav("hider", pool=BufferPool(4), options=NARROW)
+    nav.map = nav.work_map = room_map(OPEN_ROOM)
+    nav.origin = Pose(0.0, 0.0, 0.0)
+    nav.pose = Pose(x, 150.0, heading)
+    believe(nav, 2.0)
+    assert nav.check_sign() == sign
+
+
 def scraped_nav(yaw_deg: float, sigma_cm: float = 4.0, memory: NavMemory | None = None,
                 **options: Any) -> Any:
     """A hider navigation (not started) mid-corridor by dead reckoning (map (300, 150) @ 0,

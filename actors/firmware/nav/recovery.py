@@ -32,6 +32,7 @@ from actors.firmware.nav.nudge import (
     through_distance,
 )
 from actors.firmware.nav.route import Motion, with_obstacle
+from actors.firmware.nav.tread_faults import TREAD_CHECK_CM
 from actors.firmware.planning.clearance import occupied_near
 from server.protocol.pose import Pose, angle_diff_deg, compose
 
@@ -295,6 +296,21 @@ class RouteRecovery:
             return False
         px, py, _, _ = near
         return float(np.min(np.hypot(px, py))) <= reach
+
+    def check_sign(self) -> float:
+        """The tread check's direction (`tread_faults.TreadFaults.check_treads`): in
+        reverse when the nearest occupied cell of the map within the body's radius plus
+        the drift and the check's length lies ahead, else forward. A turn that reported a
+        silent tread may have been jammed by that wall; a check into it would end
+        blocked with the treads well and hold for nothing."""
+        if self.map is None:
+            return 1.0
+        reach = self.radius_cm + self.drift_cm + TREAD_CHECK_CM
+        near = occupied_near(self.map, self.map_pose, reach)
+        if near is None:
+            return 1.0
+        px, py, fwd, _ = near
+        return -1.0 if fwd[int(np.argmin(np.hypot(px, py)))] > 0.0 else 1.0
 
     def _nudging_here(self) -> bool:
         """A nudge series is on and this block is near its anchor (`nudge.near_block`):

@@ -256,7 +256,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         if self.follower is None:
             await self.after_other_motion(blocked, done)
             return
-        if await self.check_treads(blocked):
+        if await self.check_treads(blocked, done):
             return
         if blocked:
             await self._blocked_route("blocked")

@@ -114,11 +114,13 @@ class TreadFaults:
             kind = "do not count" if both else "does not count"
         await self.status(self.state, f"{side} {kind}; holding {hold:.0f} s")
 
-    async def check_treads(self, blocked: bool) -> bool:
+    async def check_treads(self, blocked: bool, done: float) -> bool:
         """After a hold for a silent tread in a turn: check the treads with a short
-        straight move (``TREAD_CHECK_CM``) before the route turns again, and hold once
-        more while the check ends blocked (``tread_hold_s`` doubled each time, at most
-        ``TREAD_HOLDS`` times). True when it commanded or held (the caller waits).
+        straight move (``TREAD_CHECK_CM``, away from the nearer mapped wall:
+        `check_sign`) before the route turns again, and hold once more while the check
+        ends blocked having counted under half of it (``tread_hold_s`` doubled each
+        time, at most ``TREAD_HOLDS`` times). True when it commanded or held (the
+        caller waits).
 
         Why: a turn on a silent tread, or on two (a stalled motor and two stuck
         encoders report the same), turns the rover anywhere between nothing and Motor
@@ -131,7 +133,10 @@ class TreadFaults:
         """
         if self._checking is not None and self._checking is self.last_motion:
             self._checking = None
-            if blocked and self._check_holds < TREAD_HOLDS:
+            # counted under half its length: the fault is on (a block after the treads
+            # counted is a wall's or an obstacle's, for the route's block handling)
+            if blocked and abs(done) < 0.5 * TREAD_CHECK_CM and \
+                    self._check_holds < TREAD_HOLDS:
                 self._check_holds += 1
                 hold = self.o.tread_hold_s * 2.0 ** self._check_holds
                 self._blocked, self._done = False, 0.0
@@ -145,9 +150,14 @@ class TreadFaults:
         if not self._check_due:
             return False
         self._check_due = False
-        self._checking = Motion("move", TREAD_CHECK_CM)
+        self._checking = Motion("move", self.check_sign() * TREAD_CHECK_CM)
         await self.command(self._checking)
         return True
+
+    def check_sign(self) -> float:
+        """Hook: +1 to check the treads forward, -1 in reverse (see
+        `recovery.RouteRecovery.check_sign`)."""
+        return 1.0
 
     def forget_tread_check(self) -> None:
         """A new route: a check due from an earlier one is not this route's."""
