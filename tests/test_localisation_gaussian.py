@@ -32,20 +32,37 @@ def _sampled(motion: TreadMotion, n: int = 40000) -> np.ndarray:
     return sample_motion(np.zeros((n, 3)), motion, W, NOISE, rng)
 
 
-@pytest.mark.parametrize("motion, uncounted", [
-    (TreadMotion(-10.0, 10.0), (0.0, 0.0)),
-    (TreadMotion(20.0, 20.0), (0.0, 0.0)),
-    (TreadMotion(0.0, 3.0, 3.0, None, TreadReport.SILENT), (3.0, 0.0)),
-    (TreadMotion(0.0, 0.0, -10.0, 10.0, TreadReport.SILENT, TreadReport.SILENT), (-10.0, 10.0)),
-], ids=["turn", "move", "left-silent", "both-silent-turn"])
-def test_prediction_matches_the_motion_models_samples(motion, uncounted) -> None:
-    """The belief's predicted heading spread is the sampled motion model's (within 10 %),
-    healthy or reported: the Gaussian is the same model in moments, not a second one."""
-    b = GaussianPose.at(Pose()).predict(motion.left_cm, motion.right_cm, W, NOISE, uncounted)
+@pytest.mark.parametrize("motion", [TreadMotion(-10.0, 10.0), TreadMotion(20.0, 20.0)],
+                         ids=["turn", "move"])
+def test_prediction_matches_the_motion_models_samples(motion) -> None:
+    """Healthy, the belief's predicted heading spread is the sampled motion model's
+    (within 10 %): the Gaussian is the same model in moments, not a second one."""
+    b = GaussianPose.at(Pose()).predict(motion.left_cm, motion.right_cm, W, NOISE)
     p = _sampled(motion)
     assert math.degrees(math.sqrt(b.covariance[2, 2])) == pytest.approx(
         math.degrees(p[:, 2].std()), rel=0.1)
     assert b.mean.heading_deg == pytest.approx(math.degrees(p[:, 2].mean()), abs=0.5)
+
+
+@pytest.mark.parametrize("motion, uncounted", [
+    (TreadMotion(0.0, 3.0, 3.0, None, TreadReport.SILENT), (3.0, 0.0)),
+    (TreadMotion(0.0, 0.0, -10.0, 10.0, TreadReport.SILENT, TreadReport.SILENT), (-10.0, 10.0)),
+], ids=["left-silent", "both-silent-turn"])
+def test_a_reported_treads_gaussian_covers_both_explanations(motion, uncounted) -> None:
+    """Reported, the sampled model keeps two explanations (the count right, the drive
+    right); one Gaussian cannot, so the mapper's holds the span between them: its mean
+    lies between the two modes' headings and its 2-sigma interval reaches both."""
+    b = GaussianPose.at(Pose()).predict(motion.left_cm, motion.right_cm, W, NOISE, uncounted)
+    heading = np.degrees(_sampled(motion)[:, 2])
+    count = math.degrees((motion.right_cm - motion.left_cm) / W)
+    drive = math.degrees((motion.right_cm + uncounted[1] - motion.left_cm - uncounted[0]) / W)
+    # the fault began in this motion: half the particles as counted, the rest from the
+    # count to the drive (the onset anywhere in it)
+    assert float(np.mean(np.abs(heading - count) < 1.0)) > 0.4
+    sigma = math.degrees(math.sqrt(b.covariance[2, 2]))
+    lo, hi = sorted((count, drive))
+    assert lo < b.mean.heading_deg < hi
+    assert b.mean.heading_deg - 2 * sigma < lo and hi < b.mean.heading_deg + 2 * sigma
 
 
 def test_a_reported_tread_widens_the_heading_by_its_doubt_not_by_added_degrees() -> None:

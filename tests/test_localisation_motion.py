@@ -60,8 +60,9 @@ def test_the_healthy_spread_does_not_depend_on_how_the_path_is_cut() -> None:
 
 def test_heading_noise_widens_on_a_tread_report() -> None:
     """A 20 cm straight move: healthy, left tread counting short (10 of 20 cm), left
-    tread silent (0 of 20 cm). The heading spread follows the tread's doubt: a uniform
-    over the uncounted travel, divided by the track width; no degrees are added."""
+    tread silent (0 of 20 cm), each the first motion reported. The heading spread follows
+    the tread's doubt: half the particles as counted, half from the count to the drive
+    (the fault's onset anywhere in the motion), over the track width; no degrees added."""
     rng = np.random.default_rng(4)
     healthy = sample_motion(_start(), TreadMotion(20.0, 20.0), W, NOISE, rng)
     short = sample_motion(_start(), TreadMotion(10.0, 20.0, driven_left_cm=20.0,
@@ -70,14 +71,30 @@ def test_heading_noise_widens_on_a_tread_report() -> None:
                                                  left=TreadReport.SILENT), W, NOISE, rng)
     sd = [_heading_sd_deg(p) for p in (healthy, short, silent)]
     assert sd[0] < 1.0 < sd[1] < sd[2]
-    # uniform over 10 cm (short) and 20 cm (silent): sd = gap / sqrt(12), over w [rad]
-    assert sd[1] == pytest.approx(math.degrees(10 / math.sqrt(12) / W), rel=0.15)
-    assert sd[2] == pytest.approx(math.degrees(20 / math.sqrt(12) / W), rel=0.15)
+    # the share of the gap: 0 or U(0, 1), half each: variance 1/6 - 1/16 = 5/48
+    assert sd[1] == pytest.approx(math.degrees(10 * math.sqrt(5 / 48) / W), rel=0.15)
+    assert sd[2] == pytest.approx(math.degrees(20 * math.sqrt(5 / 48) / W), rel=0.15)
     # the truth of either explanation lies inside: a weak motor (heading as counted,
     # 44 deg left) and a slipping encoder (straight, heading 0)
     counted = math.degrees((20.0 - 10.0) / W)
     for truth in (0.0, counted):
         assert np.any(np.abs(np.degrees(short[:, 2]) - truth) < 2.0)
+
+
+def test_a_continued_report_keeps_two_narrow_explanations() -> None:
+    """The left tread counted short in the motion before too: its fault began before this
+    one, so the tread went either as counted (a weak motor) or as driven (a slipping
+    encoder, within the drive model's error), not in between: half the particles at
+    each."""
+    rng = np.random.default_rng(8)
+    p = sample_motion(_start(), TreadMotion(10.0, 20.0, driven_left_cm=20.0,
+                                            left=TreadReport.SHORT, left_continued=True),
+                      W, NOISE, rng)
+    heading = np.degrees(p[:, 2])
+    counted = math.degrees((20.0 - 10.0) / W)
+    as_counted = np.abs(heading - counted) < 4.0  # the scrub: 1.3 deg over 44 deg
+    assert float(np.mean(as_counted)) == pytest.approx(0.5, abs=0.05)
+    assert float(np.mean(heading[~as_counted])) == pytest.approx(0.0, abs=1.5)
 
 
 def test_both_treads_short_keep_a_straight_move_straight() -> None:

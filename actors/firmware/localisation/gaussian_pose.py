@@ -73,6 +73,8 @@ def _tread_moments(counted: float, uncounted: float, report: TreadReport,
     if report == TreadReport.OK:
         return counted, var
     driven = counted + uncounted
+    # one Gaussian cannot hold the particle model's two explanations (the count right,
+    # the drive right); it spans them as a fault whose onset lies anywhere in the motion:
     # u ~ U(0, 1) times (uncounted + driven * z * driven_sigma): E[u] = 1/2, E[u^2] = 1/3
     var += uncounted ** 2 / 12.0 + (driven * noise.driven_sigma) ** 2 / 3.0
     return counted + 0.5 * uncounted, var

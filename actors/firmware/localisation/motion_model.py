@@ -19,14 +19,22 @@ Algorithm
       does not depend on how it was cut into steps (the same holds for the
       world's slip, `world.drive`);
     * reported (silent or short): ``counted_i + u * (driven_i * (1 + N(0,
-      driven_sigma**2)) - counted_i)`` with ``u ~ Uniform(0, 1)``: anywhere
-      between what was counted (a weak or stalled motor: the count is right)
-      and what Motor Control's model says the tread was driven (a slipping or
-      stuck encoder: the model is right), as Motor Control cannot tell the two
-      apart. When both treads are reported, one ``u`` (and one draw of the
-      model's error) per particle serves both (two encoders slipping alike, or
-      two motors weak alike, keep the treads alike: a straight move stays
-      straight and a turn scales as a whole).
+      driven_sigma**2)) - counted_i)``. Motor Control cannot tell the two
+      explanations of a report apart, and the faults that cause one are of
+      two kinds: the count is right (a weak or stalled motor, a tread
+      blocked) and ``u = 0``; or the model is right (a slipping or stuck
+      encoder: the tread went as driven) and ``u = 1``. Each explanation has
+      half the particles (``u`` uniform: under 1/2 the first, else the
+      second). A fault begins within the first motion it is reported in, so
+      there the second explanation holds from an onset anywhere in the
+      motion, ``u ~ Uniform(0, 1)``; a motion after one with the same tread
+      reported is all after the onset (``TreadMotion.left_continued``). So
+      the belief keeps two narrow hypotheses, which the free-space model and
+      contacts tell apart, instead of one smeared between them whose middle
+      no fault explains. When both treads are reported, one ``u`` (and one
+      draw of the model's error) per particle serves both (two encoders
+      slipping alike, or two motors weak alike, keep the treads alike: a
+      straight move stays straight and a turn scales as a whole).
 
     Then the pose advances by the midpoint rule of `odometry.advance`,
     vectorised (``dtheta = (dr - dl) / w``, ``ds = (dr + dl) / 2`` along
@@ -107,6 +115,11 @@ class TreadMotion:
     """What Motor Control reported about the left tread in this motion."""
     right: TreadReport = TreadReport.OK
     """What Motor Control reported about the right tread in this motion."""
+    left_continued: bool = False
+    """The left tread was reported in the motion before too: its fault began before this
+    motion, not within it."""
+    right_continued: bool = False
+    """The right tread was reported in the motion before too."""
 
     def __post_init__(self) -> None:
         for name in ("left_cm", "right_cm"):
@@ -143,16 +156,25 @@ class MotionNoise:
                 raise ValueError(f"MotionNoise.{name} must be a finite number >= 0, got {v!r}")
 
 
-def _tread_travel(counted: float, driven: float | None, report: TreadReport, u: np.ndarray,
-                  z: np.ndarray, noise: MotionNoise, rng: np.random.Generator) -> np.ndarray:
-    """Sampled true travel of one tread for ``n = u.size`` particles [cm]; ``u`` places
-    it between counted and driven, ``z`` is the modelled travel's relative error draw."""
-    n = u.shape[0]
+def _share_driven(u: np.ndarray, continued: bool) -> np.ndarray:
+    """The share of a reported tread's modelled travel each particle takes, from its
+    uniform draw ``u``: 0 (the count is right) for ``u < 1/2``, else 1 (the model is
+    right) or, in the motion the fault began in, the share after a uniform onset."""
+    return np.where(u < 0.5, 0.0, 1.0 if continued else 2.0 * u - 1.0)
+
+
+def _tread_travel(counted: float, driven: float | None, report: TreadReport,
+                  share: np.ndarray, z: np.ndarray, noise: MotionNoise,
+                  rng: np.random.Generator) -> np.ndarray:
+    """Sampled true travel of one tread for ``n = share.size`` particles [cm]; ``share``
+    places it between counted (0) and driven (1), ``z`` is the modelled travel's
+    relative error draw."""
+    n = share.shape[0]
     travel = counted + rng.standard_normal(n) * (noise.encoder_sigma * math.sqrt(abs(counted)))
     if report == TreadReport.OK:
         return travel
     far = driven * (1.0 + z * noise.driven_sigma)
-    return travel + u * (far - counted)
+    return travel + share * (far - counted)
 
 
 def sample_motion(particles: np.ndarray, motion: TreadMotion, track_width_cm: float,
@@ -178,15 +200,16 @@ def sample_motion(particles: np.ndarray, motion: TreadMotion, track_width_cm: fl
     if not (math.isfinite(track_width_cm) and track_width_cm > 0):
         raise ValueError(f"track_width_cm must be positive, got {track_width_cm!r}")
     n = p.shape[0]
-    # the fault draws: where between counted and driven, and the model's own error;
+    # the fault draws: which explanation (and where the fault began), and the model's
+    # own error;
     # shared by the two treads when both are reported (they err alike)
     u_left, z_left = rng.random(n), rng.standard_normal(n)
     both = motion.left != TreadReport.OK and motion.right != TreadReport.OK
     u_right, z_right = (u_left, z_left) if both else (rng.random(n), rng.standard_normal(n))
-    dl = _tread_travel(motion.left_cm, motion.driven_left_cm, motion.left, u_left, z_left,
-                       noise, rng)
-    dr = _tread_travel(motion.right_cm, motion.driven_right_cm, motion.right, u_right,
-                       z_right, noise, rng)
+    dl = _tread_travel(motion.left_cm, motion.driven_left_cm, motion.left,
+                       _share_driven(u_left, motion.left_continued), z_left, noise, rng)
+    dr = _tread_travel(motion.right_cm, motion.driven_right_cm, motion.right,
+                       _share_driven(u_right, motion.right_continued), z_right, noise, rng)
     dtheta = (dr - dl) / track_width_cm  # [rad]
     ds = 0.5 * (dr + dl)  # [cm]
     mid = p[:, 2] + 0.5 * dtheta

@@ -107,6 +107,7 @@ class BeliefTracking:
         self._rng = np.random.default_rng(zlib.crc32(f"belief:{self.role}".encode()))
         self._belief_odom: Pose | None = None  # own-frame pose the belief was last moved to
         self._reports = [TreadReport.OK, TreadReport.OK]  # tread reports since then
+        self._reported_before = (False, False)  # each tread reported in the motion before
         self._modelled: tuple[float, float] | None = None  # Motor Control's driven travel [cm]
         self._reported_motion: Motion | None = None  # its NAV_TREAD_DRIVEN is still to come
         self._spread: Spread | None = None  # cached until the belief changes
@@ -159,6 +160,7 @@ class BeliefTracking:
         self._weighed = False
         self._dead = None
         self._reports = [TreadReport.OK, TreadReport.OK]
+        self._reported_before = (False, False)
         self._modelled = self._reported_motion = None
         self._retain()
 
@@ -252,11 +254,14 @@ class BeliefTracking:
         driven: list[float | None] = [None, None]
         if self._reports != [TreadReport.OK, TreadReport.OK]:
             driven = self._driven(left, right, w)
-        motion = TreadMotion(left, right, driven[0], driven[1], *self._reports)
+        motion = TreadMotion(left, right, driven[0], driven[1], *self._reports,
+                             *self._reported_before)
         self.belief.predict(motion, w, self.o.motion, self._rng)
         if self._dead is not None:
             self._dead.predict(motion, w, self.o.motion, self._dead_rng)
         self._belief_odom, self._spread = self.pose, None
+        self._reported_before = (self._reports[0] != TreadReport.OK,
+                                 self._reports[1] != TreadReport.OK)
         self._reports = [TreadReport.OK, TreadReport.OK]
         self._modelled = self._reported_motion = None
         return True
