@@ -123,13 +123,14 @@ class TreadFaults:
         caller waits).
 
         Why: a turn on a silent tread, or on two (a stalled motor and two stuck
-        encoders report the same), turns the rover anywhere between nothing and Motor
-        Control's drive model, and the pose belief samples all of it: each turn retried
-        while the fault is still on adds as much heading doubt again (tens of degrees),
-        which no contact gives back. A straight move on the same fault costs a few cm
-        of length and no heading, so it is the motion that tells whether the fault is
-        over. A check that ends blocked after the last hold goes to the route's block
-        handling like any block.
+        encoders report the same), turned the rover by nothing or by Motor Control's
+        drive model, and the pose belief keeps both: each turn retried while the fault
+        is still on turns the rover unseen once more on stuck encoders (tens of
+        degrees) and sets the belief's two hypotheses as much further apart, which no
+        contact gives back. A straight move on the same fault costs a few cm of length
+        and no heading, so it is the motion that tells whether the fault is over. A
+        check that ends blocked after the last hold goes to the route's block handling
+        like any block.
         """
         if self._checking is not None and self._checking is self.last_motion:
             self._checking = None
