@@ -66,3 +66,33 @@ def test_a_fault_names_the_treads_it_reports() -> None:
     """Values 0/2 report the left tread, 1/3 the right, 4/6 both (what the beliefs widen)."""
     assert [TreadFault(v).treads for v in (0, 1, 2, 3, 4, 6)] == [
         (True, False), (False, True), (True, False), (False, True), (True, True), (True, True)]
+
+
+def turns(monitor: TreadMonitor, n: int, counts: tuple[float, float],
+          seconds: float = 0.12) -> list[list[tuple[TreadVerdict, TreadFault]]]:
+    """``n`` short turns in a row (each ~2-3 cm of modelled travel per tread, a look's
+    20 deg step); the findings of each."""
+    return [drive(monitor, seconds, counts, moving=False) for _ in range(n)]
+
+
+def test_short_turns_too_short_to_judge_alone_are_judged_together() -> None:
+    """Both encoders slipping at 0.45 in a run of look turns, each under the 5 cm a
+    judgement needs: the first turn alone says nothing, the run says both count short."""
+    m = monitor()
+    found = turns(m, 4, (0.45, 0.45))
+    assert found[0] == []
+    assert [(TreadVerdict.FAULT, TreadFault.BOTH_SHORT)] in found[1:]
+    assert max(m.modelled) < 5.0  # each turn alone was too short to judge
+
+
+def test_healthy_short_turns_give_no_finding() -> None:
+    assert turns(monitor(), 12, (1.0, 1.0)) == [[]] * 12
+
+
+def test_a_move_clears_the_carried_turns() -> None:
+    """Short slipping turns, then a move: the move is judged on its own travel (a short
+    healthy move gives no finding), and the turn after it starts a new run."""
+    m = monitor()
+    assert turns(m, 1, (0.45, 0.45)) == [[]]
+    assert drive(m, 0.12, (1.0, 1.0)) == []
+    assert turns(m, 1, (0.45, 0.45)) == [[]]

@@ -48,6 +48,16 @@ One tread driven harder for level counts
     whose modelled travel runs ``UNEVEN_CM`` further ahead of its count than
     the other's counts short too.
 
+Turns too short to judge alone
+    A seeker's look turns 20 deg at a time: 2.3 cm of each tread, under
+    ``SHORT_AFTER_CM``, so encoders slipping at 0.5 would never be judged and
+    the heading would drift by the uncounted half of every turn. The travel of
+    a turn that ended unjudged (no finding, a tread under ``SHORT_AFTER_CM``)
+    is carried into the next turn's judgement of counting short, the last
+    ``SHORT_AFTER_CM`` of it per tread (the ratio kept), each carried turn's
+    count granted one interrupt (the one a turn may end owing): a run of short
+    turns is judged as one. A move, a judged turn or a finding clears the carry.
+
 Each finding is sent at most once per tread per command (short is not sent
 after silent).
 """
@@ -201,9 +211,13 @@ class TreadMonitor:
         self.pwm = (0.0, 0.0)
         """The duties last set while driving."""
         self._model_t = 0.0            # when the model was last advanced [s]
+        self._turning = False          # the command is a turn (as `watch` was last told)
+        self._carry = [(0.0, 0.0), (0.0, 0.0)]  # unjudged turns' (modelled, counted) per tread
 
     def begin(self, now: float) -> None:
-        """A new Command A starts at ``now`` [s]: every count and finding starts over."""
+        """A new Command A starts at ``now`` [s]: every count and finding starts over,
+        save an unjudged turn's travel (see "Turns too short to judge alone")."""
+        self._carry_over()
         self._silent_sent = [False, False]
         self._unticked = [0.0, 0.0]
         self._since_any = 0.0
@@ -214,6 +228,24 @@ class TreadMonitor:
         self.model_v = [0.0, 0.0]
         self._run = [0, 0]
         self._model_t = now
+        self._turning = False
+
+    def _carry_over(self) -> None:
+        """Carry the command that ends into the next turn's judgement when it was a turn
+        that ended unjudged; clear the carry otherwise."""
+        found = any(self._short_sent) or any(self._silent_sent)
+        if not self._turning or found or min(self.modelled) >= SHORT_AFTER_CM:
+            self._carry = [(0.0, 0.0), (0.0, 0.0)]
+            return
+        carry = []
+        for tread in (0, 1):
+            m = self._carry[tread][0] + self.modelled[tread]
+            # an interrupt's grace per carried turn: a turn that ends may owe up to one
+            # interrupt its model already went (healthy short turns count 0.6-1.1 alone)
+            c = self._carry[tread][1] + self.counted[tread] + self._unit
+            keep = min(1.0, SHORT_AFTER_CM / m) if m > 0.0 else 1.0  # the last part, same ratio
+            carry.append((m * keep, c * keep))
+        self._carry = carry
 
     def tick(self, tread: int, now: float) -> None:
         """One Int E of ``tread`` at ``now`` [s]."""
@@ -260,6 +292,7 @@ class TreadMonitor:
                 not have arrived yet: the last period's modelled travel is not owed.
         """
         found: list[tuple[TreadVerdict, TreadFault]] = []
+        self._turning = not moving
         if not period_pending:
             self._watch_counts(moving, found)
         t = self.tuning
@@ -284,9 +317,13 @@ class TreadMonitor:
         if modelled - self._marks[-1][0] >= PUSH_WINDOW_CM:
             self._marks = [self._marks[-1], (modelled, sum(self.counted))]
         ratio = SHORT_RATIO if not moving or self._mapper else BOTH_MOVE_RATIO
+        # a turn is judged with the unjudged turns before it; a move on its own
+        carry = ((0.0, 0.0), (0.0, 0.0)) if moving else self._carry
+        judged_m = [self.modelled[i] + carry[i][0] for i in (0, 1)]
+        judged_c = [self.counted[i] + carry[i][1] for i in (0, 1)]
         if not (any(self._short_sent) or any(self._silent_sent)) \
-                and min(self.modelled) >= SHORT_AFTER_CM \
-                and all(self.counted[i] < ratio * self.modelled[i] for i in (0, 1)):
+                and min(judged_m) >= SHORT_AFTER_CM \
+                and all(judged_c[i] < ratio * judged_m[i] for i in (0, 1)):
             self._short_sent = [True, True]
             if moving and not self._mapper and self.pushing():
                 found.append((TreadVerdict.PUSH, TreadFault.BOTH_SHORT))
@@ -295,11 +332,11 @@ class TreadMonitor:
             return
         for tread in (0, 1):
             other = 1 - tread
-            modelled, counted = self.modelled[tread], self.counted[tread]
+            modelled, counted = judged_m[tread], judged_c[tread]
             if self._short_sent[tread] or self._silent_sent[tread] or modelled < SHORT_AFTER_CM:
                 continue
             short = counted < SHORT_RATIO * modelled and \
-                self.counted[other] >= SHORT_OTHER_RATIO * self.modelled[other]
+                judged_c[other] >= SHORT_OTHER_RATIO * judged_m[other]
             if not short and moving and counted > 0.0:
                 # driven further than the other for the same count (see ``UNEVEN_CM``)
                 short = (modelled - counted) - (self.modelled[other] - self.counted[other]) \
