@@ -89,8 +89,10 @@ class Body:
     blocked_moves: int = 0  # block the next N moves (a rover in the way)
     map_msgs: list = field(default_factory=list)
     ir_in_range: Any = None  # callable(pose) -> bool for the seeker's IR
-    script: Any = None  # callable(pose, cm) -> (done cm, yaw deg) | None: a move's scripted end
-    turn_script: Any = None  # callable(pose, deg) -> done deg | None: a turn's blocked end
+    script: Any = None  # callable(pose, cm) -> (done cm, yaw deg[, tread report]) | None: a
+    # move's scripted end (a report is sent as NAV_TREAD_FAULT before the end)
+    turn_script: Any = None  # callable(pose, deg) -> done deg | (done deg, tread report) |
+    # None: a turn's blocked end (a report is sent as NAV_TREAD_FAULT before the end)
     motor_at: list = field(default_factory=list)  # the time of each motor_log entry [s]
     published: list = field(default_factory=list)  # (time, pose) Motor Control reported
 
@@ -124,6 +126,9 @@ class FakeMotor(Actor):
         elif cmd == Cmd.MOTOR_TURN:
             await trio.sleep(abs(message.value) / 90.0)
             stop = b.turn_script(b.pose, float(message.value)) if b.turn_script else None
+            if isinstance(stop, tuple):  # Motor Control's tread report during the turn
+                stop, report = stop
+                self.ctx.send_nowait(self.nav, Message.uint(Cmd.NAV_TREAD_FAULT, int(report)))
             done = float(message.value) if stop is None else stop
             b.pose = Pose(b.pose.x, b.pose.y, b.pose.heading_deg + done)
             self._publish()
@@ -136,7 +141,10 @@ class FakeMotor(Actor):
             done, blocked = 0.0, False
             scripted = b.script(b.pose, d) if b.script is not None else None
             if scripted is not None:  # ends blocked after ``done`` cm, turned by ``yaw``
-                done, yaw = scripted
+                done, yaw = scripted[:2]
+                if len(scripted) > 2:  # Motor Control's tread report during the move
+                    self.ctx.send_nowait(self.nav, Message.uint(Cmd.NAV_TREAD_FAULT,
+                                                                int(scripted[2])))
                 b.pose = Pose(b.pose.x, b.pose.y, b.pose.heading_deg + yaw)
                 blocked = True
             elif b.blocked_moves > 0 and d > 0:

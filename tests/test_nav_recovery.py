@@ -34,6 +34,7 @@ from actors.firmware.nav.nudge import (
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.recovery import REPLAN_LIMIT
 from actors.firmware.nav.route import Motion
+from actors.firmware.nav.tread_faults import TREAD_CHECK_CM
 from server.protocol.pose import Pose, compose, inverse
 from tests.test_nav_common import (
     Body,
@@ -65,21 +66,22 @@ OPEN_ROOM = Truth(0, 0, 700, 300)
 class Blocks:
     """The script: forward moves that reach own-frame x ``at`` end there blocked, turned by
     ``yaw``, one entry per block in order; ``reverse`` scripts the end of the back-off
-    that follows the last block (``(done cm, yaw deg)``, None: as commanded)."""
+    that follows the last block (``(done cm, yaw deg)``, and a tread report Motor Control
+    sends in it if a third item; None: as commanded)."""
 
     def __init__(self, *blocks: tuple[float, float],
-                 reverse: tuple[float, float] | None = None) -> None:
+                 reverse: tuple[float, ...] | None = None) -> None:
         self.todo = list(blocks)
         self.reverse = reverse
         self.at: list[tuple[float, int, int]] = []  # (time, len(sent), len(motor_log))
         self.body: Body | None = None
 
-    def __call__(self, pose: Pose, cm: float) -> tuple[float, float] | None:
+    def __call__(self, pose: Pose, cm: float) -> tuple[float, ...] | None:
         assert self.body is not None
         if cm < 0 and self.reverse is not None and not self.todo and self.at:
-            done, yaw = self.reverse
+            done, *rest = self.reverse
             self.reverse = None
-            return -done, yaw
+            return -done, *rest
         if cm > 0 and self.todo and pose.x + cm * math.cos(pose.heading_rad) >= self.todo[0][0]:
             at, yaw = self.todo.pop(0)
             self.at.append((trio.current_time(), len(self.body.sent), len(self.body.motor_log)))
@@ -109,6 +111,19 @@ async def drive_corridor(blocks: Blocks, *, options: NavOptions | None = None,
             system.inject_crash("hider/nav")
             await trio.sleep(3.0)
     return body
+
+
+async def drive_until_answered(body: Body, goal_x: float, room: Truth) -> None:
+    """Send the hider from map (50, 50) to (``goal_x``, 150) in ``room`` (mapped whole)
+    and play until it answered (``arrived`` or ``invalid_spot``)."""
+    pool = BufferPool(64)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
+                                                 options=NARROW), "hider")
+        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
+                         {"x": goal_x, "y": 150.0, "heading": None}, room_map(room))
+        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
+                              600.0)
 
 
 def poses_after(body: Body, k: int, blocks: Blocks) -> list[tuple[float, float, float]]:
@@ -254,6 +269,137 @@ async def test_a_back_off_that_did_not_move_replans_instead_of_reversing_again(
     after = motions[1:]
     assert after and not any(c == "MOTOR_MOVE" and v < 0 for _, c, v in after[:3])
     assert any(c == "MOTOR_MOVE" and v > 0 for _, c, v in after[:3])
+
+
+@pytest.mark.trio
+async def test_a_back_off_with_a_silent_tread_holds_though_the_pose_hardly_turned(
+        autojump_clock) -> None:
+    """A back-off ends blocked with the right tread reported silent and the rover turned
+    only 4 deg (the belief follows a stalled tread's pivot by half): backing away over
+    the ground just driven, a silent tread is the motor's, not a wall's, so navigation
+    holds ``tread_hold_s`` instead of reversing again."""
+    blocks = Blocks((250.0, 0.0), reverse=(2.0, 4.0, TreadFault.silent(1)))
+    body = await drive_corridor(blocks, after_s=20.0)
+    assert "a tread stalls; holding 12 s" in [f.data.get("detail")
+                                               for f in body.frames("status")]
+    motions = motions_after(body, 0, blocks)
+    assert motions[1][0] >= motions[0][0] + NavOptions().tread_hold_s
+    assert not (motions[1][1] == "MOTOR_MOVE" and motions[1][2] < 0)
+
+
+@pytest.mark.trio
+async def test_a_back_off_that_did_not_move_on_open_ground_holds_for_a_stalled_motor(
+        autojump_clock) -> None:
+    """Blocked in the open room, then a back-off that did not move at all, no wall
+    anywhere near: nothing but the rover's own motor stops a reverse there, so it holds
+    (beside a mapped wall the same back-off is wedged and replans at once)."""
+    blocks = Blocks((250.0, 0.0), reverse=(0.0, 0.0))
+    body = await drive_corridor(blocks, room=OPEN_ROOM, after_s=20.0)
+    assert "a tread stalls; holding 12 s" in [f.data.get("detail")
+                                               for f in body.frames("status")]
+    motions = motions_after(body, 0, blocks)
+    assert motions[1][0] >= motions[0][0] + NavOptions().tread_hold_s
+
+
+class StalledMotor:
+    """Every motion between ``t0`` and ``t0 + duration_s`` [s] ends blocked where it
+    started: both treads stalled (nothing counts, nothing moves). A turn so ended is
+    reported `TreadFault.BOTH_SILENT` when ``report_turns`` (as Motor Control does)."""
+
+    def __init__(self, t0: float, duration_s: float, report_turns: bool = False) -> None:
+        self.t0, self.t1 = t0, t0 + duration_s
+        self.report_turns = report_turns
+        self.blocked = 0
+
+    def _stalled(self) -> bool:
+        stalled = self.t0 <= trio.current_time() < self.t1
+        self.blocked += stalled
+        return stalled
+
+    def move(self, pose: Pose, cm: float) -> tuple[float, float] | None:
+        return (0.0, 0.0) if self._stalled() else None
+
+    def turn(self, pose: Pose, deg: float) -> float | tuple[float, TreadFault] | None:
+        if not self._stalled():
+            return None
+        return (0.0, TreadFault.BOTH_SILENT) if self.report_turns else 0.0
+
+
+@pytest.mark.trio
+async def test_a_motor_stalled_for_half_a_minute_is_waited_out_not_given_up(
+        autojump_clock) -> None:
+    """Both treads stalled for 30 s on open ground while the hider drives to its spot:
+    each motion ends blocked without moving. Those blocks are the motor's, so they do
+    not use up ``REPLAN_LIMIT``: the hider holds, tries again, and arrives once the
+    motor runs again."""
+    stall = StalledMotor(3.0, 30.0)
+    body = Body(script=stall.move, turn_script=stall.turn)
+    await drive_until_answered(body, 600.0, OPEN_ROOM)
+    assert stall.blocked >= 2
+    assert body.frames("invalid_spot") == [], body.frames("invalid_spot")
+    assert body.frames("arrived")
+
+
+@pytest.mark.trio
+async def test_after_a_turn_on_silent_treads_a_short_move_checks_them_before_turning_again(
+        autojump_clock) -> None:
+    """The motor stalls for 30 s as the hider makes its first turn (both treads reported
+    silent). Turning again while the fault is on would add as much heading doubt once
+    more, so after each hold it checks the treads with a 2 cm straight move, holds again
+    (24 s) while that ends blocked, and drives on only once the check passes; it
+    arrives."""
+    stall = StalledMotor(0.0, 30.0, report_turns=True)
+    body = Body(script=stall.move, turn_script=stall.turn)
+    await drive_until_answered(body, 600.0, OPEN_ROOM)
+    motions = [(t, c, v) for t, (c, v) in zip(body.motor_at, body.motor_log, strict=True)
+               if c in ("MOTOR_TURN", "MOTOR_MOVE")]
+    assert motions[0][1] == "MOTOR_TURN"  # the turn the stall stops
+    hold = NavOptions().tread_hold_s
+    assert motions[1][1:] == ("MOTOR_MOVE", TREAD_CHECK_CM)
+    assert motions[1][0] >= motions[0][0] + hold
+    assert motions[2][1:] == ("MOTOR_MOVE", TREAD_CHECK_CM)  # the first check ended blocked
+    assert motions[2][0] >= motions[1][0] + 2.0 * hold
+    assert motions[2][0] >= stall.t1  # the second check passed: the route goes on
+    assert "the treads still do not count; holding 24 s" in [
+        f.data.get("detail") for f in body.frames("status")]
+    assert body.frames("arrived")
+
+
+@pytest.mark.trio
+async def test_a_tread_check_that_counted_before_a_block_passes_and_the_route_takes_the_block(
+        autojump_clock) -> None:
+    """The first turn reports the right tread silent; the check after the hold counts
+    1.5 cm and then ends blocked: the treads count, so the fault is over and the block is
+    something in the way. No second hold: the route's block handling backs off at once."""
+    turns = [(0.0, TreadFault.silent(1))]
+    moves = [(1.5, 0.0)]
+    body = Body(script=lambda pose, cm: moves.pop(0) if moves else None,
+                turn_script=lambda pose, deg: turns.pop(0) if turns else None)
+    await drive_until_answered(body, 600.0, OPEN_ROOM)
+    motions = [(t, c, v) for t, (c, v) in zip(body.motor_at, body.motor_log, strict=True)
+               if c in ("MOTOR_TURN", "MOTOR_MOVE")]
+    assert motions[1][1:] == ("MOTOR_MOVE", TREAD_CHECK_CM)
+    assert motions[2][1:] == ("MOTOR_MOVE", -NavOptions().backoff_cm)
+    assert motions[2][0] - motions[1][0] < 2.0
+    assert not any("still do not count" in f.data.get("detail", "")
+                   for f in body.frames("status"))
+    assert body.frames("arrived")
+
+
+@pytest.mark.parametrize("x, heading, sign", [(680.0, 0.0, -1.0), (680.0, 180.0, 1.0),
+                                               (350.0, 0.0, 1.0)],
+                         ids=["facing-the-wall", "back-to-the-wall", "open-floor"])
+def test_the_tread_check_moves_away_from_the_nearer_mapped_wall(
+        x: float, heading: float, sign: float) -> None:
+    """The straight move that checks the treads after a turn on a silent tread goes in
+    reverse when the nearest mapped wall is ahead (the turn may have jammed on it, and a
+    check into it would end blocked with the treads well), else forward."""
+    nav = make_nav("hider", pool=BufferPool(4), options=NARROW)
+    nav.map = nav.work_map = room_map(OPEN_ROOM)
+    nav.origin = Pose(0.0, 0.0, 0.0)
+    nav.pose = Pose(x, 150.0, heading)
+    believe(nav, 2.0)
+    assert nav.check_sign() == sign
 
 
 def scraped_nav(yaw_deg: float, sigma_cm: float = 4.0, memory: NavMemory | None = None,
@@ -547,14 +693,7 @@ async def test_scrapes_all_along_a_long_passage_do_not_use_up_the_route(autojump
     blocks = Blocks(*scrapes)
     body = Body(script=blocks)
     blocks.body = body
-    pool = BufferPool(64)
-    async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("hider", body, pool, memory=NavMemory(),
-                                                 options=NARROW), "hider")
-        await send_route(system, pool, "hider", CORRIDOR_ORIGIN,
-                         {"x": 900.0, "y": 150.0, "heading": None}, room_map(LONG_CORRIDOR))
-        assert await wait_for(lambda: body.frames("arrived") or body.frames("invalid_spot"),
-                              600.0)
+    await drive_until_answered(body, 900.0, LONG_CORRIDOR)
     assert len(blocks.at) == len(scrapes)
     assert body.frames("invalid_spot") == [], body.frames("invalid_spot")
     assert body.frames("arrived")

@@ -32,10 +32,12 @@ from actors.firmware.nav.nudge import (
     through_distance,
 )
 from actors.firmware.nav.route import Motion, with_obstacle
+from actors.firmware.nav.tread_faults import TREAD_CHECK_CM
 from actors.firmware.planning.clearance import occupied_near
 from server.protocol.pose import Pose, angle_diff_deg, compose
 
-__all__ = ["RouteRecovery", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM", "STALL_TURN_DEG"]
+__all__ = ["RouteRecovery", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM", "STALL_TURN_DEG",
+           "STALL_HOLDS"]
 
 # The bounds of the recovery behaviours: how long a route may try before it is given up,
 # and how a back-off reads a stalled tread. The geometry of the sideways search is in
@@ -49,7 +51,10 @@ BACKOFF_REPEAT_CM = 20.0
 STALL_TURN_DEG = 8.0
 """A back-off that ends blocked having turned more than this holds
 ``NavOptions.tread_hold_s`` before the route goes on: a tread stalled (see
-`RouteRecovery._backoff_turned`) [deg]."""
+`RouteRecovery._stalled`) [deg]."""
+STALL_HOLDS = 3
+"""Holds for a stalled tread or motor per route that do not count toward
+``REPLAN_LIMIT`` (12 s, 24 s, 48 s: longer than a transient stall); later ones count."""
 
 
 class RouteRecovery:
@@ -140,24 +145,28 @@ class RouteRecovery:
         self._count_block()
         if await self.on_blocked():
             return
+        if why == "blocked" and self._stall_holds < STALL_HOLDS and self._stalled():
+            # the motor, not a wall: neither this block nor the one backed off from is a
+            # place tried again, so neither counts; wait the fault out
+            hold = self.o.tread_hold_s * 2.0 ** self._stall_holds
+            self._stall_holds += 1
+            await self._stall_hold(hold, uncount=2)
+            return
         if self.replans > REPLAN_LIMIT:
             await self._give_up(f"{why} {self.replans} times")
             return
         assert self.work_map is not None
         p = self.map_pose
         if why == "blocked" and self._backoff_turned():
-            # a tread stalled: backing off again only spins the rover where it stands
-            # (ten blocks in 12 s of a 16 s stall); wait for it
-            self.counters["stall_holds"] += 1
-            self._replan = True
-            self._blocked, self._done = False, 0.0
-            self._hold_until = trio.current_time() + self.o.tread_hold_s
-            await self.status(self.state, f"a tread stalls; holding {self.o.tread_hold_s:.0f} s")
+            # a tread still stalls after the holds above: backing off again only spins
+            # the rover where it stands; hold, counted
+            await self._stall_hold(self.o.tread_hold_s, uncount=0)
             return
         start = self._backoff_start()
         if why == "blocked" and start is not None and \
                 math.dist((p.x, p.y), (start.x, start.y)) < 1.0:
-            # a back-off that did not move: wedged behind; reversing again cannot help
+            # a back-off that did not move (beside a mapped wall, or after the stall
+            # holds): wedged behind; reversing again cannot help
             self._replan = True
             await self.after_motion(False, 0.0)
             return
@@ -197,6 +206,50 @@ class RouteRecovery:
         if m is None or m.kind != "move" or m.amount >= 0:
             return None
         return start
+
+    def _stalled(self) -> bool:
+        """The last motion, a back-off, ended blocked for the rover's own treads, not for
+        a wall: it reported a tread silent (`reported_in`), turned more than
+        ``STALL_TURN_DEG`` (`_backoff_turned`), or did not move with no mapped wall
+        within the body's radius plus the drift (`_wall_within_drift`).
+
+        Why: a back-off reverses over the ground the rover just came through, so what
+        stops it there is seldom a wall. A stalled motor (one tread or both) and stuck
+        encoders stop it the same way: one tread silent while the other counts, or
+        nothing counting at all. Backing off again spins the rover on its stalled tread
+        (tens of degrees in a few blocks, while the belief follows only half of it) and
+        uses up ``REPLAN_LIMIT`` within the fault's seconds; holding costs only time.
+        Beside a mapped wall a back-off that did not move is the rear against it
+        (wedged), not a stall.
+        """
+        start = self._backoff_start()
+        if start is None:
+            return False
+        report = self.reported_in(self.last_motion)
+        if report is not None and not report.counts_short:
+            return True
+        if self._backoff_turned():
+            return True
+        p = self.map_pose
+        return math.dist((p.x, p.y), (start.x, start.y)) < 1.0 and not self._wall_within_drift()
+
+    async def _stall_hold(self, hold_s: float, *, uncount: int) -> None:
+        """Hold still ``hold_s`` for a stalled tread or motor, then replan from the pose
+        at rest; ``uncount`` blocks are taken back from the count toward
+        ``REPLAN_LIMIT`` (the back-off's and the one it backed off from).
+
+        The first ``STALL_HOLDS`` holds of a route hold ``tread_hold_s`` doubled each
+        time (a transient stall lasts up to 20 s: 12 s, then 24 s, then 48 s outlast
+        it) and are not counted; after them a stall is what it was before them: a
+        counted block (a back-off that turned holds ``tread_hold_s``; one that did not
+        move replans at once), so a motor stalled for good still ends the route.
+        """
+        self.replans = max(0, self.replans - uncount)
+        self.counters["stall_holds"] += 1
+        self._replan = True
+        self._blocked, self._done = False, 0.0
+        self._hold_until = trio.current_time() + hold_s
+        await self.status(self.state, f"a tread stalls; holding {hold_s:.0f} s")
 
     def _backoff_turned(self) -> bool:
         """The last motion, a reverse (a back-off), ended blocked having turned the rover
@@ -243,6 +296,21 @@ class RouteRecovery:
             return False
         px, py, _, _ = near
         return float(np.min(np.hypot(px, py))) <= reach
+
+    def check_sign(self) -> float:
+        """The tread check's direction (`tread_faults.TreadFaults.check_treads`): in
+        reverse when the nearest occupied cell of the map within the body's radius plus
+        the drift and the check's length lies ahead, else forward. A turn that reported a
+        silent tread may have been jammed by that wall; a check into it would end
+        blocked with the treads well and hold for nothing."""
+        if self.map is None:
+            return 1.0
+        reach = self.radius_cm + self.drift_cm + TREAD_CHECK_CM
+        near = occupied_near(self.map, self.map_pose, reach)
+        if near is None:
+            return 1.0
+        px, py, fwd, _ = near
+        return -1.0 if fwd[int(np.argmin(np.hypot(px, py)))] > 0.0 else 1.0
 
     def _nudging_here(self) -> bool:
         """A nudge series is on and this block is near its anchor (`nudge.near_block`):

@@ -64,6 +64,7 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.replans = 0
         """Blocks counted toward ``REPLAN_LIMIT`` (`RouteRecovery._count_block`)."""
         self._progress_mark = math.inf  # the route's remaining length when the count started
+        self._stall_holds = 0  # holds for a stalled tread on this route (`RouteRecovery._stalled`)
         self.stop_short_cm = 0.0
         """The current route ends this far before its goal [cm] (see `goto`)."""
         self.tier: tuple[float, float] | None = None
@@ -156,7 +157,8 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         assert self.work_map is not None
         self.goal, self.goal_heading = goal, heading
         self.stop_short_cm = stop_short_cm
-        self.replans, self._progress_mark = 0, math.inf
+        self.replans, self._progress_mark, self._stall_holds = 0, math.inf, 0
+        self.forget_tread_check()
         self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
         self._probe, self._nudge_off, self._mouth = False, 0.0, False
         if not self._plan():
@@ -253,6 +255,8 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
     async def after_motion(self, blocked: bool, done: float) -> None:
         if self.follower is None:
             await self.after_other_motion(blocked, done)
+            return
+        if await self.check_treads(blocked, done):
             return
         if blocked:
             await self._blocked_route("blocked")

@@ -13,8 +13,9 @@ from __future__ import annotations
 import trio
 
 from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.nav.route import Motion
 
-__all__ = ["TreadFaults", "TREAD_HOLDS", "TREAD_CONTACT_S", "TREAD_STOP_S"]
+__all__ = ["TreadFaults", "TREAD_HOLDS", "TREAD_CONTACT_S", "TREAD_STOP_S", "TREAD_CHECK_CM"]
 
 TREAD_HOLDS = 2
 """Holds in a row (each report within a minute of the last), at most; a further report
@@ -26,10 +27,31 @@ scraping along the wall it met counts short as well."""
 TREAD_STOP_S = 1.0
 """A tread fault that ends its motion as blocked waits this long before deciding [s]: the
 stopped motion's last pose and end arrive meanwhile and are ignored."""
+TREAD_CHECK_CM = 2.0
+"""After a hold for a silent tread in a turn, a straight move this long checks the treads
+before the route turns again [cm] (`TreadFaults.check_treads`): four encoder interrupts,
+under Motor Control's ``blocked_cm``, so a fault still on ends it within a few cm."""
 
 
 class TreadFaults:
     """Tread-fault handling and the pose doubt (a mixin of `base.NavBase`)."""
+
+    _reported: tuple[Motion, TreadFault] | None = None
+    """The last report and the motion it came in: (motion, fault); see `reported_in`."""
+    _check_due = False
+    """A hold for a silent tread in a turn is on: the treads are checked after it."""
+    _checking: Motion | None = None
+    """The check motion in flight (`check_treads`)."""
+    _check_holds = 0
+    """Holds after a check that failed, since the last one that passed."""
+
+    def reported_in(self, motion: Motion | None) -> TreadFault | None:
+        """The tread report Motor Control sent during ``motion``, if any (the last one,
+        when it sent several): what tells a stalled tread from a wall
+        (`recovery.RouteRecovery._stalled`)."""
+        if motion is None or self._reported is None or self._reported[0] is not motion:
+            return None
+        return self._reported[1]
 
     async def on_tread_fault(self, fault: TreadFault) -> None:
         """Motor Control saw a driven tread that does not count, or counts short
@@ -59,6 +81,7 @@ class TreadFaults:
         """
         if self._motion is None:
             return  # standing (or holding) already: the report is of a motion given up
+        self._reported = (self._motion, fault)
         now = trio.current_time()
         if fault == TreadFault.BOTH_SHORT and self._motion.kind == "move" \
                 and now - self._blocked_t > TREAD_CONTACT_S and self._wall_within_drift():
@@ -83,12 +106,63 @@ class TreadFaults:
         hold = self.o.tread_hold_s * 2.0 ** (self._tread_strikes - 1)
         self._blocked, self._done = False, 0.0
         self._hold_until = now + hold
+        self._check_due = turning and not fault.counts_short
         side = "both treads" if both else f"the {fault.side} tread"
         if fault.counts_short:
             kind = "count short" if both else "counts short"
         else:
             kind = "do not count" if both else "does not count"
         await self.status(self.state, f"{side} {kind}; holding {hold:.0f} s")
+
+    async def check_treads(self, blocked: bool, done: float) -> bool:
+        """After a hold for a silent tread in a turn: check the treads with a short
+        straight move (``TREAD_CHECK_CM``, away from the nearer mapped wall:
+        `check_sign`) before the route turns again, and hold once more while the check
+        ends blocked having counted under half of it (``tread_hold_s`` doubled each
+        time, at most ``TREAD_HOLDS`` times). True when it commanded or held (the
+        caller waits).
+
+        Why: a turn on a silent tread, or on two (a stalled motor and two stuck
+        encoders report the same), turned the rover by nothing or by Motor Control's
+        drive model, and the pose belief keeps both: each turn retried while the fault
+        is still on turns the rover unseen once more on stuck encoders (tens of
+        degrees) and sets the belief's two hypotheses as much further apart, which no
+        contact gives back. A straight move on the same fault costs a few cm of length
+        and no heading, so it is the motion that tells whether the fault is over. A
+        check that ends blocked after the last hold goes to the route's block handling
+        like any block.
+        """
+        if self._checking is not None and self._checking is self.last_motion:
+            self._checking = None
+            # counted under half its length: the fault is on (a block after the treads
+            # counted is a wall's or an obstacle's, for the route's block handling)
+            if blocked and abs(done) < 0.5 * TREAD_CHECK_CM and \
+                    self._check_holds < TREAD_HOLDS:
+                self._check_holds += 1
+                hold = self.o.tread_hold_s * 2.0 ** self._check_holds
+                self._blocked, self._done = False, 0.0
+                self._hold_until = trio.current_time() + hold
+                self._check_due = True
+                await self.status(self.state, f"the treads still do not count; holding "
+                                  f"{hold:.0f} s")
+                return True
+            self._check_holds = 0
+            return False
+        if not self._check_due:
+            return False
+        self._check_due = False
+        self._checking = Motion("move", self.check_sign() * TREAD_CHECK_CM)
+        await self.command(self._checking)
+        return True
+
+    def check_sign(self) -> float:
+        """Hook: +1 to check the treads forward, -1 in reverse (see
+        `recovery.RouteRecovery.check_sign`)."""
+        return 1.0
+
+    def forget_tread_check(self) -> None:
+        """A new route: a check due from an earlier one is not this route's."""
+        self._check_due, self._checking, self._check_holds = False, None, 0
 
     def note_tread_fault(self, fault: TreadFault) -> None:
         """Hook: a tread was reported during the motion in flight (the pose belief's
