@@ -173,6 +173,46 @@ def _nonzero(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.divmod(np.flatnonzero(a), a.shape[1])
 
 
+def _heading_pass(row: np.ndarray, h: np.ndarray, value: np.ndarray, lines: int,
+                  nh: int) -> np.ndarray:
+    """``gaussian_filter1d`` along the heading (wrapped) of the (lines, nh) array that
+    holds ``value`` at ``(row, h)`` and zeros elsewhere, filtering only the headings
+    where the result can be non-zero.
+
+    The particles' headings usually cover part of the circle, and every line carries
+    weight at those headings only. The result is non-zero only within the filter's
+    radius of them: the shortest arc holding every heading with weight, widened by the
+    radius on both sides. That arc is filtered alone with zeros beyond its ends (mode
+    ``constant``): each of its cells sums the same products in the same order as on the
+    whole line (what lies beyond the arc is zero on the line too), and every cell off
+    the arc is exactly zero on the line as well. Where the arc spans the circle the
+    whole lines are filtered, wrapped.
+    """
+    if h.size == 0:
+        return np.zeros((lines, nh))  # no weight: what the filter leaves of zeros
+    radius = int(4.0 * SMOOTH_CELLS + 0.5)  # gaussian_filter1d's kernel radius [cells]
+    used = np.zeros(nh, dtype=bool)
+    used[h] = True
+    cols = np.flatnonzero(used)
+    gaps = np.diff(cols, append=cols[0] + nh)  # from each heading to the next one with weight
+    widest = int(gaps.argmax())
+    start = int(cols[(widest + 1) % cols.size]) - radius
+    width = nh - int(gaps[widest]) + 1 + 2 * radius
+    if width >= nh:
+        d = np.zeros((lines, nh))
+        d[row, h] = value
+        return gaussian_filter1d(d, SMOOTH_CELLS, axis=1, mode=_MODES[2])
+    start %= nh
+    arc = np.zeros((lines, width))
+    arc[row, (h - start) % nh] = value
+    arc = gaussian_filter1d(arc, SMOOTH_CELLS, axis=1, mode="constant")
+    d = np.zeros((lines, nh))
+    head = min(width, nh - start)
+    d[:, start:start + head] = arc[:, :head]
+    d[:, :width - head] = arc[:, head:]
+    return d
+
+
 class _Density:
     """The smoothed weight density on the lattice, stored by its lines that carry weight.
 
@@ -220,9 +260,7 @@ class _Density:
         xy, row = _sorted_unique(xs[r] * ny + c, nx * ny)
         self._xy = xy
         """Flat (x, y) of the stored heading lines, ascending."""
-        d = np.zeros((xy.size + 1, nh))
-        d[row, hs[r]] = b[r, c]
-        self._d = gaussian_filter1d(d, SMOOTH_CELLS, axis=1, mode=_MODES[2])
+        self._d = _heading_pass(row, hs[r], b[r, c], xy.size + 1, nh)
         """The density along each stored line, then the zero line: (lines + 1, nh)."""
         self._line = np.full(nx * ny, xy.size, dtype=np.intp)
         """Each (x, y) cell's line in ``_d`` (flat), the zero line where none is stored."""
