@@ -125,9 +125,8 @@ def inside_obstacle(field: DistanceField, particles: np.ndarray,
     # are put on the map and looked up (the same answer, a few particles' work)
     near = np.flatnonzero(~field.cell_farther_than(p[:, 0], p[:, 1], reach + 2.0 * res))
     out = np.zeros(p.shape[0], dtype=bool)
-    if near.size:
-        x, y = to_map(p[near], pts)
-        out[near] = np.logical_or.reduce(field.occupied_at(x, y), axis=1)
+    x, y = to_map(p[near], pts)
+    out[near] = np.logical_or.reduce(field.occupied_at(x, y), axis=1)
     return out
 
 
