@@ -45,4 +45,4 @@ def nonzero_2d(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a = np.asarray(values)
     if a.ndim != 2:
         raise ValueError(f"nonzero_2d needs a 2-D array, got {a.ndim}-D")
-    return np.divmod(np.flatnonzero(a), a.shape[1])
+    return np.divmod(a.reshape(-1).nonzero()[0], a.shape[1])

@@ -77,6 +77,16 @@ position lattice [cells]."""
 
 _MODES = ("nearest", "nearest", "wrap")  # the heading axis is periodic
 _LINE_SAMPLES = 16
+_LINE_STEPS = np.linspace(0.0, 1.0, _LINE_SAMPLES)
+_LINE_STEPS.flags.writeable = False
+_PAIRS = np.array(np.triu_indices(MAX_PEAKS, 1))
+"""Every pair of modes (i < j < MAX_PEAKS) in np.triu_indices's order (read-only)."""
+_PAIRS.flags.writeable = False
+
+
+def _clip(values: np.ndarray, high: int) -> np.ndarray:
+    """``np.clip(values, 0, high)`` of integers, without its Python wrapper."""
+    return np.minimum(np.maximum(values, 0), high)
 
 
 def cluster_labels(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -90,19 +100,23 @@ def cluster_labels(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
     w = np.asarray(weights, dtype=float)
     nh = max(1, round(360.0 / CELL_DEG))
     pad = math.ceil(3 * SMOOTH_CELLS) + 1
-    x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
-    span = max(float(p[:, 0].max()) - x0, float(p[:, 1].max()) - y0)
+    # ufunc reductions and array methods, not numpy's Python wrappers round them: a
+    # clustering makes about a hundred numpy calls on a few hundred particles
+    low, high = np.minimum.reduce(p, axis=0), np.maximum.reduce(p, axis=0)
+    x0, y0 = float(low[0]), float(low[1])
+    span = max(float(high[0]) - x0, float(high[1]) - y0)
     cell = max(CELL_CM, span / max(math.sqrt(MAX_LATTICE_CELLS / nh) - 2 * pad, 1.0))
     gx = (p[:, 0] - x0) / cell + pad  # lattice coordinates [cells]
     gy = (p[:, 1] - y0) / cell + pad
     gh = (np.degrees(p[:, 2]) % 360.0) / (360.0 / nh)
     ix, iy = gx.astype(np.int64), gy.astype(np.int64)
     ih = gh.astype(np.int64) % nh
-    dens = _Density(ix, iy, ih, w, (int(ix.max()) + pad + 1, int(iy.max()) + pad + 1, nh))
+    dens = _Density(ix, iy, ih, w, (int(np.maximum.reduce(ix)) + pad + 1,
+                                    int(np.maximum.reduce(iy)) + pad + 1, nh))
     if dens.top <= 0.0:
         return np.zeros(p.shape[0], dtype=np.int64)
     coords, values = dens.peaks(PEAK_FLOOR * dens.top)
-    order = np.argsort(-values, kind="stable")[:MAX_PEAKS]
+    order = (-values).argsort(kind="stable")[:MAX_PEAKS]
     coords, values = coords[order].astype(float) + 0.5, values[order]
     comp = _join(dens, coords, values, VALLEY, nh)
     # nearest mode of each particle, heading wrapped [cells]
@@ -119,16 +133,16 @@ def _join(dens: _Density, coords: np.ndarray, values: np.ndarray, valley: float,
     k = coords.shape[0]
     if k == 1:
         return np.zeros(1, dtype=np.int64)
-    i, j = np.triu_indices(k, 1)
-    t = np.linspace(0.0, 1.0, _LINE_SAMPLES)[None, :, None]
+    pairs = _PAIRS[1] < k  # the pairs of np.triu_indices(k, 1), in its order
+    i, j = _PAIRS[0][pairs], _PAIRS[1][pairs]
+    t = _LINE_STEPS[None, :, None]
     a, b = coords[i][:, None, :], coords[j][:, None, :]
     d = b - a
     d[..., 2] = (d[..., 2] + nh / 2) % nh - nh / 2
     pts = np.floor(a + t * d).astype(np.int64)
     nx, ny, _ = dens.shape
-    line = dens.at(np.clip(pts[..., 0], 0, nx - 1), np.clip(pts[..., 1], 0, ny - 1),
-                   pts[..., 2] % nh)
-    joined = line.min(axis=1) >= valley * np.minimum(values[i], values[j])
+    line = dens.at(_clip(pts[..., 0], nx - 1), _clip(pts[..., 1], ny - 1), pts[..., 2] % nh)
+    joined = np.minimum.reduce(line, axis=1) >= valley * np.minimum(values[i], values[j])
     return _components(k, i[joined].tolist(), j[joined].tolist())
 
 
@@ -162,7 +176,7 @@ def _sorted_unique(values: np.ndarray, bound: int) -> tuple[np.ndarray, np.ndarr
     key here to a few ten thousand, and a sort of the particles' keys cost more)."""
     mark = np.zeros(bound, dtype=np.intp)
     mark[values] = 1
-    unique = np.flatnonzero(mark)
+    unique = mark.nonzero()[0]
     mark[unique] = np.arange(unique.size)
     return unique, mark[values]
 
@@ -187,7 +201,7 @@ def _heading_pass(row: np.ndarray, h: np.ndarray, value: np.ndarray, lines: int,
     radius = int(4.0 * SMOOTH_CELLS + 0.5)  # gaussian_filter1d's kernel radius [cells]
     used = np.zeros(nh, dtype=bool)
     used[h] = True
-    cols = np.flatnonzero(used)
+    cols = used.nonzero()[0]
     gaps = np.diff(cols, append=cols[0] + nh)  # from each heading to the next one with weight
     widest = int(gaps.argmax())
     start = int(cols[(widest + 1) % cols.size]) - radius
@@ -259,7 +273,7 @@ class _Density:
         self._line = np.full(nx * ny, xy.size, dtype=np.intp)
         """Each (x, y) cell's line in ``_d`` (flat), the zero line where none is stored."""
         self._line[xy] = np.arange(xy.size)
-        self.top = float(self._d.max())
+        self.top = float(np.maximum.reduce(self._d, axis=None))
         """The highest density (0 when there is no weight)."""
 
     def at(self, x: np.ndarray, y: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -285,9 +299,9 @@ class _Density:
         j, h, value = j[line], h[line], value[line]
         x, y = np.divmod(self._xy[j], ny)
         step = np.array([-1, 0, 1])
-        wx = np.clip(x[:, None] + step, 0, nx - 1)[:, :, None, None]
-        wy = np.clip(y[:, None] + step, 0, ny - 1)[:, None, :, None]
+        wx = _clip(x[:, None] + step, nx - 1)[:, :, None, None]
+        wy = _clip(y[:, None] + step, ny - 1)[:, None, :, None]
         wh = ((h[:, None] + step) % nh)[:, None, None, :]
         window = self.at(wx, wy, wh).reshape(x.size, -1)
         keep = value >= np.maximum.reduce(window, axis=1)
-        return np.stack([x, y, h], axis=1)[keep], value[keep]
+        return np.array([x, y, h]).T[keep], value[keep]
