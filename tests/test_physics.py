@@ -187,14 +187,14 @@ def test_encoder_error_stays_within_the_slip_noise(sigma: float) -> None:
 
 
 def test_direct_chipmunk_steps_and_reads_equal_pymunks_public_api(monkeypatch) -> None:
-    """Stepping with Chipmunk's ``cpSpaceStep`` and reading poses from Chipmunk give the
-    floats of pymunk's `Space.step` and ``position`` / ``angle``, bit for bit, through
-    drives, turns and a wall contact."""
+    """Stepping with Chipmunk's ``cpSpaceStep``, reading poses from Chipmunk and setting
+    the control bodies there give the floats of pymunk's `Space.step`, its properties
+    and setters, bit for bit, through drives, turns and a wall contact."""
     from world import physics  # noqa: PLC0415
 
     def play(direct: bool) -> list[tuple[float, float, float]]:
-        if not direct:
-            monkeypatch.setattr(physics.Physics, "_direct_step", lambda self: None)
+        if not direct:  # pymunk's public API alone: Space.step, properties, setters
+            monkeypatch.setattr(physics, "_chipmunk", None)
         world = World(parse_scenario(ROOM), np.random.default_rng(3))
         out = []
         for left, right in ((0.8, 0.8), (0.5, -0.5), (1.0, 1.0), (-0.6, 0.9)):

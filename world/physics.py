@@ -101,13 +101,21 @@ class Physics:
         rb = self.rovers[role]
         v = 0.5 * (left_cm_s + right_cm_s)
         omega = (right_cm_s - left_cm_s) / self.params.track_width_cm
-        a = rb.body.angle
+        if _chipmunk is None:
+            a = rb.body.angle
+        else:
+            a = _chipmunk.cpBodyGetAngle(rb.body._body)  # what `angle` reads
         if rb.commanded == (v, omega, a):
             return  # the control body already carries this (a rover at rest, mostly)
         rb.commanded = (v, omega, a)
         c = rb.control
-        c.velocity = (v * math.cos(a), v * math.sin(a))
-        c.angular_velocity = omega
+        velocity = (v * math.cos(a), v * math.sin(a))
+        if _chipmunk is None:
+            c.velocity = velocity
+            c.angular_velocity = omega
+        else:  # what pymunk's setters call, without their attribute machinery
+            _chipmunk.cpBodySetVelocity(c._body, velocity)
+            _chipmunk.cpBodySetAngularVelocity(c._body, omega)
 
     def step(self, dt: float) -> None:
         """Advance the space by ``dt`` [s] in whole substeps.
