@@ -1,9 +1,10 @@
-"""`actors.firmware.arrays.pad_border`: the same array as `np.pad` with a constant border."""
+"""`actors.firmware.arrays`: `pad_border` gives the same array as `np.pad` with a constant
+border, `nonzero_2d` the same indices as `np.nonzero`."""
 
 import numpy as np
 import pytest
 
-from actors.firmware.arrays import pad_border
+from actors.firmware.arrays import nonzero_2d, pad_border
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32, bool, np.int8, np.int32])
@@ -31,3 +32,20 @@ def test_pad_border_refuses_other_shapes_and_negative_widths() -> None:
         pad_border(np.ones(4))
     with pytest.raises(ValueError, match="width"):
         pad_border(np.ones((2, 2)), -1)
+
+
+@pytest.mark.parametrize("shape", [(0, 4), (3, 0), (1, 1), (7, 5), (60, 130)])
+def test_nonzero_2d_gives_np_nonzeros_rows_and_columns(shape: tuple[int, int]) -> None:
+    rng = np.random.default_rng(3)
+    for share in (0.0, 0.05, 0.5, 1.0):
+        values = np.where(rng.random(shape) < share, rng.random(shape), 0.0)
+        for a in (values, values > 0, values[::2, ::-1]):  # views too
+            want = np.nonzero(a)
+            got = nonzero_2d(a)
+            assert all(g.dtype == w.dtype and np.array_equal(g, w) for g, w in zip(got, want,
+                                                                                    strict=True))
+
+
+def test_nonzero_2d_refuses_other_shapes() -> None:
+    with pytest.raises(ValueError, match="2-D"):
+        nonzero_2d(np.ones(4))

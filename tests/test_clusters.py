@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.ndimage import gaussian_filter, maximum_filter
+from scipy.ndimage import gaussian_filter, gaussian_filter1d, maximum_filter
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
@@ -17,6 +17,7 @@ from actors.firmware.localisation.clusters import (
     SMOOTH_CELLS,
     _components,
     _Density,
+    _heading_pass,
     cluster_labels,
 )
 
@@ -89,3 +90,23 @@ def test_particles_without_weight_are_one_hypothesis() -> None:
     p = np.array([[0.0, 0.0, 0.0], [100.0, 0.0, 1.0]])
     assert cluster_labels(p, np.zeros(2)).tolist() == [0, 0]
     assert cluster_labels(p[:1], np.ones(1)).tolist() == [0]
+
+
+def test_the_heading_pass_equals_the_wrapped_filter_of_whole_lines() -> None:
+    """Filtering only the arc of headings that can carry density gives the floats of
+    the whole wrapped lines: arcs across heading 0, inside the circle, a single heading,
+    arcs just short of and over the whole circle."""
+    rng = np.random.default_rng(5)
+    nh = 72
+    for first, span in [(70, 5), (0, 0), (30, 12), (66, 40), (10, 54), (3, 62), (3, 63), (5, 71)]:
+        lines = int(rng.integers(1, 40))
+        n = int(rng.integers(1, 200))
+        row = rng.integers(0, lines, n)
+        h = (first + rng.integers(0, span + 1, n)) % nh
+        h[0] = first  # both ends of the arc carry weight
+        h[-1] = (first + span) % nh
+        value = rng.random(n)
+        whole = np.zeros((lines, nh))
+        whole[row, h] = value
+        want = gaussian_filter1d(whole, SMOOTH_CELLS, axis=1, mode="wrap")
+        assert np.array_equal(_heading_pass(row, h, value, lines, nh), want)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from actors.firmware.localisation import belief as belief_module
+from actors.firmware.localisation import free_space_model
 from actors.firmware.localisation.belief import (
     BeliefOptions,
     PoseBelief,
@@ -146,6 +147,7 @@ def _localisation_lines(n: int) -> int:
     pts = hits_to_points(ANGLES, cast(ROOM, Pose(60.0, 60.0, 0.0), ANGLES))
     motion = TreadMotion(6.0, 10.0, driven_left_cm=10.0, left=TreadReport.SHORT)
     package = str(Path(belief_module.__file__).parent)
+    free_space_model._body_lattice.cache_clear()  # each count makes the body lattice
     count = 0
 
     def trace(frame, event, arg):  # noqa: ANN001, ANN202 (sys.settrace's signature)

@@ -17,8 +17,10 @@ from actors.firmware.localisation.contact_model import (
 )
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import (
+    body_points,
     free_space_log_likelihood,
     inside_obstacle,
+    to_map,
 )
 from actors.firmware.localisation.motion_model import MotionNoise, TreadMotion
 from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap
@@ -84,6 +86,24 @@ def test_a_body_overlapping_a_wall_is_unlikely_and_unknown_ground_is_not() -> No
     assert ll[0] == 0.0 and ll[1] == pytest.approx(math.log(1e-3))
     half_known = DistanceField.from_grid(room(200.0, 100.0, unknown_beyond_x=100.0))
     assert free_space_log_likelihood(half_known, _particles((150.0, 50.0, 0.0)), BODY)[0] == 0.0
+
+
+def test_a_body_inside_an_obstacle_is_found_as_by_looking_up_every_body_point() -> None:
+    """Only the particles near an obstacle have their body points looked up: the same
+    answer as looking up every point of every particle, near walls, in the gap, far from
+    them and off the map, for bodies of several sizes."""
+    rng = np.random.default_rng(9)
+    fields = (FIELD, DistanceField.from_grid(room(200.0, 100.0, unknown_beyond_x=150.0)))
+    for field in fields:
+        for body in (BODY, (12.0, 9.0), (40.0, 30.0), (11.0, 11.0)):
+            p = np.column_stack([rng.uniform(-30.0, 230.0, 3000),
+                                 rng.uniform(-30.0, 130.0, 3000),
+                                 rng.uniform(-math.pi, math.pi, 3000)])
+            res = field.resolution_cm
+            x, y = to_map(p, body_points(*body, res, 0.5 * res))
+            every = field.occupied_at(x, y).any(axis=1)
+            assert 0 < every.sum() < every.size
+            assert inside_obstacle(field, p, body).tolist() == every.tolist()
 
 
 def test_a_body_up_to_a_cell_past_a_mapped_face_is_not_inside_the_wall() -> None:

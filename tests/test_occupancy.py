@@ -174,6 +174,36 @@ def test_gridmap_is_read_only_and_normalises_probabilities():
     assert m.crop(1, 2, 1, 3).origin_cm == (5.0, 5.0)
 
 
+def test_known_bounds_is_the_box_of_the_known_cells_on_any_grid():
+    """The box of the known cells, whether a row is read eight cells at a time (an int8
+    grid of whole words) or cell by cell, on crops (views) too; None when none is known."""
+    rng = np.random.default_rng(12)
+    for trial in range(200):
+        ny, nx = int(rng.integers(1, 30)), 8 * int(rng.integers(1, 6)) + int(trial % 3 == 0)
+        cells = np.full((ny, nx), UNKNOWN, dtype=np.int8)
+        if trial % 7:
+            r0, c0 = int(rng.integers(0, ny)), int(rng.integers(0, nx))
+            r1, c1 = int(rng.integers(r0, ny)) + 1, int(rng.integers(c0, nx)) + 1
+            block = rng.choice([UNKNOWN, FREE, OCCUPIED], size=(r1 - r0, c1 - c0))
+            block[0, int(rng.integers(0, c1 - c0))] = FREE  # every side of the box known
+            block[-1, int(rng.integers(0, c1 - c0))] = OCCUPIED
+            block[int(rng.integers(0, r1 - r0)), 0] = FREE
+            block[int(rng.integers(0, r1 - r0)), -1] = FREE
+            cells[r0:r1, c0:c1] = block
+            want = (r0, r1, c0, c1)
+        else:
+            want = None
+        grid = GridMap(cells, 5.0, (0.0, 0.0))
+        assert grid.known_bounds() == want, trial
+        wide = GridMap(cells.astype(np.int16), 5.0, (0.0, 0.0))
+        assert wide.known_bounds() == want, trial
+        wider = np.full((ny, nx + 9), UNKNOWN, dtype=np.int8)
+        wider[:, 1:1 + nx] = cells
+        view = GridMap(wider, 5.0, (0.0, 0.0)).crop(0, ny, 1, 1 + nx)  # not contiguous
+        assert view.known_bounds() == want, trial
+        assert ny == 1 or not view.cells.flags.c_contiguous
+
+
 def test_bounds_of_empty_grid_is_none():
     """A grid with nothing known has no bounds."""
     assert small_grid().bounds() is None

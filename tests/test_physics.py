@@ -184,3 +184,34 @@ def test_encoder_error_stays_within_the_slip_noise(sigma: float) -> None:
     else:
         assert max(abs(e) for e in errors) <= 4 * sd + 0.5
         assert np.std(errors) > 0.25 * sd  # the noise is really there
+
+
+def test_direct_chipmunk_steps_and_reads_equal_pymunks_public_api(monkeypatch) -> None:
+    """Stepping with Chipmunk's ``cpSpaceStep``, reading poses from Chipmunk and setting
+    the control bodies there give the floats of pymunk's `Space.step`, its properties
+    and setters, bit for bit, through drives, turns and a wall contact."""
+    from world import physics  # noqa: PLC0415
+
+    def play(direct: bool) -> list[tuple[float, float, float]]:
+        if not direct:  # pymunk's public API alone: Space.step, properties, setters
+            monkeypatch.setattr(physics, "_chipmunk", None)
+        world = World(parse_scenario(ROOM), np.random.default_rng(3))
+        out = []
+        for left, right in ((0.8, 0.8), (0.5, -0.5), (1.0, 1.0), (-0.6, 0.9)):
+            for role in ("mapper", "hider", "seeker"):
+                world.hardware(role).set_tread_pwm(left, right)
+            for _ in range(150):  # 3 s: the mapper reaches the wall ahead
+                world.step()
+                for role in ("mapper", "hider", "seeker"):
+                    state = world.physics.state(role)
+                    body = world.physics.rovers[role].body
+                    assert state == (*body.position, body.angle)
+                    out.append(state)
+        monkeypatch.undo()
+        return out
+
+    fresh = World(parse_scenario(ROOM), np.random.default_rng(3))
+    assert fresh.physics._direct_step() is None  # the bodies added are checked first
+    fresh.step()
+    assert fresh.physics._direct_step() is not None  # then every step is Chipmunk's
+    assert play(direct=True) == play(direct=False)

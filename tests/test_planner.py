@@ -3,6 +3,7 @@ and its searches, actors.firmware.planning.grid_search)."""
 
 from __future__ import annotations
 
+import collections
 import math
 from itertools import pairwise
 
@@ -11,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from actors.firmware.planning.grid_search import _astar_padded, astar, bfs_steps
+from actors.firmware.planning.grid_search import MOVES, _astar_padded, astar, bfs_steps
 from actors.firmware.planning.planner import (
     inflate,
     line_of_sight,
@@ -214,6 +215,29 @@ def test_bfs_steps_counts_chebyshev_steps_and_marks_unreachable():
     assert (d[:, 4:] == -1).all()
     assert (d[:, 3] == -1).all()
     assert (bfs_steps(p, (2, 3)) == -1).all()
+
+
+def test_bfs_steps_equals_a_cell_by_cell_breadth_first_search():
+    """On random grids (blocked cells on the edges too) every cell's step count is a
+    plain queue's, and -1 where the queue never comes."""
+    rng = np.random.default_rng(4)
+    for trial in range(30):
+        ny, nx = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+        p = rng.random((ny, nx)) > rng.uniform(0.0, 0.6)
+        start = (int(rng.integers(0, ny)), int(rng.integers(0, nx)))
+        want = np.full((ny, nx), -1, dtype=np.int32)
+        if p[start]:
+            want[start] = 0
+            queue = collections.deque([start])
+            while queue:
+                r, c = queue.popleft()
+                for dr, dc, _ in MOVES:
+                    v = (r + dr, c + dc)
+                    if 0 <= v[0] < ny and 0 <= v[1] < nx and p[v] and want[v] < 0:
+                        want[v] = want[r, c] + 1
+                        queue.append(v)
+        got = bfs_steps(p, start)
+        assert got.dtype == np.int32 and np.array_equal(got, want), trial
 
 
 @st.composite

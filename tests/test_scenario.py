@@ -6,6 +6,7 @@ import pathlib
 
 import numpy as np
 import pytest
+import shapely
 
 from world.geometry import footprint
 from world.scenario import (
@@ -87,6 +88,28 @@ def test_gap_hiding_spot_is_reachable_only_through_the_gap() -> None:
         pathlib.Path("world/scenarios/gap.toml").read_text()
         + "\n[[obstacles]]\nbox = [400, 300, 15, 35]\n", "gap-closed")
     assert not truth_raster(blocked).reachable[hy, hx]
+
+
+@pytest.mark.parametrize("resolution", [5.0, 3.0, 7.5])
+def test_the_truth_raster_marks_the_cells_whose_interior_an_obstacle_overlaps(
+        resolution: float) -> None:
+    """Every cell, decided from its centre or from its box, is occupied exactly when its
+    box (shrunk by 1e-6 cm, clipped to the room) intersects an obstacle: built-in rooms,
+    generated ones and a room whose size is no multiple of the cell."""
+    rooms = [load_scenario(name) for name in ("furniture", "l_shaped", "cluttered",
+                                              "round", "gap")]
+    rooms += [generate_scenario(11, i) for i in range(3)]
+    rooms.append(parse_scenario(GOOD.replace("size_cm = [600, 450]",
+                                             "size_cm = [601.3, 449.99]"), "odd"))
+    for s in rooms:
+        w, h = s.room_size
+        nx, ny = int(np.ceil(w / resolution)), int(np.ceil(h / resolution))
+        x0, y0 = np.meshgrid(np.arange(nx) * resolution, np.arange(ny) * resolution)
+        e = 1e-6
+        boxes = shapely.box(x0 + e, y0 + e, np.minimum(x0 + resolution, w) - e,
+                            np.minimum(y0 + resolution, h) - e)
+        want = shapely.intersects(shapely.union_all(list(s.obstacles)), boxes)
+        assert np.array_equal(truth_raster(s, resolution).occupied, want), s.name
 
 
 def test_corridor_is_barely_wider_than_a_rover() -> None:

@@ -17,6 +17,11 @@ from dataclasses import dataclass
 
 import pymunk
 
+try:  # Chipmunk's C functions, which pymunk's own properties and Space.step call
+    from pymunk._chipmunk_cffi import lib as _chipmunk
+except ImportError:  # a pymunk laid out otherwise: its public API alone
+    _chipmunk = None
+
 from world.geometry import Pose, boundary_segments, room_segments
 from world.params import DeviceParams
 
@@ -96,26 +101,63 @@ class Physics:
         rb = self.rovers[role]
         v = 0.5 * (left_cm_s + right_cm_s)
         omega = (right_cm_s - left_cm_s) / self.params.track_width_cm
-        a = rb.body.angle
+        if _chipmunk is None:
+            a = rb.body.angle
+        else:
+            a = _chipmunk.cpBodyGetAngle(rb.body._body)  # what `angle` reads
         if rb.commanded == (v, omega, a):
             return  # the control body already carries this (a rover at rest, mostly)
         rb.commanded = (v, omega, a)
         c = rb.control
-        c.velocity = (v * math.cos(a), v * math.sin(a))
-        c.angular_velocity = omega
+        velocity = (v * math.cos(a), v * math.sin(a))
+        if _chipmunk is None:
+            c.velocity = velocity
+            c.angular_velocity = omega
+        else:  # what pymunk's setters call, without their attribute machinery
+            _chipmunk.cpBodySetVelocity(c._body, velocity)
+            _chipmunk.cpBodySetAngularVelocity(c._body, omega)
 
     def step(self, dt: float) -> None:
-        """Advance the space by ``dt`` [s] in whole substeps."""
+        """Advance the space by ``dt`` [s] in whole substeps.
+
+        A substep is Chipmunk's own ``cpSpaceStep`` whenever pymunk's `Space.step` would
+        do nothing around it (no body to check, nothing added or removed later, no
+        post-step callback, not threaded: the rooms add every body before the first
+        step and install no collision handler); that wrapper costs as much again as
+        the step of three rovers in a room. Else, or where pymunk is laid out
+        otherwise, `Space.step` itself.
+        """
         n = max(1, round(dt / self.substep_s))
         h = dt / n
+        space = self.space
+        direct = self._direct_step()
         for _ in range(n):
-            self.space.step(h)
+            if direct is not None:
+                direct(space._space, h)
+            else:
+                space.step(h)
+
+    def _direct_step(self):  # noqa: ANN202 (a cffi function)
+        """Chipmunk's ``cpSpaceStep`` when pymunk's wrapper has nothing else to do."""
+        space = self.space
+        try:
+            idle = not (space._bodies_to_check or space._add_later or space._remove_later
+                        or space._post_step_callbacks or space._removed_shapes
+                        or space.threaded or space._locked)
+        except AttributeError:
+            return None
+        return _chipmunk.cpSpaceStep if idle and _chipmunk is not None else None
 
     def state(self, role: str) -> tuple[float, float, float]:
-        """x, y [cm] and heading [rad] (unwrapped) of a rover's body."""
+        """x, y [cm] and heading [rad] (unwrapped) of a rover's body: what its
+        ``position`` and ``angle`` read, from Chipmunk directly (no `Vec2d` made)."""
         b = self.rovers[role].body
-        x, y = b.position
-        return x, y, b.angle
+        if _chipmunk is None:
+            x, y = b.position
+            return x, y, b.angle
+        handle = b._body
+        v = _chipmunk.cpBodyGetPosition(handle)
+        return v.x, v.y, _chipmunk.cpBodyGetAngle(handle)
 
     def pose(self, role: str) -> Pose:
         """Ground-truth pose with the heading in [0, 360) [deg]."""

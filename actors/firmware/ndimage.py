@@ -91,7 +91,9 @@ def correlate1d(values: np.ndarray, weights: np.ndarray, axis: int, mode: str) -
         raise ValueError(f"weights must be a non-empty 1-D array, got shape {w.shape}")
     if not w.flags.contiguous:
         w = w.copy()
-    out = np.zeros(a.shape, dtype=a.dtype.name)  # what scipy's _get_output makes
+    # what scipy's _get_output makes (the dtype's name: native byte order; `name` is a
+    # Python property, so a native dtype is taken as it is)
+    out = np.zeros(a.shape, dtype=a.dtype if a.dtype.isnative else a.dtype.name)
     _nd_image.correlate1d(a, w, axis % a.ndim, out, _MODE_CODES[mode], 0.0, 0)
     return out
 

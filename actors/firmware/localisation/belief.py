@@ -163,8 +163,8 @@ def low_variance_resample(weights: np.ndarray, rng: np.random.Generator,
 
 
 def _weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
-    order = np.argsort(values, kind="stable")
-    cum = np.cumsum(weights[order])
+    order = values.argsort(kind="stable")  # the array methods: no wrapper per call
+    cum = weights[order].cumsum()
     k = int(np.searchsorted(cum, q * cum[-1], side="left"))
     return float(values[order][min(k, values.shape[0] - 1)])
 

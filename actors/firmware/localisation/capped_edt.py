@@ -35,6 +35,7 @@ Reference
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -65,11 +66,13 @@ def capped_distance(occupied: np.ndarray, resolution_cm: float, cap_cm: float) -
     return table.take(_squared_cells(occupied, k))
 
 
+@functools.lru_cache(maxsize=8)
 def _table(res: float, cap: float, k: int) -> np.ndarray | None:
     """The capped distance [cm] by squared offset ``q = dy**2 + dx**2`` for every offset
     within ``k`` cells (and the cap for every other ``q`` up to ``(k + 1)**2 + k**2``),
     as `distance_transform_edt` computes it; None when two offsets of one ``q`` give
-    different floats."""
+    different floats. Read-only, and made once per resolution and cap: a mapper's every
+    field has the same two, and making the table took about a quarter of a field."""
     steps = np.arange(k + 1)
     dy, dx = np.meshgrid(steps, steps, indexing="ij")
     q = (dy * dy + dx * dx).ravel()
@@ -77,6 +80,7 @@ def _table(res: float, cap: float, k: int) -> np.ndarray | None:
     value = np.minimum(np.sqrt(ay * ay + ax * ax), cap)
     table = np.full((k + 1) ** 2 + k * k + 1, float(cap))
     table[q] = value
+    table.flags.writeable = False
     return table if np.array_equal(table[q], value) else None
 
 

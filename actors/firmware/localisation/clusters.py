@@ -45,6 +45,7 @@ import math
 
 import numpy as np
 
+from actors.firmware.arrays import nonzero_2d
 from actors.firmware.ndimage import gaussian_filter1d
 
 __all__ = ["cluster_labels", "CELL_CM", "CELL_DEG", "SMOOTH_CELLS", "PEAK_FLOOR", "VALLEY",
@@ -76,6 +77,16 @@ position lattice [cells]."""
 
 _MODES = ("nearest", "nearest", "wrap")  # the heading axis is periodic
 _LINE_SAMPLES = 16
+_LINE_STEPS = np.linspace(0.0, 1.0, _LINE_SAMPLES)
+_LINE_STEPS.flags.writeable = False
+_PAIRS = np.array(np.triu_indices(MAX_PEAKS, 1))
+"""Every pair of modes (i < j < MAX_PEAKS) in np.triu_indices's order (read-only)."""
+_PAIRS.flags.writeable = False
+
+
+def _clip(values: np.ndarray, high: int) -> np.ndarray:
+    """``np.clip(values, 0, high)`` of integers, without its Python wrapper."""
+    return np.minimum(np.maximum(values, 0), high)
 
 
 def cluster_labels(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -89,19 +100,23 @@ def cluster_labels(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
     w = np.asarray(weights, dtype=float)
     nh = max(1, round(360.0 / CELL_DEG))
     pad = math.ceil(3 * SMOOTH_CELLS) + 1
-    x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
-    span = max(float(p[:, 0].max()) - x0, float(p[:, 1].max()) - y0)
+    # ufunc reductions and array methods, not numpy's Python wrappers round them: a
+    # clustering makes about a hundred numpy calls on a few hundred particles
+    low, high = np.minimum.reduce(p, axis=0), np.maximum.reduce(p, axis=0)
+    x0, y0 = float(low[0]), float(low[1])
+    span = max(float(high[0]) - x0, float(high[1]) - y0)
     cell = max(CELL_CM, span / max(math.sqrt(MAX_LATTICE_CELLS / nh) - 2 * pad, 1.0))
     gx = (p[:, 0] - x0) / cell + pad  # lattice coordinates [cells]
     gy = (p[:, 1] - y0) / cell + pad
     gh = (np.degrees(p[:, 2]) % 360.0) / (360.0 / nh)
     ix, iy = gx.astype(np.int64), gy.astype(np.int64)
     ih = gh.astype(np.int64) % nh
-    dens = _Density(ix, iy, ih, w, (int(ix.max()) + pad + 1, int(iy.max()) + pad + 1, nh))
+    dens = _Density(ix, iy, ih, w, (int(np.maximum.reduce(ix)) + pad + 1,
+                                    int(np.maximum.reduce(iy)) + pad + 1, nh))
     if dens.top <= 0.0:
         return np.zeros(p.shape[0], dtype=np.int64)
     coords, values = dens.peaks(PEAK_FLOOR * dens.top)
-    order = np.argsort(-values, kind="stable")[:MAX_PEAKS]
+    order = (-values).argsort(kind="stable")[:MAX_PEAKS]
     coords, values = coords[order].astype(float) + 0.5, values[order]
     comp = _join(dens, coords, values, VALLEY, nh)
     # nearest mode of each particle, heading wrapped [cells]
@@ -118,16 +133,16 @@ def _join(dens: _Density, coords: np.ndarray, values: np.ndarray, valley: float,
     k = coords.shape[0]
     if k == 1:
         return np.zeros(1, dtype=np.int64)
-    i, j = np.triu_indices(k, 1)
-    t = np.linspace(0.0, 1.0, _LINE_SAMPLES)[None, :, None]
+    pairs = _PAIRS[1] < k  # the pairs of np.triu_indices(k, 1), in its order
+    i, j = _PAIRS[0][pairs], _PAIRS[1][pairs]
+    t = _LINE_STEPS[None, :, None]
     a, b = coords[i][:, None, :], coords[j][:, None, :]
     d = b - a
     d[..., 2] = (d[..., 2] + nh / 2) % nh - nh / 2
     pts = np.floor(a + t * d).astype(np.int64)
     nx, ny, _ = dens.shape
-    line = dens.at(np.clip(pts[..., 0], 0, nx - 1), np.clip(pts[..., 1], 0, ny - 1),
-                   pts[..., 2] % nh)
-    joined = line.min(axis=1) >= valley * np.minimum(values[i], values[j])
+    line = dens.at(_clip(pts[..., 0], nx - 1), _clip(pts[..., 1], ny - 1), pts[..., 2] % nh)
+    joined = np.minimum.reduce(line, axis=1) >= valley * np.minimum(values[i], values[j])
     return _components(k, i[joined].tolist(), j[joined].tolist())
 
 
@@ -155,6 +170,57 @@ def _components(k: int, first: list[int], second: list[int]) -> np.ndarray:
                     dtype=np.int64)
 
 
+def _sorted_unique(values: np.ndarray, bound: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(values, return_inverse=True)`` for non-negative ints below ``bound``,
+    by marking a table of ``bound`` cells instead of sorting (the lattice bounds every
+    key here to a few ten thousand, and a sort of the particles' keys cost more)."""
+    mark = np.zeros(bound, dtype=np.intp)
+    mark[values] = 1
+    unique = mark.nonzero()[0]
+    mark[unique] = np.arange(unique.size)
+    return unique, mark[values]
+
+
+def _heading_pass(row: np.ndarray, h: np.ndarray, value: np.ndarray, lines: int,
+                  nh: int) -> np.ndarray:
+    """``gaussian_filter1d`` along the heading (wrapped) of the (lines, nh) array that
+    holds ``value`` at ``(row, h)`` and zeros elsewhere, filtering only the headings
+    where the result can be non-zero.
+
+    The particles' headings usually cover part of the circle, and every line carries
+    weight at those headings only. The result is non-zero only within the filter's
+    radius of them: the shortest arc holding every heading with weight, widened by the
+    radius on both sides. That arc is filtered alone with zeros beyond its ends (mode
+    ``constant``): each of its cells sums the same products in the same order as on the
+    whole line (what lies beyond the arc is zero on the line too), and every cell off
+    the arc is exactly zero on the line as well. Where the arc spans the circle the
+    whole lines are filtered, wrapped.
+    """
+    if h.size == 0:
+        return np.zeros((lines, nh))  # no weight: what the filter leaves of zeros
+    radius = int(4.0 * SMOOTH_CELLS + 0.5)  # gaussian_filter1d's kernel radius [cells]
+    used = np.zeros(nh, dtype=bool)
+    used[h] = True
+    cols = used.nonzero()[0]
+    gaps = np.diff(cols, append=cols[0] + nh)  # from each heading to the next one with weight
+    widest = int(gaps.argmax())
+    start = int(cols[(widest + 1) % cols.size]) - radius
+    width = nh - int(gaps[widest]) + 1 + 2 * radius
+    if width >= nh:
+        d = np.zeros((lines, nh))
+        d[row, h] = value
+        return gaussian_filter1d(d, SMOOTH_CELLS, axis=1, mode=_MODES[2])
+    start %= nh
+    arc = np.zeros((lines, width))
+    arc[row, (h - start) % nh] = value
+    arc = gaussian_filter1d(arc, SMOOTH_CELLS, axis=1, mode="constant")
+    d = np.zeros((lines, nh))
+    head = min(width, nh - start)
+    d[:, start:start + head] = arc[:, :head]
+    d[:, :width - head] = arc[:, head:]
+    return d
+
+
 class _Density:
     """The smoothed weight density on the lattice, stored by its lines that carry weight.
 
@@ -164,6 +230,10 @@ class _Density:
     line without weight stays zero. So each pass filters only the lines that carry
     weight (the particles' lines along x, then the lines along y that the first pass
     reached, then those along the heading), whole, with the same boundary modes.
+
+    A density is read through a table of the (nx, ny) cells (at most
+    ``MAX_LATTICE_CELLS / 72``) giving each cell's stored heading line, or a zero line
+    kept after the stored ones: one gather per read, no search.
 
     Why: the lattice is bounded by the particles' extent (up to ``MAX_LATTICE_CELLS``),
     and a belief spread over a room holds a few hundred occupied cells in a million;
@@ -180,37 +250,35 @@ class _Density:
         nx, ny, nh = shape
         self.shape = shape
         # pass 1, along x: the lines (y, h) holding particles, as columns of (nx, n)
-        yh, col = np.unique(iy * nh + ih, return_inverse=True)
+        yh, col = _sorted_unique(iy * nh + ih, ny * nh)
         ys, hs = np.divmod(yh, nh)
         a = np.zeros((nx, yh.size))
         np.add.at(a.reshape(-1), ix * yh.size + col, w)
         a = gaussian_filter1d(a, SMOOTH_CELLS, axis=0, mode=_MODES[0])
         # pass 2, along y: the lines (x, h) where pass 1 left a value, as rows of (n, ny)
-        r, c = np.nonzero(a)
-        xh = r * nh + hs[c]
-        lines = np.unique(xh)
+        r, c = nonzero_2d(a)
+        lines, row = _sorted_unique(r * nh + hs[c], nx * nh)
         b = np.zeros((lines.size, ny))
-        b[np.searchsorted(lines, xh), ys[c]] = a[r, c]
+        b[row, ys[c]] = a[r, c]
         b = gaussian_filter1d(b, SMOOTH_CELLS, axis=1, mode=_MODES[1])
         xs, hs = np.divmod(lines, nh)
-        # pass 3, along the heading: the lines (x, y) where pass 2 left a value
-        r, c = np.nonzero(b)
-        xy = xs[r] * ny + c
-        self._xy = np.unique(xy)
+        # pass 3, along the heading: the lines (x, y) where pass 2 left a value, and after
+        # them one line of zeros, where the table sends every cell without a line
+        r, c = nonzero_2d(b)
+        xy, row = _sorted_unique(xs[r] * ny + c, nx * ny)
+        self._xy = xy
         """Flat (x, y) of the stored heading lines, ascending."""
-        d = np.zeros((self._xy.size, nh))
-        d[np.searchsorted(self._xy, xy), hs[r]] = b[r, c]
-        self._d = gaussian_filter1d(d, SMOOTH_CELLS, axis=1, mode=_MODES[2])
-        """The density along each stored line: (lines, nh)."""
-        self.top = float(self._d.max()) if self._d.size else 0.0
+        self._d = _heading_pass(row, hs[r], b[r, c], xy.size + 1, nh)
+        """The density along each stored line, then the zero line: (lines + 1, nh)."""
+        self._line = np.full(nx * ny, xy.size, dtype=np.intp)
+        """Each (x, y) cell's line in ``_d`` (flat), the zero line where none is stored."""
+        self._line[xy] = np.arange(xy.size)
+        self.top = float(np.maximum.reduce(self._d, axis=None))
         """The highest density (0 when there is no weight)."""
 
     def at(self, x: np.ndarray, y: np.ndarray, h: np.ndarray) -> np.ndarray:
         """The density at lattice cells (on the lattice; any shape); 0 off the stored lines."""
-        ny = self.shape[1]
-        key = x * ny + y
-        j = np.minimum(np.searchsorted(self._xy, key), self._xy.size - 1)
-        return np.where(self._xy[j] == key, self._d[j, h], 0.0)
+        return self._d[self._line[x * self.shape[1] + y], h]
 
     def peaks(self, floor: float) -> tuple[np.ndarray, np.ndarray]:
         """Local maxima at or above ``floor``: their cells (K, 3) in row-major order and
@@ -218,13 +286,22 @@ class _Density:
         ``dens >= floor`` selects them (a cell is a maximum when no cell of its 3 x 3 x 3
         window, clamped at the edges in x and y and wrapped in the heading, is higher)."""
         nx, ny, nh = self.shape
-        j, h = np.nonzero(self._d >= floor)  # stored lines ascend: row-major order
+        stored = self._d[:-1]
+        j, h = nonzero_2d(stored >= floor)  # stored lines ascend: row-major order
+        value = stored[j, h]
+        # the window holds the cell's two heading neighbours on its own line: a cell below
+        # either is no maximum, and is not looked up in the whole window
+        up = h + 1
+        up[up == nh] = 0
+        down = h - 1
+        down[down < 0] = nh - 1
+        line = (value >= stored[j, up]) & (value >= stored[j, down])
+        j, h, value = j[line], h[line], value[line]
         x, y = np.divmod(self._xy[j], ny)
-        value = self._d[j, h]
         step = np.array([-1, 0, 1])
-        wx = np.clip(x[:, None] + step, 0, nx - 1)[:, :, None, None]
-        wy = np.clip(y[:, None] + step, 0, ny - 1)[:, None, :, None]
+        wx = _clip(x[:, None] + step, nx - 1)[:, :, None, None]
+        wy = _clip(y[:, None] + step, ny - 1)[:, None, :, None]
         wh = ((h[:, None] + step) % nh)[:, None, None, :]
         window = self.at(wx, wy, wh).reshape(x.size, -1)
         keep = value >= np.maximum.reduce(window, axis=1)
-        return np.stack([x, y, h], axis=1)[keep], value[keep]
+        return np.array([x, y, h]).T[keep], value[keep]

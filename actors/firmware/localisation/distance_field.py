@@ -188,6 +188,14 @@ class DistanceField:
         flat, inside = self._cell(x, y)
         return inside & (self.distance_cm.reshape(-1)[flat] == 0.0)
 
+    def cell_farther_than(self, x: np.ndarray, y: np.ndarray, radius_cm: float
+                          ) -> np.ndarray:
+        """Whether the cell holding each point (x, y) [cm] lies on the window with its
+        centre farther than ``radius_cm`` from every occupied cell's centre (False off
+        the window, and where the cap is not beyond ``radius_cm``)."""
+        flat, inside = self._cell(x, y)
+        return inside & (self.distance_cm.reshape(-1)[flat] > radius_cm)
+
     def known_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whether the cell holding each point (x, y) [cm] is known (False off the grid)."""
         flat, inside = self._cell(x, y)

@@ -226,8 +226,11 @@ def bfs_steps(passable: np.ndarray, start: tuple[int, int]) -> np.ndarray:
     """
     ny, nx = passable.shape
     w = nx + 2
-    pas = pad_border(np.asarray(passable, dtype=bool)).ravel()
-    dist = np.full(pas.size, -1, dtype=np.int32)
+    pas = pad_border(np.asarray(passable, dtype=bool))
+    # one array for "passable and not reached yet" (-1) and the steps: the blocked cells
+    # (the border too) hold a count no search reaches, and read -1 at the end
+    blocked = np.iinfo(np.int32).max
+    dist = np.where(pas, np.int32(-1), np.int32(blocked)).ravel()
     r, c = start
     if 0 <= r < ny and 0 <= c < nx and passable[r, c]:
         offsets = np.array([dr * w + dc for dr, dc, _ in MOVES], dtype=np.int64)
@@ -235,14 +238,16 @@ def bfs_steps(passable: np.ndarray, start: tuple[int, int]) -> np.ndarray:
         dist[front] = 0
         # the next layer's cells, once each, without sorting: each candidate writes its
         # position in `slot`, and the one whose position stays there is kept
-        slot = np.zeros(pas.size, dtype=np.int64)
+        slot = np.zeros(dist.size, dtype=np.int64)
         step = 0
         while front.size:
             step += 1
             cand = (front[:, None] + offsets[None, :]).ravel()
-            cand = cand[pas[cand] & (dist[cand] < 0)]
+            cand = cand[dist[cand] < 0]
             dist[cand] = step  # duplicates write the same value
             pos = np.arange(cand.size)
             slot[cand] = pos
             front = cand[slot[cand] == pos]
-    return dist.reshape(ny + 2, w)[1:-1, 1:-1].copy()
+    out = dist.reshape(ny + 2, w)[1:-1, 1:-1].copy()
+    out[out == blocked] = -1
+    return out

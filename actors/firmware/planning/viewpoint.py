@@ -68,7 +68,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.arrays import pad_border
+from actors.firmware.arrays import nonzero_2d, pad_border
 from actors.firmware.planning.frontier import steps_from
 from actors.firmware.planning.planner import inflate
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
@@ -393,7 +393,7 @@ def _spread(mask: np.ndarray, most: int, anchor: tuple[int, int]
     the blocks growing until few enough are left. Why blocks: a room's face is mostly
     ragged edges along walls, and cells taken evenly along the list would miss a short
     frontier; every part of the face gets its sample."""
-    rows, cols = np.nonzero(mask)
+    rows, cols = nonzero_2d(mask)
     side = max(1, math.isqrt(rows.size // max(1, most)))  # blocks of side^2 cells hold
     # at least one each, so fewer sides are never enough
     if rows.size > most:
@@ -432,7 +432,7 @@ def _gains(field: FaceField, cand: np.ndarray, max_incidence_deg: float
     first = np.argmax(seen != _CODE_FREE, axis=2)  # the first cell that is not free
     n, rays = first.shape
     entry = np.take_along_axis(seen, first[..., None], axis=2)[..., 0]
-    who, ray = np.nonzero((entry & _KIND) == _CODE_FACE)  # rays entering the face
+    who, ray = nonzero_2d((entry & _KIND) == _CODE_FACE)  # rays entering the face
     first = first[who, ray]
     # the entry cell's normal: a face cell lies inside the crop
     hit = base[who] + offsets[ray, first]
