@@ -46,6 +46,14 @@ def test_nonzero_2d_gives_np_nonzeros_rows_and_columns(shape: tuple[int, int]) -
                                                                                     strict=True))
 
 
+def test_nonzero_2d_counts_nan_and_not_negative_zero_as_np_nonzero_does() -> None:
+    a = np.array([[0.0, -0.0, np.nan], [np.inf, 1e-320, -2.0]])
+    for values in (a, a.astype(np.float32), np.array([[0, -1, 2], [0, 0, 7]])):
+        want = np.nonzero(values)
+        got = nonzero_2d(values)
+        assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
+
+
 def test_nonzero_2d_refuses_other_shapes() -> None:
     with pytest.raises(ValueError, match="2-D"):
         nonzero_2d(np.ones(4))

@@ -18,6 +18,7 @@ from actors.firmware.localisation.clusters import (
     _components,
     _Density,
     _heading_pass,
+    _wrapped,
     cluster_labels,
 )
 
@@ -86,6 +87,29 @@ def test_the_density_and_its_peaks_equal_scipys_filters_on_the_whole_lattice() -
         assert np.array_equal(got, coords) and np.array_equal(got_values, values)
 
 
+def test_a_zero_floor_finds_every_positive_peak() -> None:
+    rng = np.random.default_rng(2)
+    p = np.column_stack([rng.normal(0, 3, 30), rng.normal(0, 3, 30),
+                         rng.normal(3.0, 0.1, 30)])
+    w = rng.random(30)
+    dens, _, _, (ix, iy, ih) = _dense_modes(p, w)
+    d = _Density(ix, iy, ih, w, dens.shape)
+    peak = (dens == maximum_filter(dens, size=3, mode=("nearest", "nearest", "wrap"))) \
+        & (dens > 0)
+    got, got_values = d.peaks(0.0)
+    assert np.array_equal(got, np.argwhere(peak)) and np.array_equal(got_values, dens[peak])
+
+
+def test_the_wrapped_heading_difference_is_numpys_remainder() -> None:
+    rng = np.random.default_rng(4)
+    nh = 72
+    gh = np.concatenate([rng.uniform(0, nh, 4000), [0.0, 36.0, 71.5, 72.0 - 1e-12, 35.5]])
+    modes = np.concatenate([rng.integers(0, nh, 30) + 0.5, [0.5, 71.5, 36.5]])
+    dh = np.subtract.outer(gh, modes)
+    want = (dh + nh / 2) % nh - nh / 2
+    assert np.array_equal(_wrapped(dh.copy(), nh), want)
+
+
 def test_particles_without_weight_are_one_hypothesis() -> None:
     p = np.array([[0.0, 0.0, 0.0], [100.0, 0.0, 1.0]])
     assert cluster_labels(p, np.zeros(2)).tolist() == [0, 0]
@@ -94,8 +118,8 @@ def test_particles_without_weight_are_one_hypothesis() -> None:
 
 def test_the_heading_pass_equals_the_wrapped_filter_of_whole_lines() -> None:
     """Filtering only the arc of headings that can carry density gives the floats of
-    the whole wrapped lines: arcs across heading 0, inside the circle, a single heading,
-    arcs just short of and over the whole circle."""
+    the whole wrapped lines, read through the heading table: arcs across heading 0,
+    inside the circle, a single heading, arcs just short of and over the whole circle."""
     rng = np.random.default_rng(5)
     nh = 72
     for first, span in [(70, 5), (0, 0), (30, 12), (66, 40), (10, 54), (3, 62), (3, 63), (5, 71)]:
@@ -109,4 +133,6 @@ def test_the_heading_pass_equals_the_wrapped_filter_of_whole_lines() -> None:
         whole = np.zeros((lines, nh))
         whole[row, h] = value
         want = gaussian_filter1d(whole, SMOOTH_CELLS, axis=1, mode="wrap")
-        assert np.array_equal(_heading_pass(row, h, value, lines, nh), want)
+        d, col = _heading_pass(row, h, value, lines, nh)
+        assert np.array_equal(d[:, col], want)
+        assert d.shape[1] <= nh + 1

@@ -26,7 +26,8 @@ from types import ModuleType
 
 import numpy as np
 
-__all__ = ["correlate1d", "gaussian_filter1d", "label", "distance_transform_edt", "KERNELS"]
+__all__ = ["correlate1d", "gaussian_filter1d", "gaussian_weights", "label",
+           "distance_transform_edt", "KERNELS"]
 
 _MODE_CODES = {"nearest": 0, "wrap": 1, "reflect": 2, "grid-mirror": 2, "mirror": 3,
                "constant": 4, "grid-wrap": 1, "grid-constant": 4}
@@ -98,17 +99,28 @@ def correlate1d(values: np.ndarray, weights: np.ndarray, axis: int, mode: str) -
     return out
 
 
+def gaussian_weights(sigma: float) -> np.ndarray:
+    """The weights ``scipy.ndimage.gaussian_filter1d`` (order 0, truncated at 4 sigma)
+    correlates with, computed as scipy computes them: a new contiguous array.
+
+    ``correlate1d(values, gaussian_weights(sigma), axis, mode)`` is
+    `gaussian_filter1d`'s result; a caller that filters often with one sigma keeps the
+    weights instead of computing them for every call.
+    """
+    radius = int(4.0 * float(sigma) + 0.5)
+    x = np.arange(-radius, radius + 1)
+    phi = np.exp(-0.5 / (sigma * sigma) * x ** 2)
+    phi = phi / phi.sum()
+    return phi[::-1].copy()
+
+
 def gaussian_filter1d(values: np.ndarray, sigma: float, axis: int, mode: str) -> np.ndarray:
     """``scipy.ndimage.gaussian_filter1d(values, sigma, axis, mode=mode)`` (order 0,
     truncated at 4 sigma), its kernel computed as scipy computes it."""
     if not KERNELS:
         from scipy import ndimage  # noqa: PLC0415
         return ndimage.gaussian_filter1d(values, sigma, axis=axis, mode=mode)
-    radius = int(4.0 * float(sigma) + 0.5)
-    x = np.arange(-radius, radius + 1)
-    phi = np.exp(-0.5 / (sigma * sigma) * x ** 2)
-    phi = phi / phi.sum()
-    return correlate1d(values, phi[::-1], axis, mode)
+    return correlate1d(values, gaussian_weights(sigma), axis, mode)
 
 
 def label(mask: np.ndarray, structure: np.ndarray) -> tuple[np.ndarray, int]:

@@ -46,7 +46,7 @@ import math
 import numpy as np
 
 from actors.firmware.arrays import nonzero_2d
-from actors.firmware.ndimage import gaussian_filter1d
+from actors.firmware.ndimage import correlate1d, gaussian_weights
 
 __all__ = ["cluster_labels", "CELL_CM", "CELL_DEG", "SMOOTH_CELLS", "PEAK_FLOOR", "VALLEY",
            "MAX_PEAKS", "MAX_LATTICE_CELLS"]
@@ -76,12 +76,24 @@ position lattice [cells]."""
 
 
 _MODES = ("nearest", "nearest", "wrap")  # the heading axis is periodic
+_KERNEL = gaussian_weights(SMOOTH_CELLS)
+"""``gaussian_filter1d``'s weights for ``SMOOTH_CELLS`` (read-only): computed once, not
+for every pass of every clustering."""
+_KERNEL.flags.writeable = False
+_RADIUS = (_KERNEL.size - 1) // 2
+"""The kernel's radius [cells]."""
 _LINE_SAMPLES = 16
 _LINE_STEPS = np.linspace(0.0, 1.0, _LINE_SAMPLES)
 _LINE_STEPS.flags.writeable = False
 _PAIRS = np.array(np.triu_indices(MAX_PEAKS, 1))
 """Every pair of modes (i < j < MAX_PEAKS) in np.triu_indices's order (read-only)."""
 _PAIRS.flags.writeable = False
+
+
+def _smooth(values: np.ndarray, axis: int, mode: str) -> np.ndarray:
+    """``gaussian_filter1d(values, SMOOTH_CELLS, axis, mode=mode)``: the same weights,
+    the same kernel."""
+    return correlate1d(values, _KERNEL, axis, mode)
 
 
 def _clip(values: np.ndarray, high: int) -> np.ndarray:
@@ -119,12 +131,30 @@ def cluster_labels(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
     order = (-values).argsort(kind="stable")[:MAX_PEAKS]
     coords, values = coords[order].astype(float) + 0.5, values[order]
     comp = _join(dens, coords, values, VALLEY, nh)
+    if not comp.any():  # one hypothesis: every particle's nearest mode is in it
+        return np.zeros(p.shape[0], dtype=np.int64)
     # nearest mode of each particle, heading wrapped [cells]
-    dx = gx[:, None] - coords[None, :, 0]
-    dy = gy[:, None] - coords[None, :, 1]
-    dh = (gh[:, None] - coords[None, :, 2] + nh / 2) % nh - nh / 2
-    nearest = np.argmin(dx * dx + dy * dy + dh * dh, axis=1)
-    return comp[nearest]
+    dx = np.subtract.outer(gx, coords[:, 0])
+    dy = np.subtract.outer(gy, coords[:, 1])
+    dh = _wrapped(np.subtract.outer(gh, coords[:, 2]), nh)
+    dx *= dx
+    dy *= dy
+    dh *= dh
+    dx += dy
+    dx += dh
+    return comp[dx.argmin(axis=1)]
+
+
+def _wrapped(dh: np.ndarray, nh: int) -> np.ndarray:
+    """``(dh + nh / 2) % nh - nh / 2`` for heading differences ``dh`` in ``(-nh, nh)``
+    [cells], in place, the same floats: ``x = dh + nh / 2`` lies in ``(-nh, 2 nh)``, where
+    ``x % nh`` is ``x - nh`` (exact) at or above ``nh``, ``x + nh`` below zero and ``x``
+    between (what numpy's floating remainder computes there), without its division."""
+    dh += nh / 2
+    dh -= np.multiply(dh >= nh, nh, dtype=float)
+    dh += np.multiply(dh < 0.0, nh, dtype=float)
+    dh -= nh / 2
+    return dh
 
 
 def _join(dens: _Density, coords: np.ndarray, values: np.ndarray, valley: float,
@@ -182,43 +212,42 @@ def _sorted_unique(values: np.ndarray, bound: int) -> tuple[np.ndarray, np.ndarr
 
 
 def _heading_pass(row: np.ndarray, h: np.ndarray, value: np.ndarray, lines: int,
-                  nh: int) -> np.ndarray:
+                  nh: int) -> tuple[np.ndarray, np.ndarray]:
     """``gaussian_filter1d`` along the heading (wrapped) of the (lines, nh) array that
     holds ``value`` at ``(row, h)`` and zeros elsewhere, filtering only the headings
-    where the result can be non-zero.
+    where the result can be non-zero, and kept on those: ``(d, col)`` with ``d[:, col]``
+    the filtered (lines, nh) array, ``col`` (nh,) each heading's column of ``d``.
 
     The particles' headings usually cover part of the circle, and every line carries
     weight at those headings only. The result is non-zero only within the filter's
     radius of them: the shortest arc holding every heading with weight, widened by the
     radius on both sides. That arc is filtered alone with zeros beyond its ends (mode
-    ``constant``): each of its cells sums the same products in the same order as on the
-    whole line (what lies beyond the arc is zero on the line too), and every cell off
-    the arc is exactly zero on the line as well. Where the arc spans the circle the
-    whole lines are filtered, wrapped.
+    ``constant``), one column of zeros after it: each of its cells sums the same products
+    in the same order as on the whole line (what lies beyond the arc is zero on the line
+    too), and every cell off the arc is exactly zero on the line as well, so every
+    heading off the arc reads the zero column (``col``). Where the arc spans the circle
+    the whole lines are filtered, wrapped, and ``col`` is the identity.
     """
-    if h.size == 0:
-        return np.zeros((lines, nh))  # no weight: what the filter leaves of zeros
-    radius = int(4.0 * SMOOTH_CELLS + 0.5)  # gaussian_filter1d's kernel radius [cells]
+    if h.size == 0:  # no weight: what the filter leaves of zeros
+        return np.zeros((lines, 1)), np.zeros(nh, dtype=np.intp)
     used = np.zeros(nh, dtype=bool)
     used[h] = True
     cols = used.nonzero()[0]
-    gaps = np.diff(cols, append=cols[0] + nh)  # from each heading to the next one with weight
+    gaps = np.empty_like(cols)  # from each heading with weight to the next one
+    gaps[:-1] = cols[1:] - cols[:-1]
+    gaps[-1] = cols[0] + nh - cols[-1]
     widest = int(gaps.argmax())
-    start = int(cols[(widest + 1) % cols.size]) - radius
-    width = nh - int(gaps[widest]) + 1 + 2 * radius
+    start = int(cols[(widest + 1) % cols.size]) - _RADIUS
+    width = nh - int(gaps[widest]) + 1 + 2 * _RADIUS
     if width >= nh:
         d = np.zeros((lines, nh))
-        d[row, h] = value
-        return gaussian_filter1d(d, SMOOTH_CELLS, axis=1, mode=_MODES[2])
-    start %= nh
-    arc = np.zeros((lines, width))
-    arc[row, (h - start) % nh] = value
-    arc = gaussian_filter1d(arc, SMOOTH_CELLS, axis=1, mode="constant")
-    d = np.zeros((lines, nh))
-    head = min(width, nh - start)
-    d[:, start:start + head] = arc[:, :head]
-    d[:, :width - head] = arc[:, head:]
-    return d
+        d.reshape(-1)[row * nh + h] = value
+        return _smooth(d, 1, _MODES[2]), np.arange(nh)
+    col = np.full(nh, width, dtype=np.intp)  # off the arc: the zero column
+    col[(start + np.arange(width)) % nh] = np.arange(width)
+    d = np.zeros((lines, width + 1))
+    d.reshape(-1)[row * (width + 1) + col[h]] = value
+    return _smooth(d, 1, "constant"), col
 
 
 class _Density:
@@ -229,11 +258,13 @@ class _Density:
     `gaussian_filter1d` along each axis in turn, each lattice line on its own, and a
     line without weight stays zero. So each pass filters only the lines that carry
     weight (the particles' lines along x, then the lines along y that the first pass
-    reached, then those along the heading), whole, with the same boundary modes.
+    reached, then those along the heading, on the arc of headings that can be
+    non-zero: `_heading_pass`), with the same boundary modes.
 
     A density is read through a table of the (nx, ny) cells (at most
     ``MAX_LATTICE_CELLS / 72``) giving each cell's stored heading line, or a zero line
-    kept after the stored ones: one gather per read, no search.
+    kept after the stored ones, and a table of the headings giving each one's stored
+    column, or a zero column: one gather per read, no search.
 
     Why: the lattice is bounded by the particles' extent (up to ``MAX_LATTICE_CELLS``),
     and a belief spread over a room holds a few hundred occupied cells in a million;
@@ -254,13 +285,13 @@ class _Density:
         ys, hs = np.divmod(yh, nh)
         a = np.zeros((nx, yh.size))
         np.add.at(a.reshape(-1), ix * yh.size + col, w)
-        a = gaussian_filter1d(a, SMOOTH_CELLS, axis=0, mode=_MODES[0])
+        a = _smooth(a, 0, _MODES[0])
         # pass 2, along y: the lines (x, h) where pass 1 left a value, as rows of (n, ny)
         r, c = nonzero_2d(a)
         lines, row = _sorted_unique(r * nh + hs[c], nx * nh)
         b = np.zeros((lines.size, ny))
         b[row, ys[c]] = a[r, c]
-        b = gaussian_filter1d(b, SMOOTH_CELLS, axis=1, mode=_MODES[1])
+        b = _smooth(b, 1, _MODES[1])
         xs, hs = np.divmod(lines, nh)
         # pass 3, along the heading: the lines (x, y) where pass 2 left a value, and after
         # them one line of zeros, where the table sends every cell without a line
@@ -268,8 +299,9 @@ class _Density:
         xy, row = _sorted_unique(xs[r] * ny + c, nx * ny)
         self._xy = xy
         """Flat (x, y) of the stored heading lines, ascending."""
-        self._d = _heading_pass(row, hs[r], b[r, c], xy.size + 1, nh)
-        """The density along each stored line, then the zero line: (lines + 1, nh)."""
+        self._d, self._col = _heading_pass(row, hs[r], b[r, c], xy.size + 1, nh)
+        """The density along each stored line, then the zero line: (lines + 1, columns);
+        each heading's column (nh,)."""
         self._line = np.full(nx * ny, xy.size, dtype=np.intp)
         """Each (x, y) cell's line in ``_d`` (flat), the zero line where none is stored."""
         self._line[xy] = np.arange(xy.size)
@@ -278,25 +310,33 @@ class _Density:
 
     def at(self, x: np.ndarray, y: np.ndarray, h: np.ndarray) -> np.ndarray:
         """The density at lattice cells (on the lattice; any shape); 0 off the stored lines."""
-        return self._d[self._line[x * self.shape[1] + y], h]
+        return self._d[self._line[x * self.shape[1] + y], self._col[h]]
 
     def peaks(self, floor: float) -> tuple[np.ndarray, np.ndarray]:
-        """Local maxima at or above ``floor``: their cells (K, 3) in row-major order and
-        their densities, as ``dens == maximum_filter(dens, size=3, mode=_MODES)`` with
-        ``dens >= floor`` selects them (a cell is a maximum when no cell of its 3 x 3 x 3
-        window, clamped at the edges in x and y and wrapped in the heading, is higher)."""
+        """Local maxima with a positive density at or above ``floor``: their cells (K, 3)
+        in row-major order and their densities, as ``dens == maximum_filter(dens,
+        size=3, mode=_MODES)`` with ``dens >= floor`` and ``dens > 0`` selects them (a
+        cell is a maximum when no cell of its 3 x 3 x 3 window, clamped at the edges in x
+        and y and wrapped in the heading, is higher)."""
         nx, ny, nh = self.shape
+        col = self._col
+        head = np.empty(self._d.shape[1], dtype=np.intp)  # each stored column's heading
+        head[col] = np.arange(nh)  # (the zero column's is any heading off the arc)
         stored = self._d[:-1]
-        j, h = nonzero_2d(stored >= floor)  # stored lines ascend: row-major order
-        value = stored[j, h]
+        j, c = nonzero_2d(stored >= floor if floor > 0.0 else stored > 0.0)
+        value = stored[j, c]
+        h = head[c]
         # the window holds the cell's two heading neighbours on its own line: a cell below
         # either is no maximum, and is not looked up in the whole window
         up = h + 1
         up[up == nh] = 0
         down = h - 1
         down[down < 0] = nh - 1
-        line = (value >= stored[j, up]) & (value >= stored[j, down])
+        line = (value >= stored[j, col[up]]) & (value >= stored[j, col[down]])
         j, h, value = j[line], h[line], value[line]
+        # row-major order (stored lines ascend; an arc's columns may pass heading 0)
+        order = (j * nh + h).argsort()
+        j, h, value = j[order], h[order], value[order]
         x, y = np.divmod(self._xy[j], ny)
         step = np.array([-1, 0, 1])
         wx = _clip(x[:, None] + step, nx - 1)[:, :, None, None]
