@@ -89,41 +89,131 @@ class BeliefOptions:
                              f"{self.particles!r}")
 
 
-@dataclass(frozen=True, slots=True)
 class Cluster:
-    """One hypothesis of the belief: a connected group of particles."""
+    """One hypothesis of the belief: a connected group of particles (read-only).
 
-    weight: float
-    """Share of the belief's weight [1]."""
-    pose: Pose
-    """Weighted mean pose of the group (map frame)."""
-    radius95_cm: float
-    """Radius round ``pose`` holding 95 % of the group's weight [cm]."""
-    heading95_deg: float
-    """Heading deviation from ``pose`` holding 95 % of the group's weight [deg]."""
+    Its weight and mean pose are computed with it, its 95 % spread when first read, from
+    the group's particles as they were (the belief replaces its arrays, it never writes
+    into them). Why: navigation reads the heaviest hypothesis's pose after every update
+    that may split the belief, and the spreads (a sort of the group each) rarely.
+
+    Args:
+        particles: (n, 3) the group's particles.
+        weights: (n,) their weights, not normalised (a positive sum).
+        weight: the group's share of the belief's weight [1].
+    """
+
+    __slots__ = ("_weight", "_pose", "_p", "_wn", "_mean", "_radius95", "_heading95")
+
+    def __init__(self, particles: np.ndarray, weights: np.ndarray, weight: float) -> None:
+        p = particles
+        wn = weights / weights.sum()
+        heading = math.atan2(float(wn @ np.sin(p[:, 2])), float(wn @ np.cos(p[:, 2])))
+        x, y = float(wn @ p[:, 0]), float(wn @ p[:, 1])
+        self._weight = weight
+        self._pose = Pose(x, y, math.degrees(heading))
+        self._p, self._wn, self._mean = p, wn, (x, y, heading)
+        self._radius95: float | None = None
+        self._heading95: float | None = None
+
+    @property
+    def weight(self) -> float:
+        """Share of the belief's weight [1]."""
+        return self._weight
+
+    @property
+    def pose(self) -> Pose:
+        """Weighted mean pose of the group (map frame)."""
+        return self._pose
+
+    @property
+    def radius95_cm(self) -> float:
+        """Radius round ``pose`` holding 95 % of the group's weight [cm]."""
+        if self._radius95 is None:
+            p, (x, y, _) = self._p, self._mean
+            self._radius95 = _weighted_quantile(np.hypot(p[:, 0] - x, p[:, 1] - y), self._wn,
+                                                0.95)
+        return self._radius95
+
+    @property
+    def heading95_deg(self) -> float:
+        """Heading deviation from ``pose`` holding 95 % of the group's weight [deg]."""
+        if self._heading95 is None:
+            off = np.abs(_wrap(self._p[:, 2] - self._mean[2]))
+            self._heading95 = math.degrees(_weighted_quantile(off, self._wn, 0.95))
+        return self._heading95
 
 
-@dataclass(frozen=True, slots=True, eq=False)
 class Spread:
-    """What the belief publishes: where the rover is and how sure it is."""
+    """What the belief publishes: where the rover is and how sure it is (read-only).
 
-    pose: Pose
-    """Weighted mean pose (map frame); between the clusters when there are several."""
-    covariance: np.ndarray
-    """3 x 3 covariance of (x [cm], y [cm], heading [rad]), read-only."""
-    radius95_cm: float
-    """Radius round ``pose`` holding 95 % of the weight [cm]."""
-    heading95_deg: float
-    """Heading deviation from ``pose`` holding 95 % of the weight [deg]."""
-    clusters: tuple[Cluster, ...]
-    """The hypotheses, heaviest first (one when the belief is single-moded)."""
-    ess: float
-    """Effective sample size ``1 / sum(w**2)`` [particles]."""
+    The hypotheses and the effective sample size are computed with it; the mean, the
+    covariance and the 95 % radius and heading when first read (together: they share
+    the particles' offsets from the mean), from the particles as they were, as
+    `Cluster`'s spreads are.
+
+    Args:
+        particles: (N, 3) the belief's particles.
+        weights: (N,) their normalised weights.
+        clusters: the hypotheses, heaviest first.
+    """
+
+    __slots__ = ("_p", "_w", "_clusters", "_ess", "_whole")
+
+    def __init__(self, particles: np.ndarray, weights: np.ndarray,
+                 clusters: tuple[Cluster, ...]) -> None:
+        self._p, self._w = particles, weights
+        self._clusters = clusters
+        self._ess = float(1.0 / np.dot(weights, weights))
+        self._whole: tuple[Pose, np.ndarray, float, float] | None = None
+
+    @property
+    def pose(self) -> Pose:
+        """Weighted mean pose (map frame); between the clusters when there are several."""
+        return self._spread()[0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """3 x 3 covariance of (x [cm], y [cm], heading [rad]), read-only."""
+        return self._spread()[1]
+
+    @property
+    def radius95_cm(self) -> float:
+        """Radius round ``pose`` holding 95 % of the weight [cm]."""
+        return self._spread()[2]
+
+    @property
+    def heading95_deg(self) -> float:
+        """Heading deviation from ``pose`` holding 95 % of the weight [deg]."""
+        return self._spread()[3]
+
+    @property
+    def clusters(self) -> tuple[Cluster, ...]:
+        """The hypotheses, heaviest first (one when the belief is single-moded)."""
+        return self._clusters
+
+    @property
+    def ess(self) -> float:
+        """Effective sample size ``1 / sum(w**2)`` [particles]."""
+        return self._ess
 
     @property
     def best(self) -> Cluster:
         """The heaviest hypothesis: the pose to act on when one must be chosen."""
-        return self.clusters[0]
+        return self._clusters[0]
+
+    def _spread(self) -> tuple[Pose, np.ndarray, float, float]:
+        if self._whole is None:
+            w, p = self._w, self._p
+            mean = _mean_pose(p, w)
+            e = np.column_stack([p[:, 0] - mean.x, p[:, 1] - mean.y,
+                                 _wrap(p[:, 2] - mean.heading_rad)])
+            cov = (e * w[:, None]).T @ e
+            cov.flags.writeable = False
+            r95 = _weighted_quantile(np.hypot(e[:, 0], e[:, 1]), w, 0.95)
+            h95 = math.degrees(_weighted_quantile(np.abs(e[:, 2]), w, 0.95))
+            self._whole = (mean, cov, r95, h95)
+        return self._whole
 
 
 @dataclass(frozen=True, slots=True)
@@ -160,6 +250,13 @@ def low_variance_resample(weights: np.ndarray, rng: np.random.Generator,
     cum[-1] = 1.0  # rounding must not leave the last tooth past the end
     teeth = (rng.random() + np.arange(n)) / n
     return np.minimum(np.searchsorted(cum, teeth, side="right"), weights.shape[0] - 1)
+
+
+def _mean_pose(p: np.ndarray, w: np.ndarray) -> Pose:
+    """Weighted mean pose of particles ``p`` with normalised weights ``w`` (circular mean
+    of the heading)."""
+    heading = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
+    return Pose(float(w @ p[:, 0]), float(w @ p[:, 1]), math.degrees(heading))
 
 
 def _weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
@@ -243,9 +340,7 @@ class PoseBelief:
 
     def mean_pose(self) -> Pose:
         """Weighted mean pose (circular mean of the heading)."""
-        w, p = self._w, self._p
-        heading = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
-        return Pose(float(w @ p[:, 0]), float(w @ p[:, 1]), math.degrees(heading))
+        return _mean_pose(self._p, self._w)
 
     def map_to_odom(self, odom: Pose) -> Pose:
         """The correction ``c`` with ``compose(c, odom)`` the mean pose: the map -> odometry
@@ -254,15 +349,7 @@ class PoseBelief:
 
     def spread(self) -> Spread:
         """The published uncertainty: mean, covariance, 95 % radius and heading, clusters."""
-        mean = self.mean_pose()
-        w, p = self._w, self._p
-        e = np.column_stack([p[:, 0] - mean.x, p[:, 1] - mean.y,
-                             _wrap(p[:, 2] - mean.heading_rad)])
-        cov = (e * w[:, None]).T @ e
-        cov.flags.writeable = False
-        r95 = _weighted_quantile(np.hypot(e[:, 0], e[:, 1]), w, 0.95)
-        h95 = math.degrees(_weighted_quantile(np.abs(e[:, 2]), w, 0.95))
-        return Spread(mean, cov, r95, h95, self._clusters(), self.ess())
+        return Spread(self._p, self._w, self._clusters())
 
     # -- filtering --------------------------------------------------------------
 
@@ -341,6 +428,8 @@ class PoseBelief:
     def _clusters(self) -> tuple[Cluster, ...]:
         lab = cluster_labels(self._p, self._w)
         cw = np.bincount(lab, weights=self._w)
+        if cw.shape[0] == 1:  # one hypothesis: every particle
+            return (Cluster(self._p, self._w, float(cw[0])),)
         order = [int(k) for k in np.argsort(-cw, kind="stable")
                  if cw[k] >= MIN_CLUSTER_WEIGHT][:MAX_CLUSTERS]
         if not order:
@@ -348,15 +437,5 @@ class PoseBelief:
         out = []
         for k in order:  # one pass per reported cluster (at most MAX_CLUSTERS)
             m = lab == k
-            out.append(_cluster(self._p[m], self._w[m], float(cw[k])))
+            out.append(Cluster(self._p[m], self._w[m], float(cw[k])))
         return tuple(out)
-
-
-def _cluster(p: np.ndarray, w: np.ndarray, weight: float) -> Cluster:
-    """Mean and 95 % spread of one group of particles (weights not normalised)."""
-    wn = w / w.sum()
-    heading = math.atan2(float(wn @ np.sin(p[:, 2])), float(wn @ np.cos(p[:, 2])))
-    x, y = float(wn @ p[:, 0]), float(wn @ p[:, 1])
-    r95 = _weighted_quantile(np.hypot(p[:, 0] - x, p[:, 1] - y), wn, 0.95)
-    h95 = math.degrees(_weighted_quantile(np.abs(_wrap(p[:, 2] - heading)), wn, 0.95))
-    return Cluster(weight, Pose(x, y, math.degrees(heading)), r95, h95)
