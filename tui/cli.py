@@ -12,6 +12,7 @@ about 20 ms, the campaign and shrink modules as much again).
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import signal
 import sys
@@ -111,8 +112,16 @@ def build_parser(command: str | None = None, *, every: bool = True) -> argparse.
 
 def main(argv: list[str] | None = None) -> int:
     words = sys.argv[1:] if argv is None else argv
-    parser = build_parser(_command_in(words), every=False)
-    args = parser.parse_args(words)
+    # Importing a command makes some hundred thousand objects that live as long as the
+    # process; the cyclic collector would walk them again and again while they are made
+    # (about 5 % of a game's start) and could free none: it pauses while the parser and
+    # its command's module are made.
+    gc.disable()
+    try:
+        parser = build_parser(_command_in(words), every=False)
+        args = parser.parse_args(words)
+    finally:
+        gc.enable()
     if getattr(args, "_broken", None):
         print(f"hideseek {args._broken}", file=sys.stderr)
         return 2

@@ -59,6 +59,7 @@ from actors.firmware.localisation.contact_model import (
     contact_gap_cm,
     contact_log_likelihood,
 )
+from actors.firmware.localisation.dead_reckoning import DeadReckoning
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import free_space_log_likelihood
 from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
@@ -92,7 +93,7 @@ class BeliefMemory:
 
     belief: PoseBelief
     """The belief (map frame)."""
-    dead: PoseBelief | None
+    dead: DeadReckoning | None
     """The particle set moved by the counts alone (`BeliefTracking._dead`)."""
     odom: Pose
     """The own-frame pose (Motor Control's) both were last moved to."""
@@ -115,7 +116,7 @@ class BeliefTracking:
         self._weighed = False  # an update since the last spread told the particles apart
         self._field: DistanceField | None = None
         self._field_of: GridMap | None = None
-        self._dead: PoseBelief | None = None  # the belief moved by the counts alone
+        self._dead: DeadReckoning | None = None  # the belief moved by the counts alone
         # its own generator: the belief's draws do not depend on whether it is kept
         self._dead_rng = np.random.default_rng(zlib.crc32(f"dead reckoning:{self.role}".encode()))
         given = self.memory.given
@@ -181,7 +182,8 @@ class BeliefTracking:
         if (given is not None and self.belief is not None and self._dead is not None
                 and self._given is not None and _same_pose(given, self._given)):
             self.track_belief()
-            self.belief = self.belief.mixed_with(self._dead, RETRY_PRIOR_SHARE, self._rng)
+            self.belief = self.belief.mixed_with(self._dead.belief, RETRY_PRIOR_SHARE,
+                                                 self._rng)
             self._weigh_free_space()  # the rover stands on free ground, whichever is right
             _ = self.spread  # count the hypotheses: the pose is the heaviest one's
             self._sync_origin()
@@ -221,7 +223,7 @@ class BeliefTracking:
         if self.belief is None or self._belief_odom is None:
             self.belief = PoseBelief.around(self.map_pose, self._rng, sigma_cm=START_SIGMA_CM,
                                              sigma_deg=START_SIGMA_DEG)
-            self._dead = PoseBelief(self.belief.particles)
+            self._dead = DeadReckoning(PoseBelief(self.belief.particles))
             self._belief_odom, self._spread = self.pose, None
             self._retain()
             return
