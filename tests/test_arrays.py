@@ -1,10 +1,14 @@
 """`actors.firmware.arrays`: `pad_border` gives the same array as `np.pad` with a constant
-border, `nonzero_2d` the same indices as `np.nonzero`."""
+border, `nonzero_2d` the same indices as `np.nonzero`, `distinct` the same elements as
+`np.unique`."""
+
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
-from actors.firmware.arrays import nonzero_2d, pad_border
+from actors.firmware.arrays import distinct, nonzero_2d, pad_border
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32, bool, np.int8, np.int32])
@@ -57,3 +61,25 @@ def test_nonzero_2d_counts_nan_and_not_negative_zero_as_np_nonzero_does() -> Non
 def test_nonzero_2d_refuses_other_shapes() -> None:
     with pytest.raises(ValueError, match="2-D"):
         nonzero_2d(np.ones(4))
+
+
+def test_distinct_gives_np_uniques_elements() -> None:
+    rng = np.random.default_rng(9)
+    for values in (rng.integers(-50, 50, 300), rng.integers(0, 5, (7, 9)), np.zeros(0, int),
+                   np.array([3]), rng.integers(0, 2**40, 100).astype(np.uint64),
+                   rng.random(20) < 0.5):
+        want = np.unique(values)
+        got = distinct(values)
+        assert got.dtype == want.dtype and np.array_equal(got, want)
+
+
+def test_distinct_refuses_floats_and_leaves_numpy_ma_unimported() -> None:
+    with pytest.raises(ValueError, match="integer"):
+        distinct(np.array([0.5, 0.5]))
+    code = ("import sys, numpy as np\n"
+            "from actors.firmware.arrays import distinct\n"
+            "distinct(np.array([2, 1, 2]))\n"
+            "print('numpy.ma' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.split() == ["False"]

@@ -49,6 +49,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from actors.firmware.arrays import distinct
 from actors.firmware.mapping.sensor_model import LogOddsModel, check_batch, grazing_shortening
 from server.protocol.grid_map import (
     FREE,
@@ -467,7 +468,7 @@ class OccupancyGrid:
         cells = idx.compress(moved)
         classes[cells] = after.compress(moved)
         self._snap = None
-        return int(np.unique(cells).size)
+        return int(distinct(cells).size)
 
     def _class_of(self, vals: np.ndarray) -> np.ndarray:
         """The classes (int8) of log-odds ``vals``: 0 free, 1 unknown, 2 occupied from two

@@ -68,7 +68,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actors.firmware.arrays import nonzero_2d, pad_border
+from actors.firmware.arrays import distinct, nonzero_2d, pad_border
 from actors.firmware.planning.frontier import steps_from
 from actors.firmware.planning.planner import inflate
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
@@ -319,7 +319,7 @@ def seen_face(field: FaceField, point_cm: tuple[float, float], *,
     _, entries, _ = _gains(field, np.array([r * nx + c]), max_incidence_deg)
     # centres rounded to a mm, so that the same cell gives the same point in every crop
     return [(round(x, 1), round(y, 1)) for x, y in (
-        sub.cell_to_world(int(k) // nx, int(k) % nx) for k in np.unique(entries))]
+        sub.cell_to_world(int(k) // nx, int(k) % nx) for k in distinct(entries))]
 
 
 def _face(sub: GridMap, unseeable_cm: Sequence[tuple[float, float]]) -> np.ndarray:
@@ -382,8 +382,7 @@ def _candidates(face: np.ndarray, reach: np.ndarray, nxn: np.ndarray, nyn: np.nd
     lr, lc = _spread(reach & near, LATTICE_SAMPLES, anchor)
     lattice_idx = lr * nx + lc
     more = [r * nx + c for r, c in extra if 0 <= r < ny and 0 <= c < nx and reach[r, c]]
-    return np.unique(np.concatenate([head_on, lattice_idx,
-                                     np.asarray(more, dtype=np.int64)]))
+    return distinct(np.concatenate([head_on, lattice_idx, np.asarray(more, dtype=np.int64)]))
 
 
 def _spread(mask: np.ndarray, most: int, anchor: tuple[int, int]
@@ -453,7 +452,7 @@ def _gains(field: FaceField, cand: np.ndarray, max_incidence_deg: float
     area = np.zeros((n, rays))
     area[who, ray] = (open_ * weight[depth]).sum(axis=1)
     n_cells = ny * nx
-    pairs = np.unique(who * n_cells + entries)  # distinct (candidate, face cell)
+    pairs = distinct(who * n_cells + entries)  # distinct (candidate, face cell)
     return area.sum(axis=1), entries, np.bincount(pairs // n_cells, minlength=n)
 
 
