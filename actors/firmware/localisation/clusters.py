@@ -361,11 +361,18 @@ class _Density:
         down = h - 1
         down[down < 0] = nh - 1
         line = (value >= stored[j, col[up]]) & (value >= stored[j, col[down]])
-        j, h, value = j[line], h[line], value[line]
+        j, c, h, value = j[line], c[line], h[line], value[line]
+        # nor below any of its four neighbours at the same heading: the same column of the
+        # lines beside it (the cell itself at the lattice's edge, as the window is clamped)
+        flat = self._xy[j]
+        x, y = np.divmod(flat, ny)
+        beside = np.stack([flat - ny * (x > 0), flat + ny * (x < nx - 1), flat - (y > 0),
+                           flat + (y < ny - 1)])
+        level = value >= np.maximum.reduce(self._d[self._line[beside], c], axis=0)
+        x, y, h, value = x[level], y[level], h[level], value[level]
         # row-major order (stored lines ascend; an arc's columns may pass heading 0)
-        order = (j * nh + h).argsort()
-        j, h, value = j[order], h[order], value[order]
-        x, y = np.divmod(self._xy[j], ny)
+        order = ((x * ny + y) * nh + h).argsort()
+        x, y, h, value = x[order], y[order], h[order], value[order]
         step = np.array([-1, 0, 1])
         wx = _clip(x[:, None] + step, nx - 1)[:, :, None, None]
         wy = _clip(y[:, None] + step, ny - 1)[:, None, :, None]

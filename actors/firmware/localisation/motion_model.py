@@ -164,17 +164,18 @@ def _share_driven(u: np.ndarray, continued: bool) -> np.ndarray:
 
 
 def _tread_travel(counted: float, driven: float | None, report: TreadReport,
-                  share: np.ndarray, z: np.ndarray, noise: MotionNoise,
+                  u: np.ndarray, continued: bool, z: np.ndarray, noise: MotionNoise,
                   rng: np.random.Generator) -> np.ndarray:
-    """Sampled true travel of one tread for ``n = share.size`` particles [cm]; ``share``
-    places it between counted (0) and driven (1), ``z`` is the modelled travel's
+    """Sampled true travel of one tread for ``n = u.size`` particles [cm]; a reported
+    tread's share between counted (0) and driven (1) follows from the uniform draw ``u``
+    (`_share_driven`, made only for a reported tread), ``z`` is the modelled travel's
     relative error draw."""
-    n = share.shape[0]
+    n = u.shape[0]
     travel = counted + rng.standard_normal(n) * (noise.encoder_sigma * math.sqrt(abs(counted)))
     if report == TreadReport.OK:
         return travel
     far = driven * (1.0 + z * noise.driven_sigma)
-    return travel + share * (far - counted)
+    return travel + _share_driven(u, continued) * (far - counted)
 
 
 def sample_motion(particles: np.ndarray, motion: TreadMotion, track_width_cm: float,
@@ -206,10 +207,10 @@ def sample_motion(particles: np.ndarray, motion: TreadMotion, track_width_cm: fl
     u_left, z_left = rng.random(n), rng.standard_normal(n)
     both = motion.left != TreadReport.OK and motion.right != TreadReport.OK
     u_right, z_right = (u_left, z_left) if both else (rng.random(n), rng.standard_normal(n))
-    dl = _tread_travel(motion.left_cm, motion.driven_left_cm, motion.left,
-                       _share_driven(u_left, motion.left_continued), z_left, noise, rng)
-    dr = _tread_travel(motion.right_cm, motion.driven_right_cm, motion.right,
-                       _share_driven(u_right, motion.right_continued), z_right, noise, rng)
+    dl = _tread_travel(motion.left_cm, motion.driven_left_cm, motion.left, u_left,
+                       motion.left_continued, z_left, noise, rng)
+    dr = _tread_travel(motion.right_cm, motion.driven_right_cm, motion.right, u_right,
+                       motion.right_continued, z_right, noise, rng)
     dtheta = (dr - dl) / track_width_cm  # [rad]
     ds = 0.5 * (dr + dl)  # [cm]
     mid = p[:, 2] + 0.5 * dtheta
