@@ -150,3 +150,19 @@ def test_wifly_disconnect_drops_and_connect_restores() -> None:
     assert got == [b"kept"]
     with pytest.raises(TypeError, match="data must be bytes, got str"):
         world.hardware("seeker").wifly_write("text")
+
+
+def test_a_reading_is_the_level_of_the_poses_given_plus_its_noise() -> None:
+    """The level kept for the last poses (a tick's samples) never stands in for others:
+    new poses, equal or not, read their own level."""
+    p = DeviceParams()
+    ir = IrSensor(p)
+    seeker = (100.0, 100.0, 0.0)
+    near, far = (125.0, 100.0, 0.3), (500.0, 100.0, 0.3)
+    assert ir.reading(seeker, near, 0.0) == ir.level(seeker, near) > p.ir_low
+    assert ir.reading(seeker, near, 7.5) == ir.level(seeker, near) + 7.5  # the same tick
+    assert ir.reading(seeker, far, 7.5) == p.ir_low + 7.5  # the hider moved away
+    again = tuple(list(seeker)), tuple(list(near))  # equal poses, other objects
+    assert again[0] is not seeker and ir.reading(*again, -3.0) == ir.level(seeker, near) - 3.0
+    turned = (100.0, 100.0, math.pi)
+    assert ir.reading(turned, near, 0.0) == p.ir_low  # the seeker turned away

@@ -32,6 +32,8 @@ class IrSensor:
         """A conversion was started and its Int C has not fired yet."""
         self.adc_overruns = 0
         """Conversions started while one was pending (ignored, as a busy ADC does)."""
+        self._last: tuple[object, object, float] = (None, None, 0.0)
+        # the poses of the last `reading` (the objects themselves) and their level
 
     def set_rate(self, rate_hz: float) -> None:
         self.rate_hz = rate_hz
@@ -54,10 +56,28 @@ class IrSensor:
                 noise: float) -> float:
         """Noise-free-plus-``noise`` analogue value before clipping [counts].
 
+        The level of the last two poses given is kept: the samples of one world tick
+        read the same poses (the world's tuples of that tick, the same objects), and
+        only their noise differs.
+
         Args:
             seeker: the seeker's x, y [cm] and heading [rad].
             hider: the hider's x, y [cm] and heading [rad].
             noise: added to the level [counts].
+        """
+        last_seeker, last_hider, level = self._last
+        if seeker is not last_seeker or hider is not last_hider:
+            level = self.level(seeker, hider)
+            self._last = (seeker, hider, level)
+        return level + noise
+
+    def level(self, seeker: tuple[float, float, float],
+              hider: tuple[float, float, float]) -> float:
+        """Noise-free analogue value before clipping [counts] (see the module docstring).
+
+        Args:
+            seeker: the seeker's x, y [cm] and heading [rad].
+            hider: the hider's x, y [cm] and heading [rad].
         """
         p = self.p
         sx, sy, sa = seeker
@@ -76,7 +96,7 @@ class IrSensor:
             d = math.hypot(max(along, 0.0), max(across, 0.0))
             if d <= p.ir_range_cm:
                 level = p.ir_high - (p.ir_high - IR_EDGE) * d / max(p.ir_range_cm, 1e-9)
-        return level + noise
+        return level
 
 
 def to_adc(value: float) -> int:

@@ -183,10 +183,14 @@ class World:
         self._fire_schedule(now)
         p = self.params
         dt = self.tick_s
+        faulty = bool(self._faults)  # without faults every tread has its full strength
         for role in ROLES:
             left, right = self.treads[role]
-            vl = left.motor_step(p.max_speed_cm_s, self._strength(role, "motor_left"), self._alpha)
-            vr = right.motor_step(p.max_speed_cm_s, self._strength(role, "motor_right"),
+            vl = left.motor_step(p.max_speed_cm_s,
+                                 self._strength(role, "motor_left") if faulty else 1.0,
+                                 self._alpha)
+            vr = right.motor_step(p.max_speed_cm_s,
+                                  self._strength(role, "motor_right") if faulty else 1.0,
                                   self._alpha)
             self.physics.set_tread_speeds(role, vl, vr)
         self.physics.step(dt)
@@ -287,10 +291,11 @@ class World:
         ir.adc_pending = False
         noise = self.rng.standard_normal() * self.params.ir_noise
         value = ir.reading(self._now["seeker"], self._now["hider"], noise)
-        if self._faults.find("seeker", "ir", "stuck_high"):
-            value = 4095
-        elif self._faults.find("seeker", "ir", "stuck_low"):
-            value = 0
+        if self._faults:
+            if self._faults.find("seeker", "ir", "stuck_high"):
+                value = 4095
+            elif self._faults.find("seeker", "ir", "stuck_low"):
+                value = 0
         h = hw.handlers.get(Interrupt.INT_C)
         if h:
             h(to_adc(value))
