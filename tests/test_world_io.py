@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from world.geometry import Pose, footprint
 from world.ir import IR_EDGE, IrSensor
+from world.lidar import Lidar
 from world.params import DeviceParams
 from world.scenario import parse_scenario
 from world.world import World
@@ -166,3 +167,25 @@ def test_a_reading_is_the_level_of_the_poses_given_plus_its_noise() -> None:
     assert again[0] is not seeker and ir.reading(*again, -3.0) == ir.level(seeker, near) - 3.0
     turned = (100.0, 100.0, math.pi)
     assert ir.reading(turned, near, 0.0) == p.ir_low  # the seeker turned away
+
+
+def test_an_idle_lidar_or_ir_tick_would_have_done_nothing() -> None:
+    """`idle` holds only where the tick's own arithmetic takes no sample, no Int D, and
+    leaves the state as it was."""
+    p = DeviceParams()
+    lidar = Lidar(p)
+    assert lidar.idle()
+    before = (lidar.index, lidar.samples, lidar._sample_acc)
+    assert lidar.due(0.05, False)[1] == 0 and (lidar.index, lidar.samples,
+                                                 lidar._sample_acc) == before
+    lidar.pwm = 0.5
+    assert not lidar.idle() and lidar.due(0.05, False)[1] > 0
+    lidar.pwm = 0.0  # stopped with part of a sample accumulated: still idle
+    assert lidar.idle() == (lidar._sample_acc < 1.0)
+    ir = IrSensor(p)
+    assert ir.idle() and ir.timer_events(0.05) == 0 and ir.idle()
+    ir.set_rate(50.0)
+    assert not ir.idle() and ir.timer_events(0.05) == 2
+    ir.set_rate(0.0)
+    ir.start()  # a conversion pending: its Int C is still to come
+    assert not ir.idle()

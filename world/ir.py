@@ -45,6 +45,11 @@ class IrSensor:
             self.adc_overruns += 1
         self.adc_pending = True
 
+    def idle(self) -> bool:
+        """No conversion is pending and no Int D falls due in a tick of any length (the
+        timer is stopped with less than one event accumulated): a tick does nothing."""
+        return self.rate_hz == 0.0 and 0.0 <= self._phase < 1.0 and not self.adc_pending
+
     def timer_events(self, dt: float) -> int:
         """How many Int D fire in the next ``dt`` [s]."""
         self._phase += self.rate_hz * dt

@@ -42,6 +42,11 @@ class Lidar:
         """Samples taken (cumulative)."""
         self._framer = LidarFramer(params.lidar_samples_per_rev, MAX_SAMPLES_PER_TICK)
 
+    def idle(self) -> bool:
+        """No sample falls due in a tick of any length, and `due` would change nothing:
+        the rotor is commanded still (PWM 0) with less than one sample accumulated."""
+        return self.pwm == 0.0 and 0.0 <= self._sample_acc < 1.0
+
     def due(self, dt: float, stuck: bool) -> tuple[int, int]:
         """The samples taken during the next ``dt`` [s]: (first angle index, count).
 

@@ -239,6 +239,8 @@ class World:
 
     def _lidar_tick(self, dt: float) -> None:
         lidar = self.lidar
+        if lidar.idle():
+            return  # a still rotor (the LIDAR is off but while the mapper maps)
         faults = self._faults
         stuck = bool(faults) and faults.find("mapper", "lidar", "stuck") is not None
         first, n = lidar.due(dt, stuck)
@@ -276,6 +278,8 @@ class World:
                 self._boxes_at[i] = state
 
     def _ir_tick(self, dt: float) -> None:
+        if self.ir.idle():
+            return  # the IR timer runs only while the seeker looks
         hw = self._hw["seeker"]
         self._adc_complete(hw)
         for _ in range(self.ir.timer_events(dt)):
