@@ -129,3 +129,26 @@ def test_ports_lists_serial_ports_as_json() -> None:
     rows = json.loads(p.stdout)
     assert isinstance(rows, list)
     assert all({"device", "description", "hwid"} <= set(r) for r in rows)
+
+
+_FROZEN_AFTER = """
+import gc, sys
+from tui import cli
+process, sys.argv = sys.argv[1] == "process", ["hideseek", "run", "--help"]
+try:
+    cli.main(None if process else sys.argv[1:])
+except SystemExit:
+    pass
+print(gc.isenabled(), gc.get_freeze_count() > 1000)
+"""
+
+
+@pytest.mark.parametrize(("how", "frozen"), [("process", True), ("library", False)])
+def test_the_process_command_line_freezes_what_its_imports_made(how: str, frozen: bool) -> None:
+    """Run as the process's command line (no argv), the modules' objects leave the cyclic
+    collector's generations; called with arguments (a library, a test) nothing is frozen;
+    the collector runs again either way."""
+    p = subprocess.run([sys.executable, "-c", _FROZEN_AFTER, how],
+                       capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split()[-2:] == ["True", str(frozen)]
