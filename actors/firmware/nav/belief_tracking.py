@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,6 +64,7 @@ from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import free_space_log_likelihood
 from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
 from actors.firmware.localisation.odometry import tread_travel
+from actors.firmware.localisation.wall_slide import slide_along_walls
 from actors.firmware.nav.route import Motion
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
@@ -149,6 +151,15 @@ class BeliefTracking:
         if self._field_of is not self.map:
             self._field, self._field_of = DistanceField.from_grid(self.map), self.map
         return self._field
+
+    def _walls(self) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+        """The map's constraint on a motion (a body driven into a wall slides along it),
+        None before the map is known."""
+        field = self._distance_field()
+        if field is None:
+            return None
+        body = (self.length_cm, self.width_cm)
+        return lambda before, after: slide_along_walls(field, before, after, body)
 
     def _track_width(self) -> float:
         return self.spec.track_width_cm if self.spec is not None else 13.0
@@ -256,7 +267,7 @@ class BeliefTracking:
             driven = self._driven(left, right, w)
         motion = TreadMotion(left, right, driven[0], driven[1], *self._reports,
                              *self._reported_before)
-        self.belief.predict(motion, w, self.o.motion, self._rng)
+        self.belief.predict(motion, w, self.o.motion, self._rng, self._walls())
         if self._dead is not None:
             self._dead.predict(motion, w, self.o.motion, self._dead_rng)
         self._belief_odom, self._spread = self.pose, None
