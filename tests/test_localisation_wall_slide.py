@@ -34,7 +34,7 @@ def test_a_body_driven_at_a_slant_into_a_wall_slides_along_it_by_the_counted_tra
     before = np.array([[86.0, 50.0, math.radians(-30.0)]])
     after = _straight(86.0, 50.0, -30.0, 12.0)
     assert inside_obstacle(FIELD, after, BODY)[0]
-    slid = slide_along_walls(FIELD, before, after, BODY)
+    slid, _ = slide_along_walls(FIELD, before, after, BODY)
     x, y, h = slid[0]
     assert not inside_obstacle(FIELD, slid, BODY)[0]
     assert h == pytest.approx(math.radians(-30.0))
@@ -49,7 +49,7 @@ def test_a_square_push_into_a_wall_is_left_to_the_free_space_model() -> None:
     the wall, where free space weighs it down."""
     before = np.array([[86.0, 50.0, 0.0]])
     after = _straight(86.0, 50.0, 0.0, 12.0)
-    slid = slide_along_walls(FIELD, before, after, BODY)
+    slid, _ = slide_along_walls(FIELD, before, after, BODY)
     assert np.array_equal(slid, after)
     assert inside_obstacle(FIELD, slid, BODY)[0]
 
@@ -57,7 +57,9 @@ def test_a_square_push_into_a_wall_is_left_to_the_free_space_model() -> None:
 def test_a_motion_in_free_space_is_the_motion_model_s() -> None:
     before = np.array([[40.0, 50.0, 0.3], [60.0, 30.0, -0.5]])
     after = before + np.array([[10.0, 3.0, 0.1], [5.0, -2.0, 0.0]])
-    assert slide_along_walls(FIELD, before, after, BODY) is after
+    slid, inside = slide_along_walls(FIELD, before, after, BODY)
+    assert slid is after
+    assert not inside.any()
 
 
 def test_a_backward_motion_slides_with_its_rear_edge_leading() -> None:
@@ -65,7 +67,7 @@ def test_a_backward_motion_slides_with_its_rear_edge_leading() -> None:
     before = np.array([[86.0, 50.0, math.radians(150.0)]])  # rear toward the wall, slanted
     after = _straight(86.0, 50.0, 150.0, -12.0)
     assert inside_obstacle(FIELD, after, BODY)[0]
-    slid = slide_along_walls(FIELD, before, after, BODY)
+    slid, _ = slide_along_walls(FIELD, before, after, BODY)
     assert not inside_obstacle(FIELD, slid, BODY)[0]
     assert 50.0 - slid[0, 1] > 14.0
 
@@ -81,6 +83,17 @@ def test_the_belief_keeps_the_particles_that_slid_down_a_wall() -> None:
     plain, walled = PoseBelief(start), PoseBelief(start)
     plain.predict(motion, W, quiet, np.random.default_rng(1))
     walled.predict(motion, W, quiet, np.random.default_rng(1),
-                   lambda b, a: slide_along_walls(FIELD, b, a, BODY))
+                   lambda b, a: slide_along_walls(FIELD, b, a, BODY)[0])
     assert inside_obstacle(FIELD, plain.particles, BODY).mean() > 0.5
     assert not inside_obstacle(FIELD, walled.particles, BODY).any()
+
+
+def test_the_slide_tells_which_poses_it_returns_still_overlap_a_wall() -> None:
+    """The mask given with the poses is the free-space model's for those poses: the
+    square push still inside, the slanted one slid out, the free one free."""
+    before = np.array([[86.0, 50.0, 0.0], [86.0, 50.0, math.radians(-30.0)], [40.0, 50.0, 0.0]])
+    after = np.vstack([_straight(86.0, 50.0, 0.0, 12.0), _straight(86.0, 50.0, -30.0, 12.0),
+                       _straight(40.0, 50.0, 0.0, 12.0)])
+    slid, inside = slide_along_walls(FIELD, before, after, BODY)
+    assert inside.tolist() == [True, False, False]
+    assert np.array_equal(inside, inside_obstacle(FIELD, slid, BODY))

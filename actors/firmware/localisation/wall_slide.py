@@ -68,9 +68,11 @@ def _wrap(theta: np.ndarray) -> np.ndarray:
 
 
 def slide_along_walls(field: DistanceField, before: np.ndarray, after: np.ndarray,
-                      body_cm: tuple[float, float]) -> np.ndarray:
+                      body_cm: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """The poses ``after`` (N, 3), each body that the motion from ``before`` put into a
-    mapped wall slid along it instead (a new array only when some particle slid).
+    mapped wall slid along it instead (a new array only when some particle slid), and
+    which of them still overlap an occupied cell (`free_space_model.inside_obstacle`
+    of the poses returned, for the free-space model to use as it is).
 
     Args:
         field: the map's distance field.
@@ -80,7 +82,7 @@ def slide_along_walls(field: DistanceField, before: np.ndarray, after: np.ndarra
     """
     inside = inside_obstacle(field, after, body_cm)
     if not inside.any():
-        return after
+        return after, inside
     idx = np.flatnonzero(inside)
     p0, p1 = before[idx], after[idx]
     mid = p0[:, 2] + 0.5 * _wrap(p1[:, 2] - p0[:, 2])
@@ -109,7 +111,8 @@ def slide_along_walls(field: DistanceField, before: np.ndarray, after: np.ndarra
                             p0[:, 1] + gap * uy + slide * ty, p1[:, 2]])
     ok &= ~inside_obstacle(field, slid, body_cm)
     if not ok.any():
-        return after
+        return after, inside
     out = after.copy()
     out[idx[ok]] = slid[ok]
-    return out
+    inside[idx[ok]] = False
+    return out, inside

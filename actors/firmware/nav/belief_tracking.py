@@ -117,6 +117,9 @@ class BeliefTracking:
         self._modes = 1  # clusters of the last spread computed
         self._weighed = False  # an update since the last spread told the particles apart
         self._field: DistanceField | None = None
+        # which particles overlap a wall after the last motion (the slide found it), for
+        # the free-space weighing that follows it; None: not known
+        self._inside: np.ndarray | None = None
         self._field_of: GridMap | None = None
         self._dead: PoseBelief | None = None  # the belief moved by the counts alone
         # its own generator: the belief's draws do not depend on whether it is kept
@@ -160,7 +163,12 @@ class BeliefTracking:
         if field is None:
             return None
         body = (self.length_cm, self.width_cm)
-        return lambda before, after: slide_along_walls(field, before, after, body)
+
+        def constrain(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+            poses, self._inside = slide_along_walls(field, before, after, body)
+            return poses
+
+        return constrain
 
     def _track_width(self) -> float:
         return self.spec.track_width_cm if self.spec is not None else 13.0
@@ -169,6 +177,7 @@ class BeliefTracking:
     def forget_belief(self) -> None:
         """The map-frame pose is given anew (the server's origin): start a new belief."""
         self.belief, self._spread, self._belief_odom, self._modes = None, None, None, 1
+        self._inside = None
         self._weighed = False
         self._dead = None
         self._reports = [TreadReport.OK, TreadReport.OK]
@@ -247,7 +256,8 @@ class BeliefTracking:
         field = self._distance_field()
         if field is not None and self.belief is not None:
             body = (self.length_cm, self.width_cm)
-            ll = free_space_log_likelihood(field, self.belief.particles, body)
+            inside, self._inside = self._inside, None
+            ll = free_space_log_likelihood(field, self.belief.particles, body, inside=inside)
             self.belief.update(ll, self._rng)
             # a flat likelihood changes no weight: it cannot split the belief
             self._weighed = self._weighed or bool(ll.min() < ll.max())
