@@ -25,6 +25,13 @@ except ImportError:  # a pymunk laid out otherwise: its public API alone
 from world.geometry import Pose, boundary_segments, room_segments
 from world.params import DeviceParams
 
+
+def _angle(body: pymunk.Body) -> float:
+    """A body's angle [rad]: what its ``angle`` property reads, from Chipmunk directly
+    where pymunk's C functions are at hand."""
+    return body.angle if _chipmunk is None else _chipmunk.cpBodyGetAngle(body._body)
+
+
 #: physics substep [s]; 10 ms keeps a 30 cm/s rover moving 0.3 cm per step
 DEFAULT_SUBSTEP_S = 0.01
 ROVER_MASS = 1.0
@@ -101,10 +108,7 @@ class Physics:
         rb = self.rovers[role]
         v = 0.5 * (left_cm_s + right_cm_s)
         omega = (right_cm_s - left_cm_s) / self.params.track_width_cm
-        if _chipmunk is None:
-            a = rb.body.angle
-        else:
-            a = _chipmunk.cpBodyGetAngle(rb.body._body)  # what `angle` reads
+        a = _angle(rb.body)
         if rb.commanded == (v, omega, a):
             return  # the control body already carries this (a rover at rest, mostly)
         rb.commanded = (v, omega, a)
@@ -155,9 +159,8 @@ class Physics:
         if _chipmunk is None:
             x, y = b.position
             return x, y, b.angle
-        handle = b._body
-        v = _chipmunk.cpBodyGetPosition(handle)
-        return v.x, v.y, _chipmunk.cpBodyGetAngle(handle)
+        v = _chipmunk.cpBodyGetPosition(b._body)
+        return v.x, v.y, _angle(b)
 
     def pose(self, role: str) -> Pose:
         """Ground-truth pose with the heading in [0, 360) [deg]."""

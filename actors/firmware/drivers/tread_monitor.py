@@ -179,6 +179,9 @@ other's), while dead reckoning sees a straight line and the rover turns about 23
 either way included."""
 
 
+_NO_CARRY = ((0.0, 0.0), (0.0, 0.0))  # no unjudged turn carried: (modelled, counted) per tread
+
+
 class TreadMonitor:
     """The lagged model of both treads and the counts, over one Command A.
 
@@ -212,7 +215,7 @@ class TreadMonitor:
         """The duties last set while driving."""
         self._model_t = 0.0            # when the model was last advanced [s]
         self._turning = False          # the command is a turn (as `watch` was last told)
-        self._carry = [(0.0, 0.0), (0.0, 0.0)]  # unjudged turns' (modelled, counted) per tread
+        self._carry = _NO_CARRY  # unjudged turns' (modelled, counted) per tread
 
     def begin(self, now: float) -> None:
         """A new Command A starts at ``now`` [s]: every count and finding starts over,
@@ -235,9 +238,9 @@ class TreadMonitor:
         that ended unjudged; clear the carry otherwise."""
         found = any(self._short_sent) or any(self._silent_sent)
         if not self._turning or found or min(self.modelled) >= SHORT_AFTER_CM:
-            self._carry = [(0.0, 0.0), (0.0, 0.0)]
+            self._carry = _NO_CARRY
             return
-        carry = []
+        carry: list[tuple[float, float]] = []
         for tread in (0, 1):
             m = self._carry[tread][0] + self.modelled[tread]
             # an interrupt's grace per carried turn: a turn that ends may owe up to one
@@ -245,7 +248,7 @@ class TreadMonitor:
             c = self._carry[tread][1] + self.counted[tread] + self._unit
             keep = min(1.0, SHORT_AFTER_CM / m) if m > 0.0 else 1.0  # the last part, same ratio
             carry.append((m * keep, c * keep))
-        self._carry = carry
+        self._carry = (carry[0], carry[1])
 
     def tick(self, tread: int, now: float) -> None:
         """One Int E of ``tread`` at ``now`` [s]."""
@@ -318,7 +321,7 @@ class TreadMonitor:
             self._marks = [self._marks[-1], (modelled, sum(self.counted))]
         ratio = SHORT_RATIO if not moving or self._mapper else BOTH_MOVE_RATIO
         # a turn is judged with the unjudged turns before it; a move on its own
-        carry = ((0.0, 0.0), (0.0, 0.0)) if moving else self._carry
+        carry = _NO_CARRY if moving else self._carry
         judged_m = [self.modelled[i] + carry[i][0] for i in (0, 1)]
         judged_c = [self.counted[i] + carry[i][1] for i in (0, 1)]
         if not (any(self._short_sent) or any(self._silent_sent)) \
@@ -339,7 +342,7 @@ class TreadMonitor:
                 judged_c[other] >= SHORT_OTHER_RATIO * judged_m[other]
             if not short and moving and counted > 0.0:
                 # driven further than the other for the same count (see ``UNEVEN_CM``)
-                short = (modelled - counted) - (self.modelled[other] - self.counted[other]) \
+                short = (modelled - counted) - (judged_m[other] - judged_c[other]) \
                     >= UNEVEN_CM
             if short:
                 self._short_sent[tread] = True

@@ -160,6 +160,13 @@ class GaussianPose:
         return np.array([pose.x - self.mean.x, pose.y - self.mean.y,
                          math.radians(angle_diff_deg(pose.heading_deg, self.mean.heading_deg))])
 
+    def distance2(self, pose: Pose, covariance: np.ndarray | None = None) -> float:
+        """Squared Mahalanobis distance of ``pose`` from the mean under ``covariance``
+        (3 x 3; the belief's own when None): what a gate compares with ``GATE_CHI2``."""
+        e = self.innovation(pose)
+        cov = self.covariance if covariance is None else covariance
+        return float(e @ np.linalg.solve(cov, e))
+
     def update(self, pose: Pose, information: np.ndarray,
                stamp_covariance: np.ndarray | None = None) -> GaussianPose:
         """The belief after a measured pose with its information matrix (inverse

@@ -52,8 +52,9 @@ import numpy as np
 
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import to_map
+from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.mapping.scan_match import MAX_RANGE_CM, MIN_POINTS, MatchOptions
-from server.protocol.pose import Pose, angle_diff_deg
+from server.protocol.pose import Pose
 
 __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_likelihood",
            "judge_fit", "gate_fit", "acceptable_log_fit", "odometry_floor",
@@ -309,10 +310,8 @@ def gate_fit(fit: ScanFit, pose: Pose, belief_pose: Pose, belief_covariance: np.
     hit again. The stamp's own error (`odometry_floor`) is added to the covariance (a
     collapsed belief must still accept its own mean).
     """
-    e = np.array([pose.x - belief_pose.x, pose.y - belief_pose.y,
-                  math.radians(angle_diff_deg(pose.heading_deg, belief_pose.heading_deg))])
     cov = np.asarray(belief_covariance, dtype=float) + odometry_floor()
-    d2 = float(e @ np.linalg.solve(cov, e))
+    d2 = GaussianPose(belief_pose, cov).distance2(pose)
     verdict = fit.verdict
     if verdict is FitVerdict.ACCEPTED and d2 > GATE_CHI2:
         verdict = FitVerdict.OUTSIDE_BELIEF

@@ -585,9 +585,7 @@ class MapManagement(Actor):
         result = match_scan(fields, pts, pose, opts)
         if not result.accepted:
             return True  # nothing better nearby
-        e = self.belief.innovation(result.pose)
-        cov = self.belief.covariance + stamp
-        return float(e @ np.linalg.solve(cov, e)) <= GATE_CHI2
+        return self.belief.distance2(result.pose, self.belief.covariance + stamp) <= GATE_CHI2
 
     def _weigh_odometry(self, pts: np.ndarray, result: MatchResult, now: float,
                         stamp: np.ndarray) -> tuple[ScanFit, ScanFit | None] | None:
@@ -620,13 +618,11 @@ class MapManagement(Actor):
         if result.accepted:
             at_match = judge_fit(self._distance, result.pose, pts, _SCAN)
             if at_match.verdict not in (FitVerdict.NEW_GROUND, FitVerdict.TOO_FEW_HITS):
-                e = self.belief.innovation(result.pose)
-                d2 = float(e @ np.linalg.solve(narrow, e))
+                d2 = self.belief.distance2(result.pose, narrow)
                 found.update(log_fit_match=at_match.log_fit, d2_match=d2,
-                             d2_match_wide=float(e @ np.linalg.solve(wide, e)))
+                             d2_match_wide=self.belief.distance2(result.pose, wide))
                 if alt is not None:
-                    ea = GaussianPose(alt, narrow).innovation(result.pose)
-                    found["d2_match_alt"] = float(ea @ np.linalg.solve(narrow, ea))
+                    found["d2_match_alt"] = GaussianPose(alt, narrow).distance2(result.pose)
                 if at_match.fit >= MIN_FIT and d2 > GATE_CHI2:
                     # a confident fit the narrow belief cannot hold: where "broken" would be
                     self._alt_correction = compose(result.pose, inverse(odom))

@@ -247,9 +247,8 @@ class RouteRecovery:
         self.replans = max(0, self.replans - uncount)
         self.counters["stall_holds"] += 1
         self._replan = True
-        self._blocked, self._done = False, 0.0
-        self._hold_until = trio.current_time() + hold_s
-        await self.status(self.state, f"a tread stalls; holding {hold_s:.0f} s")
+        await self.hold_still(trio.current_time() + hold_s,
+                              f"a tread stalls; holding {hold_s:.0f} s")
 
     def _backoff_turned(self) -> bool:
         """The last motion, a reverse (a back-off), ended blocked having turned the rover

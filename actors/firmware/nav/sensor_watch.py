@@ -96,6 +96,12 @@ its leading edge (ahead, across the body's width and a cell either side) [cells]
 mapped face lies up to a cell in front of the wall's, and the pose is a cell or so off."""
 
 
+def _odo_hold_s(strikes: int) -> float:
+    """The odometry hold of the ``strikes``-th strike in a row, before its cap [s]:
+    ``ODO_HOLD_S`` doubled for each strike after the first."""
+    return ODO_HOLD_S * 2.0 ** (strikes - 1)
+
+
 def uncounted_travel(reported: tuple[bool, bool], counted: tuple[float, float],
                      driven: tuple[float, float]) -> tuple[float, float]:
     """The (left, right) travel [cm] Motor Control drove each reported tread beyond its
@@ -295,8 +301,7 @@ class SensorWatch:
         when it met nothing the map holds (`_blocked_in_the_open`) and the hold has not
         yet doubled to its longest; True when holding (the block is not the route's)."""
         now = trio.current_time()
-        if now - self._odo_last <= 60.0 and (
-                ODO_HOLD_S * 2.0 ** (self._odo_strikes - 1) >= ODO_HOLD_MAX_S):
+        if now - self._odo_last <= 60.0 and _odo_hold_s(self._odo_strikes) >= ODO_HOLD_MAX_S:
             return False  # held the longest already: a fault this long, or a real block
         if not self._blocked_in_the_open(done):
             return False
@@ -311,7 +316,7 @@ class SensorWatch:
         if hold is None:
             self._odo_strikes = self._odo_strikes + 1 if now - self._odo_last <= 60.0 else 1
             self._odo_last = now
-            hold = min(ODO_HOLD_MAX_S, ODO_HOLD_S * 2.0 ** (self._odo_strikes - 1))
+            hold = min(ODO_HOLD_MAX_S, _odo_hold_s(self._odo_strikes))
         self._odo_hold_until = now + hold
         self.odometry_faults += 1
         await self.stop_motor()

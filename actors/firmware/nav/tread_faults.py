@@ -104,15 +104,20 @@ class TreadFaults:
             self._hold_until = now + TREAD_STOP_S
             return
         hold = self.o.tread_hold_s * 2.0 ** (self._tread_strikes - 1)
-        self._blocked, self._done = False, 0.0
-        self._hold_until = now + hold
         self._check_due = turning and not fault.counts_short
         side = "both treads" if both else f"the {fault.side} tread"
         if fault.counts_short:
             kind = "count short" if both else "counts short"
         else:
             kind = "do not count" if both else "does not count"
-        await self.status(self.state, f"{side} {kind}; holding {hold:.0f} s")
+        await self.hold_still(now + hold, f"{side} {kind}; holding {hold:.0f} s")
+
+    async def hold_still(self, until: float, detail: str) -> None:
+        """Hold still until ``until`` [s] and say ``detail``: the motion that ends meanwhile
+        counts as not blocked, and the decision after the hold uses the pose at rest."""
+        self._blocked, self._done = False, 0.0
+        self._hold_until = until
+        await self.status(self.state, detail)
 
     async def check_treads(self, blocked: bool, done: float) -> bool:
         """After a hold for a silent tread in a turn: check the treads with a short
@@ -140,11 +145,9 @@ class TreadFaults:
                     self._check_holds < TREAD_HOLDS:
                 self._check_holds += 1
                 hold = self.o.tread_hold_s * 2.0 ** self._check_holds
-                self._blocked, self._done = False, 0.0
-                self._hold_until = trio.current_time() + hold
                 self._check_due = True
-                await self.status(self.state, f"the treads still do not count; holding "
-                                  f"{hold:.0f} s")
+                await self.hold_still(trio.current_time() + hold, f"the treads still do "
+                                      f"not count; holding {hold:.0f} s")
                 return True
             self._check_holds = 0
             return False
