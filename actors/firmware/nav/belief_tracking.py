@@ -52,6 +52,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import trio
 
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.belief import PoseBelief, Spread
@@ -83,6 +84,14 @@ the route before it was given up after its contacts, as likely misread as read r
 (see `BeliefTracking.on_server_origin`)."""
 
 
+def _clock() -> float | None:
+    """Trio's clock [s], or None outside a Trio run (a navigation driven by hand)."""
+    try:
+        return trio.current_time()
+    except RuntimeError:
+        return None
+
+
 def _same_pose(a: Pose, b: Pose) -> bool:
     """``a`` and ``b`` are one pose, to the precision a frame carries (0.01 cm, deg)."""
     return math.dist((a.x, a.y), (b.x, b.y)) < 0.01 and \
@@ -111,6 +120,7 @@ class BeliefTracking:
         self._belief_odom: Pose | None = None  # own-frame pose the belief was last moved to
         self._reports = [TreadReport.OK, TreadReport.OK]  # tread reports since then
         self._reported_before = (False, False)  # each tread reported in the motion before
+        self._rest_since: float | None = _clock()  # when the last predicted motion ended [s]
         self._modelled: tuple[float, float] | None = None  # Motor Control's driven travel [cm]
         self._reported_motion: Motion | None = None  # its NAV_TREAD_DRIVEN is still to come
         self._spread: Spread | None = None  # cached until the belief changes
@@ -182,6 +192,7 @@ class BeliefTracking:
         self._dead = None
         self._reports = [TreadReport.OK, TreadReport.OK]
         self._reported_before = (False, False)
+        self._rest_since = _clock()
         self._modelled = self._reported_motion = None
         self._retain()
 
@@ -276,8 +287,9 @@ class BeliefTracking:
         driven: list[float | None] = [None, None]
         if self._reports != [TreadReport.OK, TreadReport.OK]:
             driven = self._driven(left, right, w)
+        p = self._from_start() if self._reports != [TreadReport.OK, TreadReport.OK] else 0.0
         motion = TreadMotion(left, right, driven[0], driven[1], *self._reports,
-                             *self._reported_before)
+                             *(1.0 if before else p for before in self._reported_before))
         self.belief.predict(motion, w, self.o.motion, self._rng, self._walls())
         if self._dead is not None:
             self._dead.predict(motion, w, self.o.motion, self._dead_rng)
@@ -286,7 +298,21 @@ class BeliefTracking:
                                  self._reports[1] != TreadReport.OK)
         self._reports = [TreadReport.OK, TreadReport.OK]
         self._modelled = self._reported_motion = None
+        self._rest_since = _clock()
         return True
+
+    def _from_start(self) -> float:
+        """The probability that a tread fault first reported in the motion that ended was
+        there when it began: its onset uniform in time since the rover was last known
+        healthy (the end of the motion before), so the time it stood still over that plus
+        the motion's time [1]."""
+        now, rest = _clock(), self._rest_since
+        if now is None or rest is None:
+            return 0.0  # no clock (a navigation driven by hand): the onset within
+        began = self.motion_t if self.motion_t is not None else now
+        began = min(max(began, rest), now)
+        still, moving = began - rest, now - began
+        return still / (still + moving) if still + moving > 0.0 else 0.0
 
     def _driven(self, left: float, right: float, w: float) -> list[float | None]:
         """Modelled travel [cm] of each reported tread: Motor Control's drive model
