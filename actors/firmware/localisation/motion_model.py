@@ -27,10 +27,10 @@ Algorithm
       half the particles (``u`` uniform: under 1/2 the first, else the
       second). The fault's onset is uniform in time since the tread last
       counted well: it was there when the motion began with the probability
-      ``TreadMotion.left_from_start`` (1 after a motion with the same tread
-      reported; else the time the rover stood still before the motion over
-      that plus the motion's: a fault that began at rest shows in the first
-      motion after it), and the tread went all the way as driven; else it
+      ``TreadMotion.left_from_start`` (1 while the tread was reported and has
+      not counted well since; else the share of the time since it last did
+      that passed before the motion began: a fault that began at rest shows in
+      the first motion after it), and the tread went all the way as driven; else it
       began within the motion, anywhere, and the share as driven is
       ``Uniform(0, 1)``. So
       the belief keeps two narrow hypotheses, which the free-space model and

@@ -54,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 import trio
 
-from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.drivers.tread_monitor import SHORT_AFTER_CM, TreadFault
 from actors.firmware.localisation.belief import PoseBelief, Spread
 from actors.firmware.localisation.contact import stalled_side
 from actors.firmware.localisation.contact_model import (
@@ -119,8 +119,8 @@ class BeliefTracking:
         self._rng = np.random.default_rng(zlib.crc32(f"belief:{self.role}".encode()))
         self._belief_odom: Pose | None = None  # own-frame pose the belief was last moved to
         self._reports = [TreadReport.OK, TreadReport.OK]  # tread reports since then
-        self._reported_before = (False, False)  # each tread reported in the motion before
-        self._rest_since: float | None = _clock()  # when the last predicted motion ended [s]
+        self._suspect = [False, False]  # each tread reported, not judged healthy since
+        self._healthy_at: list[float | None] = [_clock(), _clock()]  # when each was [s]
         self._modelled: tuple[float, float] | None = None  # Motor Control's driven travel [cm]
         self._reported_motion: Motion | None = None  # its NAV_TREAD_DRIVEN is still to come
         self._spread: Spread | None = None  # cached until the belief changes
@@ -191,8 +191,8 @@ class BeliefTracking:
         self._weighed = False
         self._dead = None
         self._reports = [TreadReport.OK, TreadReport.OK]
-        self._reported_before = (False, False)
-        self._rest_since = _clock()
+        self._suspect = [False, False]
+        self._healthy_at = [_clock(), _clock()]
         self._modelled = self._reported_motion = None
         self._retain()
 
@@ -287,32 +287,42 @@ class BeliefTracking:
         driven: list[float | None] = [None, None]
         if self._reports != [TreadReport.OK, TreadReport.OK]:
             driven = self._driven(left, right, w)
-        p = self._from_start() if self._reports != [TreadReport.OK, TreadReport.OK] else 0.0
         motion = TreadMotion(left, right, driven[0], driven[1], *self._reports,
-                             *(1.0 if before else p for before in self._reported_before))
+                             *(self._from_start(t) for t in (0, 1)))
         self.belief.predict(motion, w, self.o.motion, self._rng, self._walls())
         if self._dead is not None:
             self._dead.predict(motion, w, self.o.motion, self._dead_rng)
         self._belief_odom, self._spread = self.pose, None
-        self._reported_before = (self._reports[0] != TreadReport.OK,
-                                 self._reports[1] != TreadReport.OK)
+        for t, count in enumerate((left, right)):
+            if self._reports[t] != TreadReport.OK:
+                self._suspect[t] = True
+            elif abs(count) >= SHORT_AFTER_CM:  # long enough for Motor Control to judge
+                self._suspect[t], self._healthy_at[t] = False, _clock()
         self._reports = [TreadReport.OK, TreadReport.OK]
         self._modelled = self._reported_motion = None
-        self._rest_since = _clock()
         return True
 
-    def _from_start(self) -> float:
-        """The probability that a tread fault first reported in the motion that ended was
-        there when it began: its onset uniform in time since the rover was last known
-        healthy (the end of the motion before), so the time it stood still over that plus
-        the motion's time [1]."""
-        now, rest = _clock(), self._rest_since
-        if now is None or rest is None:
+    def _from_start(self, tread: int) -> float:
+        """The probability that a fault of ``tread`` (0 left, 1 right) reported in the
+        motion that ended was there when the motion began [1].
+
+        1 when the tread was reported before and has not counted well since (a motion
+        too short for Motor Control to judge, a coasting tail or a hold's wait says
+        nothing of it). Else the fault's onset is uniform in time since the tread last
+        counted well over a judged motion: the share of that time which passed before
+        the motion began (a fault that began while the rover waited shows in the first
+        motion after it)."""
+        if self._reports[tread] == TreadReport.OK:
+            return 0.0
+        if self._suspect[tread]:
+            return 1.0
+        now, healthy = _clock(), self._healthy_at[tread]
+        if now is None or healthy is None:
             return 0.0  # no clock (a navigation driven by hand): the onset within
         began = self.motion_t if self.motion_t is not None else now
-        began = min(max(began, rest), now)
-        still, moving = began - rest, now - began
-        return still / (still + moving) if still + moving > 0.0 else 0.0
+        began = min(max(began, healthy), now)
+        before, during = began - healthy, now - began
+        return before / (before + during) if before + during > 0.0 else 0.0
 
     def _driven(self, left: float, right: float, w: float) -> list[float | None]:
         """Modelled travel [cm] of each reported tread: Motor Control's drive model
