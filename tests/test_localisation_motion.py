@@ -88,7 +88,7 @@ def test_a_continued_report_keeps_two_narrow_explanations() -> None:
     each."""
     rng = np.random.default_rng(8)
     p = sample_motion(_start(), TreadMotion(10.0, 20.0, driven_left_cm=20.0,
-                                            left=TreadReport.SHORT, left_continued=True),
+                                            left=TreadReport.SHORT, left_from_start=1.0),
                       W, NOISE, rng)
     heading = np.degrees(p[:, 2])
     counted = math.degrees((20.0 - 10.0) / W)
@@ -155,3 +155,19 @@ def test_the_same_generator_seed_gives_the_same_particles() -> None:
     a = sample_motion(_start(100), m, W, NOISE, np.random.default_rng(9))
     b = sample_motion(_start(100), m, W, NOISE, np.random.default_rng(9))
     assert np.array_equal(a, b)
+
+
+def test_a_fault_there_from_the_motions_start_takes_the_whole_drive() -> None:
+    """A tread first reported in a motion after the rover stood still nine times as long
+    as it drove: its fault was there from the start with probability 0.9, so about 45 %
+    of the particles take the whole drive, half the count, and the rest lie between."""
+    rng = np.random.default_rng(9)
+    p = sample_motion(_start(), TreadMotion(10.0, 20.0, driven_left_cm=20.0,
+                                            left=TreadReport.SHORT, left_from_start=0.9),
+                      W, NOISE, rng)
+    heading = np.degrees(p[:, 2])
+    counted = math.degrees((20.0 - 10.0) / W)
+    as_counted = np.abs(heading - counted) < 4.0
+    assert float(np.mean(as_counted)) == pytest.approx(0.5, abs=0.05)
+    between = ~as_counted & (heading > 12.0) & (heading < counted - 4.0)
+    assert float(np.mean(between)) < 0.1  # the onset within the motion: a tenth of half
