@@ -6,11 +6,8 @@ import math
 
 import numpy as np
 import pytest
-import trio
-from trio.testing import MockClock
 
 from actors import BufferPool
-from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.belief import PoseBelief
 from actors.firmware.localisation.odometry import advance, tread_travel
 from actors.firmware.nav.factory import make_nav
@@ -157,65 +154,3 @@ def test_the_pose_follows_the_heaviest_hypothesis_once_free_space_splits_the_bel
     p = nav.map_pose
     assert (p.x, p.y) == pytest.approx((102.0, 80.0), abs=3.0)
     assert len(nav.spread.clusters) == 2
-
-
-def _recorded_motions(monkeypatch: pytest.MonkeyPatch, nav) -> list:  # noqa: ANN001
-    """The `TreadMotion` of every prediction of ``nav``'s belief from now on (appended as
-    they come; the dead-reckoning set beside it is moved by the same ones)."""
-    seen: list = []
-    predict = PoseBelief.predict
-
-    def recording(self, motion, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
-        if self is nav.belief:
-            seen.append(motion)
-        return predict(self, motion, *args, **kwargs)
-
-    monkeypatch.setattr(PoseBelief, "predict", recording)
-    return seen
-
-
-def _drive(nav, left: float, right: float, fault: TreadFault | None = None) -> None:  # noqa: ANN001
-    """One motion of ``nav`` counting ``left`` / ``right`` [cm], reported ``fault``."""
-    nav.last_motion = Motion("move", 20.0)
-    if fault is not None:
-        nav.note_tread_fault(fault)
-        nav.note_tread_driven(2.0 * left, right)
-    nav.pose = advance(nav.pose, left, right, 13.0)
-    nav.track_belief()
-
-
-def test_a_tread_reported_and_not_judged_since_is_faulty_from_the_next_motion_s_start(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """A fault reported before a hold is there when the motions after it begin: the
-    coasting tail and a turn too short for Motor Control to judge say nothing of the
-    tread, so its next report is the same fault from the motion's start (``from_start``
-    1), not one begun within the motion."""
-    nav = make_nav("hider", pool=BufferPool(4))
-    nav.origin, nav.pose, nav.pose_known = Pose(50.0, 50.0, 0.0), Pose(0.0, 0.0, 0.0), True
-    nav.track_belief()
-    seen = _recorded_motions(monkeypatch, nav)
-    _drive(nav, 20.0, 20.0)  # judged healthy
-    _drive(nav, 3.0, 6.0, TreadFault.short(0))  # the report; the hold follows
-    _drive(nav, 0.4, 0.8)  # the tail after the stop
-    _drive(nav, -1.0, 1.0)  # a short turn: unjudged
-    _drive(nav, 3.0, 6.0, TreadFault.short(0))  # reported again
-    assert [m.left_from_start for m in seen] == [0.0, 0.0, 0.0, 0.0, 1.0]
-    _drive(nav, 20.0, 20.0)  # counted well: healthy again
-    _drive(nav, 3.0, 6.0, TreadFault.short(0))
-    assert seen[-1].left_from_start == 0.0  # no clock here: a new fault, begun within
-
-
-def test_a_fault_first_reported_after_a_wait_most_likely_began_during_it() -> None:
-    """The onset is uniform in time since the tread last counted well: after a long
-    wait and a short motion, the fault most likely was there when the motion began."""
-    async def main() -> float:
-        nav = make_nav("hider", pool=BufferPool(4))
-        nav.origin, nav.pose, nav.pose_known = Pose(50.0, 50.0, 0.0), Pose(0.0, 0.0, 0.0), True
-        nav.track_belief()
-        _drive(nav, 20.0, 20.0)  # healthy at t = 0
-        await trio.sleep(90.0)  # the rover waits
-        nav.motion_t = trio.current_time()
-        await trio.sleep(10.0)  # a 10 s motion, the fault reported in it
-        nav.note_tread_fault(TreadFault.short(0))
-        return nav._from_start(0)
-    assert trio.run(main, clock=MockClock(autojump_threshold=0)) == pytest.approx(0.9)

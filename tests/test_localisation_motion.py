@@ -81,25 +81,18 @@ def test_heading_noise_widens_on_a_tread_report() -> None:
         assert np.any(np.abs(np.degrees(short[:, 2]) - truth) < 2.0)
 
 
-
-def _left_short_headings(from_start: float, seed: int) -> tuple[np.ndarray, float, np.ndarray]:
-    """Headings [deg] after a motion counting 10 / 20 cm whose left tread (driven 20 cm)
-    was reported short, its fault there from the start with ``from_start``; the counted
-    heading [deg], and which particles took it (within the scrub: 1.3 deg over 44 deg)."""
-    p = sample_motion(_start(), TreadMotion(10.0, 20.0, driven_left_cm=20.0,
-                                            left=TreadReport.SHORT,
-                                            left_from_start=from_start),
-                      W, NOISE, np.random.default_rng(seed))
-    heading = np.degrees(p[:, 2])
-    counted = math.degrees((20.0 - 10.0) / W)
-    return heading, counted, np.abs(heading - counted) < 4.0
-
 def test_a_continued_report_keeps_two_narrow_explanations() -> None:
     """The left tread counted short in the motion before too: its fault began before this
     one, so the tread went either as counted (a weak motor) or as driven (a slipping
     encoder, within the drive model's error), not in between: half the particles at
     each."""
-    heading, counted, as_counted = _left_short_headings(1.0, 8)
+    rng = np.random.default_rng(8)
+    p = sample_motion(_start(), TreadMotion(10.0, 20.0, driven_left_cm=20.0,
+                                            left=TreadReport.SHORT, left_continued=True),
+                      W, NOISE, rng)
+    heading = np.degrees(p[:, 2])
+    counted = math.degrees((20.0 - 10.0) / W)
+    as_counted = np.abs(heading - counted) < 4.0  # the scrub: 1.3 deg over 44 deg
     assert float(np.mean(as_counted)) == pytest.approx(0.5, abs=0.05)
     assert float(np.mean(heading[~as_counted])) == pytest.approx(0.0, abs=1.5)
 
@@ -162,13 +155,3 @@ def test_the_same_generator_seed_gives_the_same_particles() -> None:
     a = sample_motion(_start(100), m, W, NOISE, np.random.default_rng(9))
     b = sample_motion(_start(100), m, W, NOISE, np.random.default_rng(9))
     assert np.array_equal(a, b)
-
-
-def test_a_fault_there_from_the_motions_start_takes_the_whole_drive() -> None:
-    """A tread first reported in a motion after the rover stood still nine times as long
-    as it drove: its fault was there from the start with probability 0.9, so about 45 %
-    of the particles take the whole drive, half the count, and the rest lie between."""
-    heading, counted, as_counted = _left_short_headings(0.9, 9)
-    assert float(np.mean(as_counted)) == pytest.approx(0.5, abs=0.05)
-    between = ~as_counted & (heading > 12.0) & (heading < counted - 4.0)
-    assert float(np.mean(between)) < 0.1  # the onset within the motion: a tenth of half

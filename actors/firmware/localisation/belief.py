@@ -46,7 +46,6 @@ Frame and units
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -355,9 +354,7 @@ class PoseBelief:
     # -- filtering --------------------------------------------------------------
 
     def predict(self, motion: TreadMotion, track_width_cm: float, noise: MotionNoise,
-                rng: np.random.Generator,
-                constrain: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
-                ) -> None:
+                rng: np.random.Generator) -> None:
         """Move every particle by one motion (the weights stay).
 
         Args:
@@ -365,14 +362,9 @@ class PoseBelief:
             track_width_cm: distance between the treads' contact lines [cm].
             noise: the motion model's noise levels.
             rng: the run's generator.
-            constrain: what the map makes of the motion: given the particles before and
-                after it, the poses the map allows (`wall_slide.slide_along_walls`);
-                None: the motion model alone.
         """
         p = sample_motion(self._p, motion, track_width_cm, noise, rng)
         p[:, 2] = _wrap(p[:, 2])
-        if constrain is not None:
-            p = constrain(self._p, p)
         self._p = p
 
     def update(self, log_likelihood: np.ndarray, rng: np.random.Generator) -> UpdateReport:

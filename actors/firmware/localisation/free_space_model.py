@@ -143,12 +143,9 @@ def _body_lattice(length_cm: float, width_cm: float, res_cm: float
 
 def free_space_log_likelihood(field: DistanceField, particles: np.ndarray,
                               body_cm: tuple[float, float],
-                              options: FreeSpaceOptions | None = None, *,
-                              inside: np.ndarray | None = None) -> np.ndarray:
+                              options: FreeSpaceOptions | None = None) -> np.ndarray:
     """Log-likelihood (N,) of "the body (``body_cm``: length, width [cm]) is on free
-    ground" for every particle; ``inside``, when given, is `inside_obstacle` of these
-    particles already found (`wall_slide.slide_along_walls` gives it)."""
+    ground" for every particle."""
     options = options or FreeSpaceOptions()
-    if inside is None:
-        inside = inside_obstacle(field, particles, body_cm)
+    inside = inside_obstacle(field, particles, body_cm)
     return np.where(inside, math.log(options.inside_likelihood), 0.0)

@@ -25,14 +25,10 @@ Algorithm
       blocked) and ``u = 0``; or the model is right (a slipping or stuck
       encoder: the tread went as driven) and ``u = 1``. Each explanation has
       half the particles (``u`` uniform: under 1/2 the first, else the
-      second). The fault's onset is uniform in time since the tread last
-      counted well: it was there when the motion began with the probability
-      ``TreadMotion.left_from_start`` (1 while the tread was reported and has
-      not counted well since; else the share of the time since it last did
-      that passed before the motion began: a fault that began at rest shows in
-      the first motion after it), and the tread went all the way as driven; else it
-      began within the motion, anywhere, and the share as driven is
-      ``Uniform(0, 1)``. So
+      second). A fault begins within the first motion it is reported in, so
+      there the second explanation holds from an onset anywhere in the
+      motion, ``u ~ Uniform(0, 1)``; a motion after one with the same tread
+      reported is all after the onset (``TreadMotion.left_continued``). So
       the belief keeps two narrow hypotheses, which the free-space model and
       contacts tell apart, instead of one smeared between them whose middle
       no fault explains. When both treads are reported, one ``u`` (and one
@@ -119,11 +115,11 @@ class TreadMotion:
     """What Motor Control reported about the left tread in this motion."""
     right: TreadReport = TreadReport.OK
     """What Motor Control reported about the right tread in this motion."""
-    left_from_start: float = 0.0
-    """Probability that a fault of the left tread was already there when the motion began
-    (not begun within it) [1]; read when the left tread is reported."""
-    right_from_start: float = 0.0
-    """The same for the right tread [1]."""
+    left_continued: bool = False
+    """The left tread was reported in the motion before too: its fault began before this
+    motion, not within it."""
+    right_continued: bool = False
+    """The right tread was reported in the motion before too."""
 
     def __post_init__(self) -> None:
         for name in ("left_cm", "right_cm"):
@@ -160,29 +156,26 @@ class MotionNoise:
                 raise ValueError(f"MotionNoise.{name} must be a finite number >= 0, got {v!r}")
 
 
-def _share_driven(u: np.ndarray, from_start: float) -> np.ndarray:
+def _share_driven(u: np.ndarray, continued: bool) -> np.ndarray:
     """The share of a reported tread's modelled travel each particle takes, from its
-    uniform draw ``u``: 0 (the count is right) for ``u < 1/2``; else, with ``v = 2u - 1``
-    uniform, 1 (the fault there from the motion's start) for ``v < from_start`` and the
-    share after a uniform onset within the motion otherwise."""
-    v = 2.0 * u - 1.0
-    p = min(max(from_start, 0.0), 1.0)
-    within = (v - p) / (1.0 - p) if p < 1.0 else v
-    return np.where(u < 0.5, 0.0, np.where(v < p, 1.0, within))
+    uniform draw ``u``: 0 (the count is right) for ``u < 1/2``, else 1 (the model is
+    right) or, in the motion the fault began in, the share after a uniform onset."""
+    return np.where(u < 0.5, 0.0, 1.0 if continued else 2.0 * u - 1.0)
 
 
 def _tread_travel(counted: float, driven: float | None, report: TreadReport,
-                  share: np.ndarray, z: np.ndarray, noise: MotionNoise,
+                  u: np.ndarray, continued: bool, z: np.ndarray, noise: MotionNoise,
                   rng: np.random.Generator) -> np.ndarray:
-    """Sampled true travel of one tread for ``n = share.size`` particles [cm]; ``share``
-    places it between counted (0) and driven (1), ``z`` is the modelled travel's
+    """Sampled true travel of one tread for ``n = u.size`` particles [cm]; a reported
+    tread's share between counted (0) and driven (1) follows from the uniform draw ``u``
+    (`_share_driven`, made only for a reported tread), ``z`` is the modelled travel's
     relative error draw."""
-    n = share.shape[0]
+    n = u.shape[0]
     travel = counted + rng.standard_normal(n) * (noise.encoder_sigma * math.sqrt(abs(counted)))
     if report == TreadReport.OK:
         return travel
     far = driven * (1.0 + z * noise.driven_sigma)
-    return travel + share * (far - counted)
+    return travel + _share_driven(u, continued) * (far - counted)
 
 
 def sample_motion(particles: np.ndarray, motion: TreadMotion, track_width_cm: float,
@@ -214,10 +207,10 @@ def sample_motion(particles: np.ndarray, motion: TreadMotion, track_width_cm: fl
     u_left, z_left = rng.random(n), rng.standard_normal(n)
     both = motion.left != TreadReport.OK and motion.right != TreadReport.OK
     u_right, z_right = (u_left, z_left) if both else (rng.random(n), rng.standard_normal(n))
-    dl = _tread_travel(motion.left_cm, motion.driven_left_cm, motion.left,
-                       _share_driven(u_left, motion.left_from_start), z_left, noise, rng)
-    dr = _tread_travel(motion.right_cm, motion.driven_right_cm, motion.right,
-                       _share_driven(u_right, motion.right_from_start), z_right, noise, rng)
+    dl = _tread_travel(motion.left_cm, motion.driven_left_cm, motion.left, u_left,
+                       motion.left_continued, z_left, noise, rng)
+    dr = _tread_travel(motion.right_cm, motion.driven_right_cm, motion.right, u_right,
+                       motion.right_continued, z_right, noise, rng)
     dtheta = (dr - dl) / track_width_cm  # [rad]
     ds = 0.5 * (dr + dl)  # [cm]
     mid = p[:, 2] + 0.5 * dtheta

@@ -138,8 +138,6 @@ class NavBase(TreadFaults, Actor):
         """The last motion commanded."""
         self.motion_from: Pose | None = None
         """The map-frame pose the last motion was commanded from."""
-        self.motion_t: float | None = None
-        """When the last motion was commanded [s, Trio's clock]."""
         self.odometry_from: Pose | None = None
         """Motor Control's own-frame pose when the last motion was commanded: what its
         counts moved from (the map-frame ``motion_from`` also moves with the origin)."""
@@ -267,7 +265,6 @@ class NavBase(TreadFaults, Actor):
         self._motion = motion
         self.last_motion = motion
         self.motion_from = self.map_pose
-        self.motion_t = trio.current_time()
         self.odometry_from = self.pose
         self.counters["motions"] += 1
         nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \

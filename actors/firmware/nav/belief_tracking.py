@@ -15,8 +15,7 @@ What drives it
       motion marks the tread(s) reported; their modelled travel is the other
       tread's count (one tread reported: both are driven alike in size) or the
       commanded motion's (both reported), so the doubt follows from the
-      geometry, not from added degrees. On the server's map a particle driven
-      at a slant into a wall slides along it (`wall_slide`).
+      geometry, not from added degrees.
     * **Free space**: at every rest the particles whose body overlaps a wall of
       the server's map lose weight (`free_space_model`).
     * **Contact**: a straight move that ended blocked weighs the particles by
@@ -48,13 +47,11 @@ from __future__ import annotations
 
 import math
 import zlib
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import trio
 
-from actors.firmware.drivers.tread_monitor import SHORT_AFTER_CM, TreadFault
+from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.belief import PoseBelief, Spread
 from actors.firmware.localisation.contact import stalled_side
 from actors.firmware.localisation.contact_model import (
@@ -67,7 +64,6 @@ from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import free_space_log_likelihood
 from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
 from actors.firmware.localisation.odometry import tread_travel
-from actors.firmware.localisation.wall_slide import slide_along_walls
 from actors.firmware.nav.route import Motion
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
@@ -83,14 +79,6 @@ RETRY_PRIOR_SHARE = 0.5
 """Weight of dead reckoning alone in the belief a retried destination starts from [1]:
 the route before it was given up after its contacts, as likely misread as read right
 (see `BeliefTracking.on_server_origin`)."""
-
-
-def _clock() -> float | None:
-    """Trio's clock [s], or None outside a Trio run (a navigation driven by hand)."""
-    try:
-        return trio.current_time()
-    except RuntimeError:
-        return None
 
 
 def _same_pose(a: Pose, b: Pose) -> bool:
@@ -120,17 +108,13 @@ class BeliefTracking:
         self._rng = np.random.default_rng(zlib.crc32(f"belief:{self.role}".encode()))
         self._belief_odom: Pose | None = None  # own-frame pose the belief was last moved to
         self._reports = [TreadReport.OK, TreadReport.OK]  # tread reports since then
-        self._suspect = [False, False]  # each tread reported, not judged healthy since
-        self._healthy_at: list[float | None] = [_clock(), _clock()]  # when each was [s]
+        self._reported_before = (False, False)  # each tread reported in the motion before
         self._modelled: tuple[float, float] | None = None  # Motor Control's driven travel [cm]
         self._reported_motion: Motion | None = None  # its NAV_TREAD_DRIVEN is still to come
         self._spread: Spread | None = None  # cached until the belief changes
         self._modes = 1  # clusters of the last spread computed
         self._weighed = False  # an update since the last spread told the particles apart
         self._field: DistanceField | None = None
-        # which particles overlap a wall after the last motion (the slide found it), for
-        # the free-space weighing that follows it; None: not known
-        self._inside: np.ndarray | None = None
         self._field_of: GridMap | None = None
         self._dead: DeadReckoning | None = None  # the belief moved by the counts alone
         # its own generator: the belief's draws do not depend on whether it is kept
@@ -167,20 +151,6 @@ class BeliefTracking:
             self._field, self._field_of = DistanceField.from_grid(self.map), self.map
         return self._field
 
-    def _walls(self) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
-        """The map's constraint on a motion (a body driven into a wall slides along it),
-        None before the map is known."""
-        field = self._distance_field()
-        if field is None:
-            return None
-        body = (self.length_cm, self.width_cm)
-
-        def constrain(before: np.ndarray, after: np.ndarray) -> np.ndarray:
-            poses, self._inside = slide_along_walls(field, before, after, body)
-            return poses
-
-        return constrain
-
     def _track_width(self) -> float:
         return self.spec.track_width_cm if self.spec is not None else 13.0
 
@@ -188,12 +158,10 @@ class BeliefTracking:
     def forget_belief(self) -> None:
         """The map-frame pose is given anew (the server's origin): start a new belief."""
         self.belief, self._spread, self._belief_odom, self._modes = None, None, None, 1
-        self._inside = None
         self._weighed = False
         self._dead = None
         self._reports = [TreadReport.OK, TreadReport.OK]
-        self._suspect = [False, False]
-        self._healthy_at = [_clock(), _clock()]
+        self._reported_before = (False, False)
         self._modelled = self._reported_motion = None
         self._retain()
 
@@ -269,8 +237,7 @@ class BeliefTracking:
         field = self._distance_field()
         if field is not None and self.belief is not None:
             body = (self.length_cm, self.width_cm)
-            inside, self._inside = self._inside, None
-            ll = free_space_log_likelihood(field, self.belief.particles, body, inside=inside)
+            ll = free_space_log_likelihood(field, self.belief.particles, body)
             self.belief.update(ll, self._rng)
             # a flat likelihood changes no weight: it cannot split the belief
             self._weighed = self._weighed or bool(ll.min() < ll.max())
@@ -290,41 +257,16 @@ class BeliefTracking:
         if self._reports != [TreadReport.OK, TreadReport.OK]:
             driven = self._driven(left, right, w)
         motion = TreadMotion(left, right, driven[0], driven[1], *self._reports,
-                             *(self._from_start(t) for t in (0, 1)))
-        self.belief.predict(motion, w, self.o.motion, self._rng, self._walls())
+                             *self._reported_before)
+        self.belief.predict(motion, w, self.o.motion, self._rng)
         if self._dead is not None:
             self._dead.predict(motion, w, self.o.motion, self._dead_rng)
         self._belief_odom, self._spread = self.pose, None
-        for t, count in enumerate((left, right)):
-            if self._reports[t] != TreadReport.OK:
-                self._suspect[t] = True
-            elif abs(count) >= SHORT_AFTER_CM:  # long enough for Motor Control to judge
-                self._suspect[t], self._healthy_at[t] = False, _clock()
+        self._reported_before = (self._reports[0] != TreadReport.OK,
+                                 self._reports[1] != TreadReport.OK)
         self._reports = [TreadReport.OK, TreadReport.OK]
         self._modelled = self._reported_motion = None
         return True
-
-    def _from_start(self, tread: int) -> float:
-        """The probability that a fault of ``tread`` (0 left, 1 right) reported in the
-        motion that ended was there when the motion began [1].
-
-        1 when the tread was reported before and has not counted well since (a motion
-        too short for Motor Control to judge, a coasting tail or a hold's wait says
-        nothing of it). Else the fault's onset is uniform in time since the tread last
-        counted well over a judged motion: the share of that time which passed before
-        the motion began (a fault that began while the rover waited shows in the first
-        motion after it)."""
-        if self._reports[tread] == TreadReport.OK:
-            return 0.0
-        if self._suspect[tread]:
-            return 1.0
-        now, healthy = _clock(), self._healthy_at[tread]
-        if now is None or healthy is None:
-            return 0.0  # no clock (a navigation driven by hand): the onset within
-        began = self.motion_t if self.motion_t is not None else now
-        began = min(max(began, healthy), now)
-        before, during = began - healthy, now - began
-        return before / (before + during) if before + during > 0.0 else 0.0
 
     def _driven(self, left: float, right: float, w: float) -> list[float | None]:
         """Modelled travel [cm] of each reported tread: Motor Control's drive model
