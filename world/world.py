@@ -183,15 +183,11 @@ class World:
         self._fire_schedule(now)
         p = self.params
         dt = self.tick_s
-        faulty = bool(self._faults)  # without faults every tread has its full strength
         for role in ROLES:
             left, right = self.treads[role]
-            vl = left.motor_step(p.max_speed_cm_s,
-                                 self._strength(role, "motor_left") if faulty else 1.0,
-                                 self._alpha)
-            vr = right.motor_step(p.max_speed_cm_s,
-                                  self._strength(role, "motor_right") if faulty else 1.0,
-                                  self._alpha)
+            strength_l, strength_r = self._strengths(role)
+            vl = left.motor_step(p.max_speed_cm_s, strength_l, self._alpha)
+            vr = right.motor_step(p.max_speed_cm_s, strength_r, self._alpha)
             self.physics.set_tread_speeds(role, vl, vr)
         self.physics.step(dt)
         self.ticks += 1
@@ -355,9 +351,14 @@ class World:
         for role, link in self.links.items():
             link.set_fault_down(self._faults.find(role, "wifly", "down") is not None)
 
-    def _strength(self, role: str, device: str) -> float:
+    def _strengths(self, role: str) -> tuple[float, float]:
+        """The share of its speed each tread (left, right) of ``role`` reaches: 1 without
+        faults (one check a tick), 0 stalled, a weak motor's ``strength``."""
         if not self._faults:
-            return 1.0
+            return 1.0, 1.0
+        return self._strength(role, "motor_left"), self._strength(role, "motor_right")
+
+    def _strength(self, role: str, device: str) -> float:
         if self._faults.find(role, device, "stalled"):
             return 0.0
         f = self._faults.find(role, device, "weak")

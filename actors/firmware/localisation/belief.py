@@ -106,13 +106,11 @@ class Cluster:
     __slots__ = ("_weight", "_pose", "_p", "_wn", "_mean", "_radius95", "_heading95")
 
     def __init__(self, particles: np.ndarray, weights: np.ndarray, weight: float) -> None:
-        p = particles
         wn = weights / weights.sum()
-        heading = math.atan2(float(wn @ np.sin(p[:, 2])), float(wn @ np.cos(p[:, 2])))
-        x, y = float(wn @ p[:, 0]), float(wn @ p[:, 1])
+        x, y, heading = _mean(particles, wn)
         self._weight = weight
         self._pose = Pose(x, y, math.degrees(heading))
-        self._p, self._wn, self._mean = p, wn, (x, y, heading)
+        self._p, self._wn, self._mean = particles, wn, (x, y, heading)
         self._radius95: float | None = None
         self._heading95: float | None = None
 
@@ -252,11 +250,17 @@ def low_variance_resample(weights: np.ndarray, rng: np.random.Generator,
     return np.minimum(np.searchsorted(cum, teeth, side="right"), weights.shape[0] - 1)
 
 
-def _mean_pose(p: np.ndarray, w: np.ndarray) -> Pose:
-    """Weighted mean pose of particles ``p`` with normalised weights ``w`` (circular mean
-    of the heading)."""
+def _mean(p: np.ndarray, w: np.ndarray) -> tuple[float, float, float]:
+    """Weighted mean of particles ``p`` with normalised weights ``w``: x, y [cm] and the
+    circular mean of the heading [rad]."""
     heading = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
-    return Pose(float(w @ p[:, 0]), float(w @ p[:, 1]), math.degrees(heading))
+    return float(w @ p[:, 0]), float(w @ p[:, 1]), heading
+
+
+def _mean_pose(p: np.ndarray, w: np.ndarray) -> Pose:
+    """`_mean` as a `Pose` (heading in degrees)."""
+    x, y, heading = _mean(p, w)
+    return Pose(x, y, math.degrees(heading))
 
 
 def _weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:

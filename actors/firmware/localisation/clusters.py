@@ -128,8 +128,8 @@ def cluster_labels(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
     x0, y0 = float(px.min()), float(py.min())
     span = max(float(px.max()) - x0, float(py.max()) - y0)
     cell = max(CELL_CM, span / max(math.sqrt(MAX_LATTICE_CELLS / nh) - 2 * pad, 1.0))
-    gx = (p[:, 0] - x0) / cell + pad  # lattice coordinates [cells]
-    gy = (p[:, 1] - y0) / cell + pad
+    gx = (px - x0) / cell + pad  # lattice coordinates [cells]
+    gy = (py - y0) / cell + pad
     gh = (np.degrees(p[:, 2]) % 360.0) / (360.0 / nh)
     ix, iy = gx.astype(np.int64), gy.astype(np.int64)
     ih = gh.astype(np.int64) % nh
@@ -178,7 +178,7 @@ def _join(dens: _Density, coords: np.ndarray, values: np.ndarray, valley: float,
     t = _LINE_STEPS[None, :, None]
     a, b = coords[i][:, None, :], coords[j][:, None, :]
     d = b - a
-    d[..., 2] = (d[..., 2] + nh / 2) % nh - nh / 2
+    _wrapped(d[..., 2], nh)  # in place: the modes' headings lie in (0, nh)
     pts = np.floor(a + t * d).astype(np.int64)
     # x and y lie between the two modes' cells, on the lattice: only the heading wraps
     line = dens.at(pts[..., 0], pts[..., 1], pts[..., 2] % nh)
