@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .protocol import Pose
+from .protocol import DEFAULT_INTERVALS, DEFAULT_SHARE, Pose
 
 __all__ = ["ServerConfig"]
 
@@ -49,6 +49,13 @@ class ServerConfig:
     """Shortest time between two stored summaries of bad frames or auth failures [s]."""
     resume: bool = False
     """Play on the store's newest game when it is unfinished, instead of a new one."""
+    telemetry: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_INTERVALS))
+    """Interval per telemetry stream asked of a rover that offers it [s] (0 = as it
+    happens); a stream left out is not asked for."""
+    telemetry_share: float = DEFAULT_SHARE
+    """Largest share of a link's bytes a rover's telemetry may use, said in the welcome."""
+    seed: int = 1
+    """Seeds the link faults' generators (one per rover id)."""
 
     def __post_init__(self) -> None:
         origins = {rid: p if isinstance(p, Pose) else Pose(*p) for rid, p in self.origins.items()}

@@ -182,10 +182,16 @@ class Connections(ServerCore):
                 return
 
     def _on_bytes(self, conn: Conn, data: bytes) -> None:
-        now = trio.current_time()
         session = conn.rover.session if conn.rover else conn.pre
         session.note_bytes_in(len(data))
-        for line in conn.lines.feed(data):
+        lines = conn.lines.feed(data)
+        if self._link_seeds:  # an operator has broken some rover's link
+            lines = self._link_in(conn, lines, self._on_lines)  # type: ignore[attr-defined]
+        self._on_lines(conn, lines)
+
+    def _on_lines(self, conn: Conn, lines: list[Any]) -> None:
+        now = trio.current_time()
+        for line in lines:
             if conn.close_reason is not None:
                 break
             if line is TOO_LONG:

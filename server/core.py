@@ -53,6 +53,8 @@ class ServerCore:
         self._starved = False                   # accept is out of descriptors
         self.game = Game(start_poses=self._start_poses)
         self.game_id = 0
+        self._fault_ids = 0                     # `fault` frames sent to rovers
+        self._link_seeds = 0                    # link-fault books made
         self.resumed: int | None = None
         """Id of the game this server plays on from an earlier run, None for a new game."""
 
@@ -65,12 +67,25 @@ class ServerCore:
         """Hand what the link's session has queued to its writer (a full writer queue drops it)."""
         session = conn.rover.session if conn.rover else conn.pre
         data = session.transmit(trio.current_time())
+        if data and self._link_seeds:  # an operator has broken some rover's link
+            data, delay = self._link_out(conn, data)  # type: ignore[attr-defined]
+            if delay > 0 and data:
+                self._nursery.start_soon(self._send_later, conn, data, delay)
+                data = b""
         if data:
             try:
                 conn.out_send.send_nowait(data)
             except (trio.WouldBlock, trio.ClosedResourceError):
                 conn.dropped += 1  # reliable frames are resent; telemetry is lost
         self._kick.set()
+
+    async def _send_later(self, conn: Conn, data: bytes, delay: float) -> None:
+        """Hand ``data`` to the link's writer after ``delay`` [s] (a latency fault)."""
+        await trio.sleep(delay)
+        try:
+            conn.out_send.send_nowait(data)
+        except (trio.WouldBlock, trio.ClosedResourceError):
+            conn.dropped += 1
 
     def _emit(self, kind: str, rover: str = "", data: dict[str, Any] | None = None, *,
               log: bool = True) -> None:

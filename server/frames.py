@@ -18,6 +18,7 @@ from .peers import Rover
 from .protocol import (
     CATALOGUE,
     MAP,
+    TELEMETRY_CMDS,
     Fault,
     Frame,
     FrameError,
@@ -49,7 +50,16 @@ class GameFrames(ServerCore):
                 self._bad(rover.conn, exc, frame)
             return
         cmd = frame.cmd
-        if cmd == "pose":
+        if cmd in TELEMETRY_CMDS:
+            taken = rover.telemetry is not None and rover.telemetry.take(cmd, payload, now)
+            if taken and cmd == "tm_event":  # not asked for: ignored, no error
+                self._emit("rover_event", rover.id, {"kind": payload.kind, "path": payload.path,
+                                                     "detail": payload.detail}, log=False)
+        elif cmd == "fault_reply":
+            self._emit("fault_reply", rover.id, {"fault_id": payload.fault_id,
+                                                 "result": payload.result,
+                                                 "detail": payload.detail or ""})
+        elif cmd == "pose":
             rover.pose = Pose(payload.x, payload.y, payload.heading)
             self._emit("pose", rover.id, {"x": payload.x, "y": payload.y,
                                           "heading": payload.heading}, log=False)

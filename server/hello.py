@@ -25,6 +25,7 @@ from .protocol import (
     make_frame,
     read_data,
 )
+from .rover_telemetry import RoverTelemetry
 from .trust import Held, admit
 
 __all__ = ["Hellos", "PROTOCOL_NAME"]
@@ -93,6 +94,7 @@ class Hellos(ServerCore):
         roles_before = dict(self._role)
         rover.role = hello.role
         rover.conn = conn
+        rover.last_link = conn.link
         rover.gone_since = None
         conn.rover = rover
         self._role[hello.role] = hello.id
@@ -101,9 +103,16 @@ class Hellos(ServerCore):
             self._start_poses[hello.role] = origin
         rover.session.reset_peer(hello.seq_base)
         rover.session.receive(frame, now)
-        rover.session.send(make_frame(WELCOME, {
-            "server": PROTOCOL_NAME, "heartbeat_s": self.config.heartbeat_s,
-            "down_after_s": self.config.down_after_s, "seq_base": rover.session.seq_base}))
+        welcome = {"server": PROTOCOL_NAME, "heartbeat_s": self.config.heartbeat_s,
+                   "down_after_s": self.config.down_after_s,
+                   "seq_base": rover.session.seq_base}
+        asked = {s: v for s, v in self.config.telemetry.items() if s in (hello.streams or ())}
+        if asked:  # only a rover that offers telemetry hears of it
+            welcome["telemetry"] = asked
+            welcome["telemetry_share"] = self.config.telemetry_share
+        rover.telemetry = RoverTelemetry(tuple(asked)) if asked else None
+        rover.faults = tuple(hello.faults or ())
+        rover.session.send(make_frame(WELCOME, welcome))
         if rover.row is not None:
             self.store.close_rover_session(rover.row, now)
         rover.row = self.store.open_rover_session(hello.id, hello.role, conn.link, now)

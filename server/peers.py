@@ -7,11 +7,14 @@ outlives any one link (a reconnecting rover is bound to the same `Rover`).
 
 from __future__ import annotations
 
+from collections import deque
 from typing import Any
 
 import trio
 
+from .link_faults import LinkFaultBook
 from .protocol import LineBuffer, MapAssembler, Pose, ReliableSession
+from .rover_telemetry import RoverTelemetry
 
 __all__ = ["Conn", "Rover"]
 
@@ -43,6 +46,8 @@ class Conn:
         self.scope = trio.CancelScope()
         self.pre_due = False
         """Errors queued on ``pre`` not yet transmitted."""
+        self.delayed: deque[list[bytes]] = deque()
+        """Received lines held back by a latency link fault, oldest first."""
 
     def close(self, reason: str) -> None:
         """Ask the stream's task to close the link (it sends what is queued first)."""
@@ -66,3 +71,11 @@ class Rover:
         self.assembler = MapAssembler()
         self.stored: tuple[int, tuple[int, int]] | None = None  # (game, pending mark) on disk
         self.gone_since: float | None = None
+        self.telemetry: RoverTelemetry | None = None
+        """What the rover streams, when its hello offered telemetry."""
+        self.faults: tuple[str, ...] = ()
+        """``TARGET/KIND`` faults the rover's hello says it accepts."""
+        self.last_link = ""
+        """Name of the link that last spoke for the rover (link faults follow it)."""
+        self.link_faults: LinkFaultBook | None = None
+        """Link faults the server applies to this rover's frames (made at the first)."""

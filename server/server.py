@@ -52,7 +52,8 @@ whose newest game is unfinished plays that game on (see `server.store`).
 
 The parts, one module each, share the state in `server.core`:
 `server.connections` (links, accept loop, bounds), `server.hello` (identity),
-`server.frames` (game frames), `server.durability` (the store). A new kind of
+`server.frames` (game frames), `server.durability` (the store), `server.rover_faults`
+(faults into attached rovers and on their links). A new kind of
 link registers below, beside `attach_memory`, `listen_tcp` and `start_serial`.
 """
 
@@ -75,6 +76,7 @@ from .links.memory import MemoryLink
 from .links.spec import is_loopback
 from .links.udp import open_udp_endpoint
 from .protocol import Fault, Frame, FrameError
+from .rover_faults import RoverFaults
 from .store import Store
 from .trust import beyond_loopback_refusal
 from .views import RoverView, ServerEvent, ServerSnapshot
@@ -87,7 +89,7 @@ _ROLE_OF_COMMAND = {"start_mapping": "mapper", "stop_mapping": "mapper", "hide":
                     "seek": "seeker"}
 
 
-class Server(Connections, Hellos, GameFrames, Durability):
+class Server(Connections, Hellos, GameFrames, Durability, RoverFaults):
     """The game server (see the module docstring). Create with `open_server`."""
 
     def __init__(self, store: Store, config: ServerConfig, nursery: trio.Nursery) -> None:
@@ -144,7 +146,9 @@ class Server(Connections, Hellos, GameFrames, Durability):
         """The state a console draws (cheap; call it at the UI's frame rate)."""
         now = trio.current_time()
         rovers = tuple(RoverView(r.id, r.role, r.conn.link if r.conn else "",
-                                 r.session.stats(now), r.pose, dict(r.status))
+                                 r.session.stats(now), r.pose, dict(r.status),
+                                 r.telemetry.view(now) if r.telemetry else None,
+                                 self.rover_fault_catalogue(r.id))
                        for r in self._rovers.values())
         g = self.game
         return ServerSnapshot(now, self.game_id, str(g.phase), g.last_reason, rovers, g.map,
@@ -245,6 +249,8 @@ class Server(Connections, Hellos, GameFrames, Durability):
                     deadline = min(deadline, (rover.session.last_heard or now)
                                    + rover.session.down_after_s)
             self._reclaim(now)
+            if self._link_seeds:
+                deadline = min(deadline, self._expire_link_faults(now))
             for kind in self._bursts.due(now):
                 self._emit(kind + "_summary", data=self._bursts.take(kind, now))
             self._kick.clear()

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .protocol import GridMap, LinkStats, Pose
+from .rover_telemetry import TelemetryView
 
 __all__ = ["ServerEvent", "RoverView", "ServerSnapshot"]
 
@@ -46,6 +47,10 @@ class RoverView:
     pose: Pose | None
     """Last reported pose (map frame)."""
     status: dict[str, Any]
+    telemetry: TelemetryView | None = None
+    """What the rover streams about its insides (attached rovers that offer it)."""
+    faults: tuple[str, ...] = ()
+    """``TARGET/KIND`` faults it takes over the protocol, then its link's (attached rovers)."""
 
 
 @dataclass(frozen=True, slots=True)

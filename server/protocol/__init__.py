@@ -8,6 +8,7 @@ Layering (lower modules never import higher ones)::
     pose       THE pose type and angle algebra (room, map, rover frames)
     grid_map   THE map type (GridMap), its cell convention and its two classifications
     mapcodec   GridMap <-> numbered chunks, assembler
+    telemetry  telemetry and fault-injection payloads, the telemetry lane (byte budget)
     session    reliable delivery: seq, cumulative ack, resend, liveness, stats
 
 Imported by the server and by the rovers' firmware (the only server module the
@@ -21,6 +22,8 @@ from .catalogue import (
     CATALOGUE,
     DESTINATION,
     ERROR,
+    FAULT,
+    FAULT_REPLY,
     FOUND,
     HEARTBEAT,
     HELLO,
@@ -73,6 +76,26 @@ from .lines import TOO_LONG, LineBuffer
 from .mapcodec import CHUNK_B64_CHARS, MapAssembler, decode_runs, encode_runs, map_chunks
 from .pose import ZERO_POSE, Pose, angle_diff_deg, compose, inverse, relative, wrap_deg
 from .session import LinkStats, OutboxFull, ReliableSession
+from .telemetry import (
+    DEFAULT_INTERVALS,
+    DEFAULT_LINK_BYTES_S,
+    DEFAULT_SHARE,
+    EVENT_KINDS,
+    FAULT_RESULTS,
+    STREAM_CMDS,
+    STREAMS,
+    TELEMETRY_CMDS,
+    FaultCommand,
+    FaultReply,
+    LaneStats,
+    TelemetryLane,
+    TmEvent,
+    TmMailboxes,
+    TmMap,
+    TmPose,
+    TmTree,
+    split_cells,
+)
 
 __all__ = [
     "ACK", "ARRIVED", "CATALOGUE", "DESTINATION", "ERROR", "FOUND", "HEARTBEAT", "HELLO",
@@ -85,5 +108,8 @@ __all__ = [
     "MapError", "CHUNK_B64_CHARS", "MapAssembler",
     "decode_runs", "encode_runs", "map_chunks",
     "Pose", "ZERO_POSE", "angle_diff_deg", "compose", "inverse", "relative", "wrap_deg",
-    "LinkStats", "OutboxFull", "ReliableSession",
+    "LinkStats", "OutboxFull", "ReliableSession", "FAULT", "FAULT_REPLY",
+    "DEFAULT_INTERVALS", "DEFAULT_LINK_BYTES_S", "DEFAULT_SHARE", "EVENT_KINDS", "FAULT_RESULTS",
+    "STREAM_CMDS", "STREAMS", "TELEMETRY_CMDS", "FaultCommand", "FaultReply", "LaneStats",
+    "TelemetryLane", "TmEvent", "TmMailboxes", "TmMap", "TmPose", "TmTree", "split_cells",
 ]

@@ -20,6 +20,9 @@ arrived       pose          rover->srv   yes       `PoseData`
 invalid_spot  reason        rover->srv   yes       `Reason`
 found         pose          rover->srv   yes       `Found`
 not_found     reason        rover->srv   yes       `Reason`
+tm_*          (telemetry)   rover->srv   never     see `telemetry` (unreliable, newest wins)
+fault         inject        srv->rover   yes       `FaultCommand`
+fault_reply   fault_reply   rover->srv   yes       `FaultReply`
 ============  ============  ===========  ========  =====================================
 
 Units: positions [cm], headings [deg] counter-clockwise from the frame's +x
@@ -36,12 +39,22 @@ from typing import Annotated, Any, Literal
 import msgspec
 
 from .frame import Fault, Frame, FrameError
+from .telemetry import (
+    STREAMS,
+    FaultCommand,
+    FaultReply,
+    TmEvent,
+    TmMailboxes,
+    TmMap,
+    TmPose,
+    TmTree,
+)
 
 __all__ = [
     "ROLES",
     "HELLO", "WELCOME", "HEARTBEAT", "ACK", "ERROR", "START", "STOP", "ORIGIN",
     "MAP_REQUEST", "MAP", "POSE", "STATUS", "DESTINATION", "ARRIVED", "INVALID_SPOT",
-    "FOUND", "NOT_FOUND",
+    "FOUND", "NOT_FOUND", "FAULT", "FAULT_REPLY",
     "Hello", "Welcome", "PoseData", "Destination", "Status", "Reason", "Found", "ErrorInfo",
     "MapChunk", "MAX_WITHIN_CM", "Spec", "CATALOGUE", "make_frame", "read_data",
 ]
@@ -66,6 +79,8 @@ ARRIVED = "arrived"
 INVALID_SPOT = "invalid_spot"
 FOUND = "found"
 NOT_FOUND = "not_found"
+FAULT = "fault"
+FAULT_REPLY = "fault_reply"
 
 _Id = Annotated[str, msgspec.Meta(min_length=1, max_length=32, pattern=r"^[A-Za-z0-9_.-]+$")]
 _Coord = Annotated[float, msgspec.Meta(ge=-1e6, le=1e6)]
@@ -86,6 +101,12 @@ class Hello(msgspec.Struct, frozen=True):
     """Shared secret, required when the server is configured with tokens."""
     seq_base: Annotated[int, msgspec.Meta(ge=1)] = 1
     """``seq`` of the rover's oldest unacknowledged reliable frame (or its next one)."""
+    streams: Annotated[list[Literal["mailboxes", "tree", "map", "pose", "events"]],
+                       msgspec.Meta(max_length=len(STREAMS))] | None = None
+    """Telemetry streams the rover can send (absent: none)."""
+    faults: Annotated[list[Annotated[str, msgspec.Meta(min_length=3, max_length=48)]],
+                      msgspec.Meta(max_length=64)] | None = None
+    """``TARGET/KIND`` faults the rover accepts over the link (absent or empty: none)."""
 
 
 class Welcome(msgspec.Struct, frozen=True):
@@ -99,6 +120,11 @@ class Welcome(msgspec.Struct, frozen=True):
     """Silence after which a link counts as down [s]."""
     seq_base: int
     """``seq`` of the server's oldest unacknowledged reliable frame (or its next one)."""
+    telemetry: dict[Literal["mailboxes", "tree", "map", "pose", "events"],
+                    Annotated[float, msgspec.Meta(ge=0, le=3600)]] | None = None
+    """Stream -> interval [s] the server wants (0 = as it happens); absent: none."""
+    telemetry_share: Annotated[float, msgspec.Meta(gt=0, le=1)] | None = None
+    """Largest share of the link's bytes telemetry may use (absent: 0.25)."""
 
 
 class PoseData(msgspec.Struct, frozen=True):
@@ -207,6 +233,13 @@ CATALOGUE: dict[str, Spec] = {s.cmd: s for s in (
     Spec(INVALID_SPOT, "reason", Reason, "rover", True),
     Spec(FOUND, "pose", Found, "rover", True),
     Spec(NOT_FOUND, "reason", Reason, "rover", True),
+    Spec("tm_mailboxes", "mailboxes", TmMailboxes, "rover", False),
+    Spec("tm_tree", "tree", TmTree, "rover", False),
+    Spec("tm_map", "map_delta", TmMap, "rover", False),
+    Spec("tm_pose", "pose_spread", TmPose, "rover", False),
+    Spec("tm_event", "event", TmEvent, "rover", False),
+    Spec(FAULT, "inject", FaultCommand, "server", True),
+    Spec(FAULT_REPLY, "fault_reply", FaultReply, "rover", True),
 )}
 """cmd -> `Spec`, for every message of the protocol."""
 

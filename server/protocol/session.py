@@ -19,6 +19,8 @@ Rules (the spec in docs/protocol.md says the same):
   order; a frame ahead of a gap is held (at most ``2 * window`` of them),
   one at or below the cumulative ack is a duplicate: dropped, counted, and
   acknowledged again. Frames without ``seq`` are delivered at once.
+* **telemetry** (``tm_*``) is unreliable: one that carries ``seq`` is refused
+  like a frame that fails the catalogue check.
 * **check**: a frame with ``seq`` that fails the catalogue check (a byte
   corrupted inside an envelope that still decodes) is answered with
   ``error`` and neither acknowledged nor delivered, and its ``ack`` is not
@@ -47,8 +49,9 @@ from collections import deque
 from dataclasses import dataclass
 
 from .catalogue import ACK, CATALOGUE, HEARTBEAT, read_data
-from .frame import MAX_SEQ, Frame, FrameError, decode_line, encode_frame, error_frame
+from .frame import MAX_SEQ, Fault, Frame, FrameError, decode_line, encode_frame, error_frame
 from .lines import TOO_LONG, LineBuffer
+from .telemetry import TELEMETRY_CMDS
 
 __all__ = ["LinkStats", "OutboxFull", "ReliableSession"]
 
@@ -335,6 +338,9 @@ class ReliableSession:
                 envelope survived a corrupted byte is not lost for its payload.
         """
         if frame.seq is not None:
+            if frame.cmd in TELEMETRY_CMDS:
+                raise FrameError(Fault.BAD_FRAME, f"{frame.cmd!r} is telemetry: it never "
+                                 "carries seq")
             read_data(frame)
         self._c["frames_in"] += 1
         was_down = not self.is_up(now)
