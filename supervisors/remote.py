@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import random
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from typing import Any
@@ -39,10 +40,14 @@ from typing import Any
 import numpy as np
 import trio
 
-from actors import ActorSystem, open_actor_system
+from actors import ActorSystem, Message, open_actor_system
+from actors.firmware.commands import Cmd
 from actors.firmware.hardware import ROLES
 from server.links import LinkSpec, open_pty_cable, open_serial_stream, open_udp_stream
+from server.protocol import DEFAULT_LINK_BYTES_S, TelemetryLane
 from supervisors.rover import rover_tree
+from supervisors.rover_fault_port import RoverFaultPort
+from supervisors.telemetry_source import STREAMS_OF_ROLE, TelemetrySource
 from world.scenario import Scenario
 from world.wifly import WiflyLink
 from world.world import World, run_world
@@ -52,8 +57,12 @@ __all__ = ["UPLINK_BYTES", "RETRY_S", "LINK_KINDS", "LINK_FORMS", "Uplink", "Rem
 
 UPLINK_BYTES = 16384
 """Bytes from the rover waiting for the stream at most [bytes] (beyond: dropped, counted)."""
-RETRY_S = (1.0, 30.0)
-"""Backoff between connection attempts: first, most [s]."""
+RETRY_S = (0.5, 4.0)
+"""Backoff between connection attempts: first, most [s]. It starts again from the first
+after the server answered, and each wait is jittered (3/4 to all of the step, from the
+rover's seeded generator), so rovers cut off together do not come back in step; the cap
+keeps a restarted server waiting for an attached rover at most that long."""
+_JITTER = 0.25  # share of a backoff step taken off at random
 _READ_SIZE = 4096  # [bytes]
 LINK_KINDS = ("tcp_listen", "tcp_in", "udp_listen", "serial", "pty")
 """`LinkSpec` kinds a rover can use."""
@@ -129,6 +138,10 @@ class RemoteRover:
     last_error: str = ""
     pty_path: str = ""
     """With ``--link pty``: the path the server must open."""
+    telemetry: TelemetryLane | None = None
+    """The WiFly's telemetry lane (what the server asked for, what was sent)."""
+    faults: RoverFaultPort | None = None
+    """Faults over the link: refused unless the rover was opened with ``accept_faults``."""
 
     @property
     def connected(self) -> bool:
@@ -202,11 +215,19 @@ def _answered(answered: list[bool], report: Report, text: str) -> None:
 
 
 async def _keep_connected(rover: RemoteRover, link: WiflyLink, report: Report,
-                          retry_s: tuple[float, float], stream: Any = None) -> None:
-    """Connect, pump, and on any failure report and retry with doubling backoff."""
+                          retry_s: tuple[float, float], stream: Any = None,
+                          rng: random.Random | None = None) -> None:
+    """Connect, pump, and on any failure report and retry with doubling backoff
+    (from the first step again once the server has answered; jittered by ``rng``)."""
     first, most = retry_s
     delay = first
     spec = rover.link
+    rng = rng or random.Random(0)
+
+    async def wait(step: float) -> None:
+        await trio.sleep(step * (1.0 - _JITTER * rng.random()))
+
+    wifly = f"{rover.role}/wifly"
     while True:
         if stream is None:
             try:
@@ -216,11 +237,14 @@ async def _keep_connected(rover: RemoteRover, link: WiflyLink, report: Report,
                 rover.last_error = _reason(exc)
                 report(f"cannot connect over {spec.text}: {rover.last_error}; "
                        f"retrying in {delay:g} s")
-                await trio.sleep(delay)
+                await wait(delay)
                 delay = min(delay * 2, most)
                 continue
         rover.connects += 1
         rover.uplink.connected = True
+        # a new connection knows no hello yet: the WiFly says it at once, not at the end
+        # of its hello backoff (the server closes a link without hello after 5 s)
+        rover.actors.send_nowait(wifly, Message.uint(Cmd.WIFLY_LINK_OPEN, 0))
         where = rover.pty_path or spec.text
         answered: list[bool] = []
         try:  # "connected" once the server answers: an open port or socket is no server yet
@@ -240,14 +264,16 @@ async def _keep_connected(rover: RemoteRover, link: WiflyLink, report: Report,
                         trio.move_on_after(1):
                     await stream.aclose()
         rover.last_error = why
+        if answered:
+            delay = first  # the server was there: come back at once when it is again
         if rover.pty_path:
             report(f"pty {rover.pty_path}: {why}; waiting for the server")
-            await trio.sleep(delay)
+            await wait(delay)
             continue  # the cable stays: same stream, wait for the other end again
         stream = None
         lost = "lost the server at" if answered else "no answer from"
         report(f"{lost} {spec.text}: {why}; reconnecting in {delay:g} s")
-        await trio.sleep(delay)
+        await wait(delay)
         delay = min(delay * 2, most)
 
 
@@ -257,6 +283,8 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
                             report: Report | None = None,
                             retry_s: tuple[float, float] = RETRY_S,
                             nav_factory: Callable[..., Any] | None = None,
+                            accept_faults: bool = False, telemetry: bool = True,
+                            link_bytes_s: float | None = None,
                             ) -> AsyncIterator[RemoteRover]:
     """Run one simulated rover connected over ``link`` for the block.
 
@@ -271,6 +299,11 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
         report: called with one line of text for each connection event.
         retry_s: backoff between attempts: first, most [s].
         nav_factory: navigation factory for the tree (tests pass stand-ins).
+        accept_faults: the opt-in to faults over the link (`RoverFaultPort`): without
+            it every fault is refused and hello lists none.
+        telemetry: offer telemetry in hello and send what the server asks for.
+        link_bytes_s: the link's rate for the telemetry budget [bytes/s]; by default
+            a serial link's baud / 10, else 57600 baud's.
 
     Raises:
         ValueError: unknown role, or a link kind a rover cannot use.
@@ -285,21 +318,43 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
         raise ValueError(f"retry_s must be (first, most) with 0 < first <= most, got {retry_s!r}")
     report = report or (lambda _text: None)
     cable = open_pty_cable() if link.kind == "pty" else None
-    world = World(scenario, np.random.default_rng(seed))
+    ports: list[RoverFaultPort] = []
+    world = World(scenario, np.random.default_rng(seed),
+                  on_event=lambda kind, target, detail: [
+                      p.world_event(kind, target, detail) for p in ports])
     wifly = world.wifly_link(role)
+    if link_bytes_s is None:
+        link_bytes_s = link.baud / 10 if link.kind == "serial" and link.baud else \
+            DEFAULT_LINK_BYTES_S
+    lane = TelemetryLane(link_bytes_s) if telemetry else None
     uplink = Uplink()
     wifly.on_server_receive = uplink.put
     try:
         async with open_actor_system(seed) as actors, trio.open_nursery() as nursery:
             nursery.start_soon(run_world, world)
+            sources: list[TelemetrySource] = []
+
+            def on_event(kind: str, path: str, detail: str) -> None:
+                report(f"{kind} {path} {detail}".rstrip())
+                for source in sources:
+                    if "events" in source.lane.intervals:
+                        source.event(kind, path, detail)
+            port = RoverFaultPort(world, actors, role, accept=accept_faults, on_event=on_event)
+            ports.append(port)
             spec = rover_tree(role, world.hardware(role), rover_id=rover_id, token=token,
-                              nav_factory=nav_factory, hold_until_welcome=True)
+                              nav_factory=nav_factory, hold_until_welcome=True,
+                              telemetry=lane, streams=STREAMS_OF_ROLE[role], faults=port)
             tree = await actors.start_supervisor(spec, role)
             rover = RemoteRover(role, link, world, actors, tree, uplink,
-                                pty_path=cable.path if cable else "")
+                                pty_path=cable.path if cable else "", telemetry=lane,
+                                faults=port)
+            if lane is not None:
+                sources.append(TelemetrySource(actors, tree, role, lane))
+                nursery.start_soon(sources[0].run)
             if cable is not None:
                 report(f"pty ready: give the server serial:{cable.path},115200")
-            nursery.start_soon(_keep_connected, rover, wifly, report, retry_s, cable)
+            nursery.start_soon(_keep_connected, rover, wifly, report, retry_s, cable,
+                               random.Random(seed))
             try:
                 yield rover
             finally:

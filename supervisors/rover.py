@@ -177,7 +177,8 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
                motor_tuning: MotorTuning | None = None, map_size_cm: tuple[float, float] = (
                    2400.0, 2400.0), ir_rate_hz: float = 50.0,
                intensity: int = 10, period: float = 10.0,
-               hold_until_welcome: bool = False) -> SupervisorSpec:
+               hold_until_welcome: bool = False, telemetry: Any = None,
+               streams: tuple[str, ...] = (), faults: Any = None) -> SupervisorSpec:
     """The supervision tree of one rover (see the module docstring).
 
     Args:
@@ -199,6 +200,9 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
         period: [s].
         hold_until_welcome: the WiFly sends nothing but hello until the welcome (a rover
             on a real link; see `Wifly`).
+        telemetry: the WiFly's `TelemetryLane` (a rover that streams telemetry).
+        streams: the telemetry streams offered in hello.
+        faults: the WiFly's `FaultPort` (a rover that takes faults over the link).
 
     Raises:
         ValueError: unknown role.
@@ -220,7 +224,8 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
     def make_wifly() -> Actor:
         return Wifly(hardware, pool, rover_id=rover_id, role=role, token=token,
                      memory=link_memory.get(), isr=isrs.wifly, addresses=names,
-                     hold_until_welcome=hold_until_welcome)
+                     hold_until_welcome=hold_until_welcome, telemetry=telemetry,
+                     streams=streams, faults=faults)
 
     def make_map() -> Actor:
         map_starts[0] += 1

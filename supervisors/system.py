@@ -29,18 +29,17 @@ import trio
 from actors import (
     ActorSystem,
     EventKind,
-    Message,
     Trace,
     open_actor_system,
     seed_trio_scheduler,
     sleep,
 )
 from actors.clock import fast_instruments
-from actors.firmware.commands import Cmd
 from actors.firmware.hardware import ROLES
 from server.protocol import Pose
 from server.server import Server, ServerConfig, open_server
 from server.store import Store
+from supervisors.fault_router import ACTOR_FAULTS, FaultError, perform_actor_fault
 from supervisors.rover import rover_tree
 from world.faults import is_actor_fault
 from world.scenario import Scenario
@@ -49,13 +48,7 @@ from world.world import World, run_world
 __all__ = ["ACTOR_FAULTS", "SimSystem", "open_sim_system", "scenario_origins",
            "FaultError"]
 
-ACTOR_FAULTS = ("crash", "hang", "flood")
 _FAULT_POLL_S = 0.05  # how often scheduled actor faults are checked [s]
-_FLOOD_DEFAULT = 100  # messages a flood fault posts when not given (world.faults.ACTOR_FAULTS)
-
-
-class FaultError(ValueError):
-    """A fault request the system cannot carry out (bad target, kind or parameter)."""
 
 
 @dataclass
@@ -122,23 +115,7 @@ class SimSystem:
 
     def _actor_fault(self, target: str, kind: str, duration_s: float,
                      params: dict[str, float]) -> str:
-        if self.actors.whereis(target) is None:
-            known = ", ".join(n for n in self.actors.names() if "/" in n)
-            raise FaultError(f"no actor {target!r} to {kind}; actors are: {known}")
-        if kind == "crash":
-            self.actors.inject_crash(target)
-        elif kind == "hang":
-            seconds = float(params.get("seconds", duration_s or 5.0))
-            if not seconds > 0:
-                raise FaultError(f"hang needs seconds > 0, got {seconds!r}")
-            self.actors.inject_hang(target, seconds)
-        elif kind == "flood":
-            count = int(params.get("messages", _FLOOD_DEFAULT))
-            if not 1 <= count <= 1_000_000:
-                raise FaultError(f"flood count must be within 1..1000000, got {count!r}")
-            self.actors.flood(target, count, Message.int(Cmd.NOOP, 0))
-        else:
-            raise FaultError(f"unknown actor fault {kind!r}; expected {', '.join(ACTOR_FAULTS)}")
+        perform_actor_fault(self.actors, target, kind, duration_s, params)
         self._actor_fault_ids += 1
         fid = f"a{self._actor_fault_ids}"
         self.faults.append({"id": fid, "t": trio.current_time(), "target": target,

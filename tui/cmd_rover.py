@@ -31,6 +31,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--id", dest="rover_id", metavar="ID",
                         help="the id said in hello (default: the role)")
     parser.add_argument("--token", help="the hello token, when the server asks for one")
+    parser.add_argument("--accept-faults", action="store_true",
+                        help="take faults over the link (the server's fault command): "
+                             "without it every fault is refused, so a rover is never broken "
+                             "by accident")
+    parser.add_argument("--no-telemetry", action="store_true",
+                        help="offer no telemetry (mailboxes, tree, map, pose, events)")
     parser.add_argument("--speed", type=float, default=1.0, metavar="N",
                         help="clock rate: 1 is real time (default); the server must match it")
 
@@ -61,11 +67,13 @@ def run(args: argparse.Namespace) -> int:
     seed_trio_scheduler(args.seed)
     clock = None if args.speed == 1.0 else scaled_clock(args.speed)
     print(f"{args.role}: {scenario.name} (seed {args.seed}), link {args.link}, "
-          f"speed x{args.speed:g}; Ctrl-C stops", flush=True)
+          f"speed x{args.speed:g}, faults over the link "
+          f"{'accepted' if args.accept_faults else 'refused'}; Ctrl-C stops", flush=True)
     try:
         trio.run(lambda: run_remote_rover(scenario, args.role, link, seed=args.seed,
                                           rover_id=args.rover_id, token=args.token,
-                                          report=report), clock=clock)
+                                          report=report, accept_faults=args.accept_faults,
+                                          telemetry=not args.no_telemetry), clock=clock)
     except BaseException as exc:  # noqa: BLE001 - sorted out below: never a traceback
         errors = leaves(exc)
         if all(isinstance(e, KeyboardInterrupt) for e in errors):

@@ -143,6 +143,9 @@ class Cmd(enum.IntEnum):
     """WiFly's own periodic tick (heartbeat, resend); value unused."""
     WIFLY_SEND_MAP = 0x0504
     """Upload a map in chunks, reliably; value handle of a `GridMap`."""
+    WIFLY_LINK_OPEN = 0x0505
+    """The module opened a new connection to the server (a WiFly's ``*OPEN*``): say
+    hello at once; value unused."""
 
     # -- IR queue ----------------------------------------------------------
     IR_SAMPLE = 0x0600

@@ -148,12 +148,20 @@ class FaultReply(msgspec.Struct, frozen=True):
 
 
 def split_cells(cells: list[tuple[int, int]], header: dict, t: float) -> list[Frame]:
-    """``tm_map`` frames carrying ``cells`` (each within the frame and line limits)."""
+    """``tm_map`` frames carrying ``cells``, each line within `MAX_LINE_BYTES`."""
     out: list[Frame] = []
-    step = 120  # [index, code] pairs of up to 7 digits: well under 1024 bytes
-    for i in range(0, len(cells), step):
-        out.append(Frame("tm_map", "map_delta", {"t": t, **header,
-                                                 "cells": [list(c) for c in cells[i:i + step]]}))
+    room = MAX_LINE_BYTES - 240  # the envelope and header take less than this [bytes]
+    batch: list[list[int]] = []
+    used = 0
+    for index, code in cells:
+        size = len(str(index)) + 5  # "[index,c],"
+        if batch and (used + size > room or len(batch) >= _MAX_CELLS):
+            out.append(Frame("tm_map", "map_delta", {"t": t, **header, "cells": batch}))
+            batch, used = [], 0
+        batch.append([index, code])
+        used += size
+    if batch:
+        out.append(Frame("tm_map", "map_delta", {"t": t, **header, "cells": batch}))
     return out
 
 

@@ -64,9 +64,12 @@ from actors import Actor, BufferPool, Message, PoolExhausted, Timer
 from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import WiflyUartIsr
+from actors.firmware.fault_port import FaultPort
 from actors.firmware.hardware import Interrupt, RoverHardware
 from server.protocol import (
     ERROR,
+    FAULT,
+    FAULT_REPLY,
     HELLO,
     MAP,
     WELCOME,
@@ -78,6 +81,7 @@ from server.protocol import (
     MapError,
     OutboxFull,
     ReliableSession,
+    TelemetryLane,
     make_frame,
     map_chunks,
     read_data,
@@ -145,6 +149,14 @@ class Wifly(Actor):
             rover on the server's in-memory link sends its queued frames from the
             start: its hello always arrives first there, and the server never drops
             that link.
+        telemetry: the rover's telemetry lane (`TelemetryLane`): the streams the
+            server asks for in the welcome are configured on it, and its frames leave
+            after the game frames of each transmission, within its byte budget. None:
+            the rover offers no telemetry.
+        streams: the telemetry streams offered in hello (with ``telemetry``).
+        faults: the rover's failure-injection hook; its `FaultPort.catalogue` goes in
+            hello and every ``fault`` frame is answered from it. None: every fault is
+            ``unsupported``.
     """
 
     def __init__(self, hardware: RoverHardware, pool: BufferPool, *, rover_id: str, role: str,
@@ -152,7 +164,8 @@ class Wifly(Actor):
                  isr: WiflyUartIsr | None = None, tick_s: float = 0.1, hello_s: float = 1.0,
                  hello_max_s: float = 8.0, max_backlog: int = 4096,
                  max_to_nav: int = 256, addresses: Addresses | None = None,
-                 hold_until_welcome: bool = False) -> None:
+                 hold_until_welcome: bool = False, telemetry: TelemetryLane | None = None,
+                 streams: tuple[str, ...] = (), faults: FaultPort | None = None) -> None:
         self._addresses = addresses
         # check the hello once here: a bad id is a configuration error, not a crash loop
         make_frame(HELLO, {"id": rover_id, "role": role, "token": token})
@@ -165,6 +178,9 @@ class Wifly(Actor):
         self.hello_s, self.hello_max_s = hello_s, hello_max_s
         self.max_backlog, self.max_to_nav = max_backlog, max_to_nav
         self.hold_until_welcome = hold_until_welcome
+        self.telemetry = telemetry
+        self.streams = streams if telemetry is not None else ()
+        self.fault_port = faults
         self.welcomed = False
         """True between the server's welcome and the link going down."""
         self.hellos = 0
@@ -173,6 +189,7 @@ class Wifly(Actor):
         """Whole maps downloaded."""
         self._assembler = MapAssembler()
         self._next_hello = -math.inf
+        self._last_hello = -math.inf  # when the last hello left [s]
         self._hello_wait = hello_s
         self._timer: Timer | Any = None  # the one-shot timer armed for `_wake_at`
         self._wake_at = -math.inf  # when the armed timer fires [s]
@@ -226,6 +243,16 @@ class Wifly(Actor):
                 self.session.send(self.pool.take(int(m.value)), reliable=False)
             elif cmd == Cmd.WIFLY_SEND_MAP:
                 self._upload(self.pool.take(int(m.value)))
+            elif cmd == Cmd.WIFLY_LINK_OPEN and not self.welcomed:
+                # a new connection: hello now, not at the end of the backoff (a server
+                # closes a connection without hello after 5 s), unless one just left (it
+                # may be on its way yet); a welcomed rover's next frame is answered
+                # "send hello first" if the server does not know it
+                self._next_hello = min(self._next_hello,
+                                       max(now, self._last_hello + self.hello_s / 2))
+                self._hello_wait = self.hello_s
+            elif cmd == Cmd.WIFLY_LINK_OPEN:
+                pass
             elif cmd == Cmd.WIFLY_TIMER or cmd == Cmd.NOOP:
                 pass  # the work below runs after every burst; NOOP is a flood fault's filler
             else:
@@ -275,6 +302,7 @@ class Wifly(Actor):
         hello_due = not self.welcomed and now >= self._next_hello
         if hello_due:
             self.hellos += 1
+            self._last_hello = now
             self._next_hello = now + self._hello_wait
             self._hello_wait = min(self._hello_wait * 2, self.hello_max_s)
         if not self.welcomed and self.hold_until_welcome:
@@ -286,6 +314,9 @@ class Wifly(Actor):
         if hello_due:
             session.send(self._hello(), reliable=False)
         data = session.transmit(now)
+        lane = self.telemetry
+        if lane is not None and self.welcomed and lane.has_queued():
+            data += lane.take(now)  # after the game frames, within the budget
         if data:
             self.hw.wifly_write(data)
 
@@ -306,7 +337,10 @@ class Wifly(Actor):
             return now  # stalled: the link is down at the next tick
         heard = session.last_heard
         down = heard + session.down_after_s if heard is not None else math.inf
-        return min(down, session.next_deadline(now))
+        due = min(down, session.next_deadline(now))
+        if self.telemetry is not None and self.telemetry.has_queued():
+            due = min(due, self.telemetry.next_time(now))
+        return due
 
     def _arm(self, now: float) -> None:
         """Arm the timer for the first tick of the grid after ``now`` at or after `due`
@@ -336,8 +370,13 @@ class Wifly(Actor):
         self._wake_at = wake
 
     def _hello(self) -> Frame:
-        return make_frame(HELLO, {"id": self.rover_id, "role": self.role, "token": self.token,
-                                  "seq_base": self.session.seq_base})
+        body: dict[str, Any] = {"id": self.rover_id, "role": self.role, "token": self.token,
+                                "seq_base": self.session.seq_base}
+        if self.streams:
+            body["streams"] = list(self.streams)
+        if self.fault_port is not None:
+            body["faults"] = list(self.fault_port.catalogue())
+        return make_frame(HELLO, body)
 
     # ------------------------------------------------------------------ receiving
     def _receive(self, data: bytes, now: float) -> None:
@@ -351,6 +390,8 @@ class Wifly(Actor):
             if frame.cmd == WELCOME:
                 session.reset_peer(body.seq_base)
                 self._hello_wait = self.hello_s
+                if self.telemetry is not None:
+                    self.telemetry.configure(body.telemetry, body.telemetry_share)
                 if not self.welcomed:
                     self._link(True)
             elif frame.cmd == ERROR:
@@ -358,6 +399,8 @@ class Wifly(Actor):
                     if self.welcomed:
                         self._link(False)
                     self._next_hello = now
+            elif frame.cmd == FAULT:
+                self._fault(body)
             elif frame.cmd == MAP:
                 try:
                     grid = self._assembler.add(body)
@@ -370,8 +413,20 @@ class Wifly(Actor):
             else:
                 self._to_nav_put(Cmd.NAV_NET, frame)
 
+    def _fault(self, command: Any) -> None:
+        """Answer one ``fault`` (exactly one ``fault_reply``, reliable)."""
+        if self.fault_port is None:
+            result, detail = "unsupported", "this rover takes no faults over the link"
+        else:
+            result, detail = self.fault_port.apply(command)
+        self._queue_reliable([make_frame(FAULT_REPLY, {"fault_id": command.fault_id,
+                                                       "result": result,
+                                                       "detail": detail[:200]})])
+
     def _link(self, up: bool) -> None:
         self.welcomed = up
+        if not up and self.telemetry is not None:
+            self.telemetry.configure({})
         self._to_nav_put(Cmd.NAV_LINK, int(up))
 
     def _to_nav_put(self, cmd: int, obj: Any) -> None:
