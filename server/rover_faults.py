@@ -39,6 +39,11 @@ class RoverFaults(ServerCore):
             return ()
         return rover.faults + tuple(f"{LINK_TARGET}/{k}" for k in LINK_FAULTS)
 
+    def link_faults_of(self, rover_id: str) -> list[Any]:
+        """The link faults in force on a rover's link (`LinkFault` records)."""
+        rover = self._rovers.get(rover_id)
+        return rover.link_faults.active() if rover is not None and rover.link_faults else []
+
     def rover_fault(self, rover_id: str, op: str, target: str, kind: str,
                     duration_s: float = 0.0, params: dict[str, float] | None = None) -> str:
         """Inject (``op="inject"``) or clear (``"clear"``, kind ``*`` = all) a fault on an

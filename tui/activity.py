@@ -158,3 +158,11 @@ class ActivityLog:
             elif e.kind in ("report", "refused", "map"):
                 body = " ".join(f"{k}={v}" for k, v in e.data.items())
                 self.event("game", f"{e.kind} {e.rover} {body}".strip())
+            elif e.kind == "rover_event":  # an attached rover's own runtime, by telemetry
+                kind = {"restart": "restart", "crash": "crash", "give_up": "crash"}.get(
+                    e.data.get("kind", ""), "fault")
+                self.event(kind, f"{e.data.get('kind')} {e.data.get('path')} "
+                                 f"{e.data.get('detail', '')}".strip())
+            elif e.kind in ("fault_sent", "fault_reply", "link_fault", "link_fault_cleared"):
+                body = " ".join(f"{k}={v}" for k, v in e.data.items())
+                self.event("fault", f"{e.kind.replace('_', ' ')} {e.rover} {body}".strip())

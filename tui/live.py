@@ -12,6 +12,7 @@ system's parts `tui.sim_views`.
 
 from __future__ import annotations
 
+import dataclasses
 import pathlib
 from collections.abc import Sequence
 from typing import Any
@@ -31,6 +32,13 @@ from supervisors.system import SimSystem, open_sim_system
 from world.scenario import Scenario
 
 from .activity import ActivityLog
+from .attached_views import (
+    attached_catalogue,
+    attached_faults,
+    attached_map,
+    attached_queues,
+    attached_trees,
+)
 from .controller import QueuedController
 from .governor import GovernedClock
 from .sim_views import (
@@ -222,8 +230,8 @@ class LiveSystem(QueuedController):
         if self.remote:
             self._event("game", "a real rover is attached: real time only (x1)")
         if "mapper" in self.remote:
-            self._event("game", "the map shows once the mapper uploads it (its working map "
-                                "is on the rover)")
+            self._event("game", "the map pane shows the mapper's working map as its "
+                                "telemetry draws it, then the map it uploads")
 
     # -- commands (in Trio); raise ValueError to refuse ----------------------------------
     def _submit(self, name: str, *args: Any) -> None:
@@ -278,14 +286,20 @@ class LiveSystem(QueuedController):
                                params: dict) -> str:
         assert self._system is not None
         role = target.split("/")[0].split(".")[0]
-        if role in self.remote:
-            raise ValueError(f"{role} is attached over {self.remote[role].text}: its devices "
-                             "and actors are not simulated here")
+        if role in self.remote:  # over the protocol (or on its link): the server's part
+            rest = target.split("/", 1)[1] if "/" in target else ""
+            return self._system.server.rover_fault(role, "inject", rest, kind,
+                                                   duration_s or 0.0, dict(params))
         # the trace reports it on the Events tab (`activity.fault_text`), as it does scheduled ones
         return self._system.inject_fault(target, kind, duration_s or 0.0, **params)
 
     async def _do_clear_fault(self, fault: str) -> str:
         assert self._system is not None
+        role, _, rest = fault.partition("/")
+        if role in self.remote and rest:  # ``mapper/link``, ``mapper/lidar``: all on it
+            text = self._system.server.rover_fault(role, "clear", rest, "*")
+            self._event("clear", text)
+            return text
         n = self._system.clear_fault(fault)
         if n == 0:
             raise ValueError(f"no active device fault {fault!r}")
@@ -362,10 +376,17 @@ class LiveSystem(QueuedController):
             return Snapshot(now, self._speed, self._paused, self.scenario.name, self.seed, "idle")
         server = system.server.snapshot()
         grid = map_view(system)
+        if grid is None or (self.remote and system.server.game.map is None):
+            grid = attached_map(server, self.remote) or grid  # the mapper's working map
         if self._tables is None or self._snapshots % TABLES_EVERY == 0:
-            self._tables = (self._rates.stats(system, now),
-                            tree_view(system, self.activity.exits),
-                            fault_catalogue(system, self.remote))
+            tree = tree_view(system, self.activity.exits)
+            if self.remote:  # attached rovers, from their telemetry
+                tree = dataclasses.replace(tree, children=tree.children + attached_trees(
+                    server, self.remote))
+            self._tables = (self._rates.stats(system, now) + attached_queues(server, self.remote),
+                            tree,
+                            fault_catalogue(system, self.remote)
+                            + attached_catalogue(server, self.remote))
         self._snapshots += 1
         queues, tree, catalogue = self._tables
         return Snapshot(
@@ -379,7 +400,8 @@ class LiveSystem(QueuedController):
             refused=(AUTO_REFUSED if self.auto else ()) + (REAL_TIME_REFUSED if self.remote
                                                             else ()),
             queues=queues, log=self.activity.log_lines(), tree=tree, links=link_stats(server),
-            timeline=self.activity.timeline(), faults=active_faults(system),
+            timeline=self.activity.timeline(),
+            faults=active_faults(system) + attached_faults(system.server, self.remote),
             catalogue=catalogue)
 
     def _truth_view(self, grid: GridView | None) -> GridView | None:
