@@ -47,13 +47,14 @@ class RoverFaults(ServerCore):
     def rover_fault(self, rover_id: str, op: str, target: str, kind: str,
                     duration_s: float = 0.0, params: dict[str, float] | None = None) -> str:
         """Inject (``op="inject"``) or clear (``"clear"``, kind ``*`` = all) a fault on an
-        attached rover; returns a line saying what was done.
+        attached rover (``rover_id``: its id, or the role it plays); returns a line saying
+        what was done.
 
         Raises:
             ValueError: no such attached rover, a bad kind or parameter, or the
                 rover's outbox is full.
         """
-        rover = self._rovers.get(rover_id)
+        rover = self._rovers.get(rover_id) or self._rovers.get(self._role.get(rover_id, ""))
         if rover is None or rover.conn is None:
             raise ValueError(f"no attached rover {rover_id!r}")
         if rover.conn.trusted:

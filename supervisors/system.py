@@ -39,6 +39,11 @@ from actors.firmware.hardware import ROLES
 from server.protocol import Pose
 from server.server import Server, ServerConfig, open_server
 from server.store import Store
+from supervisors.attached_faults import (
+    attached_schedule,
+    send_scheduled_faults,
+    simulated_only,
+)
 from supervisors.fault_router import ACTOR_FAULTS, FaultError, perform_actor_fault
 from supervisors.rover import rover_tree
 from world.faults import is_actor_fault
@@ -225,7 +230,9 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
     fast_instruments()  # Trio's per-step instrument checks, cheaper (same events)
     trace = trace or Trace()
     fault_log: list[dict[str, Any]] = []
-    world = World(scenario, np.random.default_rng(seed), on_event=_world_events(trace, fault_log))
+    schedule = attached_schedule(scenario, roles)  # faults for rovers attached elsewhere
+    world = World(simulated_only(scenario, roles), np.random.default_rng(seed),
+                  on_event=_world_events(trace, fault_log))
     async with contextlib.AsyncExitStack() as stack:
         if server is None:
             server = await stack.enter_async_context(
@@ -253,6 +260,10 @@ async def open_sim_system(scenario: Scenario, *, seed: int, store: Store,
                                origin)
             system.memory_links = dict(zip(roles, memories, strict=True))
             nursery.start_soon(_watch_scheduled_actor_faults, system)
+            if schedule:
+                nursery.start_soon(send_scheduled_faults, server, schedule,
+                                   lambda text: trace.emit(EventKind.FAULT, "attached",
+                                                           detail=text))
             try:
                 yield system
             finally:

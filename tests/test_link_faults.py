@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 import trio
 import trio.testing
@@ -11,6 +13,7 @@ from server.protocol import make_frame
 from server.server import ServerConfig, open_server
 from server.store import Store
 from tests.fake_rover import FakeRover, memory_pipe
+from tui.cmd_serve import parse_command_line, run_fault
 from world.faults import DEVICE_FAULTS
 
 
@@ -116,3 +119,48 @@ def test_link_faults_refused_for_a_simulated_rover_and_unknown_ids() -> None:
                     nursery.cancel_scope.cancel()
 
     trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
+
+
+def test_serve_prompt_parses_fault_and_clear_lines() -> None:
+    """``fault ROVER/TARGET KIND [DURATION] [NAME=VALUE ...]`` and ``clear ROVER/TARGET``."""
+    assert parse_command_line("fault mapper/link loss 60 percent=30") == ("fault", {
+        "rover": "mapper", "target": "link", "kind": "loss", "duration_s": 60.0,
+        "params": {"percent": 30.0}})
+    assert parse_command_line("fault m1/lidar dead")[1]["duration_s"] == 0.0
+    assert parse_command_line("clear mapper/link") == ("clear", {
+        "rover": "mapper", "target": "link", "kind": "*"})
+    for bad, message in (("fault mapper", "usage: fault ROVER/TARGET KIND"),
+                         ("fault mapper/link loss soon", "DURATION must be a number"),
+                         ("fault mapper/link loss 5 percent", "is not NAME=NUMBER"),
+                         ("clear mapper/link a b", "usage: clear ROVER/TARGET [KIND]")):
+        with pytest.raises(ValueError, match=re.escape(message)):
+            parse_command_line(bad)
+
+
+def test_serve_prompt_fault_reaches_an_attached_rovers_link_and_clear_ends_it() -> None:
+    """From the prompt, by role: a link fault on the attached rover, then cleared."""
+    out: list[str] = []
+
+    async def main() -> None:
+        with Store(":memory:") as store:
+            async with open_server(store, ServerConfig(rovers=frozenset({"m1"}))) as server:
+                rover = FakeRover("m1", "mapper")
+                receive, send, _ = memory_pipe(lambda o: server.attach_memory(
+                    o, trusted=False, name="mem:m1"))
+                async with trio.open_nursery() as nursery:
+                    nursery.start_soon(rover.run, receive, send)
+                    with trio.fail_after(5):
+                        while not rover.welcomed:
+                            await trio.sleep(0.1)
+                    for line in ("fault mapper/link latency 0 added_s=0.5",
+                                 "clear mapper/link"):
+                        name, kw = parse_command_line(line)
+                        out.append(run_fault(server, None, name, kw))
+                        out.append(str([f.kind for f in server.link_faults_of("m1")]))
+                    with pytest.raises(ValueError, match="link fault kind must be"):
+                        run_fault(server, None, *parse_command_line("fault m1/link melt"))
+                    nursery.cancel_scope.cancel()
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
+    assert out == ["link fault latency on m1 until cleared", "['latency']",
+                   "1 link fault(s) cleared on m1", "[]"]

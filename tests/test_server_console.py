@@ -30,7 +30,7 @@ def test_piped_commands_then_end_of_input_stop_the_server_cleanly(tmp_path) -> N
     out, _ = proc.communicate(b"help\nstatus\ndance\nhide 1\n", timeout=60)
     text = out.decode()
     assert proc.returncode == 0, text
-    assert "[room] [within=CM], new_game, status, help, quit" in text  # the banner
+    assert "ROVER/TARGET, new_game, status, help, quit" in text  # the banner
     assert "quit                               stop the server" in text  # help
     assert "game 1: idle\n  no rover has said hello yet\n" in text
     assert f"? unknown command 'dance'; commands: {', '.join(CONSOLE_COMMANDS)}" in text

@@ -17,6 +17,13 @@ line editing and history when it is a terminal)::
     start_mapping | stop_mapping | new_game | status | help | quit
     hide X Y [HEADING] [room|map]      (cm, deg; map frame unless "room")
     seek X Y [HEADING] [room|map] [within=CM]
+    fault ROVER/TARGET KIND [DURATION] [NAME=VALUE ...]
+    clear ROVER/TARGET [KIND]
+
+``fault`` breaks a rover: an attached one over the protocol (its advertised
+faults, ``status`` lists them) or its link (target ``link``: loss, corrupt,
+latency, down, applied by this server); a simulated one in its world or
+runtime. ROVER is a rover id or the role it plays.
 
 End of input (Ctrl-D) or ``quit`` stops the server as Ctrl-C does: the game
 is kept, to be resumed by the next start. ``--no-console`` ignores standard
@@ -38,14 +45,14 @@ if TYPE_CHECKING:
 
 __all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_listens",
            "parse_command_line", "CONSOLE_COMMANDS", "DEFAULT_LISTEN", "DEFAULT_UDP_LISTEN",
-           "HELP", "format_status"]
+           "HELP", "format_status", "parse_fault_words", "run_fault"]
 
 DEFAULT_LISTEN = "tcp:127.0.0.1:7878"
 """Where ``serve`` listens without ``--listen``."""
 DEFAULT_UDP_LISTEN = "udp:127.0.0.1:7878"
 """... and for rovers on ``udp`` (``--rover ID=udp``)."""
-CONSOLE_COMMANDS = ("start_mapping", "stop_mapping", "hide", "seek", "new_game", "status",
-                    "help", "quit")
+CONSOLE_COMMANDS = ("start_mapping", "stop_mapping", "hide", "seek", "new_game", "fault",
+                    "clear", "status", "help", "quit")
 """Every command the operator console takes."""
 HELP = """\
   start_mapping                      the mapper explores the room
@@ -53,6 +60,11 @@ HELP = """\
   hide X Y [HEADING] [room|map]      send the hider there (cm, deg; map frame unless room)
   seek X Y [HEADING] [room|map] [within=CM]
                                      send the seeker to look there (within: search radius)
+  fault ROVER/TARGET KIND [DURATION] [NAME=VALUE ...]
+                                     break a rover's device, actor or link (s; status
+                                     lists an attached rover's faults), e.g.
+                                     fault mapper/link loss 60 percent=30
+  clear ROVER/TARGET [KIND]          end the faults on a target (all kinds by default)
   new_game                           end this game (stopped by the operator), start another
   status                             game phase and each rover's link
   help                               this list
@@ -166,9 +178,49 @@ def parse_command_line(line: str) -> tuple[str, dict]:
         if len(nums) == 3:
             kw["heading"] = nums[2]
         return name, kw
+    if name in ("fault", "clear"):
+        return name, parse_fault_words(name, rest)
     if rest:
         raise ValueError(f"{name} takes no arguments")
     return name, {}
+
+
+def parse_fault_words(name: str, words: list[str]) -> dict:
+    """``fault``/``clear`` arguments -> ``rover, target, kind, duration_s, params``.
+
+    Raises:
+        ValueError: naming the word that is wrong, with the usage.
+    """
+    usage = ("usage: fault ROVER/TARGET KIND [DURATION] [NAME=VALUE ...]" if name == "fault"
+             else "usage: clear ROVER/TARGET [KIND]")
+    if not words or words[0].count("/") != 1 or "" in words[0].split("/"):
+        raise ValueError(usage)
+    rover, target = words[0].split("/")
+    rest = words[1:]
+    if name == "clear":
+        if len(rest) > 1:
+            raise ValueError(usage)
+        return {"rover": rover, "target": target, "kind": rest[0] if rest else "*"}
+    if not rest:
+        raise ValueError(usage)
+    kind, rest = rest[0], rest[1:]
+    duration = 0.0
+    if rest and "=" not in rest[0]:
+        try:
+            duration = float(rest.pop(0))
+        except ValueError:
+            raise ValueError(f"fault: DURATION must be a number of seconds, {usage}") from None
+        if not 0 <= duration <= 86400:
+            raise ValueError(f"fault: DURATION must be within 0..86400 s, got {duration:g}")
+    params = {}
+    for word in rest:
+        key, _, value = word.partition("=")
+        try:
+            params[key] = float(value)
+        except ValueError:
+            raise ValueError(f"fault: {word!r} is not NAME=NUMBER, {usage}") from None
+    return {"rover": rover, "target": target, "kind": kind, "duration_s": duration,
+            "params": params}
 
 
 def format_status(snap) -> str:
@@ -180,10 +232,13 @@ def format_status(snap) -> str:
                      f"{'in':>6} {'out':>6} {'lost':>5} {'resent':>6} {'bad':>5}")
     for r in snap.rovers:
         st = r.stats
+        faults = getattr(r, "faults", ())
         rtt = f"{st.rtt_s * 1000:.0f} ms" if st.rtt_s is not None else "-"
         lines.append(f"  {r.id:<12} {r.role:<7} {(r.link or '(none)'):<24} "
                      f"{'yes' if st.up else 'no':<4} {rtt:>8} {st.frames_in:>6} "
                      f"{st.frames_out:>6} {st.lost:>5} {st.resent:>6} {st.bad_frames:>5}")
+        if faults:
+            lines.append(f"  {'':<12} faults: {', '.join(faults)}")
     if not snap.rovers:
         lines.append("  no rover has said hello yet")
     refused = getattr(snap, "refused", {}) or {}
@@ -315,6 +370,7 @@ async def _serve(store, config, listens, rovers, sim=None, console: bool = True)
 
     from server.server import open_server
 
+    sim_system = None
     async with open_server(store, config) as server, contextlib.AsyncExitStack() as stack:
         for line in _banner(server, store):
             print(line, flush=True)
@@ -322,7 +378,7 @@ async def _serve(store, config, listens, rovers, sim=None, console: bool = True)
             from supervisors.system import open_sim_system
 
             scenario, seed, roles = sim
-            await stack.enter_async_context(open_sim_system(
+            sim_system = await stack.enter_async_context(open_sim_system(
                 scenario, seed=seed, store=store, roles=roles, server=server))
             print(f"simulated in this process ({scenario.name}, seed {seed}): "
                   f"{', '.join(roles)}", flush=True)
@@ -337,17 +393,35 @@ async def _serve(store, config, listens, rovers, sim=None, console: bool = True)
                 print(f"rover {rid}: serial {spec.url} at {spec.baud} baud", flush=True)
         if console:
             print("commands: start_mapping, stop_mapping, hide X Y [H] [room], seek X Y [H] "
-                  "[room] [within=CM], new_game, status, help, quit", flush=True)
+                  "[room] [within=CM], fault ROVER/TARGET KIND [S] [NAME=V], clear "
+                  "ROVER/TARGET, new_game, status, help, quit", flush=True)
         t0 = trio.current_time()
         async with trio.open_nursery() as nursery:
             if console:
-                nursery.start_soon(_console, server, nursery.cancel_scope)
+                nursery.start_soon(_console, server, nursery.cancel_scope, sim_system)
             async for event in events:
                 if event.kind != "pose":
                     print(event.format(t0), flush=True)
 
 
-async def _console(server, stop) -> None:
+def run_fault(server, sim_system, name: str, kw: dict) -> str:
+    """Carry out a parsed ``fault``/``clear``: an attached rover through the server, a
+    simulated one through its world or runtime. Raises ValueError with the reason."""
+    rover, target = kw["rover"], kw["target"]
+    simulated = sim_system is not None and rover in sim_system.trees
+    if not simulated:
+        if name == "clear":
+            return server.rover_fault(rover, "clear", target, kw["kind"])
+        return server.rover_fault(rover, "inject", target, kw["kind"], kw["duration_s"],
+                                  kw["params"])
+    if name == "clear":
+        return f"{sim_system.clear_fault(f'{rover}/{target}')} fault(s) cleared"
+    fid = sim_system.inject_fault(f"{rover}/{target}", kw["kind"], kw["duration_s"],
+                                  **kw["params"])
+    return f"fault {fid}: {kw['kind']} on {rover}/{target}"
+
+
+async def _console(server, stop, sim_system=None) -> None:
     """Operator commands until end of input or ``quit``, then stop the server."""
     lines = _tty_lines() if sys.stdin.isatty() else _pipe_lines()
     async for line in lines:
@@ -365,6 +439,12 @@ async def _console(server, stop) -> None:
             name, kw = parse_command_line(line)
         except ValueError as exc:
             print(f"? {exc}", flush=True)
+            continue
+        if name in ("fault", "clear"):
+            try:
+                print(run_fault(server, sim_system, name, kw), flush=True)
+            except ValueError as exc:
+                print(f"refused: {exc}", flush=True)
             continue
         result = await server.command(name, **kw)
         print("ok" if result.ok else f"refused: {result.reason}", flush=True)
