@@ -1,7 +1,8 @@
 """What an attached rover told the server about its insides: the newest of each stream.
 
 The server keeps, per rover, the newest ``tm_mailboxes``, ``tm_tree`` and
-``tm_pose`` with the time each arrived (its age is what a console marks as
+``tm_pose`` (frames of one ``t`` joined: a list cut over several frames) with the
+time each arrived (its age is what a console marks as
 stale), the working map assembled from ``tm_map`` deltas, and the last
 `MAX_EVENTS` ``tm_event`` entries. A stream the welcome did not ask for is
 ignored. A ``tm_map`` with another header (the rover's map grew or moved)
@@ -14,6 +15,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
+import msgspec
 import numpy as np
 
 from .protocol import FREE, OCCUPIED, STREAM_CMDS, UNKNOWN, GridMap
@@ -24,6 +26,7 @@ MAX_EVENTS = 200
 """Events kept per rover [events]."""
 MAX_MAP_CELLS = 4_000_000
 """Largest working map the server assembles [cells] (a bigger header is ignored)."""
+_MAX_ROWS = 256  # rows of one stream kept when frames of one t are joined
 _STREAM_OF = {cmd: s for s, cmd in STREAM_CMDS.items()}
 _CODE_TO_CELL = np.array([UNKNOWN, FREE, OCCUPIED], dtype=np.int8)
 
@@ -73,7 +76,12 @@ class RoverTelemetry:
             self._latest[stream] = (now, None)
         elif stream == "map":
             self._take_map(payload, now)
-        else:
+        else:  # a list cut over frames of one t: joined
+            held = self._latest.get(stream)
+            if held is not None and held[1].t == payload.t:
+                key = "boxes" if stream == "mailboxes" else "nodes"
+                rows = (getattr(held[1], key) + getattr(payload, key))[:_MAX_ROWS]
+                payload = msgspec.structs.replace(payload, **{key: rows})
             self._latest[stream] = (now, payload)
         return True
 

@@ -27,7 +27,7 @@ import trio
 
 from actors import ActorSystem, EventKind, Message, TraceEvent
 from actors.firmware.commands import Cmd
-from server.protocol import Frame, TelemetryLane, compose, split_cells
+from server.protocol import Frame, TelemetryLane, compose, split_cells, split_rows
 
 __all__ = ["TelemetrySource", "STREAMS_OF_ROLE"]
 
@@ -115,7 +115,8 @@ class TelemetrySource:
             self._sent_counts[name] = (now, s.sent)
             boxes.append([name[len(self._prefix):][:32], s.depth, s.capacity,
                           round(max(rate, 0.0), 1), s.dropped])
-        return [Frame("tm_mailboxes", "mailboxes", {"t": round(now, 3), "boxes": boxes[:64]})]
+        return split_rows("tm_mailboxes", "mailboxes", "boxes", boxes, round(now, 3),
+                          self.lane.max_frame)
 
     def _tree(self, now: float) -> list[Frame]:
         nodes: list[list[Any]] = []
@@ -126,7 +127,7 @@ class TelemetrySource:
             for child in node.children:
                 walk(child)
         walk(self.tree.snapshot())
-        return [Frame("tm_tree", "tree", {"t": round(now, 3), "nodes": nodes[:64]})]
+        return split_rows("tm_tree", "tree", "nodes", nodes, round(now, 3), self.lane.max_frame)
 
     def _nav(self) -> Any:
         cell = self.actors.whereis(f"{self.role}/nav")
@@ -192,7 +193,7 @@ class TelemetrySource:
         idx = np.asarray(picked, dtype=np.int64)
         self._map_sent[idx] = codes[idx]
         cells = [(int(i), int(codes[i])) for i in idx]
-        return split_cells(cells, header, round(now, 3))
+        return split_cells(cells, header, round(now, 3), self.lane.max_frame)
 
 
 def _state(state: Any) -> str:

@@ -291,3 +291,40 @@ async def test_a_tick_dropped_by_a_full_mailbox_does_not_stop_the_timer(
         await trio.sleep(5.0)
         assert len(ticks) >= 4
         assert [p for c, p in log if c == Cmd.NAV_LINK] == [1]
+
+
+@pytest.mark.trio
+async def test_a_welcome_sharing_a_chunk_with_later_frames_and_a_late_second_welcome_rewind_nothing(
+        autojump_clock) -> None:
+    """A slow line brings the welcome and the reliable frames after it in one chunk, and
+    later a second welcome (the answer to a hello repeated meanwhile) naming a seq already
+    delivered: every frame reaches navigation once, in order, and none waits for a resend."""
+    hw, pool, log = FakeHardware(), BufferPool(64), []
+    async with trio.open_nursery() as nursery, open_actor_system(1) as system:
+        server = FakeServer(hw)
+        first = server.from_rover
+
+        def from_rover(data: bytes) -> None:
+            hellos = sum(f.cmd == "hello" for f in server.got)
+            first(data)
+            if hellos == 0 and any(f.cmd == "hello" for f in server.got):
+                server.session.send(make_frame("start"))  # in the welcome's chunk
+                server.session.send(make_frame("stop"))
+
+        hw.wifly_write = from_rover
+        nursery.start_soon(server.run)
+        spec = SupervisorSpec([
+            ChildSpec("nav", lambda: Recorder(log, pool)),
+            ChildSpec("wifly", lambda: Wifly(hw, pool, rover_id="h", role="hider",
+                                             hold_until_welcome=True), mailbox=256)])
+        await system.start_supervisor(spec, "hider")
+        await trio.sleep(1.0)
+        server.session.send(make_frame("welcome", {"server": "fake/1", "heartbeat_s": 1.0,
+                                                   "down_after_s": 5.0, "seq_base": 1}))
+        server.session.send(make_frame("destination", {"x": 1.0, "y": 2.0}))
+        await trio.sleep(3.0)
+        frames = [p.cmd for c, p in log if c == Cmd.NAV_NET]
+        resent = server.session.stats(trio.current_time()).resent
+        nursery.cancel_scope.cancel()
+    assert frames == ["start", "stop", "destination"]
+    assert resent == 0

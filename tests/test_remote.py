@@ -376,3 +376,37 @@ def test_rover_command_refuses_bad_options_with_a_message(argv, message, capsys)
     """Bad options: exit status 2 and one readable line, no traceback."""
     assert cmd_rover.run(_rover_args(["--role", "mapper", *argv])) == 2
     assert capsys.readouterr().err == f"hideseek rover: {message}\n"
+
+
+def test_rover_is_welcomed_at_once_after_the_server_was_away_long() -> None:
+    """The server is away 20 s (the rover's hello backoff grows meanwhile) and comes back:
+    the rover's first hello on the new connection is accepted (no "no hello in time"),
+    within 5 s of the server listening, as its reconnect backoff is capped."""
+    port = _free_port()
+    seen: dict = {}
+
+    async def serve_until_hello(store: Store, key: str) -> None:
+        async with open_server(store, ServerConfig(rovers=frozenset({"seeker"}))) as server:
+            events = server.subscribe()
+            await server.listen_tcp("127.0.0.1", port)
+            listening = trio.current_time()
+            async for e in events:
+                seen.setdefault(key + "_kinds", []).append(e.kind)
+                if e.kind == "hello":
+                    seen[key] = trio.current_time() - listening
+                    await trio.sleep(0.5)
+                    return
+
+    async def main() -> None:
+        scenario = load_scenario("empty")
+        with Store(":memory:") as store:
+            async with open_remote_rover(scenario, "seeker", parse_link(f"tcp:127.0.0.1:{port}"),
+                                         nav_factory=_idle_nav):
+                with trio.fail_after(60):
+                    await serve_until_hello(store, "first")
+                    await trio.sleep(20)
+                    await serve_until_hello(store, "again")
+
+    trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
+    assert seen["again"] < 5.0
+    assert "conn_closed" not in seen["again_kinds"]

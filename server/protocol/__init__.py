@@ -95,6 +95,7 @@ from .telemetry import (
     TmPose,
     TmTree,
     split_cells,
+    split_rows,
 )
 
 __all__ = [
@@ -112,4 +113,5 @@ __all__ = [
     "DEFAULT_INTERVALS", "DEFAULT_LINK_BYTES_S", "DEFAULT_SHARE", "EVENT_KINDS", "FAULT_RESULTS",
     "STREAM_CMDS", "STREAMS", "TELEMETRY_CMDS", "FaultCommand", "FaultReply", "LaneStats",
     "TelemetryLane", "TmEvent", "TmMailboxes", "TmMap", "TmPose", "TmTree", "split_cells",
+    "split_rows",
 ]

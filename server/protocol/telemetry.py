@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import msgspec
 
@@ -41,7 +41,7 @@ __all__ = [
     "STREAMS", "STREAM_CMDS", "TELEMETRY_CMDS", "EVENT_KINDS", "FAULT_RESULTS",
     "DEFAULT_SHARE", "DEFAULT_LINK_BYTES_S", "DEFAULT_INTERVALS",
     "TmMailboxes", "TmTree", "TmMap", "TmPose", "TmEvent", "FaultCommand", "FaultReply",
-    "TelemetryLane", "LaneStats", "split_cells",
+    "TelemetryLane", "LaneStats", "split_cells", "split_rows",
 ]
 
 STREAMS = ("mailboxes", "tree", "map", "pose", "events")
@@ -147,10 +147,29 @@ class FaultReply(msgspec.Struct, frozen=True):
     detail: _Text | None = None
 
 
-def split_cells(cells: list[tuple[int, int]], header: dict, t: float) -> list[Frame]:
-    """``tm_map`` frames carrying ``cells``, each line within `MAX_LINE_BYTES`."""
+def split_rows(cmd: str, type_: str, key: str, rows: list[Any], t: float,
+               limit: int = MAX_LINE_BYTES) -> list[Frame]:
+    """Frames of ``cmd`` carrying ``{"t": t, key: rows}``, the rows cut over as many frames
+    as keep each line within ``limit`` bytes (every frame has the same ``t``: the receiver
+    joins them)."""
     out: list[Frame] = []
-    room = MAX_LINE_BYTES - 240  # the envelope and header take less than this [bytes]
+    batch: list[Any] = []
+    for row in rows:
+        trial = Frame(cmd, type_, {"t": t, key: [*batch, row]})
+        if batch and (len(encode_frame(trial)) > limit or len(batch) >= _MAX_ROWS):
+            out.append(Frame(cmd, type_, {"t": t, key: batch}))
+            batch = []
+        batch.append(row)
+    out.append(Frame(cmd, type_, {"t": t, key: batch}))
+    return out
+
+
+def split_cells(cells: list[tuple[int, int]], header: dict, t: float,
+                limit: int = MAX_LINE_BYTES) -> list[Frame]:
+    """``tm_map`` frames carrying ``cells``, each line within ``limit`` bytes (at most
+    `MAX_LINE_BYTES`)."""
+    out: list[Frame] = []
+    room = max(min(limit, MAX_LINE_BYTES) - 240, 40)  # the envelope and header fit in 240
     batch: list[list[int]] = []
     used = 0
     for index, code in cells:
@@ -187,25 +206,34 @@ class TelemetryLane:
     dropped beyond ``queue_limit``); every other stream keeps only its newest
     frame. `take` hands out frames while the token bucket holds their bytes: it
     fills at ``share * link_bytes_s`` and holds at most one full line, so over
-    any stretch of time telemetry uses at most that share of the link (plus one line).
+    any stretch of time telemetry uses at most that share of the link (plus one burst).
+
+    The bucket holds at most ``max_frame`` bytes, so telemetry never puts more than
+    that on the line at once: a game frame written next waits at most that long
+    (at 57600 baud, 288 bytes: 50 ms). Producers cut their frames to ``max_frame``
+    (`split_rows`, `split_cells`); a longer frame still leaves when the bucket is
+    full, and the bucket goes into debt for it (the share holds on average).
 
     Args:
         link_bytes_s: the link's rate [bytes/s].
         queue_limit: frames kept per queued stream at most.
+        max_frame: the burst [bytes]; by default 50 ms of the link, within 200..1024.
     """
 
     def __init__(self, link_bytes_s: float = DEFAULT_LINK_BYTES_S, *,
-                 queue_limit: int = 64) -> None:
+                 queue_limit: int = 64, max_frame: int | None = None) -> None:
         if not link_bytes_s > 0:
             raise ValueError(f"link_bytes_s must be > 0, got {link_bytes_s!r}")
         self.link_bytes_s = float(link_bytes_s)
         self.queue_limit = queue_limit
+        self.max_frame = max_frame or int(min(MAX_LINE_BYTES, max(200.0, link_bytes_s * 0.05)))
+        """The most bytes telemetry puts on the line at once (the bucket's size)."""
         self.intervals: dict[str, float] = {}
         """Stream -> interval [s] the peer asked for; empty = send nothing."""
         self.share = DEFAULT_SHARE
         self._queues: dict[str, deque[tuple[Frame, bytes]]] = {}
         self._last_offer: dict[str, float] = {}
-        self._tokens = float(MAX_LINE_BYTES)
+        self._tokens = float(self.max_frame)
         self._filled_at: float | None = None
         self._c = dict(frames=0, bytes=0, replaced=0, dropped=0)
 
@@ -251,7 +279,7 @@ class TelemetryLane:
 
     def _fill(self, now: float) -> None:
         if self._filled_at is not None:
-            self._tokens = min(float(MAX_LINE_BYTES),
+            self._tokens = min(float(self.max_frame),
                                self._tokens + (now - self._filled_at) * self.rate)
         self._filled_at = now
 
@@ -261,7 +289,7 @@ class TelemetryLane:
         if not heads:
             return float("inf")
         self._fill(now)
-        need = min(len(b) for b in heads) - self._tokens
+        need = min(min(len(b), self.max_frame) for b in heads) - self._tokens
         return now if need <= 0 else now + need / self.rate
 
     def take(self, now: float) -> bytes:
@@ -272,7 +300,7 @@ class TelemetryLane:
         while progress:
             progress = False
             for q in self._queues.values():
-                if q and len(q[0][1]) <= self._tokens:
+                if q and min(len(q[0][1]), self.max_frame) <= self._tokens:
                     _, line = q.popleft()
                     self._tokens -= len(line)
                     out.append(line)

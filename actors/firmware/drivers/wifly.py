@@ -380,14 +380,30 @@ class Wifly(Actor):
 
     # ------------------------------------------------------------------ receiving
     def _receive(self, data: bytes, now: float) -> None:
+        # line by line: a welcome resets in-order reception, so it must act before the
+        # session takes the frames after it (a chunk may hold the welcome and the
+        # frames that follow it; taken together, they were counted and then rewound)
+        start = 0
+        while start < len(data):
+            end = data.find(b"\n", start)
+            end = len(data) if end < 0 else end + 1
+            self._frames(self.session.feed(data[start:end], now), now)
+            start = end
+
+    def _frames(self, frames: list[Frame], now: float) -> None:
         session = self.session
-        for frame in session.feed(data, now):
+        for frame in frames:
             try:
                 body = read_data(frame)
             except FrameError as exc:
                 session.reject(exc, frame)
                 continue
             if frame.cmd == WELCOME:
+                if self.welcomed and self.hold_until_welcome:
+                    # the answer to a hello repeated while the first answer was on its
+                    # way (a slow line): its seq_base may be a frame delivered since, and
+                    # going back to it would wait forever for a frame acknowledged already
+                    continue
                 session.reset_peer(body.seq_base)
                 self._hello_wait = self.hello_s
                 if self.telemetry is not None:
