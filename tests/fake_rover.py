@@ -180,3 +180,14 @@ def memory_pipe(server_link_factory) -> tuple[Callable, Callable, object]:
         await trio.lowlevel.checkpoint()
 
     return recv_ch.receive, send, link
+
+
+async def attach_outside(server, nursery: trio.Nursery, rover: FakeRover) -> None:
+    """Run ``rover`` on an untrusted memory link of ``server`` (as from outside the
+    process, named ``mem:ID``) in ``nursery``; return once it is welcomed."""
+    receive, send, _ = memory_pipe(lambda out: server.attach_memory(
+        out, trusted=False, name=f"mem:{rover.id}"))
+    nursery.start_soon(rover.run, receive, send)
+    with trio.fail_after(5):
+        while not rover.welcomed:
+            await trio.sleep(0.1)

@@ -6,8 +6,6 @@ as the server, joined by TCP on loopback; the clock is virtual.
 
 from __future__ import annotations
 
-import socket
-
 import trio
 import trio.testing
 
@@ -15,18 +13,8 @@ from server.links import parse_link
 from server.server import ServerConfig, open_server
 from server.store import Store
 from supervisors.remote import open_remote_rover
-from supervisors.rover import IdleNav
+from tests.test_remote import _free_port, _idle_nav
 from world.scenario import load_scenario
-
-
-def _idle_nav(role, *, pool, **_):
-    return IdleNav(pool)
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 async def _until(pred, events=None, limit_s: float = 30.0):

@@ -12,7 +12,7 @@ from server.link_faults import LINK_FAULTS, LinkFaultBook, check_link_fault
 from server.protocol import make_frame
 from server.server import ServerConfig, open_server
 from server.store import Store
-from tests.fake_rover import FakeRover, memory_pipe
+from tests.fake_rover import FakeRover, attach_outside, memory_pipe
 from tui.cmd_serve import parse_command_line, run_fault
 from world.faults import DEVICE_FAULTS
 
@@ -68,13 +68,8 @@ def test_thirty_percent_loss_for_60_s_loses_no_frame_both_ways() -> None:
                 server.observe_frames(lambda rid, role, f: delivered.append(f.seq or 0)
                                       if f.cmd == "map_request" else None)
                 rover = FakeRover("m1", "hider")
-                receive, send, _ = memory_pipe(lambda out: server.attach_memory(
-                    out, trusted=False, name="mem:m1"))
                 async with trio.open_nursery() as nursery:
-                    nursery.start_soon(rover.run, receive, send)
-                    with trio.fail_after(5):
-                        while not rover.welcomed:
-                            await trio.sleep(0.1)
+                    await attach_outside(server, nursery, rover)
                     text = server.rover_fault("m1", "inject", "link", "loss", 60.0,
                                               {"percent": 30})
                     assert text == "link fault loss on m1 for 60 s"
@@ -144,14 +139,8 @@ def test_serve_prompt_fault_reaches_an_attached_rovers_link_and_clear_ends_it() 
     async def main() -> None:
         with Store(":memory:") as store:
             async with open_server(store, ServerConfig(rovers=frozenset({"m1"}))) as server:
-                rover = FakeRover("m1", "mapper")
-                receive, send, _ = memory_pipe(lambda o: server.attach_memory(
-                    o, trusted=False, name="mem:m1"))
                 async with trio.open_nursery() as nursery:
-                    nursery.start_soon(rover.run, receive, send)
-                    with trio.fail_after(5):
-                        while not rover.welcomed:
-                            await trio.sleep(0.1)
+                    await attach_outside(server, nursery, FakeRover("m1", "mapper"))
                     for line in ("fault mapper/link latency 0 added_s=0.5",
                                  "clear mapper/link"):
                         name, kw = parse_command_line(line)

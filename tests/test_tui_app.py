@@ -204,20 +204,25 @@ def test_speed_keys_at_either_end_change_nothing():
     drive(test, speed=1.0)
 
 
+async def inject_from_dialog(app: ConsoleApp, target: str, kind: str) -> None:
+    """Open the fault dialog (f), choose ``target`` and ``kind``, press Inject."""
+    press(app, "f")
+    await until(lambda: isinstance(app.screen, FaultDialog)
+                and app.screen.query(Select)
+                and all(w.is_mounted for w in app.screen.query(Select)), "fault dialog")
+    dialog = app.screen
+    dialog.query_one("#target", Select).value = target
+    await until(lambda: len(dialog.query_one("#kind", Select)._options) > 1, "kinds")
+    dialog.query_one("#kind", Select).value = kind
+    dialog.query_one("#inject", Button).press()
+
+
 def test_fault_dialog_injects_a_crash_that_flashes_and_recovers():
     """f opens the dialog; a crash on mapper/lidar shows restarting, then ↻1."""
 
     async def test(app, fake):
         press(app, "3")
-        press(app, "f")
-        await until(lambda: isinstance(app.screen, FaultDialog)
-                    and app.screen.query(Select)
-                    and all(w.is_mounted for w in app.screen.query(Select)), "fault dialog")
-        dialog = app.screen
-        dialog.query_one("#target", Select).value = "mapper/lidar"
-        await until(lambda: len(dialog.query_one("#kind", Select)._options) > 1, "kinds")
-        dialog.query_one("#kind", Select).value = "crash"
-        dialog.query_one("#inject", Button).press()
+        await inject_from_dialog(app, "mapper/lidar", "crash")
         await until(lambda: calls(fake, "inject_fault"), "inject call")
         assert calls(fake, "inject_fault")[0] == ("mapper/lidar", "crash", None, {})
         await until(lambda: "lidar restarting" in tree_text(app), "restarting shown")

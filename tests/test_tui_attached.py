@@ -9,26 +9,17 @@ from __future__ import annotations
 
 import asyncio
 import pathlib
-import socket
 import subprocess
 import sys
 
-from textual.widgets import Button, Select
-
 from server.links import parse_link
-from tests.test_tui_app import notes, press, tree_text, until
+from tests.test_remote import _free_port
+from tests.test_tui_app import inject_from_dialog, notes, press, tree_text, until
 from tui.app import ConsoleApp
 from tui.live import LiveSystem
-from tui.widgets import FaultDialog
 from world.scenario import load_scenario
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def test_console_shows_an_attached_rovers_queues_tree_and_takes_its_faults() -> None:
@@ -57,15 +48,7 @@ def test_console_shows_an_attached_rovers_queues_tree_and_takes_its_faults() -> 
                         "the mapper's tree")
             targets = {t.target: t.kinds for t in app.snapshot.catalogue}
             assert "dead" in targets["mapper/lidar"] and "loss" in targets["mapper/link"]
-            press(app, "f")
-            await until(lambda: isinstance(app.screen, FaultDialog)
-                        and app.screen.query(Select)
-                        and all(w.is_mounted for w in app.screen.query(Select)), "fault dialog")
-            dialog = app.screen
-            dialog.query_one("#target", Select).value = "mapper/lidar"
-            await until(lambda: len(dialog.query_one("#kind", Select)._options) > 1, "kinds")
-            dialog.query_one("#kind", Select).value = "dead"
-            dialog.query_one("#inject", Button).press()
+            await inject_from_dialog(app, "mapper/lidar", "dead")
             await until(lambda: any("fault reply" in e.text and "accepted" in e.text
                                     for e in app.snapshot.timeline), "the rover's reply",
                         timeout=20)
