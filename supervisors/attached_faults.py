@@ -6,6 +6,8 @@ process's world or runtime: at its time it goes to the attached rover through
 the server (`server.rover_faults`: a ``fault`` frame, or a link fault for
 target ``link``), exactly as the console's fault dialog sends it. A fault
 whose rover is not attached at its time is reported (an event), not retried.
+Scenarios and their faults are `world.scenario` records, taken by their fields
+(this module is not wiring: it does not import the world).
 """
 
 from __future__ import annotations
@@ -16,17 +18,15 @@ from typing import Any
 
 import trio
 
-from world.scenario import Scenario, ScheduledFault
-
 __all__ = ["attached_schedule", "simulated_only", "send_scheduled_faults"]
 
 
-def attached_schedule(scenario: Scenario, simulated: Sequence[str]) -> list[ScheduledFault]:
+def attached_schedule(scenario: Any, simulated: Sequence[str]) -> list[Any]:
     """The scheduled faults whose rover is not among the ``simulated`` roles."""
     return [f for f in scenario.faults if f.target.split("/")[0] not in simulated]
 
 
-def simulated_only(scenario: Scenario, simulated: Sequence[str]) -> Scenario:
+def simulated_only(scenario: Any, simulated: Sequence[str]) -> Any:
     """``scenario`` with only the faults of simulated roles (the same object when that is
     all of them)."""
     keep = tuple(f for f in scenario.faults if f.target.split("/")[0] in simulated)
@@ -35,7 +35,7 @@ def simulated_only(scenario: Scenario, simulated: Sequence[str]) -> Scenario:
     return dataclasses.replace(scenario, faults=keep)
 
 
-async def send_scheduled_faults(server: Any, faults: Sequence[ScheduledFault],
+async def send_scheduled_faults(server: Any, faults: Sequence[Any],
                                 on_refused: Callable[[str], None]) -> None:
     """Send each fault to its attached rover at its time [s from now], in order."""
     t0 = trio.current_time()

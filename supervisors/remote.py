@@ -43,11 +43,11 @@ import trio
 from actors import ActorSystem, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.hardware import ROLES
+from actors.firmware.telemetry import STREAMS_OF_ROLE, TelemetrySource
 from server.links import LinkSpec, open_pty_cable, open_serial_stream, open_udp_stream
 from server.protocol import DEFAULT_LINK_BYTES_S, TelemetryLane
 from supervisors.rover import rover_tree
 from supervisors.rover_fault_port import RoverFaultPort
-from supervisors.telemetry_source import STREAMS_OF_ROLE, TelemetrySource
 from world.scenario import Scenario
 from world.wifly import WiflyLink
 from world.world import World, run_world

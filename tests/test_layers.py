@@ -41,10 +41,11 @@ def imported_modules(path: pathlib.Path) -> list[tuple[int, str]]:
 
 
 #: the modules outside tui/ that join world and server into a system: the
-#: simulated system tree, the remote-rover wiring, the test harness and the
-#: recorder (a module, or every module under a package path ending in ``/``)
-WIRING = ("supervisors/system.py", "supervisors/remote.py", "supervisors/harness/",
-          "supervisors/recording/")
+#: simulated system tree, the remote-rover wiring and its fault port (faults
+#: over the link into its world), the test harness and the recorder (a module,
+#: or every module under a package path ending in ``/``)
+WIRING = ("supervisors/system.py", "supervisors/remote.py", "supervisors/rover_fault_port.py",
+          "supervisors/harness/", "supervisors/recording/")
 
 #: the one firmware module the world may import: the device contract it implements
 DEVICE_CONTRACT = "actors.firmware.hardware"

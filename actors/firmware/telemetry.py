@@ -1,9 +1,9 @@
-"""What a rover in its own process streams about its insides (``hideseek rover``).
+"""The rover's telemetry task: what it streams about its insides (``hideseek rover``).
 
-The model of a low-priority telemetry task in the rover's firmware: it reads
-the rover's actor system the way a debugger reads RAM (mailbox counters, the
-supervision tree, Map Management's working grid, navigation's pose belief)
-and offers frames to the WiFly's `TelemetryLane` for the streams the server
+A low-priority task of the rover's firmware, beside its tree (not an actor:
+it takes no messages). It reads the rover's actor system the way a debugger
+reads RAM (mailbox counters, the supervision tree, Map Management's working
+grid, navigation's pose belief), changing nothing, and offers frames to the WiFly's `TelemetryLane` for the streams the server
 asked for, at the intervals it asked for. The lane keeps the newest per
 stream and lets them out within its byte budget, after game frames.
 
