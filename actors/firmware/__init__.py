@@ -10,6 +10,8 @@ One subpackage per concern (each imports only those above it)::
     drivers/                        the five ISRs (Int A-E) and the driver actors:
                                     motor, lidar, ir, wifly (wifly also uses server.protocol)
     nav/                            navigation actors (mapping, hiding, seeking)
+    fault_port, telemetry           the failure-injection hook the WiFly answers faults
+                                    from; the telemetry task that reads the rover's runtime
 
 The package never imports ``world``, and of ``server`` only ``server.protocol``
 (tests/test_layers.py). This ``__init__`` imports nothing, so that the world
