@@ -23,7 +23,9 @@ class ServerEvent:
     """Server time [s] (Trio clock)."""
     kind: str
     """``hello``, ``link_up``, ``link_down``, ``link_error``, ``bad_frame``, ``pose``,
-    ``status``, ``map``, ``command``, ``refused``, ``phase``, ``report``, ``peer_error``."""
+    ``status``, ``map``, ``command``, ``refused``, ``phase``, ``report``, ``peer_error``;
+    for attached rovers ``rover_event`` (a ``tm_event``), ``fault_sent``, ``fault_reply``,
+    ``link_fault`` and ``link_fault_cleared``."""
     rover: str = ""
     data: dict[str, Any] = field(default_factory=dict)
 
