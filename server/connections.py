@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import math
+from collections.abc import Iterable
 from typing import Any
 
 import trio
@@ -189,7 +190,7 @@ class Connections(ServerCore):
             lines = self._link_in(conn, lines, self._on_lines)  # type: ignore[attr-defined]
         self._on_lines(conn, lines)
 
-    def _on_lines(self, conn: Conn, lines: list[Any]) -> None:
+    def _on_lines(self, conn: Conn, lines: Iterable[Any]) -> None:
         now = trio.current_time()
         for line in lines:
             if conn.close_reason is not None:
