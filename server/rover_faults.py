@@ -14,6 +14,7 @@ The link side is applied by `server.connections` through `_link_in` and
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 import trio
@@ -123,7 +124,7 @@ class RoverFaults(ServerCore):
                           if r.link_faults and r.last_link == conn.link), None)
         return rover.link_faults if rover is not None and rover.link_faults else None
 
-    def _link_in(self, conn: Conn, lines: list[Any], handle: Any) -> list[Any]:
+    def _link_in(self, conn: Conn, lines: Iterable[Any], handle: Any) -> list[Any]:
         """Lines received on ``conn`` after its link faults; delayed ones go to ``handle``
         later (a latency fault)."""
         book = self._book_of(conn)
