@@ -130,7 +130,7 @@ class RoverFaults(ServerCore):
         book = self._book_of(conn)
         if book is None:
             return lines
-        lines = [b for b in book.apply([x for x in lines if isinstance(x, bytes)])]
+        lines = book.apply([x for x in lines if isinstance(x, bytes)])  # too-long marks go too
         delay = book.latency()
         if delay > 0 and lines:
             if len(conn.delayed) < _DELAYED_MAX:
