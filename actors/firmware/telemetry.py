@@ -3,8 +3,9 @@
 A low-priority task of the rover's firmware, beside its tree (not an actor:
 it takes no messages). It reads the rover's actor system the way a debugger
 reads RAM (mailbox counters, the supervision tree, Map Management's working
-grid, navigation's pose belief), changing nothing, and offers frames to the WiFly's `TelemetryLane` for the streams the server
-asked for, at the intervals it asked for. The lane keeps the newest per
+grid, navigation's pose belief), changing nothing, and offers frames to the
+WiFly's `TelemetryLane` for the streams the server asked for, at the
+intervals it asked for. The lane keeps the newest per
 stream and lets them out within its byte budget, after game frames.
 
 * ``mailboxes``: each of the rover's mailboxes: depth, capacity, messages/s
