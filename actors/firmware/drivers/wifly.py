@@ -100,6 +100,12 @@ wake-up's cost after a long gap)."""
 __all__ = ["LinkMemory", "Wifly"]
 
 
+def _lines_of(data: bytes) -> list[bytes]:
+    """``data`` cut after each newline (the last piece may be a partial line)."""
+    parts = data.split(b"\n")
+    return [p + b"\n" for p in parts[:-1]] + ([parts[-1]] if parts[-1] else [])
+
+
 class LinkMemory:
     """Retained memory of the WiFly driver: the reliable session and its backlog.
 
@@ -342,7 +348,9 @@ class Wifly(Actor):
     # ------------------------------------------------------------------ receiving
     def _receive(self, data: bytes, now: float) -> None:
         session = self.session
-        for frame in session.feed(data, now):
+        # one line at a time: a welcome resets the expected seq (`reset_peer`) before the
+        # frames after it in the same bytes are taken, else they would be taken twice
+        for frame in (f for line in _lines_of(data) for f in session.feed(line, now)):
             try:
                 body = read_data(frame)
             except FrameError as exc:
