@@ -3,12 +3,10 @@
 
 from __future__ import annotations
 
-import json
-
 import trio
 
 from ..protocol import MAX_LINE_BYTES, Fault, Frame
-from .context import Checker
+from .context import Checker, Expect
 from .peer import Seen
 
 __all__ = ["MALFORMED", "malformed"]
@@ -37,6 +35,12 @@ async def malformed(c: Checker) -> None:
     for line, _fault in MALFORMED:
         await c.peer.send_raw(line)
     await trio.sleep(c.slack(_ANSWER_S))
+    if not c.peer.connected:
+        c.lost_link = "the rover closed the link after malformed lines"
+        c.quiet.append((tx.now(), float("inf")))
+        c.found.fail("malformed.answered", c.lost_link, tx.rover(since)[-2:])
+        c.found.fail("malformed.survives", c.lost_link, tx.rover(since)[-2:])
+        return
     errors = _errors(c, since)
     faults = [s.frame.data.get("fault") for s in errors]
     if len(errors) < len(MALFORMED):
@@ -61,9 +65,9 @@ async def malformed(c: Checker) -> None:
     good = Frame("origin", "pose", {"x": 0.0, "y": 0.0, "heading": 0.0})
     again = len(tx.lines)
     await c.peer.send_with_seq(good, seq)
-    c.expects.append(_expect(c, seq, again))
+    c.expects.append(Expect(seq, again, tx.lines[again].t, c.epoch))
     ack = await tx.wait_for(lambda s: s.frame is not None and s.frame.ack is not None
-                            and s.frame.ack >= seq, c.slack(0.5), again)
+                            and s.frame.ack >= seq, c.slack(_ANSWER_S), again)
     data = answer.frame.data if answer is not None and isinstance(answer.frame.data, dict) \
         else {}
     if answer is None or data.get("fault") != Fault.BAD_DATA:
@@ -78,24 +82,15 @@ async def malformed(c: Checker) -> None:
     else:
         c.found.ok("malformed.reliable", f"bad data answered {data.get('detail', '')[:60]!r}, "
                    f"not acknowledged; seq {seq} sent right acknowledged", [answer, ack])
-    # the link stays: the rover goes on speaking
-    await trio.sleep(c.slack(_ALIVE_S) - c.opts.slack_s)
-    late = [s for s in tx.rover(since) if s.t >= tx.now() - c.slack(1.0)]
-    if not c.peer.connected or not late:
+    # the link stays: still open, and the rover speaks after the last of those lines
+    await trio.sleep(_ALIVE_S)
+    late = tx.rover(again + 1)
+    if not c.peer.connected:
+        c.lost_link = "the rover closed the link after malformed lines"
+        c.found.fail("malformed.survives", c.lost_link, tx.rover(since)[-2:])
+    elif not late:
         c.found.fail("malformed.survives", "the rover went silent after the malformed lines",
                      tx.rover(since)[-2:])
-    elif ack is None and answer is None:
-        c.found.fail("malformed.survives", "the rover stopped answering after the malformed "
-                     "lines", late[-1:])
     else:
-        c.found.ok("malformed.survives", f"still speaking {_ALIVE_S:g} s later", late[-1:])
-
-
-def _expect(c: Checker, seq: int, index: int):
-    from .context import Expect
-
-    return Expect(seq, index, c.tx.lines[index].t, c.epoch)
-
-
-def _shown(line: bytes) -> str:
-    return json.dumps(line.decode("utf-8", "replace"))[:60]
+        c.found.ok("malformed.survives", f"link open, the rover still speaking "
+                   f"{late[-1].t - tx.lines[again].t:.1f} s later", late[-1:])

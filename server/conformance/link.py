@@ -97,7 +97,9 @@ class RoverLink:
                 self._udp = await open_udp_endpoint(spec.host, spec.port)
                 self._peers, self._peer_rx = trio.open_memory_channel(1)
                 nursery.start_soon(self._udp.serve, self._admit)
-        except (OSError, SerialLinkError) as exc:
+        except SerialLinkError as exc:
+            raise LinkUnreachable(str(exc).splitlines()[0]) from None
+        except OSError as exc:
             raise LinkUnreachable(f"cannot open {spec.text}: {_why(exc)}") from None
         stream = await self._accept(wait_s)
         if stream is None:

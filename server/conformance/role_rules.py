@@ -164,6 +164,7 @@ async def run_hider_seeker(c: Checker) -> None:
     if c.lost_link:
         return
     at = len(tx.lines)
+    c.peer.auto_ack = False  # the report may come at once: keep it unacknowledged for resync
     seqs = []
     for chunk in map_chunks(checker_map(), 1):
         seq, _ = await c.send(chunk.cmd, chunk.type, chunk.data)
@@ -176,7 +177,6 @@ async def run_hider_seeker(c: Checker) -> None:
     else:
         c.found.ok("map.download", f"map_request on start, {len(seqs)} chunks acknowledged",
                    [request, acked])
-    c.peer.auto_ack = False  # keep the report unacknowledged for the resync
     await duplicate(c, Frame("start", "none", None), start_seq,
                     _new_reliable(c, ("map_request",)), "a second map_request")
     answers = ("arrived", "invalid_spot") if role == "hider" else ("found", "not_found")

@@ -26,7 +26,7 @@ from .context import Checker, Options
 from .error_rules import malformed
 from .fault_rules import faults
 from .hello_rules import greet, judge_welcome
-from .link import RoverLink
+from .link import LinkUnreachable, RoverLink
 from .peer import Peer, Transcript
 from .resync_rules import resync
 from .role_rules import run_hider_seeker, run_mapper
@@ -44,6 +44,18 @@ async def check_rover(link: RoverLink, opts: Options) -> tuple[list[Finding], Tr
     Raises:
         LinkUnreachable: the link cannot be opened, or no rover came to it.
     """
+    try:
+        return await _check(link, opts)
+    except BaseExceptionGroup as group:  # the link's opening fails inside the nursery
+        unreachable = group.subgroup(LinkUnreachable)
+        if unreachable is None:
+            raise
+        while isinstance(unreachable, BaseExceptionGroup):
+            unreachable = unreachable.exceptions[0]
+        raise unreachable from None
+
+
+async def _check(link: RoverLink, opts: Options) -> tuple[list[Finding], Transcript]:
     tx = Transcript()
     peer = Peer(tx)
     found = Findings()
