@@ -17,6 +17,7 @@ import msgspec
 import trio
 import trio.testing
 
+from server.conformance.role_rules import checker_map
 from server.links import parse_link
 from server.protocol import (
     TOO_LONG,
@@ -32,8 +33,6 @@ from server.protocol import (
     map_chunks,
     read_data,
 )
-from server.conformance.role_rules import checker_map
-
 
 BREAKS = {
     "": "nothing: follows every rule",

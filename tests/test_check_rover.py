@@ -19,7 +19,7 @@ import time
 import pytest
 import trio
 
-from server.conformance import RULES, Options, check_rover, parse_rover_link
+from server.conformance import RULES, Options, check_rover
 from server.conformance.rules import FAIL, PASS, SKIP
 
 from .conformance_rover import BREAKS, STREAMS, PairLink, TestRover
@@ -112,3 +112,115 @@ async def test_a_rover_that_breaks_one_rule_fails_that_rule_only(autojump_clock,
     if breaks == "crash_on_malformed":
         want["malformed.reliable"] = SKIP  # nothing left to send it to
     assert _results(got) == want, got["_detail"]
+
+
+# -- the real rover, out of process ----------------------------------------------------
+
+SPEED = 8  # the rover's and the checker's clock rate
+_ALWAYS_OPTIONAL = ("telemetry.", "fault.")  # run once the rover lists them, else skipped
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _hideseek(*argv: str, **kwargs) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "tui.cli", *argv], cwd=ROOT, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **kwargs)
+
+
+def _judge_real(role: str, out: str, rc: int) -> None:
+    """No rule fails; every rule of the role passes but the optional sections."""
+    report = json.loads(out.strip().splitlines()[-1])
+    results = {r["rule"]: r for r in report["rules"]}
+    assert rc == 0 and report["failed"] == 0, [r for r in report["rules"]
+                                              if r["result"] == FAIL]
+    for rule, roles in ROLE_RULES.items():
+        got = results[rule]["result"]
+        if role not in roles:
+            assert got == SKIP
+        elif rule.startswith(_ALWAYS_OPTIONAL):
+            assert got in (PASS, SKIP), results[rule]
+        else:
+            assert got == PASS, results[rule]
+    assert report["passed"] + report["skipped"] == len(RULES)
+
+
+def _stop(proc: subprocess.Popen) -> str:
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=20)
+    return out
+
+
+def test_hideseek_rover_over_tcp_passes_every_rule_it_supports() -> None:
+    """``hideseek rover --role hider --link tcpin:`` (x8) checked over ``tcp:``: every rule
+    of a hider passes; the sections it does not list are skipped."""
+    port = _free_port()
+    rover = _hideseek("rover", "--role", "hider", "--scenario", "empty", "--link",
+                      f"tcpin:127.0.0.1:{port}", "--speed", str(SPEED))
+    try:
+        for _ in range(100):  # until the rover listens
+            check = subprocess.run(
+                [sys.executable, "-m", "tui.cli", "check-rover", f"tcp:127.0.0.1:{port}",
+                 "--role", "hider", "--speed", str(SPEED), "--json", "--timeout", "300"],
+                cwd=ROOT, capture_output=True, text=True, timeout=120)
+            if check.returncode != 2:
+                break
+            time.sleep(0.2)
+    finally:
+        log = _stop(rover)
+    assert check.returncode != 2, check.stderr
+    _judge_real("hider", check.stdout, check.returncode)
+    assert "lost the server" in log  # the link was dropped and made again
+
+
+def test_hideseek_rover_over_a_pty_passes_every_rule_it_supports() -> None:
+    """``hideseek rover --role mapper --link pty`` (x8) checked over ``serial:PTY,115200``:
+    every rule of a mapper passes, the link dropped by closing and reopening the port."""
+    rover = _hideseek("rover", "--role", "mapper", "--scenario", "empty", "--link", "pty",
+                      "--speed", str(SPEED))
+    try:
+        path = ""
+        assert rover.stdout is not None
+        for line in rover.stdout:
+            found = re.search(r"serial:(\S+),115200", line)
+            if found:
+                path = found.group(1)
+                break
+        assert path, "the rover printed no pty path"
+        check = subprocess.run(
+            [sys.executable, "-m", "tui.cli", "check-rover", f"serial:{path},115200", "--speed",
+             str(SPEED), "--json", "--timeout", "300"],
+            cwd=ROOT, capture_output=True, text=True, timeout=120)
+    finally:
+        _stop(rover)
+    _judge_real("mapper", check.stdout, check.returncode)
+
+
+@pytest.mark.parametrize(("link", "message"), [
+    ("pty", "LINK must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT or "
+            "serial:PORT[,BAUD], got 'pty'"),
+    ("tcp:127.0.0.1:notaport", "tcp port must be a number, got 'notaport' in "
+                               "'tcp:127.0.0.1:notaport'"),
+    ("serial:/dev/hideseek-no-such-port,9600", "cannot open serial port "
+     "/dev/hideseek-no-such-port at 9600 baud"),
+])
+def test_bad_or_unreachable_link_is_one_line_and_status_2(link, message) -> None:
+    """A bad link string or a missing port: one line naming it, exit status 2."""
+    done = subprocess.run([sys.executable, "-m", "tui.cli", "check-rover", link],
+                          cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and done.stdout == ""
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"hideseek check-rover: {message}")
+
+
+def test_nothing_listening_at_a_tcp_link_is_status_2() -> None:
+    """``tcp:`` to a port nobody listens on: one line naming the address, status 2."""
+    port = _free_port()
+    done = subprocess.run([sys.executable, "-m", "tui.cli", "check-rover",
+                           f"tcp:127.0.0.1:{port}"], cwd=ROOT, capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 2
+    assert done.stderr.startswith(f"hideseek check-rover: cannot open tcp:127.0.0.1:{port}: ")
