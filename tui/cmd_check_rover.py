@@ -32,6 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", type=float, default=1.0, metavar="N",
                         help="the rover's clock rate (hideseek rover --speed N): every bound "
                              "is checked in its seconds (default 1, real time)")
+    parser.add_argument("--slack", type=args_.positive_seconds, default=0.4, metavar="S",
+                        help="added to every timing bound, in the rover's seconds: a "
+                             "rover's tick, a loaded host (default %(default)g)")
     parser.add_argument("--transcript", metavar="FILE",
                         help="write every line of the check, both ways, to FILE")
     parser.add_argument("--map-seconds", type=args_.positive_seconds, default=4.0,
@@ -54,7 +57,8 @@ def run(args: argparse.Namespace) -> int:
     from actors import scaled_clock
     from server.conformance import as_json, as_table, check_rover, summary
 
-    opts = Options(role=args.role, timeout_s=args.timeout, map_s=args.map_seconds)
+    opts = Options(role=args.role, timeout_s=args.timeout, map_s=args.map_seconds,
+                   slack_s=args.slack)
     clock = None if args.speed == 1.0 else scaled_clock(args.speed)
     try:
         findings, transcript = trio.run(check_rover, RoverLink(spec), opts, clock=clock)

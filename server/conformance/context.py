@@ -144,11 +144,6 @@ class Checker:
                 unacked = self.peer.unacked()
                 await self.welcome(unacked[0] if unacked else self.peer.next_seq)
 
-    # -- reading -----------------------------------------------------------------------
-
-    def hello_at(self, index: int) -> Seen | None:
-        """The first hello of the rover from transcript ``index`` on."""
-        return next(iter(self.tx.frames(index, "hello")), None)
 
 
 def read_hello(frame: Frame) -> dict[str, Any] | None:

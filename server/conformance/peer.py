@@ -158,12 +158,6 @@ class Peer:
         """A stream is attached."""
         return self._stream is not None
 
-    @property
-    def rover_acked(self) -> int:
-        """The highest ``ack`` the rover has sent on this connection's frames (0: none)."""
-        acks = [s.frame.ack for s in self.transcript.frames() if s.frame.ack is not None]
-        return max(acks, default=0)
-
     def unacked(self) -> list[int]:
         """The checker's reliable frames the rover has not acknowledged yet."""
         return sorted(self._flight)

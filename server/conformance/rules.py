@@ -127,11 +127,8 @@ class Findings:
         self.put(rule, SKIP, detail)
 
     def has(self, rule: str) -> bool:
+        """Whether ``rule`` has a finding yet."""
         return rule in self.by_rule
-
-    def result(self, rule: str) -> str | None:
-        f = self.by_rule.get(rule)
-        return f.result if f else None
 
     def final(self, why_missing: str) -> list[Finding]:
         """Every rule in registry order; a rule with no finding is skipped with
