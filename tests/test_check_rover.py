@@ -18,8 +18,9 @@ import time
 
 import pytest
 import trio
+import trio.testing
 
-from server.conformance import RULES, Options, check_rover
+from server.conformance import RULES, Options, check_rover, parse_rover_link
 from server.conformance.rules import FAIL, PASS, SKIP
 
 from .conformance_rover import BREAKS, STREAMS, PairLink, TestRover
@@ -226,3 +227,51 @@ def test_nothing_listening_at_a_tcp_link_is_status_2() -> None:
                           timeout=60)
     assert done.returncode == 2
     assert done.stderr.startswith(f"hideseek check-rover: cannot open tcp:127.0.0.1:{port}: ")
+
+
+def test_the_package_exports_its_public_names() -> None:
+    """What `server.conformance` promises is there."""
+    import server.conformance as conformance
+
+    for name in conformance.__all__:
+        assert hasattr(conformance, name), name
+
+
+def test_a_finding_names_a_rule_of_the_registry_and_a_failure_overrides_a_pass() -> None:
+    """Unknown rule ids are refused; a rule checked twice keeps its failure."""
+    from server.conformance.rules import Findings
+
+    found = Findings()
+    with pytest.raises(ValueError, match="rule must be one of the registry, got 'hello.nope'"):
+        found.ok("hello.nope", "x")
+    found.ok("ack.prompt", "fine")
+    found.fail("ack.prompt", "late")
+    found.ok("ack.prompt", "fine again")
+    (ack,) = [f for f in found.final("not reached") if f.rule == "ack.prompt"]
+    assert (ack.result, ack.detail) == (FAIL, "late")
+    assert {f.result for f in found.final("not reached") if f.rule != "ack.prompt"} == {SKIP}
+
+
+def test_a_rover_that_never_speaks_fails_hello_and_skips_the_rest(autojump_clock) -> None:
+    """Nothing on the link: hello.first fails saying so, every other rule is skipped."""
+
+    class Mute:
+        spec = parse_rover_link("tcp:127.0.0.1:7")
+        kind, can_drop, speaks_first = "tcp_listen", True, False
+
+        async def open(self, nursery, wait_s):
+            self.pair = trio.testing.memory_stream_pair()
+            return self.pair[0]
+
+        async def aclose(self):
+            pass
+
+    async def main():
+        return await check_rover(Mute(), Options(connect_s=3.0))
+
+    findings, _ = trio.run(main, clock=autojump_clock)
+    by = {f.rule: f for f in findings}
+    assert by["hello.first"].result == FAIL
+    assert by["hello.first"].detail == "the rover sent nothing within 3 s"
+    assert {f.result for f in findings if f.rule != "hello.first"} == {SKIP}
+    assert by["ack.prompt"].detail == "not reached: the rover never spoke"

@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the role the rover must say in hello (default: the one it says)")
     parser.add_argument("--json", action="store_true",
                         help="print the findings as one JSON object")
-    parser.add_argument("--timeout", type=args_.positive_seconds, default=180.0, metavar="S",
+    parser.add_argument("--timeout", type=args_.positive_seconds, default=300.0, metavar="S",
                         help="the whole check at most, in the rover's seconds (default "
                              "%(default)g)")
     parser.add_argument("--speed", type=float, default=1.0, metavar="N",

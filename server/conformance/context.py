@@ -32,13 +32,13 @@ class Options:
 
     role: str | None = None
     """The role the rover must say in hello (None: whatever it says)."""
-    timeout_s: float = 180.0
+    timeout_s: float = 300.0
     """The whole check at most [s, rover clock]."""
     connect_s: float = 15.0
     """Longest wait for the rover's first frame, or its return after a drop [s]."""
     map_s: float = 4.0
     """How long a mapper maps before ``stop`` [s]."""
-    report_s: float = 90.0
+    report_s: float = 120.0
     """Longest wait for a hider's or seeker's report, or a mapper's upload [s]."""
     slack_s: float = 0.4
     """Added to every timing bound (a rover's tick, the host's scheduling) [s]."""

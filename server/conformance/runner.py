@@ -70,8 +70,10 @@ async def _check(link: RoverLink, opts: Options) -> tuple[list[Finding], Transcr
         timed_out = scope.cancelled_caught
         if c.lost_link:
             c.quiet.append((tx.now(), float("inf")))
-        for judge in (judge_welcome, judge_seq, judge_acks, judge_heartbeat, judge_telemetry):
-            judge(c)
+        if c.welcomes:  # else nothing was played: the rules are not reached
+            for judge in (judge_welcome, judge_seq, judge_acks, judge_heartbeat,
+                          judge_telemetry):
+                judge(c)
         _skip_other_roles(c)
         nursery.cancel_scope.cancel()
     await peer.detach()
