@@ -28,7 +28,7 @@ async def greet(c: Checker) -> bool:
         c.lost_link = "the rover never said hello"
         return False
     data = read_hello(h1.frame) if h1.frame else None
-    before = tx.rover()[:tx.rover().index(h1)]
+    before = [s for s in tx.lines[:tx.index(h1)] if s.sender == "R"]
     if c.link.speaks_first:  # a serial port opened mid-line gives a fragment first: noise
         before = [s for s in before if s.frame is not None]
     if data is None:
@@ -49,7 +49,7 @@ async def greet(c: Checker) -> bool:
         c.found.fail("hello.first", f"{len(before)} line(s) came before the hello", before)
     # the repeat: leave the hello unanswered for one backoff step at most
     bound = c.slack(_HELLO_BACKOFF_MAX_S) + c.opts.slack_s  # the rover's tick on top
-    h2 = await tx.wait_cmd("hello", bound, tx.lines.index(h1) + 1)
+    h2 = await tx.wait_cmd("hello", bound, tx.index(h1) + 1)
     if h2 is None:
         c.found.fail("hello.repeat", f"no second hello within {_HELLO_BACKOFF_MAX_S:g} s of "
                      "the first", [h1])

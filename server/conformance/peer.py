@@ -30,7 +30,7 @@ import trio
 from ..protocol import MAX_LINE_BYTES, TOO_LONG, Frame, FrameError, LineBuffer, decode_line
 from ..protocol.frame import encode_frame
 
-__all__ = ["Seen", "Transcript", "Peer", "HEARTBEAT_S", "RESEND_S", "MAX_TRIES"]
+__all__ = ["Seen", "Transcript", "Peer", "HEARTBEAT_S", "RESEND_S", "MAX_TRIES", "MAX_LINES"]
 
 HEARTBEAT_S = 1.0
 """The checker's heartbeat period, as the server's [s]."""
@@ -38,6 +38,8 @@ RESEND_S = 1.0
 """First resend timeout of the checker's reliable frames [s]."""
 MAX_TRIES = 6
 """Sends of one reliable frame of the checker at most."""
+MAX_LINES = 200_000
+"""Lines a transcript keeps at most: a rover that floods the link past it is cut off."""
 _READ_BYTES = 4096
 
 
@@ -79,10 +81,21 @@ class Transcript:
         self._changed = trio.Event()
         self.t0 = trio.current_time()
 
+    @property
+    def full(self) -> bool:
+        """`MAX_LINES` are kept: no more are taken."""
+        return len(self.lines) >= MAX_LINES
+
     def add(self, seen: Seen) -> None:
+        if self.full:
+            return
         self.lines.append(seen)
         self._changed.set()
         self._changed = trio.Event()
+
+    def index(self, seen: Seen) -> int:
+        """Where ``seen`` (this very line) stands in the transcript."""
+        return next(i for i in range(len(self.lines) - 1, -1, -1) if self.lines[i] is seen)
 
     def now(self) -> float:
         """The check's clock [s]."""
@@ -144,6 +157,8 @@ class Peer:
         """The checker's next ``seq``."""
         self.link = 0
         """Connections made so far, less one."""
+        self.flooded = False
+        """The rover sent more than `MAX_LINES` lines: the link was cut."""
         self._stream: Any = None
         self._lines = LineBuffer()
         self._flight: dict[int, _Out] = {}
@@ -177,7 +192,8 @@ class Peer:
                         data = await stream.receive_some(_READ_BYTES)
                     except (OSError, trio.BrokenResourceError, trio.ClosedResourceError):
                         data = b""
-                    if not data:
+                    if not data or self.transcript.full:
+                        self.flooded = self.transcript.full
                         nursery.cancel_scope.cancel()
                         break
                     await self._feed(data)

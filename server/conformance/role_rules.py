@@ -100,18 +100,17 @@ async def _collect_upload(c: Checker, first: Seen) -> tuple[GridMap | None, list
 
     def pieces() -> dict[int, Seen]:
         got: dict[int, Seen] = {}
-        for s in tx.frames(tx.lines.index(first), "map"):
+        for s in tx.frames(tx.index(first), "map"):
             d = s.frame.data
             if isinstance(d, dict) and d.get("map_id") == map_id and isinstance(
                     d.get("index"), int):
                 got.setdefault(d["index"], s)
         return got
 
-    with_deadline = c.opts.report_s
     got = pieces()
     while len(got) < count:
         s = await tx.wait_for(lambda s: s.frame is not None and s.frame.cmd == "map",
-                              with_deadline, len(tx.lines))
+                              c.opts.report_s, len(tx.lines))
         if s is None:
             break
         got = pieces()

@@ -91,7 +91,8 @@ async def _phases(c: Checker) -> None:
     else:
         await run_hider_seeker(c)
     if c.lost_link or not c.peer.connected:
-        c.lost_link = c.lost_link or "the rover closed the link"
+        c.lost_link = c.lost_link or ("the rover flooded the link" if c.peer.flooded
+                                      else "the rover closed the link")
         return
     await resync(c, c.pending)
     c.peer.auto_ack = True

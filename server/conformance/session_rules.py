@@ -64,7 +64,7 @@ async def withhold(c: Checker, timeout_s: float,
     budget = c.slack(RTO_MAX_S) * 2
     while len(sends) < 3:
         nxt = await tx.wait_for(lambda s, seq=seq: s.frame is not None and s.frame.seq == seq,
-                                budget, tx.lines.index(sends[-1]) + 1)
+                                budget, tx.index(sends[-1]) + 1)
         if nxt is None:
             break
         sends.append(nxt)
