@@ -275,3 +275,19 @@ def test_a_rover_that_never_speaks_fails_hello_and_skips_the_rest(autojump_clock
     assert by["hello.first"].detail == "the rover sent nothing within 3 s"
     assert {f.result for f in findings if f.rule != "hello.first"} == {SKIP}
     assert by["ack.prompt"].detail == "not reached: the rover never spoke"
+
+
+@pytest.mark.parametrize("kind", ["tcpin", "udp"])
+def test_a_busy_listening_port_is_one_line_and_status_2(kind) -> None:
+    """``tcpin:``/``udp:`` on a port in use: one line naming it, status 2, nothing printed."""
+    with socket.socket(type=socket.SOCK_STREAM if kind == "tcpin" else socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        if kind == "tcpin":
+            s.listen()
+        port = s.getsockname()[1]
+        done = subprocess.run([sys.executable, "-m", "tui.cli", "check-rover",
+                               f"{kind}:127.0.0.1:{port}"], cwd=ROOT, capture_output=True,
+                              text=True, timeout=60)
+    assert (done.returncode, done.stdout) == (2, "")
+    assert done.stderr == (f"hideseek check-rover: cannot open {kind}:127.0.0.1:{port}: "
+                           "Address already in use\n")
