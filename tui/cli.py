@@ -32,6 +32,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "replay": ("tui.cmd_replay", "open a recording (.mcap) in the console: pause, step, seek"),
     "shrink": ("tui.cmd_shrink", "a failing game's faults shrunk to what the failure needs"),
     "ports": ("tui.cmd_ports", "list the serial ports a rover may be attached to"),
+    "check-rover": ("tui.cmd_check_rover", "check a rover's firmware against the protocol, "
+                    "rule by rule"),
 }
 
 
