@@ -21,7 +21,8 @@ class ServerEvent:
     t: float
     """Server time [s] (Trio clock)."""
     kind: str
-    """``hello``, ``link_up``, ``link_down``, ``link_error``, ``bad_frame``, ``pose``,
+    """``hello``, ``link_up``, ``link_down``, ``link_open`` (a serial port opened),
+    ``link_error``, ``bad_frame``, ``pose``,
     ``status``, ``map``, ``command``, ``refused``, ``phase``, ``report``, ``peer_error``."""
     rover: str = ""
     data: dict[str, Any] = field(default_factory=dict)

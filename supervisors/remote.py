@@ -41,19 +41,22 @@ import trio
 
 from actors import ActorSystem, open_actor_system
 from actors.firmware.hardware import ROLES
-from server.links import LinkSpec, open_pty_cable, open_serial_stream, open_udp_stream
+from server.links import LinkSpec, open_pty_cable, open_serial_stream_within, open_udp_stream
 from supervisors.rover import rover_tree
 from world.scenario import Scenario
 from world.wifly import WiflyLink
 from world.world import World, run_world
 
-__all__ = ["UPLINK_BYTES", "RETRY_S", "LINK_KINDS", "LINK_FORMS", "Uplink", "RemoteRover",
+__all__ = ["UPLINK_BYTES", "RETRY_S", "SERIAL_WAIT_S", "LINK_KINDS", "LINK_FORMS", "Uplink", "RemoteRover",
            "open_remote_rover", "run_remote_rover"]
 
 UPLINK_BYTES = 16384
 """Bytes from the rover waiting for the stream at most [bytes] (beyond: dropped, counted)."""
 RETRY_S = (1.0, 30.0)
 """Backoff between connection attempts: first, most [s]."""
+SERIAL_WAIT_S = 10.0
+"""A serial port whose path is missing (unplugged) is tried this long before one
+failed attempt is reported [s]."""
 _READ_SIZE = 4096  # [bytes]
 LINK_KINDS = ("tcp_listen", "tcp_in", "udp_listen", "serial", "pty")
 """`LinkSpec` kinds a rover can use."""
@@ -145,8 +148,8 @@ async def _open_stream(spec: LinkSpec) -> Any:
         if not spec.host:
             raise OSError("a rover's tcp link needs HOST:PORT, as tcp:127.0.0.1:7878")
         return await trio.open_tcp_stream(spec.host, spec.port)
-    if spec.kind == "serial":
-        return open_serial_stream(spec.url, spec.baud)
+    if spec.kind == "serial":  # an unplugged port is awaited back a while (a replug)
+        return await open_serial_stream_within(spec.url, spec.baud, SERIAL_WAIT_S)
     if spec.kind == "udp_listen":  # datagrams to the server; "connected" once it answers
         return await open_udp_stream(spec.host, spec.port)
     if spec.kind == "tcp_in":  # the rover listens; the server connects out to it
