@@ -186,40 +186,6 @@ def test_missing_serial_port_is_reported_and_retried() -> None:
     run(main)
 
 
-def test_a_serial_port_unplugged_mid_stream_is_reported_and_reopened(monkeypatch) -> None:
-    """A port that fails while the server reads it (the device unplugged) gives one
-    link_error naming why, the server stays up and opens the port again."""
-    from server import connections as server_module
-    from server.links.serial import SerialLinkError
-
-    opened: list[str] = []
-
-    class UnpluggedStream:
-        async def receive_some(self, _max: int) -> bytes:
-            await trio.sleep(0.1)
-            raise SerialLinkError("serial port /dev/ttyFAKE failed: device unplugged")
-
-        async def send_all(self, _data: bytes) -> None:
-            await trio.sleep(0)
-
-        async def aclose(self) -> None:
-            await trio.sleep(0)
-
-    def fake_open(url: str, baud: int) -> UnpluggedStream:
-        opened.append(url)
-        return UnpluggedStream()
-
-    monkeypatch.setattr(server_module, "open_serial_stream", fake_open)
-
-    async def main() -> None:
-        errors, serving = await _serial_link_errors("/dev/ttyFAKE", 3)
-        assert errors and errors[0].data["error"].endswith("device unplugged")
-        assert len(opened) >= 2  # opened again after the retry delay
-        assert serving  # the server is still serving
-
-    run(main)
-
-
 def test_whole_game_with_mapper_on_pty_serial_and_others_in_memory() -> None:
     """A full game where the mapper talks over a pty serial link at 115200 baud."""
     master, slave = os.openpty()
