@@ -10,6 +10,7 @@ import trio
 import trio.testing
 
 from server.links import MemoryLink, is_loopback, parse_link
+from server.links.spec import LISTEN, PLAY_ROVER, ROVER_LINK, SERVE_ROVER, parse_link_for
 from server.protocol import Pose, decode_line, encode_frame, make_frame
 from server.server import ServerConfig, open_server
 from server.store import Store
@@ -23,8 +24,9 @@ def run(fn) -> None:
 @pytest.mark.parametrize(
     ("text", "kind", "fields"),
     [
-        ("tcp:127.0.0.1:7878", "tcp_listen", {"host": "127.0.0.1", "port": 7878}),
-        ("tcp:[::1]:7000", "tcp_listen", {"host": "::1", "port": 7000}),
+        ("tcp:127.0.0.1:7878", "tcp_out", {"host": "127.0.0.1", "port": 7878,
+                                           "url": "socket://127.0.0.1:7878"}),
+        ("tcp:[::1]:7000", "tcp_out", {"host": "::1", "port": 7000}),
         ("serial:/dev/ttyUSB0,115200", "serial", {"url": "/dev/ttyUSB0", "baud": 115200}),
         ("serial:socket://host:5760,57600", "serial", {"url": "socket://host:5760",
                                                        "baud": 57600}),
@@ -49,10 +51,13 @@ def test_parse_link_accepts_the_documented_forms(text: str, kind: str, fields: d
         ("serial:/dev/ttyUSB0", "serial", ("/dev/ttyUSB0", 115200)),
         ("COM3,9600", "serial", ("COM3", 9600)),
         ("tcpin:0.0.0.0:7000", "tcp_in", ("0.0.0.0", 7000)),
-        ("tcp:10.0.0.2:23", "tcp_listen", ("10.0.0.2", 23)),
-        ("udp:127.0.0.1:14550", "udp_listen", ("127.0.0.1", 14550)),
+        ("tcp:10.0.0.2:23", "tcp_out", ("10.0.0.2", 23)),
+        ("udp:127.0.0.1:14550", "udp_in", ("127.0.0.1", 14550)),
         ("udpin:0.0.0.0:14550", "udp_in", ("0.0.0.0", 14550)),
-        ("udp:[::1]:14550", "udp_listen", ("::1", 14550)),
+        ("udpout:10.0.0.2:14550", "udp_out", ("10.0.0.2", 14550)),
+        ("udp:[::1]:14550", "udp_in", ("::1", 14550)),
+        ("/dev/serial/by-id/usb-FTDI_FT232R_A1-if00-port0,57600", "serial",
+         ("/dev/serial/by-id/usb-FTDI_FT232R_A1-if00-port0", 57600)),
         ("udp", "udp", ("", 0)),
     ],
 )
@@ -66,9 +71,10 @@ def test_link_strings_as_mavproxy_users_type_them(text: str, kind: str, where: t
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("ttyUSB0", "link must be tcp:HOST:PORT, tcpin:HOST:PORT, tcp, udp:HOST:PORT, "
-                    "udpin:HOST:PORT, udp, serial:PORT[,BAUD], a device path[,BAUD], sim or "
-                    "pty, got 'ttyUSB0'"),
+        ("ttyUSB0", "link must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, "
+                    "udpin:HOST:PORT, udpout:HOST:PORT, serial:PORT[,BAUD], a device "
+                    "path[,BAUD], tcp, udp, sim or pty, got 'ttyUSB0'"),
+        ("udpout:host", "udpout link must be udpout:HOST:PORT, got 'udpout:host'"),
         ("udp:7878", "udp link must be udp:HOST:PORT, got 'udp:7878'"),
         ("udpin:[]:7878", "udpin link must be udpin:HOST:PORT, got 'udpin:[]:7878'"),
         ("serial:", "serial link must be serial:PORT[,BAUD], got 'serial:'"),
@@ -85,6 +91,39 @@ def test_parse_link_errors_are_clear(text: str, message: str) -> None:
     with pytest.raises(ValueError) as info:
         parse_link(text)
     assert str(info.value) == message
+
+
+@pytest.mark.parametrize("use", [ROVER_LINK, LISTEN, SERVE_ROVER, PLAY_ROVER],
+                         ids=lambda u: u.option)
+def test_every_refusal_of_a_command_lists_the_forms_that_command_takes(use) -> None:
+    """A form the option does not take, a malformed one and garbage: each refusal names
+    the option and lists the same forms (MAVProxy's, as that command takes them)."""
+    every = ["tcp:127.0.0.1:7878", "tcpin:127.0.0.1:7878", "udp:127.0.0.1:7878",
+             "udpin:127.0.0.1:7878", "udpout:127.0.0.1:7878", "/dev/ttyUSB0,57600",
+             "serial:/dev/ttyUSB0", "tcp", "udp", "sim", "pty"]
+    taken = [t for t in every if parse_link(t).kind in use.kinds]
+    refused = [t for t in every if t not in taken] + ["udp:7878", "serial:", "pigeon:1"]
+    assert taken and len(refused) > 3
+    for text in taken:
+        assert parse_link_for(text, use).text == text
+    for text in refused:
+        with pytest.raises(ValueError) as info:
+            parse_link_for(text, use)
+        assert str(info.value).startswith(f"{use.option} must be {use.forms}, got {text!r}")
+
+
+def test_link_strings_mean_what_they_mean_in_mavproxy() -> None:
+    """tcp: connects, tcpin: listens, udp: and udpin: receive, udpout: sends; a rover
+    sends with udpout: and is refused udp:/udpin: with the reason."""
+    assert parse_link_for("tcp:10.0.0.2:7878", ROVER_LINK).kind == "tcp_out"
+    assert parse_link_for("tcpin:0.0.0.0:7878", ROVER_LINK).kind == "tcp_in"
+    assert parse_link_for("udpout:10.0.0.2:7878", ROVER_LINK).kind == "udp_out"
+    assert {parse_link_for(t, LISTEN).kind for t in ("udp:127.0.0.1:1", "udpin:127.0.0.1:1")
+            } == {"udp_in"}
+    with pytest.raises(ValueError, match=r"udp: and udpin: receive \(listen\), as in MAVProxy"):
+        parse_link_for("udp:10.0.0.2:7878", ROVER_LINK)
+    with pytest.raises(ValueError, match=r"^--listen must be tcpin:HOST:PORT .*udpout:"):
+        parse_link_for("udpout:10.0.0.2:7878", LISTEN)  # --listen receives
 
 
 def test_loopback_detection() -> None:

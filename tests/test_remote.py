@@ -27,6 +27,7 @@ import trio.testing
 
 from actors import scaled_clock
 from server.links import parse_link
+from server.links.spec import ROVER_LINK
 from server.server import ServerConfig, open_server
 from server.store import Store
 from supervisors.harness.headless import Budget, GameReport, play_game
@@ -107,14 +108,14 @@ def test_udp_rover_without_a_server_says_no_answer_and_retries() -> None:
 
     async def main() -> None:
         scenario = load_scenario("empty")
-        link = parse_link(f"udp:127.0.0.1:{port}")
+        link = parse_link(f"udpout:127.0.0.1:{port}")
         async with open_remote_rover(scenario, "hider", link, report=lines.append,
                                      retry_s=(1.0, 4.0), nav_factory=_idle_nav) as rover:
             await trio.sleep(8)
             assert rover.connects >= 2 and not any("connected" in ln for ln in lines)
 
     trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
-    assert lines[0] == (f"no answer from udp:127.0.0.1:{port}: Connection refused; "
+    assert lines[0] == (f"no answer from udpout:127.0.0.1:{port}: Connection refused; "
                         "reconnecting in 1 s")
 
 
@@ -298,7 +299,7 @@ def test_whole_game_with_the_mapper_on_udp() -> None:
     seen: dict = {}
 
     def bring_mapper(port: int):
-        return open_remote_rover(scenario, "mapper", parse_link(f"udp:127.0.0.1:{port}"),
+        return open_remote_rover(scenario, "mapper", parse_link(f"udpout:127.0.0.1:{port}"),
                                  seed=1)
 
     async def main() -> None:
@@ -314,7 +315,7 @@ def test_whole_game_with_the_mapper_on_udp() -> None:
 
 
 def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
-    """The real command: ``hideseek rover --link udp:`` in its own process (the mapper,
+    """The real command: ``hideseek rover --link udpout:`` in its own process (the mapper,
     at x8) plays a game against a server receiving UDP on loopback (hider and seeker
     simulated there, its clock at x8 too): found, no bad frame, stopped with status 0."""
     speed = 8.0
@@ -326,7 +327,7 @@ def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
     async def bring_mapper(port: int):
         seen["proc"] = subprocess.Popen(
             [sys.executable, "-m", "tui.cli", "rover", "--role", "mapper", "--scenario",
-             "empty", "--link", f"udp:127.0.0.1:{port}", "--speed", f"{speed:g}"],
+             "empty", "--link", f"udpout:127.0.0.1:{port}", "--speed", f"{speed:g}"],
             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         yield
 
@@ -346,7 +347,7 @@ def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
     assert mapper.link.startswith("udp:127.0.0.1:")
     assert mapper.stats.bad_frames == 0
     assert proc.returncode == 0, out
-    assert "mapper: connected to udp:127.0.0.1:" in out and "Traceback" not in out
+    assert "mapper: connected to udpout:127.0.0.1:" in out and "Traceback" not in out
 
 
 def _rover_args(argv: list[str]) -> argparse.Namespace:
@@ -358,14 +359,14 @@ def _rover_args(argv: list[str]) -> argparse.Namespace:
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--link", "tcp"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, "
-                            "serial:PORT[,BAUD] or pty, got 'tcp'"),
-        (["--link", "sim"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, "
-                            "serial:PORT[,BAUD] or pty, got 'sim'"),
-        (["--link", "udpin:0.0.0.0:7878"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, "
-                                           "udp:HOST:PORT, serial:PORT[,BAUD] or pty, got "
-                                           "'udpin:0.0.0.0:7878'"),
-        (["--link", "serial:"], "serial link must be serial:PORT[,BAUD], got 'serial:'"),
+        (["--link", "tcp"], f"--link must be {ROVER_LINK.forms}, got 'tcp'"),
+        (["--link", "sim"], f"--link must be {ROVER_LINK.forms}, got 'sim'"),
+        (["--link", "udpin:0.0.0.0:7878"], f"--link must be {ROVER_LINK.forms}, got "
+                                           "'udpin:0.0.0.0:7878' (udp: and udpin: receive "
+                                           "(listen), as in MAVProxy; a rover sends with "
+                                           "udpout:HOST:PORT)"),
+        (["--link", "serial:"], f"--link must be {ROVER_LINK.forms}, got 'serial:' (serial "
+                                "link must be serial:PORT[,BAUD])"),
         (["--link", "pty", "--speed", "0"], "--speed must be within 0..1000, got 0"),
         (["--link", "pty", "--scenario", "nowhere"],
          "nowhere: no such scenario file or built-in name (built-ins: empty, furniture, "

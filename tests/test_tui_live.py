@@ -75,18 +75,18 @@ def test_attached_rover_links_are_checked() -> None:
         LiveSystem(scenario, remote={"m1": parse_link("tcp")})
     with pytest.raises(ValueError, match="a rover on tcp needs --listen tcp:HOST:PORT"):
         LiveSystem(scenario, remote={"mapper": parse_link("tcp")})
-    with pytest.raises(ValueError, match=r"a rover's link is serial:PORT\[,BAUD\], .*got 'sim'"):
+    with pytest.raises(ValueError, match=r"--rover ROLE=LINK must be tcp \(.*got 'sim'"):
         LiveSystem(scenario, remote={"mapper": parse_link("sim")})
     with pytest.raises(ValueError, match="--auto plays the simulated game"):
         LiveSystem(scenario, remote={"mapper": parse_link("/dev/ttyUSB0")}, auto=True)
     live = LiveSystem(scenario, remote={"mapper": parse_link("tcp:10.0.0.2:2000")})
-    assert live.remote["mapper"].kind == "tcp_listen"  # the console connects out to it
+    assert live.remote["mapper"].kind == "tcp_out"  # the console connects out to it
     with pytest.raises(ValueError, match="a rover on udp needs --listen udp:HOST:PORT"):
         LiveSystem(scenario, remote={"mapper": parse_link("udp")},
                    listen=[parse_link("tcp:127.0.0.1:7878")])
     live = LiveSystem(scenario, remote={"mapper": parse_link("udp")},
                       listen=[parse_link("udp:127.0.0.1:7878")])
-    assert [s.kind for s in live.listen] == ["udp_listen"]
+    assert [s.kind for s in live.listen] == ["udp_in"]
 
 
 def test_fault_events_read_as_sentences() -> None:
