@@ -19,6 +19,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 import tty
 
 import pytest
@@ -377,3 +378,89 @@ def test_rover_command_refuses_bad_options_with_a_message(argv, message, capsys)
     """Bad options: exit status 2 and one readable line, no traceback."""
     assert cmd_rover.run(_rover_args(["--role", "mapper", *argv])) == 2
     assert capsys.readouterr().err == f"hideseek rover: {message}\n"
+
+
+class _Lines:
+    """A process's output lines, read in a thread, waited for by pattern."""
+
+    def __init__(self, proc: subprocess.Popen) -> None:
+        import queue
+        import threading
+
+        self.seen: list[str] = []
+        self._queue: queue.Queue = queue.Queue()
+        threading.Thread(target=self._read, args=(proc.stdout,), daemon=True).start()
+
+    def _read(self, stream) -> None:
+        for line in stream:
+            self._queue.put(line.rstrip("\n"))
+        self._queue.put(None)
+
+    def wait_for(self, pattern: str, timeout: float) -> str:
+        """The first line (from now on) matching ``pattern``."""
+        import queue
+        import re
+
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                line = self._queue.get(timeout=max(deadline - time.monotonic(), 0.01))
+            except queue.Empty:
+                raise AssertionError(f"no line matching {pattern!r}:\n" + "\n".join(self.seen)
+                                     ) from None
+            if line is None:
+                raise AssertionError(f"ended before {pattern!r}:\n" + "\n".join(self.seen))
+            self.seen.append(line)
+            if re.search(pattern, line):
+                return line
+
+
+def test_hideseek_rover_on_udpout_plays_a_whole_game_against_hideseek_serve_on_udpin(
+        tmp_path) -> None:
+    """MAVProxy's forms end to end, two real processes at x8: ``hideseek rover --link
+    udpout:127.0.0.1:P`` (the mapper) and ``hideseek serve --listen udpin:127.0.0.1:P
+    --rover mapper=udp`` (hider and seeker simulated there), driven from serve's console:
+    found, and the status line says lost 0; both stop with status 0."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    cli = [sys.executable, "-m", "tui.cli"]
+    common = ["--scenario", "empty", "--speed", "8"]
+    serve = subprocess.Popen(
+        [*cli, "serve", "--db", str(tmp_path / "g.db"), "--listen", f"udpin:127.0.0.1:{port}",
+         "--rover", "mapper=udp", "--rover", "hider=sim", "--rover", "seeker=sim", *common],
+        cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True)
+    rover = subprocess.Popen(
+        [*cli, "rover", "--role", "mapper", "--link", f"udpout:127.0.0.1:{port}", *common],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    out = _Lines(serve)
+
+    def say(line: str) -> None:
+        serve.stdin.write(line + "\n")
+        serve.stdin.flush()
+
+    try:
+        out.wait_for(f"listening on udp:127.0.0.1:{port}", 60)
+        out.wait_for(r"\bhello\s+mapper\b.*link=udp:127.0.0.1:", 60)
+        say("start_mapping")
+        out.wait_for(r"\bphase\b.*phase=map_ready", 120)
+        say("hide 330 240 90 room")
+        out.wait_for(r"\bphase\b.*phase=hidden", 120)
+        say("seek 330 240 room")
+        out.wait_for(r"\bphase\b.*phase=(found|not_found)", 120)
+        assert "phase=found" in out.seen[-1], "\n".join(out.seen)
+        say("status")
+        row = out.wait_for(r"^\s+mapper\s+mapper\s+udp:127.0.0.1:", 20).split()
+        assert row[3] == "yes" and row[-3] == "0", row  # up, lost 0
+        say("quit")
+        assert serve.wait(timeout=30) == 0
+    finally:
+        for proc in (serve, rover):
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        rover_out, _ = rover.communicate(timeout=30)
+        serve.wait(timeout=30)
+    assert rover.returncode == 0, rover_out
+    assert f"mapper: connected to udpout:127.0.0.1:{port}" in rover_out
+    assert "Traceback" not in rover_out + "\n".join(out.seen)

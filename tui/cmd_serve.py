@@ -96,6 +96,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "poses used as their origins (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=1,
                         help="seed of the simulated rovers' world (default 1)")
+    parser.add_argument("--speed", type=float, default=1.0, metavar="N",
+                        help="clock rate: 1 is real time (default); rovers over links must "
+                             "run at the same rate (hideseek rover --speed N)")
 
 
 def parse_assignment(text: str, what: str) -> tuple[str, str]:
@@ -216,6 +219,8 @@ def run(args: argparse.Namespace) -> int:
         rovers = [(rid, parse_link_for(link, SERVE_ROVER)) for rid, link in
                   (parse_assignment(r, "--rover") for r in args.rover)]
         listens = parse_listens(args.listen or [DEFAULT_LISTEN])
+        if not 0 < args.speed <= 1000:
+            raise ValueError(f"--speed must be within 0..1000, got {args.speed:g}")
         if args.max_connections < 1:
             raise ValueError(f"--max-connections must be at least 1, got {args.max_connections}")
         sim_roles: list[str] = []
@@ -259,9 +264,12 @@ def run(args: argparse.Namespace) -> int:
         return 2
     import trio
 
+    from actors import scaled_clock
+
     sim = (scenario, args.seed, tuple(sim_roles)) if sim_roles else None
+    clock = None if args.speed == 1.0 else scaled_clock(args.speed)
     try:
-        trio.run(_serve, store, config, listens, rovers, sim, not args.no_console)
+        trio.run(_serve, store, config, listens, rovers, sim, not args.no_console, clock=clock)
     except KeyboardInterrupt:
         return 0
     except (OSError, ValueError, BaseExceptionGroup) as exc:
