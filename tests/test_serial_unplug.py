@@ -180,8 +180,10 @@ def _check(seen: dict, server_port: str, unplugs: int) -> None:
     assert len(opens) == unplugs + 1
     for t, e in zip(seen["unplugged_at"], opens[1:], strict=True):
         assert UNPLUGGED_S <= e.t - t < UNPLUGGED_S + 1.0  # open again soon after the replug
-    hellos = [e for e in events if e.kind == "hello" and e.rover == "mapper"]
-    assert len(hellos) == unplugs + 1  # the rover said hello again on each reopened port
+    hellos = [e.t for e in events if e.kind == "hello" and e.rover == "mapper"]
+    ends = [*seen["unplugged_at"], float("inf")]
+    for e, end in zip(opens, ends, strict=True):  # hello again on each reopened port
+        assert any(e.t <= t < end for t in hellos), (e.t, hellos)
     assert seen["connects"] == unplugs + 1  # and reopened its own port each time
 
 
