@@ -22,7 +22,7 @@ from typing import Any
 import trio
 
 from .core import ServerCore
-from .links.serial import SerialLinkError, open_serial_stream
+from .links.serial import serve_serial_port
 from .peers import Conn
 from .protocol import ACK, HEARTBEAT, HELLO, Fault, Frame, FrameError, decode_line, read_data
 from .protocol.lines import TOO_LONG
@@ -97,25 +97,15 @@ class Connections(ServerCore):
         return True
 
     async def _serve_serial(self, url: str, baud: int) -> None:
+        """Serve a serial port across unplugs (`server.links.serial.serve_serial_port`)."""
         name = f"serial:{url},{baud}"
-        first, most = self.config.serial_retry_s
-        delay = first
-        while True:
-            try:
-                stream = open_serial_stream(url, baud)
-            except SerialLinkError as exc:
-                self._emit("link_error", data={"link": name, "error": str(exc),
-                                               "retry_s": delay})
-                await trio.sleep(delay)
-                delay = min(delay * 2, most)
-                continue
-            delay = first
-            try:
-                await self.serve_stream(stream, name, ask_hello=True)
-            except* SerialLinkError as failed:  # raised by the reader or the writer task
-                self._emit("link_error", data={"link": name, "error": str(failed.exceptions[0]),
-                                               "retry_s": delay})
-            await trio.sleep(delay)
+
+        def report(kind: str, data: dict) -> None:
+            self._emit(kind, data=data)
+
+        await serve_serial_port(
+            url, baud, lambda stream: self.serve_stream(stream, name, ask_hello=True), report,
+            self.config.serial_retry_s)
 
     def _new_conn(self, link: str, *, peer: str | None = None, trusted: bool = False,
                   timed: bool = False) -> Conn:

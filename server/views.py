@@ -22,10 +22,11 @@ class ServerEvent:
     t: float
     """Server time [s] (Trio clock)."""
     kind: str
-    """``hello``, ``link_up``, ``link_down``, ``link_error``, ``bad_frame``, ``pose``,
-    ``status``, ``map``, ``command``, ``refused``, ``phase``, ``report``, ``peer_error``;
-    for attached rovers ``rover_event`` (a ``tm_event``), ``fault_sent``, ``fault_reply``,
-    ``link_fault`` and ``link_fault_cleared``."""
+    """``hello``, ``link_up``, ``link_down``, ``link_open`` (a serial port opened),
+    ``link_error``, ``bad_frame``, ``pose``, ``status``, ``map``, ``command``, ``refused``,
+    ``phase``, ``report``, ``peer_error``; for attached rovers ``rover_event`` (a
+    ``tm_event``), ``fault_sent``, ``fault_reply``, ``link_fault`` and
+    ``link_fault_cleared``."""
     rover: str = ""
     data: dict[str, Any] = field(default_factory=dict)
 

@@ -7,9 +7,10 @@ over a real byte stream instead of the in-memory link:
 
 * ``tcp:HOST:PORT``: connect as a TCP client, as a WiFly module does;
 * ``tcpin:HOST:PORT``: listen there; the server connects out to the rover;
-* ``udp:HOST:PORT``: send datagrams there from a connected UDP socket
+* ``udpout:HOST:PORT``: send datagrams there from a connected UDP socket
   (`server.links.udp`: one frame per datagram);
-* ``serial:PORT,BAUD``: any pyserial port or URL (a pty stands in for a cable);
+* ``serial:PORT,BAUD``: any pyserial port or URL (a pty stands in for a cable); an
+  unplugged port is awaited back for `SERIAL_WAIT_S` and reopened;
 * ``pty``: make a pseudo-terminal pair, hold one end, report the other's path
   for the server (``hideseek serve --rover ID=serial:PATH,115200``).
 
@@ -44,7 +45,8 @@ from actors import ActorSystem, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.hardware import ROLES
 from actors.firmware.telemetry import STREAMS_OF_ROLE, TelemetrySource
-from server.links import LinkSpec, open_pty_cable, open_serial_stream, open_udp_stream
+from server.links import LinkSpec, open_pty_cable, open_serial_stream_within, open_udp_stream
+from server.links.spec import ROVER_LINK
 from server.protocol import DEFAULT_LINK_BYTES_S, TelemetryLane
 from supervisors.rover import rover_tree
 from supervisors.rover_fault_port import RoverFaultPort
@@ -52,7 +54,7 @@ from world.scenario import Scenario
 from world.wifly import WiflyLink
 from world.world import World, run_world
 
-__all__ = ["UPLINK_BYTES", "RETRY_S", "LINK_KINDS", "LINK_FORMS", "Uplink", "RemoteRover",
+__all__ = ["UPLINK_BYTES", "RETRY_S", "SERIAL_WAIT_S", "Uplink", "RemoteRover",
            "open_remote_rover", "run_remote_rover"]
 
 UPLINK_BYTES = 16384
@@ -63,11 +65,10 @@ after the server answered, and each wait is jittered (3/4 to all of the step, fr
 rover's seeded generator), so rovers cut off together do not come back in step; the cap
 keeps a restarted server waiting for an attached rover at most that long."""
 _JITTER = 0.25  # share of a backoff step taken off at random
+SERIAL_WAIT_S = 10.0
+"""A serial port whose path is missing (unplugged) is tried this long before one
+failed attempt is reported [s]."""
 _READ_SIZE = 4096  # [bytes]
-LINK_KINDS = ("tcp_listen", "tcp_in", "udp_listen", "serial", "pty")
-"""`LinkSpec` kinds a rover can use."""
-LINK_FORMS = "tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, serial:PORT[,BAUD] or pty"
-"""The same, as people type them."""
 
 Report = Callable[[str], None]
 
@@ -154,13 +155,11 @@ async def _open_stream(spec: LinkSpec) -> Any:
     Raises:
         OSError: the server is unreachable or the port is missing.
     """
-    if spec.kind in ("tcp_listen", "tcp"):
-        if not spec.host:
-            raise OSError("a rover's tcp link needs HOST:PORT, as tcp:127.0.0.1:7878")
+    if spec.kind == "tcp_out":
         return await trio.open_tcp_stream(spec.host, spec.port)
-    if spec.kind == "serial":
-        return open_serial_stream(spec.url, spec.baud)
-    if spec.kind == "udp_listen":  # datagrams to the server; "connected" once it answers
+    if spec.kind == "serial":  # an unplugged port is awaited back a while (a replug)
+        return await open_serial_stream_within(spec.url, spec.baud, SERIAL_WAIT_S)
+    if spec.kind == "udp_out":  # datagrams to the server; "connected" once it answers
         return await open_udp_stream(spec.host, spec.port)
     if spec.kind == "tcp_in":  # the rover listens; the server connects out to it
         listeners = await trio.open_tcp_listeners(spec.port, host=spec.host or None)
@@ -169,7 +168,7 @@ async def _open_stream(spec: LinkSpec) -> Any:
         finally:
             for listener in listeners:
                 await listener.aclose()
-    raise OSError(f"a rover's link must be {LINK_FORMS}, got {spec.text!r}")
+    raise OSError(f"{ROVER_LINK.option} must be {ROVER_LINK.forms}, got {spec.text!r}")
 
 
 async def _pump(stream: Any, link: WiflyLink, rover: RemoteRover, on_answer: Any) -> str:
@@ -291,7 +290,7 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
     Args:
         scenario: the room and the rover's start pose.
         role: ``mapper``, ``hider`` or ``seeker``.
-        link: where the server is (``tcp:HOST:PORT``, ``udp:HOST:PORT``,
+        link: where the server is (``tcp:HOST:PORT``, ``udpout:HOST:PORT``,
             ``serial:PORT,BAUD``), ``tcpin:HOST:PORT`` or ``pty``.
         seed: the world's noise and the actors' generators derive from it.
         rover_id: the id said in hello (default: the role).
@@ -311,8 +310,8 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
     """
     if role not in ROLES:
         raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
-    if link.kind not in LINK_KINDS:
-        raise ValueError(f"a rover's link must be {LINK_FORMS}, got {link.text!r}")
+    if link.kind not in ROVER_LINK.kinds:
+        raise ValueError(f"{ROVER_LINK.option} must be {ROVER_LINK.forms}, got {link.text!r}")
     first, most = retry_s
     if not 0 < first <= most:
         raise ValueError(f"retry_s must be (first, most) with 0 < first <= most, got {retry_s!r}")

@@ -60,7 +60,7 @@ class PairLink:
 
     def __init__(self) -> None:
         self.spec = parse_link("tcp:127.0.0.1:7")
-        self.kind = "tcp_listen"
+        self.kind = "tcp_out"
         self.can_drop = True
         self.speaks_first = False
         self.send, self.streams = trio.open_memory_channel[Any](4)

@@ -203,8 +203,10 @@ def test_hideseek_rover_over_a_pty_passes_every_rule_it_supports() -> None:
 
 
 @pytest.mark.parametrize(("link", "message"), [
-    ("pty", "LINK must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT or "
-            "serial:PORT[,BAUD], got 'pty'"),
+    ("pty", "LINK must be tcp:HOST:PORT (connect to a rover waiting with --link tcpin:), "
+            "tcpin:HOST:PORT (wait for a rover to connect), udpin:HOST:PORT or udp:HOST:PORT "
+            "(receive its datagrams there) or serial:PORT[,BAUD] or PORT[,BAUD] (a serial "
+            "port; a /dev/serial/by-id/ name survives a renumbered adapter), got 'pty'"),
     ("tcp:127.0.0.1:notaport", "tcp port must be a number, got 'notaport' in "
                                "'tcp:127.0.0.1:notaport'"),
     ("serial:/dev/hideseek-no-such-port,9600", "cannot open serial port "
@@ -257,7 +259,7 @@ def test_a_rover_that_never_speaks_fails_hello_and_skips_the_rest(autojump_clock
 
     class Mute:
         spec = parse_rover_link("tcp:127.0.0.1:7")
-        kind, can_drop, speaks_first = "tcp_listen", True, False
+        kind, can_drop, speaks_first = "tcp_out", True, False
 
         async def open(self, nursery, wait_s):
             self.pair = trio.testing.memory_stream_pair()

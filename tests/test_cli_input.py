@@ -128,7 +128,7 @@ def test_ports_lists_serial_ports_as_json() -> None:
     assert p.returncode == 0
     rows = json.loads(p.stdout)
     assert isinstance(rows, list)
-    assert all({"device", "description", "hwid"} <= set(r) for r in rows)
+    assert all({"device", "by_id", "description", "hwid"} <= set(r) for r in rows)
 
 
 _FROZEN_AFTER = """

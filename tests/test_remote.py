@@ -19,6 +19,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 import tty
 
 import pytest
@@ -27,6 +28,7 @@ import trio.testing
 
 from actors import scaled_clock
 from server.links import parse_link
+from server.links.spec import ROVER_LINK
 from server.server import ServerConfig, open_server
 from server.store import Store
 from supervisors.harness.headless import Budget, GameReport, play_game
@@ -107,14 +109,14 @@ def test_udp_rover_without_a_server_says_no_answer_and_retries() -> None:
 
     async def main() -> None:
         scenario = load_scenario("empty")
-        link = parse_link(f"udp:127.0.0.1:{port}")
+        link = parse_link(f"udpout:127.0.0.1:{port}")
         async with open_remote_rover(scenario, "hider", link, report=lines.append,
                                      retry_s=(1.0, 4.0), nav_factory=_idle_nav) as rover:
             await trio.sleep(8)
             assert rover.connects >= 2 and not any("connected" in ln for ln in lines)
 
     trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
-    assert lines[0] == (f"no answer from udp:127.0.0.1:{port}: Connection refused; "
+    assert lines[0] == (f"no answer from udpout:127.0.0.1:{port}: Connection refused; "
                         "reconnecting in 1 s")
 
 
@@ -298,7 +300,7 @@ def test_whole_game_with_the_mapper_on_udp() -> None:
     seen: dict = {}
 
     def bring_mapper(port: int):
-        return open_remote_rover(scenario, "mapper", parse_link(f"udp:127.0.0.1:{port}"),
+        return open_remote_rover(scenario, "mapper", parse_link(f"udpout:127.0.0.1:{port}"),
                                  seed=1)
 
     async def main() -> None:
@@ -314,7 +316,7 @@ def test_whole_game_with_the_mapper_on_udp() -> None:
 
 
 def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
-    """The real command: ``hideseek rover --link udp:`` in its own process (the mapper,
+    """The real command: ``hideseek rover --link udpout:`` in its own process (the mapper,
     at x8) plays a game against a server receiving UDP on loopback (hider and seeker
     simulated there, its clock at x8 too): found, no bad frame, stopped with status 0."""
     speed = 8.0
@@ -326,7 +328,7 @@ def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
     async def bring_mapper(port: int):
         seen["proc"] = subprocess.Popen(
             [sys.executable, "-m", "tui.cli", "rover", "--role", "mapper", "--scenario",
-             "empty", "--link", f"udp:127.0.0.1:{port}", "--speed", f"{speed:g}"],
+             "empty", "--link", f"udpout:127.0.0.1:{port}", "--speed", f"{speed:g}"],
             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         yield
 
@@ -346,7 +348,7 @@ def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
     assert mapper.link.startswith("udp:127.0.0.1:")
     assert mapper.stats.bad_frames == 0
     assert proc.returncode == 0, out
-    assert "mapper: connected to udp:127.0.0.1:" in out and "Traceback" not in out
+    assert "mapper: connected to udpout:127.0.0.1:" in out and "Traceback" not in out
 
 
 def _rover_args(argv: list[str]) -> argparse.Namespace:
@@ -358,14 +360,14 @@ def _rover_args(argv: list[str]) -> argparse.Namespace:
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--link", "tcp"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, "
-                            "serial:PORT[,BAUD] or pty, got 'tcp'"),
-        (["--link", "sim"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT, "
-                            "serial:PORT[,BAUD] or pty, got 'sim'"),
-        (["--link", "udpin:0.0.0.0:7878"], "--link must be tcp:HOST:PORT, tcpin:HOST:PORT, "
-                                           "udp:HOST:PORT, serial:PORT[,BAUD] or pty, got "
-                                           "'udpin:0.0.0.0:7878'"),
-        (["--link", "serial:"], "serial link must be serial:PORT[,BAUD], got 'serial:'"),
+        (["--link", "tcp"], f"--link must be {ROVER_LINK.forms}, got 'tcp'"),
+        (["--link", "sim"], f"--link must be {ROVER_LINK.forms}, got 'sim'"),
+        (["--link", "udpin:0.0.0.0:7878"], f"--link must be {ROVER_LINK.forms}, got "
+                                           "'udpin:0.0.0.0:7878' (udp: and udpin: receive "
+                                           "(listen), as in MAVProxy; a rover sends with "
+                                           "udpout:HOST:PORT)"),
+        (["--link", "serial:"], f"--link must be {ROVER_LINK.forms}, got 'serial:' (serial "
+                                "link must be serial:PORT[,BAUD])"),
         (["--link", "pty", "--speed", "0"], "--speed must be within 0..1000, got 0"),
         (["--link", "pty", "--scenario", "nowhere"],
          "nowhere: no such scenario file or built-in name (built-ins: empty, furniture, "
@@ -410,3 +412,89 @@ def test_rover_is_welcomed_at_once_after_the_server_was_away_long() -> None:
     trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
     assert seen["again"] < 5.0
     assert "conn_closed" not in seen["again_kinds"]
+
+
+class _Lines:
+    """A process's output lines, read in a thread, waited for by pattern."""
+
+    def __init__(self, proc: subprocess.Popen) -> None:
+        import queue
+        import threading
+
+        self.seen: list[str] = []
+        self._queue: queue.Queue = queue.Queue()
+        threading.Thread(target=self._read, args=(proc.stdout,), daemon=True).start()
+
+    def _read(self, stream) -> None:
+        for line in stream:
+            self._queue.put(line.rstrip("\n"))
+        self._queue.put(None)
+
+    def wait_for(self, pattern: str, timeout: float) -> str:
+        """The first line (from now on) matching ``pattern``."""
+        import queue
+        import re
+
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                line = self._queue.get(timeout=max(deadline - time.monotonic(), 0.01))
+            except queue.Empty:
+                raise AssertionError(f"no line matching {pattern!r}:\n" + "\n".join(self.seen)
+                                     ) from None
+            if line is None:
+                raise AssertionError(f"ended before {pattern!r}:\n" + "\n".join(self.seen))
+            self.seen.append(line)
+            if re.search(pattern, line):
+                return line
+
+
+def test_hideseek_rover_on_udpout_plays_a_whole_game_against_hideseek_serve_on_udpin(
+        tmp_path) -> None:
+    """MAVProxy's forms end to end, two real processes at x8: ``hideseek rover --link
+    udpout:127.0.0.1:P`` (the mapper) and ``hideseek serve --listen udpin:127.0.0.1:P
+    --rover mapper=udp`` (hider and seeker simulated there), driven from serve's console:
+    found, and the status line says lost 0; both stop with status 0."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    cli = [sys.executable, "-m", "tui.cli"]
+    common = ["--scenario", "empty", "--speed", "8"]
+    serve = subprocess.Popen(
+        [*cli, "serve", "--db", str(tmp_path / "g.db"), "--listen", f"udpin:127.0.0.1:{port}",
+         "--rover", "mapper=udp", "--rover", "hider=sim", "--rover", "seeker=sim", *common],
+        cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True)
+    rover = subprocess.Popen(
+        [*cli, "rover", "--role", "mapper", "--link", f"udpout:127.0.0.1:{port}", *common],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    out = _Lines(serve)
+
+    def say(line: str) -> None:
+        serve.stdin.write(line + "\n")
+        serve.stdin.flush()
+
+    try:
+        out.wait_for(f"listening on udp:127.0.0.1:{port}", 60)
+        out.wait_for(r"\bhello\s+mapper\b.*link=udp:127.0.0.1:", 60)
+        say("start_mapping")
+        out.wait_for(r"\bphase\b.*phase=map_ready", 120)
+        say("hide 330 240 90 room")
+        out.wait_for(r"\bphase\b.*phase=hidden", 120)
+        say("seek 330 240 room")
+        out.wait_for(r"\bphase\b.*phase=(found|not_found)", 120)
+        assert "phase=found" in out.seen[-1], "\n".join(out.seen)
+        say("status")
+        row = out.wait_for(r"^\s+mapper\s+mapper\s+udp:127.0.0.1:", 20).split()
+        assert row[3] == "yes" and row[-3] == "0", row  # up, lost 0
+        say("quit")
+        assert serve.wait(timeout=30) == 0
+    finally:
+        for proc in (serve, rover):
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        rover_out, _ = rover.communicate(timeout=30)
+        serve.wait(timeout=30)
+    assert rover.returncode == 0, rover_out
+    assert f"mapper: connected to udpout:127.0.0.1:{port}" in rover_out
+    assert "Traceback" not in rover_out + "\n".join(out.seen)

@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 import pytest
 
+from server.links.spec import LISTEN, SERVE_ROVER
 from server.protocol import GridMap, Pose
 from server.store import Store
 from tui import cmd_maps, cmd_serve
@@ -29,16 +30,19 @@ def _args(module, prog: str, argv: list[str]) -> argparse.Namespace:
         (["--rover", "hider=sim", "--scenario", "nowhere"],
          "nowhere: no such scenario file or built-in name (built-ins: empty, furniture, "
          "l_shaped, corridor, cluttered, hall, round, gap)"),
-        (["--rover", "m1=tcp:1.2.3.4:5"], "--rover m1: a rover's link is serial:PORT,BAUD, "
-                                          "tcp, udp or sim"),
+        (["--rover", "m1=udpout:1.2.3.4:5"],
+         f"--rover ID=LINK must be {SERVE_ROVER.forms}, got 'udpout:1.2.3.4:5'"),
         (["--rover", "m1=udp", "--listen", "tcp:127.0.0.1:7878"],
          "a rover on udp needs --listen udp:HOST:PORT"),
         (["--rover", "m1=udp", "--listen", "udp:10.1.2.3:7878"],
          "refusing to listen on 10.1.2.3: not loopback and no rover tokens (give --token)"),
         (["--listen", "serial:/dev/ttyS0"],
-         "--listen must be tcp:HOST:PORT, udp:HOST:PORT or none, got 'serial:/dev/ttyS0'"),
+         f"--listen must be {LISTEN.forms}, got 'serial:/dev/ttyS0'"),
+        (["--listen", "udpout:127.0.0.1:7878"],
+         f"--listen must be {LISTEN.forms}, got 'udpout:127.0.0.1:7878'"),
         (["--rover", "m1"], "--rover must be ID=VALUE, got 'm1'"),
-        (["--rover", "m1=serial:"], "serial link must be serial:PORT[,BAUD], got 'serial:'"),
+        (["--rover", "m1=serial:"], f"--rover ID=LINK must be {SERVE_ROVER.forms}, got "
+                                    "'serial:' (serial link must be serial:PORT[,BAUD])"),
         (["--origin", "h1=1,2"], "--origin must be ID=X,Y,HEADING with numbers, got 'h1=1,2'"),
     ],
 )

@@ -18,11 +18,29 @@ def test_peer_backoff_blocks_after_threshold_and_doubles() -> None:
 
 
 def test_peer_backoff_table_is_bounded() -> None:
-    """A flood of addresses forgets the least recently seen."""
-    b = PeerBackoff(capacity=100)
-    for k in range(10_000):
-        b.failed(f"10.0.{k // 256}.{k % 256}", 0.0)
+    """A flood of addresses forgets the least recently seen: the table holds the last
+    100 addresses that failed, each still blocked, and none of the earlier ones."""
+    b = PeerBackoff(threshold=1, first_s=60.0, capacity=100)
+    addrs = [f"10.0.{k // 256}.{k % 256}" for k in range(10_000)]
+    for a in addrs:
+        b.failed(a, 0.0)
     assert len(b) == 100
+    assert [a for a in addrs if b.blocked_for(a, 1.0) > 0] == addrs[-100:]
+
+
+def test_peer_backoff_forgets_the_least_recently_seen_first() -> None:
+    """A failure makes an address the most recently seen: at the cap the table forgets
+    the address whose last failure is oldest, not the first one it learned."""
+    b = PeerBackoff(threshold=1, first_s=60.0, capacity=3)
+    for a in ("a", "b", "c"):
+        b.failed(a, 0.0)
+    b.failed("a", 1.0)  # a seen again: b is now the least recently seen
+    b.failed("d", 2.0)
+    assert {a for a in "abcd" if b.blocked_for(a, 3.0) > 0} == {"a", "c", "d"}
+    b.failed("e", 3.0)
+    assert {a for a in "abcde" if b.blocked_for(a, 4.0) > 0} == {"a", "d", "e"}
+    b.failed("f", 4.0)
+    assert {a for a in "abcdef" if b.blocked_for(a, 5.0) > 0} == {"d", "e", "f"}
 
 
 def test_burst_log_reports_the_first_then_one_summary_per_interval() -> None:

@@ -17,6 +17,7 @@ from textual.widgets import Button, Input, Select
 
 from tui.app import ConsoleApp
 from tui.fake import FakeSystem
+from tui.keymap import ACTIONS, KEY_NAMES, MAP_KEYS
 from tui.snapshot import CommandResult
 from tui.widgets import FaultDialog, HelpScreen, MapView, MessageLog
 from tui.widgets.supervision_tree import SupervisionTree
@@ -342,13 +343,18 @@ def test_export_key_saves_into_the_export_dir(tmp_path):
 
 
 def test_help_screen_lists_every_action():
-    """? opens the help with a line per action; escape closes it."""
+    """? opens the help with a line per row of the action table (its key as people read
+    it, its help text) and one per map key, nothing else; escape closes it."""
 
     async def test(app, fake):
         press(app, "question_mark")
         await until(lambda: isinstance(app.screen, HelpScreen), "help")
-        keys = dict(app.screen.keys)
-        assert keys["m"] == "Start mapping" and keys["f"].startswith("Inject")
+        rows = list(app.screen.keys)
+        assert len(rows) == len(ACTIONS) + len(MAP_KEYS)
+        for a in ACTIONS:
+            assert (KEY_NAMES.get(a.key, a.key), a.help) in rows, a
+        for row in MAP_KEYS:
+            assert row in rows
         press(app, "escape")
         await until(lambda: not isinstance(app.screen, HelpScreen), "help closed")
 
@@ -356,17 +362,16 @@ def test_help_screen_lists_every_action():
 
 
 def test_command_palette_offers_every_action():
-    """The palette's system commands include one per action."""
+    """The palette has one command per row of the action table, but quit (ctrl+c and q
+    stay keys): titled with its help text (up to a colon), its key as the help."""
 
     async def test(app, fake):
-        titles = {c.title for c in app.get_system_commands(app.screen)}
-        for expected in ("Start mapping", "Stop mapping early and use the map as it is",
-                         "Inject or clear a fault (target, kind, duration)",
-                         "Pause simulated time (not with an attached rover)",
-                         "Resume simulated time", "Start a new game",
-                         "Save a screenshot (SVG, and PNG where cairosvg is installed) to the "
-                         "export directory"):
-            assert expected in titles
+        ours = [c for c in app.get_system_commands(app.screen) if c.help.startswith("key ")]
+        offered = [a for a in ACTIONS if a.action != "quit"]
+        assert len(ours) == len(offered)
+        for a, command in zip(offered, ours, strict=True):
+            assert a.help.startswith(command.title) and command.title, (a, command.title)
+            assert command.help == f"key {KEY_NAMES.get(a.key, a.key)}"
 
     drive(test, speed=1.0)
 

@@ -2,13 +2,19 @@
 
 The console runs the system on a `GovernedClock` and builds its snapshots on its
 own side of the thread, so the game it shows is the one `hideseek run` plays:
-the same trace hash at x1 and as fast as possible. The x1 games are cut short by
-the mapping budget (a failed game has a trace hash too), so they take seconds.
+as fast as possible, the two commands print the same JSON on every built-in
+room (but for the wall time); at x1 the same trace hash. The x1 games are cut
+short by the mapping budget (a failed game has a trace hash too), so they take
+seconds.
 """
 
 from __future__ import annotations
 
 import asyncio
+import json
+import pathlib
+import subprocess
+import sys
 
 import pytest
 import trio
@@ -17,7 +23,10 @@ from actors import virtual_clock
 from supervisors.harness.headless import Budget, run_game
 from tui.app import ConsoleApp
 from tui.live import LiveSystem
-from world.scenario import load_scenario
+from world.scenario import builtin_scenarios, load_scenario
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+WALL = ("wall_seconds", "real_time_factor")  # the only figures that depend on the machine
 
 
 def headless_hash(scenario: str, seed: int, budget: Budget) -> tuple[str, str, float]:
@@ -44,12 +53,21 @@ def console_hash(scenario: str, seed: int, speed: float | None,
     return system.report.trace_hash, system.report.outcome, system.report.sim_seconds
 
 
-@pytest.mark.parametrize("scenario", ["empty", "gap"])
-def test_auto_game_as_fast_as_possible_has_the_headless_trace_hash(scenario: str) -> None:
-    budget = Budget()
-    want = headless_hash(scenario, 1, budget)
-    assert want[1] == "found"
-    assert console_hash(scenario, 1, None, budget) == want
+@pytest.mark.parametrize("scenario", builtin_scenarios())
+def test_play_auto_at_max_speed_prints_the_json_of_hideseek_run(scenario: str) -> None:
+    """The two commands, each in its own process, side by side: ``hideseek play --auto
+    --json --speed max`` prints the JSON ``hideseek run --json`` prints, but the wall time."""
+    cli = [sys.executable, "-m", "tui.cli"]
+    procs = [subprocess.Popen([*cli, *argv, "--scenario", scenario, "--json"], cwd=ROOT,
+                              stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+             for argv in (["run"], ["play", "--auto", "--speed", "max"])]
+    (run_out, run_err), (play_out, play_err) = (p.communicate(timeout=600) for p in procs)
+    assert [p.returncode for p in procs] == [0, 0], (run_err, play_err[-2000:])
+    want, got = json.loads(run_out), json.loads(play_out)
+    assert all(want.pop(k) > 0 and got.pop(k) > 0 for k in WALL)
+    assert got == want
+    assert want["scenario"] == scenario and want["trace_hash"]
 
 
 @pytest.mark.parametrize("scenario", ["empty", "gap"])

@@ -75,18 +75,18 @@ def test_attached_rover_links_are_checked() -> None:
         LiveSystem(scenario, remote={"m1": parse_link("tcp")})
     with pytest.raises(ValueError, match="a rover on tcp needs --listen tcp:HOST:PORT"):
         LiveSystem(scenario, remote={"mapper": parse_link("tcp")})
-    with pytest.raises(ValueError, match=r"a rover's link is serial:PORT\[,BAUD\], .*got 'sim'"):
+    with pytest.raises(ValueError, match=r"--rover ROLE=LINK must be tcp \(.*got 'sim'"):
         LiveSystem(scenario, remote={"mapper": parse_link("sim")})
     with pytest.raises(ValueError, match="--auto plays the simulated game"):
         LiveSystem(scenario, remote={"mapper": parse_link("/dev/ttyUSB0")}, auto=True)
     live = LiveSystem(scenario, remote={"mapper": parse_link("tcp:10.0.0.2:2000")})
-    assert live.remote["mapper"].kind == "tcp_listen"  # the console connects out to it
+    assert live.remote["mapper"].kind == "tcp_out"  # the console connects out to it
     with pytest.raises(ValueError, match="a rover on udp needs --listen udp:HOST:PORT"):
         LiveSystem(scenario, remote={"mapper": parse_link("udp")},
                    listen=[parse_link("tcp:127.0.0.1:7878")])
     live = LiveSystem(scenario, remote={"mapper": parse_link("udp")},
                       listen=[parse_link("udp:127.0.0.1:7878")])
-    assert [s.kind for s in live.listen] == ["udp_listen"]
+    assert [s.kind for s in live.listen] == ["udp_in"]
 
 
 def test_fault_events_read_as_sentences() -> None:
@@ -185,3 +185,22 @@ def test_message_log_shows_other_objects_as_their_repr_and_only_new_lines_are_de
     second = live.activity.log_lines()
     assert [ln.seq for ln in second] == [1, 2] and second[0] is first[0]
     assert (second[1].time_s, second[1].text) == (2.0, "NOOP 3")
+
+
+def test_a_serial_port_unplugged_and_reopened_shows_on_the_timeline() -> None:
+    """The server's link_error (a port hung up) and link_open reach the console's timeline,
+    naming the port."""
+    from server.views import ServerEvent
+    from tui.activity import ActivityLog
+
+    log = ActivityLog(lambda: 12.0)
+    send, receive = trio.open_memory_channel(8)
+    send.send_nowait(ServerEvent(11.0, "link_error", data={
+        "link": "serial:/dev/ttyUSB0,115200", "retry_s": 0.25,
+        "error": "serial port /dev/ttyUSB0 hung up (device unplugged)"}))
+    send.send_nowait(ServerEvent(12.0, "link_open", data={
+        "link": "serial:/dev/ttyUSB0,115200", "detail": "serial port /dev/ttyUSB0 open"}))
+    log.drain_server_events(receive)
+    assert [(e.kind, e.text) for e in log.timeline()] == [
+        ("link", "serial port /dev/ttyUSB0 hung up (device unplugged)"),
+        ("link", "serial port /dev/ttyUSB0 open")]

@@ -54,11 +54,24 @@ def test_lidar_packets_follow_the_datasheet() -> None:
 
 
 def test_lidar_packets_parse_in_the_firmware_isr() -> None:
-    """The firmware's Int A ISR turns the world's bytes back into the same samples."""
-    got: list[Message] = []
-    isr = LidarUartIsr(lambda m: got.append(m) is None)
-    isr(packets.encode_lidar_packets(np.array([0, 9000, 27050]), np.array([100, 402, 0])))
-    assert len(got) == 3
+    """The firmware's Int A ISR turns the world's bytes back into the same samples, sample
+    for sample and in order ([0.1 deg] angle, [cm] distance), however the UART splits
+    the bytes: whole, one byte at a time, or in random pieces."""
+    rng = np.random.default_rng(3)
+    angles = np.concatenate([[0, 9000, 27050, 35999], rng.integers(0, 36000, 500)])
+    distances = np.concatenate([[100, 402, 0, 32767], rng.integers(0, 32768, 500)])
+    data = packets.encode_lidar_packets(angles, distances)
+    want = [(int(a) // 10, int(d)) for a, d in zip(angles, distances, strict=True)]
+    cuts = np.sort(rng.choice(np.arange(1, len(data)), 300, replace=False))
+    for pieces in ([data], [data[i:i + 1] for i in range(len(data))],
+                   np.split(np.frombuffer(data, np.uint8), cuts)):
+        got: list[Message] = []
+        isr = LidarUartIsr(lambda m, got=got: got.append(m) is None)
+        for piece in pieces:
+            isr(bytes(piece))
+        assert all(m.command == Cmd.LIDAR_SAMPLE for m in got)
+        assert [m.as_pair() for m in got] == want
+        assert isr.bad_frames == 0
 
 
 def test_the_world_builds_the_firmware_spec() -> None:

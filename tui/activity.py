@@ -155,6 +155,8 @@ class ActivityLog:
                             + (f": {e.data['reason']}" if e.data.get("reason") else ""))
             elif e.kind in ("link_up", "link_down"):
                 self.event("link", f"{e.rover} {e.kind.replace('_', ' ')}")
+            elif e.kind in ("link_open", "link_error"):  # a serial port opened, unplugged
+                self.event("link", str(e.data.get("error") or e.data.get("detail") or e.kind))
             elif e.kind in ("report", "refused", "map"):
                 body = " ".join(f"{k}={v}" for k, v in e.data.items())
                 self.event("game", f"{e.kind} {e.rover} {body}".strip())

@@ -2,7 +2,7 @@
 
 Plays the server's side over LINK (``tcp:HOST:PORT`` to a rover waiting with
 ``--link tcpin:...``, ``tcpin:HOST:PORT`` for a rover that connects,
-``udp:HOST:PORT`` for one that sends datagrams there, ``serial:PORT,BAUD``)
+``udpin:HOST:PORT`` for one that sends datagrams there (``--link udpout:``), ``serial:PORT,BAUD``)
 and reports every rule as pass, fail or skip (`server.conformance`). Exit
 status 0 when nothing failed, 1 when a rule failed, 2 for bad input (a bad
 link string or option, an unreachable address or port: one line naming it).
@@ -20,7 +20,7 @@ from tui import args as args_
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("link", metavar="LINK",
                         help="tcp:HOST:PORT (connect to a rover listening with --link tcpin:), "
-                             "tcpin:HOST:PORT (wait for a rover to connect), udp:HOST:PORT "
+                             "tcpin:HOST:PORT (wait for a rover to connect), udpin:HOST:PORT "
                              "(receive its datagrams there) or serial:PORT[,BAUD]")
     parser.add_argument("--role", choices=ROLES,
                         help="the role the rover must say in hello (default: the one it says)")

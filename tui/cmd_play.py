@@ -13,6 +13,7 @@ import argparse
 import sys
 import time
 
+from server.links.spec import LISTEN, PLAY_ROVER
 from tui import args as args_
 
 SPEED_CHOICES = {"1": 1.0, "4": 4.0, "16": 16.0, "max": None}
@@ -38,16 +39,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="SQLite file for the server's games and maps (default: in memory)")
     parser.add_argument("--rover", type=rover_link, action="append", default=[],
                         metavar="ID=LINK",
-                        help="attach a rover over a link instead of simulating it here: "
-                             "ROLE=serial:PORT[,BAUD] or ROLE=/dev/ttyUSB0[,BAUD] (115200 "
-                             "by default), ROLE=tcp (it connects to --listen), ROLE=udp (it "
-                             "sends datagrams to --listen), or ROLE=tcp:HOST:PORT (it listens "
-                             "there: the server connects); then time runs at x1 only "
-                             "(repeatable)")
-    parser.add_argument("--listen", action="append", metavar="tcp:HOST:PORT|udp:HOST:PORT",
-                        help="where rovers on tcp connect and rovers on udp send (repeatable; "
-                             "loopback only; default tcp:127.0.0.1:7878 and "
-                             "udp:127.0.0.1:7878, each where a rover uses it)")
+                        help=f"attach a rover over a link instead of simulating it here, "
+                             f"LINK one of: {PLAY_ROVER.forms}; then time runs at x1 only "
+                             f"(repeatable)")
+    parser.add_argument("--listen", action="append", metavar="tcpin:HOST:PORT|udpin:HOST:PORT",
+                        help=f"where rovers on tcp connect and rovers on udp send: "
+                             f"{LISTEN.forms} (repeatable; loopback only; default "
+                             f"tcp:127.0.0.1:7878 and udp:127.0.0.1:7878, each where a rover "
+                             f"uses it)")
     parser.add_argument("--fake", action="store_true",
                         help="run the built-in fake system (the console's demo and test double)")
     parser.add_argument("--speed", choices=list(SPEED_CHOICES), default="1",
@@ -79,13 +78,14 @@ def _links(args: argparse.Namespace):
             non-loopback listen.
     """
     from server.links import is_loopback, parse_link
+    from server.links.spec import parse_link_for
     from tui.cmd_serve import parse_listens
 
     remote = {}
     for role, text in args.rover:
         if role in remote:
             raise ValueError(f"--rover {role} given twice")
-        remote[role] = parse_link(text)
+        remote[role] = parse_link_for(text, PLAY_ROVER)
     given = parse_listens(args.listen or [])
     listen = []
     for kind in ("tcp", "udp"):

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from server.links.spec import ROVER_LINK
 from server.protocol import ROLES
 from tui import args as args_
 
@@ -19,11 +20,7 @@ from tui import args as args_
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--role", required=True, choices=ROLES, help="which rover this is")
     parser.add_argument("--link", required=True, metavar="LINK",
-                        help="tcp:HOST:PORT (connect to the server), tcpin:HOST:PORT (wait "
-                             "there for the server to connect), udp:HOST:PORT (send datagrams "
-                             "to the server there), serial:PORT[,BAUD] or a device "
-                             "path (a port or pyserial URL; 115200 baud by default), or pty "
-                             "(make a pty pair and print the path the server must open)")
+                        help=f"{ROVER_LINK.forms}; as in MAVProxy")
     parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
                         help="built-in scenario name or TOML file (default: %(default)s)")
     parser.add_argument("--seed", type=args_.seed, default=1,
@@ -42,14 +39,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from server.links import parse_link
-    from supervisors.remote import LINK_FORMS, LINK_KINDS
+    from server.links.spec import parse_link_for
     from world.scenario import ScenarioError, load_scenario
 
     try:
-        link = parse_link(args.link)
-        if link.kind not in LINK_KINDS:
-            raise ValueError(f"--link must be {LINK_FORMS}, got {args.link!r}")
+        link = parse_link_for(args.link, ROVER_LINK)
         if not args.speed > 0 or args.speed > 1000:
             raise ValueError(f"--speed must be within 0..1000, got {args.speed:g}")
         scenario = load_scenario(args.scenario)

@@ -1,9 +1,13 @@
 """``hideseek serve``: run the game server for real rovers, log events as plain text.
 
 Rovers attach over TCP (``--rover ID=tcp``: they connect to ``--listen
-tcp:HOST:PORT``), UDP (``--rover ID=udp``: they send datagrams to ``--listen
-udp:HOST:PORT``), serial (``--rover ID=serial:PORT,BAUD``) or are simulated in this process
-(``--rover ROLE=sim``: the ``--scenario`` room, in real time, in-memory link).
+tcpin:HOST:PORT``; ``--rover ID=tcp:HOST:PORT``: the server connects to a rover
+listening there), UDP (``--rover ID=udp``: they send datagrams to ``--listen
+udpin:HOST:PORT``), serial (``--rover ID=serial:PORT,BAUD``; a
+``/dev/serial/by-id/...`` name survives a renumbered adapter) or are simulated
+in this process (``--rover ROLE=sim``: the ``--scenario`` room, in real time,
+in-memory link). Link strings mean what they mean in MAVProxy
+(`server.links.spec`).
 Only the ids given with ``--rover`` may say hello over TCP, UDP or serial, unless
 ``--open-enrolment``; beyond loopback every such id needs a ``--token``.
 
@@ -38,6 +42,7 @@ import os
 import sys
 from typing import TYPE_CHECKING
 
+from server.links.spec import LISTEN, SERVE_ROVER
 from server.protocol import ROLES
 
 if TYPE_CHECKING:
@@ -73,13 +78,13 @@ HELP = """\
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--listen", action="append", metavar="tcp:HOST:PORT|udp:HOST:PORT",
-                        help=f"where rovers connect over TCP, or send over UDP (repeatable; "
-                             f"default {DEFAULT_LISTEN}, and {DEFAULT_UDP_LISTEN} with a "
-                             f"rover on udp); 'none' to not listen")
+    parser.add_argument("--listen", action="append", metavar="tcpin:HOST:PORT|udpin:HOST:PORT",
+                        help=f"where rovers connect over TCP, or send over UDP: {LISTEN.forms} "
+                             f"(repeatable; default {DEFAULT_LISTEN}, and {DEFAULT_UDP_LISTEN} "
+                             f"with a rover on udp)")
     parser.add_argument("--rover", action="append", default=[], metavar="ID=LINK",
-                        help="a rover and its link: serial:PORT,BAUD, tcp, udp or sim "
-                             "(repeatable); only these ids may say hello over TCP, UDP or serial")
+                        help=f"a rover and its link: {SERVE_ROVER.forms} (repeatable); only "
+                             "these ids may say hello over TCP, UDP or serial")
     parser.add_argument("--db", default="hideseek.db", metavar="FILE",
                         help="SQLite database for games, maps and events (default %(default)s)")
     parser.add_argument("--token", action="append", default=[], metavar="[ID=]TOKEN",
@@ -103,6 +108,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "poses used as their origins (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=1,
                         help="seed of the simulated rovers' world (default 1)")
+    parser.add_argument("--speed", type=float, default=1.0, metavar="N",
+                        help="clock rate: 1 is real time (default); rovers over links must "
+                             "run at the same rate (hideseek rover --speed N)")
 
 
 def parse_assignment(text: str, what: str) -> tuple[str, str]:
@@ -117,19 +125,17 @@ def parse_listens(texts: list[str]) -> list[tuple[str, LinkSpec]]:
     """``--listen`` values -> [(``tcp`` or ``udp``, address)]; ``none`` alone: no listening.
 
     Raises:
-        ValueError: a value that is not tcp:HOST:PORT, udp:HOST:PORT (udpin:, tcpin: too)
-            or none.
+        ValueError: a value `LISTEN` does not take, or ``none`` beside an address.
     """
-    from server.links import parse_link
+    from server.links.spec import parse_link_for
 
     if texts == ["none"]:
         return []
     out = []
     for text in texts:
-        spec = parse_link(text) if text != "none" else None
-        if spec is None or spec.kind not in ("tcp_listen", "tcp_in", "udp_listen", "udp_in"):
-            raise ValueError(f"--listen must be tcp:HOST:PORT, udp:HOST:PORT or none, got "
-                             f"{text!r}")
+        if text == "none":
+            raise ValueError(f"--listen must be {LISTEN.forms}, got 'none' beside an address")
+        spec = parse_link_for(text, LISTEN)
         out.append((spec.kind[:3], spec))
     return out
 
@@ -251,7 +257,8 @@ def format_status(snap) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from server.config import ServerConfig
-    from server.links import is_loopback, parse_link
+    from server.links import is_loopback
+    from server.links.spec import parse_link_for
     from server.store import Store, StoreError
     from server.trust import beyond_loopback_refusal
 
@@ -264,9 +271,11 @@ def run(args: argparse.Namespace) -> int:
             else:
                 tokens["*"] = t
         origins = dict(parse_origin(o) for o in args.origin)
-        rovers = [(rid, parse_link(link)) for rid, link in
+        rovers = [(rid, parse_link_for(link, SERVE_ROVER)) for rid, link in
                   (parse_assignment(r, "--rover") for r in args.rover)]
         listens = parse_listens(args.listen or [DEFAULT_LISTEN])
+        if not 0 < args.speed <= 1000:
+            raise ValueError(f"--speed must be within 0..1000, got {args.speed:g}")
         if args.max_connections < 1:
             raise ValueError(f"--max-connections must be at least 1, got {args.max_connections}")
         sim_roles: list[str] = []
@@ -278,9 +287,6 @@ def run(args: argparse.Namespace) -> int:
                 if rid in sim_roles:
                     raise ValueError(f"--rover {rid}=sim given twice")
                 sim_roles.append(rid)
-            elif spec.kind not in ("serial", "tcp", "udp"):
-                raise ValueError(f"--rover {rid}: a rover's link is serial:PORT,BAUD, tcp, udp "
-                                 "or sim")
         if args.listen is None and any(spec.kind == "udp" for _, spec in rovers):
             listens += parse_listens([DEFAULT_UDP_LISTEN])
         for kind in ("tcp", "udp"):
@@ -313,9 +319,12 @@ def run(args: argparse.Namespace) -> int:
         return 2
     import trio
 
+    from actors import scaled_clock
+
     sim = (scenario, args.seed, tuple(sim_roles)) if sim_roles else None
+    clock = None if args.speed == 1.0 else scaled_clock(args.speed)
     try:
-        trio.run(_serve, store, config, listens, rovers, sim, not args.no_console)
+        trio.run(_serve, store, config, listens, rovers, sim, not args.no_console, clock=clock)
     except KeyboardInterrupt:
         return 0
     except (OSError, ValueError, BaseExceptionGroup) as exc:
@@ -391,6 +400,9 @@ async def _serve(store, config, listens, rovers, sim=None, console: bool = True)
             if spec.kind == "serial":
                 server.start_serial(spec.url, spec.baud)
                 print(f"rover {rid}: serial {spec.url} at {spec.baud} baud", flush=True)
+            elif spec.kind == "tcp_out":  # a rover listening: the serial loop connects out
+                server.start_serial(spec.url, spec.baud)
+                print(f"rover {rid}: connecting to {spec.host}:{spec.port}", flush=True)
         if console:
             print("commands: start_mapping, stop_mapping, hide X Y [H] [room], seek X Y [H] "
                   "[room] [within=CM], fault ROVER/TARGET KIND [S] [NAME=V], clear "

@@ -22,7 +22,7 @@ import trio
 
 from server.export import write_pgm, write_png
 from server.links import LinkSpec
-from server.links.spec import DEFAULT_BAUD
+from server.links.spec import PLAY_ROVER
 from server.protocol import ROLES, GridMap
 from server.protocol import Pose as FramePose
 from server.store import Store
@@ -117,10 +117,8 @@ class LiveSystem(QueuedController):
             if role not in ROLES:
                 raise ValueError(f"--rover {role}: the ID of an attached rover is its role, "
                                  f"one of {', '.join(ROLES)}")
-            if spec.kind not in ("serial", "tcp", "udp", "tcp_listen"):
-                raise ValueError(f"--rover {role}: a rover's link is serial:PORT[,BAUD], a "
-                                 f"device path, tcp (it connects in), udp (it sends in) or "
-                                 f"tcp:HOST:PORT (the server connects to it there), got "
+            if spec.kind not in PLAY_ROVER.kinds:
+                raise ValueError(f"{PLAY_ROVER.option} must be {PLAY_ROVER.forms}, got "
                                  f"{spec.text!r}")
         listen = tuple(listen)
         for kind in ("tcp", "udp"):
@@ -223,9 +221,9 @@ class LiveSystem(QueuedController):
         for role, spec in self.remote.items():
             if spec.kind == "serial":
                 system.server.start_serial(spec.url, spec.baud)
-            elif spec.kind == "tcp_listen":  # a rover listening on TCP: connect out to it
+            elif spec.kind == "tcp_out":  # a rover listening on TCP: connect out to it
                 # (pyserial's socket:// URL: the serial link's reconnecting loop serves it)
-                system.server.start_serial(f"socket://{spec.host}:{spec.port}", DEFAULT_BAUD)
+                system.server.start_serial(spec.url, spec.baud)
             self._event("link", f"{role}: waiting for the rover on {spec.text}")
         if self.remote:
             self._event("game", "a real rover is attached: real time only (x1)")

@@ -15,10 +15,10 @@ Built on `server.protocol` (frames, line splitting, catalogue, map codec) and
 """
 
 from .context import Options
-from .link import LINK_FORMS, LinkUnreachable, RoverLink, parse_rover_link
+from .link import LinkUnreachable, RoverLink, parse_rover_link
 from .report import as_json, as_table, summary
 from .rules import RULES, Finding
 from .runner import check_rover
 
-__all__ = ["Options", "LINK_FORMS", "LinkUnreachable", "RoverLink", "parse_rover_link",
+__all__ = ["Options", "LinkUnreachable", "RoverLink", "parse_rover_link",
            "as_json", "as_table", "summary", "RULES", "Finding", "check_rover"]

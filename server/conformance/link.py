@@ -8,9 +8,9 @@ LINK                   the checker ...
                        closes the connection and connects again
 ``tcpin:HOST:PORT``    listens there for a rover that connects
                        (``hideseek rover --link tcp:HOST:PORT``)
-``udp:HOST:PORT``      receives datagrams there (a rover sending with
-                       ``--link udp:HOST:PORT``), answering the first
-                       source address heard
+``udpin:HOST:PORT``    receives datagrams there (a rover sending with
+                       ``--link udpout:HOST:PORT``), answering the first
+                       source address heard; ``udp:`` is the same
 ``serial:PORT,BAUD``   opens the port (a device, a pty's other end, a
                        pyserial URL); dropping the link closes and
                        reopens it
@@ -23,12 +23,11 @@ from typing import Any
 
 import trio
 
-from ..links import LinkSpec, SerialLinkError, open_serial_stream, open_udp_endpoint, parse_link
+from ..links import LinkSpec, SerialLinkError, open_serial_stream, open_udp_endpoint
+from ..links.spec import CHECK_ROVER, parse_link_for
 
-__all__ = ["LINK_FORMS", "LinkUnreachable", "RoverLink", "parse_rover_link"]
+__all__ = ["LinkUnreachable", "RoverLink", "parse_rover_link"]
 
-LINK_FORMS = "tcp:HOST:PORT, tcpin:HOST:PORT, udp:HOST:PORT or serial:PORT[,BAUD]"
-_KINDS = {"tcp_listen", "tcp_in", "udp_listen", "udp_in", "serial"}
 _RETRY_S = 0.2  # between connection attempts while a rover listens again [s]
 
 
@@ -40,12 +39,9 @@ def parse_rover_link(text: str) -> LinkSpec:
     """A LINK for `check_rover`.
 
     Raises:
-        ValueError: not one of `LINK_FORMS`, naming the string.
+        ValueError: not one of the forms of `CHECK_ROVER`, naming the string.
     """
-    spec = parse_link(text)
-    if spec.kind not in _KINDS:
-        raise ValueError(f"LINK must be {LINK_FORMS}, got {text!r}")
-    return spec
+    return parse_link_for(text, CHECK_ROVER)
 
 
 class RoverLink:
@@ -67,7 +63,7 @@ class RoverLink:
     @property
     def can_drop(self) -> bool:
         """Whether the link can be dropped and made again (not over UDP)."""
-        return self.kind in ("tcp_listen", "tcp_in", "serial")
+        return self.kind in ("tcp_out", "tcp_in", "serial")
 
     @property
     def speaks_first(self) -> bool:
@@ -84,7 +80,7 @@ class RoverLink:
         """
         spec = self.spec
         try:
-            if self.kind == "tcp_listen":
+            if self.kind == "tcp_out":
                 return await trio.open_tcp_stream(spec.host, spec.port)
             if self.kind == "serial":
                 return open_serial_stream(spec.url, spec.baud)
@@ -117,13 +113,13 @@ class RoverLink:
                         return open_serial_stream(spec.url, spec.baud)
                     except SerialLinkError:
                         await trio.sleep(_RETRY_S)
-            if self.kind == "tcp_listen":
+            if self.kind == "tcp_out":
                 while True:
                     try:
                         return await trio.open_tcp_stream(spec.host, spec.port)
                     except OSError:
                         await trio.sleep(_RETRY_S)
-        if self.kind in ("tcp_in", "udp_listen", "udp_in"):
+        if self.kind in ("tcp_in", "udp_in"):
             return await self._accept(wait_s)
         return None
 

@@ -10,7 +10,7 @@ answers it as an over-long line (``too_long``).
 
 Roles, as MAVProxy's ``udpin``/``udpout``: the server receives on one bound
 socket (``--listen udp:HOST:PORT``, `UdpEndpoint`); a rover sends to that
-address from a connected socket (``hideseek rover --link udp:HOST:PORT``,
+address from a connected socket (``hideseek rover --link udpout:HOST:PORT``,
 `open_udp_stream`) and is answered at the address it sent from.
 
 Each peer address (host and port) the endpoint hears is one connection to
