@@ -135,6 +135,8 @@ class ConsoleApp(App[int]):
         """Command results received, newest last (bounded)."""
         self.system_error: BaseException | None = None
         """Why the system's run failed, if it did."""
+        self.stopped_by_signal = False
+        """SIGINT or SIGTERM quit the console (the command prints `tui.stopping`'s line)."""
         self.snapshots_shown = 0
         self._guest = TrioGuest(on_done=lambda r: self.post_message(self.SystemEnded(r)))
         self._requests: trio.MemorySendChannel[None] | None = None
@@ -175,7 +177,11 @@ class ConsoleApp(App[int]):
         self.map_view.focus()
         self._guest.start(self._trio_main, clock=self.system.clock)
         self.set_interval(1.0 / self.refresh_hz, self._tick)
-        self._signals = quit_on_signals(lambda: self.call_next(self.action_quit))
+        self._signals = quit_on_signals(self._quit_on_signal)
+
+    def _quit_on_signal(self) -> None:
+        self.stopped_by_signal = True
+        self.call_next(self.action_quit)
 
     def _remove_signal_handlers(self) -> None:
         loop = asyncio.get_running_loop()

@@ -15,6 +15,8 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
+from tui import stopping
+
 if TYPE_CHECKING:
     from supervisors.recording.reading import Recording
 
@@ -41,6 +43,9 @@ def run(args: argparse.Namespace) -> int:
         return 2
     app = ReplayApp(system)
     app.run()
+    if app.stopped_by_signal:
+        print(stopping.stopped_line("replay"), file=sys.stderr)
+        return 0
     if app.fork_at is None:
         return 0
     return _fork(system.rec, app.fork_at)
@@ -59,6 +64,9 @@ def _fork(rec: Recording, at_s: float) -> int:
         return 2
     app = ForkConsoleApp(system)
     app.run()
+    if app.stopped_by_signal:
+        print(stopping.stopped_line("replay"), file=sys.stderr)
+        return 0
     error = app.system_error
     if error is None:
         return 0

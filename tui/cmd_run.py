@@ -208,14 +208,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"running {scenario.name} (seed {args.seed}) in virtual time ...", flush=True)
     seed_trio_scheduler(args.seed)
     wall0 = time.perf_counter()  # wall time is measured for the report only
-    report = trio.run(lambda: run_game(scenario, args.seed, db=args.db, budget=budget,
-                                       trace=trace,
-                                       observers=[recorder] if recorder else []),
-                      clock=virtual_clock())
+    try:
+        report = trio.run(lambda: run_game(scenario, args.seed, db=args.db, budget=budget,
+                                           trace=trace,
+                                           observers=[recorder] if recorder else []),
+                          clock=virtual_clock())
+    finally:  # also when a signal stops the game: the trace is kept to that point
+        if trace_file is not None:
+            trace_file.close()
     report.wall_seconds = time.perf_counter() - wall0
     report.real_time_factor = report.sim_seconds / max(report.wall_seconds, 1e-9)
-    if trace_file is not None:
-        trace_file.close()
     return print_report(report, as_json=args.json)
 
 

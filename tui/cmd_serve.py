@@ -199,6 +199,7 @@ def run(args: argparse.Namespace) -> int:
     from server.links import is_loopback, parse_link
     from server.store import Store, StoreError
     from server.trust import beyond_loopback_refusal
+    from tui.stopping import is_interrupt, leaves
 
     try:
         tokens: dict[str, str] = {}
@@ -261,14 +262,10 @@ def run(args: argparse.Namespace) -> int:
     sim = (scenario, args.seed, tuple(sim_roles)) if sim_roles else None
     try:
         trio.run(_serve, store, config, listens, rovers, sim, not args.no_console)
-    except KeyboardInterrupt:
-        return 0
     except (OSError, ValueError, BaseExceptionGroup) as exc:
-        leaf = _first_leaf(exc)
-        if isinstance(leaf, KeyboardInterrupt):
-            return 0
-        if not isinstance(leaf, OSError | ValueError):
-            raise
+        leaf = leaves(exc)[0]
+        if is_interrupt(exc) or not isinstance(leaf, OSError | ValueError):
+            raise  # a stop by signal: tui.cli prints its one line
         print(f"hideseek serve: {getattr(leaf, 'strerror', None) or leaf}", file=sys.stderr)
         return 1
     finally:
@@ -280,12 +277,6 @@ def _with_origins(config, origins):
     import dataclasses
 
     return dataclasses.replace(config, origins=origins)
-
-
-def _first_leaf(exc: BaseException) -> BaseException:
-    while isinstance(exc, BaseExceptionGroup):
-        exc = exc.exceptions[0]
-    return exc
 
 
 def _banner(server, store) -> list[str]:

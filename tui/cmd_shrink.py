@@ -91,6 +91,10 @@ def print_report(r: dict[str, Any], out: str) -> None:
 def run(args: argparse.Namespace) -> int:
     try:
         _check(args)
+        if not args.json:
+            game = f"campaign game {args.campaign}" if args.campaign else args.scenario
+            print(f"shrinking {game}: at most {args.max_runs} runs in virtual time ...",
+                  flush=True)
         if args.campaign:
             report = shrink_campaign_game(args.campaign, max_runs=args.max_runs,
                                           resolution_s=args.resolution,
