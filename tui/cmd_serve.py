@@ -37,8 +37,8 @@ if TYPE_CHECKING:
     from server.links.spec import LinkSpec
 
 __all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_listens",
-           "parse_command_line", "CONSOLE_COMMANDS", "DEFAULT_LISTEN", "DEFAULT_UDP_LISTEN",
-           "HELP", "format_status"]
+           "check_listen", "parse_command_line", "CONSOLE_COMMANDS", "DEFAULT_LISTEN",
+           "DEFAULT_UDP_LISTEN", "HELP", "format_status"]
 
 DEFAULT_LISTEN = "tcp:127.0.0.1:7878"
 """Where ``serve`` listens without ``--listen``."""
@@ -253,6 +253,8 @@ def run(args: argparse.Namespace) -> int:
             except ScenarioError as exc:
                 raise ValueError(str(exc)) from None
             config = _with_origins(config, {**scenario_origins(scenario), **origins})
+        for proto, listen in listens:  # before the store: a refusal leaves the database as it was
+            check_listen(proto, listen.host, listen.port)
         store = Store(args.db)
     except (ValueError, StoreError, OSError) as exc:
         print(f"hideseek serve: {exc}", file=sys.stderr)
@@ -271,6 +273,31 @@ def run(args: argparse.Namespace) -> int:
     finally:
         store.close()
     return 0
+
+
+def check_listen(proto: str, host: str, port: int) -> None:
+    """Bind (and for TCP listen on) every address ``host:port`` resolves to, as the server
+    will, and let go at once.
+
+    Raises:
+        ValueError: an address that is busy, not this machine's, or does not resolve:
+            one line naming ``HOST:PORT`` and why.
+    """
+    import socket
+
+    where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+    kind = socket.SOCK_STREAM if proto == "tcp" else socket.SOCK_DGRAM
+    try:
+        infos = socket.getaddrinfo(host or None, port, type=kind, flags=socket.AI_PASSIVE)
+        for family, type_, proto_num, _, address in infos:
+            with socket.socket(family, type_, proto_num) as sock:
+                if kind == socket.SOCK_STREAM:  # as Trio's listeners: a port in TIME_WAIT is free
+                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                sock.bind(address)
+                if kind == socket.SOCK_STREAM:
+                    sock.listen(1)
+    except OSError as exc:
+        raise ValueError(f"cannot listen on {proto} {where}: {exc.strerror or exc}") from None
 
 
 def _with_origins(config, origins):
