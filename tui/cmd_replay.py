@@ -36,9 +36,12 @@ def run(args: argparse.Namespace) -> int:
     from tui.replay.system import ReplaySystem
 
     try:
-        system = ReplaySystem(read_recording(args.file), speed=float(args.speed),
-                              paused=args.paused, at=args.at)
-    except RecordingReadError as exc:
+        rec = read_recording(args.file)
+        if args.at is not None and not rec.start_s <= args.at <= rec.end_s:
+            raise ValueError(f"--at must be within the recording, {rec.start_s:.1f} to "
+                             f"{rec.end_s:.1f} s, got {args.at:g}")
+        system = ReplaySystem(rec, speed=float(args.speed), paused=args.paused, at=args.at)
+    except (RecordingReadError, ValueError) as exc:
         print(f"hideseek replay: {exc}", file=sys.stderr)
         return 2
     app = ReplayApp(system)
