@@ -194,6 +194,11 @@ class ReplayIndex:
                                  points[-1] if points else None, link="recording"))
         return tuple(out)
 
+    def track(self, role: str, which: str = "true") -> list[tuple[float, Pose]]:
+        """Every recorded pose of a rover, oldest first, as (t [s], pose) in the map frame
+        [cm, deg]; ``which`` is ``true`` (the world's) or ``believed`` (the rover's)."""
+        return [(t, _pose(msg)) for t, msg in self._series.get(f"/{role}/pose/{which}", [])]
+
     def lidar_points(self, t: float) -> np.ndarray:
         """The newest LIDAR revolution at ``t`` as map-frame points [cm] (returns only)."""
         scan = self.last("/mapper/scan", t)
@@ -290,14 +295,16 @@ class ReplayIndex:
 
     def faults(self, t: float) -> tuple[ActiveFault, ...]:
         """Faults in force at ``t`` (one with no duration: until the end)."""
+        return tuple(f for f in self.all_faults() if f.started_s <= t and (
+            f.until_s is None or t < f.until_s))
+
+    def all_faults(self) -> tuple[ActiveFault, ...]:
+        """Every fault the recording injects, in the order they began."""
         out = []
         for start, log in self._series.get("/faults", []):
-            if start > t:
-                break
             text = log["message"]
             m = _FOR_S.search(text)
             until = start + float(m.group(1)) if m else None
-            if until is None or t < until:
-                kind, _, target = text.split(" for ")[0].partition(" on ")
-                out.append(ActiveFault(log["name"], target, kind, start, until))
+            kind, _, target = text.split(" for ")[0].partition(" on ")
+            out.append(ActiveFault(log["name"], target, kind, start, until))
         return tuple(out)
