@@ -32,6 +32,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "campaign": ("tui.cmd_campaign", "many seeded games under random faults, invariants checked"),
     "replay": ("tui.cmd_replay", "open a recording (.mcap) in the console: pause, step, seek"),
     "shrink": ("tui.cmd_shrink", "a failing game's faults shrunk to what the failure needs"),
+    "report": ("tui.cmd_report", "a campaign's results as one HTML page with charts"),
     "ports": ("tui.cmd_ports", "list the serial ports a rover may be attached to"),
 }
 
