@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from actors.firmware.payloads import named_text
 from supervisors.recording.reading import Recording
 from tui.snapshot import (
     MAX_LOG_LINES,
@@ -107,7 +108,8 @@ class ReplayIndex:
         self._rows: list[_Row] = []
         for _, batch in rec.topic("/actors/messages"):
             for m in batch["messages"]:
-                self._rows.append(_Row(m["t"], m["queue"], f"{m['command']} {m['value']!r}",
+                self._rows.append(_Row(m["t"], m["queue"],
+                                       named_text(m["command"], m["type"], m["value"]),
                                        int(m["depth"])))
         self._row_t = [r.t for r in self._rows]
         self._by_queue: dict[str, list[tuple[float, int]]] = defaultdict(list)
