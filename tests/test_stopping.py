@@ -199,8 +199,8 @@ def test_play_stops_with_one_line_and_its_recording_and_database_complete(sig,
 
     seen: list[float] = []
 
-    def ready(_text: str) -> bool:  # a second after the game began
-        if not seen and db.exists() and _statuses(db) == ["running"]:
+    def ready(_text: str) -> bool:  # a second after the game and its recording began
+        if not seen and rec.exists() and db.exists() and _statuses(db) == ["running"]:
             seen.append(time.monotonic())
         return bool(seen) and time.monotonic() - seen[0] > 1.0
 
