@@ -41,8 +41,10 @@ def _failed(game: dict[str, Any]) -> bool:
 
 
 def _kinds(game: dict[str, Any]) -> list[str]:
-    """The fault kinds of a game (its labels, ``lidar:dead``), each once."""
-    return sorted({f.get("label") or f"{f['target']}:{f['kind']}" for f in game["faults"]})
+    """The fault kinds injected in a game (labels, ``lidar:dead``), each once; a fault whose
+    start came after the game ended is not counted (as the campaign's summary does)."""
+    return sorted({f.get("label") or f"{f['target']}:{f['kind']}" for f in game["faults"]
+                   if f["at_s"] <= game["sim_s"] + 1e-9 or game["outcome"] == "failed"})
 
 
 def _found_by(games: Sequence[dict[str, Any]], key) -> list[tuple[str, int, int]]:
@@ -86,7 +88,8 @@ def campaign_html(campaign_id: int, summary: dict[str, Any] | None,
     out.append(rate_bars("found rate by fault kind", _found_by(games, lambda g: _kinds(g)
                                                               or ["(no fault)"])))
     out.append(rate_bars("found rate by room", _found_by(games, lambda g: [g["room"]])))
-    out.append(histogram("time to find (games found)", times, unit="simulated s"))
+    out.append(histogram("time to find (games found)", times,
+                         unit="simulated s from the game's start"))
     out.append("</div>")
     out.append(f'<h2 id="failures">Failures ({len(failures)})</h2>')
     if failures:

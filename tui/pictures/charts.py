@@ -85,6 +85,6 @@ def histogram(title: str, values: Sequence[float], *, unit: str, bins: int = 12,
         if i % 2 == 0:
             body.append(f'<text x="{x:.1f}" y="{base + 14}" font-size="11">'
                         f'{i * step:g}</text>')
-    body.append(f'<text x="{width - 120}" y="{base + 30}" font-size="11">'
-                f'{escape(unit)} (bins of {step:g})</text>')
+    body.append(f'<text x="20" y="{base + 30}" font-size="11">'
+                f'{escape(unit)}, bins of {step:g}</text>')
     return _svg(width, height, body, title)
