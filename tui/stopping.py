@@ -19,6 +19,7 @@ loop instead (`tui.guest.quit_on_signals`): the console quits as ``q`` does.
 from __future__ import annotations
 
 import signal
+import sys
 
 __all__ = ["install", "is_interrupt", "leaves", "stopped_line"]
 
@@ -45,9 +46,11 @@ def leaves(exc: BaseException) -> list[BaseException]:
 def is_interrupt(exc: BaseException) -> bool:
     """Whether ``exc`` is a stop by signal: a ``KeyboardInterrupt``, or a group holding at
     least one and otherwise only Trio's ``Cancelled`` (tasks stopped beside it)."""
+    trio = sys.modules.get("trio")  # not imported by this process: no Cancelled to meet
+    stops = (KeyboardInterrupt, trio.Cancelled) if trio is not None else (KeyboardInterrupt,)
     found = leaves(exc)
     return any(isinstance(e, KeyboardInterrupt) for e in found) and all(
-        isinstance(e, KeyboardInterrupt) or type(e).__name__ == "Cancelled" for e in found)
+        isinstance(e, stops) for e in found)
 
 
 def stopped_line(command: str) -> str:
