@@ -14,6 +14,7 @@ import sys
 
 from server.protocol import ROLES
 from tui import args as args_
+from tui.stopping import is_interrupt, leaves
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -54,7 +55,6 @@ def run(args: argparse.Namespace) -> int:
 
     from actors import scaled_clock, seed_trio_scheduler
     from supervisors.remote import run_remote_rover
-    from tui.stopping import is_interrupt, leaves
 
     def report(text: str) -> None:
         print(f"{args.role}: {text}", flush=True)
