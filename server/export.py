@@ -1,24 +1,22 @@
-"""Map export: PGM + YAML in the ROS map_server convention, and PNG.
+"""Map export: PGM + YAML in the ROS map_server convention.
 
 map_server images: one pixel per cell, the TOP row of the image is the
 HIGHEST y, free 254, occupied 0, unknown 205; the YAML gives ``resolution``
 [m/pixel], ``origin`` [m, m, rad] of the lower-left pixel, and the
-thresholds. The PNG (8-bit grey, same pixel values and orientation) is
-written with zlib and struct, no imaging library.
+thresholds. A PNG in the console's colours is `tui.pictures.map_image`'s
+(``hideseek export-map --format png``).
 """
 
 from __future__ import annotations
 
 import pathlib
-import struct
-import zlib
 
 import numpy as np
 
 from .protocol import GridMap
 
 __all__ = ["FREE_PIXEL", "OCCUPIED_PIXEL", "UNKNOWN_PIXEL", "map_image", "write_pgm",
-           "write_png", "png_bytes", "pgm_bytes"]
+           "pgm_bytes"]
 
 FREE_PIXEL = 254
 OCCUPIED_PIXEL = 0
@@ -36,29 +34,6 @@ def pgm_bytes(grid: GridMap) -> bytes:
     img = map_image(grid)
     ny, nx = img.shape
     return b"P5\n%d %d\n255\n" % (nx, ny) + img.tobytes()
-
-
-def png_bytes(grid: GridMap, scale: int = 1) -> bytes:
-    """The map as an 8-bit greyscale PNG file, ``scale`` x ``scale`` pixels per cell.
-
-    Raises:
-        ValueError: ``scale`` is not within 1..32.
-    """
-    if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 32:
-        raise ValueError(f"scale must be an integer within 1..32, got {scale!r}")
-    img = map_image(grid)
-    if scale > 1:
-        img = np.repeat(np.repeat(img, scale, axis=0), scale, axis=1)
-    ny, nx = img.shape
-    raw = b"".join(b"\x00" + img[i].tobytes() for i in range(ny))  # filter 0 per row
-
-    def chunk(kind: bytes, body: bytes) -> bytes:
-        return (struct.pack(">I", len(body)) + kind + body
-                + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF))
-
-    header = struct.pack(">IIBBBBB", nx, ny, 8, 0, 0, 0, 0)
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
-            + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
 
 
 def write_pgm(grid: GridMap, out_dir: pathlib.Path | str, name: str) -> tuple[pathlib.Path,
@@ -79,13 +54,3 @@ def write_pgm(grid: GridMap, out_dir: pathlib.Path | str, name: str) -> tuple[pa
         "free_thresh: 0.196\n"
     )
     return pgm, yml
-
-
-def write_png(grid: GridMap, out_dir: pathlib.Path | str, name: str,
-              scale: int = 1) -> pathlib.Path:
-    """Write ``name.png`` into ``out_dir`` (``scale`` pixels per cell edge); return its path."""
-    out = pathlib.Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{name}.png"
-    path.write_bytes(png_bytes(grid, scale))
-    return path

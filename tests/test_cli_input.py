@@ -4,12 +4,9 @@ and SIGINT stop cleanly with status 0 and no traceback (run as subprocesses)."""
 from __future__ import annotations
 
 import ast
-import os
-import signal
 import socket
 import subprocess
 import sys
-import time
 
 import pytest
 
@@ -92,33 +89,6 @@ def test_busy_port_in_play_is_one_line_and_status_2() -> None:
     assert p.returncode == 2
     assert f"cannot listen on tcp:127.0.0.1:{port}" in p.stderr
     assert "Traceback" not in p.stderr and "ExceptionGroup" not in p.stderr
-
-
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
-def test_signal_stops_a_retrying_rover_cleanly(sig) -> None:
-    with socket.socket() as free:  # a port nobody listens on: the rover retries
-        free.bind(("127.0.0.1", 0))
-        port = free.getsockname()[1]
-    proc = subprocess.Popen(CLI + ["rover", "--role", "mapper", "--scenario", "empty",
-                                   "--link", f"tcp:127.0.0.1:{port}"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            stdin=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 30
-        line = ""
-        while "retrying" not in line and time.monotonic() < deadline:
-            line = proc.stdout.readline()
-        assert "retrying" in line
-        os.kill(proc.pid, sig)
-        out, err = proc.communicate(timeout=20)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert proc.returncode == 0, err
-    assert "stopped" in out
-    assert "Traceback" not in err and "Bad file descriptor" not in out + err
-    assert len((out + err).splitlines()) < 10
 
 
 def test_ports_lists_serial_ports_as_json() -> None:

@@ -1,14 +1,16 @@
-"""Map export: map_server PGM + YAML, and PNG written without an imaging library."""
+"""Map export: map_server PGM + YAML, and PNG in the console's colours (Pillow)."""
 
 from __future__ import annotations
 
-import struct
-import zlib
-
 import numpy as np
+from PIL import Image
 
-from server.export import png_bytes, write_pgm, write_png
+from server.export import write_pgm
 from server.protocol import GridMap
+from server.store import Store
+from tui.cli import main
+from tui.pictures.map_image import DEFAULT_SCALE, export_png, hex_rgb
+from tui.widgets.map_pixels import COLOURS, FREE_PX, OCCUPIED_PX, UNKNOWN_PX
 
 GRID = GridMap(np.array([[0, 100, -1], [0, 0, 100]], dtype=np.int8), 5.0, (-100.0, 50.0))
 
@@ -23,21 +25,33 @@ def test_pgm_is_map_server_convention(tmp_path) -> None:
                                "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
 
 
-def test_png_decodes_to_the_same_pixels(tmp_path) -> None:
-    """The PNG's chunks check out and its pixels equal the PGM's."""
-    path = write_png(GRID, tmp_path, "room")
-    data = path.read_bytes()
-    assert data == png_bytes(GRID) and data[:8] == b"\x89PNG\r\n\x1a\n"
-    pos, chunks = 8, {}
-    while pos < len(data):
-        (n,) = struct.unpack(">I", data[pos:pos + 4])
-        kind, body = data[pos + 4:pos + 8], data[pos + 8:pos + 8 + n]
-        (crc,) = struct.unpack(">I", data[pos + 8 + n:pos + 12 + n])
-        assert crc == zlib.crc32(kind + body)
-        chunks[kind] = body
-        pos += 12 + n
-    w, h, depth, colour = struct.unpack(">IIBB", chunks[b"IHDR"][:10])
-    assert (w, h, depth, colour) == (3, 2, 8, 0)
-    raw = zlib.decompress(chunks[b"IDAT"])
-    rows = [list(raw[i * 4 + 1:(i + 1) * 4]) for i in range(2)]
-    assert rows == [[254, 254, 0], [254, 0, 205]]
+def test_png_is_the_map_in_the_consoles_colours_scaled(tmp_path) -> None:
+    """Each cell is scale x scale pixels of its console colour; the top row is the highest y."""
+    path = export_png(GRID, tmp_path, "room", scale=3)
+    with Image.open(path) as img:
+        assert img.format == "PNG" and img.size == (9, 6) and img.mode == "RGB"
+        px = np.asarray(img)
+    free, occ, unknown = (hex_rgb(COLOURS[c]) for c in (FREE_PX, OCCUPIED_PX, UNKNOWN_PX))
+    top = [tuple(px[0, 3 * i]) for i in range(3)]  # cells of row 1 (the highest y)
+    bottom = [tuple(px[5, 3 * i + 2]) for i in range(3)]
+    assert top == [free, free, occ] and bottom == [free, occ, unknown]
+
+
+def test_export_map_png_is_at_least_400_px_wide_for_a_4_by_3_m_room(tmp_path, capsys) -> None:
+    """By default (``--scale`` left out) a 4 x 3 m room's map (86 x 66 cells) is >= 400 px wide."""
+    db = tmp_path / "g.db"
+    with Store(db) as store:
+        gid = store.new_game(t=0)
+        grid = GridMap(np.zeros((66, 86), np.int8), 5.0, (-30.0, -30.0))
+        store.save_map(grid, game_id=gid, t=1)
+    out = tmp_path / "out"
+    assert main(["export-map", "1", "--db", str(db), "--format", "png", "--out", str(out)]) == 0
+    with Image.open(out / "game1.png") as img:
+        assert img.width >= 400 and img.size == (86 * DEFAULT_SCALE, 66 * DEFAULT_SCALE)
+    assert main(["export-map", "1", "--db", str(db), "--format", "png", "--scale", "2",
+                 "--out", str(out)]) == 0
+    with Image.open(out / "game1.png") as img:
+        assert img.size == (172, 132)
+    capsys.readouterr()
+    assert main(["export-map", "1", "--db", str(db), "--format", "png", "--scale", "0"]) == 2
+    assert capsys.readouterr().err == "hideseek export-map: --scale must be within 1..32, got 0\n"

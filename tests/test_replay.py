@@ -213,7 +213,7 @@ def test_the_replay_offers_none_of_the_games_commands() -> None:
     """The replay's keys are its own: no mapping, hide, seek or fault keys from the console."""
     actions = {b.action for bindings in ReplayApp._merge_bindings().key_to_bindings.values()
                for b in bindings}
-    assert {"toggle_pause", "seek", "next_event", "fork", "quit"} <= actions
+    assert {"pause", "resume", "seek", "next_event", "fork", "quit"} <= actions
     assert not actions & {"start_mapping", "confirm", "faults", "new_game", "record"}
 
 

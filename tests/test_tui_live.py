@@ -163,12 +163,12 @@ def test_message_log_decodes_the_latest_lines_when_a_snapshot_asks() -> None:
     lines = live.activity.log_lines()
     assert len(lines) == MAX_LOG_LINES
     assert [ln.seq for ln in lines] == list(range(11, MAX_LOG_LINES + 11))
-    assert lines[-1].text == f"MOTOR_MOVE {float(MAX_LOG_LINES + 9)}"
+    assert lines[-1].text == f"MOTOR_MOVE distance={MAX_LOG_LINES + 9} cm"
     live.activity.on_trace(TraceEvent(2.0, EventKind.DROP, "mapper/map", "mapper/map",
                                        repr(Message.int(Cmd.NOOP, 0))))
     lines = live.activity.log_lines()
-    assert lines[-1].seq == MAX_LOG_LINES + 11 and lines[-1].text == "DROP overflow NOOP 0"
-    assert lines[-2].text == f"MOTOR_MOVE {float(MAX_LOG_LINES + 9)}"
+    assert lines[-1].seq == MAX_LOG_LINES + 11 and lines[-1].text == "DROP overflow NOOP"
+    assert lines[-2].text == f"MOTOR_MOVE distance={MAX_LOG_LINES + 9} cm"
 
 
 def test_message_log_shows_other_objects_as_their_repr_and_only_new_lines_are_decoded() -> None:
@@ -184,7 +184,7 @@ def test_message_log_shows_other_objects_as_their_repr_and_only_new_lines_are_de
     live.activity.on_message(2.0, EventKind.SEND, "seeker/ir", Message.int(Cmd.NOOP, 3), 0)
     second = live.activity.log_lines()
     assert [ln.seq for ln in second] == [1, 2] and second[0] is first[0]
-    assert (second[1].time_s, second[1].text) == (2.0, "NOOP 3")
+    assert (second[1].time_s, second[1].text) == (2.0, "NOOP value=3")
 
 
 def test_a_serial_port_unplugged_and_reopened_shows_on_the_timeline() -> None:

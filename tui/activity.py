@@ -18,31 +18,38 @@ from typing import Any
 
 import trio
 
-from actors import EventKind, Message, TraceEvent
+from actors import EventKind, Message, TraceEvent, ValueType
 from actors.firmware.commands import name_of
+from actors.firmware.payloads import message_text
 
 from .snapshot import MAX_LOG_LINES, MAX_TIMELINE, LogLine, TimelineEvent
 
 __all__ = ["ActivityLog", "describe"]
 
-_MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?,.*?value=([^)]+)\)")
+_MESSAGE_RE = re.compile(r"command=[^,]*?(\d+)>?, type=[^,]*?(\d+)>?, value=([^)]+)\)")
 _LIFECYCLE = {EventKind.CRASH, EventKind.RESTART, EventKind.HUNG, EventKind.ESCALATE,
               EventKind.FAULT, EventKind.KILLED, EventKind.POISON}
 
 
 def _decode(message: str) -> str:
-    """``Message(command=<Cmd.MOTOR_MOVE: 256>, ..., value=12.5)`` -> ``MOTOR_MOVE 12.5``."""
+    """``Message(command=<Cmd.MOTOR_MOVE: 256>, type=2, value=12.5)`` (a dropped message's
+    repr in its trace event) -> ``MOTOR_MOVE distance=12.5 cm``."""
     m = _MESSAGE_RE.search(message)
     if m is None:
         return message[:80]
-    return f"{name_of(int(m.group(1)))} {m.group(2)}"
+    try:
+        value = float(m.group(3)) if int(m.group(2)) == ValueType.FLOAT32 else int(m.group(3))
+        return message_text(Message(int(m.group(1)), int(m.group(2)), value))
+    except (ValueError, TypeError):
+        return f"{name_of(int(m.group(1)))} {m.group(3)}"
 
 
 def describe(message: Any) -> str:
-    """A log line's text for a message object: ``MOTOR_MOVE 12.5`` for the firmware's
-    `Message`, else its repr (at most 80 characters)."""
+    """A log line's text for a message object: ``MOTOR_MOVE distance=12.5 cm`` for the
+    firmware's `Message` (`actors.firmware.payloads`), else its repr (at most 80
+    characters)."""
     if type(message) is Message:
-        return f"{name_of(message.command)} {message.value!r}"
+        return message_text(message)
     return repr(message)[:80]
 
 
@@ -83,7 +90,6 @@ class ActivityLog:
         # only when a snapshot shows them
         self._raw_log: deque[tuple[float, str, Any, bool]] = deque(maxlen=MAX_LOG_LINES)
         self._decoded_seq = 0
-        self._names: dict[int, str] = {}  # command code -> name, for the log
         self._timeline: deque[TimelineEvent] = deque(maxlen=MAX_TIMELINE)
         self._log_seq = 0
         self._event_seq = 0
@@ -123,7 +129,6 @@ class ActivityLog:
         raw = self._raw_log
         first = self._log_seq - len(raw) + 1  # seq of the oldest raw entry
         start = max(self._decoded_seq + 1, first)
-        names = self._names
         append = self._log.append
         # indexing a deque walks it: take the new entries from its end in one go
         for i, (time, queue, message, dropped) in enumerate(
@@ -131,11 +136,7 @@ class ActivityLog:
             if dropped:  # a drop is a trace event: its message is a repr already
                 text = "DROP overflow " + _decode(message)
             elif type(message) is Message:
-                command = message.command
-                name = names.get(command)
-                if name is None:
-                    name = names[command] = name_of(command)
-                text = f"{name} {message.value!r}"
+                text = message_text(message)
             else:
                 text = repr(message)[:80]
             append(LogLine(i, time, queue, queue, text))

@@ -99,6 +99,8 @@ class ConsoleApp(App[int]):
     actions: tuple[UiAction, ...] = ACTIONS
     """The actions the help screen and the command palette list (a subclass with other
     bindings names its own)."""
+    speeds: tuple[float | None, ...] = SPEEDS
+    """The speed steps of ``]`` and ``[`` (None: as fast as possible)."""
 
     class SnapshotArrived(Message):
         """The system published a snapshot (posted from Trio)."""
@@ -135,13 +137,15 @@ class ConsoleApp(App[int]):
         """Command results received, newest last (bounded)."""
         self.system_error: BaseException | None = None
         """Why the system's run failed, if it did."""
+        self.stopped_by_signal = False
+        """SIGINT or SIGTERM quit the console (the command prints `tui.stopping`'s line)."""
         self.snapshots_shown = 0
         self._guest = TrioGuest(on_done=lambda r: self.post_message(self.SystemEnded(r)))
         self._requests: trio.MemorySendChannel[None] | None = None
         self._awaiting = 0  # ticks since the outstanding request, 0 = none outstanding
         self._pacer = FramePacer(refresh_hz)
         self._panel_phase = ""  # phase the game panel shows
-        self._asked_speed: tuple[int, int] | None = None  # (SPEEDS index, snapshots_shown)
+        self._asked_speed: tuple[int, int] | None = None  # (speeds index, snapshots_shown)
         # Held, not queried: App.query_one searches the *current* screen, which is a
         # dialog while one is open, and snapshots keep arriving then.
         self.map_view = MapView(id="map")
@@ -175,7 +179,11 @@ class ConsoleApp(App[int]):
         self.map_view.focus()
         self._guest.start(self._trio_main, clock=self.system.clock)
         self.set_interval(1.0 / self.refresh_hz, self._tick)
-        self._signals = quit_on_signals(lambda: self.call_next(self.action_quit))
+        self._signals = quit_on_signals(self._quit_on_signal)
+
+    def _quit_on_signal(self) -> None:
+        self.stopped_by_signal = True
+        self.call_next(self.action_quit)
 
     def _remove_signal_handlers(self) -> None:
         loop = asyncio.get_running_loop()
@@ -408,8 +416,9 @@ class ConsoleApp(App[int]):
             return asked[0]  # a key pressed again before a snapshot showed the last one
         speed = self.snapshot.speed if self.snapshot else 1.0
         if speed is None:
-            return len(SPEEDS) - 1
-        return min(range(len(SPEEDS) - 1), key=lambda i: abs(SPEEDS[i] - speed))  # type: ignore[operator]
+            return len(self.speeds) - 1
+        steps = range(len(self.speeds) - (self.speeds[-1] is None))
+        return min(steps, key=lambda i: abs(self.speeds[i] - speed))  # type: ignore[operator]
 
     def action_faster(self) -> None:
         self._step_speed(+1)
@@ -420,7 +429,7 @@ class ConsoleApp(App[int]):
     def _step_speed(self, step: int) -> None:
         """One speed step; at either end a note instead of a speed "change" to the same."""
         now = self._speed_index()
-        index = min(len(SPEEDS) - 1, max(0, now + step))
+        index = min(len(self.speeds) - 1, max(0, now + step))
         if index == now:
             self.notify("already as fast as possible" if step > 0 else "already at x1",
                         timeout=2)
@@ -429,7 +438,7 @@ class ConsoleApp(App[int]):
 
     def _set_speed(self, index: int) -> None:
         self._asked_speed = (index, self.snapshots_shown)
-        self._call("set_speed", SPEEDS[index])  # the result (or refusal) is the notification
+        self._call("set_speed", self.speeds[index])  # the result (or refusal) is the notification
 
     def action_toggle_truth(self) -> None:
         view = self.map_view

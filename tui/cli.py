@@ -14,10 +14,11 @@ from __future__ import annotations
 import argparse
 import gc
 import importlib
-import signal
 import sys
 from collections.abc import Sequence
 from typing import Any
+
+from tui import stopping
 
 #: subcommand -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -31,6 +32,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "campaign": ("tui.cmd_campaign", "many seeded games under random faults, invariants checked"),
     "replay": ("tui.cmd_replay", "open a recording (.mcap) in the console: pause, step, seek"),
     "shrink": ("tui.cmd_shrink", "a failing game's faults shrunk to what the failure needs"),
+    "report": ("tui.cmd_report", "a campaign's results as one HTML page with charts"),
     "ports": ("tui.cmd_ports", "list the serial ports a rover may be attached to"),
     "check-rover": ("tui.cmd_check_rover", "check a rover's firmware against the protocol, "
                     "rule by rule"),
@@ -80,17 +82,6 @@ def _command_in(argv: Sequence[str]) -> str | None:
     return None
 
 
-def _stop_on_sigterm() -> None:
-    """SIGTERM stops a command as Ctrl-C does: SIGINT is raised in its place, so Trio's
-    own handler (or the console's) turns it into a clean stop, never a traceback. A shell
-    starts background jobs with SIGINT ignored; Python's handler is put back, so both
-    signals stop the command there too."""
-    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-        signal.signal(signal.SIGTERM, lambda _sig, _frame: signal.raise_signal(signal.SIGINT))
-
-
 def build_parser(command: str | None = None, *, every: bool = True) -> argparse.ArgumentParser:
     """The parser: every subcommand's options (``every``), or only ``command``'s (the
     others are listed, with their help line, but their modules are not imported)."""
@@ -135,10 +126,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     module = importlib.import_module(args._module)
-    _stop_on_sigterm()
+    stopping.install()
     try:
         return int(module.run(args) or 0)
-    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: a clean stop
+    except BaseException as exc:  # noqa: BLE001 - a stop by signal is sorted out here, once
+        if not stopping.is_interrupt(exc):
+            raise
+        print(stopping.stopped_line(args.command), file=sys.stderr)
         return 0
 
 

@@ -36,11 +36,11 @@ from supervisors.harness.campaign import (
     summarize,
 )
 from supervisors.harness.campaign.engines import ENGINES, open_engine
-from supervisors.harness.shrink import DEFAULT_MAX_RUNS, shrink_failures
+from supervisors.harness.shrink import DEFAULT_MAX_RUNS, shrink_failures, shrinkable
 from tui import args as args_
+from tui.progress import progress_bar
 from world.scenario import builtin_scenarios
 
-_BAR = 30  # progress bar width [characters]
 _CAUSES = {"faults": "the faults (found, every invariant kept, without them)",
            "game": "the game itself (fails without faults too)"}
 
@@ -147,35 +147,6 @@ def config_from_args(args: argparse.Namespace) -> CampaignConfig:
     return CampaignConfig(**kw)
 
 
-class Progress:
-    """A one-line progress bar on a stream (a line per tenth when it is not a terminal)."""
-
-    def __init__(self, total: int, stream: TextIO, *, enabled: bool = True) -> None:
-        self.total, self.stream, self.enabled = total, stream, enabled
-        self.done = self.failed = 0
-        self._tty = stream.isatty()
-        self._last_tenth = -1
-        self._t0 = time.perf_counter()  # wall time: display only
-
-    def update(self, failed: bool) -> None:
-        self.done += 1
-        self.failed += failed
-        if not self.enabled:
-            return
-        filled = _BAR * self.done // self.total
-        rate = 60.0 * self.done / max(time.perf_counter() - self._t0, 1e-9)
-        line = (f"[{'#' * filled}{'.' * (_BAR - filled)}] {self.done}/{self.total} games, "
-                f"{self.failed} failed, {rate:.1f} games/min")
-        if self._tty:
-            self.stream.write("\r" + line)
-            if self.done == self.total:
-                self.stream.write("\n")
-        elif (tenth := 10 * self.done // self.total) != self._last_tenth:
-            self._last_tenth = tenth
-            self.stream.write(line + "\n")
-        self.stream.flush()
-
-
 def _print_table(s: dict[str, Any]) -> None:
     print(f"\ncampaign seed {s['campaign']['seed']} ({s['campaign']['mode']} faults): "
           f"{s['games']} games in {s['wall_s']:.1f} s wall with {s['workers']} workers "
@@ -241,7 +212,7 @@ def _record_dir(path: str) -> Path:
 
 
 def _record_failures(folder: str, failures: list[dict[str, Any]], results: list[dict[str, Any]],
-                     *, out: TextIO) -> None:
+                     *, out: TextIO, show: bool = True) -> None:
     """Play each failed game again by its campaign reference, recorded (the path of
     ``hideseek run --campaign REF --record FILE``); say whether it is the same game."""
     from supervisors.harness.campaign import game_from_ref  # noqa: PLC0415
@@ -250,19 +221,23 @@ def _record_failures(folder: str, failures: list[dict[str, Any]], results: list[
 
     by_index = {r["index"]: r for r in results}
     print(f"\nrecording {len(failures)} failed game(s) into {folder} ...", file=out, flush=True)
-    for f in failures:
-        r = by_index[f["index"]]
-        path = Path(folder) / f"game-{f['index']}.mcap"
-        try:
-            scenario, seed, budget = game_from_ref(r["ref"])
-            report = record_game(scenario, seed, path, budget_s=budget, campaign=r["ref"])
-        except (CampaignError, RecordingError) as exc:
-            print(f"  game {f['index']}: not recorded: {exc}", file=out)
-            continue
-        same = "the campaign's game" if report.trace_hash == r.get("trace_hash") else (
-            f"NOT the campaign's game (trace hash {report.trace_hash}, campaign "
-            f"{r.get('trace_hash')})")
-        print(f"  game {f['index']}: {path} ({report.outcome}; {same})", file=out)
+    with progress_bar("recording", len(failures), enabled=show) as bar:
+        for f in failures:
+            r = by_index[f["index"]]
+            path = Path(folder) / f"game-{f['index']}.mcap"
+            bar.note(f"game {f['index']}")
+            try:
+                scenario, seed, budget = game_from_ref(r["ref"])
+                report = record_game(scenario, seed, path, budget_s=budget, campaign=r["ref"])
+            except (CampaignError, RecordingError) as exc:
+                print(f"  game {f['index']}: not recorded: {exc}", file=out)
+                continue
+            finally:
+                bar.advance()
+            same = "the campaign's game" if report.trace_hash == r.get("trace_hash") else (
+                f"NOT the campaign's game (trace hash {report.trace_hash}, campaign "
+                f"{r.get('trace_hash')})")
+            print(f"  game {f['index']}: {path} ({report.outcome}; {same})", file=out)
 
 
 def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
@@ -276,7 +251,7 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
         print(f"hideseek campaign: {exc}", file=sys.stderr)
         return 2
     replay_every = games if args.quick else args.replay_every
-    progress = Progress(games, sys.stderr, enabled=not args.no_progress)
+    show = not args.no_progress
     if not args.json:
         print(f"campaign seed {config.seed}: {games} games, {config.mode} faults, "
               f"{engine.workers if engine else workers} workers ...", flush=True)
@@ -290,14 +265,18 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
                                determinism_every=replay_every, wall_timeout_s=args.timeout,
                                engine=engine)
         try:
-            for r in playing:
-                results.append(r)
-                store.add_game(cid, r)
-                progress.update(r["outcome"] != "found" or bool(r["violations"]))
-                if (args.max_wall is not None and len(results) < games
-                        and time.perf_counter() - wall0 >= 60.0 * args.max_wall):
-                    stopped = f"out of wall time ({args.max_wall:g} min)"
-                    break
+            with progress_bar("games", games, enabled=show) as bar:
+                failed = 0
+                for r in playing:
+                    results.append(r)
+                    store.add_game(cid, r)
+                    failed += r["outcome"] != "found" or bool(r["violations"])
+                    rate = 60.0 * len(results) / max(time.perf_counter() - wall0, 1e-9)
+                    bar.advance(note=f"{failed} failed, {rate:.1f} games/min")
+                    if (args.max_wall is not None and len(results) < games
+                            and time.perf_counter() - wall0 >= 60.0 * args.max_wall):
+                        stopped = f"out of wall time ({args.max_wall:g} min)"
+                        break
         except KeyboardInterrupt:
             stopped = "interrupted"
         finally:
@@ -326,7 +305,7 @@ def run(args: argparse.Namespace, *, worker=play_campaign_game) -> int:
             print(f"  results stored in {args.out} (campaign {cid}; --out FILE to choose)")
     if args.record_failures and summary["failures"]:
         _record_failures(args.record_failures, summary["failures"], results,
-                         out=sys.stderr if args.json else sys.stdout)
+                         out=sys.stderr if args.json else sys.stdout, show=show)
     if stopped == "interrupted":
         return 0  # Ctrl-C or SIGTERM: a clean stop, the games played so far are stored
     if len(results) < games:
@@ -381,17 +360,23 @@ def _shrink(args: argparse.Namespace, results: list[dict[str, Any]], engine: Any
         "local", workers=min(workers or default_workers(), max(len(results), 1)))
     folder = Path(args.shrink_dir)
     out = []
-    for r in shrink_failures(results, engine=engine or local, max_runs=args.shrink_runs,
-                             wall_timeout_s=args.timeout):
-        if "toml" in r:
-            path = folder / f"campaign-{args.seed}-{r['index']}.toml"
-            try:
-                folder.mkdir(parents=True, exist_ok=True)
-                path.write_text(r.pop("toml"), encoding="utf-8")
-                r["file"] = str(path)
-            except OSError as exc:
-                r["error"] = f"cannot write {path}: {exc}"
-        out.append(r)
+    todo = len(shrinkable(results))
+    if todo and not args.json:
+        print(f"\nshrinking {todo} failed game(s), at most {args.shrink_runs} runs each ...",
+              flush=True)
+    with progress_bar("shrinking", todo, enabled=not args.no_progress) as bar:
+        for r in shrink_failures(results, engine=engine or local, max_runs=args.shrink_runs,
+                                 wall_timeout_s=args.timeout):
+            if "toml" in r:
+                path = folder / f"campaign-{args.seed}-{r['index']}.toml"
+                try:
+                    folder.mkdir(parents=True, exist_ok=True)
+                    path.write_text(r.pop("toml"), encoding="utf-8")
+                    r["file"] = str(path)
+                except OSError as exc:
+                    r["error"] = f"cannot write {path}: {exc}"
+            out.append(r)
+            bar.advance(note=f"game {r.get('index')}")
     return sorted(out, key=lambda r: r.get("index") or 0)
 
 

@@ -25,6 +25,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                  "played on (see 'maps')")
         parser.add_argument("--format", choices=("pgm", "png"), default="pgm",
                             help="pgm (+ map_server YAML) or png (default %(default)s)")
+        parser.add_argument("--scale", type=int, default=None, metavar="N",
+                            help="png: pixels per cell edge, 1..32 (default 5: 1 px per cm "
+                                 "at 5 cm cells, a 4 x 3 m room 430 px wide)")
         parser.add_argument("--out", default=".", metavar="DIR",
                             help="output directory (default: current)")
         parser.set_defaults(_maps_action="export")
@@ -74,10 +77,16 @@ def _list(store) -> int:
 
 
 def _export(store, args) -> int:
-    from server.export import write_pgm, write_png
+    from server.export import write_pgm
     from server.store import StoreError
+    from tui.pictures.map_image import DEFAULT_SCALE, MAX_SCALE, export_png
 
+    scale = DEFAULT_SCALE if args.scale is None else args.scale
     try:
+        if args.scale is not None and args.format != "png":
+            raise ValueError("--scale goes with --format png")
+        if not 1 <= scale <= MAX_SCALE:
+            raise ValueError(f"--scale must be within 1..{MAX_SCALE}, got {scale}")
         if args.map_id is None:
             map_id = store.game_map_id(args.game)
         else:
@@ -87,7 +96,7 @@ def _export(store, args) -> int:
                 raise StoreError(f"map {map_id} is not one of game {args.game}'s "
                                  "(see 'hideseek maps')")
         grid = store.load_map(map_id)
-    except StoreError as exc:
+    except (StoreError, ValueError) as exc:
         print(f"hideseek export-map: {exc}", file=sys.stderr)
         return 2
     name = f"game{args.game}" if args.map_id is None else f"game{args.game}-map{map_id}"
@@ -95,7 +104,7 @@ def _export(store, args) -> int:
         if args.format == "pgm":
             paths = write_pgm(grid, args.out, name)
         else:
-            paths = (write_png(grid, args.out, name),)
+            paths = (export_png(grid, args.out, name, scale=scale),)
     except OSError as exc:
         print(f"hideseek export-map: cannot write to {args.out}: {exc.strerror}", file=sys.stderr)
         return 1

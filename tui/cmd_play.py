@@ -15,6 +15,7 @@ import time
 
 from server.links.spec import LISTEN, PLAY_ROVER
 from tui import args as args_
+from tui import stopping
 
 SPEED_CHOICES = {"1": 1.0, "4": 4.0, "16": 16.0, "max": None}
 
@@ -145,11 +146,13 @@ def run(args: argparse.Namespace) -> int:
     app = ConsoleApp(system, export_dir=args.export_dir)
     wall0 = time.perf_counter()  # wall time for the auto game's report only
     app.run()
+    if app.stopped_by_signal:
+        print(stopping.stopped_line("play"), file=sys.stderr)
+        return 0
     if app.system_error is not None:
-        from tui.cmd_rover import leaves
         from tui.live import ListenError
 
-        busy = [e for e in leaves(app.system_error) if isinstance(e, ListenError)]
+        busy = [e for e in stopping.leaves(app.system_error) if isinstance(e, ListenError)]
         if busy:
             print(f"hideseek play: {busy[0]}", file=sys.stderr)
             return 2

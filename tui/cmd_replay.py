@@ -15,6 +15,8 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
+from tui import stopping
+
 if TYPE_CHECKING:
     from supervisors.recording.reading import Recording
 
@@ -34,13 +36,19 @@ def run(args: argparse.Namespace) -> int:
     from tui.replay.system import ReplaySystem
 
     try:
-        system = ReplaySystem(read_recording(args.file), speed=float(args.speed),
-                              paused=args.paused, at=args.at)
-    except RecordingReadError as exc:
+        rec = read_recording(args.file)
+        if args.at is not None and not rec.start_s <= args.at <= rec.end_s:
+            raise ValueError(f"--at must be within the recording, {rec.start_s:.1f} to "
+                             f"{rec.end_s:.1f} s, got {args.at:g}")
+        system = ReplaySystem(rec, speed=float(args.speed), paused=args.paused, at=args.at)
+    except (RecordingReadError, ValueError) as exc:
         print(f"hideseek replay: {exc}", file=sys.stderr)
         return 2
     app = ReplayApp(system)
     app.run()
+    if app.stopped_by_signal:
+        print(stopping.stopped_line("replay"), file=sys.stderr)
+        return 0
     if app.fork_at is None:
         return 0
     return _fork(system.rec, app.fork_at)
@@ -59,6 +67,9 @@ def _fork(rec: Recording, at_s: float) -> int:
         return 2
     app = ForkConsoleApp(system)
     app.run()
+    if app.stopped_by_signal:
+        print(stopping.stopped_line("replay"), file=sys.stderr)
+        return 0
     error = app.system_error
     if error is None:
         return 0

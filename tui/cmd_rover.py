@@ -15,6 +15,7 @@ import sys
 from server.links.spec import ROVER_LINK
 from server.protocol import ROLES
 from tui import args as args_
+from tui.stopping import is_interrupt, leaves
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -69,20 +70,10 @@ def run(args: argparse.Namespace) -> int:
                                           report=report, accept_faults=args.accept_faults,
                                           telemetry=not args.no_telemetry), clock=clock)
     except BaseException as exc:  # noqa: BLE001 - sorted out below: never a traceback
-        errors = leaves(exc)
-        if all(isinstance(e, KeyboardInterrupt) for e in errors):
-            print(f"{args.role}: stopped", flush=True)
-            return 0
-        bad = [e for e in errors if isinstance(e, OSError | ValueError)]
-        if not bad:
-            raise
+        bad = [e for e in leaves(exc) if isinstance(e, OSError | ValueError)]
+        if not bad or is_interrupt(exc):
+            raise  # a stop by signal: tui.cli prints its one line
         print(f"hideseek rover: {getattr(bad[0], 'strerror', None) or bad[0]}", file=sys.stderr)
         return 1
     return 0
 
-
-def leaves(exc: BaseException) -> list[BaseException]:
-    """The exceptions inside (nested) exception groups."""
-    if isinstance(exc, BaseExceptionGroup):
-        return [leaf for e in exc.exceptions for leaf in leaves(e)]
-    return [exc]

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import pathlib
 import sys
+import tempfile
 import time
 from typing import TYPE_CHECKING
 
@@ -52,6 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record", metavar="FILE.mcap",
                         help="record the game as MCAP (open it in Foxglove or with "
                              "`hideseek replay`)")
+    parser.add_argument("--picture", metavar="FILE.png",
+                        help="draw the game: the final map, each rover's true and believed "
+                             "trajectory, the hide spot, the guesses and the fault onsets")
     fork = parser.add_argument_group("fork a recording")
     fork.add_argument("--replay", metavar="FILE.mcap",
                       help="the recorded game to play again (scenario, seed and budget "
@@ -159,14 +164,25 @@ def _fork(args: argparse.Namespace) -> int:
     return 0 if report.outcome == "found" else 1
 
 
-def _recorder(args: argparse.Namespace, scenario: Scenario) -> Recorder | None:
-    """The ``--record`` observer, or None (raises RecordingError when the file cannot be made)."""
-    if not args.record:
+def _recorder(args: argparse.Namespace, scenario: Scenario, path: str | None
+              ) -> Recorder | None:
+    """The observer recording to ``path``, or None (raises RecordingError when the file
+    cannot be made)."""
+    if not path:
         return None
     from supervisors.recording import Recorder  # noqa: PLC0415 - only when asked
 
-    return Recorder.for_scenario(args.record, scenario, args.seed, budget_s=args.budget,
+    return Recorder.for_scenario(path, scenario, args.seed, budget_s=args.budget,
                                  campaign=args.campaign)
+
+
+def _picture(recording: str, path: str) -> None:
+    """Draw the recorded game into ``path`` (raises OSError when it cannot be written)."""
+    from supervisors.recording.reading import read_recording  # noqa: PLC0415
+    from tui.pictures.game_image import game_picture  # noqa: PLC0415 - Pillow when asked
+    from tui.pictures.map_image import write_png  # noqa: PLC0415
+
+    write_png(game_picture(read_recording(recording)), path)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -199,23 +215,42 @@ def run(args: argparse.Namespace) -> int:
             return 2
         trace.subscribe(JsonLinesRecorder(trace_file))
     budget = Budget(mapping=args.budget)
+    scratch = None
+    if args.picture and not args.record:  # the picture is drawn from a recording
+        scratch = tempfile.TemporaryDirectory(prefix="hideseek-run-")
+    recording = args.record or (scratch and str(pathlib.Path(scratch.name) / "game.mcap"))
     try:
-        recorder = _recorder(args, scenario)
-    except RuntimeError as exc:  # RecordingError: the file cannot be made
+        if args.picture and not pathlib.Path(args.picture).resolve().parent.is_dir():
+            raise ValueError(f"--picture must be a file in an existing folder, "
+                             f"got {args.picture!r}")
+        recorder = _recorder(args, scenario, recording)
+    except (RuntimeError, ValueError) as exc:  # RecordingError: the file cannot be made
         print(f"hideseek run: {exc}", file=sys.stderr)
         return 2
     if not args.json:
         print(f"running {scenario.name} (seed {args.seed}) in virtual time ...", flush=True)
     seed_trio_scheduler(args.seed)
     wall0 = time.perf_counter()  # wall time is measured for the report only
-    report = trio.run(lambda: run_game(scenario, args.seed, db=args.db, budget=budget,
-                                       trace=trace,
-                                       observers=[recorder] if recorder else []),
-                      clock=virtual_clock())
+    try:
+        report = trio.run(lambda: run_game(scenario, args.seed, db=args.db, budget=budget,
+                                           trace=trace,
+                                           observers=[recorder] if recorder else []),
+                          clock=virtual_clock())
+    finally:  # also when a signal stops the game: the trace is kept to that point
+        if trace_file is not None:
+            trace_file.close()
     report.wall_seconds = time.perf_counter() - wall0
     report.real_time_factor = report.sim_seconds / max(report.wall_seconds, 1e-9)
-    if trace_file is not None:
-        trace_file.close()
+    if args.picture:
+        try:
+            _picture(recording, args.picture)
+        except OSError as exc:
+            print(f"hideseek run: cannot write {args.picture}: {exc.strerror or exc}",
+                  file=sys.stderr)
+            return 2
+        finally:
+            if scratch is not None:
+                scratch.cleanup()
     return print_report(report, as_json=args.json)
 
 

@@ -49,8 +49,8 @@ if TYPE_CHECKING:
     from server.links.spec import LinkSpec
 
 __all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_listens",
-           "parse_command_line", "CONSOLE_COMMANDS", "DEFAULT_LISTEN", "DEFAULT_UDP_LISTEN",
-           "HELP", "format_status", "parse_fault_words", "run_fault"]
+           "check_listen", "parse_command_line", "CONSOLE_COMMANDS", "DEFAULT_LISTEN",
+           "DEFAULT_UDP_LISTEN", "HELP", "format_status", "parse_fault_words", "run_fault"]
 
 DEFAULT_LISTEN = "tcp:127.0.0.1:7878"
 """Where ``serve`` listens without ``--listen``."""
@@ -261,6 +261,7 @@ def run(args: argparse.Namespace) -> int:
     from server.links.spec import parse_link_for
     from server.store import Store, StoreError
     from server.trust import beyond_loopback_refusal
+    from tui.stopping import is_interrupt, leaves
 
     try:
         tokens: dict[str, str] = {}
@@ -313,6 +314,8 @@ def run(args: argparse.Namespace) -> int:
             except ScenarioError as exc:
                 raise ValueError(str(exc)) from None
             config = _with_origins(config, {**scenario_origins(scenario), **origins})
+        for proto, listen in listens:  # before the store: a refusal leaves the database as it was
+            check_listen(proto, listen.host, listen.port)
         store = Store(args.db)
     except (ValueError, StoreError, OSError) as exc:
         print(f"hideseek serve: {exc}", file=sys.stderr)
@@ -325,14 +328,10 @@ def run(args: argparse.Namespace) -> int:
     clock = None if args.speed == 1.0 else scaled_clock(args.speed)
     try:
         trio.run(_serve, store, config, listens, rovers, sim, not args.no_console, clock=clock)
-    except KeyboardInterrupt:
-        return 0
     except (OSError, ValueError, BaseExceptionGroup) as exc:
-        leaf = _first_leaf(exc)
-        if isinstance(leaf, KeyboardInterrupt):
-            return 0
-        if not isinstance(leaf, OSError | ValueError):
-            raise
+        leaf = leaves(exc)[0]
+        if is_interrupt(exc) or not isinstance(leaf, OSError | ValueError):
+            raise  # a stop by signal: tui.cli prints its one line
         print(f"hideseek serve: {getattr(leaf, 'strerror', None) or leaf}", file=sys.stderr)
         return 1
     finally:
@@ -340,16 +339,35 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def check_listen(proto: str, host: str, port: int) -> None:
+    """Bind (and for TCP listen on) every address ``host:port`` resolves to, as the server
+    will, and let go at once.
+
+    Raises:
+        ValueError: an address that is busy, not this machine's, or does not resolve:
+            one line naming ``HOST:PORT`` and why.
+    """
+    import socket
+
+    where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+    kind = socket.SOCK_STREAM if proto == "tcp" else socket.SOCK_DGRAM
+    try:
+        infos = socket.getaddrinfo(host or None, port, type=kind, flags=socket.AI_PASSIVE)
+        for family, type_, proto_num, _, address in infos:
+            with socket.socket(family, type_, proto_num) as sock:
+                if kind == socket.SOCK_STREAM:  # as Trio's listeners: a port in TIME_WAIT is free
+                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                sock.bind(address)
+                if kind == socket.SOCK_STREAM:
+                    sock.listen(1)
+    except OSError as exc:
+        raise ValueError(f"cannot listen on {proto} {where}: {exc.strerror or exc}") from None
+
+
 def _with_origins(config, origins):
     import dataclasses
 
     return dataclasses.replace(config, origins=origins)
-
-
-def _first_leaf(exc: BaseException) -> BaseException:
-    while isinstance(exc, BaseExceptionGroup):
-        exc = exc.exceptions[0]
-    return exc
 
 
 def _banner(server, store) -> list[str]:

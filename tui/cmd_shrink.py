@@ -29,6 +29,7 @@ from supervisors.harness.shrink import (
     shrink_campaign_game,
     shrink_game,
 )
+from tui.progress import progress_bar
 from world.scenario import ScenarioError, load_scenario
 
 
@@ -78,8 +79,9 @@ def print_report(r: dict[str, Any], out: str) -> None:
     print(f"  original schedule ({len(r['original'])} faults):")
     for line in r["original"] or ["(none)"]:
         print(f"    {line}")
-    print(f"  shrunk schedule ({len(r['shrunk'])} faults), {r['runs']} runs of at most "
-          f"{r['max_runs']}{' (ran out: not minimal)' if r['exhausted'] else ''}:")
+    print(f"  shrunk schedule ({len(r['shrunk'])} faults), {r['runs']} runs (at most "
+          f"{r['max_runs']} to search, one to check the file)"
+          f"{' (ran out: not minimal)' if r['exhausted'] else ''}:")
     for line in r["shrunk"] or ["(none: the game fails without its faults)"]:
         print(f"    {line}")
     for step in r["steps"]:
@@ -91,15 +93,25 @@ def print_report(r: dict[str, Any], out: str) -> None:
 def run(args: argparse.Namespace) -> int:
     try:
         _check(args)
-        if args.campaign:
-            report = shrink_campaign_game(args.campaign, max_runs=args.max_runs,
-                                          resolution_s=args.resolution,
-                                          wall_timeout_s=args.timeout)
-        else:
-            base = load_scenario(args.scenario)
-            report = shrink_game(base, args.seed, budget_s=args.budget,
-                                 origin=f"scenario {args.scenario}", max_runs=args.max_runs,
-                                 resolution_s=args.resolution, wall_timeout_s=args.timeout)
+        if not args.json:
+            game = f"campaign game {args.campaign}" if args.campaign else args.scenario
+            print(f"shrinking {game}: at most {args.max_runs} runs in virtual time ...",
+                  flush=True)
+        with progress_bar("runs", args.max_runs + 1) as bar:  # the search's, and the check
+            def ran(_runs: int) -> None:
+                bar.advance()
+
+            if args.campaign:
+                report = shrink_campaign_game(args.campaign, max_runs=args.max_runs,
+                                              resolution_s=args.resolution,
+                                              wall_timeout_s=args.timeout, on_run=ran)
+            else:
+                base = load_scenario(args.scenario)
+                report = shrink_game(base, args.seed, budget_s=args.budget,
+                                     origin=f"scenario {args.scenario}", max_runs=args.max_runs,
+                                     resolution_s=args.resolution, wall_timeout_s=args.timeout,
+                                     on_run=ran)
+            bar.finish()
     except (CampaignError, ScenarioError, ShrinkError, ValueError) as exc:
         print(f"hideseek shrink: {exc}", file=sys.stderr)
         return 2

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import trio
 
-from server.export import write_pgm, write_png
+from server.export import write_pgm
 from server.links import LinkSpec
 from server.links.spec import PLAY_ROVER
 from server.protocol import ROLES, GridMap
@@ -57,7 +57,6 @@ from .snapshot import GridView, Publish, Snapshot
 __all__ = ["LiveSystem", "ListenError"]
 
 COMMAND_CAPACITY = 32  # operator commands waiting for Trio [commands]
-PNG_SCALE = 4  # exported PNG: pixels per map cell edge (5 cm cells: 80 px per metre)
 #: Commands an auto game refuses (the scenario chooses), and those an attached rover does.
 AUTO_REFUSED = ("start_mapping", "stop_mapping", "hide_at", "seek_at", "new_game",
                 "inject_fault", "clear_fault", "export_map")
@@ -305,6 +304,8 @@ class LiveSystem(QueuedController):
         return f"{n} cleared"
 
     async def _do_export_map(self, directory: str) -> str:
+        from tui.pictures.map_image import export_png  # noqa: PLC0415 - Pillow when asked
+
         assert self._system is not None
         grid = self._system.server.game.map
         if grid is None:
@@ -318,7 +319,7 @@ class LiveSystem(QueuedController):
             raise ValueError(f"export directory {directory!r} does not exist")
         name = f"map-{self.scenario.name}-seed{self.seed}-{trio.current_time():.0f}s"
         pgm, yaml = write_pgm(grid, out, name)
-        png = write_png(grid, out, name, scale=PNG_SCALE)
+        png = export_png(grid, out, name)
         self._event("export", f"map saved: {pgm.name}, {yaml.name}, {png.name}")
         return f"{pgm}, {yaml}, {png}"
 

@@ -13,17 +13,21 @@ from textual.binding import Binding
 from tui.app import ConsoleApp
 from tui.keymap import KEY_NAMES, UiAction
 from tui.replay.seek_dialog import SeekDialog, parse_seek
-from tui.replay.system import ReplaySystem
+from tui.replay.system import MAX_SPEED, ReplaySystem
 from tui.snapshot import Snapshot
 
-__all__ = ["ReplayApp", "REPLAY_ACTIONS", "STEP_S"]
+__all__ = ["ReplayApp", "REPLAY_ACTIONS", "REPLAY_SPEEDS", "STEP_S"]
 
 STEP_S = 1.0
 """One step of ``.`` / ``,`` [s simulated]."""
+REPLAY_SPEEDS: tuple[float, ...] = (1.0, 4.0, 16.0, MAX_SPEED)
+"""Speed steps of ``]`` / ``[`` (``hideseek replay --speed`` takes the same)."""
 
 REPLAY_ACTIONS: tuple[UiAction, ...] = (
-    UiAction("space", "toggle_pause", "Pause", "Pause / resume the replay"),
-    UiAction("right_square_bracket", "faster", "Faster", "Speed up: x1, x4, x16, x64"),
+    UiAction("space", "pause", "Pause", "Pause the replay"),
+    UiAction("space", "resume", "Resume", "Resume the replay"),
+    UiAction("right_square_bracket", "faster", "Faster",
+             "Speed up: " + ", ".join(f"x{s:g}" for s in REPLAY_SPEEDS)),
     UiAction("left_square_bracket", "slower", "Slower", "Slow down", footer=False),
     UiAction("full_stop", f"step({STEP_S})", "Step", f"Pause and step {STEP_S:g} s forward"),
     UiAction("comma", f"step({-STEP_S})", "Back", f"Pause and step {STEP_S:g} s back",
@@ -60,6 +64,7 @@ class ReplayApp(ConsoleApp, inherit_bindings=False):
     BINDINGS += [b for b in ConsoleApp.BINDINGS  # ctrl+c, escape: as in the console
                  if isinstance(b, Binding) and b.key in ("ctrl+c", "escape")]
     actions = REPLAY_ACTIONS
+    speeds = REPLAY_SPEEDS
 
     def __init__(self, system: ReplaySystem, **kwargs: object) -> None:
         super().__init__(system, **kwargs)  # type: ignore[arg-type]

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from actors.firmware.payloads import named_text
 from supervisors.recording.reading import Recording
 from tui.snapshot import (
     MAX_LOG_LINES,
@@ -107,7 +108,8 @@ class ReplayIndex:
         self._rows: list[_Row] = []
         for _, batch in rec.topic("/actors/messages"):
             for m in batch["messages"]:
-                self._rows.append(_Row(m["t"], m["queue"], f"{m['command']} {m['value']!r}",
+                self._rows.append(_Row(m["t"], m["queue"],
+                                       named_text(m["command"], m["type"], m["value"]),
                                        int(m["depth"])))
         self._row_t = [r.t for r in self._rows]
         self._by_queue: dict[str, list[tuple[float, int]]] = defaultdict(list)
@@ -193,6 +195,11 @@ class ReplayIndex:
                                  _pose(self.last(f"/{role}/pose/true", t)), points[1:],
                                  points[-1] if points else None, link="recording"))
         return tuple(out)
+
+    def track(self, role: str, which: str = "true") -> list[tuple[float, Pose]]:
+        """Every recorded pose of a rover, oldest first, as (t [s], pose) in the map frame
+        [cm, deg]; ``which`` is ``true`` (the world's) or ``believed`` (the rover's)."""
+        return [(t, _pose(msg)) for t, msg in self._series.get(f"/{role}/pose/{which}", [])]
 
     def lidar_points(self, t: float) -> np.ndarray:
         """The newest LIDAR revolution at ``t`` as map-frame points [cm] (returns only)."""
@@ -290,14 +297,16 @@ class ReplayIndex:
 
     def faults(self, t: float) -> tuple[ActiveFault, ...]:
         """Faults in force at ``t`` (one with no duration: until the end)."""
+        return tuple(f for f in self.all_faults() if f.started_s <= t and (
+            f.until_s is None or t < f.until_s))
+
+    def all_faults(self) -> tuple[ActiveFault, ...]:
+        """Every fault the recording injects, in the order they began."""
         out = []
         for start, log in self._series.get("/faults", []):
-            if start > t:
-                break
             text = log["message"]
             m = _FOR_S.search(text)
             until = start + float(m.group(1)) if m else None
-            if until is None or t < until:
-                kind, _, target = text.split(" for ")[0].partition(" on ")
-                out.append(ActiveFault(log["name"], target, kind, start, until))
+            kind, _, target = text.split(" for ")[0].partition(" on ")
+            out.append(ActiveFault(log["name"], target, kind, start, until))
         return tuple(out)

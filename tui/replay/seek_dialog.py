@@ -10,7 +10,10 @@ from textual.widgets import Input, Label
 
 from tui.replay.index import EVENT_KINDS
 
-__all__ = ["SeekDialog", "parse_seek"]
+__all__ = ["SeekDialog", "parse_seek", "TITLE"]
+
+TITLE = f"Go to a time [s] or to the next event:\n{', '.join(EVENT_KINDS)}"
+"""The dialog's title: two lines, each shorter than the dialog is wide at 80 columns."""
 
 
 def parse_seek(text: str) -> float | str:
@@ -36,13 +39,14 @@ class SeekDialog(ModalScreen[str | None]):
     DEFAULT_CSS = """
     SeekDialog { align: center middle; }
     SeekDialog > Vertical {
-        width: 60; height: auto; border: thick $primary; background: $surface; padding: 0 1;
+        width: 60; max-width: 100%; height: auto;
+        border: thick $primary; background: $surface; padding: 0 1;
     }
     """
 
     def compose(self) -> ComposeResult:
         with Vertical():
-            yield Label(f"Go to a time [s], or the next event: {', '.join(EVENT_KINDS)}")
+            yield Label(TITLE, id="seek-title")
             yield Input(placeholder="120  or  fault", id="seek-input")
 
     def on_mount(self) -> None:

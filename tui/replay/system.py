@@ -22,14 +22,14 @@ from tui.snapshot import Publish, Snapshot, TimelineEvent
 
 from .index import EVENT_KINDS, ReplayIndex
 
-__all__ = ["ReplaySystem", "MAX_SPEED"]
+__all__ = ["ReplaySystem", "MAX_SPEED", "map_from_room"]
 
 MAX_SPEED = 64.0
 """What "as fast as possible" means in a replay (there is nothing to compute) [x]."""
 _NOTHING_SIMULATED = "a replay reads the recording: nothing is simulated (fork it to change it)"
 
 
-def _map_from_room(rec: Recording) -> Any:
+def map_from_room(rec: Recording) -> Any:
     """Room frame -> map frame from the recording's scenario (None when it cannot be rebuilt)."""
     try:
         start = rec.run.scenario().starts["mapper"]
@@ -60,7 +60,7 @@ class ReplaySystem(QueuedController):
                  paused: bool = False, at: float | None = None) -> None:
         rec = read_recording(recording) if isinstance(recording, str) else recording
         self.rec = rec
-        self.index = ReplayIndex(rec, _map_from_room(rec))
+        self.index = ReplayIndex(rec, map_from_room(rec))
         self._t = self.index.start_s  # replay time at the anchor [s]
         if at is not None:
             self._t = min(max(float(at), self.index.start_s), self.index.end_s)

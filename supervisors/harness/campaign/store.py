@@ -79,3 +79,49 @@ class CampaignStore:
         return self._db.execute("SELECT idx, outcome, violations, trace_hash FROM "
                                 "campaign_games WHERE campaign = ? ORDER BY idx",
                                 (campaign,)).fetchall()
+
+
+_GAME_COLUMNS = ("index", "ref", "room", "outcome", "reason", "violations", "faults",
+                 "restarts", "resent", "sim_s", "wall_s", "trace_hash", "replay_hash")
+
+
+def read_campaign(path: str, campaign: int | None = None
+                  ) -> tuple[int, dict[str, Any] | None, list[dict[str, Any]]]:
+    """A stored campaign, read-only: (its id, its summary or None when it never finished,
+    its games by index as dicts with `play_campaign_game`'s keys that the table holds).
+
+    Args:
+        path: the campaign store (``hideseek campaign --out``).
+        campaign: the campaign's id; None: the newest.
+
+    Raises:
+        CampaignError: no such file, not a campaign store, or no such campaign.
+    """
+    try:
+        db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    except sqlite3.Error as exc:
+        raise CampaignError(f"cannot open campaign store {path!r}: {exc}") from None
+    try:
+        if campaign is None:
+            row = db.execute("SELECT id, summary FROM campaigns ORDER BY id DESC").fetchone()
+        else:
+            row = db.execute("SELECT id, summary FROM campaigns WHERE id = ?",
+                             (campaign,)).fetchone()
+        if row is None:
+            which = "no campaign" if campaign is None else f"no campaign {campaign}"
+            raise CampaignError(f"{which} in {path}")
+        cid, summary = row
+        games = []
+        for values in db.execute(
+                "SELECT idx, ref, room, outcome, reason, violations, faults, restarts, resent, "
+                "sim_s, wall_s, trace_hash, replay_hash FROM campaign_games "
+                "WHERE campaign = ? ORDER BY idx", (cid,)):
+            game = dict(zip(_GAME_COLUMNS, values, strict=True))
+            game["violations"] = json.loads(game["violations"])
+            game["faults"] = json.loads(game["faults"])
+            games.append(game)
+    except sqlite3.Error as exc:
+        raise CampaignError(f"{path} is not a campaign store: {exc}") from None
+    finally:
+        db.close()
+    return cid, (json.loads(summary) if summary else None), games

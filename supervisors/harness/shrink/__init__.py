@@ -20,6 +20,7 @@ from supervisors.harness.shrink.game import (
     shrink_failure,
     shrink_failures,
     shrink_game,
+    shrinkable,
     with_faults,
 )
 from supervisors.harness.shrink.schedule import (
@@ -37,6 +38,7 @@ from supervisors.harness.shrink.toml import scenario_toml
 
 __all__ = [
     "ddmin", "shrink_schedule", "shrink_game", "shrink_campaign_game", "play_scenario",
-    "with_faults", "shrink_failure", "shrink_failures", "scenario_toml", "describe", "Failure",
-    "Played", "ShrinkError", "ShrinkOutcome", "MILDER", "DEFAULT_MAX_RUNS", "DEFAULT_RESOLUTION_S",
+    "with_faults", "shrink_failure", "shrink_failures", "shrinkable", "scenario_toml", "describe",
+    "Failure", "Played", "ShrinkError", "ShrinkOutcome", "MILDER", "DEFAULT_MAX_RUNS",
+    "DEFAULT_RESOLUTION_S",
 ]

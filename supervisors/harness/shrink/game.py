@@ -69,7 +69,8 @@ def _fault_json(f: ScheduledFault) -> dict[str, Any]:
 def shrink_game(base: Scenario, run_seed: int, *, budget_s: float = _DEFAULT_BUDGET_S,
                 origin: str = "", max_runs: int = DEFAULT_MAX_RUNS,
                 resolution_s: float = DEFAULT_RESOLUTION_S,
-                wall_timeout_s: float | None = 600.0) -> dict[str, Any]:
+                wall_timeout_s: float | None = 600.0,
+                on_run: Callable[[int], None] | None = None) -> dict[str, Any]:
     """Shrink the fault schedule of ``base`` played with ``run_seed``; a JSON-able report.
 
     Args:
@@ -81,12 +82,15 @@ def shrink_game(base: Scenario, run_seed: int, *, budget_s: float = _DEFAULT_BUD
             written file comes on top).
         resolution_s: bisection precision [s].
         wall_timeout_s: guard per play [s] (see `play_campaign_game`).
+        on_run: told the number of games played after each one, the check of the
+            written file included (progress).
 
     Returns:
         ``origin``, ``room``, ``seed``, ``budget_s``, ``failure`` (text),
         ``outcome``, ``invariants``, ``original`` and ``shrunk`` (one line per
-        fault), ``original_faults`` and ``shrunk_faults`` (dicts), ``runs``,
-        ``max_runs``, ``exhausted``, ``steps``, ``toml`` (the shrunk scenario),
+        fault), ``original_faults`` and ``shrunk_faults`` (dicts), ``runs``
+        (the search's games and the check of the written file, as the file's header
+        counts them), ``max_runs``, ``exhausted``, ``steps``, ``toml`` (the shrunk scenario),
         ``reproduces`` (that text, read back and played, fails the same way),
         ``same_trace`` (and plays the very same game), ``reproduce`` (the
         command, ``FILE`` standing for where the text is written).
@@ -96,16 +100,20 @@ def shrink_game(base: Scenario, run_seed: int, *, budget_s: float = _DEFAULT_BUD
     """
     budget = Budget(mapping=budget_s)
     found = shrink_schedule(base.faults, player(base, run_seed, budget, wall_timeout_s),
-                            max_runs=max_runs, resolution_s=resolution_s)
+                            max_runs=max_runs, resolution_s=resolution_s, on_run=on_run)
+    runs = found.runs + 1  # the search's, and one more: the check of the written file
     shrunk = with_faults(base, found.shrunk)
     command = f"hideseek run --scenario FILE --seed {run_seed}" + (
         f" --budget {budget_s:g}" if budget_s != _DEFAULT_BUDGET_S else "")
     header = [f"shrunk by hideseek shrink from {origin or base.name}: "
-              f"{len(found.original)} faults -> {len(found.shrunk)}, {found.runs} runs",
+              f"{len(found.original)} faults -> {len(found.shrunk)}, {runs} runs (the last "
+              "one plays this file)",
               f"fails: {found.failure}", f"reproduce: {command}", "original schedule:"]
     header += [f"  {describe(f)}" for f in found.original]
     text = scenario_toml(shrunk, header=header)
     again = play_scenario(parse_scenario(text, "<shrunk>"), run_seed, budget, wall_timeout_s)
+    if on_run is not None:
+        on_run(runs)
     return {
         "origin": origin or base.name, "room": base.name, "seed": run_seed,
         "budget_s": budget_s, "failure": str(found.failure),
@@ -114,7 +122,7 @@ def shrink_game(base: Scenario, run_seed: int, *, budget_s: float = _DEFAULT_BUD
         "shrunk": [describe(f) for f in found.shrunk],
         "original_faults": [_fault_json(f) for f in found.original],
         "shrunk_faults": [_fault_json(f) for f in found.shrunk],
-        "runs": found.runs + 1, "max_runs": max_runs, "exhausted": found.exhausted,
+        "runs": runs, "max_runs": max_runs, "exhausted": found.exhausted,
         "steps": list(found.steps), "toml": text,
         "reproduces": again.failure == found.failure,
         "same_trace": bool(again.trace_hash) and again.trace_hash == found.last.trace_hash,
@@ -124,7 +132,8 @@ def shrink_game(base: Scenario, run_seed: int, *, budget_s: float = _DEFAULT_BUD
 
 def shrink_campaign_game(ref: str, *, max_runs: int = DEFAULT_MAX_RUNS,
                          resolution_s: float = DEFAULT_RESOLUTION_S,
-                         wall_timeout_s: float | None = 600.0) -> dict[str, Any]:
+                         wall_timeout_s: float | None = 600.0,
+                         on_run: Callable[[int], None] | None = None) -> dict[str, Any]:
     """The worker entry point: shrink campaign game ``ref``; `shrink_game`'s report.
 
     Raises:
@@ -135,7 +144,7 @@ def shrink_campaign_game(ref: str, *, max_runs: int = DEFAULT_MAX_RUNS,
     spec = plan_game(config, index)
     out = shrink_game(spec.scenario(), spec.run_seed, budget_s=config.mapping_budget_s,
                       origin=f"campaign game {spec.ref}", max_runs=max_runs,
-                      resolution_s=resolution_s, wall_timeout_s=wall_timeout_s)
+                      resolution_s=resolution_s, wall_timeout_s=wall_timeout_s, on_run=on_run)
     out["index"] = index
     out["ref"] = spec.ref
     return out
@@ -154,6 +163,12 @@ def shrink_failure(ref: str, **options: Any) -> dict[str, Any]:
                 "error": str(exc)}
 
 
+def shrinkable(results: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The campaign games `shrink_failures` shrinks: the failed ones with faults, by index."""
+    return [r for r in sorted(results, key=lambda r: r["index"])
+            if r["faults"] and (r["outcome"] != "found" or r["violations"])]
+
+
 def shrink_failures(results: Iterable[dict[str, Any]], *, engine: Any = None,
                     max_runs: int = DEFAULT_MAX_RUNS,
                     resolution_s: float = DEFAULT_RESOLUTION_S,
@@ -166,8 +181,7 @@ def shrink_failures(results: Iterable[dict[str, Any]], *, engine: Any = None,
     """
     options = {"max_runs": max_runs, "resolution_s": resolution_s,
                "wall_timeout_s": wall_timeout_s}
-    jobs = [(shrink_failure, (r["ref"],), options) for r in sorted(results, key=lambda r:
-            r["index"]) if r["faults"] and (r["outcome"] != "found" or r["violations"])]
+    jobs = [(shrink_failure, (r["ref"],), options) for r in shrinkable(results)]
     if engine is None:
         yield from (call(job) for job in jobs)
         return

@@ -127,8 +127,8 @@ class _Oracle:
     """
 
     def __init__(self, play: Callable[[tuple[ScheduledFault, ...]], Played],
-                 max_runs: int) -> None:
-        self._play, self.max_runs = play, max_runs
+                 max_runs: int, on_run: Callable[[int], None] | None = None) -> None:
+        self._play, self.max_runs, self._on_run = play, max_runs, on_run
         self.runs = 0
         self._seen: dict[tuple, Played] = {}
         self.target: Failure | None = None
@@ -141,6 +141,8 @@ class _Oracle:
                 raise _OutOfRuns
             self.runs += 1
             self._seen[key] = self._play(tuple(faults))
+            if self._on_run is not None:
+                self._on_run(self.runs)
         return self._seen[key]
 
     def fails(self, faults: Sequence[ScheduledFault]) -> bool:
@@ -153,7 +155,8 @@ class _Oracle:
 def shrink_schedule(faults: Sequence[ScheduledFault],
                     play: Callable[[tuple[ScheduledFault, ...]], Played], *,
                     max_runs: int = DEFAULT_MAX_RUNS,
-                    resolution_s: float = DEFAULT_RESOLUTION_S) -> ShrinkOutcome:
+                    resolution_s: float = DEFAULT_RESOLUTION_S,
+                    on_run: Callable[[int], None] | None = None) -> ShrinkOutcome:
     """Shrink a failing schedule (see the module docstring for the steps).
 
     Args:
@@ -161,6 +164,7 @@ def shrink_schedule(faults: Sequence[ScheduledFault],
         play: plays a schedule in the game being shrunk (deterministic).
         max_runs: games at most, the first one included (>= 1).
         resolution_s: bisection precision for starts and durations [s] (> 0).
+        on_run: told the number of games played after each one (progress).
 
     Raises:
         ShrinkError: the schedule does not make the game fail.
@@ -170,7 +174,7 @@ def shrink_schedule(faults: Sequence[ScheduledFault],
         raise ValueError(f"max_runs must be within 1..10000, got {max_runs!r}")
     if not 0 < resolution_s <= 1e4:
         raise ValueError(f"resolution_s must be within (0, 1e4] s, got {resolution_s!r}")
-    oracle = _Oracle(play, max_runs)
+    oracle = _Oracle(play, max_runs, on_run)
     first = oracle.played(faults)
     if not first.failure.failed:
         raise ShrinkError(f"the game does not fail (outcome {first.failure.outcome}, every "
