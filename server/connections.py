@@ -242,8 +242,12 @@ class Connections(ServerCore):
         del self._tcp[conn]  # its slot is free now, whatever its task does next
 
     def _serve(self, stream: Any, conn: Conn, first: bytes = b"") -> None:
+        """Serve ``conn`` from now on; ``first``, bytes already read from it, are handled at
+        once (so a proven hello binds its rover before anything can make room in its place)."""
         self._tcp[conn] = None
-        self._nursery.start_soon(self._serve_conn, stream, conn, first)
+        if first:
+            self._on_bytes(conn, first)
+        self._nursery.start_soon(self._serve_conn, stream, conn)
 
     def _wait(self, stream: trio.SocketStream, addr: str, name: str, now: float,
               first: bytes) -> None:
@@ -346,14 +350,11 @@ class Connections(ServerCore):
         conn.budget = self.config.bad_frame_budget
         return conn
 
-    async def _serve_conn(self, stream: Any, conn: Conn, first: bytes = b"") -> None:
-        """Serve one link until it ends; ``first``: bytes already read from it."""
+    async def _serve_conn(self, stream: Any, conn: Conn) -> None:
         link, trusted = conn.link, conn.trusted
         try:
             async with trio.open_nursery() as nursery:
                 nursery.start_soon(self._writer, stream, conn)
-                if first:
-                    self._on_bytes(conn, first)
                 with conn.scope:
                     while conn.close_reason is None:
                         with trio.move_on_at(self._conn_deadline(conn)) as timer:

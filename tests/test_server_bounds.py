@@ -4,6 +4,7 @@ bad frames summarised in storage, sessions reclaimed, descriptors running out, b
 from __future__ import annotations
 
 import errno
+import os
 
 import numpy as np
 import trio
@@ -147,6 +148,33 @@ def test_a_rovers_waiting_connection_outlasts_a_flood_from_other_addresses() -> 
             got, closed = await read_until_closed(rover, 0.5)
             assert not closed and decode_line(got.split(b"\n")[0]).cmd == "welcome"
             for st in [rover, *flood]:
+                await st.aclose()
+
+    run(main)
+
+
+def test_two_rovers_from_one_address_both_get_in_beyond_the_caps() -> None:
+    """Two rovers behind one address, waiting beyond the caps, say hello at the same
+    moment: each hello makes room among the flood's connections, not in place of the
+    other rover's (a proven hello binds its rover at once)."""
+    async def main() -> None:
+        config = ServerConfig(rovers=frozenset({"h1", "s1"}),
+                              tokens={"h1": "secret-h", "s1": "secret-s"},
+                              max_connections=4, max_waiting=2)
+        async with open_server(Store(":memory:"), config) as s:
+            port = await s.listen_tcp("127.0.0.1", 0)
+            flood = [await open_raw_tcp(port, "127.1.0.1") for _ in range(6)]
+            h1, s1 = [await open_raw_tcp(port, "127.0.0.2") for _ in range(2)]
+            await trio.sleep(0.1)
+            assert (s.snapshot().connections, s.waiting) == (4, 2)
+            # both lines sent before the server runs again: at the same moment for it
+            os.write(h1.socket.fileno(), hello("h1", "hider", "secret-h"))
+            os.write(s1.socket.fileno(), hello("s1", "seeker", "secret-s"))
+            for stream in (h1, s1):
+                got, closed = await read_until_closed(stream, 0.5)
+                assert not closed and decode_line(got.split(b"\n")[0]).cmd == "welcome"
+            assert {v.id for v in s.snapshot().rovers} == {"h1", "s1"}
+            for st in [h1, s1, *flood]:
                 await st.aclose()
 
     run(main)
