@@ -90,13 +90,11 @@ class Connections(ServerCore):
 
     def __init__(self, store: Store, config: ServerConfig, nursery: trio.Nursery) -> None:
         super().__init__(store, config, nursery)
-        self._waiting: OrderedDict[trio.CancelScope, float] = OrderedDict()
-        """Connections waiting beyond the caps, oldest first: their cancel scope -> when
-        they came [s]."""
-        self._waiting_addr: dict[trio.CancelScope, str] = {}
-        """Each waiting connection's peer address (in the same order)."""
+        self._waiting: OrderedDict[trio.CancelScope, tuple[float, str]] = OrderedDict()
+        """Connections waiting beyond the caps, oldest first: cancel scope -> (when it came
+        [s], peer address)."""
         self._waiting_held: Counter[str] = Counter()
-        """Waiting connections per address."""
+        """Waiting connections per address (addresses with none are not kept)."""
 
     @property
     def waiting(self) -> int:
@@ -264,16 +262,15 @@ class Connections(ServerCore):
             self._unwait(victim)
             victim.cancel()
         scope = trio.CancelScope(deadline=now + self.config.hello_timeout_s)
-        self._waiting[scope] = now
-        self._waiting_addr[scope] = addr
+        self._waiting[scope] = (now, addr)
         self._waiting_held[addr] += 1
         self._nursery.start_soon(self._waiting_conn, stream, addr, name, scope, now, first)
 
     def _unwait(self, scope: trio.CancelScope) -> None:
         """Forget a waiting connection (once; its address's count goes when it is 0)."""
-        if self._waiting.pop(scope, None) is None:
+        _, addr = self._waiting.pop(scope, (0.0, None))
+        if addr is None:
             return
-        addr = self._waiting_addr.pop(scope)
         self._waiting_held[addr] -= 1
         if not self._waiting_held[addr]:
             del self._waiting_held[addr]
@@ -289,16 +286,18 @@ class Connections(ServerCore):
             if c.rover is None:
                 held[c.peer or ""] = held.get(c.peer or "", 0) + 1
         greedy, most = None, held.get(addr, 0)
-        for scope, other in self._waiting_addr.items():  # oldest first
+        for scope, (_, other) in self._waiting.items():  # oldest first
             if held[other] > most:
                 greedy, most = scope, held[other]
         if greedy is not None:
             return greedy
-        oldest, since = next(iter(self._waiting.items()))
+        oldest, (since, _) = next(iter(self._waiting.items()))
         return oldest if now - since >= FAIR_WAIT_S else None
 
     async def _waiting_conn(self, stream: trio.SocketStream, addr: str, name: str,
                             scope: trio.CancelScope, opened: float, first: bytes) -> None:
+        """Read a waiting connection's first line; then serve it or close it."""
+        served = False
         try:
             with scope:
                 while b"\n" not in first and len(first) <= MAX_LINE_BYTES:
@@ -306,22 +305,20 @@ class Connections(ServerCore):
                     if not data:
                         break
                     first += data
-        except (trio.BrokenResourceError, trio.ClosedResourceError, ConnectionError):
-            pass
-        finally:
             self._unwait(scope)
-        conn = None
-        try:
-            if b"\n" in first:
-                conn = self._admission(addr, name, first, opened)
-            else:
+            conn = self._admission(addr, name, first, opened) if b"\n" in first else None
+            if conn is not None:
+                self._serve(stream, conn, first)
+                served = True
+            elif b"\n" not in first:
                 self._count("conn_closed", "no room, and no hello while it waited", name,
                             trio.current_time())
+        except (trio.BrokenResourceError, trio.ClosedResourceError, ConnectionError):
+            self._count("conn_closed", "link error while it waited", name, trio.current_time())
         finally:
-            if conn is None:
+            self._unwait(scope)
+            if not served:  # also when the server is closing
                 stream.socket.close()
-        if conn is not None:
-            self._serve(stream, conn, first)
 
     async def _serve_serial(self, url: str, baud: int) -> None:
         name = f"serial:{url},{baud}"
