@@ -120,10 +120,10 @@ class ReplayIndex:
         self._drops: dict[str, list[float]] = defaultdict(list)
         for t, d in rec.topic("/actors/drops"):
             self._drops[d["queue"]].append(t)
+        # when the recording began and the game's state then (`recorder.game_state`): what
+        # a recording started mid-game replays from (none in older recordings)
         states = rec.topic("/game/state")
         self._state_t, self._state = states[0] if states else (-math.inf, {})
-        """When the recording began and the game's state then (`game_state`): what a
-        recording started mid-game replays from; none in older recordings."""
         self._timeline = self._build_timeline()
         self._timeline_t = [e.time_s for e in self._timeline]
         self._runtime = [(t, log) for t, log in rec.topic("/actors/events")]
