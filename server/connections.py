@@ -25,13 +25,14 @@ refused hello counts towards the address's backoff as on any link).
 
 At most ``max_waiting`` connections wait. When more come, a newer one takes
 the place of the oldest waiting one of the address holding the most
-connections without an accepted hello, if its own address holds fewer (so a
-flood from many addresses cannot push out a rover's one connection); else of
-the oldest waiting one once that has waited `FAIR_WAIT_S`; else it is closed
-at once. Waiting costs one small task and no session, and closing at once
-costs nothing more than the accept, so a flood of connections drains fast.
-A UDP peer cannot wait (it has no connection to hold): its first datagram is
-its first line, decided at once.
+connections without an accepted hello, if that address holds two more than
+the newer one's (one more when the newer one's holds none), so a flood from
+many addresses cannot push out a rover's one connection; else of the oldest
+waiting one once that has waited `FAIR_WAIT_S`; else it is closed at once.
+Waiting costs one small task and no session, and closing at once costs
+nothing more than the accept, so a flood of connections drains fast. A UDP
+peer cannot wait (it has no connection to hold): its first datagram is its
+first line, decided at once.
 """
 
 from __future__ import annotations
@@ -276,21 +277,24 @@ class Connections(ServerCore):
             del self._waiting_held[addr]
 
     def _waiting_victim(self, addr: str, now: float) -> trio.CancelScope | None:
-        """The waiting connection a newer one from ``addr`` takes the place of, if any: the
-        oldest of the address that holds the most connections without an accepted hello,
-        when ``addr`` holds fewer (so a flood from many addresses cannot push out a rover's
-        one connection); else the oldest of all once it has waited `FAIR_WAIT_S`; else
-        none (the newer one is closed: the cheap way under a flood)."""
+        """The waiting connection a newer one from ``addr`` takes the place of, if any (see
+        the module docstring): the oldest of the greediest address, when that holds more
+        connections without an accepted hello than ``addr`` by two, or by one when
+        ``addr`` holds none (so a flood from many addresses cannot push out a rover's one
+        connection, and the flood's own addresses do not trade places for ever); else the
+        oldest of all once it has waited `FAIR_WAIT_S`; else none (the newer one is
+        closed: the cheap way under a flood)."""
         held = dict(self._waiting_held)
         for c in self._tcp:
             if c.rover is None:
                 held[c.peer or ""] = held.get(c.peer or "", 0) + 1
-        greedy, most = None, held.get(addr, 0)
-        for scope, (_, other) in self._waiting.items():  # oldest first
+        mine = held.get(addr, 0)
+        greedy, most = None, mine + 1 if mine else 0
+        for other in self._waiting_held:
             if held[other] > most:
-                greedy, most = scope, held[other]
+                greedy, most = other, held[other]
         if greedy is not None:
-            return greedy
+            return next(scope for scope, (_, a) in self._waiting.items() if a == greedy)
         oldest, (since, _) = next(iter(self._waiting.items()))
         return oldest if now - since >= FAIR_WAIT_S else None
 
