@@ -30,7 +30,10 @@ the newer one's (one more when the newer one's holds none), so a flood from
 many addresses cannot push out a rover's one connection; else of the oldest
 waiting one once that has waited `FAIR_WAIT_S`; else it is closed at once.
 Waiting costs one small task and no session, and closing at once costs
-nothing more than the accept, so a flood of connections drains fast. A UDP
+nothing more than the accept; after each awaited accept the loop takes up to
+`_BURST` more connections already queued without a scheduler round each, so a
+flood of connections drains fast and a rover's connection behind it is
+reached soon. A UDP
 peer cannot wait (it has no connection to hold): its first datagram is its
 first line, decided at once.
 """
@@ -41,6 +44,7 @@ import contextlib
 import errno
 import math
 import os
+import socket
 from collections import Counter, OrderedDict
 from typing import Any
 
@@ -68,6 +72,7 @@ from .store import Store
 __all__ = ["Connections"]
 
 _READ_SIZE = 4096        # bytes per read [bytes]
+_BURST = 16              # connections taken at once after an awaited accept, at most
 _ACCEPT_STARVED = (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM)
 _BLOCKED = "address blocked after failed hellos"
 FAIR_WAIT_S = 1.0
@@ -75,11 +80,28 @@ FAIR_WAIT_S = 1.0
 hold as many connections without hello as its own [s]."""
 
 
-def _read_now(stream: trio.SocketStream) -> bytes | None:
-    """What a new connection has sent already, up to a line's worth, without waiting
-    (None when the peer has closed or reset it)."""
+def _second_handle(listener: Any) -> socket.socket | None:
+    """A second handle on a listener's socket, to take the rest of a burst of connections
+    without a scheduler round each (None where the system cannot make one)."""
+    sock = getattr(listener, "socket", None)
+    if sock is None:
+        return None
     try:
-        return os.read(stream.socket.fileno(), MAX_LINE_BYTES + 1) or None
+        return socket.socket(fileno=os.dup(sock.fileno()))
+    except OSError:
+        return None
+
+
+def _stream(sock: socket.socket) -> trio.SocketStream:
+    """A standard socket as a Trio stream."""
+    return trio.SocketStream(trio.socket.from_stdlib_socket(sock))
+
+
+def _read_now(sock: Any) -> bytes | None:
+    """What a new connection (a non-blocking socket) has sent already, up to a line's
+    worth, without waiting (None when the peer has closed or reset it)."""
+    try:
+        return os.read(sock.fileno(), MAX_LINE_BYTES + 1) or None
     except BlockingIOError:
         return b""
     except OSError:
@@ -104,52 +126,73 @@ class Connections(ServerCore):
 
     async def _accept_loop(self, listener: trio.SocketListener) -> None:
         delay = 0.0
-        async with listener:
-            while True:
-                try:
-                    stream = await listener.accept()
-                except OSError as exc:
-                    if exc.errno not in _ACCEPT_STARVED:
-                        raise
-                    if not self._starved:
-                        self._starved = True
-                        self._emit("accept_error", data={
-                            "error": f"cannot accept: {exc.strerror}; accepting slowed until "
-                                     "descriptors are free (raise 'ulimit -n' or lower "
-                                     "max_connections)"})
-                    delay = min(max(2 * delay, 0.05), 1.0)
-                    await trio.sleep(delay)
-                    continue
-                if self._starved:
-                    self._starved = False
-                    self._emit("accept_resumed", data={"detail": "descriptors free again"})
-                delay = 0.0
-                self._admit_tcp(stream)
+        burst = _second_handle(listener)
+        try:
+            async with listener:
+                while True:
+                    try:
+                        stream = await listener.accept()
+                    except OSError as exc:
+                        if exc.errno not in _ACCEPT_STARVED:
+                            raise
+                        if not self._starved:
+                            self._starved = True
+                            self._emit("accept_error", data={
+                                "error": f"cannot accept: {exc.strerror}; accepting slowed until "
+                                         "descriptors are free (raise 'ulimit -n' or lower "
+                                         "max_connections)"})
+                        delay = min(max(2 * delay, 0.05), 1.0)
+                        await trio.sleep(delay)
+                        continue
+                    if self._starved:
+                        self._starved = False
+                        self._emit("accept_resumed", data={"detail": "descriptors free again"})
+                    delay = 0.0
+                    self._admit_tcp(stream.socket, stream)
+                    for _ in range(_BURST if burst is not None else 0):
+                        try:
+                            more, _ = burst.accept()  # type: ignore[union-attr]
+                        except OSError:  # none waiting, or out of descriptors: the await tells
+                            break
+                        more.setblocking(False)
+                        self._admit_tcp(more)
+        finally:
+            if burst is not None:
+                burst.close()
 
-    def _admit_tcp(self, stream: trio.SocketStream) -> None:
-        """Serve a new TCP connection, let it wait beyond the caps, or close it at once
+    def _admit_tcp(self, sock: Any, stream: trio.SocketStream | None = None) -> None:
+        """Serve a new TCP connection (``sock``: a Trio or a standard non-blocking socket;
+        ``stream``: its stream, if made), let it wait beyond the caps, or close it at once
         (cheaply, in the accept loop, so a flood of connections drains the kernel's accept
         queue fast)."""
         try:
-            peer = stream.socket.getpeername()
+            peer = sock.getpeername()
             addr, name = str(peer[0]), f"tcp:{peer[0]}:{peer[1]}"
         except OSError:
             addr, name = "", "tcp"
         now = trio.current_time()
         refusal = self._no_room(addr, now)
         if not refusal:
-            self._serve(stream, self._new_conn(name, peer=addr, timed=True))
+            self._serve(stream or _stream(sock), self._new_conn(name, peer=addr, timed=True))
             return
-        first = b"" if refusal == _BLOCKED else _read_now(stream)
+        first = b"" if refusal == _BLOCKED else _read_now(sock)
         if first is not None and b"\n" not in first and refusal != _BLOCKED \
                 and self.config.max_waiting > 0:
-            self._wait(stream, addr, name, now, first)
+            victim = None
+            if len(self._waiting) >= self.config.max_waiting:
+                victim = self._waiting_victim(addr, now)
+                if victim is None:
+                    self._count("conn_closed", "no room, and the waiting connections keep "
+                                "theirs", name, now)
+                    sock.close()
+                    return
+            self._wait(stream or _stream(sock), addr, name, now, first, victim)
             return
         conn = self._admission(addr, name, first or b"", now)
         if conn is None:
-            stream.socket.close()
+            sock.close()
         else:
-            self._serve(stream, conn, first or b"")
+            self._serve(stream or _stream(sock), conn, first or b"")
 
     def _admit_peer(self, stream: Any, addr: str, name: str, first: bytes = b"") -> bool:
         """Serve a new UDP peer within the caps, or beyond them when its first datagram
@@ -249,17 +292,10 @@ class Connections(ServerCore):
         self._nursery.start_soon(self._serve_conn, stream, conn)
 
     def _wait(self, stream: trio.SocketStream, addr: str, name: str, now: float,
-              first: bytes) -> None:
-        """Hold a connection beyond the caps while its first line comes, or close it at
-        once when the waiting room is full and it may take no one's place (module
-        docstring)."""
-        if len(self._waiting) >= self.config.max_waiting:
-            victim = self._waiting_victim(addr, now)
-            if victim is None:
-                self._count("conn_closed", "no room, and the waiting connections keep theirs",
-                            name, now)
-                stream.socket.close()
-                return
+              first: bytes, victim: trio.CancelScope | None) -> None:
+        """Hold a connection beyond the caps while its first line comes, in the place of
+        ``victim`` when the waiting room is full (module docstring)."""
+        if victim is not None:
             self._unwait(victim)
             victim.cancel()
         scope = trio.CancelScope(deadline=now + self.config.hello_timeout_s)
