@@ -33,9 +33,8 @@ Waiting costs one small task and no session, and closing at once costs
 nothing more than the accept; after each awaited accept the loop takes up to
 `_BURST` more connections already queued without a scheduler round each, so a
 flood of connections drains fast and a rover's connection behind it is
-reached soon. A UDP
-peer cannot wait (it has no connection to hold): its first datagram is its
-first line, decided at once.
+reached soon. A UDP peer cannot wait (it has no connection to hold): its
+first datagram is its first line, decided at once.
 """
 
 from __future__ import annotations
@@ -77,7 +76,7 @@ _ACCEPT_STARVED = (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM)
 _BLOCKED = "address blocked after failed hellos"
 FAIR_WAIT_S = 1.0
 """A waiting connection keeps its place this long against newer ones from addresses that
-hold as many connections without hello as its own [s]."""
+hold about as many connections without hello as its own [s]."""
 
 
 def _second_handle(listener: Any) -> socket.socket | None:
