@@ -1,13 +1,14 @@
 """Hostile load on ``hideseek serve`` over TCP loopback while legitimate rovers talk.
 
 The server runs as its own process, configured as deployed (``--rover ID=tcp``
-with per-rover tokens, default limits: 64 connections, 5 s hello timeout, a
-bad-frame budget per link). For ``--seconds``, this process attacks it:
+with per-rover tokens, default limits: 64 connections, 16 without hello per
+address, 64 waiting beyond those caps, 5 s hello timeout, a bad-frame budget per
+link). For ``--seconds``, this process attacks it:
 
 * **holders** try to keep ``--connections`` idle TCP connections open (a
   connection the server closes is opened again), from 127.0.0.1 or spread over
   ``--sources`` loopback addresses (which defeats the per-address limit, so
-  the connection cap and its eviction carry the load);
+  the connection cap and the waiting room carry the load);
 * **slowloris**: 50 connections send one byte of a hello per second;
 * **fuzzer** (its own process, from 127.0.0.3): one connection (reopened
   when the server closes it) sends mutated frames as fast as it can.
@@ -18,7 +19,7 @@ timed alone for 5 s first, then under the attack:
 
 * the **rover** ``h1`` stays
   connected, heartbeats, and sends a frame with ``seq`` every 0.2 s, timing
-  each ack;
+  each ack (``link_closed_by_server``: the server closed its link);
 * the **reconnecting rover** ``s1`` connects, says hello and
   times hello -> welcome, once a second.
 
@@ -112,6 +113,7 @@ class Counters:
         self.slow_closed = 0
         self.ack_ms: list[float] = []
         self.unacked = 0
+        self.rover_closed = False
         self.welcome_ms: list[float] = []
         self.no_welcome = 0
 
@@ -221,19 +223,22 @@ async def _rover(port: int, c: Counters, stop: trio.Event) -> None:
                     for s in [s for s in sent if s <= f.ack]:
                         c.ack_ms.append((time.perf_counter() - sent.pop(s)) * 1000)
 
-    async with trio.open_nursery() as n:
-        n.start_soon(reader)
-        await trio.sleep(0.5)
-        seq = 0
-        while not stop.is_set():
-            seq += 1
-            sent[seq] = time.perf_counter()
-            await stream.send_all(encode_frame(Frame("status", "status", {"state": "bench"},
-                                                     seq=seq)))
-            await trio.sleep(0.2)
-        await trio.sleep(1.0)
-        c.unacked = len(sent)
-        n.cancel_scope.cancel()
+    try:
+        async with trio.open_nursery() as n:
+            n.start_soon(reader)
+            await trio.sleep(0.5)
+            seq = 0
+            while not stop.is_set():
+                seq += 1
+                sent[seq] = time.perf_counter()
+                await stream.send_all(encode_frame(Frame("status", "status",
+                                                         {"state": "bench"}, seq=seq)))
+                await trio.sleep(0.2)
+            await trio.sleep(1.0)
+            n.cancel_scope.cancel()
+    except* (trio.BrokenResourceError, OSError):
+        c.rover_closed = True  # the server closed the attached rover's link
+    c.unacked = len(sent)
     await stream.aclose()
 
 
@@ -288,7 +293,8 @@ async def _legit(port: int, seconds: float) -> dict:
         stop.set()
     return {"quiet_hello_to_welcome": _stats(quiet.welcome_ms),
             "hello_to_welcome": {**_stats(c.welcome_ms), "unanswered": c.no_welcome},
-            "ack_latency": {**_stats(c.ack_ms), "unacked_at_end": c.unacked}}
+            "ack_latency": {**_stats(c.ack_ms), "unacked_at_end": c.unacked,
+                            "link_closed_by_server": c.rover_closed}}
 
 
 async def _fuzz(port: int, seconds: float) -> dict:

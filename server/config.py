@@ -33,6 +33,9 @@ class ServerConfig:
     max_pending_per_address: int = 16
     """Connections (TCP, UDP peers) from one address that have not said an accepted hello,
     at most."""
+    max_waiting: int = 64
+    """TCP connections beyond those two caps held at most while the server reads their
+    first line (an accepted hello makes room for itself; `server.connections`)."""
     hello_timeout_s: float = 5.0
     """A TCP connection or UDP peer that has not authenticated by then is closed [s]."""
     auth_failures: int = 5

@@ -4,11 +4,37 @@ A link's task reads bytes, cuts them into lines and frames, and hands
 ``hello`` to `server.hello` and every other frame, in the order the rover's
 reliable session delivers it, to `server.frames`; a writer task sends what the
 session transmits. Bounds on TCP links (see the `server.server` docstring):
-the connection cap with eviction of the oldest unauthenticated link, the
-per-address cap on links without hello, the hello and idle timeouts, and a
-bad-frame budget (a token bucket) per link. Refusals are counted in bursts
-(`server.guard.BurstLog`). Accepting slows, with one event per episode, while
-the process is out of file descriptors.
+the connection cap, the per-address cap on links without hello, the hello and
+idle timeouts, and a bad-frame budget (a token bucket) per link. Refusals are
+counted in bursts (`server.guard.BurstLog`). Accepting slows, with one event
+per episode, while the process is out of file descriptors.
+
+Admission beyond the caps: a connection that finds no room (its address has
+``max_pending_per_address`` links without an accepted hello, or the server
+holds ``max_connections``) is not served; whatever it sent already is read
+(at most `MAX_LINE_BYTES`), and otherwise it *waits*, unanswered, for its
+first line until the hello timeout. When that line is a ``hello`` the
+identity rules accept (`server.hello.Hellos._admit`: a valid token, or an id
+that needs none on loopback), the connection makes room for itself, closing
+the oldest link without an accepted hello of its own address when that
+address's budget is full, else at the cap the oldest of its address or of
+all, and is served at once: a flood of idle connections, from a rover's own
+address or from many, cannot keep a rover with its token out, and its hello
+is answered without waiting for a timeout. Any other first line closes it (a
+refused hello counts towards the address's backoff as on any link).
+
+At most ``max_waiting`` connections wait. When more come, a newer one takes
+the place of the oldest waiting one of the address holding the most
+connections without an accepted hello, if that address holds two more than
+the newer one's (one more when the newer one's holds none), so a flood from
+many addresses cannot push out a rover's one connection; else of the oldest
+waiting one once that has waited `FAIR_WAIT_S`; else it is closed at once.
+Waiting costs one small task and no session, and closing at once costs
+nothing more than the accept; after each awaited accept the loop takes up to
+`_BURST` more connections already queued without a scheduler round each, so a
+flood of connections drains fast and a rover's connection behind it is
+reached soon. A UDP peer cannot wait (it has no connection to hold): its
+first datagram is its first line, decided at once.
 """
 
 from __future__ import annotations
@@ -16,85 +42,323 @@ from __future__ import annotations
 import contextlib
 import errno
 import math
+import os
+import socket
+from collections import Counter, OrderedDict
 from collections.abc import Iterable
 from typing import Any
 
 import trio
 
+from .config import ServerConfig
 from .core import ServerCore
 from .links.serial import serve_serial_port
 from .peers import Conn
-from .protocol import ACK, HEARTBEAT, HELLO, Fault, Frame, FrameError, decode_line, read_data
+from .protocol import (
+    ACK,
+    HEARTBEAT,
+    HELLO,
+    MAX_LINE_BYTES,
+    Fault,
+    Frame,
+    FrameError,
+    Hello,
+    decode_line,
+    read_data,
+)
 from .protocol.lines import TOO_LONG
+from .store import Store
 
 __all__ = ["Connections"]
 
 _READ_SIZE = 4096        # bytes per read [bytes]
+_BURST = 16              # connections taken at once after an awaited accept, at most
 _ACCEPT_STARVED = (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM)
+_BLOCKED = "address blocked after failed hellos"
+FAIR_WAIT_S = 1.0
+"""A waiting connection keeps its place this long against newer ones from addresses that
+hold about as many connections without hello as its own [s]."""
+
+
+def _second_handle(listener: Any) -> socket.socket | None:
+    """A second handle on a listener's socket, to take the rest of a burst of connections
+    without a scheduler round each (None where the system cannot make one)."""
+    sock = getattr(listener, "socket", None)
+    if sock is None:
+        return None
+    try:
+        return socket.socket(fileno=os.dup(sock.fileno()))
+    except OSError:
+        return None
+
+
+def _stream(sock: socket.socket) -> trio.SocketStream:
+    """A standard socket as a Trio stream."""
+    return trio.SocketStream(trio.socket.from_stdlib_socket(sock))
+
+
+def _read_now(sock: Any) -> bytes | None:
+    """What a new connection (a non-blocking socket) has sent already, up to a line's
+    worth, without waiting (None when the peer has closed or reset it)."""
+    try:
+        return os.read(sock.fileno(), MAX_LINE_BYTES + 1) or None
+    except BlockingIOError:
+        return b""
+    except OSError:
+        return None
 
 
 class Connections(ServerCore):
     """The link side of a `Server`: one task per byte stream, and the TCP accept loop."""
 
+    def __init__(self, store: Store, config: ServerConfig, nursery: trio.Nursery) -> None:
+        super().__init__(store, config, nursery)
+        self._waiting: OrderedDict[trio.CancelScope, tuple[float, str]] = OrderedDict()
+        """Connections waiting beyond the caps, oldest first: cancel scope -> (when it came
+        [s], peer address)."""
+        self._waiting_held: Counter[str] = Counter()
+        """Waiting connections per address (addresses with none are not kept)."""
+
+    @property
+    def waiting(self) -> int:
+        """Connections held beyond the caps while the server reads their first line."""
+        return len(self._waiting)
+
     async def _accept_loop(self, listener: trio.SocketListener) -> None:
         delay = 0.0
-        async with listener:
-            while True:
-                try:
-                    stream = await listener.accept()
-                except OSError as exc:
-                    if exc.errno not in _ACCEPT_STARVED:
-                        raise
-                    if not self._starved:
-                        self._starved = True
-                        self._emit("accept_error", data={
-                            "error": f"cannot accept: {exc.strerror}; accepting slowed until "
-                                     "descriptors are free (raise 'ulimit -n' or lower "
-                                     "max_connections)"})
-                    delay = min(max(2 * delay, 0.05), 1.0)
-                    await trio.sleep(delay)
-                    continue
-                if self._starved:
-                    self._starved = False
-                    self._emit("accept_resumed", data={"detail": "descriptors free again"})
-                delay = 0.0
-                self._admit_tcp(stream)
-
-    def _admit_tcp(self, stream: trio.SocketStream) -> None:
-        """Serve a new TCP connection, or close it at once (cheaply, in the accept loop,
-        so a flood of connections drains the kernel's accept queue fast)."""
+        burst = _second_handle(listener)
         try:
-            peer = stream.socket.getpeername()
+            async with listener:
+                while True:
+                    try:
+                        stream = await listener.accept()
+                    except OSError as exc:
+                        if exc.errno not in _ACCEPT_STARVED:
+                            raise
+                        if not self._starved:
+                            self._starved = True
+                            self._emit("accept_error", data={
+                                "error": f"cannot accept: {exc.strerror}; accepting slowed until "
+                                         "descriptors are free (raise 'ulimit -n' or lower "
+                                         "max_connections)"})
+                        delay = min(max(2 * delay, 0.05), 1.0)
+                        await trio.sleep(delay)
+                        continue
+                    if self._starved:
+                        self._starved = False
+                        self._emit("accept_resumed", data={"detail": "descriptors free again"})
+                    delay = 0.0
+                    self._admit_tcp(stream.socket, stream)
+                    for _ in range(_BURST if burst is not None else 0):
+                        try:
+                            more, _ = burst.accept()  # type: ignore[union-attr]
+                        except OSError:  # none waiting, or out of descriptors: the await tells
+                            break
+                        more.setblocking(False)
+                        self._admit_tcp(more)
+        finally:
+            if burst is not None:
+                burst.close()
+
+    def _admit_tcp(self, sock: Any, stream: trio.SocketStream | None = None) -> None:
+        """Serve a new TCP connection (``sock``: a Trio or a standard non-blocking socket;
+        ``stream``: its stream, if made), let it wait beyond the caps, or close it at once
+        (cheaply, in the accept loop, so a flood of connections drains the kernel's accept
+        queue fast)."""
+        try:
+            peer = sock.getpeername()
             addr, name = str(peer[0]), f"tcp:{peer[0]}:{peer[1]}"
         except OSError:
             addr, name = "", "tcp"
-        if not self._admit_peer(stream, addr, name):
-            stream.socket.close()
-
-    def _admit_peer(self, stream: Any, addr: str, name: str) -> bool:
-        """Serve a new connection (TCP, or a UDP peer address) within the bounds, or refuse it."""
         now = trio.current_time()
-        cfg = self.config
-        refuse = ""
-        if addr and self._backoff.blocked_for(addr, now) > 0:
-            refuse = "address blocked after failed hellos"
-        elif sum(1 for c in self._tcp if c.rover is None and c.peer == addr) \
-                >= cfg.max_pending_per_address:
-            refuse = "too many connections without hello from one address"
-        elif len(self._tcp) >= cfg.max_connections:
-            oldest = next((c for c in self._tcp if c.rover is None), None)
-            if oldest is None:
-                refuse = "connection cap"
-            else:
-                oldest.close("evicted by a newer connection at the cap")
-                del self._tcp[oldest]  # its slot is free now, whatever its task does next
-        if refuse:
-            self._count("conn_closed", refuse, name, now)
+        refusal = self._no_room(addr, now)
+        if not refusal:
+            self._serve(stream or _stream(sock), self._new_conn(name, peer=addr, timed=True))
+            return
+        first = b"" if refusal == _BLOCKED else _read_now(sock)
+        if first is not None and b"\n" not in first and refusal != _BLOCKED \
+                and self.config.max_waiting > 0:
+            victim = None
+            if len(self._waiting) >= self.config.max_waiting:
+                victim = self._waiting_victim(addr, now)
+                if victim is None:
+                    self._count("conn_closed", "no room, and the waiting connections keep "
+                                "theirs", name, now)
+                    sock.close()
+                    return
+            self._wait(stream or _stream(sock), addr, name, now, first, victim)
+            return
+        conn = self._admission(addr, name, first or b"", now)
+        if conn is None:
+            sock.close()
+        else:
+            self._serve(stream or _stream(sock), conn, first or b"")
+
+    def _admit_peer(self, stream: Any, addr: str, name: str, first: bytes = b"") -> bool:
+        """Serve a new UDP peer within the caps, or beyond them when its first datagram
+        ``first`` is an accepted hello (see the module docstring); False: refused."""
+        if first and not first.endswith(b"\n"):
+            first += b"\n"  # a datagram ends its line
+        conn = self._admission(addr, name, first, trio.current_time())
+        if conn is None:
             return False
-        conn = self._new_conn(name, peer=addr, timed=True)
-        self._tcp[conn] = None
-        self._nursery.start_soon(self._serve_conn, stream, conn)
+        self._serve(stream, conn)
         return True
+
+    def _no_room(self, addr: str, now: float) -> str:
+        """Why a new connection from ``addr`` cannot be served now ('' when it can)."""
+        cfg = self.config
+        if addr and self._backoff.blocked_for(addr, now) > 0:
+            return _BLOCKED
+        if self._pending(addr) >= cfg.max_pending_per_address:
+            return "too many connections without hello from one address"
+        if len(self._tcp) >= cfg.max_connections:
+            return "connection cap"
+        return ""
+
+    def _pending(self, addr: str) -> int:
+        """Connections from ``addr`` without an accepted hello."""
+        return sum(1 for c in self._tcp if c.rover is None and c.peer == addr)
+
+    def _admission(self, addr: str, name: str, first: bytes, opened: float) -> Conn | None:
+        """A new connection to serve, whose first bytes are ``first``: within the caps, or
+        beyond them when its first line is an accepted hello and room can be made; None
+        (counted) when it is refused."""
+        now = trio.current_time()
+        refusal = self._no_room(addr, now)
+        if refusal and refusal != _BLOCKED:
+            conn = self._proven(addr, name, first, now)
+            if conn is not None:
+                if self._make_room(addr):
+                    conn.opened = opened
+                    return conn
+                refusal = "connection cap"
+            elif b"\n" in first:
+                refusal += "; first line not an accepted hello"
+        if refusal:
+            self._count("conn_closed", refusal, name, now)
+            return None
+        conn = self._new_conn(name, peer=addr, timed=True)
+        conn.opened = opened
+        return conn
+
+    def _proven(self, addr: str, name: str, first: bytes, now: float) -> Conn | None:
+        """A connection for ``first``'s first line when it is a hello the identity rules
+        accept (a refused one is counted, and backs the address off, as on any link)."""
+        line, newline, _ = first.partition(b"\n")
+        if not newline:
+            return None
+        try:
+            frame = decode_line(line)
+            if frame.cmd != HELLO:
+                return None
+            hello: Hello = read_data(frame)
+        except FrameError:
+            return None
+        conn = self._new_conn(name, peer=addr, timed=True)
+        refusal, _ = self._admit(conn, hello, now)
+        if refusal is None:
+            return conn
+        self._count("auth_failed", refusal.fault, name, now, hello.id, refusal.detail)
+        if addr:
+            self._backoff.failed(addr, now)
+        return None
+
+    def _make_room(self, addr: str) -> bool:
+        """Close the link without an accepted hello that keeps a proven connection from
+        ``addr`` out: the address's oldest when its budget is full, else at the cap the
+        oldest of that address or of all. False when every link at the cap is a rover's."""
+        cfg = self.config
+        unproven = [c for c in self._tcp if c.rover is None]
+        own = [c for c in unproven if c.peer == addr]
+        if own and len(own) >= cfg.max_pending_per_address:
+            self._evict(own[0])
+        elif len(self._tcp) >= cfg.max_connections:
+            if not unproven:
+                return False
+            self._evict((own or unproven)[0])
+        return True
+
+    def _evict(self, conn: Conn) -> None:
+        conn.close("evicted by a rover's hello beyond the caps")
+        del self._tcp[conn]  # its slot is free now, whatever its task does next
+
+    def _serve(self, stream: Any, conn: Conn, first: bytes = b"") -> None:
+        """Serve ``conn`` from now on; ``first``, bytes already read from it, are handled at
+        once (so a proven hello binds its rover before anything can make room in its place)."""
+        self._tcp[conn] = None
+        if first:
+            self._on_bytes(conn, first)
+        self._nursery.start_soon(self._serve_conn, stream, conn)
+
+    def _wait(self, stream: trio.SocketStream, addr: str, name: str, now: float,
+              first: bytes, victim: trio.CancelScope | None) -> None:
+        """Hold a connection beyond the caps while its first line comes, in the place of
+        ``victim`` when the waiting room is full (module docstring)."""
+        if victim is not None:
+            self._unwait(victim)
+            victim.cancel()
+        scope = trio.CancelScope(deadline=now + self.config.hello_timeout_s)
+        self._waiting[scope] = (now, addr)
+        self._waiting_held[addr] += 1
+        self._nursery.start_soon(self._waiting_conn, stream, addr, name, scope, now, first)
+
+    def _unwait(self, scope: trio.CancelScope) -> None:
+        """Forget a waiting connection (once; its address's count goes when it is 0)."""
+        _, addr = self._waiting.pop(scope, (0.0, None))
+        if addr is None:
+            return
+        self._waiting_held[addr] -= 1
+        if not self._waiting_held[addr]:
+            del self._waiting_held[addr]
+
+    def _waiting_victim(self, addr: str, now: float) -> trio.CancelScope | None:
+        """The waiting connection a newer one from ``addr`` takes the place of, if any (see
+        the module docstring): the oldest of the greediest address, when that holds more
+        connections without an accepted hello than ``addr`` by two, or by one when
+        ``addr`` holds none (so a flood from many addresses cannot push out a rover's one
+        connection, and the flood's own addresses do not trade places for ever); else the
+        oldest of all once it has waited `FAIR_WAIT_S`; else none (the newer one is
+        closed: the cheap way under a flood)."""
+        held = dict(self._waiting_held)
+        for c in self._tcp:
+            if c.rover is None:
+                held[c.peer or ""] = held.get(c.peer or "", 0) + 1
+        mine = held.get(addr, 0)
+        greedy, most = None, mine + 1 if mine else 0
+        for other in self._waiting_held:
+            if held[other] > most:
+                greedy, most = other, held[other]
+        if greedy is not None:
+            return next(scope for scope, (_, a) in self._waiting.items() if a == greedy)
+        oldest, (since, _) = next(iter(self._waiting.items()))
+        return oldest if now - since >= FAIR_WAIT_S else None
+
+    async def _waiting_conn(self, stream: trio.SocketStream, addr: str, name: str,
+                            scope: trio.CancelScope, opened: float, first: bytes) -> None:
+        """Read a waiting connection's first line; then serve it or close it."""
+        served = False
+        try:
+            with scope:
+                while b"\n" not in first and len(first) <= MAX_LINE_BYTES:
+                    data = await stream.receive_some(_READ_SIZE)
+                    if not data:
+                        break
+                    first += data
+            self._unwait(scope)
+            conn = self._admission(addr, name, first, opened) if b"\n" in first else None
+            if conn is not None:
+                self._serve(stream, conn, first)
+                served = True
+            elif b"\n" not in first:
+                self._count("conn_closed", "no room, and no hello while it waited", name,
+                            trio.current_time())
+        except (trio.BrokenResourceError, trio.ClosedResourceError, ConnectionError):
+            self._count("conn_closed", "link error while it waited", name, trio.current_time())
+        finally:
+            self._unwait(scope)
+            if not served:  # also when the server is closing
+                stream.socket.close()
 
     async def _serve_serial(self, url: str, baud: int) -> None:
         """Serve a serial port across unplugs (`server.links.serial.serve_serial_port`)."""

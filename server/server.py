@@ -35,13 +35,14 @@ Trust (docs/protocol.md section 4 says the same to rover authors):
 
 Bounds on TCP links, and on UDP peers (`server.links.udp`: each peer address
 is a connection, refused by dropping its datagrams): at most
-``max_connections`` at once (the oldest
-unauthenticated one makes room for a new one) and ``max_pending_per_address``
-unauthenticated ones per address (closed in the accept loop, which keeps the
-kernel's accept queue short under a flood), ``hello_timeout_s`` to
-authenticate, closed after ``down_after_s`` of silence, and a bad-frame
-budget (a token bucket) per link. Bad frames, auth failures and closes are
-counted in memory and stored as one summary per ``summary_s`` (`BurstLog`).
+``max_connections`` at once and ``max_pending_per_address`` unauthenticated
+ones per address; beyond them at most ``max_waiting`` TCP connections wait for
+their first line, and one whose first line is an accepted hello makes room
+for itself by closing an unauthenticated one (`server.connections`: the accept
+loop does this cheaply, which keeps the kernel's accept queue short under a
+flood), ``hello_timeout_s`` to authenticate, closed after ``down_after_s`` of
+silence, and a bad-frame budget (a token bucket) per link. Bad frames, auth
+failures and closes are counted in memory and stored as one summary per ``summary_s`` (`BurstLog`).
 Sessions of rovers whose link is gone are reclaimed after ``reclaim_after_s``
 unless they play a role. Running out of file descriptors slows accepting,
 with one event per episode.

@@ -156,6 +156,35 @@ def test_many_source_ports_are_held_to_the_connection_caps() -> None:
     run(main)
 
 
+def test_a_udp_rover_with_its_token_gets_in_past_its_hosts_full_budget() -> None:
+    """Source ports of one host fill its budget of unauthenticated peers; a new port on
+    that host whose first datagram is a hello with the right token is welcomed (the
+    host's oldest unauthenticated peer is closed), one with a wrong token is not."""
+    async def main() -> None:
+        config = ServerConfig(rovers=frozenset({"h1"}), tokens={"h1": "secret"},
+                              max_pending_per_address=4)
+        async with open_server(Store(":memory:"), config) as s:
+            port = await s.listen_udp("127.0.0.1", 0)
+            flood = []
+            for _ in range(10):
+                sock = await _raw(port, "127.0.0.2")
+                await sock.send(encode_frame(make_frame("heartbeat", None)))
+                flood.append(sock)
+            await trio.sleep(0.1)
+            assert s.snapshot().connections == 4
+            wrong, right = await _raw(port, "127.0.0.2"), await _raw(port, "127.0.0.2")
+            await wrong.send(hello("h1", "hider", "nope"))
+            assert await _datagrams(wrong, 0.5) == []
+            await right.send(hello("h1", "hider", "secret"))
+            (answer,) = await _datagrams(right, 0.5)
+            assert decode_line(answer.rstrip(b"\n")).cmd == "welcome"
+            assert s.snapshot().connections == 4  # the oldest heartbeat peer made room
+            for sock in [wrong, right, *flood]:
+                sock.close()
+
+    run(main)
+
+
 def test_an_oversize_datagram_is_refused_whole() -> None:
     """A datagram over 1024 bytes, even one full of good lines, is one too_long answer."""
     async def main() -> None:

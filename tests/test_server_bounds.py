@@ -4,6 +4,7 @@ bad frames summarised in storage, sessions reclaimed, descriptors running out, b
 from __future__ import annotations
 
 import errno
+import os
 
 import numpy as np
 import trio
@@ -57,24 +58,157 @@ def test_connection_cap_holds_and_a_legit_rover_is_still_served() -> None:
 
 
 def test_one_address_holds_few_connections_without_hello() -> None:
-    """Idle connections from one address beyond max_pending_per_address are closed at
-    accept; a rover from another address is served."""
+    """Idle connections from one address beyond max_pending_per_address wait, at most
+    max_waiting of them (the oldest closed first), and are closed at the hello timeout;
+    a rover from another address is served meanwhile."""
     async def main() -> None:
-        config = ServerConfig(rovers=frozenset({"h1"}), max_pending_per_address=5)
+        config = ServerConfig(rovers=frozenset({"h1"}), max_pending_per_address=5,
+                              max_waiting=10)
         async with open_server(Store(":memory:"), config) as s:
             port = await s.listen_tcp("127.0.0.1", 0)
             idle = [await open_raw_tcp(port) for _ in range(40)]
             await trio.sleep(0.5)
-            assert s.snapshot().connections == 5
-            assert s.snapshot().refused["conn_closed"] == 35
+            assert (s.snapshot().connections, s.waiting) == (5, 10)
+            assert s.snapshot().refused["conn_closed"] == 25
             async with trio.open_nursery() as nursery:
                 h1 = FakeRover("h1", "hider")
                 await _tcp_rover(nursery, port, h1)
                 await trio.sleep(2)
                 assert h1.welcomed
                 nursery.cancel_scope.cancel()
+            await trio.sleep(config.hello_timeout_s)
+            assert (s.snapshot().connections, s.waiting) == (0, 0)
+            assert s.snapshot().refused["conn_closed"] == 40
             for st in idle:
                 await st.aclose()
+
+    run(main)
+
+
+async def _welcome_after(port: int, line: bytes, source: str) -> tuple[float, bool]:
+    """Connect from ``source``, send ``line``: (seconds to the welcome, closed by the
+    server before one came)."""
+    stream = await open_raw_tcp(port, source)
+    t0 = trio.current_time()
+    await stream.send_all(line)
+    got = b""
+    with trio.move_on_after(10):
+        while b'"welcome"' not in got:
+            data = await stream.receive_some(65536)
+            if not data:
+                await stream.aclose()
+                return trio.current_time() - t0, True
+            got += data
+    await stream.aclose()
+    return trio.current_time() - t0, b'"welcome"' not in got
+
+
+def test_a_rover_with_its_token_gets_in_past_a_flood_from_its_own_address() -> None:
+    """500 idle connections from 127.0.0.1 fill its budget of connections without hello
+    and the waiting room; a rover from 127.0.0.1 with the right token is welcomed within
+    1 s (it waits in the place of the oldest waiting one; its hello closes the address's
+    oldest idle connection), the caps still hold, and a wrong token gets no such room."""
+    async def main() -> None:
+        config = ServerConfig(rovers=frozenset({"h1"}), tokens={"h1": "secret"})
+        async with open_server(Store(":memory:"), config) as s:
+            port = await s.listen_tcp("127.0.0.1", 0)
+            idle = [await open_raw_tcp(port, "127.0.0.1") for _ in range(500)]
+            await trio.sleep(2.0)
+            assert (s.snapshot().connections, s.waiting) == (16, 64)
+            took, closed = await _welcome_after(port, hello("h1", "hider", "wrong"),
+                                                "127.0.0.1")
+            assert closed and s.snapshot().refused["auth_failed"] == 1
+            took, closed = await _welcome_after(port, hello("h1", "hider", "secret"),
+                                                "127.0.0.1")
+            assert not closed and took < 1.0
+            assert s.snapshot().connections <= 16 and s.waiting <= 64
+            for st in idle:
+                await st.aclose()
+
+    run(main)
+
+
+def test_a_rovers_waiting_connection_outlasts_a_flood_from_other_addresses() -> None:
+    """At the caps, a newer connection closes a waiting one of the address holding the
+    most connections without hello: a rover slow to say hello is not pushed out by a
+    flood from other addresses, and is welcomed when its hello comes."""
+    async def main() -> None:
+        config = ServerConfig(rovers=frozenset({"h1"}), tokens={"h1": "secret"},
+                              max_connections=4, max_waiting=4)
+        async with open_server(Store(":memory:"), config) as s:
+            port = await s.listen_tcp("127.0.0.1", 0)
+            flood = [await open_raw_tcp(port, "127.1.0.1") for _ in range(8)]
+            rover = await open_raw_tcp(port, "127.0.0.2")
+            await trio.sleep(0.1)
+            for k in range(50):
+                flood.append(await open_raw_tcp(port, f"127.1.0.{k % 3 + 1}"))
+            await trio.sleep(0.1)
+            assert (s.snapshot().connections, s.waiting) == (4, 4)
+            await rover.send_all(hello("h1", "hider", "secret"))
+            got, closed = await read_until_closed(rover, 0.5)
+            assert not closed and decode_line(got.split(b"\n")[0]).cmd == "welcome"
+            for st in [rover, *flood]:
+                await st.aclose()
+
+    run(main)
+
+
+def test_two_rovers_from_one_address_both_get_in_beyond_the_caps() -> None:
+    """Two rovers behind one address, waiting beyond the caps, say hello at the same
+    moment: each hello makes room among the flood's connections, not in place of the
+    other rover's (a proven hello binds its rover at once)."""
+    async def main() -> None:
+        config = ServerConfig(rovers=frozenset({"h1", "s1"}),
+                              tokens={"h1": "secret-h", "s1": "secret-s"},
+                              max_connections=4, max_waiting=4)
+        async with open_server(Store(":memory:"), config) as s:
+            port = await s.listen_tcp("127.0.0.1", 0)
+            flood = [await open_raw_tcp(port, "127.1.0.1") for _ in range(8)]
+            h1, s1 = [await open_raw_tcp(port, "127.0.0.2") for _ in range(2)]
+            await trio.sleep(0.1)
+            assert (s.snapshot().connections, s.waiting) == (4, 4)
+            # both lines sent before the server runs again: at the same moment for it
+            os.write(h1.socket.fileno(), hello("h1", "hider", "secret-h"))
+            os.write(s1.socket.fileno(), hello("s1", "seeker", "secret-s"))
+            for stream in (h1, s1):
+                got, closed = await read_until_closed(stream, 0.5)
+                assert not closed and decode_line(got.split(b"\n")[0]).cmd == "welcome"
+            assert {v.id for v in s.snapshot().rovers} == {"h1", "s1"}
+            for st in [h1, s1, *flood]:
+                await st.aclose()
+
+    run(main)
+
+
+def test_a_hello_with_its_token_makes_room_at_the_connection_cap() -> None:
+    """Idle connections from many addresses, reopened whenever the server closes them,
+    keep the server at its cap; a rover with its token is welcomed at once, closing the
+    oldest connection without hello; connections stay within the cap and the waiting
+    room."""
+    async def main() -> None:
+        config = ServerConfig(rovers=frozenset({"h1"}), tokens={"h1": "secret"},
+                              max_connections=8, max_waiting=4)
+        async with open_server(Store(":memory:"), config) as s, \
+                trio.open_nursery() as nursery:
+            port = await s.listen_tcp("127.0.0.1", 0)
+
+            async def holder(source: str) -> None:
+                while True:
+                    stream = await open_raw_tcp(port, source)
+                    await read_until_closed(stream, 60)
+                    await stream.aclose()
+                    await trio.sleep(0.05)
+
+            for k in range(100):
+                nursery.start_soon(holder, f"127.1.0.{k % 20 + 1}")
+            await trio.sleep(1.0)
+            assert (s.snapshot().connections, s.waiting) == (8, 4)
+            for _ in range(3):
+                took, closed = await _welcome_after(port, hello("h1", "hider", "secret"),
+                                                    "127.0.0.2")
+                assert not closed and took < 1.0
+                assert s.snapshot().connections <= 8 and s.waiting <= 4
+            nursery.cancel_scope.cancel()
 
     run(main)
 

@@ -56,8 +56,9 @@ QUIET_CAPACITY = 4096
 """Quiet peers remembered at most."""
 _OVERSIZE = b"\xff" * (MAX_DATAGRAM + 1) + b"\n"  # what an oversize datagram reaches the server as
 
-Admit = Callable[["UdpPeer", str, str], bool]
-"""``admit(peer, host, link_name)``: the server serves ``peer`` (True) or refuses it."""
+Admit = Callable[["UdpPeer", str, str, bytes], bool]
+"""``admit(peer, host, link_name, first_datagram)``: the server serves ``peer`` (True) or
+refuses it (beyond its caps it reads the first datagram: an accepted hello makes room)."""
 
 
 def datagram_lines(data: bytes) -> list[bytes]:
@@ -225,7 +226,7 @@ class UdpEndpoint:
                             continue
                         del self._quiet[key]
                     peer = UdpPeer(self, addr)
-                    if not admit(peer, peer.host, peer.name):
+                    if not admit(peer, peer.host, peer.name, data):
                         self.refused += 1
                         continue
                     self._peers[key] = peer

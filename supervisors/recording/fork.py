@@ -137,9 +137,11 @@ def plan_fork(rec: Recording, at_s: float, *,
     if rec.run.operator != "headless":
         raise ForkError(f"{rec.path}: recorded from the console: a person's choices cannot be "
                         "played again headless; fork a `hideseek run` recording")
-    if not math.isfinite(at_s) or not 0 <= at_s <= rec.end_s:
-        raise ForkError(f"--fork-at must be within the recording, 0..{rec.end_s:.1f} s, "
-                        f"got {at_s!r}")
+    began = _began(rec)
+    if not math.isfinite(at_s) or not began <= at_s <= rec.end_s:
+        raise ForkError(f"--fork-at must be within the recording, {began:.1f}..{rec.end_s:.1f} "
+                        f"s, got {at_s!r}" + (" (it was started mid-game: the game before "
+                                              "it is not checked)" if began > 0 else ""))
     for name, given in (("hide", hide is not None), ("seek", seek is not None)):
         sent = _first_command(rec, name)
         if given and sent is not None and sent < at_s:
@@ -159,7 +161,18 @@ def plan_fork(rec: Recording, at_s: float, *,
         seek_at=tuple(seek) if seek is not None else rec.run.seek_at)
 
 
+def _began(rec: Recording) -> float:
+    """When the recording began [s]: 0, or the time of the game state it starts with."""
+    states = rec.topic("/game/state")
+    return states[0][0] if states else 0.0
+
+
 def _first_command(rec: Recording, name: str) -> float | None:
+    """When the recorded game first sent ``hide`` or ``seek`` (the recording's start when
+    it was sent before the recording began), None when never."""
+    states = rec.topic("/game/state")
+    if states and states[0][1].get("hide_spot" if name == "hide" else "guesses"):
+        return states[0][0]
     for t, log in rec.topic("/game/events"):
         if log.get("name") == "command" and f"command={name} " in log.get("message", "") + " ":
             return t
@@ -184,7 +197,7 @@ def fork_game(path: str | os.PathLike[str], at_s: float, *,
             cannot be rebuilt.
         ForkDiverged: the game left the recording before ``at_s``.
     """
-    rec = read_recording(path, topics=("/checkpoints", "/game/events"))
+    rec = read_recording(path, topics=("/checkpoints", "/game/events", "/game/state"))
     info = plan_fork(rec, at_s, faults=faults, hide=hide, seek=seek)
     try:
         scenario = info.scenario()

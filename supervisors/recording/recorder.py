@@ -2,9 +2,11 @@
 
 A `Recorder` watches a `SimSystem` the way a debugger would and writes what it
 sees to the channels of `supervisors.recording.schemas`, with the run's
-metadata (`RunInfo`, the scenario's TOML text) at the start and the game's
-summary at the end. Timestamps are Trio's clock: simulated time [s], as
-nanoseconds in the file.
+metadata (`RunInfo`, the scenario's TOML text) and the game's state
+(`game_state`: phase, hide spot, guesses, faults in force; the map and poses
+are sampled at once) at the start, and the game's summary at the end, so a
+recording started at any moment of a game replays from what the game was then.
+Timestamps are Trio's clock: simulated time [s], as nanoseconds in the file.
 
 Why the game cannot tell it is recorded: everything is read in synchronous
 callbacks the system already offers, and no task is added, so Trio's
@@ -51,7 +53,8 @@ from world.scenario import Scenario
 from .runinfo import RunInfo, scenario_text
 from .schemas import CHANNELS, FRAME, LOG_LEVELS, schema_bytes
 
-__all__ = ["Recorder", "RecordingError", "POSE_PERIOD_S", "MAX_PER_CHANNEL", "checkpoint"]
+__all__ = ["Recorder", "RecordingError", "POSE_PERIOD_S", "MAX_PER_CHANNEL", "checkpoint",
+           "game_state"]
 
 POSE_PERIOD_S = 0.2
 """Poses and paths are sampled this often [s simulated]."""
@@ -104,6 +107,23 @@ def checkpoint(system: SimSystem, now: float) -> dict[str, Any]:
     return {"timestamp": stamp(now), "index": int(math.floor(now)),
             "trace_hash": system.actors.trace.hexdigest(), "messages": system.messages(),
             "phase": str(system.server.game.phase)}
+
+
+def game_state(system: SimSystem, now: float) -> dict[str, Any]:
+    """A ``hideseek.GameState`` of ``system`` now: what a replay of a recording that
+    begins now starts from (the game's phase, hide spot, guesses, device faults in force)."""
+    game = system.server.game
+    injected = {f.get("id"): float(f.get("t", now)) for f in system.faults}
+    faults = [{"id": f"w{f.id}", "target": f.target, "kind": f.kind,
+               "start_s": injected.get(f"w{f.id}", now), "duration_s": float(f.duration_s)}
+              for f in system.world.active_faults()]
+    return {"timestamp": stamp(now), "phase": str(game.phase), "reason": game.last_reason,
+            "hide_spot": _pose_cm(game.hide_spot), "hider_pose": _pose_cm(game.hider_pose),
+            "guesses": [_pose_cm(g) for g in game.guesses], "faults": faults}
+
+
+def _pose_cm(p: Pose | None) -> dict[str, float] | None:
+    return None if p is None else {"x": p.x, "y": p.y, "heading": p.heading_deg}
 
 
 class _Lines:
@@ -228,6 +248,10 @@ class Recorder:
             self._wrap_link(system, role)
         self._wrap_lidar(system)
         now = trio.current_time()
+        # the game so far is in the state record, not replayed: faults injected before
+        # now are there if still in force, and never on /faults
+        self._add("/game/state", now, game_state(system, now))
+        self._faults_seen = len(system.faults)
         self._next_pose = self._next_map = now
         self._tick(now)
 

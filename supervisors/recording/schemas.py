@@ -39,6 +39,10 @@ _QUAT = {"type": "object", "title": "foxglove.Quaternion",
          "properties": {k: {"type": "number"} for k in "xyzw"}}
 _POSE = {"type": "object", "title": "foxglove.Pose",
          "properties": {"position": _XYZ, "orientation": _QUAT}}
+_POSE_CM = {"type": "object", "title": "pose",
+            "properties": {"x": {"type": "number", "description": "[cm]"},
+                           "y": {"type": "number", "description": "[cm]"},
+                           "heading": {"type": "number", "description": "[deg]"}}}
 _NUMERIC_TYPES = ("UNKNOWN", "UINT8", "INT8", "UINT16", "INT16", "UINT32", "INT32", "FLOAT32",
                   "FLOAT64")
 
@@ -111,6 +115,24 @@ SCHEMAS: dict[str, dict[str, Any]] = {
                        "description": "up: rover to server (received); down: server to rover "
                                       "(sent)"},
          "text": {"type": "string", "description": "the line, without its newline"}}),
+    "hideseek.GameState": _obj(
+        "hideseek.GameState",
+        "The game as it stood when the recording began (a recording started mid-game "
+        "replays from it); map frame [cm, deg], times simulated [s]",
+        {"timestamp": _TIME, "phase": {"type": "string"},
+         "reason": {"type": "string", "description": "why the game is in its phase"},
+         "hide_spot": {"oneOf": [{"type": "null"}, _POSE_CM],
+                       "description": "where the hider was sent"},
+         "hider_pose": {"oneOf": [{"type": "null"}, _POSE_CM],
+                        "description": "where the hider reported arriving"},
+         "guesses": {"type": "array", "items": _POSE_CM,
+                     "description": "the seeker's destinations so far, in order"},
+         "faults": {"type": "array", "description": "device faults in force", "items": {
+             "type": "object", "properties": {
+                 "id": {"type": "string"}, "target": {"type": "string"},
+                 "kind": {"type": "string"},
+                 "start_s": {"type": "number", "description": "when it was injected [s]"},
+                 "duration_s": {"type": "number", "description": "0: until cleared [s]"}}}}}),
     "hideseek.Checkpoint": _obj(
         "hideseek.Checkpoint",
         "The run's fingerprint so far, every second of simulated time (a fork checks it)",
@@ -174,6 +196,9 @@ CHANNELS: tuple[ChannelSpec, ...] = (
             "the server's game events: phase, command, refused, report, map, link "
             "(name: the event kind)"),
     channel("/checkpoints", "hideseek.Checkpoint", "the run's fingerprint, 1 Hz"),
+    channel("/game/state", "hideseek.GameState",
+            "the game when the recording began: phase, hide spot, guesses, faults in force "
+            "(one message, at the start)"),
 )
 
 

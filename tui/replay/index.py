@@ -4,7 +4,9 @@
 time series once (bisected per snapshot afterwards) and answers "what was
 true at t": the phase, the map, each rover's poses and path, the latest LIDAR
 scan, queue depths and rates, the supervision tree, the message log and the
-timeline. Nothing is simulated: every answer is read from the file.
+timeline. Nothing is simulated: every answer is read from the file. A
+recording started mid-game begins with the game's state (``/game/state``:
+phase, hide spot, guesses, faults in force); answers start from it.
 
 Frames: the recording's Foxglove messages are in metres in the map frame;
 everything here is converted back to the console's [cm].
@@ -99,7 +101,8 @@ class ReplayIndex:
         self.start_s = rec.start_s
         self.end_s = rec.end_s
         self._to_map = map_from_room or (lambda x, y, h: (x, y, h))
-        self._grids = rec.topic("/map/working") + rec.topic("/map/uploaded")
+        # at one instant the working map wins, as in the console (`tui.sim_views.map_view`)
+        self._grids = rec.topic("/map/uploaded") + rec.topic("/map/working")
         self._grids.sort(key=lambda item: item[0])
         self._grid_t = _times(self._grids)
         self._grid_cache: dict[int, GridView] = {}
@@ -119,6 +122,10 @@ class ReplayIndex:
         self._drops: dict[str, list[float]] = defaultdict(list)
         for t, d in rec.topic("/actors/drops"):
             self._drops[d["queue"]].append(t)
+        # when the recording began and the game's state then (`recorder.game_state`): what
+        # a recording started mid-game replays from (none in older recordings)
+        states = rec.topic("/game/state")
+        self._state_t, self._state = states[0] if states else (-math.inf, {})
         self._timeline = self._build_timeline()
         self._timeline_t = [e.time_s for e in self._timeline]
         self._runtime = [(t, log) for t, log in rec.topic("/actors/events")]
@@ -127,6 +134,9 @@ class ReplayIndex:
     # ---------------------------------------------------------------- timeline
     def _build_timeline(self) -> list[TimelineEvent]:
         items: list[tuple[float, str, str]] = []
+        if self._state.get("phase", "idle") != "idle":
+            items.append((self._state_t, "phase", f"{self._state['phase']} (when the "
+                                                  "recording began)"))
         for t, log in self.rec.topic("/game/events"):
             name, text = log["name"], log["message"]
             text = text.removesuffix(" reason=")
@@ -166,7 +176,7 @@ class ReplayIndex:
 
     def phase(self, t: float) -> str:
         """The game phase at ``t``."""
-        phase = "idle"
+        phase = self._state.get("phase", "idle") if t >= self._state_t else "idle"
         for _, log in self._series.get("/game/events", [])[
                 :bisect.bisect_right(self._series_t.get("/game/events", []), t)]:
             if log["name"] == "phase":
@@ -219,6 +229,10 @@ class ReplayIndex:
     def commands(self, t: float) -> tuple[Pose | None, tuple[tuple[float, float], ...]]:
         """The hide spot and the seek guesses sent by ``t`` (map frame)."""
         hide, guesses = None, []
+        if t >= self._state_t:  # sent before the recording began
+            spot = self._state.get("hide_spot")
+            hide = None if spot is None else Pose(spot["x"], spot["y"], spot["heading"])
+            guesses = [(g["x"], g["y"]) for g in self._state.get("guesses", [])]
         for _, log in self._series.get("/game/events", [])[
                 :bisect.bisect_right(self._series_t.get("/game/events", []), t)]:
             if log["name"] != "command":
@@ -303,6 +317,10 @@ class ReplayIndex:
     def all_faults(self) -> tuple[ActiveFault, ...]:
         """Every fault the recording injects, in the order they began."""
         out = []
+        for f in self._state.get("faults", []) if t >= self._state_t else []:
+            until = f["start_s"] + f["duration_s"] if f["duration_s"] > 0 else None
+            if until is None or t < until:
+                out.append(ActiveFault(f["id"], f["target"], f["kind"], f["start_s"], until))
         for start, log in self._series.get("/faults", []):
             text = log["message"]
             m = _FOR_S.search(text)
