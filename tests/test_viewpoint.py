@@ -124,7 +124,7 @@ def test_a_frontier_no_reachable_pose_can_see_ends_exploration() -> None:
     assert _views(grid, (0.0, 0.0)) == []  # ...but no pose sees it
     nav = MappingNav(pool=BufferPool(4))
     nav.grid = grid
-    assert not nav._choose(keep=False)
+    assert not nav.explorer.choose(keep=False)
     assert nav.ex.no_frontier and nav.ex.follower is None
 
 
@@ -146,9 +146,9 @@ def test_face_cells_seen_repeatedly_and_never_revealed_leave_the_face() -> None:
     nav = MappingNav(pool=BufferPool(4))
     nav.grid = _grid(cells, AT_ROVER)
     for _ in range(2):
-        nav._judge_sightings()
+        nav.explorer.judge_sightings()
         assert nav.ex.unseeable == []
-    nav._judge_sightings()
+    nav.explorer.judge_sightings()
     assert len(nav.ex.unseeable) >= 2
     assert nav.ex.sightings == {} or all(n < 3 for n in nav.ex.sightings.values())
 

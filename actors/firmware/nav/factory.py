@@ -15,10 +15,11 @@ from __future__ import annotations
 from actors import Actor, BufferPool
 from actors.firmware.addresses import Addresses
 from actors.firmware.hardware import ROLES, HardwareSpec
-from actors.firmware.nav.hider import HidingNav
+from actors.firmware.nav.hider import Hide
 from actors.firmware.nav.mapper import MappingNav, MappingOptions
 from actors.firmware.nav.options import NavMemory, NavOptions
-from actors.firmware.nav.seeker import SeekingNav, SeekingOptions
+from actors.firmware.nav.route_nav import RouteNav
+from actors.firmware.nav.seeker import Seek, SeekingOptions
 
 __all__ = ["make_nav", "NavMemory", "NavOptions"]
 
@@ -51,9 +52,9 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
         return MappingNav(pool=pool, spec=spec, options=options, memory=memory, mapping=mapping,
                           addresses=addresses)
     if role == "hider":
-        return HidingNav(pool=pool, spec=spec, options=options, memory=memory,
-                         addresses=addresses)
+        return RouteNav("hider", Hide, pool=pool, spec=spec, options=options, memory=memory,
+                        addresses=addresses)
     if role == "seeker":
-        return SeekingNav(pool=pool, spec=spec, options=options, memory=memory, seeking=seeking,
-                          addresses=addresses)
+        return RouteNav("seeker", lambda nav: Seek(nav, seeking), pool=pool, spec=spec,
+                        options=options, memory=memory, addresses=addresses)
     raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
