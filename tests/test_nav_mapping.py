@@ -11,6 +11,7 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
+from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.mapper import MappingNav, MappingOptions
 from actors.firmware.origin_wire import length_pair
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
@@ -203,10 +204,9 @@ def test_futile_trips_count_whole_visits_and_end_exploration(monkeypatch) -> Non
     ``FUTILE_TRIPS * MIN_GAIN_CELLS`` cells known, exploration counts the frontiers left
     as not useful."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     monkeypatch.setattr(exploration, "FUTILE_TRIPS", 3)
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     assert exploration.MIN_GAIN_CELLS == 30
     cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
     known = [0]
@@ -240,10 +240,9 @@ def test_the_least_useful_gain_grows_with_the_map(monkeypatch) -> None:
     """In a big map a visit must reveal 0.3 % of what is known to count: 60 cells of
     30000 known is futile, though more than ``MIN_GAIN_CELLS``."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     monkeypatch.setattr(exploration, "FUTILE_TRIPS", 2)
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:30000] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
@@ -257,10 +256,9 @@ def test_one_visit_just_above_the_limit_does_not_restart_the_futile_count() -> N
     """The window is judged on its sum: visits of 21, 7, 4 and 34 cells
     (limit 32: 34 alone is above it) are futile together, so mapping ends."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     assert exploration.FUTILE_TRIPS == 4
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:10785] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
@@ -289,11 +287,10 @@ async def test_after_futile_visits_only_viewpoints_worth_the_whole_window_count(
     shown: a small opening is dismissed, a big one (a room's unseen part) still chosen,
     and a fruitful visit lets the small one count again."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     monkeypatch.setattr(exploration, "FUTILE_TRIPS", 2)
     monkeypatch.setattr(exploration, "MIN_GAIN_CELLS", 200)
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     nav.grid = _walled_room({"west": 8})  # viewpoints reveal about 290 cells
     assert nav.explorer.choose(keep=False) and nav.ex.target[0] < 0.0
     nav.ex = type(nav.ex)(gains=[0, 0])
@@ -312,11 +309,10 @@ async def test_map_stability_counts_net_growth_not_edge_flicker(autojump_clock,
     """Cells flickering between unknown and known (scan matching's jitter at rest) leave the
     map stable; the known area growing is a change."""
     from actors.firmware.nav import mapper
-    from actors.firmware.nav.mapper import MappingNav
 
     monkeypatch.setattr(mapper, "CHANGE_SHARE", 0.0)  # the threshold: CHANGE_CELLS (3)
     assert mapper.CHANGE_CELLS == 3
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     base = _walled_room({})
     await nav.on_map_update(base)
     t0 = nav.changed_at
@@ -433,10 +429,9 @@ def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -
     refused and turn away for minutes): after ``OBSTACLE_TURNS`` turns away toward
     one target the target is blacklisted and the trip ends; another target starts over."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     assert exploration.OBSTACLE_TURNS == 3
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:100] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
@@ -460,11 +455,10 @@ def test_the_mapper_steers_and_plans_home_from_its_map_frame_pose() -> None:
     map (a 30 cm move is cut to 10; odometry alone would see it 70 cm off and drive all
     30), and homing plans a route back to the map's (0, 0) (odometry alone would say it is
     home)."""
-    from actors.firmware.nav.mapper import MappingNav
     from actors.firmware.nav.route import Motion
     from server.protocol.pose import Pose
 
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     cells = np.full((40, 60), FREE, dtype=np.int8)  # x -100..200, y -100..100
     cells[:, 34] = OCCUPIED  # the wall x 70..75
     nav.grid = GridMap(cells, 5.0, (-100.0, -100.0))
@@ -482,7 +476,7 @@ def _homing_nav() -> MappingNav:
     """A mapper going home at (0, 0) @ 0 on free floor (x, y -100..100, 5 cm cells)."""
     from server.protocol.pose import Pose
 
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     _set_column(nav, None, FREE)
     nav.pose, nav.pose_known = Pose(0.0, 0.0, 0.0), True
     nav.set_origin(Pose(0.0, 0.0, 0.0))

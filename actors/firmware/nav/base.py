@@ -91,7 +91,7 @@ class NavBase(Actor):
     origin_from_server = True
     """Whether the server's ``origin`` sets the origin (not on the mapper: see `mapper`)."""
 
-    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
+    def __init__(self, *, pool: BufferPool, spec: HardwareSpec,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
                  addresses: Addresses | None = None) -> None:
         self.pool = pool
@@ -100,10 +100,8 @@ class NavBase(Actor):
         """Retained across restarts when the rover tree passes one (see `NavMemory`)."""
         self.spec = spec
         self.o = options or NavOptions()
-        length = spec.length_cm if spec else 20.0
-        width = spec.width_cm if spec else 15.0
-        self.length_cm, self.width_cm = length, width
-        self.radius_cm = turning_radius_cm(length, width)
+        self.length_cm, self.width_cm = spec.length_cm, spec.width_cm
+        self.radius_cm = turning_radius_cm(spec.length_cm, spec.width_cm)
         """Turning radius for planning [cm]: the body's half-diagonal."""
         self.pose: Pose = ZERO_POSE
         """Dead-reckoned pose, own frame (from Motor Control)."""

@@ -35,7 +35,8 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
     Args:
         role: ``mapper``, ``hider`` or ``seeker``.
         pool: the rover's buffer pool (frames, maps and scans travel by handle).
-        spec: the rover's calibration constants (body size for clearance).
+        spec: the rover's calibration constants (body size for clearance); the bench
+            calibration (`HardwareSpec.bench`) when the rover tree gives none.
         rover_id: the rover's id (accepted for the rover tree's calling convention).
         options: common tunables (`NavOptions`).
         memory: the retained record of the server's instructions, made once by the
@@ -48,6 +49,10 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
     Raises:
         ValueError: ``role`` is not one of `ROLES`.
     """
+    if spec is None:
+        if role not in ROLES:
+            raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
+        spec = HardwareSpec.bench(role)
     if role == "mapper":
         return MappingNav(pool=pool, spec=spec, options=options, memory=memory, mapping=mapping,
                           addresses=addresses)

@@ -164,8 +164,6 @@ class Localiser:
             self._field, self._field_of = DistanceField.from_grid(self.nav.map), self.nav.map
         return self._field
 
-    def _track_width(self) -> float:
-        return self.nav.spec.track_width_cm if self.nav.spec is not None else 13.0
 
     # ------------------------------------------------------------------ filtering
     def adopt(self, belief: PoseBelief) -> None:
@@ -268,7 +266,7 @@ class Localiser:
         assert self.belief is not None and self._belief_odom is not None
         if self._reported_motion is not None and self._reported_motion is self.nav.last_motion:
             return False  # the reported motion's driven travel comes with its end
-        w = self._track_width()
+        w = self.nav.spec.track_width_cm
         left, right = tread_travel(self._belief_odom, self.nav.pose, w)
         if abs(left) + abs(right) < 1e-6 and self._reports == [TreadReport.OK, TreadReport.OK]:
             return False

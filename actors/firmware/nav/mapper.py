@@ -98,7 +98,7 @@ class MappingNav(NavBase):
     role = "mapper"
     origin_from_server = False
 
-    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
+    def __init__(self, *, pool: BufferPool, spec: HardwareSpec,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
                  mapping: MappingOptions | None = None,
                  addresses: Addresses | None = None) -> None:

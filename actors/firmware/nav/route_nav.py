@@ -89,7 +89,7 @@ class RouteNav(NavBase):
     """
 
     def __init__(self, role: str, behaviour: Callable[[RouteNav], RoleBehaviour], *,
-                 pool: BufferPool, spec: HardwareSpec | None = None,
+                 pool: BufferPool, spec: HardwareSpec,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
                  addresses: Addresses | None = None) -> None:
         self.role = role

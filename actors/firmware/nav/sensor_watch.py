@@ -274,8 +274,7 @@ class SensorWatch:
             if motion.kind != "turn":
                 return
             reported = (True, True)
-        w = self.nav.spec.track_width_cm if self.nav.spec is not None else 13.0
-        counted = tread_travel(start, self.nav.pose, w)
+        counted = tread_travel(start, self.nav.pose, self.nav.spec.track_width_cm)
         left, right = uncounted_travel(reported, counted, (left_cm, right_cm))
         await self.nav.post(self.nav.map_name, length_pair(Cmd.MAP_TREAD_FAULT, left, right, MM))
 
