@@ -60,8 +60,14 @@ from typing import Any, Protocol, runtime_checkable
 # the role names are the message layer's (a rover names its role in ``hello``)
 from server.protocol.catalogue import ROLES
 
+MAPPER, HIDER, SEEKER = ROLES
+"""The role names (`server.protocol.catalogue.ROLES`), as the firmware spells them."""
+
 __all__ = [
     "ROLES",
+    "MAPPER",
+    "HIDER",
+    "SEEKER",
     "Interrupt",
     "RoverHardware",
     "HardwareSpec",

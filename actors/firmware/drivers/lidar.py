@@ -46,6 +46,7 @@ import numpy as np
 
 from actors import Actor, BufferPool, ExitReason, Message
 from actors.firmware.addresses import Addresses
+from actors.firmware.arrays import wrap_angle
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import LidarSamples, LidarUartIsr
 from actors.firmware.handles import post
@@ -170,7 +171,7 @@ def roughness_cm(angles_deg: np.ndarray, ranges_cm: np.ndarray, *,
     # per batch (a hundred values, so the count of numpy calls is the cost): slices and
     # ufuncs, not np.diff's wrapper; the neighbours' conditions are and-ed per pair
     # first (``pair[i]``: step i usable, returns i and i + 1 valid, i.e. the smaller > 0)
-    step = np.abs((a[1:] - a[:-1] + 180.0) % 360.0 - 180.0)
+    step = np.abs(wrap_angle(a[1:] - a[:-1], 360.0))
     pair = (step > 0.0) & (step <= max_step_deg)
     pair &= np.minimum(r[:-1], r[1:]) > 0.0
     use = pair[:-1] & pair[1:]
@@ -220,7 +221,7 @@ def batch_health(angles_deg: np.ndarray, ranges_cm: np.ndarray, bad_frames: int,
         return LidarHealth.OK
     a = np.asarray(angles_deg, dtype=np.float64)
     if _may_be_stuck(a):
-        spread = np.abs((a - a[0] + 180.0) % 360.0 - 180.0)
+        spread = np.abs(wrap_angle(a - a[0], 360.0))
         if float(np.maximum.reduce(spread)) <= STUCK_SPAN_DEG:
             return LidarHealth.STUCK
     rough, triples = roughness_cm(a, ranges_cm)

@@ -76,7 +76,7 @@ from actors.firmware.mapping.scan_match import (
     relocalise,
 )
 from actors.firmware.mapping.scan_window import ScanWindow, same_stamp
-from actors.firmware.origin_wire import OriginHalves
+from actors.firmware.origin_wire import PoseHalves
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg
 
@@ -177,7 +177,7 @@ class MapManagement(Actor):
         self._fields_at = -float("inf")
         self._fields_stale = True  # the grid changed since the fields were built
         self._last_odom: Pose | None = None  # last odometry stamp of the last matched window
-        self._origin_halves = OriginHalves()  # MAP_ORIGIN_XY waiting for its heading
+        self._origin_halves = PoseHalves()  # MAP_ORIGIN_XY waiting for its heading
         # a restarted incarnation waits (a bounded time) for the correction navigation kept
         self._await_correction_until = -float("inf")
         self._search_at = -float("inf")  # time of the last wide search

@@ -48,11 +48,11 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.ir import IR_IN, IR_PINNED
 from actors.firmware.drivers.tread_monitor import TreadFault
-from actors.firmware.hardware import HardwareSpec
+from actors.firmware.hardware import MAPPER, HardwareSpec
 from actors.firmware.nav.controller import Controller, MotionEnd, Tick
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
-from actors.firmware.origin_wire import MM, xy_half
+from actors.firmware.origin_wire import MM, PoseHalves, xy_half
 from actors.firmware.planning.clearance import turning_radius_cm
 from server.protocol import Frame, FrameError, make_frame, read_data
 from server.protocol.grid_map import GridMap
@@ -107,7 +107,7 @@ class NavBase(Actor):
         """Dead-reckoned pose, own frame (from Motor Control)."""
         self.pose_known = False
         """True once Motor Control published a pose to this incarnation."""
-        self.origin: Pose | None = ZERO_POSE if self.role == "mapper" else None
+        self.origin: Pose | None = ZERO_POSE if self.role == MAPPER else None
         """The map -> own frame transform: the own frame's (0, 0) @ 0 in the map frame
         (see Frames in the module docstring)."""
         self.started = False
@@ -121,7 +121,7 @@ class NavBase(Actor):
         """``NAV_TREAD_FAULT`` reports acted on."""
         self.controller = Controller(self.o.speed_cm_s)
         """The motion in flight, its watchdog and holds (the ADP loop's state)."""
-        self._pose_xy: tuple[float, float] | None = None  # NAV_POSE_XY waiting for its heading
+        self._pose_halves = PoseHalves(MM)  # NAV_POSE_XY waiting for its heading
         self.last_motion: Motion | None = None
         """The last motion commanded."""
         self.motion_from: Pose | None = None
@@ -170,9 +170,11 @@ class NavBase(Actor):
             return None
         cmd = message.command
         if cmd == Cmd.NAV_POSE_XY:
-            self._pose_xy = xy_half(message, MM)
+            self._pose_halves.take_xy(message)
         elif cmd == Cmd.NAV_POSE_HEADING:
-            await self._on_pose(float(message.value))
+            pose = self._pose_halves.take_heading(message, unchanged=self.pose)
+            if pose is not None:
+                await self._on_pose(pose)
         elif cmd == Cmd.NAV_MOTION_DONE or cmd == Cmd.NAV_MOTION_BLOCKED:
             await self._on_motion_end(cmd == Cmd.NAV_MOTION_BLOCKED, float(message.value))
         elif cmd == Cmd.NAV_TIMER:
@@ -225,10 +227,8 @@ class NavBase(Actor):
         self.origin = origin
         self.memory.origin = (origin.x, origin.y, origin.heading_deg)
 
-    async def _on_pose(self, heading: float) -> None:
-        x, y = self._pose_xy if self._pose_xy is not None else (self.pose.x, self.pose.y)
-        self.pose = Pose(x, y, heading)
-        self._pose_xy = None
+    async def _on_pose(self, pose: Pose) -> None:
+        self.pose = pose
         self.pose_known = True
         if self.controller.in_flight is None:
             self.on_pose_at_rest()
@@ -305,7 +305,7 @@ class NavBase(Actor):
         if self._outbox:
             await self._flush_outbox()
         if now >= self._next_pose_report and self.pose_known and (
-                self.origin is not None or self.role == "mapper"):
+                self.origin is not None or self.role == MAPPER):
             self._next_pose_report = now + POSE_REPORT_TICKS * self.o.tick_s
             p = self.map_pose
             await self.send_frame(make_frame("pose", {"x": round(p.x, 1), "y": round(p.y, 1),

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from actors import Actor, BufferPool
 from actors.firmware.addresses import Addresses
-from actors.firmware.hardware import ROLES, HardwareSpec
+from actors.firmware.hardware import HIDER, MAPPER, ROLES, SEEKER, HardwareSpec
 from actors.firmware.nav.hider import Hide
 from actors.firmware.nav.mapper import MappingNav, MappingOptions
 from actors.firmware.nav.options import NavMemory, NavOptions
@@ -53,13 +53,13 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
         if role not in ROLES:
             raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
         spec = HardwareSpec.bench(role)
-    if role == "mapper":
+    if role == MAPPER:
         return MappingNav(pool=pool, spec=spec, options=options, memory=memory, mapping=mapping,
                           addresses=addresses)
-    if role == "hider":
-        return RouteNav("hider", Hide, pool=pool, spec=spec, options=options, memory=memory,
+    if role == HIDER:
+        return RouteNav(HIDER, Hide, pool=pool, spec=spec, options=options, memory=memory,
                         addresses=addresses)
-    if role == "seeker":
-        return RouteNav("seeker", lambda nav: Seek(nav, seeking), pool=pool, spec=spec,
+    if role == SEEKER:
+        return RouteNav(SEEKER, lambda nav: Seek(nav, seeking), pool=pool, spec=spec,
                         options=options, memory=memory, addresses=addresses)
     raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")

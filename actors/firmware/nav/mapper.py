@@ -56,7 +56,7 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
-from actors.firmware.hardware import HardwareSpec
+from actors.firmware.hardware import MAPPER, HardwareSpec
 from actors.firmware.mapping.parked_body import with_parked_body
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.exploration import Exploration, ExplorationState
@@ -64,7 +64,7 @@ from actors.firmware.nav.homing import Homing
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.sensor_watch import SensorWatch
-from actors.firmware.origin_wire import MM, OriginHalves, pose_messages, xy_half
+from actors.firmware.origin_wire import MM, PoseHalves, pose_messages, xy_half
 from server.protocol.grid_map import UNKNOWN, GridMap
 from server.protocol.pose import ZERO_POSE
 
@@ -95,7 +95,7 @@ UPLOAD_WAIT_S = 1.0
 class MappingNav(NavBase):
     """The mapper's navigation actor (registered as ``mapper/nav``)."""
 
-    role = "mapper"
+    role = MAPPER
     origin_from_server = False
 
     def __init__(self, *, pool: BufferPool, spec: HardwareSpec,
@@ -142,7 +142,7 @@ class MappingNav(NavBase):
         """The way home once mapping completes by itself."""
         self.watch = SensorWatch(self)
         """The holds for a faulty LIDAR or odometry."""
-        self._origin_halves = OriginHalves()  # NAV_MAP_ORIGIN_XY waiting for its heading
+        self._origin_halves = PoseHalves()  # NAV_MAP_ORIGIN_XY waiting for its heading
 
     # ------------------------------------------------------------------ dispatch
     async def handle(self, message: Any) -> Any:

@@ -42,7 +42,7 @@ A motion that ended blocked in the open (both encoders stuck)
     ``CONTACT_CELLS`` of its leading edge, on known free floor, met nothing the LIDAR
     sees, and a turn that counted nothing at all is most likely two stuck encoders
     (as Motor Control judges one its model caught); the odometry is in doubt
-    (`_blocked_in_the_open`). Exploring or going home, the mapper then holds as for a
+    (`blocked_in_the_open`). Exploring or going home, the mapper then holds as for a
     disagreement instead of backing off: a back-off or a turn on stuck encoders is
     driven blind (a few cm, or tens of degrees, per try, unseen, in a corridor 30 cm
     wide), and going home, counting such blocks as the way home being blocked would
@@ -315,7 +315,7 @@ class SensorWatch:
 
     async def hold_if_blocked_in_the_open(self, done: float) -> bool:
         """After a motion that ended blocked having counted ``done``: hold for odometry
-        when it met nothing the map holds (`_blocked_in_the_open`) and the hold has not
+        when it met nothing the map holds (`blocked_in_the_open`) and the hold has not
         yet doubled to its longest; True when holding (the block is not the route's)."""
         now = trio.current_time()
         if now - self.odo_last <= 60.0 and _odo_hold_s(self.odo_strikes) >= ODO_HOLD_MAX_S:
