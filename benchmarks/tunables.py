@@ -126,7 +126,7 @@ KINDS: dict[str, dict[str, str]] = {
                                          "turned_away": "structural"},
     "nav.hider": {"_SHIFT_STEP_CM": "structural", "_SHIFT_BEARINGS": "structural",
                   "_SHIFT_TRIES": "structural"},
-    "nav.homing": {"HOME_BLOCKS": "policy"},
+    "nav.homing": {"HOME_BLOCKS": "structural"},
     "nav.localiser": {"START_SIGMA_CM": "physical", "START_SIGMA_DEG": "physical",
                       "RETRY_PRIOR_SHARE": "policy"},
     "nav.mapper": {"FIRST_SCANS": "structural", "STABLE_SCANS": "policy",
@@ -165,7 +165,7 @@ KINDS: dict[str, dict[str, str]] = {
     "nav.sensor_watch": {"LIDAR_SILENT_S": "policy", "ODO_TURN_SHIFT_CM": "policy",
                          "ODO_MOVE_TURN_DEG": "policy", "ODO_HOLD_S": "policy",
                          "SHORT_HOLD_S": "policy", "CONTACT_CELLS": "policy"},
-    "nav.tread_faults": {"TREAD_HOLDS": "policy", "TREAD_CONTACT_S": "policy",
+    "nav.tread_faults": {"TREAD_HOLDS": "structural", "TREAD_CONTACT_S": "policy",
                          "TREAD_STOP_S": "structural", "TREAD_CHECK_CM": "policy"},
     "origin_wire": {"_INT16": "structural", "MM": "structural", "CM": "structural"},
     "planning.frontier.Frontier": {"open_share": "structural"},
@@ -195,7 +195,7 @@ class Number:
 
 
 def _is_number(value: Any) -> bool:
-    if isinstance(value, bool):
+    if isinstance(value, bool | enum.Enum):  # an enum member is a name, not a number
         return False
     if isinstance(value, int | float):
         return True

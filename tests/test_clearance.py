@@ -17,6 +17,8 @@ from server.protocol.pose import Pose
 RES = 5.0
 BODY = (20.0, 15.0, 5.0)
 """The bench body (length, width [cm]) and the spot margin [cm]."""
+AHEAD = {"half_angle_deg": 30.0, "half_width_cm": 12.5}
+"""A cone of +-30 deg and a corridor the body's half-diagonal wide [deg, cm]."""
 
 
 def room() -> np.ndarray:
@@ -102,12 +104,12 @@ def test_obstacle_ahead_finds_the_nearest_cell_in_front_only():
     """A wall 40 cm ahead is found at 20..45 cm; behind or beyond range it is not."""
     m = GridMap(room(), RES, (0, 0))
     facing_wall = Pose(160, 102.5, 0)  # wall cells at x in [195, 200)
-    ob = obstacle_ahead(m, facing_wall, 40)
+    ob = obstacle_ahead(m, facing_wall, 40, **AHEAD)
     assert ob is not None
     assert ob.forward_cm == pytest.approx(37.5)
     assert abs(ob.bearing_deg) < 1
-    assert obstacle_ahead(m, facing_wall, 30) is None
-    assert obstacle_ahead(m, Pose(160, 102.5, 180), 40) is None
+    assert obstacle_ahead(m, facing_wall, 30, **AHEAD) is None
+    assert obstacle_ahead(m, Pose(160, 102.5, 180), 40, **AHEAD) is None
 
 
 def test_obstacle_ahead_sees_a_box_to_the_side_within_the_cone():
@@ -115,11 +117,12 @@ def test_obstacle_ahead_sees_a_box_to_the_side_within_the_cone():
     cells = np.full((40, 40), FREE, dtype=np.int8)
     cells[22, 24] = OCCUPIED  # centre (122.5, 112.5)
     m = GridMap(cells, RES, (0, 0))
-    ob = obstacle_ahead(m, Pose(100, 100, 0), 30)
+    ob = obstacle_ahead(m, Pose(100, 100, 0), 30, **AHEAD)
     assert ob is not None and ob.bearing_deg > 0
     cells2 = np.full((40, 40), FREE, dtype=np.int8)
     cells2[26, 24] = OCCUPIED  # centre (122.5, 132.5): lateral 32.5 > max(12.5, 22.5 tan 30)
-    assert obstacle_ahead(GridMap(cells2, RES, (0, 0)), Pose(100, 100, 0), 30) is None
+    assert obstacle_ahead(GridMap(cells2, RES, (0, 0)), Pose(100, 100, 0), 30,
+                          **AHEAD) is None
 
 
 def test_passage_width_across_the_heading():

@@ -11,6 +11,7 @@ import pytest
 import trio
 
 from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.localisation.motion_model import (
     MotionNoise,
@@ -122,7 +123,7 @@ class _MapperState:
         self.last_motion = Motion("turn", 90.0)
         self.odometry_from, self.pose = odometry_from, pose
         self.motion_from, self.map_pose = motion_from, map_pose
-        self.spec, self.map_name = None, "mapper/map"
+        self.spec, self.map_name = HardwareSpec.bench("mapper"), "mapper/map"
         self.posted: list[tuple[float, float]] = []
 
     async def stop_motor(self) -> None:

@@ -174,8 +174,8 @@ def obstacle_ahead(
     pose: Pose,
     distance_cm: float,
     *,
-    half_angle_deg: float = 30.0,
-    half_width_cm: float = 12.5,
+    half_angle_deg: float,
+    half_width_cm: float,
 ) -> Obstacle | None:
     """The nearest occupied cell ahead of ``pose`` within ``distance_cm``, or None.
 
