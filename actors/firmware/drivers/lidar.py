@@ -51,7 +51,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import LidarSamples, LidarUartIsr
 from actors.firmware.handles import post
 from actors.firmware.hardware import Interrupt, RoverHardware
-from actors.firmware.origin_wire import CM, xy_half
+from actors.firmware.origin_wire import CM, PoseHalves
 from server.protocol.pose import Pose
 
 __all__ = ["Scan", "LidarHealth", "HealthOptions", "roughness_cm", "batch_health",
@@ -249,8 +249,8 @@ class LidarControl(Actor):
         self.pool = pool
         self._isr = isr
         self.max_pending = max_pending
-        self._xy = (0.0, 0.0)
-        self._heading = 0.0
+        self._pose = Pose()  # the odometry pose pending samples are stamped with
+        self._pose_halves = PoseHalves(CM)  # LIDAR_POSE_XY waiting for its heading
         self._angles: list[int] = []  # single samples [0.1 deg]
         self._ranges: list[int] = []  # [cm]
         self._chunks: list[LidarSamples] = []  # whole interrupts' samples (LIDAR_SAMPLES)
@@ -324,9 +324,9 @@ class LidarControl(Actor):
                 if self._pending >= self.max_pending:
                     self._flush()
             elif cmd == Cmd.LIDAR_POSE_XY:
-                self._xy = xy_half(m, CM)
+                self._pose_halves.take_xy(m)
             elif cmd == Cmd.LIDAR_POSE_HEADING:
-                self._heading = float(m.value)
+                self._pose = self._pose_halves.take_heading(m, self._pose) or self._pose
                 self._flush()  # pending samples were taken at this pose
                 had_pending = False
             elif cmd in (Cmd.LIDAR_START, Cmd.LIDAR_RATE):
@@ -366,7 +366,7 @@ class LidarControl(Actor):
         if not self._healthy(angles, ranges):
             self.withheld += 1
             return
-        scan = Scan(Pose(self._xy[0], self._xy[1], self._heading), angles, ranges)
+        scan = Scan(self._pose, angles, ranges)
         if post(self.pool, lambda m: self._send(self._map, m), Cmd.MAP_SCAN, scan):
             self.scans += 1
         else:
