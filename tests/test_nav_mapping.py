@@ -528,39 +528,46 @@ def test_a_move_blocked_with_nothing_mapped_at_its_leading_edge_is_blocked_in_th
 
 @pytest.mark.trio
 async def test_homing_holds_for_odometry_instead_of_counting_a_block_in_the_open(
-        monkeypatch) -> None:
+        autojump_clock, monkeypatch) -> None:
     """Going home, a move blocked in the open holds (an odometry fault) instead of backing
     off blind and counting toward ``HOME_BLOCKS``: with both encoders stuck, three such
     blocks would upload the map from wherever the mapper stands. A block at a mapped
     wall backs off and counts as before; once the holds have doubled to the longest, a
-    block in the open counts too."""
-    from actors.firmware.nav import sensor_watch
+    block in the open counts too. Observed through what navigation says and commands."""
     from actors.firmware.nav.route import Motion
+    from actors.firmware.nav.sensor_watch import ODO_HOLD_S
 
     nav = _homing_nav()
-    holds: list[str] = []
+    said: list[tuple[str, str | None]] = []
     commands: list[Motion] = []
 
-    async def hold(now: float, what: str, hold: float | None = None) -> None:
-        holds.append(what)
-        nav.watch.odo_strikes += 1
-        nav.watch.odo_last = now
+    async def status(state: str, detail: str | None = None, **extra: object) -> None:
+        said.append((state, detail))
+
+    async def stop_motor() -> None:
+        pass
 
     async def command(motion: Motion) -> None:
         commands.append(motion)
 
-    monkeypatch.setattr(nav.watch, "odometry_hold", hold)
+    def holds() -> int:
+        return sum(state == "odometry_fault" for state, _ in said)
+
+    monkeypatch.setattr(nav, "status", status)
+    monkeypatch.setattr(nav, "stop_motor", stop_motor)
     monkeypatch.setattr(nav, "command", command)
     nav.last_motion = Motion("move", 20.0)
     await nav.after_motion(True, 14.0)
-    assert len(holds) == 1 and commands == [] and nav.ex.blocks == 0
+    assert holds() == 1 and commands == [] and nav.ex.blocks == 0
+    await trio.sleep(ODO_HOLD_S + 0.1)  # the hold ends
     _set_column(nav, 23, OCCUPIED)  # a wall at the front: a real block
     await nav.after_motion(True, 14.0)
-    assert len(holds) == 1 and commands == [Motion("move", -nav.o.backoff_cm)]
+    assert holds() == 1 and commands == [Motion("move", -nav.o.backoff_cm)]
     assert nav.ex.blocks == 1
     _set_column(nav, 23, FREE)
-    nav.last_motion = Motion("move", 20.0)
-    nav.watch.odo_strikes = 1 + round(math.log2(sensor_watch.ODO_HOLD_MAX_S
-                                           / sensor_watch.ODO_HOLD_S))
+    for strike in (2, 3, 4):  # more blocks in the open: each hold twice the last
+        await nav.after_motion(True, 14.0)
+        assert holds() == strike and nav.ex.blocks == 1
+        await trio.sleep(ODO_HOLD_S * 2 ** (strike - 1) + 0.1)
     await nav.after_motion(True, 14.0)  # held the longest already: it counts
-    assert len(holds) == 1 and nav.ex.blocks == 2
+    assert holds() == 4 and nav.ex.blocks == 2

@@ -131,10 +131,8 @@ class SensorWatch:
         self._pause_off_until = -math.inf  # a fault that outlasted lidar_pause_s: drive on
         self._scans_at_pause = 0
         self._odo_hold_until = -math.inf  # holding still for odometry until then
-        self.odo_last = -math.inf
-        """When the last odometry strike was held for [s]."""
-        self.odo_strikes = 0
-        """Odometry strikes in a row, each within 60 s of the last (the hold doubles)."""
+        self._odo_last = -math.inf  # when the last disagreement was seen
+        self._odo_strikes = 0  # disagreements in a row, each within 60 s of the last
         self._relayed = (False, False)  # treads reported in this motion, to relay at its end
 
     async def on_lidar_health(self, value: int) -> None:
@@ -318,7 +316,7 @@ class SensorWatch:
         when it met nothing the map holds (`blocked_in_the_open`) and the hold has not
         yet doubled to its longest; True when holding (the block is not the route's)."""
         now = trio.current_time()
-        if now - self.odo_last <= 60.0 and _odo_hold_s(self.odo_strikes) >= ODO_HOLD_MAX_S:
+        if now - self._odo_last <= 60.0 and _odo_hold_s(self._odo_strikes) >= ODO_HOLD_MAX_S:
             return False  # held the longest already: a fault this long, or a real block
         if not self.blocked_in_the_open(done):
             return False
@@ -331,9 +329,9 @@ class SensorWatch:
         """Stop the motor and hold still for odometry (see the module docstring); ``hold``
         [s] given: that long, not counted as a strike."""
         if hold is None:
-            self.odo_strikes = self.odo_strikes + 1 if now - self.odo_last <= 60.0 else 1
-            self.odo_last = now
-            hold = min(ODO_HOLD_MAX_S, _odo_hold_s(self.odo_strikes))
+            self._odo_strikes = self._odo_strikes + 1 if now - self._odo_last <= 60.0 else 1
+            self._odo_last = now
+            hold = min(ODO_HOLD_MAX_S, _odo_hold_s(self._odo_strikes))
         self._odo_hold_until = now + hold
         self.nav.odometry_faults += 1
         await self.nav.stop_motor()
