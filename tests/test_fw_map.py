@@ -443,10 +443,11 @@ async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_
             send(system, turned)
             await trio.sleep(0.1)
         assert mm.searched >= 1
-        assert mm.localiser.correction.heading_deg == pytest.approx(50.0, abs=1.5)
         assert not mm.wide(mm.matching) and mm.localiser.belief.heading95_deg < 3.0
         assert mm.scans > scans  # placed again once found
         assert _stray_walls(before, mm.grid.cells()) <= 3  # (2: rays 3 deg apart land elsewhere)
+        await trio.sleep(0.3)  # the last update goes out
+        assert origin_sent(log).heading_deg == pytest.approx(50.0, abs=1.5)
 
 
 @pytest.mark.trio
