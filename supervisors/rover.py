@@ -229,9 +229,8 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
 
     def make_map() -> Actor:
         map_starts[0] += 1
-        return MapManagement(pool, size_cm=map_size_cm, restarted=map_starts[0] > 1,
-                             track_width_cm=hardware.spec.track_width_cm,
-                             cm_per_interrupt=hardware.spec.cm_per_interrupt, addresses=names)
+        return MapManagement(pool, hardware.spec, size_cm=map_size_cm,
+                             restarted=map_starts[0] > 1, addresses=names)
 
     def child(cid: str, start: Callable[[], Actor], *, driver: bool = True) -> ChildSpec:
         return ChildSpec(cid, start, mailbox=MAILBOX[cid], watchdog=WATCHDOG_S[cid],

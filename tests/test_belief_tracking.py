@@ -1,4 +1,4 @@
-"""The hider's and seeker's pose belief as navigation keeps it (`nav/belief_tracking.py`)."""
+"""The hider's and seeker's pose belief as navigation keeps it (`nav/localiser.py`)."""
 
 from __future__ import annotations
 
@@ -31,12 +31,12 @@ def test_the_same_role_draws_the_same_belief() -> None:
     def drive(role: str) -> np.ndarray:
         nav = make_nav(role, pool=BufferPool(4))
         nav.origin, nav.pose, nav.pose_known = Pose(50.0, 50.0, 0.0), Pose(0.0, 0.0, 0.0), True
-        nav.track_belief()
+        nav.localiser.track_belief()
         for k in range(1, 4):
             nav.last_motion = Motion("move", 20.0)
             nav.pose = Pose(20.0 * k, 0.0, 0.0)
-            nav.track_belief()
-        return np.array(nav.belief.particles)
+            nav.localiser.track_belief()
+        return np.array(nav.localiser.belief.particles)
     assert np.array_equal(drive("hider"), drive("hider"))
     assert not np.array_equal(drive("hider"), drive("seeker"))
 
@@ -45,9 +45,9 @@ def test_a_new_origin_starts_a_new_belief_round_it() -> None:
     """The server's origin replaces the belief: a narrow one round the new map pose."""
     nav = scraped_nav(0.0, sigma_cm=12.0)
     assert nav.drift_cm > 20.0
-    nav.forget_belief()
+    nav.localiser.forget_belief()
     nav.origin = Pose(0.0, 0.0, 90.0)
-    nav.track_belief()
+    nav.localiser.track_belief()
     p = nav.map_pose
     assert (p.x, p.y, p.heading_deg) == pytest.approx((-100.0, 250.0, 90.0))
     assert nav.drift_cm < 4.0
@@ -61,22 +61,22 @@ def _to_the_left_wall(nav, legs: int) -> Pose:
     start = Pose(150.0, 150.0, 0.0)  # in the room left of the corridor
     nav.pose = Pose(0.0, 0.0, 0.0)
     nav.set_origin(start)
-    nav.on_server_origin()
+    nav.localiser.on_server_origin()
     assert nav.drift_cm < 4.0
     for _ in range(legs):
         nav.last_motion = Motion("turn", 90.0)
         nav.pose = Pose(nav.pose.x, nav.pose.y, nav.pose.heading_deg + 90.0)
-        nav.track_belief()
+        nav.localiser.track_belief()
         nav.last_motion = Motion("move", 20.0)
         nav.pose = advance(nav.pose, 20.0, 20.0, 13.0)
-        nav.track_belief()
+        nav.localiser.track_belief()
     nav.last_motion = Motion("turn", 180.0 - nav.pose.heading_deg)
     nav.pose = Pose(nav.pose.x, nav.pose.y, 180.0)
-    nav.track_belief()
+    nav.localiser.track_belief()
     nav.motion_from = nav.map_pose
     nav.last_motion = Motion("move", 200.0)  # toward the left wall: blocked, nose on it
     nav.pose = Pose(10.0 - start.x, nav.pose.y, 180.0)
-    nav.contact_update()
+    nav.localiser.contact_update()
     assert nav.counters["contacts"] == 1
     return start
 
@@ -93,12 +93,12 @@ def test_a_retried_destination_keeps_the_belief_and_never_narrows_it() -> None:
     tried, pose = nav.drift_cm, nav.map_pose
     assert tried > 4.0 and pose.x == pytest.approx(10.0, abs=3.0)
     nav.set_origin(start)  # what the base does with the frame, before the hook
-    nav.on_server_origin()
+    nav.localiser.on_server_origin()
     assert nav.drift_cm > tried
     assert math.dist((nav.map_pose.x, nav.map_pose.y), (pose.x, pose.y)) <= nav.drift_cm
     assert nav.counters["retry_widened"] == 1
     nav.set_origin(Pose(60.0, 40.0, 0.0))
-    nav.on_server_origin()
+    nav.localiser.on_server_origin()
     assert nav.drift_cm < 4.0
 
 
@@ -123,11 +123,11 @@ def test_a_restarted_navigation_goes_on_from_its_belief_and_its_given_origin() -
     assert again.drift_cm == pytest.approx(doubt)
     again.last_motion = Motion("move", -6.0)  # driven while it restarted
     again.pose = advance(again.pose, -6.0, -6.0, 13.0)
-    again.track_belief()
+    again.localiser.track_belief()
     assert again.map_pose.x == pytest.approx(learned.x + 6.0, abs=1.0)
     before = again.drift_cm
     again.set_origin(start)
-    again.on_server_origin()
+    again.localiser.on_server_origin()
     assert again.counters["retry_widened"] == 1
     assert again.drift_cm > before
     assert math.dist((again.map_pose.x, again.map_pose.y),
@@ -146,11 +146,10 @@ def test_the_pose_follows_the_heaviest_hypothesis_once_free_space_splits_the_bel
                                   [350.0, 60.0, 0.0]]), n // 3, axis=0)
     particles = centres + rng.normal(0.0, [2.0, 2.0, 0.02], size=(n, 3))
     weights = np.repeat(np.array([0.4, 0.3, 0.3]) / (n // 3), n // 3)
-    nav.belief = PoseBelief(particles, weights)
-    nav._belief_odom, nav._spread, nav._modes = nav.pose, None, 1
+    nav.localiser.adopt(PoseBelief(particles, weights))
     nav.last_motion = Motion("move", 2.0)
     nav.pose = advance(nav.pose, 2.0, 2.0, 13.0)
-    nav.track_belief()
+    nav.localiser.track_belief()
     p = nav.map_pose
     assert (p.x, p.y) == pytest.approx((102.0, 80.0), abs=3.0)
     assert len(nav.spread.clusters) == 2

@@ -9,14 +9,9 @@ import pytest
 
 from actors.firmware.planning.frontier import (
     Frontier,
-    FrontierWeights,
-    choose_frontier,
     find_frontiers,
-    frontier_cost,
     frontier_mask,
-    is_blacklisted,
     label_clusters,
-    no_useful_frontier,
 )
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 
@@ -76,14 +71,11 @@ def test_find_frontiers_reports_the_boundary_with_distance_and_target():
 
 
 def test_walled_off_frontier_is_unreachable():
-    """A frontier behind a wall has no target and an infinite cost."""
+    """A frontier behind a wall is not reachable."""
     cells = explored_room().cells.copy()
     cells[:, 15] = OCCUPIED
     fs = find_frontiers(GridMap(cells, 5.0, (0, 0)), (30.0, 100.0), split_cm=None)
     assert len(fs) == 1 and not fs[0].reachable
-    assert frontier_cost(fs[0]) == math.inf
-    assert choose_frontier(fs) is None
-    assert no_useful_frontier(fs)
 
 
 def test_a_long_frontier_is_split_into_pieces_with_their_own_targets():
@@ -110,31 +102,6 @@ def test_fully_known_room_has_no_frontier():
 
 def make(size: int, distance: float, share: float, at=(0.0, 0.0), target=(0.0, 0.0)) -> Frontier:
     return Frontier(size, at, np.zeros((size, 2)), distance, target, share, 5.0)
-
-
-def test_cost_trades_distance_against_size_and_unexplored_share():
-    """Near beats far at equal size; a much longer frontier can beat a nearer small one."""
-    near_small = make(4, 100.0, 0.2)
-    far_small = make(4, 300.0, 0.2)
-    far_long = make(60, 250.0, 0.2)
-    assert choose_frontier([far_small, near_small]) is near_small
-    assert choose_frontier([near_small, far_long]) is far_long
-    unexplored = make(4, 150.0, 0.9)
-    assert choose_frontier([near_small, unexplored]) is unexplored
-    w = FrontierWeights(w_unknown=0.0)
-    assert choose_frontier([near_small, unexplored], weights=w) is near_small
-
-
-def test_small_and_blacklisted_frontiers_are_skipped():
-    """Frontiers below the useful size or near a blacklisted point are not chosen."""
-    tiny = make(2, 10.0, 0.5, at=(0, 0), target=(0, 0))
-    bad = make(20, 20.0, 0.5, at=(100, 100), target=(90, 100))
-    good = make(20, 400.0, 0.5, at=(500, 0), target=(480, 0))
-    assert is_blacklisted(bad, [(95.0, 110.0)])
-    assert not is_blacklisted(good, [(95.0, 110.0)])
-    assert choose_frontier([tiny, bad, good], blacklist=[(95.0, 110.0)]) is good
-    assert no_useful_frontier([tiny, bad], blacklist=[(95.0, 110.0)])
-    assert not no_useful_frontier([tiny, bad])
 
 
 def test_open_share_tells_an_edge_in_the_open_from_one_along_a_wall():

@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 import trio
 
+from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.gaussian_pose import GaussianPose
 from actors.firmware.localisation.motion_model import (
     MotionNoise,
@@ -111,18 +113,24 @@ def test_navigation_relays_the_travel_driven_beyond_the_count() -> None:
         (0.0, -8.0))
 
 
-class _RelayingNav(SensorWatch):
-    """The mapper's navigation state `SensorWatch.relay_tread_driven` reads, and what it
-    posts to Map Management."""
+class _MapperState:
+    """The mapper's navigation state `SensorWatch` reads, and what it posts to Map
+    Management."""
 
     def __init__(self, odometry_from: Pose, pose: Pose, motion_from: Pose,
                  map_pose: Pose) -> None:
-        self._relayed = (True, True)
+        self.state, self.moving, self.odometry_faults = "exploring", True, 0
         self.last_motion = Motion("turn", 90.0)
         self.odometry_from, self.pose = odometry_from, pose
         self.motion_from, self.map_pose = motion_from, map_pose
-        self.spec, self.map_name = None, "mapper/map"
+        self.spec, self.map_name = HardwareSpec.bench("mapper"), "mapper/map"
         self.posted: list[tuple[float, float]] = []
+
+    async def stop_motor(self) -> None:
+        self.moving = False
+
+    async def status(self, state: str, detail: str) -> None:
+        pass
 
     async def post(self, name: str, message: object) -> bool:
         self.posted.append(xy_half(message, MM))
@@ -136,10 +144,12 @@ def test_the_relayed_travel_is_counted_in_the_own_frame_not_the_map_frame() -> N
     whatever the origin did meanwhile."""
     still = Pose(10.0, 20.0, 30.0)
     # meanwhile the correction moved the map-frame pose 3 cm along the heading
-    nav = _RelayingNav(still, still, Pose(40.0, 50.0, 30.0),
+    nav = _MapperState(still, still, Pose(40.0, 50.0, 30.0),
                        Pose(40.0 + 3.0 * math.cos(math.radians(30.0)),
                             50.0 + 3.0 * math.sin(math.radians(30.0)), 30.0))
-    trio.run(nav.relay_tread_driven, -7.1, 7.1)
+    watch = SensorWatch(nav)  # type: ignore[arg-type]
+    trio.run(watch.on_tread_fault, TreadFault.BOTH_SILENT)  # reported in the turn
+    trio.run(watch.relay_tread_driven, -7.1, 7.1)
     assert nav.posted == [pytest.approx((-7.1, 7.1))]
 
 

@@ -17,12 +17,15 @@ import trio
 
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
+from actors.firmware.hardware import HardwareSpec
 from actors.firmware.mapping.map_management import MapManagement
 from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.options import NavMemory
 from server.protocol.pose import Pose, compose
 from supervisors import ChildSpec, SupervisorSpec
 from tests.test_nav_common import Body, FakeLidar, FakeMotor, FakeWifly, net, wait_for
+
+BENCH = HardwareSpec.bench("mapper")
 
 CORRECTION = Pose(5.0, -2.0, 90.0)  # odometry -> map frame, as scan matching might find it
 
@@ -33,7 +36,7 @@ def mapper_tree(body: Body, pool: BufferPool, memory: NavMemory) -> SupervisorSp
 
     def make_map() -> MapManagement:
         map_starts[0] += 1
-        return MapManagement(pool, size_cm=(400, 400), restarted=map_starts[0] > 1)
+        return MapManagement(pool, BENCH, size_cm=(400, 400), restarted=map_starts[0] > 1)
 
     return SupervisorSpec([
         ChildSpec("motor", lambda: FakeMotor(body), mailbox=64),
@@ -59,7 +62,7 @@ async def corrected_mapper() -> AsyncIterator[tuple[Any, Body, BufferPool, NavMe
     async with open_actor_system(seed=1) as system:
         await system.start_supervisor(mapper_tree(body, pool, memory), "mapper")
         await trio.sleep(0.5)
-        actor(system, "mapper/map").correction = CORRECTION
+        actor(system, "mapper/map").localiser.restart_at(CORRECTION)
         await system.send("mapper/map", Message.uint(Cmd.MAP_GET, 0))
         await trio.sleep(0.1)
         yield system, body, pool, memory
@@ -109,7 +112,7 @@ async def test_a_restarted_map_management_takes_the_correction_back_from_navigat
         again = await restart(system, "mapper/map")
         await trio.sleep(0.2)
         assert again.restarted
-        assert same_pose(again.correction, CORRECTION)
+        assert same_pose(again.localiser.correction, CORRECTION)
         assert same_pose(actor(system, "mapper/nav").origin, CORRECTION)
 
 
@@ -127,4 +130,4 @@ async def test_a_restarted_navigation_keeps_the_origin(autojump_clock) -> None:
         assert (last["x"], last["y"], last["heading"]) == (5.0, 98.0, 90.0)
         again = await restart(system, "mapper/map")
         await trio.sleep(0.2)
-        assert same_pose(again.correction, CORRECTION)
+        assert same_pose(again.localiser.correction, CORRECTION)

@@ -458,7 +458,6 @@ def believe(nav: Any, sigma_cm: float, sigma_deg: float = 2.0) -> Any:
     """Give ``nav`` (a hider or seeker navigation) a pose belief ``sigma_cm`` and
     ``sigma_deg`` wide round its map pose, as after some driving; returns ``nav``."""
     nav.pose_known = True
-    nav.belief = PoseBelief.around(nav.map_pose, nav._rng, sigma_cm=sigma_cm,
-                                   sigma_deg=sigma_deg)
-    nav._belief_odom, nav._spread = nav.pose, None
+    nav.localiser.adopt(PoseBelief.around(nav.map_pose, np.random.default_rng(0),
+                                          sigma_cm=sigma_cm, sigma_deg=sigma_deg))
     return nav

@@ -272,13 +272,13 @@ def _reported(motion: Motion, value: int | None, left: float, right: float,
     believe(nav, 1.0, 1.0)
     nav.last_motion = motion
     if value is not None:
-        nav.note_tread_fault(TreadFault(value))
+        nav.localiser.note_tread_fault(TreadFault(value))
     if driven is not None:
         nav.note_tread_driven(*driven)
     dtheta, ds = (right - left) / 13.0, 0.5 * (left + right)
     nav.pose = Pose(250.0 + ds * math.cos(0.5 * dtheta), 100.0 + ds * math.sin(0.5 * dtheta),
                     math.degrees(dtheta))
-    nav.track_belief()
+    nav.localiser.track_belief()
     return nav
 
 
@@ -299,7 +299,7 @@ def test_one_tread_silent_in_a_turn_turns_the_believed_heading_on() -> None:
 
 def _heading_range(nav) -> tuple[float, float]:
     """The 2.5 % and 97.5 % quantiles of the belief's heading [deg]."""
-    p, w = nav.belief.particles, nav.belief.weights
+    p, w = nav.localiser.belief.particles, nav.localiser.belief.weights
     order = np.argsort(p[:, 2])
     cum = np.cumsum(w[order])
     lo, hi = (p[order[np.searchsorted(cum, q)], 2] for q in (0.025, 0.975))
@@ -433,7 +433,7 @@ async def test_a_spot_inside_a_wall_moves_to_the_nearest_place_that_fits(autojum
         details = [f.data.get("detail", "") for f in body.frames("status")]
         assert any("does not fit (obstacle" in d for d in details)
         nav = system.whereis("hider/nav").actor
-        assert nav.near_spots(900.0, 50.0, 0.0) == []  # off the map: nothing near
+        assert nav.behaviour.near_spots(900.0, 50.0, 0.0) == []  # off the map: nothing near
 
 
 @pytest.mark.trio
@@ -477,16 +477,16 @@ async def test_a_hider_blocked_for_good_near_its_spot_hides_where_it_stands(
 
 def test_near_enough_needs_the_spot_in_sight_on_the_map(autojump_clock) -> None:
     """Within ``hide_within_cm`` but with the wall between (on the map): not near."""
-    from actors.firmware.nav.hider import HidingNav
+    from actors.firmware.nav.factory import make_nav
     from server.protocol.pose import Pose as P
 
-    nav = HidingNav(pool=BufferPool(4))
+    nav = make_nav("hider", pool=BufferPool(4))
     nav.map = room_map(TRUTH_MAP)
     nav.origin = P(0.0, 0.0, 0.0)
     nav.pose = P(125.0, 50.0, 0.0)  # 15 cm before the wall's face (x 140..160)
     nav.goal = (145.0, 50.0)
-    assert not nav.near_enough()
+    assert not nav.behaviour.near_enough()
     nav.goal = (125.0, 75.0)
-    assert nav.near_enough()
+    assert nav.behaviour.near_enough()
     nav.goal = (125.0, 90.0)
-    assert not nav.near_enough()  # 40 cm: too far
+    assert not nav.behaviour.near_enough()  # 40 cm: too far

@@ -11,6 +11,7 @@ import trio
 from actors import BufferPool, Message, open_actor_system
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
+from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.mapper import MappingNav, MappingOptions
 from actors.firmware.origin_wire import length_pair
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
@@ -203,10 +204,9 @@ def test_futile_trips_count_whole_visits_and_end_exploration(monkeypatch) -> Non
     ``FUTILE_TRIPS * MIN_GAIN_CELLS`` cells known, exploration counts the frontiers left
     as not useful."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     monkeypatch.setattr(exploration, "FUTILE_TRIPS", 3)
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     assert exploration.MIN_GAIN_CELLS == 30
     cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
     known = [0]
@@ -223,16 +223,16 @@ def test_futile_trips_count_whole_visits_and_end_exploration(monkeypatch) -> Non
         show(known[0] + gain // 2)
         show(known[0] + gain - gain // 2)  # the map grows while the rover drives...
         nav.ex.target = (1.0, 2.0)
-        nav._blacklist((1.0, 2.0))  # ...and the visit ends (given up)
+        nav.explorer.blacklist((1.0, 2.0))  # ...and the visit ends (given up)
     assert nav.ex.gains == [500, 10, 20]
-    assert not nav._futile()  # the 500-cell visit is still in the window
+    assert not nav.explorer.futile()  # the 500-cell visit is still in the window
     nav.ex.trip_known = known[0]
     show(known[0] + 5)
     nav.ex.target = (3.0, 4.0)
-    nav._blacklist((9.0, 9.0))  # another point: the visit goes on
+    nav.explorer.blacklist((9.0, 9.0))  # another point: the visit goes on
     assert nav.ex.gains == [500, 10, 20]
-    nav._blacklist((3.0, 4.0))
-    assert nav.ex.gains == [10, 20, 5] and nav._futile()
+    nav.explorer.blacklist((3.0, 4.0))
+    assert nav.ex.gains == [10, 20, 5] and nav.explorer.futile()
 
 
 
@@ -240,34 +240,32 @@ def test_the_least_useful_gain_grows_with_the_map(monkeypatch) -> None:
     """In a big map a visit must reveal 0.3 % of what is known to count: 60 cells of
     30000 known is futile, though more than ``MIN_GAIN_CELLS``."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     monkeypatch.setattr(exploration, "FUTILE_TRIPS", 2)
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:30000] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
     nav.ex.gains = [60, 60]
-    assert nav._futile()
+    assert nav.explorer.futile()
     nav.ex.gains = [60, 120]
-    assert not nav._futile()
+    assert not nav.explorer.futile()
 
 
 def test_one_visit_just_above_the_limit_does_not_restart_the_futile_count() -> None:
     """The window is judged on its sum: visits of 21, 7, 4 and 34 cells
     (limit 32: 34 alone is above it) are futile together, so mapping ends."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     assert exploration.FUTILE_TRIPS == 4
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:10785] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
     nav.ex.gains = [21, 7, 4, 34]
-    assert nav._futile()
+    assert nav.explorer.futile()
     nav.ex.gains = [21, 7, 4, 120]  # a visit that found a real opening
-    assert not nav._futile()
+    assert not nav.explorer.futile()
 
 
 def _walled_room(gaps: dict[str, int]) -> GridMap:
@@ -289,21 +287,20 @@ async def test_after_futile_visits_only_viewpoints_worth_the_whole_window_count(
     shown: a small opening is dismissed, a big one (a room's unseen part) still chosen,
     and a fruitful visit lets the small one count again."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     monkeypatch.setattr(exploration, "FUTILE_TRIPS", 2)
     monkeypatch.setattr(exploration, "MIN_GAIN_CELLS", 200)
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     nav.grid = _walled_room({"west": 8})  # viewpoints reveal about 290 cells
-    assert nav._choose(keep=False) and nav.ex.target[0] < 0.0
+    assert nav.explorer.choose(keep=False) and nav.ex.target[0] < 0.0
     nav.ex = type(nav.ex)(gains=[0, 0])
-    assert nav._futile()
-    assert not nav._choose(keep=False) and nav.ex.no_frontier  # less than 2 x 200
+    assert nav.explorer.futile()
+    assert not nav.explorer.choose(keep=False) and nav.ex.no_frontier  # less than 2 x 200
     nav.grid = _walled_room({"west": 8, "east": 40})  # the east opening: about 700
-    assert nav._choose(keep=False) and nav.ex.target[0] > -100.0
+    assert nav.explorer.choose(keep=False) and nav.ex.target[0] > -100.0
     nav.grid = _walled_room({"west": 8})
     nav.ex.gains = [500, 0]  # a fruitful visit: the small opening counts again
-    assert nav._choose(keep=False) and nav.ex.target[0] < 0.0
+    assert nav.explorer.choose(keep=False) and nav.ex.target[0] < 0.0
 
 
 @pytest.mark.trio
@@ -312,25 +309,24 @@ async def test_map_stability_counts_net_growth_not_edge_flicker(autojump_clock,
     """Cells flickering between unknown and known (scan matching's jitter at rest) leave the
     map stable; the known area growing is a change."""
     from actors.firmware.nav import mapper
-    from actors.firmware.nav.mapper import MappingNav
 
     monkeypatch.setattr(mapper, "CHANGE_SHARE", 0.0)  # the threshold: CHANGE_CELLS (3)
     assert mapper.CHANGE_CELLS == 3
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     base = _walled_room({})
     await nav.on_map_update(base)
-    t0 = nav._changed_at
+    t0 = nav.changed_at
     await trio.sleep(5.0)
     for k in range(6):  # ten edge cells go unknown and ten others come back, each time
         cells = base.cells.copy()
         cells[11:21, 11 + k] = UNKNOWN
         cells[0, 10 * k:10 * k + 10] = FREE
         await nav.on_map_update(GridMap(cells, 5.0, base.origin_cm))
-    assert nav._changed_at == t0
+    assert nav.changed_at == t0
     grown = base.cells.copy()
     grown[0:5, 0:10] = FREE  # 50 new cells known
     await nav.on_map_update(GridMap(grown, 5.0, base.origin_cm))
-    assert nav._changed_at == t0 + 5.0
+    assert nav.changed_at == t0 + 5.0
 
 
 @pytest.mark.trio
@@ -433,23 +429,22 @@ def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -
     refused and turn away for minutes): after ``OBSTACLE_TURNS`` turns away toward
     one target the target is blacklisted and the trip ends; another target starts over."""
     from actors.firmware.nav import exploration
-    from actors.firmware.nav.mapper import MappingNav
 
     assert exploration.OBSTACLE_TURNS == 3
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:100] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
     nav.ex.trip_known = 60
     nav.ex.target = (462.5, -32.5)
-    assert not nav._turned_away() and not nav._turned_away()
+    assert not nav.explorer.turned_away() and not nav.explorer.turned_away()
     nav.ex.target = (100.0, 100.0)  # another frontier: the count starts over
-    assert not nav._turned_away()
+    assert not nav.explorer.turned_away()
     nav.ex.target = (462.5, -32.5)
-    assert not nav._turned_away() and not nav._turned_away()
+    assert not nav.explorer.turned_away() and not nav.explorer.turned_away()
     assert nav.ex.blacklist == []
     nav.ex.target = (460.0, -30.0)  # the same frontier, its target moved a little
-    assert nav._turned_away()
+    assert nav.explorer.turned_away()
     assert nav.ex.blacklist == [(460.0, -30.0)]
     assert nav.ex.gains == [40] and nav.ex.trip_known is None  # the visit ended
 
@@ -460,19 +455,19 @@ def test_the_mapper_steers_and_plans_home_from_its_map_frame_pose() -> None:
     map (a 30 cm move is cut to 10; odometry alone would see it 70 cm off and drive all
     30), and homing plans a route back to the map's (0, 0) (odometry alone would say it is
     home)."""
-    from actors.firmware.nav.mapper import MappingNav
     from actors.firmware.nav.route import Motion
     from server.protocol.pose import Pose
 
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     cells = np.full((40, 60), FREE, dtype=np.int8)  # x -100..200, y -100..100
     cells[:, 34] = OCCUPIED  # the wall x 70..75
     nav.grid = GridMap(cells, 5.0, (-100.0, -100.0))
     nav.pose, nav.pose_known = Pose(0.0, 0.0, 0.0), True
     nav.set_origin(Pose(40.0, 0.0, 0.0))
     assert nav.memory.origin == (40.0, 0.0, 0.0)
-    assert nav._mind_the_obstacle(Motion("move", 30.0)).amount == pytest.approx(10.0, abs=2.6)
-    assert nav._plan_home() and nav.ex.target == (0.0, 0.0)
+    shortened = nav.explorer.mind_the_obstacle(Motion("move", 30.0))
+    assert shortened.amount == pytest.approx(10.0, abs=2.6)
+    assert nav.homing.plan_home() and nav.ex.target == (0.0, 0.0)
     assert nav.ex.follower is not None
     assert nav.ex.follower.next_motion(nav.map_pose) == Motion("turn", pytest.approx(180.0))
 
@@ -481,7 +476,7 @@ def _homing_nav() -> MappingNav:
     """A mapper going home at (0, 0) @ 0 on free floor (x, y -100..100, 5 cm cells)."""
     from server.protocol.pose import Pose
 
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     _set_column(nav, None, FREE)
     nav.pose, nav.pose_known = Pose(0.0, 0.0, 0.0), True
     nav.set_origin(Pose(0.0, 0.0, 0.0))
@@ -514,58 +509,65 @@ def test_a_move_blocked_with_nothing_mapped_at_its_leading_edge_is_blocked_in_th
     assert CONTACT_CELLS == 2
     nav = _homing_nav()
     nav.last_motion = Motion("move", 20.0)
-    assert nav._blocked_in_the_open(12.0)
+    assert nav.watch.blocked_in_the_open(12.0)
     _set_column(nav, 23, OCCUPIED)  # a wall x 15..20: 5 cm before the front (x 10)
-    assert not nav._blocked_in_the_open(12.0)
+    assert not nav.watch.blocked_in_the_open(12.0)
     nav.last_motion = Motion("move", -6.0)  # backing off: the rear is the leading edge
-    assert nav._blocked_in_the_open(0.0)
+    assert nav.watch.blocked_in_the_open(0.0)
     _set_column(nav, 16, UNKNOWN)  # x -20..-15, just behind the rear (x -10)
-    assert not nav._blocked_in_the_open(0.0)
+    assert not nav.watch.blocked_in_the_open(0.0)
     _set_column(nav, 16, FREE)
     _set_column(nav, 23, FREE)
     _set_column(nav, 25, OCCUPIED)  # x 25..30: 15 cm before the front, out of reach
     nav.last_motion = Motion("move", 20.0)
-    assert nav._blocked_in_the_open(12.0)
+    assert nav.watch.blocked_in_the_open(12.0)
     nav.last_motion = Motion("turn", 30.0)
-    assert nav._blocked_in_the_open(0.0)
-    assert not nav._blocked_in_the_open(4.0)
+    assert nav.watch.blocked_in_the_open(0.0)
+    assert not nav.watch.blocked_in_the_open(4.0)
 
 
 @pytest.mark.trio
 async def test_homing_holds_for_odometry_instead_of_counting_a_block_in_the_open(
-        monkeypatch) -> None:
+        autojump_clock, monkeypatch) -> None:
     """Going home, a move blocked in the open holds (an odometry fault) instead of backing
     off blind and counting toward ``HOME_BLOCKS``: with both encoders stuck, three such
     blocks would upload the map from wherever the mapper stands. A block at a mapped
     wall backs off and counts as before; once the holds have doubled to the longest, a
-    block in the open counts too."""
-    from actors.firmware.nav import sensor_watch
+    block in the open counts too. Observed through what navigation says and commands."""
     from actors.firmware.nav.route import Motion
+    from actors.firmware.nav.sensor_watch import ODO_HOLD_S
 
     nav = _homing_nav()
-    holds: list[str] = []
+    said: list[tuple[str, str | None]] = []
     commands: list[Motion] = []
 
-    async def hold(now: float, what: str, hold: float | None = None) -> None:
-        holds.append(what)
-        nav._odo_strikes += 1
-        nav._odo_last = now
+    async def status(state: str, detail: str | None = None, **extra: object) -> None:
+        said.append((state, detail))
+
+    async def stop_motor() -> None:
+        pass
 
     async def command(motion: Motion) -> None:
         commands.append(motion)
 
-    monkeypatch.setattr(nav, "_odometry_hold", hold)
+    def holds() -> int:
+        return sum(state == "odometry_fault" for state, _ in said)
+
+    monkeypatch.setattr(nav, "status", status)
+    monkeypatch.setattr(nav, "stop_motor", stop_motor)
     monkeypatch.setattr(nav, "command", command)
     nav.last_motion = Motion("move", 20.0)
     await nav.after_motion(True, 14.0)
-    assert len(holds) == 1 and commands == [] and nav.ex.blocks == 0
+    assert holds() == 1 and commands == [] and nav.ex.blocks == 0
+    await trio.sleep(ODO_HOLD_S + 0.1)  # the hold ends
     _set_column(nav, 23, OCCUPIED)  # a wall at the front: a real block
     await nav.after_motion(True, 14.0)
-    assert len(holds) == 1 and commands == [Motion("move", -nav.o.backoff_cm)]
+    assert holds() == 1 and commands == [Motion("move", -nav.o.backoff_cm)]
     assert nav.ex.blocks == 1
     _set_column(nav, 23, FREE)
-    nav.last_motion = Motion("move", 20.0)
-    nav._odo_strikes = 1 + round(math.log2(sensor_watch.ODO_HOLD_MAX_S
-                                           / sensor_watch.ODO_HOLD_S))
+    for strike in (2, 3, 4):  # more blocks in the open: each hold twice the last
+        await nav.after_motion(True, 14.0)
+        assert holds() == strike and nav.ex.blocks == 1
+        await trio.sleep(ODO_HOLD_S * 2 ** (strike - 1) + 0.1)
     await nav.after_motion(True, 14.0)  # held the longest already: it counts
-    assert len(holds) == 1 and nav.ex.blocks == 2
+    assert holds() == 4 and nav.ex.blocks == 2

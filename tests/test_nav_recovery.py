@@ -424,14 +424,14 @@ def test_a_contact_either_side_explains_is_kept_as_two_hypotheses() -> None:
     corridor's axis, little on it) instead of discarding the contact; a stalled turn
     says nothing."""
     nav = scraped_nav(0.0, sigma_cm=5.0)
-    nav.contact_update()
-    y, w = nav.belief.particles[:, 1], nav.belief.weights
+    nav.localiser.contact_update()
+    y, w = nav.localiser.belief.particles[:, 1], nav.localiser.belief.weights
     assert float(w[y < 146.0].sum()) > 0.25 and float(w[y > 154.0].sum()) > 0.25
     assert float(w[abs(y - 150.0) < 2.0].sum()) < 0.15
     assert nav.counters["contacts"] == 1
     nav = scraped_nav(3.0)
     nav.last_motion = Motion("turn", 20.0)
-    assert not nav.contact_update() and nav.counters["contacts"] == 0
+    assert not nav.localiser.contact_update() and nav.counters["contacts"] == 0
 
 
 def test_the_doubt_grows_with_driving_and_more_with_a_tread_report() -> None:
@@ -446,17 +446,17 @@ def test_the_doubt_grows_with_driving_and_more_with_a_tread_report() -> None:
         start = nav.drift_cm
         nav.last_motion = Motion("move", 20.0)
         if report:
-            nav.note_tread_fault(TreadFault.short(0))
+            nav.localiser.note_tread_fault(TreadFault.short(0))
         dtheta = (20.0 - 4.0) / nav.spec.track_width_cm if nav.spec else 16.0 / 13.0
         ds = 12.0
         x, y = 100.0 + ds * math.cos(dtheta / 2), 100.0 + ds * math.sin(dtheta / 2)
         nav.pose = Pose(x, y, math.degrees(dtheta))
-        nav.track_belief()
+        nav.localiser.track_belief()
         for _ in range(4):
             nav.last_motion = Motion("move", 20.0)
             x, y = x + 20.0 * math.cos(dtheta), y + 20.0 * math.sin(dtheta)
             nav.pose = Pose(x, y, math.degrees(dtheta))
-            nav.track_belief()
+            nav.localiser.track_belief()
         return nav.drift_cm - start
     healthy, reported = driven(False), driven(True)
     assert healthy > 0.0
@@ -483,9 +483,9 @@ def test_a_gap_edge_contact_moves_the_belief_to_the_edge_and_keeps_the_far_face(
     down. A wide one (after a long drive): the upper face explains it too, and the
     belief keeps that hypothesis beside the lower edge's."""
     nav = gap_blocked_nav(3.0)
-    assert nav.contact_update() and nav.map_pose.y < 312.5
+    assert nav.localiser.contact_update() and nav.map_pose.y < 312.5
     nav = gap_blocked_nav(12.0)
-    nav.contact_update()
+    nav.localiser.contact_update()
     ys = [c.pose.y for c in nav.spread.clusters]
     assert any(y < 305.0 for y in ys) and any(y > 318.0 for y in ys)
 
@@ -658,21 +658,21 @@ def test_probe_points_are_held_in_the_rovers_own_frame() -> None:
     the map-frame waypoints of the route do not drag them along."""
     nav = scraped_nav(0.0, sigma_cm=5.0)
     nav.pose = Pose(185.0, 100.0, 0.0)  # backed off from the block at own (190, 100)
-    nav._anchor = (190.0, 100.0, 0.0)
-    nav._nudge = Nudge(nav._anchor, 10.0, probe=True)
+    nav.nudges.anchor = (190.0, 100.0, 0.0)
+    nav.nudges.nudge = Nudge(nav.nudges.anchor, 10.0, probe=True)
     pts = [(270.0, 150.0), (600.0, 150.0)]  # through the corridor's axis (map frame)
 
     def own(route: list[tuple[float, float]]) -> list[tuple[float, float]]:
         back = inverse(nav.origin)
         return [c for q in (compose(back, Pose(x, y, 0.0)) for x, y in route)
                 for c in (q.x, q.y)]
-    before = nav._nudged(pts)
+    before = nav.nudges.nudged(pts)
     assert before is not None
     held = own(before)[:4]
     assert held[:2] == pytest.approx([185.0, 110.0]) and held[3] == pytest.approx(110.0)
     assert held[2] > 210.0  # through the mouth on the line, the body past its walls
     nav.origin = Pose(50.0, 57.0, 0.0)  # a contact fix: the believed map pose moved 7 cm
-    after = nav._nudged(pts)
+    after = nav.nudges.nudged(pts)
     assert after is not None and own(after)[:4] == pytest.approx(held)
     assert at_mouth(nav.map, Pose(240.0, 150.0, 0.0), 10.0)
     assert not at_mouth(nav.map, Pose(300.0, 150.0, 0.0), 10.0)  # inside: not a mouth

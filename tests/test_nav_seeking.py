@@ -10,10 +10,11 @@ import trio
 from actors import BufferPool, open_actor_system
 from actors.firmware.drivers.ir import IR_PINNED
 from actors.firmware.localisation.motion_model import MotionNoise
+from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.options import NavOptions
 from actors.firmware.nav.route import passable_at
 from actors.firmware.nav.search import ring_reach_cm, search_ring, search_rings
-from actors.firmware.nav.seeker import IR_PINNED_WAIT_S, SeekingNav, SeekingOptions
+from actors.firmware.nav.seeker import IR_PINNED_WAIT_S, Seek, SeekingOptions
 from server.protocol.pose import Pose, angle_diff_deg
 from tests.test_nav_common import (
     Body,
@@ -204,7 +205,7 @@ async def test_without_the_search_the_same_guess_is_not_found(autojump_clock,
                                                              monkeypatch) -> None:
     """The same game with the search off (no ring is ever planned): the hider is out of
     reach of the guess."""
-    monkeypatch.setattr(SeekingNav, "_plan_search", lambda self: False)
+    monkeypatch.setattr(Seek, "plan_search", lambda self: False)
     body = await _seek_far_guess(WIDE, None)
     assert body.frames("found") == []
     assert "IR" in body.frames("not_found")[0].data["reason"]
@@ -222,34 +223,36 @@ async def test_a_small_drift_needs_no_search(autojump_clock) -> None:
     assert not any(d.startswith("round the place") for d in details)
 
 
-def searching_nav(place: tuple[float, float], driven_cm: float) -> SeekingNav:
-    """A seeker navigation (not started) standing on ``place`` in a 300 x 200 cm room
-    (map frame = own frame), with a belief whose 95 % radius is about 4 % of
-    ``driven_cm`` (a Gaussian's 95 % radius is 2.45 standard deviations)."""
-    nav = SeekingNav(pool=BufferPool(4))
+def searching_nav(place: tuple[float, float], driven_cm: float) -> Seek:
+    """The role behaviour of a seeker navigation (not started) standing on ``place`` in a
+    300 x 200 cm room (map frame = own frame), with a belief whose 95 % radius is about
+    4 % of ``driven_cm`` (a Gaussian's 95 % radius is 2.45 standard deviations)."""
+    nav = make_nav("seeker", pool=BufferPool(4))
     nav.map = nav.work_map = room_map(Truth(0, 0, 300, 200))
     nav.origin = Pose(0.0, 0.0, 0.0)
     nav.pose = Pose(place[0], place[1], 0.0)
-    nav.place = place
-    nav.stage = "close"
-    return believe(nav, max(0.3, 0.04 * driven_cm / 2.45), 1.0)
+    seek = nav.behaviour
+    seek.place = place
+    seek.stage = "close"
+    believe(nav, max(0.3, 0.04 * driven_cm / 2.45), 1.0)
+    return seek
 
 
 def test_the_ring_grows_with_the_drift_and_stays_on_free_ground() -> None:
     """In the open, a larger drift asks for a wider ring or more points; every ring point
     is passable and on the ring (or pulled in toward the place). Little drift: no ring."""
-    assert not searching_nav((150.0, 100.0), 100.0)._plan_search()  # drift 4 cm
+    assert not searching_nav((150.0, 100.0), 100.0).plan_search()  # drift 4 cm
     rings = []
     for driven in (600.0, 1000.0, 1500.0):
         nav = searching_nav((150.0, 100.0), driven)
-        assert nav._plan_search() and nav.stage == "search"
+        assert nav.plan_search() and nav.stage == "search"
         rings.append((len(nav.search_points), nav.ring_cm))
         for q in nav.search_points:
             assert 0.5 * nav.ring_cm - 0.1 <= math.dist(q, (150.0, 100.0)) <= nav.ring_cm + 0.1
-            assert passable_at(nav.map, q[0], q[1], nav.radius_cm, 0.0)
+            assert passable_at(nav.nav.map, q[0], q[1], nav.nav.radius_cm, 0.0)
     assert rings == sorted(rings) and rings[0] != rings[-1]
     first = searching_nav((150.0, 100.0), 1500.0)
-    first._plan_search()
+    first.plan_search()
     assert first.search_points[0][0] > 150.0  # facing +x: the point ahead first
 
 
@@ -257,17 +260,17 @@ def test_ring_points_in_walls_are_pulled_in_or_left_out() -> None:
     """Ring points in or near the walls are pulled in toward the place (a place by a
     wall), or left out when no pulled-in point is passable either (in a corner)."""
     nav = searching_nav((20.0, 20.0), 1000.0)
-    assert nav._plan_search()
+    assert nav.plan_search()
     open_room = searching_nav((150.0, 100.0), 1000.0)
-    assert open_room._plan_search() and open_room.ring_cm == nav.ring_cm
+    assert open_room.plan_search() and open_room.ring_cm == nav.ring_cm
     assert 0 < len(nav.search_points) < len(open_room.search_points)
     by_wall = searching_nav((40.0, 100.0), 1000.0)
-    assert by_wall._plan_search()
+    assert by_wall.plan_search()
     assert len(by_wall.search_points) == len(open_room.search_points)
     assert any(math.dist(q, (40.0, 100.0)) < by_wall.ring_cm - 1.0
                for q in by_wall.search_points)
     for q in nav.search_points + by_wall.search_points:
-        assert passable_at(nav.map, q[0], q[1], nav.radius_cm, 0.0)
+        assert passable_at(nav.nav.map, q[0], q[1], nav.nav.radius_cm, 0.0)
 
 
 # ============================================================================ the wider search
@@ -382,15 +385,15 @@ async def test_a_search_point_where_the_seeker_stands_is_scanned_and_the_search_
     the ring starts on its side): the route ends as it starts, the scan from that point
     runs, and the search goes on to an answer instead of waiting in ``searching`` with
     nothing in flight."""
-    plan = SeekingNav._plan_search
+    plan = Seek.plan_search
 
-    def here_first(self: SeekingNav) -> bool:
+    def here_first(self: Seek) -> bool:
         if not plan(self):
             return False
-        self.search_points.insert(0, (self.map_pose.x, self.map_pose.y))
+        self.search_points.insert(0, (self.nav.map_pose.x, self.nav.map_pose.y))
         return True
 
-    monkeypatch.setattr(SeekingNav, "_plan_search", here_first)
+    monkeypatch.setattr(Seek, "plan_search", here_first)
     body = await _seek_far_guess(WIDE, None)
     assert body.frames("found") or body.frames("not_found")
     details = [fr.data.get("detail", "") for fr in body.frames("status")]

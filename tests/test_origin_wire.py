@@ -11,7 +11,7 @@ from actors.firmware.commands import Cmd
 from actors.firmware.origin_wire import (
     CM,
     MM,
-    OriginHalves,
+    PoseHalves,
     pose_messages,
     xy_half,
 )
@@ -23,7 +23,7 @@ def test_an_origin_goes_over_as_millimetres_and_degrees_and_comes_back() -> None
                                 Pose(12.34, -5.66, 2.5))
     assert (xy.command, heading.command) == (Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING)
     assert xy.as_pair() == (123, -57)
-    halves = OriginHalves()
+    halves = PoseHalves()
     halves.take_xy(xy)
     assert halves.take_heading(heading) == Pose(12.3, -5.7, 2.5)
 
@@ -34,12 +34,24 @@ def test_a_translation_beyond_int16_millimetres_is_clamped() -> None:
 
 
 def test_a_heading_without_its_translation_or_not_finite_is_no_origin() -> None:
-    halves = OriginHalves()
+    halves = PoseHalves()
     assert halves.take_heading(Message.float(Cmd.MAP_ORIGIN_HEADING, 3.0)) is None
     halves.take_xy(Message.pair(Cmd.MAP_ORIGIN_XY, 10, 20))
     assert halves.take_heading(Message.float(Cmd.MAP_ORIGIN_HEADING, math.nan)) is None
     # the translation was used up: a later heading alone is no origin either
     assert halves.take_heading(Message.float(Cmd.MAP_ORIGIN_HEADING, 3.0)) is None
+
+
+def test_a_heading_alone_keeps_the_translation_it_is_given_as_unchanged() -> None:
+    """Motor Control's pose: a heading without a translation before it is the pose with its
+    translation unchanged (centimetres for the LIDAR's stamps, millimetres for navigation)."""
+    last = Pose(4.0, -2.0, 10.0)
+    halves = PoseHalves(CM)
+    assert halves.take_heading(Message.float(Cmd.NAV_POSE_HEADING, 15.0), last) == Pose(
+        4.0, -2.0, 15.0)
+    halves.take_xy(Message.pair(Cmd.LIDAR_POSE_XY, 7, 8))
+    assert halves.take_heading(Message.float(Cmd.NAV_POSE_HEADING, 20.0), last) == Pose(
+        7.0, 8.0, 20.0)
 
 
 def test_pose_halves_round_as_the_links_did_before_the_helper() -> None:

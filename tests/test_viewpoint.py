@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from actors import BufferPool
-from actors.firmware.nav.mapper import MappingNav
+from actors.firmware.nav.factory import make_nav
 from actors.firmware.planning.viewpoint import (
     RAYS,
     REVEAL_DEPTH_CELLS,
@@ -121,9 +121,9 @@ def test_a_frontier_no_reachable_pose_can_see_ends_exploration() -> None:
     grid = _grid(cells, AT_ROVER)
     assert face_mask(cells)[40, 56:58].all()  # the frontier exists...
     assert _views(grid, (0.0, 0.0)) == []  # ...but no pose sees it
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     nav.grid = grid
-    assert not nav._choose(keep=False)
+    assert not nav.explorer.choose(keep=False)
     assert nav.ex.no_frontier and nav.ex.follower is None
 
 
@@ -142,12 +142,12 @@ def test_face_cells_seen_repeatedly_and_never_revealed_leave_the_face() -> None:
     unchanged those face cells are unseeable and the shadow is no longer a frontier."""
     cells = _room(40, 60)
     cells[20:30, 35:45] = UNKNOWN  # an unknown patch in the open, nothing to hide it
-    nav = MappingNav(pool=BufferPool(4))
+    nav = make_nav("mapper", pool=BufferPool(4))
     nav.grid = _grid(cells, AT_ROVER)
     for _ in range(2):
-        nav._judge_sightings()
+        nav.explorer.judge_sightings()
         assert nav.ex.unseeable == []
-    nav._judge_sightings()
+    nav.explorer.judge_sightings()
     assert len(nav.ex.unseeable) >= 2
     assert nav.ex.sightings == {} or all(n < 3 for n in nav.ex.sightings.values())
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["pad_border", "nonzero_2d", "distinct"]
+__all__ = ["pad_border", "nonzero_2d", "distinct", "wrap_angle"]
 
 
 def pad_border(values: np.ndarray, width: int = 1, fill: bool | float = 0) -> np.ndarray:
@@ -68,3 +68,11 @@ def distinct(values: np.ndarray) -> np.ndarray:
     keep[:1] = True
     np.not_equal(a[1:], a[:-1], out=keep[1:])
     return a[keep]
+
+
+def wrap_angle(angles: np.ndarray, period: float) -> np.ndarray:
+    """Angles (or angle differences) wrapped to ``[-period / 2, period / 2)``: ``period``
+    is 360 for [deg], ``2 pi`` for [rad]. The one array wrap of the firmware (a scalar
+    heading wraps with `server.protocol.pose.wrap_deg`)."""
+    half = period / 2
+    return (angles + half) % period - half

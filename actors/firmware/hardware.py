@@ -60,8 +60,14 @@ from typing import Any, Protocol, runtime_checkable
 # the role names are the message layer's (a rover names its role in ``hello``)
 from server.protocol.catalogue import ROLES
 
+MAPPER, HIDER, SEEKER = ROLES
+"""The role names (`server.protocol.catalogue.ROLES`), as the firmware spells them."""
+
 __all__ = [
     "ROLES",
+    "MAPPER",
+    "HIDER",
+    "SEEKER",
     "Interrupt",
     "RoverHardware",
     "HardwareSpec",
@@ -122,6 +128,13 @@ class HardwareSpec:
     """Rover body width [cm]."""
     max_speed_cm_s: float = 30.0
     """Tread speed at full PWM on level ground [cm/s]."""
+
+    @classmethod
+    def bench(cls, role: str) -> HardwareSpec:
+        """The bench calibration of a ``role`` rover (0.5 cm per Int E, a 13 cm track, the
+        20 x 15 cm body): what a firmware part is built with when the rover tree gives
+        no spec of its own (a test, a tool). The one place these numbers are written."""
+        return cls(role, cm_per_interrupt=0.5, track_width_cm=13.0)
 
 
 Handler = Callable[[Any], None]

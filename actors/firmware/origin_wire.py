@@ -6,14 +6,14 @@ translation's unit is chosen per link, as ``per_cm`` (integer units per cm):
 millimetres (`MM`) for Motor Control's pose to navigation and for the map
 origin, centimetres (`CM`) for the pose that stamps the LIDAR's samples.
 `pose_messages` makes both halves and `xy_half` reads the translation back;
-each link pairs them its own way (a missing translation means "unchanged" for
-a pose, "no origin" for the map origin).
+`PoseHalves` pairs them again (a missing translation means "unchanged" for
+Motor Control's pose, "no origin" for the map origin).
 
 The mapper's map -> odometry transform travels this way: Map Management tells
 navigation the correction its scan matching found (``NAV_MAP_ORIGIN_XY`` +
 ``NAV_MAP_ORIGIN_HEADING``), and navigation hands it back to a restarted Map
 Management (``MAP_ORIGIN_XY`` + ``MAP_ORIGIN_HEADING``). The receiver pairs
-them (`OriginHalves`); a heading without its translation is not a pose (the
+them (`PoseHalves`); a heading without its translation is not a pose (the
 translation went to a dead incarnation, or was dropped) and is ignored, and
 the next correction supersedes it.
 """
@@ -25,7 +25,7 @@ import math
 from actors import Message
 from server.protocol.pose import Pose
 
-__all__ = ["CM", "MM", "OriginHalves", "length_pair", "pose_messages", "xy_half"]
+__all__ = ["CM", "MM", "PoseHalves", "length_pair", "pose_messages", "xy_half"]
 
 _INT16 = 32767
 
@@ -62,23 +62,31 @@ def xy_half(message: Message, per_cm: int = MM) -> tuple[float, float]:
     return (x / per_cm, y / per_cm)
 
 
-class OriginHalves:
-    """Pairs a translation message with the heading message that follows it."""
+class PoseHalves:
+    """Pairs a translation message with the heading message that follows it.
 
-    __slots__ = ("_xy",)
+    Args:
+        per_cm: the translation's integer units per cm (`MM`, `CM`).
+    """
 
-    def __init__(self) -> None:
+    __slots__ = ("_xy", "per_cm")
+
+    def __init__(self, per_cm: int = MM) -> None:
+        self.per_cm = per_cm
         self._xy: tuple[float, float] | None = None
 
     def take_xy(self, message: Message) -> None:
-        """The translation half (int16 pair [mm]); kept until its heading arrives."""
-        self._xy = xy_half(message)
+        """The translation half (an int16 pair); kept until its heading arrives."""
+        self._xy = xy_half(message, self.per_cm)
 
-    def take_heading(self, message: Message) -> Pose | None:
-        """The heading half: the whole origin, or None when no translation came first
-        or the heading is not finite (nothing is kept either way)."""
+    def take_heading(self, message: Message, unchanged: Pose | None = None) -> Pose | None:
+        """The heading half: the whole pose, its translation ``unchanged``'s when none
+        came first; None when neither is there or the heading is not finite (nothing is
+        kept either way)."""
         xy, self._xy = self._xy, None
         heading = float(message.value)
+        if xy is None and unchanged is not None:
+            xy = (unchanged.x, unchanged.y)
         if xy is None or not math.isfinite(heading):
             return None
         return Pose(xy[0], xy[1], heading)

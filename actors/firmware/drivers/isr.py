@@ -31,12 +31,14 @@ class _Isr:
     """Counters shared by every ISR (a real one would keep them in a static)."""
 
     def __init__(self, post: Post) -> None:
-        self._post = post
+        self.post = post
+        """Posts one message to the actor the interrupt serves (False: the mailbox is full)."""
         self.posted = 0
         self.dropped = 0
 
-    def _send(self, message: Message) -> None:
-        if self._post(message):
+    def send(self, message: Message) -> None:
+        """Post ``message``, counting it as posted or dropped."""
+        if self.post(message):
             self.posted += 1
         else:
             self.dropped += 1
@@ -46,7 +48,7 @@ class MotorCounterIsr(_Isr):
     """Int E: one tread went ``cm_per_interrupt``; forward the raw payload to Motor."""
 
     def __call__(self, payload: int) -> None:
-        self._send(Message.int(Cmd.MOTOR_TICK, int(payload)))
+        self.send(Message.int(Cmd.MOTOR_TICK, int(payload)))
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -107,7 +109,7 @@ class LidarUartIsr(_Isr):
             if angle_cdeg >= 36000 or distance > 32767:
                 self.bad_frames += 1
                 continue
-            self._send(Message.pair(Cmd.LIDAR_SAMPLE, angle_cdeg // 10, distance))
+            self.send(Message.pair(Cmd.LIDAR_SAMPLE, angle_cdeg // 10, distance))
         del buf[:i]
         if len(buf) > 4 * LIDAR_PACKET_SIZE:  # bound: never hoard a garbage stream
             del buf[: -LIDAR_PACKET_SIZE]
@@ -129,7 +131,7 @@ class LidarUartIsr(_Isr):
             return False
         count = len(f)
         samples = LidarSamples((a // 10).astype(np.int32), d.astype(np.int32))
-        if post(self._pool, self._post, Cmd.LIDAR_SAMPLES, samples):  # type: ignore[arg-type]
+        if post(self._pool, self.post, Cmd.LIDAR_SAMPLES, samples):  # type: ignore[arg-type]
             self.posted += count
         else:
             self.dropped += count
@@ -144,7 +146,7 @@ class WiflyUartIsr(_Isr):
         self._pool = pool
 
     def __call__(self, data: bytes) -> None:
-        if post(self._pool, self._post, Cmd.WIFLY_RX, bytes(data)):
+        if post(self._pool, self.post, Cmd.WIFLY_RX, bytes(data)):
             self.posted += 1
         else:
             self.dropped += 1
@@ -164,4 +166,4 @@ class IrAdcIsr(_Isr):
     """Int C: the conversion finished; post the 12-bit sample to the IR queue."""
 
     def __call__(self, sample: int) -> None:
-        self._send(Message.int(Cmd.IR_SAMPLE, max(0, min(4095, int(sample)))))
+        self.send(Message.int(Cmd.IR_SAMPLE, max(0, min(4095, int(sample)))))

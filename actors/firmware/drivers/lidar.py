@@ -46,11 +46,12 @@ import numpy as np
 
 from actors import Actor, BufferPool, ExitReason, Message
 from actors.firmware.addresses import Addresses
+from actors.firmware.arrays import wrap_angle
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import LidarSamples, LidarUartIsr
 from actors.firmware.handles import post
 from actors.firmware.hardware import Interrupt, RoverHardware
-from actors.firmware.origin_wire import CM, xy_half
+from actors.firmware.origin_wire import CM, PoseHalves
 from server.protocol.pose import Pose
 
 __all__ = ["Scan", "LidarHealth", "HealthOptions", "roughness_cm", "batch_health",
@@ -170,7 +171,7 @@ def roughness_cm(angles_deg: np.ndarray, ranges_cm: np.ndarray, *,
     # per batch (a hundred values, so the count of numpy calls is the cost): slices and
     # ufuncs, not np.diff's wrapper; the neighbours' conditions are and-ed per pair
     # first (``pair[i]``: step i usable, returns i and i + 1 valid, i.e. the smaller > 0)
-    step = np.abs((a[1:] - a[:-1] + 180.0) % 360.0 - 180.0)
+    step = np.abs(wrap_angle(a[1:] - a[:-1], 360.0))
     pair = (step > 0.0) & (step <= max_step_deg)
     pair &= np.minimum(r[:-1], r[1:]) > 0.0
     use = pair[:-1] & pair[1:]
@@ -220,7 +221,7 @@ def batch_health(angles_deg: np.ndarray, ranges_cm: np.ndarray, bad_frames: int,
         return LidarHealth.OK
     a = np.asarray(angles_deg, dtype=np.float64)
     if _may_be_stuck(a):
-        spread = np.abs((a - a[0] + 180.0) % 360.0 - 180.0)
+        spread = np.abs(wrap_angle(a - a[0], 360.0))
         if float(np.maximum.reduce(spread)) <= STUCK_SPAN_DEG:
             return LidarHealth.STUCK
     rough, triples = roughness_cm(a, ranges_cm)
@@ -248,8 +249,8 @@ class LidarControl(Actor):
         self.pool = pool
         self._isr = isr
         self.max_pending = max_pending
-        self._xy = (0.0, 0.0)
-        self._heading = 0.0
+        self._pose = Pose()  # the odometry pose pending samples are stamped with
+        self._pose_halves = PoseHalves(CM)  # LIDAR_POSE_XY waiting for its heading
         self._angles: list[int] = []  # single samples [0.1 deg]
         self._ranges: list[int] = []  # [cm]
         self._chunks: list[LidarSamples] = []  # whole interrupts' samples (LIDAR_SAMPLES)
@@ -323,9 +324,9 @@ class LidarControl(Actor):
                 if self._pending >= self.max_pending:
                     self._flush()
             elif cmd == Cmd.LIDAR_POSE_XY:
-                self._xy = xy_half(m, CM)
+                self._pose_halves.take_xy(m)
             elif cmd == Cmd.LIDAR_POSE_HEADING:
-                self._heading = float(m.value)
+                self._pose = self._pose_halves.take_heading(m, self._pose) or self._pose
                 self._flush()  # pending samples were taken at this pose
                 had_pending = False
             elif cmd in (Cmd.LIDAR_START, Cmd.LIDAR_RATE):
@@ -365,7 +366,7 @@ class LidarControl(Actor):
         if not self._healthy(angles, ranges):
             self.withheld += 1
             return
-        scan = Scan(Pose(self._xy[0], self._xy[1], self._heading), angles, ranges)
+        scan = Scan(self._pose, angles, ranges)
         if post(self.pool, lambda m: self._send(self._map, m), Cmd.MAP_SCAN, scan):
             self.scans += 1
         else:

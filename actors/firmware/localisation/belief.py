@@ -50,6 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from actors.firmware.arrays import wrap_angle
 from actors.firmware.localisation.clusters import cluster_labels
 from actors.firmware.localisation.motion_model import MotionNoise, TreadMotion, sample_motion
 from server.protocol.pose import Pose, compose, inverse
@@ -61,8 +62,8 @@ _TWO_PI = 2.0 * math.pi
 
 
 def _wrap(theta: np.ndarray) -> np.ndarray:
-    """Angles [rad] wrapped to [-pi, pi)."""
-    return (theta + math.pi) % _TWO_PI - math.pi
+    """Angles [rad] wrapped to [-pi, pi) (`arrays.wrap_angle`)."""
+    return wrap_angle(theta, _TWO_PI)
 
 
 RESAMPLE_ESS = 0.5

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from actors.firmware.localisation.capped_edt import capped_distance
-from actors.firmware.mapping.occupancy import OCCUPIED, UNKNOWN, GridMap
+from server.protocol.grid_map import OCCUPIED, UNKNOWN, GridMap
 
 __all__ = ["DistanceField"]
 

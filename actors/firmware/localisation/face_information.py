@@ -50,7 +50,7 @@ from actors.firmware.localisation.scan_likelihood import (
     _beams,
     _hit_terms,
 )
-from actors.firmware.mapping.scan_match import MIN_POINTS
+from actors.firmware.scan_hits import MIN_POINTS
 from server.protocol.pose import Pose
 
 __all__ = ["face_information", "MIN_NORMAL"]
@@ -73,7 +73,7 @@ def face_information(field: DistanceField, pose: Pose, points: np.ndarray,
             ``new_ground_cm``, ``independent_hits``).
 
     Returns:
-        Zeros for a scan of fewer than `scan_match.MIN_POINTS` hits.
+        Zeros for a scan of fewer than `scan_hits.MIN_POINTS` hits.
     """
     o = options or ScanOptions()
     pts = _beams(np.asarray(points, dtype=float).reshape(-1, 2), MAX_BEAMS)

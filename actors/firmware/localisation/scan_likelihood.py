@@ -53,7 +53,7 @@ import numpy as np
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import to_map
 from actors.firmware.localisation.gaussian_pose import GaussianPose
-from actors.firmware.mapping.scan_match import MAX_RANGE_CM, MIN_POINTS, MatchOptions
+from actors.firmware.scan_hits import MAX_RANGE_CM, MIN_POINTS, MIN_RANGE_CM
 from server.protocol.pose import Pose
 
 __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_likelihood",
@@ -65,8 +65,7 @@ __all__ = ["ScanOptions", "FitVerdict", "ScanFit", "hits_to_points", "scan_log_l
 # Structural constants of the likelihood and of the verdict: how many beams a particle's
 # likelihood reads (AMCL's ``max_beams``), the neutral term of a hit on new ground, and
 # the verdict's least evidence and gate. The hits used are scan matching's
-# (`scan_match.MatchOptions.min_range_cm`, `scan_match.MAX_RANGE_CM`,
-# `scan_match.MIN_POINTS`): one LIDAR, one notion of a usable hit.
+# (`scan_hits`): one LIDAR, one notion of a usable hit.
 MAX_BEAMS = 60
 """Hits taken per scan for the likelihood of particles [1]."""
 UNKNOWN_HIT = 0.5
@@ -176,25 +175,24 @@ class ScanFit:
 
 
 def hits_to_points(angles_deg: np.ndarray, ranges_cm: np.ndarray,
-                   match: MatchOptions | None = None) -> np.ndarray:
+                   min_range_cm: float = MIN_RANGE_CM) -> np.ndarray:
     """The usable hits of a scan in the rover frame: (K, 2) forward, left [cm].
 
     Args:
         angles_deg: ray angles, counter-clockwise from the heading [deg], (n,).
         ranges_cm: ranges [cm], (n,); 0 is "no return".
-        match: scan matching's quantities: hits nearer than its ``min_range_cm`` or
-            farther than `scan_match.MAX_RANGE_CM` are not used.
+        min_range_cm: nearer hits are not used, nor hits farther than
+            `scan_hits.MAX_RANGE_CM` [cm].
 
     Raises:
         ValueError: when the arrays are not 1-D of one length.
     """
-    o = match or MatchOptions()
     a = np.asarray(angles_deg, dtype=float)
     r = np.asarray(ranges_cm, dtype=float)
     if a.ndim != 1 or a.shape != r.shape:
         raise ValueError(f"angles_deg and ranges_cm must be 1-D of one length, got "
                          f"{a.shape} and {r.shape}")
-    keep = np.isfinite(a) & np.isfinite(r) & (r >= o.min_range_cm) & (r <= MAX_RANGE_CM)
+    keep = np.isfinite(a) & np.isfinite(r) & (r >= min_range_cm) & (r <= MAX_RANGE_CM)
     t = np.radians(a[keep])
     return np.column_stack([r[keep] * np.cos(t), r[keep] * np.sin(t)])
 

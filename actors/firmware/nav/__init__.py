@@ -1,11 +1,14 @@
 """Navigation actors, one per role, and what they share.
 
-``base`` (`NavBase`: messages, pose, the ADP step loop) with ``tread_faults``
-(what a tread-fault report does, and the pose doubt it leaves),
-``options`` (tunables and the retained record), ``route`` (planning and
-following a route, pure), ``route_nav`` (`RouteNav`: the hider's and seeker's
-base, on the server's map) with ``recovery`` (what a blocked route does)
-and ``nudge`` (the geometry of its sideways search, pure);
-the mapper (``mapper``) with ``exploration``, ``homing``, ``sensor_watch`` and
-``mapping_options``; the hider (``hider``); the seeker (``seeker``); and
-``factory``, which builds the actor for a role."""
+One actor per rover owns its parts (none inherits another):
+``base`` (`NavBase`: messages, pose, origin) with ``controller`` (the ADP
+loop's motion in flight); ``route_nav`` (`RouteNav`: the hider's and seeker's
+actor, on the server's map) with ``localiser`` (the pose belief),
+``tread_faults`` (what a tread report does), ``recovery`` (the recovery
+behaviours of a blocked route), ``nudge_series`` and ``nudge`` (the sideways
+search's state and geometry) and the role behaviours ``role``, ``hider``
+(`Hide`) and ``seeker`` (`Seek`, with ``search``); the mapper (``mapper``,
+`MappingNav`) with ``exploration``, ``homing``, ``sensor_watch`` and
+``mapping_options``; ``options`` (tunables and the retained record), ``route``
+(planning and following a route, pure); and ``factory``, which builds the
+actor for a role."""

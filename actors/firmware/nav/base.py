@@ -48,42 +48,35 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.ir import IR_IN, IR_PINNED
 from actors.firmware.drivers.tread_monitor import TreadFault
-from actors.firmware.hardware import HardwareSpec
+from actors.firmware.hardware import MAPPER, HardwareSpec
+from actors.firmware.nav.controller import Controller, MotionEnd, Tick
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.route import Motion
-from actors.firmware.nav.tread_faults import TreadFaults
-from actors.firmware.origin_wire import MM, xy_half
+from actors.firmware.origin_wire import MM, PoseHalves, xy_half
 from actors.firmware.planning.clearance import turning_radius_cm
 from server.protocol import Frame, FrameError, make_frame, read_data
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import ZERO_POSE, Pose, compose
 
-__all__ = ["NavBase", "POSE_REPORT_TICKS", "MOTION_TIMEOUT_S", "POSE_WAIT_S", "SEND_TIMEOUT_S",
-           "OUTBOX"]
+__all__ = ["NavBase", "POSE_REPORT_TICKS", "SEND_TIMEOUT_S", "OUTBOX"]
 
 # Fixed timings and bounds of the ADP loop's messaging: what the firmware's queues and
 # links need, not properties of the rover.
 POSE_REPORT_TICKS = 3
 """``pose`` telemetry to the server goes every this many ticks (``NavOptions.tick_s``):
 every 0.75 s, about 1.3 Hz."""
-MOTION_TIMEOUT_S = 4.0
-"""A motion reporting nothing after this plus its nominal duration is stopped [s]: a
-watchdog on Motor Control, which reports every motion's end itself."""
-POSE_WAIT_S = 0.3
-"""How long to wait for the pose at rest after a motion [s] (Motor Control answers within
-a control period or two)."""
 SEND_TIMEOUT_S = 1.0
 """Longest wait for room in a neighbour's mailbox [s]."""
 OUTBOX = 16
 """Reports waiting for room in the pool or WiFly's mailbox, at most."""
 
 
-class NavBase(TreadFaults, Actor):
+class NavBase(Actor):
     """Navigation common to every role: messages in, Command A and frames out.
 
     Subclasses implement the hooks (``on_start_cmd``, ``on_stop_cmd``,
-    ``after_motion`` ...); this class owns the pose, the motion in flight, the
-    telemetry and the path to the server.
+    ``after_motion`` ...); this class owns the pose, the motion in flight (its
+    `controller.Controller`), the telemetry and the path to the server.
 
     Args:
         role: ``mapper``, ``hider`` or ``seeker``.
@@ -98,7 +91,7 @@ class NavBase(TreadFaults, Actor):
     origin_from_server = True
     """Whether the server's ``origin`` sets the origin (not on the mapper: see `mapper`)."""
 
-    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
+    def __init__(self, *, pool: BufferPool, spec: HardwareSpec,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
                  addresses: Addresses | None = None) -> None:
         self.pool = pool
@@ -107,16 +100,14 @@ class NavBase(TreadFaults, Actor):
         """Retained across restarts when the rover tree passes one (see `NavMemory`)."""
         self.spec = spec
         self.o = options or NavOptions()
-        length = spec.length_cm if spec else 20.0
-        width = spec.width_cm if spec else 15.0
-        self.length_cm, self.width_cm = length, width
-        self.radius_cm = turning_radius_cm(length, width)
+        self.length_cm, self.width_cm = spec.length_cm, spec.width_cm
+        self.radius_cm = turning_radius_cm(spec.length_cm, spec.width_cm)
         """Turning radius for planning [cm]: the body's half-diagonal."""
         self.pose: Pose = ZERO_POSE
         """Dead-reckoned pose, own frame (from Motor Control)."""
         self.pose_known = False
         """True once Motor Control published a pose to this incarnation."""
-        self.origin: Pose | None = ZERO_POSE if self.role == "mapper" else None
+        self.origin: Pose | None = ZERO_POSE if self.role == MAPPER else None
         """The map -> own frame transform: the own frame's (0, 0) @ 0 in the map frame
         (see Frames in the module docstring)."""
         self.started = False
@@ -128,12 +119,9 @@ class NavBase(TreadFaults, Actor):
                                          "contacts": 0, "stall_holds": 0}
         self.tread_faults = 0
         """``NAV_TREAD_FAULT`` reports acted on."""
-        self._hold_until = math.inf  # holding still after a tread fault until then
-        self._tread_strikes = 0
-        self._tread_last = -math.inf
-        self._blocked_t = -math.inf  # when a motion last ended blocked [s]
-        self._pose_xy: tuple[float, float] | None = None  # NAV_POSE_XY waiting for its heading
-        self._motion: Motion | None = None
+        self.controller = Controller(self.o.speed_cm_s)
+        """The motion in flight, its watchdog and holds (the ADP loop's state)."""
+        self._pose_halves = PoseHalves(MM)  # NAV_POSE_XY waiting for its heading
         self.last_motion: Motion | None = None
         """The last motion commanded."""
         self.motion_from: Pose | None = None
@@ -141,10 +129,6 @@ class NavBase(TreadFaults, Actor):
         self.odometry_from: Pose | None = None
         """Motor Control's own-frame pose when the last motion was commanded: what its
         counts moved from (the map-frame ``motion_from`` also moves with the origin)."""
-        self._motion_deadline = math.inf
-        self._blocked = False
-        self._done = 0.0
-        self._pose_deadline = math.inf  # waiting for the pose at rest until then
         self._next_pose_report = 0.0
         self._settled_at = math.inf
         self._outbox: deque[tuple[int, Any]] = deque()
@@ -186,9 +170,11 @@ class NavBase(TreadFaults, Actor):
             return None
         cmd = message.command
         if cmd == Cmd.NAV_POSE_XY:
-            self._pose_xy = xy_half(message, MM)
+            self._pose_halves.take_xy(message)
         elif cmd == Cmd.NAV_POSE_HEADING:
-            await self._on_pose(float(message.value))
+            pose = self._pose_halves.take_heading(message, unchanged=self.pose)
+            if pose is not None:
+                await self._on_pose(pose)
         elif cmd == Cmd.NAV_MOTION_DONE or cmd == Cmd.NAV_MOTION_BLOCKED:
             await self._on_motion_end(cmd == Cmd.NAV_MOTION_BLOCKED, float(message.value))
         elif cmd == Cmd.NAV_TIMER:
@@ -241,57 +227,64 @@ class NavBase(TreadFaults, Actor):
         self.origin = origin
         self.memory.origin = (origin.x, origin.y, origin.heading_deg)
 
-    async def _on_pose(self, heading: float) -> None:
-        x, y = self._pose_xy if self._pose_xy is not None else (self.pose.x, self.pose.y)
-        self.pose = Pose(x, y, heading)
-        self._pose_xy = None
+    async def _on_pose(self, pose: Pose) -> None:
+        self.pose = pose
         self.pose_known = True
-        if self._motion is None:
+        if self.controller.in_flight is None:
             self.on_pose_at_rest()
-        if self._pose_deadline < math.inf and self._motion is None and self._hold_until == math.inf:
-            self._pose_deadline = math.inf
-            await self.after_motion(self._blocked, self._done)
+        if self.controller.at_rest():
+            end = self.controller.end
+            await self.after_motion(end.blocked, end.done)
 
     # ------------------------------------------------------------------ motion
     @property
     def moving(self) -> bool:
-        """A motion is in flight, or its pose at rest is awaited."""
-        return self._motion is not None or self._pose_deadline < math.inf or \
-            self._hold_until < math.inf
+        """A motion is in flight, or its pose at rest is awaited, or a hold is on."""
+        return self.controller.busy
 
     async def command(self, motion: Motion) -> None:
         """Send one Command A and wait (by events) for its end; `after_motion` follows."""
         code = Cmd.MOTOR_TURN if motion.kind == "turn" else Cmd.MOTOR_MOVE
-        self._motion = motion
         self.last_motion = motion
         self.motion_from = self.map_pose
         self.odometry_from = self.pose
         self.counters["motions"] += 1
-        nominal = abs(motion.amount) / self.o.speed_cm_s if motion.kind == "move" \
-            else abs(motion.amount) / 90.0
-        self._motion_deadline = trio.current_time() + MOTION_TIMEOUT_S + nominal
+        self.controller.begin(motion, trio.current_time())
         if not await self.post(self.motor, Message.float(code, float(motion.amount))):
-            self._motion_deadline = trio.current_time()  # the tick treats it as blocked
+            self.controller.not_sent(trio.current_time())
 
     async def stop_motor(self) -> None:
         """MOTOR_STOP, and forget the motion in flight (its end is ignored)."""
-        self._motion = None
-        self._motion_deadline = math.inf
-        self._pose_deadline = math.inf
-        self._hold_until = math.inf
+        self.controller.forget()
         await self.post(self.motor, Message.uint(Cmd.MOTOR_STOP, 0))
 
+    async def hold_still(self, until: float, detail: str) -> None:
+        """Hold still until ``until`` [s] and say ``detail``: the motion that ends meanwhile
+        counts as not blocked, and the decision after the hold uses the pose at rest."""
+        self.controller.hold(until)
+        await self.status(self.state, detail)
+
+    def stop_blocked(self, wait_s: float) -> None:
+        """The motion was stopped (`stop_motor`) for a tread report: it counts as blocked,
+        decided ``wait_s`` [s] from now with the pose at rest."""
+        self.counters["blocked"] += 1
+        self.controller.stop_blocked(trio.current_time(), wait_s)
+
     async def _on_motion_end(self, blocked: bool, done: float) -> None:
-        if self._motion is None:
+        if not self.controller.ended(blocked, done, trio.current_time()):
             return  # the end of a motion nobody waits for (stopped, or a dead incarnation's)
-        self._motion = None
-        self._motion_deadline = math.inf
-        self._blocked, self._done = blocked, done
         if blocked:
             self.counters["blocked"] += 1
-            self._blocked_t = trio.current_time()
-        self._pose_deadline = trio.current_time() + POSE_WAIT_S
         await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+
+    async def on_tread_fault(self, fault: TreadFault) -> None:
+        """Hook: Motor Control reported a tread during the motion in flight
+        (``NAV_TREAD_FAULT``)."""
+
+    def note_tread_driven(self, left_cm: float, right_cm: float) -> None:
+        """Hook: Motor Control's drive model says how far each tread went [cm] in the
+        motion that is ending (``NAV_TREAD_DRIVEN``: after a tread report, or a turn
+        that ended blocked)."""
 
     async def after_motion(self, blocked: bool, done: float) -> None:
         """Hook: the motion ended (``blocked`` when the motor gave up) and the pose is fresh."""
@@ -299,26 +292,20 @@ class NavBase(TreadFaults, Actor):
     # ------------------------------------------------------------------ timer
     async def _on_tick(self) -> None:
         now = trio.current_time()
-        if self._hold_until < math.inf:
-            if now >= self._hold_until:  # the hold is over: decide again from the pose at rest
-                self._hold_until = math.inf
-                self._pose_deadline = now + POSE_WAIT_S
-                await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
-        elif self._motion is not None and now >= self._motion_deadline:
+        due = self.controller.tick(now)
+        if due == Tick.HOLD_OVER:  # decide again from the pose at rest
+            await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
+        elif due == Tick.TIMED_OUT:
             self.counters["timeouts"] += 1
             await self.post(self.motor, Message.uint(Cmd.MOTOR_STOP, 0))
-            self._motion = None
-            self._motion_deadline = math.inf
-            self._blocked, self._done = True, 0.0
-            self._pose_deadline = now + POSE_WAIT_S
             await self.post(self.motor, Message.uint(Cmd.MOTOR_GET_POSE, 0))
-        elif self._motion is None and now >= self._pose_deadline:
-            self._pose_deadline = math.inf  # no fresh pose: decide with the last one
-            await self.after_motion(self._blocked, self._done)
+        elif due == Tick.POSE_LATE:  # no fresh pose: decide with the last one
+            end: MotionEnd = self.controller.end
+            await self.after_motion(end.blocked, end.done)
         if self._outbox:
             await self._flush_outbox()
         if now >= self._next_pose_report and self.pose_known and (
-                self.origin is not None or self.role == "mapper"):
+                self.origin is not None or self.role == MAPPER):
             self._next_pose_report = now + POSE_REPORT_TICKS * self.o.tick_s
             p = self.map_pose
             await self.send_frame(make_frame("pose", {"x": round(p.x, 1), "y": round(p.y, 1),

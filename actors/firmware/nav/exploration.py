@@ -32,12 +32,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trio
 
-from actors.firmware.nav.mapping_options import MappingOptions
-from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
+from actors.firmware.nav.route import Motion, PathFollower, plan_route, plan_tiers, route_points
 from actors.firmware.planning.clearance import obstacle_ahead
 from actors.firmware.planning.viewpoint import (
     FaceField,
@@ -47,6 +47,9 @@ from actors.firmware.planning.viewpoint import (
     viewpoints,
 )
 from server.protocol.grid_map import UNKNOWN
+
+if TYPE_CHECKING:
+    from actors.firmware.nav.mapper import MappingNav
 
 __all__ = ["Exploration", "ExplorationState", "MIN_FACE_CELLS", "MAX_INCIDENCE_DEG",
            "RECHOOSE_STEPS", "OBSTACLE_TURNS", "MAX_CHOICES", "KEEP_CM", "KEEP_SHARE",
@@ -130,44 +133,52 @@ class ExplorationState:
 
 
 class Exploration:
-    """Frontier exploration (a mixin of `mapper.MappingNav`, working on its state)."""
+    """Frontier exploration: the mapper's role behaviour (see the module docstring).
 
-    m: MappingOptions
-    ex: ExplorationState
+    Args:
+        nav: the mapper's navigation actor, whose map, pose and state it reads and
+            whose motions it commands.
+    """
+
+    def __init__(self, nav: MappingNav) -> None:
+        self.nav = nav
+
+
 
     async def after_motion(self, blocked: bool, done: float) -> None:
-        if blocked and self.state in ("exploring", "homing") and not self.holding and (
-                await self._hold_if_blocked_in_the_open(done)):
+        if blocked and self.nav.state in ("exploring", "homing") and not self.nav.holding and (
+                await self.nav.watch.hold_if_blocked_in_the_open(done)):
             return  # odometry in doubt: the hold's end plans again (`sensor_watch`)
-        if self.state == "homing":
-            if not self.holding:
-                await self._after_home_motion(blocked)
+        if self.nav.state == "homing":
+            if not self.nav.holding:
+                await self.nav.homing.after_home_motion(blocked)
             return
-        if self.state != "exploring" or self.holding:
+        if self.nav.state != "exploring" or self.nav.holding:
             return
         if blocked:
-            self.ex.blocks += 1
-            if self.ex.blocks >= 2 and self.ex.target is not None:
-                self._blacklist(self.ex.target)
-            self.ex.follower = None
-            last = self.last_motion
+            self.nav.ex.blocks += 1
+            if self.nav.ex.blocks >= 2 and self.nav.ex.target is not None:
+                self.blacklist(self.nav.ex.target)
+            self.nav.ex.follower = None
+            last = self.nav.last_motion
             if last is not None and last.kind == "move" and last.amount < 0:
-                await self.command(Motion("turn", 90.0))  # cannot back off either: turn
+                await self.nav.command(Motion("turn", 90.0))  # cannot back off either: turn
             else:
-                await self.command(Motion("move", -self.o.backoff_cm))
+                await self.nav.command(Motion("move", -self.nav.o.backoff_cm))
             return
         await self.decide()
 
     async def decide(self) -> None:
         """One ADP decision: keep or choose a frontier, then command one motion."""
-        if self.state != "exploring" or self.moving or self.grid is None or self.holding:
+        nav = self.nav
+        if nav.state != "exploring" or nav.moving or nav.grid is None or nav.holding:
             return
-        if not self.can_move:
-            self._wait_map = True  # the tick tries again
+        if not self.nav.can_move:
+            self.nav.wait_map = True  # the tick tries again
             return
-        ex = self.ex
-        pose = self.map_pose
-        self._judge_sightings()
+        ex = self.nav.ex
+        pose = self.nav.map_pose
+        self.judge_sightings()
         if ex.trip_known is not None and trio.current_time() - ex.trip_started >= \
                 TRIP_MAX_S:
             # a rover that keeps switching to new frontiers on the way never ends a trip
@@ -175,33 +186,33 @@ class Exploration:
             self._end_trip()
             ex.trip_known, ex.trip_started = self._known(), trio.current_time()
         if ex.follower is not None and ex.steps >= ex.budget:
-            self._blacklist(ex.target)  # no progress worth the route
+            self.blacklist(ex.target)  # no progress worth the route
             ex.follower = None
         if ex.follower is None or ex.steps % RECHOOSE_STEPS == 0:
-            if not self._choose(keep=ex.follower is not None):
+            if not self.choose(keep=ex.follower is not None):
                 return
         assert ex.follower is not None
         motion = ex.follower.next_motion(pose)
         if motion is None or (ex.target is not None
-                              and math.dist((pose.x, pose.y), ex.target) <= self.m.reach_cm):
+                              and math.dist((pose.x, pose.y), ex.target) <= self.nav.m.reach_cm):
             if ex.target is not None:
                 ex.reached.append(ex.target)
                 self._end_trip()
             ex.follower = None
-            self._wait_map = True  # look again once the map shows what is seen from here
+            self.nav.wait_map = True  # look again once the map shows what is seen from here
             return
         if motion.kind == "move":
-            motion = self._mind_the_obstacle(motion)
+            motion = self.mind_the_obstacle(motion)
             if motion.kind == "turn":
                 ex.follower = None
-                if self._turned_away():
+                if self.turned_away():
                     return
             else:
                 ex.turned_away = 0
         ex.steps += 1
-        await self.command(motion)
+        await self.nav.command(motion)
 
-    def _turned_away(self) -> bool:
+    def turned_away(self) -> bool:
         """Count a turn away from an obstacle; True (target blacklisted, decide again
         at the next tick) after ``OBSTACLE_TURNS`` toward one target without a move.
 
@@ -210,7 +221,7 @@ class Exploration:
         refused, turned away and planned the same route again, minutes on end by one
         wall (90-s trips revealing a few dozen cells), and turning in place by a wall
         is where scan matching drifts."""
-        ex = self.ex
+        ex = self.nav.ex
         if ex.target is None:
             return False
         if ex.turned_target is not None and math.dist(ex.target, ex.turned_target) <= 40.0:
@@ -220,33 +231,33 @@ class Exploration:
         if ex.turned_away < OBSTACLE_TURNS:
             return False
         ex.turned_away, ex.turned_target = 0, None
-        self._blacklist(ex.target)
-        self._wait_map = True
+        self.blacklist(ex.target)
+        self.nav.wait_map = True
         return True
 
-    def _mind_the_obstacle(self, motion: Motion) -> Motion:
+    def mind_the_obstacle(self, motion: Motion) -> Motion:
         """Shorten a move to stop ``stop_cm`` before an obstacle, or turn away from it."""
-        assert self.grid is not None
-        look = motion.amount + self.m.stop_cm
-        ob = obstacle_ahead(self.grid, self.map_pose, look, half_angle_deg=20.0,
-                            half_width_cm=0.5 * self.width_cm + 2.5)
+        assert self.nav.grid is not None
+        look = motion.amount + self.nav.m.stop_cm
+        ob = obstacle_ahead(self.nav.grid, self.nav.map_pose, look, half_angle_deg=20.0,
+                            half_width_cm=0.5 * self.nav.width_cm + 2.5)
         if ob is None:
             return motion
-        room = ob.forward_cm - self.m.stop_cm
+        room = ob.forward_cm - self.nav.m.stop_cm
         if room >= 2.0:
             return Motion("move", min(motion.amount, room))
         # turn away: to the side opposite the obstacle's bearing
         return Motion("turn", -90.0 if ob.bearing_deg >= 0 else 90.0)
 
-    def _choose(self, *, keep: bool) -> bool:
+    def choose(self, *, keep: bool) -> bool:
         """Choose a viewpoint and a route to it; False (and ``no_frontier``) when no
         reachable pose sees enough of the unknown."""
-        assert self.grid is not None
-        ex = self.ex
+        assert self.nav.grid is not None
+        ex = self.nav.ex
         # after futile visits only viewpoints revealing much still count (what an obstacle
         # hid in a big room), and each is blacklisted once reached (below), so this ends
         least = self._min_gain(self._known())
-        if self._futile():
+        if self.futile():
             least *= FUTILE_TRIPS  # as much as the futile visits together should have shown
         views = [v for v in self._viewpoints() if v.gain_cells >= least and not any(
             math.dist(v.point_cm, b) <= BLACKLIST_RADIUS_CM for b in ex.blacklist)]
@@ -260,14 +271,14 @@ class Exploration:
             if current and current[0].score >= KEEP_SHARE * views[0].score:
                 return True  # the target still sees about as much: keep the route
         for v in views[:MAX_CHOICES]:
-            if any(math.dist(v.point_cm, r) <= self.m.reach_cm * 2 for r in ex.reached):
-                self._blacklist(v.point_cm)  # reached, and still not seen from there
+            if any(math.dist(v.point_cm, r) <= self.nav.m.reach_cm * 2 for r in ex.reached):
+                self.blacklist(v.point_cm)  # reached, and still not seen from there
                 continue
             if self._route_to(v.point_cm):
                 return True
-            self._blacklist(v.point_cm)
+            self.blacklist(v.point_cm)
         ex.follower = None
-        self._wait_map = True
+        self.nav.wait_map = True
         return False
 
     def _viewpoints(self) -> list[Viewpoint]:
@@ -275,38 +286,38 @@ class Exploration:
         with the current target among the candidates; reachability with the narrowest
         tier the rover can drive (a corridor barely wider than the body), the route
         itself tries the roomier tiers first."""
-        assert self.grid is not None
-        pose = self.map_pose
-        radius, margin = self._tiers()[-1]
-        also = [self.ex.target] if self.ex.target is not None else []
+        assert self.nav.grid is not None
+        pose = self.nav.map_pose
+        radius, margin = self.tiers()[-1]
+        also = [self.nav.ex.target] if self.nav.ex.target is not None else []
         return viewpoints(self._field(), (pose.x, pose.y), robot_radius_cm=radius,
-                          margin_cm=margin, stand_radius_cm=self.radius_cm,
+                          margin_cm=margin, stand_radius_cm=self.nav.radius_cm,
                           max_incidence_deg=MAX_INCIDENCE_DEG, also_cm=also,
                           min_face_cells=MIN_FACE_CELLS)
 
     def _field(self) -> FaceField:
         """The current map's `FaceField`, made again only when the map or the unseeable
         cells changed (a decision judges sightings and may choose on the same map)."""
-        assert self.grid is not None
-        ex = self.ex
-        key = (self.grid, len(ex.unseeable), ex.unseeable[-1] if ex.unseeable else None)
+        assert self.nav.grid is not None
+        ex = self.nav.ex
+        key = (self.nav.grid, len(ex.unseeable), ex.unseeable[-1] if ex.unseeable else None)
         if ex.view_field is None or ex.view_key is None or ex.view_key[0] is not key[0] \
                 or ex.view_key[1:] != key[1:]:
-            ex.view_field = face_field(self.grid, range_cm=self.m.view_range_cm,
+            ex.view_field = face_field(self.nav.grid, range_cm=self.nav.m.view_range_cm,
                                        unseeable_cm=ex.unseeable)
             ex.view_key = key
         return ex.view_field
 
-    def _judge_sightings(self) -> None:
+    def judge_sightings(self) -> None:
         """Count, per face cell the rover sees from where it stands (within the view range,
         steeply enough: `viewpoint.seen_face`), the decisions it was seen at; one
         seen at ``SIGHTINGS`` decisions and still unknown cannot be revealed by looking
         (an obstacle's inside behind a gap in its mapped surface, a pocket only grazing
         rays enter), so it leaves the face for good. What no pose sees then ends
         exploration instead of more drives that reveal nothing."""
-        ex = self.ex
-        assert self.grid is not None
-        pose = self.map_pose
+        ex = self.nav.ex
+        assert self.nav.grid is not None
+        pose = self.nav.map_pose
         for cell in seen_face(self._field(), (pose.x, pose.y),
                               max_incidence_deg=MAX_INCIDENCE_DEG):
             n = ex.sightings.get(cell, 0) + 1
@@ -319,56 +330,51 @@ class Exploration:
         while len(ex.sightings) > UNSEEABLE:
             del ex.sightings[next(iter(ex.sightings))]
 
-    def _tiers(self) -> list[tuple[float, float]]:
-        """(radius, margin) to plan with, roomiest first [cm]: turning radius plus margin,
-        turning radius alone, half the body width plus the narrow margin (a corridor the
-        rover fits through driving straight; the tiers of hiding and seeking), and half
-        the body width alone: on a 5 cm grid a 30 cm corridor whose walls lie on cell
-        edges maps 25 cm wide, and only this tier still finds the way through it (a
-        scrape on the way is a blocked motion, and the route is replanned)."""
-        r, m = self.radius_cm, self.o.plan_margin_cm
-        half = 0.5 * self.width_cm
-        out: list[tuple[float, float]] = []
-        for t in ((r, m), (r, 0.0), (half, self.o.narrow_margin_cm), (half, 0.0)):
-            if t not in out and t[0] + t[1] <= r + m:
-                out.append(t)
-        return out
+    def tiers(self) -> tuple[tuple[float, float], ...]:
+        """(radius, margin) pairs to plan with, most cautious first [cm]: the tiers of
+        hiding and seeking (`route.plan_tiers`); reachability uses the last, half the body
+        width alone: on a 5 cm grid a 30 cm corridor whose walls lie on cell edges maps
+        25 cm wide, and only that tier still finds the way through it (a scrape on the
+        way is a blocked motion, and the route is replanned)."""
+        nav = self.nav
+        return plan_tiers(nav.radius_cm, nav.width_cm, nav.o.plan_margin_cm,
+                          nav.o.narrow_margin_cm)
 
     def _min_gain(self, known: int) -> float:
         return max(MIN_GAIN_CELLS, MIN_GAIN_SHARE * known)
 
-    def _futile(self) -> bool:
+    def futile(self) -> bool:
         """Whether the last ``FUTILE_TRIPS`` visits together revealed too little to go on.
 
         Judged on their sum (a running window), not on each: one visit just above the
         limit among small ones would start the count over, and mapping would go on for
         90-s trips gaining 21, 7, 4 and 34 cells (limit 32)."""
-        g = self.ex.gains
+        g = self.nav.ex.gains
         if len(g) < FUTILE_TRIPS:
             return False
-        least = self._min_gain(self._known() if self.grid is not None else 0)
+        least = self._min_gain(self._known() if self.nav.grid is not None else 0)
         return sum(g[-FUTILE_TRIPS:]) < least * FUTILE_TRIPS
 
     def _known(self) -> int:
-        assert self.grid is not None
-        return int(np.count_nonzero(self.grid.cells != UNKNOWN))
+        assert self.nav.grid is not None
+        return int(np.count_nonzero(self.nav.grid.cells != UNKNOWN))
 
     def _route_to(self, target: tuple[float, float]) -> bool:
-        assert self.grid is not None
-        pose = self.map_pose
+        assert self.nav.grid is not None
+        pose = self.nav.map_pose
         plan = None
-        for radius, margin in self._tiers():
-            plan = plan_route(self.grid, (pose.x, pose.y), target, radius_cm=radius,
+        for radius, margin in self.tiers():
+            plan = plan_route(self.nav.grid, (pose.x, pose.y), target, radius_cm=radius,
                               margin_cm=margin)
             if plan is not None:
                 break
         if plan is None:
             return False
-        ex = self.ex
+        ex = self.nav.ex
         if ex.trip_known is None:  # a trip runs until a target is reached or given up
             ex.trip_known = self._known()
             ex.trip_started = trio.current_time()
-        ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
+        ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.nav.o)
         ex.target = target
         ex.steps = 0
         ex.blocks = 0
@@ -380,18 +386,18 @@ class Exploration:
 
         Switching to another frontier on the way (the map grew) does not end a trip,
         so a trip's gain is that of a whole visit, not of a few steps."""
-        ex = self.ex
-        if ex.trip_known is not None and self.grid is not None:
+        ex = self.nav.ex
+        if ex.trip_known is not None and self.nav.grid is not None:
             ex.gains.append(self._known() - ex.trip_known)
             del ex.gains[:-FUTILE_TRIPS]
         ex.trip_known = None
 
-    def _blacklist(self, point: tuple[float, float] | None) -> None:
+    def blacklist(self, point: tuple[float, float] | None) -> None:
         if point is None:
             return
-        if point == self.ex.target:
+        if point == self.nav.ex.target:
             self._end_trip()
-        bl = self.ex.blacklist
+        bl = self.nav.ex.blacklist
         bl.append(point)
         if len(bl) > BLACKLIST:
             del bl[0]

@@ -14,11 +14,12 @@ from __future__ import annotations
 
 from actors import Actor, BufferPool
 from actors.firmware.addresses import Addresses
-from actors.firmware.hardware import ROLES, HardwareSpec
-from actors.firmware.nav.hider import HidingNav
+from actors.firmware.hardware import HIDER, MAPPER, ROLES, SEEKER, HardwareSpec
+from actors.firmware.nav.hider import Hide
 from actors.firmware.nav.mapper import MappingNav, MappingOptions
 from actors.firmware.nav.options import NavMemory, NavOptions
-from actors.firmware.nav.seeker import SeekingNav, SeekingOptions
+from actors.firmware.nav.route_nav import RouteNav
+from actors.firmware.nav.seeker import Seek, SeekingOptions
 
 __all__ = ["make_nav", "NavMemory", "NavOptions"]
 
@@ -34,7 +35,8 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
     Args:
         role: ``mapper``, ``hider`` or ``seeker``.
         pool: the rover's buffer pool (frames, maps and scans travel by handle).
-        spec: the rover's calibration constants (body size for clearance).
+        spec: the rover's calibration constants (body size for clearance); the bench
+            calibration (`HardwareSpec.bench`) when the rover tree gives none.
         rover_id: the rover's id (accepted for the rover tree's calling convention).
         options: common tunables (`NavOptions`).
         memory: the retained record of the server's instructions, made once by the
@@ -47,13 +49,17 @@ def make_nav(role: str, *, pool: BufferPool, spec: HardwareSpec | None = None,
     Raises:
         ValueError: ``role`` is not one of `ROLES`.
     """
-    if role == "mapper":
+    if spec is None:
+        if role not in ROLES:
+            raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
+        spec = HardwareSpec.bench(role)
+    if role == MAPPER:
         return MappingNav(pool=pool, spec=spec, options=options, memory=memory, mapping=mapping,
                           addresses=addresses)
-    if role == "hider":
-        return HidingNav(pool=pool, spec=spec, options=options, memory=memory,
-                         addresses=addresses)
-    if role == "seeker":
-        return SeekingNav(pool=pool, spec=spec, options=options, memory=memory, seeking=seeking,
-                          addresses=addresses)
+    if role == HIDER:
+        return RouteNav(HIDER, Hide, pool=pool, spec=spec, options=options, memory=memory,
+                        addresses=addresses)
+    if role == SEEKER:
+        return RouteNav(SEEKER, lambda nav: Seek(nav, seeking), pool=pool, spec=spec,
+                        options=options, memory=memory, addresses=addresses)
     raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")

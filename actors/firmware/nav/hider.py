@@ -1,6 +1,7 @@
 """Hiding navigation: check the spot, drive there around obstacles, report arrival.
 
-Flow (see `route_nav.RouteNav` for map, origin and destination handling)::
+Flow (`Hide` is the role behaviour of `route_nav.RouteNav`, which handles map,
+origin and destination)::
 
     idle --start--> waiting_map (map_request) --map--> ready
     ready --destination--> check_spot
@@ -35,35 +36,33 @@ from __future__ import annotations
 
 import math
 
-from actors.firmware.nav.route_nav import RouteNav
+from actors.firmware.nav.role import RoleBehaviour
 from actors.firmware.planning.clearance import check_spot
 from server.protocol.grid_map import OCCUPIED
 
-__all__ = ["HidingNav"]
+__all__ = ["Hide"]
 
 _SHIFT_STEP_CM = 5.0  # rings around a spot that does not fit, this far apart [cm]
 _SHIFT_BEARINGS = 16  # places tried on each ring
 _SHIFT_TRIES = 4  # fitting places planned to, nearest first, before giving up
 
 
-class HidingNav(RouteNav):
-    """The hider's navigation actor (registered as ``hider/nav``)."""
-
-    role = "hider"
+class Hide(RoleBehaviour):
+    """The hider's role behaviour (its actor is registered as ``hider/nav``)."""
 
     def _spot_fits(self, x: float, y: float, heading: float | None) -> tuple[bool, str]:
-        assert self.map is not None
-        return check_spot(self.map.cells, self.map.resolution_cm, self.map.origin_cm,
+        assert self.nav.map is not None
+        return check_spot(self.nav.map.cells, self.nav.map.resolution_cm, self.nav.map.origin_cm,
                           x, y, 0.0 if heading is None else heading,
-                          self.length_cm, self.width_cm, self.o.spot_margin_cm)
+                          self.nav.length_cm, self.nav.width_cm, self.nav.o.spot_margin_cm)
 
     def near_spots(self, x: float, y: float, heading: float | None) -> list[tuple[float, float]]:
         """Places within ``hide_within_cm`` of (x, y) where the rover fits: the nearest ring
         first (every ``_SHIFT_STEP_CM``), on a ring the place nearest the rover first."""
         out: list[tuple[float, float]] = []
-        here = (self.map_pose.x, self.map_pose.y)
+        here = (self.nav.map_pose.x, self.nav.map_pose.y)
         r = _SHIFT_STEP_CM
-        while r <= self.o.hide_within_cm + 1e-9:
+        while r <= self.nav.o.hide_within_cm + 1e-9:
             ring = []
             for k in range(_SHIFT_BEARINGS):
                 a = 2.0 * math.pi * k / _SHIFT_BEARINGS
@@ -75,46 +74,47 @@ class HidingNav(RouteNav):
         return out
 
     async def on_goal(self, x: float, y: float, heading: float | None) -> None:
-        assert self.map is not None
+        assert self.nav.map is not None
         ok, reason = self._spot_fits(x, y, heading)
         if ok:
-            if not await self.goto((x, y), heading):
+            if not await self.nav.goto((x, y), heading):
                 await self._refuse(x, y, f"no path from here to ({x:.0f}, {y:.0f})")
             return
         for p in self.near_spots(x, y, heading)[:_SHIFT_TRIES]:
-            if await self.goto(p, heading):
-                self.counters["spot_moved"] = self.counters.get("spot_moved", 0) + 1
-                await self.status(self.state, f"({x:.0f}, {y:.0f}) does not fit ({reason}); "
+            if await self.nav.goto(p, heading):
+                self.nav.counters["spot_moved"] = self.nav.counters.get("spot_moved", 0) + 1
+                await self.nav.status(self.nav.state,
+                                      f"({x:.0f}, {y:.0f}) does not fit ({reason}); "
                                   f"hiding {math.dist(p, (x, y)):.0f} cm from it at "
                                   f"({p[0]:.0f}, {p[1]:.0f})")
                 return
         await self._refuse(x, y, reason)
 
     async def _refuse(self, x: float, y: float, reason: str) -> None:
-        self.answered()
-        await self.report("invalid_spot", {"reason": reason})
-        await self.set_state("ready", f"refused ({x:.0f}, {y:.0f}): {reason}")
+        self.nav.answered()
+        await self.nav.report("invalid_spot", {"reason": reason})
+        await self.nav.set_state("ready", f"refused ({x:.0f}, {y:.0f}): {reason}")
 
     async def on_arrived(self) -> None:
         await self._hide_here("at the spot")
 
     async def _hide_here(self, detail: str) -> None:
         """Hidden where it stands: ``arrived`` with the pose it believes it has."""
-        self.answered()
-        await self.report("arrived", self.pose_data())
-        await self.set_state("hidden", detail)
+        self.nav.answered()
+        await self.nav.report("arrived", self.nav.pose_data())
+        await self.nav.set_state("hidden", detail)
 
     def near_enough(self) -> bool:
         """Within ``hide_within_cm`` of the goal by dead reckoning, and no occupied cell of
         the map on the line between (a spot behind a wall is not near)."""
-        if self.goal is None or self.map is None:
+        if self.nav.goal is None or self.nav.map is None:
             return False
-        p = self.map_pose
-        d = math.dist((p.x, p.y), self.goal)
-        if d > self.o.hide_within_cm:
+        p = self.nav.map_pose
+        d = math.dist((p.x, p.y), self.nav.goal)
+        if d > self.nav.o.hide_within_cm:
             return False
-        grid = self.map
-        gx, gy = self.goal
+        grid = self.nav.map
+        gx, gy = self.nav.goal
         n = max(1, math.ceil(d / (0.5 * grid.resolution_cm)))
         for i in range(n + 1):
             t = i / n
@@ -125,12 +125,12 @@ class HidingNav(RouteNav):
 
     async def on_route_failed(self, reason: str) -> None:
         if self.near_enough():
-            assert self.goal is not None
-            p = self.map_pose
+            assert self.nav.goal is not None
+            p = self.nav.map_pose
             await self._hide_here(f"{reason}; hiding here, "
-                                  f"{math.dist((p.x, p.y), self.goal):.0f} cm from the spot")
+                                  f"{math.dist((p.x, p.y), self.nav.goal):.0f} cm from the spot")
             return
         reason = f"cannot reach the spot: {reason}"
-        self.answered()
-        await self.report("invalid_spot", {"reason": reason})
-        await self.set_state("ready", reason)
+        self.nav.answered()
+        await self.nav.report("invalid_spot", {"reason": reason})
+        await self.nav.set_state("ready", reason)

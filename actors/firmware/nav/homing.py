@@ -14,9 +14,12 @@ Homing
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
-from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, route_points
+
+if TYPE_CHECKING:
+    from actors.firmware.nav.mapper import MappingNav
 
 __all__ = ["Homing", "HOME_BLOCKS"]
 
@@ -25,61 +28,67 @@ HOME_BLOCKS = 3
 
 
 class Homing:
-    """Driving back to the start pose (a mixin of `mapper.MappingNav`, working on its state)."""
+    """Driving back to the start pose, a part of the mapper's navigation actor.
 
-    m: MappingOptions
+    Args:
+        nav: the mapper's navigation actor.
+    """
 
-    def _plan_home(self) -> bool:
+    def __init__(self, nav: MappingNav) -> None:
+        self.nav = nav
+
+    def plan_home(self) -> bool:
         """A route back to the start pose (0, 0); False when there or no route is known."""
-        assert self.grid is not None
-        pose = self.map_pose
-        if math.hypot(pose.x, pose.y) <= self.m.home_reach_cm:
+        assert self.nav.grid is not None
+        pose = self.nav.map_pose
+        if math.hypot(pose.x, pose.y) <= self.nav.m.home_reach_cm:
             return False
-        for radius, margin in self._tiers():
-            plan = plan_route(self.grid, (pose.x, pose.y), (0.0, 0.0), radius_cm=radius,
+        for radius, margin in self.nav.explorer.tiers():
+            plan = plan_route(self.nav.grid, (pose.x, pose.y), (0.0, 0.0), radius_cm=radius,
                               margin_cm=margin)
             if plan is not None:
                 break
         else:
             return False
-        ex = self.ex
-        ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.o)
+        ex = self.nav.ex
+        ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.nav.o)
         ex.target = (0.0, 0.0)
         ex.steps = 0
         ex.budget = ex.follower.budget(pose)
         return True
 
-    async def _home_step(self) -> None:
+    async def home_step(self) -> None:
         """One ADP step home; uploads once home, or when home cannot be reached."""
-        if self.state != "homing" or self.moving or not self.can_move or self.holding:
+        nav = self.nav
+        if nav.state != "homing" or nav.moving or not nav.can_move or nav.holding:
             return
-        ex = self.ex
-        pose = self.map_pose
-        if ex.follower is None and not self._plan_home():
-            await self._finish(self._finish_reason)
+        ex = self.nav.ex
+        pose = self.nav.map_pose
+        if ex.follower is None and not self.plan_home():
+            await self.nav.finish(self.nav.finish_reason)
             return
         assert ex.follower is not None
         motion = ex.follower.next_motion(pose)
-        if motion is None or math.hypot(pose.x, pose.y) <= self.m.home_reach_cm \
+        if motion is None or math.hypot(pose.x, pose.y) <= self.nav.m.home_reach_cm \
                 or ex.steps >= ex.budget:
-            await self._finish(self._finish_reason)
+            await self.nav.finish(self.nav.finish_reason)
             return
         if motion.kind == "move":
-            motion = self._mind_the_obstacle(motion)
+            motion = self.nav.explorer.mind_the_obstacle(motion)
             if motion.kind == "turn":
                 ex.follower = None  # turned away from an obstacle: plan again from there
         ex.steps += 1
-        await self.command(motion)
+        await self.nav.command(motion)
 
-    async def _after_home_motion(self, blocked: bool) -> None:
-        ex = self.ex
+    async def after_home_motion(self, blocked: bool) -> None:
+        ex = self.nav.ex
         if not blocked:
-            await self._home_step()
+            await self.home_step()
             return
         ex.blocks += 1
         ex.follower = None
         if ex.blocks >= HOME_BLOCKS:
-            await self._finish(self._finish_reason + "; home blocked")
+            await self.nav.finish(self.nav.finish_reason + "; home blocked")
             return
-        await self.command(Motion("move", -self.o.backoff_cm))
+        await self.nav.command(Motion("move", -self.nav.o.backoff_cm))
 

@@ -56,7 +56,7 @@ from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
-from actors.firmware.hardware import HardwareSpec
+from actors.firmware.hardware import MAPPER, HardwareSpec
 from actors.firmware.mapping.parked_body import with_parked_body
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.exploration import Exploration, ExplorationState
@@ -64,7 +64,7 @@ from actors.firmware.nav.homing import Homing
 from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.sensor_watch import SensorWatch
-from actors.firmware.origin_wire import MM, OriginHalves, pose_messages, xy_half
+from actors.firmware.origin_wire import MM, PoseHalves, pose_messages, xy_half
 from server.protocol.grid_map import UNKNOWN, GridMap
 from server.protocol.pose import ZERO_POSE
 
@@ -92,13 +92,13 @@ UPLOAD_WAIT_S = 1.0
 """Wait at most this for a fresh snapshot before uploading the last one [s]."""
 
 
-class MappingNav(SensorWatch, Exploration, Homing, NavBase):
+class MappingNav(NavBase):
     """The mapper's navigation actor (registered as ``mapper/nav``)."""
 
-    role = "mapper"
+    role = MAPPER
     origin_from_server = False
 
-    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
+    def __init__(self, *, pool: BufferPool, spec: HardwareSpec,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
                  mapping: MappingOptions | None = None,
                  addresses: Addresses | None = None) -> None:
@@ -110,44 +110,49 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         self.scans = 0
         """Scan batches Map Management reported."""
         self.ex = ExplorationState()
-        self._changed_at = 0.0  # trio time of the last map change
-        self._scans_at_change = 0
+        """Exploration's state (the route, the target, the blacklist, the trips)."""
+        self.changed_at = 0.0
+        """Trio time of the last map change [s] (the stable window counts from it)."""
+        self.scans_at_change = 0
+        """The scan count at the last map change."""
         self._known_at_change = 0  # known cells when the map last changed
         self._scans_at_start = 0
         self._started_at = 0.0
         self._probe_until = -math.inf
         self._probe_scans: int | None = None
         self._upload_deadline = math.inf
-        self._wait_map = False  # decide at the next map update
-        self._last_wait_decide = -math.inf
-        self._finish_reason = ""
+        self.wait_map = False
+        """Decide at the next map update (or the next tick's look, about once a second)."""
+        self.last_wait_decide = -math.inf
+        """When the tick last looked again while waiting for the map [s]."""
+        self.finish_reason = ""
+        """Why mapping ended (said with the upload)."""
         self._home_deadline = math.inf
         self.lidar_fault: LidarHealth | None = None
-        """The LIDAR fault navigation holds still for, None while driving normally."""
+        """The LIDAR fault being held for (`sensor_watch`), None when none."""
         self.lidar_faults = 0
-        """LIDAR faults held still for (this incarnation)."""
-        self._lidar_verdict = LidarHealth.OK  # LIDAR Control's last verdict
-        self._scan_rise_at = -math.inf  # trio time the scan count last rose
-        self._pause_started = -math.inf
-        self._pause_off_until = -math.inf  # a fault that outlasted lidar_pause_s: drive on
-        self._scans_at_pause = 0
+        """LIDAR faults held for."""
+        self.scan_rise_at = -math.inf
+        """Trio time the scan count last rose [s]."""
         self.odometry_faults = 0
-        """Odometry disagreements held still for (this incarnation)."""
-        self._odo_hold_until = -math.inf  # holding still for odometry until then
-        self._odo_last = -math.inf  # when the last disagreement was seen
-        self._odo_strikes = 0  # disagreements in a row, each within 60 s of the last
-        self._relayed = (False, False)  # treads reported in this motion, to relay at its end
-        self._origin_halves = OriginHalves()  # NAV_MAP_ORIGIN_XY waiting for its heading
+        """Odometry holds (`sensor_watch`)."""
+        self.explorer = Exploration(self)
+        """Where to go next: frontier exploration."""
+        self.homing = Homing(self)
+        """The way home once mapping completes by itself."""
+        self.watch = SensorWatch(self)
+        """The holds for a faulty LIDAR or odometry."""
+        self._origin_halves = PoseHalves()  # NAV_MAP_ORIGIN_XY waiting for its heading
 
     # ------------------------------------------------------------------ dispatch
     async def handle(self, message: Any) -> Any:
         cmd = message.command if isinstance(message, Message) else None
         if cmd == Cmd.NAV_LIDAR_HEALTH:
-            await self.on_lidar_health(int(message.value))
+            await self.watch.on_lidar_health(int(message.value))
         elif cmd == Cmd.NAV_TREAD_FAULT:
-            await self.on_tread_fault(TreadFault(int(message.value)))
+            await self.watch.on_tread_fault(TreadFault(int(message.value)))
         elif cmd == Cmd.NAV_TREAD_DRIVEN:
-            await self.relay_tread_driven(*xy_half(message, MM))
+            await self.watch.relay_tread_driven(*xy_half(message, MM))
         elif cmd == Cmd.NAV_MAP_ORIGIN_XY:
             self._origin_halves.take_xy(message)
         elif cmd == Cmd.NAV_MAP_ORIGIN_HEADING:
@@ -171,7 +176,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         # Map Management restarted empty: give it back what we knew (the origin first: it
         # drops scans until the origin arrives); its count restarts at 0
         self._probe_scans = None
-        self._scans_at_start = self._scans_at_change = self.scans = 0
+        self._scans_at_start = self.scans_at_change = self.scans = 0
         xy, heading = pose_messages(Cmd.MAP_ORIGIN_XY, Cmd.MAP_ORIGIN_HEADING,
                                     self.origin or ZERO_POSE)
         if await self.post(self.map_name, xy):
@@ -189,20 +194,20 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         self._probe_until = -math.inf
         self._started_at = now
         self._scans_at_start = self.scans
-        self._changed_at, self._scans_at_change = now, self.scans
-        self._scan_rise_at = now  # the LIDAR spins up: silence counts from here
+        self.changed_at, self.scans_at_change = now, self.scans
+        self.scan_rise_at = now  # the LIDAR spins up: silence counts from here
         self.lidar_fault = None
         self.ex = ExplorationState()
         await self.post(self.lidar, Message.float(Cmd.LIDAR_START, self.m.lidar_duty))
         if resumed:
             await self.set_state("exploring", "resumed after a restart")
-            self._wait_map = True
+            self.wait_map = True
         else:
             await self.set_state("scanning", "waiting for the first scans")
 
     async def on_stop_cmd(self) -> None:
         if self.state in ("scanning", "exploring", "homing"):
-            await self._finish("stopped by the server")
+            await self.finish("stopped by the server")
 
     # ------------------------------------------------------------------ map events
     async def on_map_update(self, grid: GridMap) -> None:
@@ -212,15 +217,15 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
         known = int(np.count_nonzero(grid.cells != UNKNOWN))
         if prev is None or prev.shape != grid.shape or abs(known - self._known_at_change) > max(
                 CHANGE_CELLS, CHANGE_SHARE * known):
-            self._changed_at, self._scans_at_change = now, self.scans
+            self.changed_at, self.scans_at_change = now, self.scans
             self._known_at_change = known
         if self.state == "uploading":
             await self._upload()
         elif self.state == "scanning":
             await self._maybe_explore()
-        elif self.state == "exploring" and self._wait_map and not self.moving:
-            self._wait_map = False
-            await self.decide()
+        elif self.state == "exploring" and self.wait_map and not self.moving:
+            self.wait_map = False
+            await self.explorer.decide()
 
     async def on_scan_count(self, count: int) -> None:
         if self._probe_scans is None:
@@ -232,7 +237,7 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
             await self._begin(trio.current_time(), resumed=True)
             return
         if count > self.scans:
-            self._scan_rise_at = trio.current_time()
+            self.scan_rise_at = trio.current_time()
         self.scans = count
         if self.state == "scanning":
             await self._maybe_explore()
@@ -240,65 +245,73 @@ class MappingNav(SensorWatch, Exploration, Homing, NavBase):
     async def _maybe_explore(self) -> None:
         if self.grid is not None and self.scans - self._scans_at_start >= FIRST_SCANS:
             await self.set_state("exploring", "frontier exploration")
-            await self.decide()
+            await self.explorer.decide()
 
     # ------------------------------------------------------------------ ticks
     async def on_tick(self, now: float) -> None:
         if self.state == "uploading" and now >= self._upload_deadline:
             await self._upload()
             return
-        holding = await self._lidar_watch(now)
-        holding = await self._odometry_watch(now) or holding
+        holding = await self.watch.lidar_watch(now)
+        holding = await self.watch.odometry_watch(now) or holding
         if self.state == "homing":
             if now >= self._home_deadline:
-                await self._finish(self._finish_reason + "; home not reached in time")
+                await self.finish(self.finish_reason + "; home not reached in time")
             elif not self.moving and not holding:
-                await self._home_step()
+                await self.homing.home_step()
             return
         if self.state not in ("exploring", "scanning"):
             return
         if now - self._started_at >= self.m.budget_s:
-            await self._finish(f"time budget of {self.m.budget_s:.0f} s used")
+            await self.finish(f"time budget of {self.m.budget_s:.0f} s used")
             return
         if self.state == "exploring" and not self.moving and not holding:
             if self.complete(now):
-                await self._finish("no reachable frontier left and the map is stable",
+                await self.finish("no reachable frontier left and the map is stable",
                                    home=True)
-            elif self.ex.no_frontier or self._wait_map:
+            elif self.ex.no_frontier or self.wait_map:
                 # waiting for the map to change; look again about once a second
-                if now - self._last_wait_decide >= 1.0:
-                    self._last_wait_decide = now
-                    self._wait_map = False
-                    await self.decide()
+                if now - self.last_wait_decide >= 1.0:
+                    self.last_wait_decide = now
+                    self.wait_map = False
+                    await self.explorer.decide()
+
+    @property
+    def holding(self) -> bool:
+        """Holding still: the LIDAR is faulty, or odometry was contradicted lately."""
+        return self.watch.holding
+
+    async def after_motion(self, blocked: bool, done: float) -> None:
+        await self.explorer.after_motion(blocked, done)
 
     def complete(self, now: float) -> bool:
         """Both completion conditions: no useful frontier, and a stable map while scanning."""
         return (self.ex.no_frontier and not self.holding
-                and now - self._changed_at >= self.m.stable_window_s
-                and self.scans - self._scans_at_change >= STABLE_SCANS)
+                and now - self.changed_at >= self.m.stable_window_s
+                and self.scans - self.scans_at_change >= STABLE_SCANS)
 
     # ------------------------------------------------------------------ finishing
-    async def _finish(self, reason: str, *, home: bool = False) -> None:
+    async def finish(self, reason: str, *, home: bool = False) -> None:
         """End exploring: drive home first when ``home`` (see Homing), then upload."""
-        if home and self.m.home_budget_s > 0 and self.grid is not None and self._plan_home():
-            self._finish_reason = reason
+        if home and self.m.home_budget_s > 0 and self.grid is not None and self.homing.plan_home():
+            self.finish_reason = reason
             self._home_deadline = trio.current_time() + self.m.home_budget_s
             self.ex.blocks = 0
             await self.set_state("homing", f"{reason}; driving back to the start")
-            await self._home_step()
+            await self.homing.home_step()
             return
         self._home_deadline = math.inf
         await self.stop_motor()
         await self.post(self.lidar, Message.uint(Cmd.LIDAR_STOP, 0))
         await self.post(self.map_name, Message.uint(Cmd.MAP_GET, 0))
-        self._finish_reason = reason
+        self.finish_reason = reason
         self._upload_deadline = trio.current_time() + UPLOAD_WAIT_S
         await self.set_state("uploading", reason)
 
     async def _upload(self) -> None:
         self._upload_deadline = math.inf
         self.started = self.memory.started = False
-        reason = self._finish_reason
+        reason = self.finish_reason
         if self.grid is None or self.grid.known_bounds() is None:
             await self.set_state("idle", f"{reason}; nothing mapped to upload")
             return

@@ -7,7 +7,7 @@ heading drift of a few degrees over a few metres). The search shifts the route n
 the block sideways, across the heading of the block, by a series of offsets (+s, -s,
 +2s, -2s, ...), one per block. At a passage's mouth (`at_mouth`) the series is a probe
 (`probe_route`): a line drawn from the block itself, stepped by the passage's play
-(`probe_step`). `recovery.RouteRecovery` keeps the series' state and calls these
+(`probe_step`). `nudge_series.NudgeSeries` keeps the series' state and calls these
 functions; they are pure (no actor, no messages, no clock).
 
 Frame and units: the map frame [cm]; headings [deg] counter-clockwise from +x; a

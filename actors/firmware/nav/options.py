@@ -63,7 +63,7 @@ class NavOptions:
     """After (re)start, no motion is commanded before this [s]: the end of a motion
     the previous incarnation commanded arrives meanwhile and is ignored."""
     motion: MotionNoise = field(default_factory=MotionNoise)
-    """Noise levels of the pose belief's tread motion model (`belief_tracking`)."""
+    """Noise levels of the pose belief's tread motion model (`localiser`)."""
 
 
 @dataclass(slots=True)
@@ -89,5 +89,5 @@ class NavMemory:
     """The server's ``origin`` (the rover's start pose, map frame) the pose belief started
     from: the same origin again is a retried destination, not a new placement."""
     belief: Any = None
-    """The pose belief as it was last updated (`belief_tracking.BeliefMemory`), None
+    """The pose belief as it was last updated (`localiser.BeliefMemory`), None
     before the first."""

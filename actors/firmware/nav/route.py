@@ -20,7 +20,8 @@ from actors.firmware.planning.planner import Plan, plan_path, traversable
 from server.protocol.grid_map import OCCUPIED, GridMap
 from server.protocol.pose import Pose, angle_diff_deg
 
-__all__ = ["MAX_CORRECTIONS", "Motion", "PathFollower", "plan_route", "route_points", "shorten",
+__all__ = ["plan_tiers", "MAX_CORRECTIONS", "Motion", "PathFollower", "plan_route",
+           "route_points", "shorten",
            "with_obstacle", "passable_at"]
 
 MAX_CORRECTIONS = 6
@@ -195,3 +196,31 @@ def passable_at(grid: GridMap, x: float, y: float, radius_cm: float, margin_cm: 
     ok = traversable(sub, radius_cm, margin_cm, "blocked")
     sr, sc = sub.world_to_cell(x, y)
     return bool(ok[sr, sc])
+
+
+def plan_tiers(radius_cm: float, width_cm: float, plan_margin_cm: float,
+               narrow_margin_cm: float) -> tuple[tuple[float, float], ...]:
+    """(radius, margin) pairs to plan with, most cautious first [cm] (the first that
+    gives a path is used).
+
+    1. The turning radius plus ``plan_margin_cm``: room to turn anywhere on
+       the route, with a margin for map error.
+    2. The turning radius alone: a doorway or gap that is only a few cm
+       wider than the turning disc (a 35 cm gap leaves 17.5 cm each side of
+       its middle; radius plus margin needs 15.5 cm from the noisy edges
+       of a 5 cm grid, often not there).
+    3. Half the body width plus ``narrow_margin_cm``: a passage the rover
+       fits through driving straight. The route's turns may then touch an
+       edge; the motor reports blocked and the route is replanned.
+    4. Half the body width alone: the map's walls are up to a cell thicker
+       than the walls (a LIDAR hit on a wall's face lands in the cell on the
+       free side), so a 30 cm corridor can map as 20-25 cm of free cells.
+    """
+    r, m = radius_cm, plan_margin_cm
+    half = 0.5 * width_cm
+    tiers = [(r, m), (r, 0.0), (half, narrow_margin_cm), (half, 0.0)]
+    out: list[tuple[float, float]] = []
+    for t in tiers:
+        if t not in out and t[0] + t[1] <= r + m:
+            out.append(t)
+    return tuple(out)

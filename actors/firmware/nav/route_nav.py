@@ -1,25 +1,60 @@
-"""Navigation on a map downloaded from the server: the hider's and the seeker's base.
+"""The hider's and the seeker's navigation actor: a route on the server's map.
 
-`RouteNav` gets the server's map, origin and destination, plans a route
-(`route.plan_route`, in tiers from cautious to tight) and follows it with the
-ADP loop; what it does when the route is blocked is in `recovery`.
+`RouteNav` is one actor that owns and wires its parts (Nav2's split):
+
+* the **localiser** (`localiser.Localiser`: the pose belief, and from it the
+  map -> own frame origin; the tread reports widen it),
+* the **controller** (`controller.Controller` in `base.NavBase`: the ADP loop's
+  motion in flight) and the route it follows (`route.PathFollower`),
+* the **recovery behaviours** (`recovery.RECOVERIES`, tried in order when the
+  route is blocked; the sideways search's state in `nudge_series.NudgeSeries`)
+  and what a tread report does (`tread_faults.TreadFaults`),
+* the **role behaviour** (`hider.Hide` or `seeker.Seek`: `role.RoleBehaviour`),
+  which sets the goals and answers the server.
+
+It gets the server's map, origin and destination, plans a route
+(`route.plan_route`, in tiers from cautious to tight) and follows it.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
+import numpy as np
 import trio
 
 from actors import BufferPool
 from actors.firmware.addresses import Addresses
+from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
+from actors.firmware.localisation.belief import Spread
 from actors.firmware.nav.base import NavBase
-from actors.firmware.nav.belief_tracking import BeliefTracking
-from actors.firmware.nav.nudge import NUDGE_REACH_CM, Nudge
+from actors.firmware.nav.localiser import Localiser
+from actors.firmware.nav.nudge import PROBE_PROGRESS_CM
+from actors.firmware.nav.nudge_series import NudgeSeries
 from actors.firmware.nav.options import NavMemory, NavOptions
-from actors.firmware.nav.recovery import RouteRecovery
-from actors.firmware.nav.route import PathFollower, plan_route, route_points, shorten
+from actors.firmware.nav.recovery import (
+    RECOVERIES,
+    Action,
+    BackOffAndReplan,
+    BlockView,
+    GiveUpRoute,
+    Hold,
+    Replan,
+)
+from actors.firmware.nav.role import RoleBehaviour
+from actors.firmware.nav.route import (
+    Motion,
+    PathFollower,
+    plan_route,
+    plan_tiers,
+    route_points,
+    shorten,
+    with_obstacle,
+)
+from actors.firmware.nav.tread_faults import TREAD_CHECK_CM, TreadFaults
+from actors.firmware.planning.clearance import occupied_near
 from server.protocol.grid_map import GridMap
 
 __all__ = ["RouteNav", "MAP_RETRY_S", "MAP_RETRY_MAX_S"]
@@ -34,8 +69,8 @@ MAP_RETRY_MAX_S = MAP_RETRY_S * 2 ** 3
 """The longest wait between map requests: ``MAP_RETRY_S`` doubled three times [s]."""
 
 
-class RouteNav(RouteRecovery, BeliefTracking, NavBase):
-    """Navigation on a map downloaded from the server: the hider's and the seeker's base.
+class RouteNav(NavBase):
+    """The hider's and the seeker's navigation actor (see the module docstring).
 
     Flow: ``start`` -> ``map_request`` -> NAV_MAP_DOWNLOAD; ``origin`` and
     ``destination`` frames are kept as they come (the server sends origin,
@@ -45,11 +80,19 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
     route with the ADP loop. When the motor reports blocked, something the map
     does not show is ahead (another rover): it is added to a working copy of the
     map, the rover backs off and replans, at most ``REPLAN_LIMIT`` times at one place.
+
+    Args:
+        role: ``hider`` or ``seeker`` (the actor's names and its belief's generator).
+        behaviour: makes the role behaviour for this actor (`hider.Hide`,
+            `seeker.Seek`).
+        pool, spec, options, memory, addresses: as for `base.NavBase`.
     """
 
-    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
+    def __init__(self, role: str, behaviour: Callable[[RouteNav], RoleBehaviour], *,
+                 pool: BufferPool, spec: HardwareSpec,
                  options: NavOptions | None = None, memory: NavMemory | None = None,
                  addresses: Addresses | None = None) -> None:
+        self.role = role
         super().__init__(pool=pool, spec=spec, options=options, memory=memory,
                          addresses=addresses)
         self.map: GridMap | None = None
@@ -62,30 +105,31 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         self.goal: tuple[float, float] | None = None
         self.goal_heading: float | None = None
         self.replans = 0
-        """Blocks counted toward ``REPLAN_LIMIT`` (`RouteRecovery._count_block`)."""
+        """Blocks counted toward ``REPLAN_LIMIT`` (`count_block`)."""
+        self.stall_holds = 0
+        """Uncounted holds for a stalled tread on this route (`recovery.WaitOutStall`)."""
         self._progress_mark = math.inf  # the route's remaining length when the count started
-        self._stall_holds = 0  # holds for a stalled tread on this route (`RouteRecovery._stalled`)
+        self._budget = 0  # steps the route may take (`PathFollower.budget`)
         self.stop_short_cm = 0.0
         """The current route ends this far before its goal [cm] (see `goto`)."""
         self.tier: tuple[float, float] | None = None
         """(radius, margin) [cm] of the planning tier the current route used (`plan_tiers`)."""
         self._replan = False  # replan after the backoff in flight
-        # blocks are held in the rover's own frame (`RouteRecovery._here`)
-        self._last_block: tuple[float, float, float] | None = None  # (x, y, heading) of a block
-        self._nudge: Nudge | None = None  # the offset of the series being driven
-        self._anchor: tuple[float, float, float] | None = None  # the block nudges start from
-        self._nudges = 0  # nudges tried on this route
         self._probe = False  # the block in flight was in a narrow passage: probe sideways
-        self._nudge_off = 0.0  # the last sideways offset tried [cm], signed (left +)
-        self._nudge_first = 1.0  # the side a series of nudges tries first
-        self._sidestep = False  # the nudge in flight starts with a sidestep (`_nudged`)
-        self._probe_step: float | None = None  # the probe series' step (`nudge.probe_step`)
-        self._mouth = False  # the probe series is at a passage's mouth (`nudge.at_mouth`)
         self.map_requests = 0
         """``map_request`` frames sent (see ``MAP_RETRY_S``)."""
         self._map_wait = 0.0  # the wait before the next request [s]
         self._map_again = math.inf  # ask again at this time, if still waiting
-        self._init_belief()
+        self.localiser = Localiser(self)
+        """The pose belief: the origin and the doubt (`drift_cm`)."""
+        self.treads = TreadFaults(self)
+        """What a tread report does (stop, hold, check the treads)."""
+        self.nudges = NudgeSeries(self)
+        """The route's sideways search."""
+        self.recoveries = RECOVERIES
+        """The recovery behaviours, in the order they are tried."""
+        self.behaviour = behaviour(self)
+        """The role behaviour: it sets the goals and answers the server."""
 
     # ------------------------------------------------------------------ server
     async def on_start_cmd(self) -> None:
@@ -139,12 +183,38 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         await self.on_goal(x, y, heading)
 
     async def on_goal(self, x: float, y: float, heading: float | None) -> None:
-        """Hook: map, origin and destination are known; act on the destination."""
+        """Map, origin and destination are known: the role behaviour acts on it."""
+        await self.behaviour.on_goal(x, y, heading)
 
     async def on_tick(self, now: float) -> None:
         if self.state == "waiting_map" and self.map is None and now >= self._map_again:
             await self._request_map(min(2.0 * self._map_wait, MAP_RETRY_MAX_S))
         await self._proceed()
+        await self.behaviour.on_tick(now)
+
+    async def on_ir(self, in_range: bool, *, pinned: bool = False) -> None:
+        await self.behaviour.on_ir(in_range, pinned=pinned)
+
+    async def command(self, motion: Motion) -> None:
+        self.behaviour.before_command(motion)
+        await super().command(motion)
+
+    async def on_tread_fault(self, fault: TreadFault) -> None:
+        await self.treads.on_tread_fault(fault)
+
+    def note_tread_driven(self, left_cm: float, right_cm: float) -> None:
+        self.localiser.note_tread_driven(left_cm, right_cm)
+
+    # ------------------------------------------------------------------ the belief
+    @property
+    def spread(self) -> Spread | None:
+        """The pose belief's spread (None before the belief exists)."""
+        return self.localiser.spread
+
+    @property
+    def drift_cm(self) -> float:
+        """How far the map-frame pose may be off [cm]: the belief's 95 % radius."""
+        return self.localiser.drift_cm
 
     # ------------------------------------------------------------------ routes
     async def goto(self, goal: tuple[float, float], heading: float | None, *,
@@ -157,11 +227,11 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         assert self.work_map is not None
         self.goal, self.goal_heading = goal, heading
         self.stop_short_cm = stop_short_cm
-        self.replans, self._progress_mark, self._stall_holds = 0, math.inf, 0
-        self.forget_tread_check()
-        self._last_block, self._nudge, self._nudges, self._anchor = None, None, 0, None
-        self._probe, self._nudge_off, self._mouth = False, 0.0, False
-        if not self._plan():
+        self.replans, self._progress_mark, self.stall_holds = 0, math.inf, 0
+        self.treads.forget_tread_check()
+        self.nudges.new_route()
+        self._probe = False
+        if not self.plan():
             return False
         await self.set_state("driving", f"to ({goal[0]:.0f}, {goal[1]:.0f})")
         await self._step()
@@ -183,32 +253,13 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         return True
 
     def plan_tiers(self) -> tuple[tuple[float, float], ...]:
-        """(radius, margin) pairs to plan with, most cautious first [cm] (the first that
-        gives a path is used).
+        """(radius, margin) pairs to plan with, most cautious first [cm] (`route.plan_tiers`)."""
+        return plan_tiers(self.radius_cm, self.width_cm, self.o.plan_margin_cm,
+                          self.o.narrow_margin_cm)
 
-        1. The turning radius plus ``plan_margin_cm``: room to turn anywhere on
-           the route, with a margin for map error.
-        2. The turning radius alone: a doorway or gap that is only a few cm
-           wider than the turning disc (a 35 cm gap leaves 17.5 cm each side of
-           its middle; radius plus margin needs 15.5 cm from the noisy edges
-           of a 5 cm grid, often not there).
-        3. Half the body width plus ``narrow_margin_cm``: a passage the rover
-           fits through driving straight. The route's turns may then touch an
-           edge; the motor reports blocked and the route is replanned.
-        4. Half the body width alone: the map's walls are up to a cell thicker
-           than the walls (a LIDAR hit on a wall's face lands in the cell on the
-           free side), so a 30 cm corridor can map as 20-25 cm of free cells.
-        """
-        r, m = self.radius_cm, self.o.plan_margin_cm
-        half = 0.5 * self.width_cm
-        tiers = [(r, m), (r, 0.0), (half, self.o.narrow_margin_cm), (half, 0.0)]
-        out: list[tuple[float, float]] = []
-        for t in tiers:
-            if t not in out and t[0] + t[1] <= r + m:
-                out.append(t)
-        return tuple(out)
-
-    def _plan(self) -> bool:
+    def plan(self) -> bool:
+        """Plan the route to the goal from the map-frame pose, in tiers (`plan_tiers`),
+        with the sideways search's nudge applied; False when there is no route."""
         assert self.work_map is not None and self.goal is not None
         p = self.map_pose
         plan = None
@@ -224,15 +275,11 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         pts = route_points(plan, (p.x, p.y))
         if plan.goal_snapped:
             pts.append(self.goal)  # the goal itself; the spot check vouched for it
-        if self._anchor is not None and math.dist(self._anchor[:2], (self.pose.x, self.pose.y)) > \
-                2.0 * NUDGE_REACH_CM:
-            self._nudge, self._anchor, self._nudges = None, None, 0  # past the tight spot
-        if self._nudge is not None:
-            nudged = self._nudged(pts)
-            if nudged is None:
-                self.follower = None
-                return False
-            pts = nudged
+        nudged = self.nudges.nudged(pts)
+        if nudged is None:
+            self.follower = None
+            return False
+        pts = nudged
         if self.stop_short_cm > 0:
             pts = shorten(pts, (p.x, p.y), self.stop_short_cm) or [(p.x, p.y)]
         self.follower = PathFollower(pts, self.goal_heading, self.o)
@@ -243,12 +290,12 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         if self.follower is None or self.moving:
             return
         if self.follower.steps >= self._budget:
-            await self._blocked_route("no progress")
+            await self.blocked_route("no progress")
             return
         motion = self.follower.next_motion(self.map_pose)
         if motion is None:
             self.follower = None
-            await self.on_arrived()
+            await self.behaviour.on_arrived()
             return
         await self.command(motion)
 
@@ -256,48 +303,140 @@ class RouteNav(RouteRecovery, BeliefTracking, NavBase):
         if self.follower is None:
             await self.after_other_motion(blocked, done)
             return
-        if await self.check_treads(blocked, done):
+        if await self.treads.check_treads(blocked, done):
             return
         if blocked:
-            await self._blocked_route("blocked")
+            await self.blocked_route("blocked")
             return
         if self._replan:
             self._replan = False
             probe, self._probe = self._probe, False
-            if probe and self._probe_plan():
+            if probe and self.nudges.probe(self.plan):
                 pass
-            elif not self._plan() and not self._nudged_plan():
-                await self._give_up("no path after being blocked")
+            elif not self.plan() and not self.nudges.plan(self.plan):
+                await self.give_up("no path after being blocked")
                 return
         await self._step()
 
     async def on_origin(self) -> None:
-        self.on_server_origin()  # a new belief round a new origin; a retry's widened
+        self.localiser.on_server_origin()  # a new belief round a new origin; a retry's widened
 
     def on_pose_at_rest(self) -> None:
-        self.track_belief()
+        self.localiser.track_belief()
 
-    async def _give_up(self, reason: str) -> None:
+    async def give_up(self, reason: str) -> None:
+        """Give the route up: the role behaviour answers (`RoleBehaviour.on_route_failed`)."""
         self.follower = None
         self._replan = False
-        await self.on_route_failed(reason)
+        await self.behaviour.on_route_failed(reason)
         await self._proceed()
 
-    async def on_blocked(self) -> bool:
-        """Hook: the route is blocked; return True when handled (no replan)."""
-        return False
-
-    async def on_arrived(self) -> None:
-        """Hook: at the goal (and heading)."""
-
-    async def on_route_failed(self, reason: str) -> None:
-        """Hook: the goal could not be reached."""
-
     async def after_other_motion(self, blocked: bool, done: float) -> None:
-        """Hook: a motion outside a route (e.g. a scan turn) ended."""
+        """A motion outside a route (a scan's turn, a sweep's leg) ended."""
+        await self.behaviour.after_other_motion(blocked, done)
 
     def pose_data(self) -> dict[str, float]:
         """The map-frame pose as a frame payload."""
         p = self.map_pose
         return {"x": round(p.x, 1), "y": round(p.y, 1), "heading": round(p.heading_deg, 1)}
 
+    # ------------------------------------------------------------------ blocks
+    def count_block(self) -> None:
+        """Count a block toward ``REPLAN_LIMIT``, afresh when the route made progress.
+
+        Why: a rover with a few degrees of heading doubt scrapes the side walls of a
+        long passage every metre or so; each scrape is a block, but one that comes
+        after the route got nearer its goal is not the same place tried again. What
+        the limit bounds is trying one place: the count starts again once the route's
+        remaining length is ``PROBE_PROGRESS_CM`` under what it was at the block that
+        last started it. Still bounded: that mark only falls, by that much each time.
+        """
+        left = self.follower.remaining_cm(self.map_pose) if self.follower is not None \
+            else math.inf
+        if left < self._progress_mark - PROBE_PROGRESS_CM:
+            self.replans = 0
+            self._progress_mark = left
+        self.replans += 1
+
+    async def blocked_route(self, why: str) -> None:
+        """The route is blocked (``why``: ``blocked`` or ``no progress``): count it, let
+        the role behaviour take it (the seeker near its place looks from there), else
+        carry out the first recovery behaviour's action (`recovery`)."""
+        self.count_block()
+        if await self.behaviour.on_blocked():
+            return
+        assert self.work_map is not None
+        view = BlockView(self, why)
+        for recovery in self.recoveries:
+            action = recovery.decide(view)
+            if action is not None:
+                await self._act(action, view)
+                return
+
+    async def _act(self, action: Action, view: BlockView) -> None:
+        if isinstance(action, Hold):
+            if action.stall:
+                self.stall_holds += 1
+            self.replans = max(0, self.replans - action.uncount)
+            self.counters["stall_holds"] += 1
+            self._replan = True
+            await self.hold_still(trio.current_time() + action.seconds,
+                                  f"a tread stalls; holding {action.seconds:.0f} s")
+        elif isinstance(action, GiveUpRoute):
+            await self.give_up(action.reason)
+        elif isinstance(action, Replan):
+            self._replan = True
+            await self.after_motion(False, 0.0)
+        elif isinstance(action, BackOffAndReplan):
+            self._learn(action, view)
+            self._replan = True
+            await self.command(Motion("move", -action.cm))
+
+    def _learn(self, action: BackOffAndReplan, view: BlockView) -> None:
+        """What a back-off's block teaches the sideways search and the working map."""
+        if action.probe:
+            self.nudges.last_block, self.nudges.mouth = view.here, action.mouth
+            self._probe = True
+        elif action.anchor:
+            self.nudges.last_block = self.nudges.anchor = view.here
+        elif action.mark:
+            self.nudges.last_block = view.here
+        if action.obstacle is not None and self.work_map is not None:
+            x, y, r = action.obstacle
+            self.work_map = with_obstacle(self.work_map, x, y, r)
+
+    def wall_within_drift(self) -> bool:
+        """A mapped wall lies within the body's radius plus ``drift_cm`` of the believed
+        position: the rover may be touching it, though it believes itself clear.
+
+        Why: both treads counting short in a move read the same whether both encoders
+        slip (the rover goes 2-3 times what counts: hold) or the rover slides along a
+        wall it met at an angle (counting about 0.3 of its travel: a hider 45 cm from
+        where it believed after a 7 m leg; holding for it leaves the hider far from
+        its spot). Only the map and the doubt about the pose tell them apart: slipping
+        on open floor far from any wall, a slide only where a wall can be. Occupied
+        cells' centres.
+        """
+        if self.map is None:
+            return False
+        reach = self.radius_cm + self.drift_cm
+        near = occupied_near(self.map, self.map_pose, reach)
+        if near is None:
+            return False
+        px, py, _, _ = near
+        return float(np.min(np.hypot(px, py))) <= reach
+
+    def check_sign(self) -> float:
+        """The tread check's direction (`tread_faults.TreadFaults.check_treads`): in
+        reverse when the nearest occupied cell of the map within the body's radius plus
+        the drift and the check's length lies ahead, else forward. A turn that reported a
+        silent tread may have been jammed by that wall; a check into it would end
+        blocked with the treads well and hold for nothing."""
+        if self.map is None:
+            return 1.0
+        reach = self.radius_cm + self.drift_cm + TREAD_CHECK_CM
+        near = occupied_near(self.map, self.map_pose, reach)
+        if near is None:
+            return 1.0
+        px, py, fwd, _ = near
+        return -1.0 if fwd[int(np.argmin(np.hypot(px, py)))] > 0.0 else 1.0

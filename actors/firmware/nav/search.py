@@ -1,7 +1,7 @@
 """The seeker's search when the scans at the place saw nothing: rings of scan
 points round the place, then a sweep by touch.
 
-Why the ring (`Search._plan_search`): the seeker stands where dead
+Why the ring (`Search.plan_search`): the seeker stands where dead
 reckoning says; after metres of driving that may be tens of cm from the
 place, and a hider within IR range of the place may then be beyond what the
 scan from it sees. The ring is sized by the seeker's drift estimate
@@ -13,7 +13,7 @@ failed) searches rings round (x, y) out to W plus the seeker's drift: the ring
 above first, then wider ones (`search_rings`), innermost first. When the rings
 saw nothing, the pose itself is in doubt (a heading lost in a turn no tread
 report showed), and what is left of ``wide_search_s`` goes
-to a sweep by touch (`Search._sweep`): straight legs from wall to wall,
+to a sweep by touch (`Search.sweep`): straight legs from wall to wall,
 stopping every ``sweep_step_cm`` to scan all round, turning ``SWEEP_TURN_DEG``
 where blocked; no map, no pose.
 """
@@ -21,6 +21,7 @@ where blocked; no map, no pose.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trio
@@ -28,6 +29,10 @@ import trio
 from actors.firmware.nav.route import Motion, passable_at
 from server.protocol.grid_map import FREE
 from server.protocol.pose import angle_diff_deg
+
+if TYPE_CHECKING:
+    from actors.firmware.nav.route_nav import RouteNav
+    from actors.firmware.nav.seeker import SeekingOptions
 
 __all__ = ["Search", "ring_outer_cm", "ring_reach_cm", "search_ring", "search_rings",
            "SEARCH_IR_WAIT_S", "SEARCH_SCAN_DEG"]
@@ -122,10 +127,33 @@ def search_rings(need_cm: float, reach_cm: float, max_points: int, max_cm: float
 
 
 class Search:
-    """Rings round the place and the sweep by touch (a mixin of `seeker.SeekingNav`,
-    working on its state)."""
+    """Rings round the place and the sweep by touch: the part of `seeker.Seek` that
+    searches, on its public state (``nav``, ``place``, ``stage``, ``s``, ``reach_cm``,
+    ``search_points`` ...)."""
 
-    def _plan_search(self) -> bool:
+    nav: RouteNav
+    place: tuple[float, float] | None
+    stage: str
+    s: SeekingOptions
+    reach_cm: float
+    search_points: list[tuple[float, float]]
+    ring_cm: float
+    search_until: float
+    rings_until: float
+    sweep_turned: bool
+    sweep_blocked: bool
+    sweep_steps: int
+    leg_heading: float
+
+    async def not_found(self, reason: str) -> None:
+        """Answer ``not_found`` for ``reason`` (`seeker.Seek.not_found`)."""
+        raise NotImplementedError
+
+    async def after_other_motion(self, blocked: bool, done: float) -> None:
+        """Go on after a motion outside a route (`seeker.Seek.after_other_motion`)."""
+        raise NotImplementedError
+
+    def plan_search(self) -> bool:
         """After the scan from the place saw nothing: choose the ring(s) to look from.
 
         A guess within IR range has the hider's centre within ``range_cm`` of
@@ -140,10 +168,10 @@ class Search:
         (walls, the map's edge) are left out.
         """
         s = self.s
-        if self.place is None or self.map is None:
+        if self.place is None or self.nav.map is None:
             return False
-        drift = self.drift_cm
-        within = self.memory.within
+        drift = self.nav.drift_cm
+        within = self.nav.memory.within
         self.search_until = self.rings_until = math.inf
         if within is not None:
             now = trio.current_time()
@@ -158,8 +186,8 @@ class Search:
         if not rings:
             return False
         px, py = self.place
-        p = self.map_pose
-        if math.dist((p.x, p.y), self.place) > 2.0 * self.o.goal_tol_cm:
+        p = self.nav.map_pose
+        if math.dist((p.x, p.y), self.place) > 2.0 * self.nav.o.goal_tol_cm:
             first = math.atan2(p.y - py, p.x - px)  # nearest the seeker first
         else:
             first = math.radians(p.heading_deg)  # on the place: the one it faces
@@ -173,7 +201,8 @@ class Search:
                 a = first + 2.0 * math.pi * k / n
                 for r in pulls:
                     q = (px + r * math.cos(a), py + r * math.sin(a))
-                    if passable_at(self.map, q[0], q[1], self.radius_cm, 0.0):  # turns there
+                    # it turns there
+                    if passable_at(self.nav.map, q[0], q[1], self.nav.radius_cm, 0.0):
                         if self._unseen_free(q, seen, need):
                             points.append(q)
                         break
@@ -191,8 +220,8 @@ class Search:
     def _unseen_free(self, q: tuple[float, float], seen_cm: float, need_cm: float) -> bool:
         """Whether a free cell of the map lies within ``reach_cm`` of ``q``, farther than
         ``seen_cm`` from the place and within ``need_cm`` of it [cm]."""
-        assert self.map is not None and self.place is not None
-        g = self.map
+        assert self.nav.map is not None and self.place is not None
+        g = self.nav.map
         px, py = self.place
         reach = self.reach_cm
         res = g.resolution_cm
@@ -212,7 +241,7 @@ class Search:
             (dp > seen_cm) & (dp <= need_cm)
         return bool(mask.any())
 
-    async def _next_search_point(self) -> None:
+    async def next_search_point(self) -> None:
         """Drive to the next ring point (then `on_arrived` scans outward); at the end of
         the ring, ``not_found`` -- or, in a wider search with time left, the sweep."""
         now = trio.current_time()
@@ -220,18 +249,18 @@ class Search:
             self.search_points = []  # out of time: answer while the operator still listens
         while self.search_points:
             q = self.search_points.pop(0)
-            if await self.goto_as(q, None, "searching",
+            if await self.nav.goto_as(q, None, "searching",
                                   f"round the place, ring {self.ring_cm:.0f} cm"):
                 return
-        if self.memory.within is not None and now < self.search_until < math.inf:
-            await self._sweep()
+        if self.nav.memory.within is not None and now < self.search_until < math.inf:
+            await self.sweep()
             return
-        rings = "a ring of" if self.memory.within is None else "rings out to"
+        rings = "a ring of" if self.nav.memory.within is None else "rings out to"
         swept = ", nor sweeping the room by touch" if self.stage == "sweep" else ""
-        await self._not_found(f"the IR sensor saw nothing there, nor on {rings} "
+        await self.not_found(f"the IR sensor saw nothing there, nor on {rings} "
                               f"{self.ring_cm:.0f} cm round it{swept}")
 
-    async def _sweep(self) -> None:
+    async def sweep(self) -> None:
         """One step of the sweep by touch: face the leg's heading, drive ``sweep_step_cm``
         (or until blocked), then scan all round (`_confirm`). A leg goes straight step
         after step until a step is blocked (or ``SWEEP_MAX_STEPS``); the next leg turns
@@ -245,15 +274,15 @@ class Search:
         """
         first = self.stage != "sweep"
         self.stage = "sweep"
-        if first or self._sweep_blocked or self._sweep_steps >= SWEEP_MAX_STEPS:
-            base = self.map_pose.heading_deg if first else self._leg_heading
-            self._leg_heading = base + SWEEP_TURN_DEG
-            self._sweep_steps = 0
-        self._sweep_turned = False
+        if first or self.sweep_blocked or self.sweep_steps >= SWEEP_MAX_STEPS:
+            base = self.nav.map_pose.heading_deg if first else self.leg_heading
+            self.leg_heading = base + SWEEP_TURN_DEG
+            self.sweep_steps = 0
+        self.sweep_turned = False
         left = self.search_until - trio.current_time()
-        await self.set_state("sweeping", f"by touch, the pose in doubt ({left:.0f} s left)")
-        turn = angle_diff_deg(self._leg_heading, self.map_pose.heading_deg)
-        if abs(turn) <= self.o.heading_tol_deg:
+        await self.nav.set_state("sweeping", f"by touch, the pose in doubt ({left:.0f} s left)")
+        turn = angle_diff_deg(self.leg_heading, self.nav.map_pose.heading_deg)
+        if abs(turn) <= self.nav.o.heading_tol_deg:
             await self.after_other_motion(False, 0.0)
         else:
-            await self.command(Motion("turn", turn))
+            await self.nav.command(Motion("turn", turn))

@@ -33,7 +33,7 @@ the range minus half the body length from the hider's centre). Steps of
 from the nose, not just from the centre.
 
 A look blocked by something unmapped: a scan's turn that ends blocked where the
-map shows free ground round the body (`SeekingNav._touching_unmapped`) backs off
+map shows free ground round the body (`Seek._touching_unmapped`) backs off
 ``look_backoff_cm`` the way the seeker came and looks again from there, once per
 look point: beside the hider, the turn that would point the nose at it is the one
 its body stops.
@@ -49,20 +49,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import trio
 
-from actors import BufferPool, Message
-from actors.firmware.addresses import Addresses
+from actors import Message
 from actors.firmware.commands import Cmd
-from actors.firmware.hardware import HardwareSpec
-from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.role import RoleBehaviour
 from actors.firmware.nav.route import Motion, passable_at
-from actors.firmware.nav.route_nav import RouteNav
 from actors.firmware.nav.search import SEARCH_IR_WAIT_S, SEARCH_SCAN_DEG, Search
 from server.protocol.pose import angle_diff_deg
 
-__all__ = ["SeekingOptions", "SeekingNav", "IR_LEASE_TICKS", "STANDOFF_RING_STEP_DEG",
+if TYPE_CHECKING:
+    from actors.firmware.nav.route_nav import RouteNav
+
+__all__ = ["SeekingOptions", "Seek", "IR_LEASE_TICKS", "STANDOFF_RING_STEP_DEG",
            "MAX_STANDOFF_PLANS", "IR_PINNED_WAIT_S"]
 
 
@@ -173,19 +174,18 @@ class SeekingOptions:
         return tuple(step * i for i in range(-k, k + 1))
 
 
-class SeekingNav(Search, RouteNav):
-    """The seeker's navigation actor (registered as ``seeker/nav``)."""
+class Seek(Search, RoleBehaviour):
+    """The seeker's role behaviour (its actor is registered as ``seeker/nav``).
 
-    role = "seeker"
+    Args:
+        nav: the navigation actor it drives.
+        seeking: the approach's and the IR confirmation's quantities.
+    """
 
-    def __init__(self, *, pool: BufferPool, spec: HardwareSpec | None = None,
-                 options: NavOptions | None = None, memory: NavMemory | None = None,
-                 seeking: SeekingOptions | None = None,
-                 addresses: Addresses | None = None) -> None:
-        super().__init__(pool=pool, spec=spec, options=options, memory=memory,
-                         addresses=addresses)
+    def __init__(self, nav: RouteNav, seeking: SeekingOptions | None = None) -> None:
+        super().__init__(nav)
         self.s = seeking or SeekingOptions()
-        self.reach_cm = self.s.reach_cm(self.length_cm)
+        self.reach_cm = self.s.reach_cm(nav.length_cm)
         """How far from the centre an all-round scan sees a hider's centre [cm]; also how
         near the place a block confirms from where it stands, and the spacing of a wider
         search's ring points (each ring then sees about 60 cm beyond itself)."""
@@ -206,17 +206,17 @@ class SeekingNav(Search, RouteNav):
         """When the search in progress gives up [s] (a wider search only)."""
         self.rings_until = math.inf
         """When a wider search's rings give way to the sweep by touch [s]."""
-        self._sweep_turned = False  # the sweep's step in progress has turned, and drives
-        self._sweep_blocked = False  # the sweep's last step was blocked: the next leg turns
-        self._sweep_steps = 0  # steps of the sweep's leg in progress
-        self._leg_heading = 0.0  # the sweep's leg heading (map frame, as believed) [deg]
+        self.sweep_turned = False  # the sweep's step in progress has turned, and drives
+        self.sweep_blocked = False  # the sweep's last step was blocked: the next leg turns
+        self.sweep_steps = 0  # steps of the sweep's leg in progress
+        self.leg_heading = 0.0  # the sweep's leg heading (map frame, as believed) [deg]
         self._ir_at = -math.inf
         self._scan: tuple[float, ...] = ()  # headings of the scan in progress [deg], map frame
         self._scan_index = 0
         self._check_from = math.inf
         self._check_until = math.inf
         self._pinned_since: float | None = None  # a look held for a pinned sensor, since [s]
-        self.look_backoff_cm = 2.0 * self.radius_cm
+        self.look_backoff_cm = 2.0 * nav.radius_cm
         """How far a look blocked by something unmapped backs off before looking again [cm]:
         the diameter of the circle the body sweeps turning in place, so a body of its own
         size that touched it is clear of that circle, whichever side it touched."""
@@ -235,46 +235,47 @@ class SeekingNav(Search, RouteNav):
             return
         for point in self._standoff_points():
             face = math.degrees(math.atan2(y - point[1], x - point[0]))
-            if await self.goto(point, face):
+            if await self.nav.goto(point, face):
                 return
         await self._approach()
 
     def _distance(self) -> float:
         assert self.place is not None
-        return math.dist((self.map_pose.x, self.map_pose.y), self.place)
+        return math.dist((self.nav.map_pose.x, self.nav.map_pose.y), self.place)
 
     async def _approach(self) -> None:
         """Second stage: drive to the place itself, then scan all round."""
         assert self.place is not None
         self.stage = "close"
-        if self._distance() <= self.s.close_cm + self.o.goal_tol_cm:
+        if self._distance() <= self.s.close_cm + self.nav.o.goal_tol_cm:
             await self._confirm()
             return
-        if await self.goto_as(self.place, None, "approaching", "to the place itself",
+        if await self.nav.goto_as(self.place, None, "approaching", "to the place itself",
                               stop_short_cm=self.s.close_cm):
             return
         x, y = self.place
-        await self._not_found(f"no reachable point near ({x:.0f}, {y:.0f})")
+        await self.not_found(f"no reachable point near ({x:.0f}, {y:.0f})")
 
     def _standoff_points(self) -> list[tuple[float, float]]:
         """Passable points around the place, nearest the seeker first, per radius."""
-        assert self.work_map is not None and self.place is not None
+        assert self.nav.work_map is not None and self.place is not None
+        nav = self.nav
         px, py = self.place
-        me = (self.map_pose.x, self.map_pose.y)
+        me = (nav.map_pose.x, nav.map_pose.y)
         out: list[tuple[float, float]] = []
         n = max(4, round(360.0 / STANDOFF_RING_STEP_DEG))
         for r in self.s.standoffs_cm:
             ring = [(px + r * math.cos(2 * math.pi * k / n), py + r * math.sin(2 * math.pi * k / n))
                     for k in range(n)]
-            ring = [p for p in ring if passable_at(self.work_map, p[0], p[1], self.radius_cm,
-                                                   self.o.plan_margin_cm)]
+            ring = [p for p in ring if passable_at(nav.work_map, p[0], p[1], nav.radius_cm,
+                                                   nav.o.plan_margin_cm)]
             ring.sort(key=lambda p: math.dist(p, me))
             out += ring[:3]
         return out[:MAX_STANDOFF_PLANS]
 
     async def on_blocked(self) -> bool:
         if self.place is not None and self._distance() <= self.reach_cm:
-            self.follower = None  # likely the hider itself: look from here
+            self.nav.follower = None  # likely the hider itself: look from here
             await self._confirm()
             return True
         return False
@@ -286,11 +287,11 @@ class SeekingNav(Search, RouteNav):
         if self.stage == "standoff":
             await self._approach()
         elif self.stage == "search":
-            await self._next_search_point()
-        elif self._plan_search() or self.memory.within is not None:
-            await self._next_search_point()  # with ``within``: the sweep, ring or not
+            await self.next_search_point()
+        elif self.plan_search() or self.nav.memory.within is not None:
+            await self.next_search_point()  # with ``within``: the sweep, ring or not
         else:
-            await self._not_found(f"cannot get near the place: {reason}")
+            await self.not_found(f"cannot get near the place: {reason}")
 
     # ------------------------------------------------------------------ IR confirmation
     async def _confirm(self, again: bool = False) -> None:
@@ -300,22 +301,22 @@ class SeekingNav(Search, RouteNav):
         self._backing = None
         where = {"close": " all round", "search": " from the search ring",
                  "sweep": " all round, sweeping"}.get(self.stage, "")
-        await self.set_state("confirming", "looking with the IR sensor" + where)
-        await self._ir_lease(IR_LEASE_TICKS * self.o.tick_s)
-        p = self.map_pose
-        if self._distance() > 2.0 * self.o.goal_tol_cm:
+        await self.nav.set_state("confirming", "looking with the IR sensor" + where)
+        await self._ir_lease(IR_LEASE_TICKS * self.nav.o.tick_s)
+        p = self.nav.map_pose
+        if self._distance() > 2.0 * self.nav.o.goal_tol_cm:
             base = math.degrees(math.atan2(self.place[1] - p.y, self.place[0] - p.x))
         else:
             base = p.heading_deg  # standing on the place: no bearing to it
         if self.stage == "sweep":  # all round from the heading it has, the place unknown
-            step = self.s.wide_scan_step_deg(self.length_cm, self.width_cm)
+            step = self.s.wide_scan_step_deg(self.nav.length_cm, self.nav.width_cm)
             self._scan = tuple(p.heading_deg + step * k for k in range(round(360.0 / step)))
-        elif self.stage == "search" and self._distance() > 2.0 * self.o.goal_tol_cm:
+        elif self.stage == "search" and self._distance() > 2.0 * self.nav.o.goal_tol_cm:
             # facing away from the place, swept from the end nearer the heading
             out = math.degrees(math.atan2(p.y - self.place[1], p.x - self.place[0]))
-            wider = self.memory.within is not None
+            wider = self.nav.memory.within is not None
             offsets = self.s.outward_deg(
-                self.s.wide_scan_step_deg(self.length_cm, self.width_cm) if wider else None)
+                self.s.wide_scan_step_deg(self.nav.length_cm, self.nav.width_cm) if wider else None)
             if abs(angle_diff_deg(out + offsets[-1], p.heading_deg)) < \
                     abs(angle_diff_deg(out + offsets[0], p.heading_deg)):
                 offsets = offsets[::-1]
@@ -327,32 +328,31 @@ class SeekingNav(Search, RouteNav):
         await self._face(self._scan[0])
 
     async def _face(self, heading: float) -> None:
-        p = self.map_pose
+        p = self.nav.map_pose
         turn = angle_diff_deg(heading, p.heading_deg)
-        if abs(turn) <= self.o.heading_tol_deg:
+        if abs(turn) <= self.nav.o.heading_tol_deg:
             self._start_check()
         else:
-            await self.command(Motion("turn", turn))
+            await self.nav.command(Motion("turn", turn))
 
-    async def command(self, motion: Motion) -> None:
+    def before_command(self, motion: Motion) -> None:
         if motion.kind == "move" and motion.amount > 0:
-            self._came_heading = self.map_pose.heading_deg  # the way back is free ground
-        await super().command(motion)
+            self._came_heading = self.nav.map_pose.heading_deg  # the way back is free ground
 
     async def after_other_motion(self, blocked: bool, done: float) -> None:
-        if self._backing is not None and self.state == "confirming":
+        if self._backing is not None and self.nav.state == "confirming":
             await self._back_off_step()
-        elif self.state == "confirming":
+        elif self.nav.state == "confirming":
             if blocked and self._touching_unmapped():
                 await self._back_off()
             else:
                 self._start_check()
-        elif self.state == "sweeping" and not self._sweep_turned:
-            self._sweep_turned = True
-            await self.command(Motion("move", self.s.sweep_step_cm))
-        elif self.state == "sweeping":
-            self._sweep_blocked = blocked
-            self._sweep_steps += 1
+        elif self.nav.state == "sweeping" and not self.sweep_turned:
+            self.sweep_turned = True
+            await self.nav.command(Motion("move", self.s.sweep_step_cm))
+        elif self.nav.state == "sweeping":
+            self.sweep_blocked = blocked
+            self.sweep_steps += 1
             await self._confirm()
 
     def _touching_unmapped(self) -> bool:
@@ -365,32 +365,32 @@ class SeekingNav(Search, RouteNav):
         would point the nose (and the IR sensor) at it is the one its body blocks: the
         seeker must step back to see it.
         """
-        m = self.last_motion
+        m = self.nav.last_motion
         return (m is not None and m.kind == "turn" and not self._looked_again
-                and self.map is not None and not self._wall_within_drift())
+                and self.nav.map is not None and not self.nav.wall_within_drift())
 
     async def _back_off(self) -> None:
         """Back off ``look_backoff_cm`` the way it came (first turning back to the heading
         of its last forward move, through ground the turn just swept), then look again."""
         self._looked_again = True
         self._check_until = math.inf
-        self.counters["look_backoffs"] = self.counters.get("look_backoffs", 0) + 1
-        await self.status(self.state, "blocked turning to look: backing off to look again")
+        self.nav.counters["look_backoffs"] = self.nav.counters.get("look_backoffs", 0) + 1
+        await self.nav.status(self.nav.state, "blocked turning to look: backing off to look again")
         came = self._came_heading
-        turn = 0.0 if came is None else angle_diff_deg(came, self.map_pose.heading_deg)
-        if abs(turn) > self.o.heading_tol_deg:
+        turn = 0.0 if came is None else angle_diff_deg(came, self.nav.map_pose.heading_deg)
+        if abs(turn) > self.nav.o.heading_tol_deg:
             self._backing = "turn"
-            await self.command(Motion("turn", turn))
+            await self.nav.command(Motion("turn", turn))
         else:
             self._backing = "move"
-            await self.command(Motion("move", -self.look_backoff_cm))
+            await self.nav.command(Motion("move", -self.look_backoff_cm))
 
     async def _back_off_step(self) -> None:
         """The back-off's turn ended: reverse; its reverse ended (blocked or not): look
         again from where it stands."""
         if self._backing == "turn":
             self._backing = "move"
-            await self.command(Motion("move", -self.look_backoff_cm))
+            await self.nav.command(Motion("move", -self.look_backoff_cm))
         else:
             await self._confirm(again=True)
 
@@ -404,7 +404,7 @@ class SeekingNav(Search, RouteNav):
         self.ir = in_range
         self.ir_pinned = pinned
         now = trio.current_time()
-        if self.state == "confirming" and pinned:
+        if self.nav.state == "confirming" and pinned:
             # a sensor on its rail cannot tell: hold the look (stuck high would otherwise
             # report a hider wherever it looks, stuck low search blind) until it reads again
             if self._pinned_since is None:
@@ -413,27 +413,26 @@ class SeekingNav(Search, RouteNav):
             return
         if self._pinned_since is not None:  # it reads again: look afresh from here
             self._pinned_since = None
-            if self.state == "confirming":
+            if self.nav.state == "confirming":
                 self._start_check()
         self._ir_at = now
         await self._check()
 
     async def _ir_lease(self, seconds: float) -> None:
         """Ask the IR actor to sample for ``seconds`` [s] (0: stop now); not waiting long."""
-        name = self.names.ir
-        if self.ctx.system.whereis(name) is not None:  # a tree without IR: nothing to ask
-            await self.post(name, Message.float(Cmd.IR_LEASE, seconds))
+        name = self.nav.names.ir
+        if self.nav.ctx.system.whereis(name) is not None:  # a tree without IR: nothing to ask
+            await self.nav.post(name, Message.float(Cmd.IR_LEASE, seconds))
 
     async def on_tick(self, now: float) -> None:
-        await super().on_tick(now)
-        if self.state != "confirming":
+        if self.nav.state != "confirming":
             return
-        await self._ir_lease(IR_LEASE_TICKS * self.o.tick_s)
+        await self._ir_lease(IR_LEASE_TICKS * self.nav.o.tick_s)
         if self._pinned_since is not None:
             if now - self._pinned_since >= IR_PINNED_WAIT_S:
-                await self._not_found("the IR sensor is pinned at an ADC rail: it cannot tell")
+                await self.not_found("the IR sensor is pinned at an ADC rail: it cannot tell")
             return
-        if self.moving:
+        if self.nav.moving:
             return
         if await self._check():
             return
@@ -444,29 +443,30 @@ class SeekingNav(Search, RouteNav):
                 await self._face(self._scan[self._scan_index])
             elif self.stage == "standoff":
                 await self._approach()
-            elif self.stage == "close" and (self._plan_search() or self.memory.within is not None):
-                await self._next_search_point()  # with ``within``: the sweep, ring or not
+            elif self.stage == "close" and (self.plan_search()
+                                            or self.nav.memory.within is not None):
+                await self.next_search_point()  # with ``within``: the sweep, ring or not
             elif self.stage in ("search", "sweep"):
-                await self._next_search_point()
+                await self.next_search_point()
             else:
-                await self._not_found("the IR sensor saw nothing there")
+                await self.not_found("the IR sensor saw nothing there")
 
     async def _check(self) -> bool:
         now = trio.current_time()
-        if (self.state == "confirming" and not self.moving and self.ir
+        if (self.nav.state == "confirming" and not self.nav.moving and self.ir
                 and self._ir_at >= self._check_from and now >= self._check_from):
             self._check_until = math.inf
-            self.answered()
+            self.nav.answered()
             await self._ir_lease(0.0)
-            await self.report("found", self.pose_data())
-            await self.set_state("found", "the hider is in IR range")
+            await self.nav.report("found", self.nav.pose_data())
+            await self.nav.set_state("found", "the hider is in IR range")
             return True
         return False
 
-    async def _not_found(self, reason: str) -> None:
+    async def not_found(self, reason: str) -> None:
         self._check_until = math.inf
         self._pinned_since = None
-        self.answered()
+        self.nav.answered()
         await self._ir_lease(0.0)
-        await self.report("not_found", {"reason": reason})
-        await self.set_state("ready", reason)
+        await self.nav.report("not_found", {"reason": reason})
+        await self.nav.set_state("ready", reason)

@@ -42,7 +42,7 @@ A motion that ended blocked in the open (both encoders stuck)
     ``CONTACT_CELLS`` of its leading edge, on known free floor, met nothing the LIDAR
     sees, and a turn that counted nothing at all is most likely two stuck encoders
     (as Motor Control judges one its model caught); the odometry is in doubt
-    (`_blocked_in_the_open`). Exploring or going home, the mapper then holds as for a
+    (`blocked_in_the_open`). Exploring or going home, the mapper then holds as for a
     disagreement instead of backing off: a back-off or a turn on stuck encoders is
     driven blind (a few cm, or tens of degrees, per try, unseen, in a corridor 30 cm
     wide), and going home, counting such blocks as the way home being blocked would
@@ -54,6 +54,7 @@ A motion that ended blocked in the open (both encoders stuck)
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trio
@@ -62,11 +63,13 @@ from actors.firmware.commands import Cmd
 from actors.firmware.drivers.lidar import LidarHealth
 from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.localisation.odometry import tread_travel
-from actors.firmware.nav.mapping_options import MappingOptions
 from actors.firmware.origin_wire import MM, length_pair
 from actors.firmware.planning.clearance import occupied_near
 from server.protocol.grid_map import UNKNOWN
 from server.protocol.pose import Pose, angle_diff_deg
+
+if TYPE_CHECKING:
+    from actors.firmware.nav.mapper import MappingNav
 
 __all__ = ["SensorWatch", "uncounted_travel", "LIDAR_SILENT_S", "ODO_TURN_SHIFT_CM",
            "ODO_MOVE_TURN_DEG", "ODO_HOLD_S", "ODO_HOLD_MAX_S", "SHORT_HOLD_S",
@@ -115,44 +118,57 @@ def uncounted_travel(reported: tuple[bool, bool], counted: tuple[float, float],
 
 
 class SensorWatch:
-    """The mapper's sensor holds (a mixin of `mapper.MappingNav`, working on its state)."""
+    """The mapper's sensor holds, a part of its navigation actor.
 
-    m: MappingOptions
+    Args:
+        nav: the mapper's navigation actor, whose state and motions it watches.
+    """
+
+    def __init__(self, nav: MappingNav) -> None:
+        self.nav = nav
+        self._lidar_verdict = LidarHealth.OK  # LIDAR Control's last verdict
+        self._pause_started = -math.inf
+        self._pause_off_until = -math.inf  # a fault that outlasted lidar_pause_s: drive on
+        self._scans_at_pause = 0
+        self._odo_hold_until = -math.inf  # holding still for odometry until then
+        self._odo_last = -math.inf  # when the last disagreement was seen
+        self._odo_strikes = 0  # disagreements in a row, each within 60 s of the last
+        self._relayed = (False, False)  # treads reported in this motion, to relay at its end
 
     async def on_lidar_health(self, value: int) -> None:
         """LIDAR Control's verdict changed (``NAV_LIDAR_HEALTH``): hold still at once."""
         try:
             self._lidar_verdict = LidarHealth(value)
         except ValueError:
-            self.counters["bad_frames"] += 1
+            self.nav.counters["bad_frames"] += 1
             return
-        await self._lidar_watch(trio.current_time())
+        await self.lidar_watch(trio.current_time())
 
-    async def _lidar_watch(self, now: float) -> bool:
+    async def lidar_watch(self, now: float) -> bool:
         """Begin or end holding still for a faulty LIDAR; True while holding.
 
         See "A faulty LIDAR" in the module docstring."""
-        if self.state not in ("scanning", "exploring", "homing"):
-            self.lidar_fault = None
+        if self.nav.state not in ("scanning", "exploring", "homing"):
+            self.nav.lidar_fault = None
             return False
-        m = self.m
-        silent = now - self._scan_rise_at >= LIDAR_SILENT_S
-        if self.lidar_fault is None:
+        m = self.nav.m
+        silent = now - self.nav.scan_rise_at >= LIDAR_SILENT_S
+        if self.nav.lidar_fault is None:
             fault = self._lidar_verdict if self._lidar_verdict != LidarHealth.OK else (
                 LidarHealth.SILENT if silent else None)
             if fault is None or now < self._pause_off_until:
                 return False
-            self.lidar_fault = fault
-            self.lidar_faults += 1
+            self.nav.lidar_fault = fault
+            self.nav.lidar_faults += 1
             self._pause_started = now
-            self._scans_at_pause = self.scans
-            if self.moving:
-                await self.stop_motor()
-            await self.status("lidar_fault",
+            self._scans_at_pause = self.nav.scans
+            if self.nav.moving:
+                await self.nav.stop_motor()
+            await self.nav.status("lidar_fault",
                               f"LIDAR {fault.name.lower()}: holding still until it recovers")
             return True
         healthy = (self._lidar_verdict == LidarHealth.OK and not silent
-                   and self.scans > self._scans_at_pause)
+                   and self.nav.scans > self._scans_at_pause)
         if not healthy and now - self._pause_started < m.lidar_pause_s:
             return True
         if healthy:
@@ -160,40 +176,40 @@ class SensorWatch:
         else:
             why = f"LIDAR still faulty after {m.lidar_pause_s:.0f} s: driving on"
             self._pause_off_until = now + m.lidar_pause_s
-        self.lidar_fault = None
+        self.nav.lidar_fault = None
         # what was planned before may have been planned on a map the fault spoiled
-        self._changed_at, self._scans_at_change = now, self.scans
-        self.ex.follower = None
-        self._wait_map = True
-        self._last_wait_decide = -math.inf
-        await self.status(self.state, why)
+        self.nav.changed_at, self.nav.scans_at_change = now, self.nav.scans
+        self.nav.ex.follower = None
+        self.nav.wait_map = True
+        self.nav.last_wait_decide = -math.inf
+        await self.nav.status(self.nav.state, why)
         return False
 
     @property
     def holding(self) -> bool:
         """Holding still: the LIDAR is faulty, or odometry was contradicted lately."""
-        return self.lidar_fault is not None or trio.current_time() < self._odo_hold_until
+        return self.nav.lidar_fault is not None or trio.current_time() < self._odo_hold_until
 
-    async def _odometry_watch(self, now: float) -> bool:
+    async def odometry_watch(self, now: float) -> bool:
         """Stop and hold when the motion in flight contradicts odometry; True while holding.
 
         See "Odometry that scan matching contradicts" in the module docstring."""
-        if self.state not in ("exploring", "homing"):
+        if self.nav.state not in ("exploring", "homing"):
             return False
         if self._odo_hold_until > -math.inf and now >= self._odo_hold_until:
             self._odo_hold_until = -math.inf
-            self._changed_at, self._scans_at_change = now, self.scans
-            self.ex.follower = None
-            self._wait_map = True
-            self._last_wait_decide = -math.inf
-            await self.status(self.state, "odometry hold over: driving on")
+            self.nav.changed_at, self.nav.scans_at_change = now, self.nav.scans
+            self.nav.ex.follower = None
+            self.nav.wait_map = True
+            self.nav.last_wait_decide = -math.inf
+            await self.nav.status(self.nav.state, "odometry hold over: driving on")
             return False
         if now < self._odo_hold_until:
             return True
-        motion, start = self.last_motion, self.motion_from
-        if not self.moving or motion is None or start is None:
+        motion, start = self.nav.last_motion, self.nav.motion_from
+        if not self.nav.moving or motion is None or start is None:
             return False
-        p = self.map_pose
+        p = self.nav.map_pose
         if motion.kind == "turn":
             off = math.hypot(p.x - start.x, p.y - start.y)
             if off <= ODO_TURN_SHIFT_CM:
@@ -204,7 +220,7 @@ class SensorWatch:
             if turned <= ODO_MOVE_TURN_DEG:
                 return False
             what = f"a straight move turned the pose {turned:.0f} deg"
-        await self._odometry_hold(now, f"{what}: odometry and scan matching disagree")
+        await self.odometry_hold(now, f"{what}: odometry and scan matching disagree")
         return True
 
     async def on_tread_fault(self, fault: TreadFault) -> None:
@@ -218,7 +234,7 @@ class SensorWatch:
         motor reads the same and its odometry is right, so the hold is short: it costs a
         weak motor a pause per motion, not the game."""
         now = trio.current_time()
-        if self.state not in ("exploring", "homing") or not self.moving:
+        if self.nav.state not in ("exploring", "homing") or not self.nav.moving:
             return
         treads = fault.treads
         self._relayed = (self._relayed[0] or treads[0], self._relayed[1] or treads[1])
@@ -226,19 +242,19 @@ class SensorWatch:
             return
         if fault.both:
             if fault.counts_short:
-                await self._odometry_hold(now, "both treads count short", SHORT_HOLD_S)
+                await self.odometry_hold(now, "both treads count short", SHORT_HOLD_S)
             else:
                 # both silent: a turn that ended blocked without one Int E. Backing off
                 # and turning again drives it on blind: with both encoders stuck for
                 # 9 s the mapper spins about five turns unseen in such blocks, and the
                 # map comes out at half accuracy
-                await self._odometry_hold(now, "both treads are driven but do not count")
+                await self.odometry_hold(now, "both treads are driven but do not count")
             return
         side = fault.side
         if fault.counts_short:
-            await self._odometry_hold(now, f"the {side} tread counts short", SHORT_HOLD_S)
+            await self.odometry_hold(now, f"the {side} tread counts short", SHORT_HOLD_S)
             return
-        await self._odometry_hold(now, f"the {side} tread is driven but does not count")
+        await self.odometry_hold(now, f"the {side} tread is driven but does not count")
 
     async def relay_tread_driven(self, left_cm: float, right_cm: float) -> None:
         """Motor Control's drive model of the motion that is ending (``NAV_TREAD_DRIVEN``):
@@ -249,19 +265,18 @@ class SensorWatch:
         reported, self._relayed = self._relayed, (False, False)
         # counted in the own frame: the map-frame pose also moves by the origin's
         # corrections, which are no tread's travel
-        motion, start = self.last_motion, self.odometry_from
+        motion, start = self.nav.last_motion, self.nav.odometry_from
         if motion is None or start is None:
             return
         if reported == (False, False):
             if motion.kind != "turn":
                 return
             reported = (True, True)
-        w = self.spec.track_width_cm if self.spec is not None else 13.0
-        counted = tread_travel(start, self.pose, w)
+        counted = tread_travel(start, self.nav.pose, self.nav.spec.track_width_cm)
         left, right = uncounted_travel(reported, counted, (left_cm, right_cm))
-        await self.post(self.map_name, length_pair(Cmd.MAP_TREAD_FAULT, left, right, MM))
+        await self.nav.post(self.nav.map_name, length_pair(Cmd.MAP_TREAD_FAULT, left, right, MM))
 
-    def _blocked_in_the_open(self, done: float) -> bool:
+    def blocked_in_the_open(self, done: float) -> bool:
         """Whether the last motion, which ended blocked having counted ``done`` [cm or
         deg], met nothing the map holds: a turn that counted nothing (both encoders stuck,
         as Motor Control's `TreadFault.BOTH_SILENT` says of one its model caught), or a
@@ -269,17 +284,17 @@ class SensorWatch:
         body's width and a cell either side) and the cells there known free (an unknown
         cell may hide what stopped it). See "A motion that ended blocked in the open" in
         the module docstring."""
-        motion, grid = self.last_motion, self.grid
+        motion, grid = self.nav.last_motion, self.nav.grid
         if motion is None or grid is None:
             return False
         if motion.kind == "turn":
             return done == 0.0
-        p = self.map_pose
+        p = self.nav.map_pose
         lead = p if motion.amount >= 0 else Pose(p.x, p.y, p.heading_deg + 180.0)
         res = grid.resolution_cm
-        front = 0.5 * self.length_cm
+        front = 0.5 * self.nav.length_cm
         reach = front + CONTACT_CELLS * res
-        side = 0.5 * self.width_cm + res
+        side = 0.5 * self.nav.width_cm + res
         near = occupied_near(grid, lead, math.hypot(reach, side))
         if near is not None:
             _, _, fwd, lat = near
@@ -287,7 +302,7 @@ class SensorWatch:
                 return False
         h = lead.heading_rad
         ch, sh = math.cos(h), math.sin(h)
-        half = 0.5 * self.width_cm
+        half = 0.5 * self.nav.width_cm
         for f in np.arange(front, reach + 1e-9, 0.5 * res):
             for s in np.arange(-half, half + 1e-9, 0.5 * res):
                 r, c = grid.world_to_cell(p.x + f * ch - s * sh, p.y + f * sh + s * ch)
@@ -296,21 +311,21 @@ class SensorWatch:
                     return False
         return True
 
-    async def _hold_if_blocked_in_the_open(self, done: float) -> bool:
+    async def hold_if_blocked_in_the_open(self, done: float) -> bool:
         """After a motion that ended blocked having counted ``done``: hold for odometry
-        when it met nothing the map holds (`_blocked_in_the_open`) and the hold has not
+        when it met nothing the map holds (`blocked_in_the_open`) and the hold has not
         yet doubled to its longest; True when holding (the block is not the route's)."""
         now = trio.current_time()
         if now - self._odo_last <= 60.0 and _odo_hold_s(self._odo_strikes) >= ODO_HOLD_MAX_S:
             return False  # held the longest already: a fault this long, or a real block
-        if not self._blocked_in_the_open(done):
+        if not self.blocked_in_the_open(done):
             return False
-        await self._odometry_hold(
+        await self.odometry_hold(
             now, "a motion ended blocked with nothing mapped in its way: both encoders "
             "may be stuck")
         return True
 
-    async def _odometry_hold(self, now: float, what: str, hold: float | None = None) -> None:
+    async def odometry_hold(self, now: float, what: str, hold: float | None = None) -> None:
         """Stop the motor and hold still for odometry (see the module docstring); ``hold``
         [s] given: that long, not counted as a strike."""
         if hold is None:
@@ -318,7 +333,7 @@ class SensorWatch:
             self._odo_last = now
             hold = min(ODO_HOLD_MAX_S, _odo_hold_s(self._odo_strikes))
         self._odo_hold_until = now + hold
-        self.odometry_faults += 1
-        await self.stop_motor()
-        await self.status("odometry_fault", f"{what}; holding {hold:.0f} s")
+        self.nav.odometry_faults += 1
+        await self.nav.stop_motor()
+        await self.nav.status("odometry_fault", f"{what}; holding {hold:.0f} s")
 

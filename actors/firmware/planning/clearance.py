@@ -46,7 +46,7 @@ __all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead", "occ
            "passage_width"]
 
 
-def turning_radius_cm(length_cm: float = 20.0, width_cm: float = 15.0) -> float:
+def turning_radius_cm(length_cm: float, width_cm: float) -> float:
     """Half-diagonal of the rover body: the radius it sweeps turning in place [cm]."""
     return math.hypot(0.5 * length_cm, 0.5 * width_cm)
 
@@ -95,9 +95,9 @@ def check_spot(
     x: float,
     y: float,
     heading_deg: float,
-    length_cm: float = 20.0,
-    width_cm: float = 15.0,
-    margin_cm: float = 5.0,
+    length_cm: float,
+    width_cm: float,
+    margin_cm: float,
 ) -> tuple[bool, str]:
     """Whether the rover fits at (x, y) @ heading with ``margin_cm`` all round for turning.
 
@@ -174,8 +174,8 @@ def obstacle_ahead(
     pose: Pose,
     distance_cm: float,
     *,
-    half_angle_deg: float = 30.0,
-    half_width_cm: float = 12.5,
+    half_angle_deg: float,
+    half_width_cm: float,
 ) -> Obstacle | None:
     """The nearest occupied cell ahead of ``pose`` within ``distance_cm``, or None.
 

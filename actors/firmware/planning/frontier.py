@@ -13,20 +13,17 @@ Algorithm
        frontier cells by walls are often inside the inflation themselves).
        A cluster's distance is that of its nearest approachable cell, and its
        target is the reachable cell nearest (Euclidean) to that frontier cell.
-    4. Choice: the lowest cost among reachable, useful (big enough), not
-       blacklisted clusters, where
-       ``cost = w_distance * distance_cm - w_size * min(size_cm, size_cap_cm)
-       - w_unknown * unknown_share``: near, long frontiers first, biased toward
-       less explored areas (``unknown_share`` is the share of unknown cells in
-       a square of half-side ``explore_radius_cm`` around the centroid).
+    4. Each cluster also says how much unknown lies round it (``unknown_share``:
+       the share of unknown cells in a square of half-side ``explore_radius_cm``
+       around the centroid). Where to go is chosen by viewpoint
+       (`planning.viewpoint`: what a pose would see), not by the cluster.
 
     Work is done on the known part of the map only (cropped with a margin),
     so the cost follows the explored area, not the grid's fixed extent.
 
 Reference
     Yamauchi, "A Frontier-Based Approach for Autonomous Exploration",
-    IEEE CIRA 1997; the cost trade-off after Gonzalez-Banos and Latombe,
-    "Navigation Strategies for Exploring Indoor Environments", IJRR 21(10), 2002.
+    IEEE CIRA 1997.
 
 Frame and units
     Positions [cm] in the rover frame; sizes [cells] and [cm] as named;
@@ -36,7 +33,6 @@ Frame and units
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,14 +45,9 @@ from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 
 __all__ = [
     "Frontier",
-    "FrontierWeights",
     "frontier_mask",
     "label_clusters",
     "find_frontiers",
-    "frontier_cost",
-    "is_blacklisted",
-    "choose_frontier",
-    "no_useful_frontier",
     "steps_from",
 ]
 
@@ -94,20 +85,6 @@ class Frontier:
     def size_cm(self) -> float:
         """Frontier length, approximately [cm]."""
         return self.size * self.resolution_cm
-
-
-@dataclass(frozen=True, slots=True)
-class FrontierWeights:
-    """Weights of the frontier cost (see module docstring)."""
-
-    w_distance: float = 1.0
-    """Per cm of travel."""
-    w_size: float = 1.0
-    """Per cm of frontier length (capped at ``size_cap_cm``)."""
-    size_cap_cm: float = 200.0
-    """Frontier length beyond which size stops mattering [cm]."""
-    w_unknown: float = 150.0
-    """For a fully unexplored neighbourhood [cm of travel it is worth]."""
 
 
 def frontier_mask(cells: np.ndarray) -> np.ndarray:
@@ -298,66 +275,3 @@ def _approach(sub: GridMap, steps: np.ndarray, near: np.ndarray, rows: np.ndarra
     b = int(np.argmin(d2))
     tr, tc = int(rr[b] + wr0), int(cc_[b] + wc0)
     return sub.cell_to_world(tr, tc), float(steps[tr, tc]) * sub.resolution_cm
-
-
-def frontier_cost(frontier: Frontier, weights: FrontierWeights | None = None) -> float:
-    """Cost of exploring ``frontier`` (lower is better); ``inf`` when unreachable."""
-    w = weights or FrontierWeights()
-    if not frontier.reachable:
-        return math.inf
-    return (w.w_distance * frontier.distance_cm
-            - w.w_size * min(frontier.size_cm, w.size_cap_cm)
-            - w.w_unknown * frontier.unknown_share)
-
-
-def is_blacklisted(
-    frontier: Frontier, blacklist: Iterable[tuple[float, float]], radius_cm: float = 30.0
-) -> bool:
-    """Whether the frontier's target or centroid lies within ``radius_cm`` of a blacklisted point.
-
-    Navigation blacklists a frontier by adding its ``target_cm`` after failing
-    to reach it; points in cm survive map growth, unlike cluster labels.
-    """
-    spots = [frontier.centroid_cm] + ([frontier.target_cm] if frontier.target_cm else [])
-    return any(math.dist(p, q) <= radius_cm for q in blacklist for p in spots)
-
-
-def choose_frontier(
-    frontiers: Sequence[Frontier],
-    *,
-    min_size_cells: int = 4,
-    weights: FrontierWeights | None = None,
-    blacklist: Iterable[tuple[float, float]] = (),
-    blacklist_radius_cm: float = 30.0,
-) -> Frontier | None:
-    """The cheapest reachable, useful, not blacklisted frontier, or None.
-
-    Ties go to the earlier cluster (deterministic).
-    """
-    bl = list(blacklist)
-    best: Frontier | None = None
-    best_cost = math.inf
-    for f in frontiers:
-        if f.size < min_size_cells or not f.reachable or is_blacklisted(f, bl,
-                                                                           blacklist_radius_cm):
-            continue
-        cost = frontier_cost(f, weights)
-        if cost < best_cost:
-            best, best_cost = f, cost
-    return best
-
-
-def no_useful_frontier(
-    frontiers: Sequence[Frontier],
-    *,
-    min_size_cells: int = 4,
-    blacklist: Iterable[tuple[float, float]] = (),
-    blacklist_radius_cm: float = 30.0,
-) -> bool:
-    """True when no reachable frontier of at least ``min_size_cells`` is left.
-
-    One half of "mapping complete"; navigation also needs the map to have
-    stopped changing while scans kept arriving.
-    """
-    return choose_frontier(frontiers, min_size_cells=min_size_cells, blacklist=blacklist,
-                           blacklist_radius_cm=blacklist_radius_cm) is None

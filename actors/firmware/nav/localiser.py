@@ -1,6 +1,7 @@
 """The hider's and seeker's pose belief: where the rover is, and how sure it is.
 
-`BeliefTracking` is a mixin of `route_nav.RouteNav`. It keeps one
+`Localiser` is a part of the hider's and seeker's navigation actor
+(`route_nav.RouteNav`). It keeps one
 `localisation.belief.PoseBelief` (a particle filter over the map-frame pose)
 and makes it the source of the map -> odometry transform (the ``origin``) and
 of the doubt every recovery behaviour reads (`drift_cm`: the belief's 95 %
@@ -48,6 +49,7 @@ from __future__ import annotations
 import math
 import zlib
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -68,7 +70,11 @@ from actors.firmware.nav.route import Motion
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
 
-__all__ = ["BeliefTracking", "BeliefMemory"]
+if TYPE_CHECKING:
+    from actors.firmware.nav.route_nav import RouteNav
+
+__all__ = ["Localiser", "BeliefMemory", "START_SIGMA_CM", "START_SIGMA_DEG",
+           "RETRY_PRIOR_SHARE"]
 
 START_SIGMA_CM = 1.0
 """Standard deviation of x and y of the belief at the server's ``origin`` [cm]: the
@@ -78,7 +84,7 @@ START_SIGMA_DEG = 1.0
 RETRY_PRIOR_SHARE = 0.5
 """Weight of dead reckoning alone in the belief a retried destination starts from [1]:
 the route before it was given up after its contacts, as likely misread as read right
-(see `BeliefTracking.on_server_origin`)."""
+(see `Localiser.on_server_origin`)."""
 
 
 def _same_pose(a: Pose, b: Pose) -> bool:
@@ -94,18 +100,24 @@ class BeliefMemory:
     belief: PoseBelief
     """The belief (map frame)."""
     dead: DeadReckoning | None
-    """The particle set moved by the counts alone (`BeliefTracking._dead`)."""
+    """The particle set moved by the counts alone (`Localiser._dead`)."""
     odom: Pose
     """The own-frame pose (Motor Control's) both were last moved to."""
 
 
-class BeliefTracking:
-    """The pose belief of a `RouteNav` (a mixin; see the module docstring)."""
+class Localiser:
+    """The pose belief of the hider's or seeker's navigation (see the module docstring).
 
-    def _init_belief(self) -> None:
+    Args:
+        nav: the navigation actor whose pose, origin, map and last motion it reads, and
+            whose origin it sets.
+    """
+
+    def __init__(self, nav: RouteNav) -> None:
+        self.nav = nav
         self.belief: PoseBelief | None = None
         """The pose belief (map frame); None until origin and pose are known."""
-        self._rng = np.random.default_rng(zlib.crc32(f"belief:{self.role}".encode()))
+        self._rng = np.random.default_rng(zlib.crc32(f"belief:{self.nav.role}".encode()))
         self._belief_odom: Pose | None = None  # own-frame pose the belief was last moved to
         self._reports = [TreadReport.OK, TreadReport.OK]  # tread reports since then
         self._reported_before = (False, False)  # each tread reported in the motion before
@@ -118,11 +130,12 @@ class BeliefTracking:
         self._field_of: GridMap | None = None
         self._dead: DeadReckoning | None = None  # the belief moved by the counts alone
         # its own generator: the belief's draws do not depend on whether it is kept
-        self._dead_rng = np.random.default_rng(zlib.crc32(f"dead reckoning:{self.role}".encode()))
-        given = self.memory.given
+        self._dead_rng = np.random.default_rng(
+            zlib.crc32(f"dead reckoning:{self.nav.role}".encode()))
+        given = self.nav.memory.given
         self._given: Pose | None = Pose(*given) if given is not None else None
         # the server's origin the belief started from
-        kept = self.memory.belief
+        kept = self.nav.memory.belief
         if isinstance(kept, BeliefMemory):  # a restart: go on from what was learned
             self.belief, self._dead, self._belief_odom = kept.belief, kept.dead, kept.odom
 
@@ -145,16 +158,20 @@ class BeliefTracking:
         return 0.0 if s is None else s.radius95_cm
 
     def _distance_field(self) -> DistanceField | None:
-        if self.map is None:
+        if self.nav.map is None:
             return None
-        if self._field_of is not self.map:
-            self._field, self._field_of = DistanceField.from_grid(self.map), self.map
+        if self._field_of is not self.nav.map:
+            self._field, self._field_of = DistanceField.from_grid(self.nav.map), self.nav.map
         return self._field
 
-    def _track_width(self) -> float:
-        return self.spec.track_width_cm if self.spec is not None else 13.0
 
     # ------------------------------------------------------------------ filtering
+    def adopt(self, belief: PoseBelief) -> None:
+        """Take ``belief`` (map frame) as the pose belief at the current own-frame pose: the
+        next pose at rest moves it by what Motor Control counted since."""
+        self.belief, self._belief_odom, self._spread, self._modes = belief, self.nav.pose, None, 1
+        self._weighed = False
+
     def forget_belief(self) -> None:
         """The map-frame pose is given anew (the server's origin): start a new belief."""
         self.belief, self._spread, self._belief_odom, self._modes = None, None, None, 1
@@ -178,7 +195,7 @@ class BeliefTracking:
         ``RETRY_PRIOR_SHARE`` of its weight on the latter: every hypothesis either
         holds is kept, so it is never narrower than either.
         """
-        given = self.origin
+        given = self.nav.origin
         if (given is not None and self.belief is not None and self._dead is not None
                 and self._given is not None and _same_pose(given, self._given)):
             self.track_belief()
@@ -187,7 +204,7 @@ class BeliefTracking:
             self._weigh_free_space()  # the rover stands on free ground, whichever is right
             _ = self.spread  # count the hypotheses: the pose is the heaviest one's
             self._sync_origin()
-            self.counters["retry_widened"] = self.counters.get("retry_widened", 0) + 1
+            self.nav.counters["retry_widened"] = self.nav.counters.get("retry_widened", 0) + 1
             return
         self._given = given
         self.forget_belief()
@@ -200,7 +217,7 @@ class BeliefTracking:
         for t, reported in enumerate(fault.treads):
             if reported and self._reports[t] != TreadReport.SILENT:
                 self._reports[t] = kind
-        self._reported_motion = self.last_motion
+        self._reported_motion = self.nav.last_motion
 
     def note_tread_driven(self, left_cm: float, right_cm: float) -> None:
         """Motor Control's drive model says how far each tread went in the motion that
@@ -208,7 +225,7 @@ class BeliefTracking:
         without a report for a turn that ended blocked: a rover jammed in a turn and one
         whose encoders both stopped read the same, so both treads' travel lies between
         their counts and the model."""
-        m = self.last_motion
+        m = self.nav.last_motion
         if self._reports == [TreadReport.OK, TreadReport.OK] and m is not None \
                 and m.kind == "turn":
             self._reports = [TreadReport.SHORT, TreadReport.SHORT]
@@ -218,13 +235,13 @@ class BeliefTracking:
     def track_belief(self) -> None:
         """At a pose at rest: move the belief by the motion since the last one, weigh it
         by free space, and read the origin from it."""
-        if self.origin is None or not self.pose_known:
+        if self.nav.origin is None or not self.nav.pose_known:
             return
         if self.belief is None or self._belief_odom is None:
-            self.belief = PoseBelief.around(self.map_pose, self._rng, sigma_cm=START_SIGMA_CM,
+            self.belief = PoseBelief.around(self.nav.map_pose, self._rng, sigma_cm=START_SIGMA_CM,
                                              sigma_deg=START_SIGMA_DEG)
             self._dead = DeadReckoning(PoseBelief(self.belief.particles))
-            self._belief_odom, self._spread = self.pose, None
+            self._belief_odom, self._spread = self.nav.pose, None
             self._retain()
             return
         if not self._predict():
@@ -236,7 +253,7 @@ class BeliefTracking:
         """Weigh the belief by the free-space model on the server's map (if any)."""
         field = self._distance_field()
         if field is not None and self.belief is not None:
-            body = (self.length_cm, self.width_cm)
+            body = (self.nav.length_cm, self.nav.width_cm)
             ll = free_space_log_likelihood(field, self.belief.particles, body)
             self.belief.update(ll, self._rng)
             # a flat likelihood changes no weight: it cannot split the belief
@@ -247,10 +264,10 @@ class BeliefTracking:
         """Move the belief by the counted motion since the last prediction; False when
         there was none."""
         assert self.belief is not None and self._belief_odom is not None
-        if self._reported_motion is not None and self._reported_motion is self.last_motion:
+        if self._reported_motion is not None and self._reported_motion is self.nav.last_motion:
             return False  # the reported motion's driven travel comes with its end
-        w = self._track_width()
-        left, right = tread_travel(self._belief_odom, self.pose, w)
+        w = self.nav.spec.track_width_cm
+        left, right = tread_travel(self._belief_odom, self.nav.pose, w)
         if abs(left) + abs(right) < 1e-6 and self._reports == [TreadReport.OK, TreadReport.OK]:
             return False
         driven: list[float | None] = [None, None]
@@ -258,10 +275,10 @@ class BeliefTracking:
             driven = self._driven(left, right, w)
         motion = TreadMotion(left, right, driven[0], driven[1], *self._reports,
                              *self._reported_before)
-        self.belief.predict(motion, w, self.o.motion, self._rng)
+        self.belief.predict(motion, w, self.nav.o.motion, self._rng)
         if self._dead is not None:
-            self._dead.predict(motion, w, self.o.motion, self._dead_rng)
-        self._belief_odom, self._spread = self.pose, None
+            self._dead.predict(motion, w, self.nav.o.motion, self._dead_rng)
+        self._belief_odom, self._spread = self.nav.pose, None
         self._reported_before = (self._reports[0] != TreadReport.OK,
                                  self._reports[1] != TreadReport.OK)
         self._reports = [TreadReport.OK, TreadReport.OK]
@@ -278,7 +295,7 @@ class BeliefTracking:
             return [None if self._reports[t] == TreadReport.OK else
                     math.copysign(max(abs(self._modelled[t]), abs(counts[t])), self._modelled[t])
                     for t in (0, 1)]
-        m = self.last_motion
+        m = self.nav.last_motion
         if m is None:
             sign, size = (1.0, 1.0), 0.0
         elif m.kind == "turn":
@@ -315,15 +332,15 @@ class BeliefTracking:
             target = s.best.pose
         else:
             target = self.belief.mean_pose()
-        origin = compose(target, inverse(self.pose))
-        self.set_origin(origin)
+        origin = compose(target, inverse(self.nav.pose))
+        self.nav.set_origin(origin)
         self._retain()
 
     def _retain(self) -> None:
         """Keep the belief and the origin it started from in the retained `NavMemory`."""
         g = self._given
-        self.memory.given = None if g is None else (g.x, g.y, g.heading_deg)
-        self.memory.belief = None if self.belief is None or self._belief_odom is None else \
+        self.nav.memory.given = None if g is None else (g.x, g.y, g.heading_deg)
+        self.nav.memory.belief = None if self.belief is None or self._belief_odom is None else \
             BeliefMemory(self.belief, self._dead, self._belief_odom)
 
     def contact_update(self) -> bool:
@@ -335,16 +352,16 @@ class BeliefTracking:
             ``heading_tol_deg``;
             False when something unmapped explains it better, or the pose stays.
         """
-        m, start = self.last_motion, self.motion_from
+        m, start = self.nav.last_motion, self.nav.motion_from
         field = self._distance_field()
         if (m is None or m.kind != "move" or m.amount == 0 or start is None or field is None
                 or self.belief is None):
             return False
         self.track_belief()
-        before = self.map_pose
+        before = self.nav.map_pose
         direction = 1 if m.amount > 0 else -1
         side = stalled_side(angle_diff_deg(before.heading_deg, start.heading_deg), direction)
-        o, body = ContactOptions(), (self.length_cm, self.width_cm)
+        o, body = ContactOptions(), (self.nav.length_cm, self.nav.width_cm)
         particles = self.belief.particles
         gap = contact_gap_cm(field, particles, body, direction, side)
         touch = float(self.belief.weights @ np.exp(-0.5 * (gap / o.sigma_cm) ** 2))
@@ -355,8 +372,8 @@ class BeliefTracking:
         self._spread = None
         _ = self.spread  # a contact may leave several hypotheses: count them
         self._sync_origin()
-        after = self.map_pose
-        self.counters["contacts"] += 1
+        after = self.nav.map_pose
+        self.nav.counters["contacts"] += 1
         moved = math.dist((before.x, before.y), (after.x, after.y))
         return moved > 0.5 * field.resolution_cm or \
-            abs(angle_diff_deg(after.heading_deg, before.heading_deg)) > self.o.heading_tol_deg
+            abs(angle_diff_deg(after.heading_deg, before.heading_deg)) > self.nav.o.heading_tol_deg
