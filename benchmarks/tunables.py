@@ -168,6 +168,9 @@ KINDS: dict[str, dict[str, str]] = {
     "nav.tread_faults": {"TREAD_HOLDS": "structural", "TREAD_CONTACT_S": "policy",
                          "TREAD_STOP_S": "structural", "TREAD_CHECK_CM": "policy"},
     "origin_wire": {"_INT16": "structural", "MM": "structural", "CM": "structural"},
+    "payloads.Field": {"scale": "structural"},
+    "telemetry": {"_POLL_S": "structural", "_MAP_FRAMES_PER_ROUND": "structural",
+                  "_CELLS_PER_FRAME": "structural"},
     "planning.frontier.Frontier": {"open_share": "structural"},
     "planning.viewpoint": {
         "RAYS": "structural", "REVEAL_DEPTH_CELLS": "structural", "FACE_SAMPLES": "structural",

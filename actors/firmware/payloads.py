@@ -105,6 +105,7 @@ PAYLOADS: dict[int, tuple[Field, ...] | Callable[[int], str]] = {
     Cmd.WIFLY_SEND_UNRELIABLE: _fields(Field("frame")),
     Cmd.WIFLY_TIMER: (),
     Cmd.WIFLY_SEND_MAP: _fields(Field("map")),
+    Cmd.WIFLY_LINK_OPEN: (),
     Cmd.IR_SAMPLE: _fields(Field("adc", "of 4095")),
     Cmd.IR_LEASE: _fields(Field("for", "s")),
 }

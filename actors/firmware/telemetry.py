@@ -38,7 +38,7 @@ STREAMS_OF_ROLE = {"mapper": ("mailboxes", "tree", "map", "pose", "events"),
 """The streams a rover of each role offers in hello."""
 _POLL_S = 0.1                 # how often the task looks at the lane [s]
 _MAP_FRAMES_PER_ROUND = 3     # tm_map frames offered per map interval at most
-_CELLS_PER_FRAME = 120
+_CELLS_PER_FRAME = 120      # map cells per tm_map frame (fits one 1024-byte line)
 _TRACE_EVENTS = {EventKind.CRASH: "crash", EventKind.HUNG: "crash",
                  EventKind.RESTART: "restart", EventKind.ESCALATE: "give_up"}
 

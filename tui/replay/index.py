@@ -317,10 +317,9 @@ class ReplayIndex:
     def all_faults(self) -> tuple[ActiveFault, ...]:
         """Every fault the recording injects, in the order they began."""
         out = []
-        for f in self._state.get("faults", []) if t >= self._state_t else []:
+        for f in self._state.get("faults", []):  # in force when the recording began
             until = f["start_s"] + f["duration_s"] if f["duration_s"] > 0 else None
-            if until is None or t < until:
-                out.append(ActiveFault(f["id"], f["target"], f["kind"], f["start_s"], until))
+            out.append(ActiveFault(f["id"], f["target"], f["kind"], f["start_s"], until))
         for start, log in self._series.get("/faults", []):
             text = log["message"]
             m = _FOR_S.search(text)
