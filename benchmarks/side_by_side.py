@@ -187,3 +187,97 @@ def compare(base: str, rooms: list[str], seeds: list[int], *, budget_s: float = 
           f"CPU s and >= {TARGET_RATIO:g}x the base per room ('!' marks a miss)")
     print(json.dumps(figures))
     return figures
+
+
+@dataclass(frozen=True, slots=True)
+class Campaign:
+    """One tree's campaign run."""
+
+    games: int
+    cpu_s: float
+    """CPU seconds of the whole ``hideseek campaign`` process and its workers."""
+    wall_s: float
+    hashes: dict[int, str]
+    """Each game's trace hash, by index."""
+
+    @property
+    def games_per_cpu_min(self) -> float:
+        """Games per CPU minute (the workers' and the parent's CPU together)."""
+        return 60.0 * self.games / max(self.cpu_s, 1e-9)
+
+
+def run_campaign(tree: str, games: int, workers: int, seed: int, timeout_s: float) -> Campaign:
+    """Play a campaign (``hideseek campaign -n games --workers W --seed S``) in ``tree`` and
+    measure it: the CPU time of the process and its workers (`children_cpu_s`, the pool
+    reaped by the process), and each game's trace hash from its results file.
+
+    Raises:
+        RuntimeError: the campaign failed or stored other than ``games`` games.
+    """
+    import sqlite3  # noqa: PLC0415 - only the campaign comparison reads a results file
+    import tempfile  # noqa: PLC0415
+    import time  # noqa: PLC0415
+
+    with tempfile.TemporaryDirectory(prefix="side-by-side-") as tmp:
+        out = os.path.join(tmp, "campaign.sqlite")
+        before, wall0 = children_cpu_s(), time.perf_counter()
+        proc = subprocess.run([sys.executable, "-m", "tui.cli", "campaign", "-n", str(games),
+                               "--workers", str(workers), "--seed", str(seed), "--out", out,
+                               "--no-progress", "--json"], cwd=tree, capture_output=True,
+                              text=True, timeout=timeout_s, check=False)
+        cpu, wall = children_cpu_s() - before, time.perf_counter() - wall0
+        try:
+            with sqlite3.connect(out) as db:
+                hashes = dict(db.execute("SELECT idx, trace_hash FROM campaign_games"))
+        except sqlite3.Error as exc:
+            raise RuntimeError(f"{tree}: campaign stored nothing (exit {proc.returncode}): "
+                               f"{proc.stderr.strip().splitlines()[-1:]}") from exc
+    if len(hashes) != games:
+        raise RuntimeError(f"{tree}: {len(hashes)} of {games} games stored "
+                           f"(exit {proc.returncode})")
+    return Campaign(games, cpu, wall, hashes)
+
+
+def compare_campaign(base: str, games: int, *, workers: int = 2, seed: int = 1,
+                     rounds: int = 1, timeout_s: float = 7200.0) -> dict[str, Any]:
+    """The same campaign in both trees, alternating (``rounds`` each, the tree that goes
+    first swapping): games per CPU minute, their ratio and whether every game kept its
+    trace hash. Prints a table and the figures as JSON (also returned).
+
+    Raises:
+        ValueError: ``base`` holds no tree, or counts below 1.
+    """
+    if not is_tree(base):
+        raise ValueError(f"--base {base!r} holds no tree (no tui/cli.py)")
+    if games < 1 or workers < 1 or rounds < 1:
+        raise ValueError(f"games, workers and rounds must be >= 1, got {games}, {workers}, "
+                         f"{rounds}")
+    trees = {"new": _ROOT, "base": os.path.abspath(base)}
+    for tree in trees.values():
+        byte_compile(tree)
+    load0 = _load()
+    print(f"campaign seed {seed}, {games} games, {workers} workers: this tree against "
+          f"{trees['base']}; load {load0:.2f}", flush=True)
+    runs: dict[str, list[Campaign]] = {k: [] for k in trees}
+    for i in range(rounds):
+        for name in (("base", "new") if i % 2 == 0 else ("new", "base")):
+            c = run_campaign(trees[name], games, workers, seed, timeout_s)
+            runs[name].append(c)
+            print(f"  {name:4s}: {c.cpu_s:7.1f} CPU s, {c.wall_s:7.1f} wall s, "
+                  f"{c.games_per_cpu_min:6.2f} games per CPU min", flush=True)
+    load1 = _load()
+    rate = {k: 60.0 * sum(c.games for c in v) / max(sum(c.cpu_s for c in v), 1e-9)
+            for k, v in runs.items()}
+    same = sum(h == runs["base"][0].hashes.get(i) for c in runs["new"]
+               for i, h in c.hashes.items())
+    total = sum(c.games for c in runs["new"])
+    figures = {"benchmark": "campaign_side_by_side", "base": trees["base"], "seed": seed,
+               "games": games, "workers": workers, "rounds": rounds,
+               "base_games_per_cpu_min": rate["base"], "new_games_per_cpu_min": rate["new"],
+               "ratio": rate["new"] / max(rate["base"], 1e-9), "same_games": same,
+               "games_compared": total, "load": [load0, load1]}
+    print(f"games per CPU minute: base {rate['base']:.2f}, new {rate['new']:.2f}, ratio "
+          f"{figures['ratio']:.2f}; {same}/{total} games keep the base's trace hash; "
+          f"load {load0:.2f} -> {load1:.2f}")
+    print(json.dumps(figures))
+    return figures

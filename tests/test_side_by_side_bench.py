@@ -24,3 +24,18 @@ def test_base_with_no_rounds_is_one_error_line_and_status_2(capsys):
     assert main(["--base", ".", "--scenarios", "empty", "--rounds", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--rounds" in err[0]
+
+
+def test_campaign_base_that_holds_no_tree_is_refused(tmp_path):
+    from benchmarks.side_by_side import compare_campaign
+
+    with pytest.raises(ValueError, match="holds no tree"):
+        compare_campaign(str(tmp_path), 4)
+    with pytest.raises(ValueError, match="must be >= 1"):
+        compare_campaign(".", 0)
+
+
+def test_games_per_cpu_minute_counts_the_workers_cpu():
+    from benchmarks.side_by_side import Campaign
+
+    assert Campaign(10, 120.0, 70.0, {}).games_per_cpu_min == pytest.approx(5.0)
