@@ -111,6 +111,21 @@ def _load() -> float:
         return -1.0
 
 
+def _trees(base: str) -> dict[str, str]:
+    """This tree and ``base`` by name ("new", "base"), both byte-compiled, so that no timed
+    process pays for compiling them.
+
+    Raises:
+        ValueError: ``base`` holds no tree.
+    """
+    if not is_tree(base):
+        raise ValueError(f"--base {base!r} holds no tree (no tui/cli.py)")
+    trees = {"new": _ROOT, "base": os.path.abspath(base)}
+    for tree in trees.values():
+        byte_compile(tree)
+    return trees
+
+
 def compare(base: str, rooms: list[str], seeds: list[int], *, budget_s: float = 1200.0,
             rounds: int = 1, world_runs: int = 3, timeout_s: float = 900.0) -> dict[str, Any]:
     """Play every room and seed in both trees, alternating, print a table and return the
@@ -119,13 +134,9 @@ def compare(base: str, rooms: list[str], seeds: list[int], *, budget_s: float = 
     Raises:
         ValueError: ``base`` holds no tree, or ``rounds`` / ``world_runs`` below 1.
     """
-    if not is_tree(base):
-        raise ValueError(f"--base {base!r} holds no tree (no tui/cli.py)")
     if rounds < 1 or world_runs < 1:
         raise ValueError(f"--rounds and --world-runs must be >= 1, got {rounds}, {world_runs}")
-    trees = {"new": _ROOT, "base": os.path.abspath(base)}
-    for tree in trees.values():
-        byte_compile(tree)
+    trees = _trees(base)
     load0 = _load()
     print(f"this tree {_ROOT} against {trees['base']}; load {load0:.2f} on "
           f"{os.cpu_count()} cores", flush=True)
@@ -247,14 +258,10 @@ def compare_campaign(base: str, games: int, *, workers: int = 2, seed: int = 1,
     Raises:
         ValueError: ``base`` holds no tree, or counts below 1.
     """
-    if not is_tree(base):
-        raise ValueError(f"--base {base!r} holds no tree (no tui/cli.py)")
     if games < 1 or workers < 1 or rounds < 1:
         raise ValueError(f"games, workers and rounds must be >= 1, got {games}, {workers}, "
                          f"{rounds}")
-    trees = {"new": _ROOT, "base": os.path.abspath(base)}
-    for tree in trees.values():
-        byte_compile(tree)
+    trees = _trees(base)
     load0 = _load()
     print(f"campaign seed {seed}, {games} games, {workers} workers: this tree against "
           f"{trees['base']}; load {load0:.2f}", flush=True)
