@@ -1,7 +1,10 @@
 """Campaign throughput: games per wall minute with 1 and with 2 worker processes.
 
 Run as ``python -m benchmarks.campaign [--quick] [--games N] [--budget S]
-[--no-probe | --probe-only]``.
+[--no-probe | --probe-only]``, or ``python -m benchmarks.campaign --base DIR
+[--games N] [--workers W] [--rounds R]`` for games per CPU minute of one
+``hideseek campaign`` in this tree and in a base tree on disk, alternated, with
+each game's trace hash compared (`benchmarks.side_by_side.compare_campaign`).
 The same games (campaign seed 1, single faults, built-in rooms round-robin)
 are played once by a pool of one ``spawn`` worker (the baseline) and once by
 a pool of two; the figure is the ratio of games per wall minute (target
@@ -181,6 +184,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--games", type=int, default=None, help="games per run (default 24)")
     parser.add_argument("--budget", type=float, default=None,
                         help="mapping budget [simulated s] (default 1200, 30 with --quick)")
+    parser.add_argument("--base", default="",
+                        help="a base tree on disk: games per CPU minute of the same campaign "
+                             "there and here, alternated (default 200 games, 2 workers)")
+    parser.add_argument("--workers", type=int, default=2, help="with --base: pool size")
+    parser.add_argument("--rounds", type=int, default=1, help="with --base: runs per tree")
     probing = parser.add_mutually_exclusive_group()
     probing.add_argument("--no-probe", action="store_true",
                          help="skip the CPU contention probe")
@@ -191,6 +199,15 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--games must be within 1..10000, got {args.games}")
     if args.budget is not None and not 0 < args.budget <= 1e6:
         parser.error(f"--budget must be within (0, 1e6] s, got {args.budget}")
+    if args.base:
+        from benchmarks.side_by_side import compare_campaign  # noqa: PLC0415
+
+        try:
+            compare_campaign(args.base, args.games or 200, workers=args.workers,
+                             rounds=args.rounds)
+        except (ValueError, RuntimeError) as exc:
+            parser.error(str(exc))
+        return
     games = args.games or (4 if args.quick else 24)
     budget = args.budget or (30.0 if args.quick else 1200.0)
     config = CampaignConfig(1, mode="single", mapping_budget_s=budget)

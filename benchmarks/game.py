@@ -1,7 +1,10 @@
 """Whole games on every built-in scenario: map quality, the hider's error and speed.
 
 Run as ``python -m benchmarks.game [--quick] [--scenarios a,b] [--seeds 1-5]
-[--workers W] [--budget S]``.
+[--workers W] [--budget S]``, or ``python -m benchmarks.game --base DIR
+[--scenarios a,b] [--seeds 1-3] [--rounds N] [--world-runs N]`` to compare this
+tree with a base tree on disk, the games of both alternated in one run, and
+the world alone's real-time factor beside them (`benchmarks.side_by_side`).
 
 Each game is one headless run (`supervisors.harness.headless.play_game` on a simulated
 system in virtual time), exactly as ``hideseek run`` plays it, plus two probes
@@ -341,19 +344,32 @@ def main(argv: list[str] | None = None) -> int:
                     help="skip mapping: hide and seek on the room's ground-truth map")
     ap.add_argument("--budget", type=float, default=None,
                     help="simulated seconds allowed for mapping (default 1200, quick 600)")
+    ap.add_argument("--base", default="",
+                    help="a base tree on disk: play each game in it and in this tree, "
+                         "alternating, and compare (default seeds 1-3)")
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="with --base: game pairs per room and seed (default 1)")
+    ap.add_argument("--world-runs", type=int, default=3,
+                    help="with --base: world-alone runs per tree (default 3)")
     args = ap.parse_args(argv)
     try:
         names = ([s.strip() for s in args.scenarios.split(",") if s.strip()] if args.scenarios
                  else list(QUICK_SCENARIOS if args.quick else builtin_scenarios()))
         for n in names:
             load_scenario(n)
-        seeds = parse_seeds(args.seeds or ("1" if args.quick else "1-5"))
+        seeds = parse_seeds(args.seeds or ("1" if args.quick else "1-3" if args.base else "1-5"))
         if not 1 <= args.workers <= 64:
             raise ValueError(f"--workers must be within 1..64, got {args.workers}")
-    except (ScenarioError, ValueError, OSError) as exc:
+        budget = args.budget if args.budget is not None else (600.0 if args.quick else 1200.0)
+        if args.base:
+            from benchmarks.side_by_side import compare  # noqa: PLC0415
+
+            compare(args.base, names, seeds, budget_s=budget, rounds=args.rounds,
+                    world_runs=args.world_runs)
+            return 0
+    except (ScenarioError, ValueError, OSError, RuntimeError) as exc:
         print(f"benchmarks.game: {exc}", file=sys.stderr)
         return 2
-    budget = args.budget if args.budget is not None else (600.0 if args.quick else 1200.0)
     jobs = [(n, s, budget, args.truth_map) for n in names for s in seeds]
     where = " on the truth map" if args.truth_map else ""
     print(f"{len(jobs)} games{where} ({', '.join(names)}; seeds {seeds}), "

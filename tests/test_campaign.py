@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 import sqlite3
+import subprocess
+import sys
 from collections import Counter
 
 import pytest
@@ -418,3 +420,17 @@ def test_the_campaign_package_exports_its_public_names():
     from supervisors.harness import campaign  # noqa: PLC0415
 
     assert all(hasattr(campaign, name) for name in campaign.__all__)
+
+
+def test_a_pool_worker_imports_a_games_modules_at_its_start_and_freezes_them():
+    """`start_worker` (the local pool's initializer) imports navigation, not the first game,
+    and leaves those objects out of the cyclic collector's generations."""
+    code = ("import gc, sys\n"
+            "from supervisors.harness.campaign.local import start_worker\n"
+            "assert gc.get_freeze_count() == 0\n"
+            "start_worker()\n"
+            "print(gc.get_freeze_count(), gc.isenabled(),"
+            " 'actors.firmware.nav.factory' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert int(out[0]) > 10_000 and out[1:] == ["True", "True"]

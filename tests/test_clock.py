@@ -201,3 +201,24 @@ def test_fast_instruments_keep_trios_instrument_hooks() -> None:
     seen, after = trio.run(main, clock=virtual_clock())
     assert seen >= 1
     assert after == seen  # nothing after the removal
+
+
+def test_skipped_idle_io_polls_still_hear_threads_and_sockets() -> None:
+    """After `skip_idle_io_polls`, a thread's result (Trio's entry queue) and a socket's
+    data still wake their tasks on the virtual clock, and a second call changes nothing."""
+    from actors.clock import skip_idle_io_polls
+
+    async def main() -> tuple[int, bytes]:
+        skip_idle_io_polls()
+        manager = type(trio.lowlevel.current_root_task()._runner.io_manager)  # noqa: SLF001
+        skip_idle_io_polls()
+        assert type(trio.lowlevel.current_root_task()._runner.io_manager) is manager  # noqa: SLF001
+        value = await trio.to_thread.run_sync(lambda: 7)
+        a, b = trio.socket.socketpair()
+        with a, b:
+            await trio.sleep(1.0)  # a clock jump with the socket waited on next
+            await b.send(b"x")
+            data = await a.recv(1)
+        return value, data
+
+    assert trio.run(main, clock=virtual_clock()) == (7, b"x")

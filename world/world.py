@@ -179,20 +179,25 @@ class World:
 
     def step(self) -> None:
         """Advance one tick and deliver its device events."""
-        now = self.time
-        self._fire_schedule(now)
-        p = self.params
+        now = self.ticks * self.tick_s  # `time`
+        faulty = bool(self._faults)
+        if faulty or self._schedule:  # (with neither, nothing can fire or expire)
+            self._fire_schedule(now)
+            faulty = bool(self._faults)
         dt = self.tick_s
+        physics = self.physics
+        vmax, alpha = self.params.max_speed_cm_s, self._alpha
         for role in ROLES:
             left, right = self.treads[role]
-            strength_l, strength_r = self._strengths(role)
-            vl = left.motor_step(p.max_speed_cm_s, strength_l, self._alpha)
-            vr = right.motor_step(p.max_speed_cm_s, strength_r, self._alpha)
-            self.physics.set_tread_speeds(role, vl, vr)
-        self.physics.step(dt)
+            strength_l, strength_r = self._strengths(role) if faulty else (1.0, 1.0)
+            vl = left.motor_step(vmax, strength_l, alpha)
+            vr = right.motor_step(vmax, strength_r, alpha)
+            physics.set_tread_speeds(role, vl, vr)
+        physics.step(dt)
         self.ticks += 1
         slip = self.rng.standard_normal(2 * len(ROLES)).tolist()  # per tread, every tick
-        self._prev, self._now = self._now, {r: self.physics.state(r) for r in ROLES}
+        state = physics.state
+        self._prev, self._now = self._now, {r: state(r) for r in ROLES}
         for i, role in enumerate(ROLES):
             self._encoders(role, slip[2 * i], slip[2 * i + 1])
             if role == "mapper":
@@ -352,10 +357,9 @@ class World:
             link.set_fault_down(self._faults.find(role, "wifly", "down") is not None)
 
     def _strengths(self, role: str) -> tuple[float, float]:
-        """The share of its speed each tread (left, right) of ``role`` reaches: 1 without
-        faults (one check a tick), 0 stalled, a weak motor's ``strength``."""
-        if not self._faults:
-            return 1.0, 1.0
+        """The share of its speed each tread (left, right) of ``role`` reaches while some
+        fault is active (`step` takes 1 without asking otherwise): 0 stalled, a weak
+        motor's ``strength``, else 1."""
         return self._strength(role, "motor_left"), self._strength(role, "motor_right")
 
     def _strength(self, role: str, device: str) -> float:

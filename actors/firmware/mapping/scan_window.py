@@ -49,7 +49,7 @@ of one batch 0.9989, of two 0.9960, of a revolution (about four batches) with tu
 inside them 0.992 to 0.994; corridor seed 4, windows de-skewed by each flicker's
 quantum 0.9868, windows of one heading 0.9961. Windows spanning a drive's flicker:
 the 40 built-in games at least 0.992, where windows cut at each flicker gave at least
-0.995 (docs/speed.md).
+0.995.
 
 Frame and units
     Stamps are odometry poses ([cm], [deg]); relative poses are in the last batch's
