@@ -13,16 +13,17 @@ Admission beyond the caps: a connection that finds no room (its address is
 blocked after failed hellos, or has ``max_pending_per_address`` links without
 an accepted hello, or the server holds ``max_connections``) is not served;
 whatever it sent already is read (at most `MAX_LINE_BYTES`), and otherwise it
-*waits*, unanswered, for its first line until the hello timeout. When that line is a ``hello`` the
-identity rules accept (`server.hello.Hellos._admit`: a valid token, or an id
-that needs none on loopback), the connection makes room for itself, closing
-the oldest link without an accepted hello of its own address when that
-address's budget is full, else at the cap the oldest of its address or of
-all, and is served at once: a flood of idle connections, or of bad hellos
-that block the address, from a rover's own address or from many, cannot keep
-a rover with its token out, and its hello is answered without waiting for a
-timeout. Any other first line closes it (a
-refused hello counts towards the address's backoff as on any link).
+*waits*, unanswered, for its first line until the hello timeout. When that
+line is a ``hello`` the identity rules accept (`server.hello.Hellos._admit`:
+a valid token, or, from an address that is not blocked, an id that needs none
+on loopback), the connection makes room for itself, closing the oldest link
+without an accepted hello of its own address when that address's budget is
+full, else at the cap the oldest of its address or of all, and is served at
+once: a flood of idle connections, or of bad hellos that block the address,
+from a rover's own address or from many, cannot keep a rover with its token
+out, and its hello is answered without waiting for a timeout. Any other first
+line closes it (a refused hello counts towards the address's backoff as on
+any link).
 
 At most ``max_waiting`` connections wait. When more come, a newer one takes
 the place of the oldest waiting one of the address holding the most
