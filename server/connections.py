@@ -9,19 +9,21 @@ idle timeouts, and a bad-frame budget (a token bucket) per link. Refusals are
 counted in bursts (`server.guard.BurstLog`). Accepting slows, with one event
 per episode, while the process is out of file descriptors.
 
-Admission beyond the caps: a connection that finds no room (its address has
-``max_pending_per_address`` links without an accepted hello, or the server
-holds ``max_connections``) is not served; whatever it sent already is read
-(at most `MAX_LINE_BYTES`), and otherwise it *waits*, unanswered, for its
-first line until the hello timeout. When that line is a ``hello`` the
-identity rules accept (`server.hello.Hellos._admit`: a valid token, or an id
-that needs none on loopback), the connection makes room for itself, closing
-the oldest link without an accepted hello of its own address when that
-address's budget is full, else at the cap the oldest of its address or of
-all, and is served at once: a flood of idle connections, from a rover's own
-address or from many, cannot keep a rover with its token out, and its hello
-is answered without waiting for a timeout. Any other first line closes it (a
-refused hello counts towards the address's backoff as on any link).
+Admission beyond the caps: a connection that finds no room (its address is
+blocked after failed hellos, or has ``max_pending_per_address`` links without
+an accepted hello, or the server holds ``max_connections``) is not served;
+whatever it sent already is read (at most `MAX_LINE_BYTES`), and otherwise it
+*waits*, unanswered, for its first line until the hello timeout. When that
+line is a ``hello`` the identity rules accept (`server.hello.Hellos._admit`:
+a valid token, or, from an address that is not blocked, an id that needs none
+on loopback), the connection makes room for itself, closing the oldest link
+without an accepted hello of its own address when that address's budget is
+full, else at the cap the oldest of its address or of all, and is served at
+once: a flood of idle connections, or of bad hellos that block the address,
+from a rover's own address or from many, cannot keep a rover with its token
+out, and its hello is answered without waiting for a timeout. Any other first
+line closes it (a refused hello counts towards the address's backoff as on
+any link).
 
 At most ``max_waiting`` connections wait. When more come, a newer one takes
 the place of the oldest waiting one of the address holding the most
@@ -74,7 +76,6 @@ __all__ = ["Connections"]
 _READ_SIZE = 4096        # bytes per read [bytes]
 _BURST = 16              # connections taken at once after an awaited accept, at most
 _ACCEPT_STARVED = (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM)
-_BLOCKED = "address blocked after failed hellos"
 FAIR_WAIT_S = 1.0
 """A waiting connection keeps its place this long against newer ones from addresses that
 hold about as many connections without hello as its own [s]."""
@@ -175,9 +176,8 @@ class Connections(ServerCore):
         if not refusal:
             self._serve(stream or _stream(sock), self._new_conn(name, peer=addr, timed=True))
             return
-        first = b"" if refusal == _BLOCKED else _read_now(sock)
-        if first is not None and b"\n" not in first and refusal != _BLOCKED \
-                and self.config.max_waiting > 0:
+        first = _read_now(sock)
+        if first is not None and b"\n" not in first and self.config.max_waiting > 0:
             victim = None
             if len(self._waiting) >= self.config.max_waiting:
                 victim = self._waiting_victim(addr, now)
@@ -209,7 +209,7 @@ class Connections(ServerCore):
         """Why a new connection from ``addr`` cannot be served now ('' when it can)."""
         cfg = self.config
         if addr and self._backoff.blocked_for(addr, now) > 0:
-            return _BLOCKED
+            return "address blocked after failed hellos"
         if self._pending(addr) >= cfg.max_pending_per_address:
             return "too many connections without hello from one address"
         if len(self._tcp) >= cfg.max_connections:
@@ -226,7 +226,7 @@ class Connections(ServerCore):
         (counted) when it is refused."""
         now = trio.current_time()
         refusal = self._no_room(addr, now)
-        if refusal and refusal != _BLOCKED:
+        if refusal:
             conn = self._proven(addr, name, first, now)
             if conn is not None:
                 if self._make_room(addr):

@@ -53,7 +53,7 @@ class ServerCore:
         self._starved = False                   # accept is out of descriptors
         self.game = Game(start_poses=self._start_poses)
         self.game_id = 0
-        self._fault_ids = 0                     # `fault` frames sent to rovers
+        self._fault_ids = store.last_fault_id()  # the last `fault` frame's id (past runs')
         self._link_seeds = 0                    # link-fault books made
         self.resumed: int | None = None
         """Id of the game this server plays on from an earlier run, None for a new game."""

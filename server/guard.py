@@ -5,9 +5,9 @@ that depends on time takes ``now`` [s]):
 
 * `PeerBackoff`: authentication failures per peer address. After
   ``threshold`` failures an address is blocked for a while, doubling per
-  block up to ``most_s``; a success clears it. The table is bounded (the
-  least recently seen address is forgotten first), so a flood of addresses
-  cannot grow it.
+  block up to ``most_s``; a success outside a block clears it. The table is
+  bounded (the least recently seen address is forgotten first), so a flood of
+  addresses cannot grow it.
 * `BurstLog`: counts occurrences (bad frames, auth failures) by kind, fault
   and link. The first one after a quiet period is reported at once; the rest
   are summed and reported as one summary when the interval is over, so a
@@ -64,9 +64,12 @@ class PeerBackoff:
         peer.blocked_until = now + block
         return block
 
-    def succeeded(self, addr: str) -> None:
-        """An authenticated hello: forget the address's failures."""
-        self._peers.pop(addr, None)
+    def succeeded(self, addr: str, now: float) -> None:
+        """An authenticated hello: forget the address's failures, unless it is blocked now
+        (a rover that proves its token from an address it shares with a guesser ends
+        no block the guesser earned)."""
+        if self.blocked_for(addr, now) == 0:
+            self._peers.pop(addr, None)
 
     def __len__(self) -> int:
         return len(self._peers)

@@ -77,7 +77,7 @@ class Hellos(ServerCore):
             self._auth_failed(conn, refusal, frame, hello.id)
             return
         if conn.peer:
-            self._backoff.succeeded(conn.peer)
+            self._backoff.succeeded(conn.peer, now)
         if conn.pre_due:  # errors answered before this hello leave before the welcome
             conn.pre_due = False
             self._flush_conn(conn)

@@ -340,6 +340,13 @@ class Store:
             "INSERT INTO events (run_id, game_id, t, kind, rover, data) VALUES (?,?,?,?,?,?)",
             (self.run_id, game_id, t, kind, rover, json.dumps(data or {}, default=str)))
 
+    def last_fault_id(self) -> int:
+        """The highest ``fault_id`` of a ``fault_sent`` event in the store (0 when none), so a
+        later server numbers its faults past every one a rover may remember."""
+        row = self._db.execute("SELECT MAX(CAST(json_extract(data, '$.fault_id') AS INTEGER)) "
+                               "FROM events WHERE kind = 'fault_sent'").fetchone()
+        return int(row[0] or 0)
+
     def events(self, game_id: int | None = None) -> list[tuple[float, str, str, dict]]:
         """(t, kind, rover, data) of the events of one game (or all), in order."""
         if game_id is None:

@@ -3,8 +3,10 @@
 `admit` decides one ``hello`` from the facts the server knows about the link
 and about the session the id already has; it reads no clock and changes
 nothing, so every rule is testable alone. Tokens are compared with
-`hmac.compare_digest` (constant time). The server counts refusals, closes
-links and blocks addresses (`server.guard`).
+`hmac.compare_digest` (constant time), once per hello. The server counts
+refusals, closes links and blocks addresses (`server.guard`); a blocked
+address's hellos are refused unless they prove a token, so failures from an
+address a rover shares (NAT, a serial-to-TCP bridge) cannot lock it out.
 """
 
 from __future__ import annotations
@@ -40,7 +42,8 @@ def admit(hello: Hello, config: ServerConfig, *, trusted: bool, peer: str | None
         trusted: the hello came on a memory link.
         peer: the TCP peer address, None for other links.
         bound_id: the id the link already speaks for, None before its first hello.
-        blocked_s: how long the peer address stays blocked after failed hellos [s].
+        blocked_s: how long the peer address stays blocked after failed hellos [s]; a
+            hello with its id's token is admitted all the same.
         held: the link the id is bound to now, None when it has none.
         sim_roles: roles played by simulated rovers.
     """
@@ -48,7 +51,10 @@ def admit(hello: Hello, config: ServerConfig, *, trusted: bool, peer: str | None
     if bound_id is not None and bound_id != rid:
         return FrameError(Fault.NOT_ALLOWED, f"this link speaks for {bound_id!r}; "
                           "one rover id per link"), False
-    if blocked_s > 0:
+    want = None if trusted else config.tokens.get(rid, config.tokens.get("*"))
+    proved = want is not None and hmac.compare_digest((hello.token or "").encode(),
+                                                      want.encode())
+    if blocked_s > 0 and not proved:  # a backoff slows guessing; a right token is no guess
         return FrameError(Fault.AUTH, f"too many failed hellos from {peer}; "
                           f"try again in {blocked_s:.0f} s"), False
     if not trusted:
@@ -62,20 +68,17 @@ def admit(hello: Hello, config: ServerConfig, *, trusted: bool, peer: str | None
                               "given it"), False
     if trusted:
         return None, False
-    want = config.tokens.get(rid, config.tokens.get("*"))
-    by_token = False
     if want is not None:
-        if not hmac.compare_digest((hello.token or "").encode(), want.encode()):
+        if not proved:
             return FrameError(Fault.AUTH, f"bad or missing token for {rid!r}"), False
-        by_token = True
     elif peer and not is_loopback(peer):
         return FrameError(Fault.AUTH, f"{rid!r} has no token and this link is not "
                           "loopback"), False
-    if held is not None and held.other_link and held.live and not by_token:
+    if held is not None and held.other_link and held.live and not proved:
         return FrameError(Fault.AUTH, f"{rid!r} is live on another link; without a token "
                           f"a new link may take over after {config.down_after_s:g} s of "
                           "silence"), False
-    return None, by_token
+    return None, proved
 
 
 def ids_without_token(config: ServerConfig) -> str:

@@ -6,15 +6,18 @@ from server.guard import BurstLog, PeerBackoff
 
 
 def test_peer_backoff_blocks_after_threshold_and_doubles() -> None:
-    """Five failures block for 1 s, the next five for 2 s ...; success forgets the address."""
+    """Five failures block for 1 s, the next five for 2 s ...; a success after the block
+    forgets the address, one during it does not end it."""
     b = PeerBackoff(threshold=5, first_s=1.0, most_s=4.0)
     assert [b.failed("a", 0.0) for _ in range(5)] == [0, 0, 0, 0, 1.0]
     assert b.blocked_for("a", 0.5) == 0.5 and b.blocked_for("b", 0.5) == 0
     assert [b.failed("a", 2.0) for _ in range(5)][-1] == 2.0
     assert [b.failed("a", 5.0) for _ in range(5)][-1] == 4.0
     assert [b.failed("a", 9.0) for _ in range(5)][-1] == 4.0  # capped at most_s
-    b.succeeded("a")
-    assert b.blocked_for("a", 9.5) == 0 and len(b) == 0
+    b.succeeded("a", 10.0)  # blocked until 13 s: a token-holder sharing the address
+    assert b.blocked_for("a", 12.5) == 0.5
+    b.succeeded("a", 13.0)
+    assert b.blocked_for("a", 13.0) == 0 and len(b) == 0
 
 
 def test_peer_backoff_table_is_bounded() -> None:

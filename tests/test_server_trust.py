@@ -210,8 +210,9 @@ def test_tokens_are_compared_in_constant_time(monkeypatch) -> None:
 
 def test_guessing_closes_the_link_and_blocks_the_address() -> None:
     """Five wrong tokens close the TCP connection (the right one is never tried on it);
-    the address is then blocked for a while, even for the right token. The failures
-    are stored as one event and one summary, not one row per guess."""
+    the address is then blocked for a while: a new connection from it is heard for one
+    hello, closed when that is refused. The failures are stored as one event and one
+    summary, not one row per guess."""
     store = Store(":memory:")
 
     async def main() -> None:
@@ -227,18 +228,49 @@ def test_guessing_closes_the_link_and_blocks_the_address() -> None:
             frames = [decode_line(x) for x in got.splitlines()]
             assert [f.cmd for f in frames] == ["error"] * 5
             assert not s.snapshot().rovers
-            again = await open_raw_tcp(port)  # blocked address: closed at once
-            _, closed = await read_until_closed(again, 1)
-            assert closed
+            again = await open_raw_tcp(port)  # blocked address: one hello, then closed
+            await again.send_all(hello("h1", "hider", token="guess5")
+                                 + hello("h1", "hider", token="sesame"))
+            got, closed = await read_until_closed(again, 1)
+            assert closed and b'"welcome"' not in got
             await trio.sleep(1.5)  # the first block is 1 s
             ok = await open_raw_tcp(port)
             await ok.send_all(hello("h1", "hider", token="sesame"))
             got, _ = await read_until_closed(ok, 0.5)
             assert b'"welcome"' in got
-            assert s.snapshot().refused["auth_failed"] == 5
+            assert s.snapshot().refused["auth_failed"] == 6
 
     run(main)
     kinds = [k for _, k, _, _ in store.events()]
     assert kinds.count("auth_failed") == 1
     summary = [d for _, k, _, d in store.events() if k == "auth_failed_summary"]
-    assert [d["count"] for d in summary] == [4]  # the first was stored as it happened
+    assert [d["count"] for d in summary] == [5]  # the first was stored as it happened
+
+
+def test_bad_hellos_from_a_shared_address_cannot_lock_a_token_holder_out() -> None:
+    """Five bad hellos from 127.0.0.1 block it; a rover with the right token from the same
+    address is welcomed at once all the same, and the block goes on for everyone else:
+    a tokenless hello (which loopback would otherwise admit) and a wrong token are
+    refused, their connections closed."""
+    async def main() -> None:
+        config = ServerConfig(rovers=frozenset({"h1", "h2"}), tokens={"h1": "sesame"})
+        async with open_server(Store(":memory:"), config) as s:
+            port = await s.listen_tcp("127.0.0.1", 0)
+            guesser = await open_raw_tcp(port)
+            for k in range(5):
+                await guesser.send_all(hello("h1", "hider", token=f"guess{k}"))
+            _, closed = await read_until_closed(guesser, 1)
+            assert closed
+            rover = await open_raw_tcp(port)
+            await rover.send_all(hello("h1", "hider", token="sesame"))
+            got, _ = await read_until_closed(rover, 0.1)
+            assert b'"welcome"' in got
+            assert [r.id for r in s.snapshot().rovers] == ["h1"]
+            for line in (hello("h2", "seeker"), hello("h1", "hider", token="guess5")):
+                other = await open_raw_tcp(port)
+                await other.send_all(line)
+                got, closed = await read_until_closed(other, 0.1)
+                assert closed and b'"welcome"' not in got
+            assert [r.id for r in s.snapshot().rovers] == ["h1"]
+
+    run(main)

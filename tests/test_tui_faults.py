@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import asyncio
 
-from textual.widgets import Button, Input, Select
+from textual.app import App
+from textual.widgets import Button, Input, Label, Select
 
 from tests.test_tui_app import press, until
 from tui.app import ConsoleApp
 from tui.live import LiveSystem
+from tui.snapshot import FaultTarget
 from tui.widgets import FaultDialog
-from tui.widgets.fault_dialog import format_params, parse_params
+from tui.widgets.fault_dialog import FaultRequest, format_params, parse_params
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS, ROLE_ACTORS
 from world.scenario import load_scenario
 
@@ -102,3 +104,106 @@ def test_fault_parameters_parse_and_refuse_what_the_kind_does_not_take() -> None
             assert why in str(exc)
         else:
             raise AssertionError(f"{bad!r} was accepted")
+
+
+#: a console's catalogue with the mapper attached: its targets come after every
+#: simulated rover's
+ATTACHED_LAST = tuple(FaultTarget(f"{role}/{dev}", ("crash", "hang"))
+                      for role in ("hider", "seeker") for dev in ("wifly", "motor", "ir", "nav")
+                      ) + (FaultTarget("mapper/lidar", ("dead", "crash")),
+                           FaultTarget("mapper/nav", ("crash",)),
+                           FaultTarget("mapper/link", ("down", "loss"),
+                                       {"loss": {"percent": 20.0}}))
+
+
+class _DialogHost(App):
+    """An app that opens the fault dialog on ``catalogue`` and keeps what it returns."""
+
+    def __init__(self, catalogue: tuple[FaultTarget, ...]) -> None:
+        super().__init__()
+        self.catalogue = catalogue
+        self.result: FaultRequest | None | str = "open"
+
+    def on_mount(self) -> None:
+        self.push_screen(FaultDialog(self.catalogue), self._done)
+
+    def _done(self, result: FaultRequest | None) -> None:
+        self.result = result
+
+
+def test_an_attached_rovers_targets_are_a_few_keys_away_in_the_fault_dialog() -> None:
+    """The dialog groups targets by rover: typing the rover's initial in the rover list
+    leaves only its targets, so the attached mapper's link (last of 11 targets) is chosen,
+    given a kind and injected with 14 key presses."""
+    keys = ["enter", "m", "enter",            # rover: mapper
+            "tab", "enter", "up", "enter",    # target: its last, mapper/link
+            "tab", "enter", "down", "down", "enter",  # kind: loss (percent=20 shown)
+            "tab", "enter"]                   # duration empty: submitted, until cleared
+    seen: dict[str, object] = {}
+
+    async def main() -> FaultRequest | None | str:
+        app = _DialogHost(ATTACHED_LAST)
+        async with app.run_test(size=(100, 40)) as pilot:
+            await pilot.pause()
+            dialog = app.screen
+            assert isinstance(dialog, FaultDialog)
+            seen["all"] = dialog.targets()
+            for key in keys[:3]:
+                await pilot.press(key)
+            await pilot.pause()
+            seen["mapper"] = [v for _, v in dialog.query_one("#target", Select)._options
+                              if isinstance(v, str)]
+            for key in keys[3:]:
+                await pilot.press(key)
+            await pilot.pause()
+        return app.result
+
+    result = asyncio.run(main())
+    assert seen["all"] == [t.target for t in ATTACHED_LAST]
+    assert seen["mapper"] == ["mapper/lidar", "mapper/nav", "mapper/link"]
+    assert result == FaultRequest("inject", "mapper/link", "loss", None, {"percent": 20.0})
+
+
+def test_fault_dialog_groups_targets_by_rover_and_keeps_a_chosen_target_of_that_rover() -> None:
+    """Targets of interleaved catalogue entries are listed rover by rover; choosing a
+    target's own rover keeps it, another rover's clears it, no rover lists all again."""
+    catalogue = (FaultTarget("mapper/lidar", ("dead",)), FaultTarget("hider/motor", ("crash",)),
+                 FaultTarget("mapper.lidar", ("stuck",)), FaultTarget("hider/nav", ("hang",)))
+
+    async def main() -> list:
+        app = _DialogHost(catalogue)
+        out: list = []
+        async with app.run_test(size=(100, 40)) as pilot:
+            await pilot.pause()
+            dialog = app.screen
+            rover, target = dialog.query_one("#rover", Select), dialog.query_one("#target", Select)
+            out.append(dialog.targets())
+            target.value = "hider/nav"
+            for choice in ("hider", "mapper", None):
+                if choice is None:
+                    rover.clear()
+                else:
+                    rover.value = choice
+                await pilot.pause()
+                out.append((None if target.is_blank() else target.value,
+                            [v for _, v in target._options if isinstance(v, str)]))
+        return out
+
+    grouped, hider, mapper, every = asyncio.run(main())
+    assert grouped == ["mapper/lidar", "mapper.lidar", "hider/motor", "hider/nav"]
+    assert hider == ("hider/nav", ["hider/motor", "hider/nav"])
+    assert mapper == (None, ["mapper/lidar", "mapper.lidar"])
+    assert every == (None, grouped)
+
+
+def test_fault_dialog_asks_for_a_target_and_a_kind_before_injecting() -> None:
+    """Inject with nothing chosen says what is missing and keeps the dialog open."""
+    async def main() -> tuple[object, str]:
+        app = _DialogHost(ATTACHED_LAST)
+        async with app.run_test(size=(100, 40)) as pilot:
+            await pilot.pause()
+            app.screen.query_one("#inject", Button).press()
+            await pilot.pause()
+            return app.result, str(app.screen.query_one("#error", Label).render())
+
+    assert asyncio.run(main()) == ("open", "choose a target and a kind")

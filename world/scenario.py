@@ -20,7 +20,7 @@ from typing import Any
 import shapely
 
 from actors.firmware.hardware import ROLES
-from world.faults import check_fault, is_actor_fault
+from world.faults import DEVICE_FAULTS, check_fault, is_actor_fault, split_target
 from world.geometry import Pose, circle, footprint, room_polygon
 from world.params import DeviceParams
 
@@ -35,6 +35,13 @@ MIN_ROOM_CM, MAX_ROOM_CM = 50.0, 5000.0
 MAX_OBSTACLES, MAX_FAULTS, MAX_GUESSES = 500, 200, 50
 
 TOP_KEYS = {"name", "description", "room", "obstacles", "rovers", "game", "devices", "faults"}
+
+#: the target name of a rover's link in ``[[faults]]`` (the server's link-fault target,
+#: ``server.link_faults.LINK_TARGET``; the world may not import the server)
+LINK = "link"
+#: the simulated device whose faults a link's are (the same kinds and parameters:
+#: ``tests/test_link_faults.py`` checks that the two tables agree)
+LINK_DEVICE = "wifly"
 
 
 class ScenarioError(ValueError):
@@ -58,6 +65,14 @@ class ScheduledFault:
     def is_actor_fault(self) -> bool:
         """True for crash/hang/flood: performed by the actor runtime, not the world."""
         return is_actor_fault(self.kind)
+
+    @property
+    def world_target(self) -> str:
+        """The target in a simulated world: ``ROLE/link`` (a rover's link, broken by the
+        server when the rover is attached) is the simulated rover's WiFly, whose faults
+        have the same kinds and parameters."""
+        role, _, device = self.target.partition("/")
+        return f"{role}/{LINK_DEVICE}" if device == LINK else self.target
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,6 +106,19 @@ class Scenario:
     def actor_faults(self) -> tuple[ScheduledFault, ...]:
         """The scheduled crash/hang/flood faults, for the system to hand to the runtime."""
         return tuple(f for f in self.faults if f.is_actor_fault)
+
+
+def _check_scheduled(target: Any, kind: Any, duration_s: Any,
+                     params: dict[str, Any]) -> dict[str, float]:
+    """`check_fault` for a ``[[faults]]`` entry, which may also name ``ROLE/link`` with a
+    link fault's kind (a WiFly device fault's)."""
+    if isinstance(target, str) and target.endswith(f"/{LINK}"):
+        role, _ = split_target(target)
+        if kind not in DEVICE_FAULTS[LINK_DEVICE]:
+            raise ValueError(f"link faults are {', '.join(DEVICE_FAULTS[LINK_DEVICE])}, "
+                             f"got {kind!r}")
+        return check_fault(f"{role}/{LINK_DEVICE}", kind, duration_s, params)
+    return check_fault(target, kind, duration_s, params)
 
 
 # --------------------------------------------------------------------- public API
@@ -309,7 +337,8 @@ class _Parser:
             if not isinstance(params, dict):
                 raise self.fail(f"{key}.params", "must be a table")
             try:
-                full = check_fault(item["target"], item["kind"], item.get("duration_s", 0), params)
+                full = _check_scheduled(item["target"], item["kind"], item.get("duration_s", 0),
+                                        params)
             except ValueError as exc:
                 raise self.fail(key, str(exc)) from None
             out.append(ScheduledFault(float(at), item["target"], item["kind"],

@@ -336,11 +336,12 @@ class World:
     def _fire_schedule(self, now: float) -> None:
         while self._schedule and self._schedule[0].at_s <= now + 1e-9:
             f = self._schedule.pop(0)
-            fault = self._faults.add(f.target, f.kind, now, f.duration_s, dict(f.params))
-            self._emit("fault_injected", f.target, {"id": fault.id, "kind": f.kind,
-                                                    "duration_s": f.duration_s,
-                                                    "params": dict(f.params),
-                                                    "scheduled": True})
+            target = f.world_target  # a rover's link is its WiFly here
+            fault = self._faults.add(target, f.kind, now, f.duration_s, dict(f.params))
+            self._emit("fault_injected", target, {"id": fault.id, "kind": f.kind,
+                                                  "duration_s": f.duration_s,
+                                                  "params": dict(f.params),
+                                                  "scheduled": True})
             self._apply_link_faults()
         gone = self._faults.expired(now)
         if gone:

@@ -6,6 +6,11 @@ actor fault (``mapper/lidar`` is both a device and an actor: ``dead`` ...
 ``noisy`` and ``crash`` / ``hang`` / ``flood``). A kind that takes parameters
 fills the parameter field with its defaults (``sigma_cm=10``), to edit.
 Dismisses with a `FaultRequest` or None.
+
+Targets are grouped by rover: the target list holds every rover's targets, one
+rover after another, until a rover is chosen in the first list, and then that
+rover's only, so an attached rover's targets (listed after the simulated
+ones) are two choices away by keyboard, as any rover's are.
 """
 
 from __future__ import annotations
@@ -20,7 +25,14 @@ from textual.widgets import Button, Input, Label, Select
 
 from tui.snapshot import ActiveFault, FaultTarget
 
-__all__ = ["FaultDialog", "FaultRequest", "parse_duration", "parse_params", "format_params"]
+__all__ = ["FaultDialog", "FaultRequest", "parse_duration", "parse_params", "format_params",
+           "rover_of"]
+
+
+def rover_of(target: str) -> str:
+    """The rover a catalogue target belongs to: ``mapper/lidar`` and ``mapper.lidar`` ->
+    ``mapper``."""
+    return target.replace(".", "/").partition("/")[0]
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,16 +124,26 @@ class FaultDialog(ModalScreen[FaultRequest | None]):
         self.active = active
         self._kinds: dict[str, tuple[str, ...]] = {}
         self._params: dict[tuple[str, str], dict[str, float]] = {}
+        self._rovers: dict[str, list[str]] = {}
+        """Rover -> its targets, rovers and targets in catalogue order."""
         for t in catalogue:  # a target listed twice offers the kinds of both
             kinds = self._kinds.get(t.target, ())
+            if not kinds:
+                self._rovers.setdefault(rover_of(t.target), []).append(t.target)
             self._kinds[t.target] = kinds + tuple(k for k in t.kinds if k not in kinds)
             for kind, params in t.params.items():
                 self._params[(t.target, kind)] = dict(params)
 
+    def targets(self, rover: str | None = None) -> list[str]:
+        """The target list: ``rover``'s targets, or every rover's grouped by rover."""
+        rovers = [rover] if rover in self._rovers else list(self._rovers)
+        return [t for r in rovers for t in self._rovers[r]]
+
     def compose(self) -> ComposeResult:
         with Vertical():
             yield Label("[b]Inject a fault[/b]")
-            yield Select([(t, t) for t in self._kinds], prompt="target", id="target")
+            yield Select([(r, r) for r in self._rovers], prompt="rover: all", id="rover")
+            yield Select([(t, t) for t in self.targets()], prompt="target", id="target")
             yield Select([], prompt="kind", id="kind")
             yield Input(placeholder="duration [s], empty = until cleared", id="duration")
             yield Input(placeholder="parameters: none", id="params", disabled=True)
@@ -137,7 +159,14 @@ class FaultDialog(ModalScreen[FaultRequest | None]):
                 yield Button("Clear", variant="success", id="clear")
 
     def on_select_changed(self, event: Select.Changed) -> None:
-        if event.select.id == "target":
+        if event.select.id == "rover":
+            rover = None if event.select.is_blank() else str(event.value)
+            target = self.query_one("#target", Select)
+            chosen = target.value
+            target.set_options([(t, t) for t in self.targets(rover)])
+            if chosen in self.targets(rover):  # the rover of the chosen target: keep it
+                target.value = chosen
+        elif event.select.id == "target":
             kinds = self._kinds.get(str(event.value), ())
             self.query_one("#kind", Select).set_options([(k, k) for k in kinds])
             self._show_params({})
@@ -158,22 +187,22 @@ class FaultDialog(ModalScreen[FaultRequest | None]):
         elif event.button.id == "inject":
             self._inject()
         elif event.button.id == "clear":
-            value = self.query_one("#active", Select).value
-            if value is Select.BLANK:
+            active = self.query_one("#active", Select)
+            if active.is_blank():
                 self._error("choose a fault to clear")
             else:
-                self.dismiss(FaultRequest("clear", str(value)))
+                self.dismiss(FaultRequest("clear", str(active.value)))
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         event.stop()
         self._inject()
 
     def _inject(self) -> None:
-        target = self.query_one("#target", Select).value
-        kind = self.query_one("#kind", Select).value
-        if target is Select.BLANK or kind is Select.BLANK:
+        target_list, kind_list = self.query_one("#target", Select), self.query_one("#kind", Select)
+        if target_list.is_blank() or kind_list.is_blank():
             self._error("choose a target and a kind")
             return
+        target, kind = target_list.value, kind_list.value
         try:
             duration = parse_duration(self.query_one("#duration", Input).value)
             params = parse_params(self.query_one("#params", Input).value,

@@ -64,7 +64,7 @@ from actors import Actor, BufferPool, Message, PoolExhausted, Timer
 from actors.firmware.addresses import Addresses
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import WiflyUartIsr
-from actors.firmware.fault_port import FaultPort
+from actors.firmware.fault_port import AnsweredFaults, FaultPort
 from actors.firmware.hardware import Interrupt, RoverHardware
 from server.protocol import (
     ERROR,
@@ -113,7 +113,7 @@ class LinkMemory:
         session: the session (a new one with default timing when None).
     """
 
-    __slots__ = ("session", "backlog", "to_nav", "map_id", "dropped")
+    __slots__ = ("session", "backlog", "to_nav", "map_id", "dropped", "faults")
 
     def __init__(self, session: ReliableSession | None = None) -> None:
         self.session = session or ReliableSession(now=trio.current_time())
@@ -126,6 +126,8 @@ class LinkMemory:
         """The last map id uploaded."""
         self.dropped = 0
         """Frames dropped because a bounded queue was full."""
+        self.faults = AnsweredFaults()
+        """The replies to the last faults answered (a resent fault is not applied twice)."""
 
 
 class Wifly(Actor):
@@ -430,11 +432,13 @@ class Wifly(Actor):
                 self._to_nav_put(Cmd.NAV_NET, frame)
 
     def _fault(self, command: Any) -> None:
-        """Answer one ``fault`` (exactly one ``fault_reply``, reliable)."""
+        """Answer one ``fault`` (exactly one ``fault_reply``, reliable); one answered
+        already (`AnsweredFaults`) gets the same reply and is not applied again."""
         if self.fault_port is None:
             result, detail = "unsupported", "this rover takes no faults over the link"
         else:
-            result, detail = self.fault_port.apply(command)
+            assert self.memory is not None
+            result, detail = self.memory.faults.answer(command, self.fault_port.apply)
         self._queue_reliable([make_frame(FAULT_REPLY, {"fault_id": command.fault_id,
                                                        "result": result,
                                                        "detail": detail[:200]})])
