@@ -9,8 +9,9 @@ Algorithm
     crossed by several rays of one batch is one observation, and a cell hit by
     any ray of the batch is not also cleared by another ray of that batch
     (grazing rays would otherwise erase thin walls). Rays are sampled every
-    ``ray_step`` [cells] (half a cell by default) and all samples of the batch
-    are handled at once with numpy; there is no per-cell Python loop.
+    ``ray_step`` [cells] (half a cell by default; the geometry is `ray_samples`)
+    and all samples of the batch are handled at once with numpy; there is no
+    per-cell Python loop.
 
     A return of range 0 means "no return" (nothing within the sensor's range):
     the ray is free up to ``max_range_cm`` and has no hit. So is any return
@@ -50,7 +51,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from actors.firmware.arrays import distinct
-from actors.firmware.mapping.sensor_model import LogOddsModel, check_batch, grazing_shortening
+from actors.firmware.mapping.ray_samples import free_samples, hit_points, inside, ray_geometry
+from actors.firmware.mapping.sensor_model import LogOddsModel, check_batch
 from server.protocol.grid_map import (
     FREE,
     OCCUPIED,
@@ -243,12 +245,14 @@ class OccupancyGrid:
             raise ValueError(f"sizes must be positive and sum to {n}, got {counts}")
         if len(counts) == 1:
             return self._integrate(o[0], o[1], o[2], angles, ranges)
-        has_hit, rays, origin, length_c, free_c = self._rays(o[0], o[1], o[2], angles, ranges)
+        has_hit, rays, origin, length_c, free_c = ray_geometry(
+            o[0], o[1], o[2], angles, ranges, self.model, self.resolution_cm, self.origin_cm)
         first_ray = np.cumsum([0] + counts)
-        free = self._free_samples(rays, origin, free_c, first_ray)
-        hxy = self._hit_points(has_hit, rays, origin, length_c)
+        free = free_samples(rays, origin, free_c, self.model.ray_step, self._ramp,
+                            self._log_odds.shape, first_ray)
+        hxy = hit_points(has_hit, rays, origin, length_c)
         hit_rc = np.floor(hxy).astype(np.int64)
-        cells = self._inside(hit_rc[1], hit_rc[0])
+        cells = inside(hit_rc[1], hit_rc[0], self._log_odds.shape)
         if free is None or cells.size != hit_rc.shape[1]:  # off the grid: batch by batch
             return sum(self._integrate(o[0, a:b], o[1, a:b], o[2, a:b], angles[a:b], ranges[a:b])
                        for a, b in zip(first_ray[:-1], first_ray[1:], strict=True))
@@ -274,14 +278,17 @@ class OccupancyGrid:
         angles, ranges = check_batch(angles_deg, ranges_cm)
         if angles.size == 0:
             return 0
-        has_hit, rays, origin, length_c, free_c = self._rays(x, y, heading_deg, angles, ranges)
-        free_flat = self._free_samples(rays, origin, free_c)[0]
+        has_hit, rays, origin, length_c, free_c = ray_geometry(
+            x, y, heading_deg, angles, ranges, self.model, self.resolution_cm, self.origin_cm)
+        free_flat = free_samples(rays, origin, free_c, self.model.ray_step, self._ramp,
+                                 self._log_odds.shape)[0]
 
-        hxy = self._hit_points(has_hit, rays, origin, length_c)
+        hxy = hit_points(has_hit, rays, origin, length_c)
         hit_rc = np.floor(hxy).astype(np.int64)
         # the distinct hit cells, and the distinct free ones: a cell hit by a ray of the
         # batch is not also cleared by another
-        free_idx, hit_idx = self._distinct(free_flat, self._inside(hit_rc[1], hit_rc[0]))
+        free_idx, hit_idx = self._distinct(free_flat,
+                                           inside(hit_rc[1], hit_rc[0], self._log_odds.shape))
 
         changed = self._update(free_idx, hit_idx)
         self._splat_hits(hxy[0], hxy[1])
@@ -290,132 +297,6 @@ class OccupancyGrid:
         self.rays += int(angles.size)
         self.changed_total += changed
         return changed
-
-    def _rays(self, x: float | np.ndarray, y: float | np.ndarray,
-              heading_deg: float | np.ndarray, angles: np.ndarray, ranges: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None, np.ndarray,
-                         np.ndarray]:
-        """The rays' geometry in cell units, from one pose (floats) or one per beam
-        (arrays): whether each ray hit; ``rays``, the rows ``cos``, ``sin`` of each ray's
-        direction and, from one pose per beam, ``px``, ``py`` of its origin (one array:
-        the samples and the hits repeat or select all rows in one call); the origin
-        (``px``, ``py``) from one pose, else None; each ray's length and its free length
-        (strictly before its end, which is pulled back on rays that graze their surface,
-        `sensor_model.grazing_shortening`)."""
-        m = self.model
-        res = self.resolution_cm
-        ox, oy = self.origin_cm
-        has_hit = (ranges > 0) & (ranges <= m.max_range_cm)
-        length = np.where(has_hit, ranges, m.max_range_cm)  # [cm]
-        theta = np.radians(angles + heading_deg)
-        per_beam = isinstance(x, np.ndarray)
-        rays = np.empty((4 if per_beam else 2, angles.size))
-        np.cos(theta, out=rays[0])
-        np.sin(theta, out=rays[1])
-        origin = None
-        if per_beam:
-            np.subtract(x, ox, out=rays[2])
-            rays[2] /= res
-            np.subtract(y, oy, out=rays[3])
-            rays[3] /= res
-        else:
-            origin = ((x - ox) / res, (y - oy) / res)
-        length_c = length / res
-        free_c = length_c
-        if m.grazing_margin_cells > 0 and angles.size > 1:
-            free_c = length_c - grazing_shortening(angles, ranges, has_hit, res,
-                                                    m.grazing_margin_cells)
-        return has_hit, rays, origin, length_c, free_c
-
-    def _hit_points(self, has_hit: np.ndarray, rays: np.ndarray,
-                    origin: tuple[float, float] | None,
-              length_c: np.ndarray) -> np.ndarray:
-        """The hits [cells] of the rays that hit, (2, h): the rows x, y (``x = px + cos
-        length``; as its sum, ``cos length + px`` is the same float)."""
-        hit = rays.compress(has_hit, axis=1)
-        hxy = hit[:2]
-        hxy *= length_c.compress(has_hit)
-        hxy += hit[2:] if origin is None else np.array([[origin[0]], [origin[1]]])
-        return hxy
-
-    def _free_samples(self, rays: np.ndarray, origin: tuple[float, float] | None,
-                      free_c: np.ndarray, first_ray: np.ndarray | None = None
-                      ) -> tuple[np.ndarray, np.ndarray | None] | None:
-        """Flat indices (in the grid, with repeats) of the samples of every ray at
-        t = 0, step, 2 step, ... strictly before its free length ``free_c`` [cells],
-        from the ray origin (``px``, ``py``) [cells; ``origin`` for all rays, or the rows
-        of ``rays`` per ray] along (``cos``, ``sin``) (``rays``, as `_rays` gives them).
-
-        A sample in the cell of the sample before it is left out (half-cell steps put
-        about two samples in each cell): the same cells, half the indices for
-        `_distinct`.
-
-        Returns:
-            (indices, None); with ``first_ray`` (the index of each batch's first ray, and
-            the ray count last), (indices, where each batch's samples start in them, and
-            their count last), a batch's first sample always kept, or None when some
-            sample lies off the grid. Without it, samples off the grid are dropped.
-        """
-        step = self.model.ray_step
-        n_samples = np.ceil(np.maximum(free_c, 0.0) / step).astype(np.int64)
-        total = int(np.add.reduce(n_samples))
-        start = n_samples.cumsum()
-        start -= n_samples
-        if total == 0:
-            empty = np.empty(0, dtype=np.int64)
-            return empty, (None if first_ray is None else np.zeros(len(first_ray), np.int64))
-        # sample k of its ray at t = k step, as a ramp over the whole batch less each
-        # ray's offset (all exact multiples of the step: the same floats as k * step);
-        # both axes at once, each ray's (cos, sin) repeated per sample (cheaper than
-        # gathering them by a ray index) together with its origin and its offset (one
-        # repeat), the arithmetic in place: the same operations in the same order as
-        # x = cos * t + px, so the same cells
-        k = rays.shape[0]
-        per_ray = np.empty((k + 1, rays.shape[1]))
-        per_ray[:k] = rays
-        np.multiply(start, -step, out=per_ray[k])
-        rows = per_ray.repeat(n_samples, axis=1)
-        t = rows[k]
-        t += self._ramp(total)  # (-offset + ramp: the same float as ramp - offset)
-        xy = rows[:2]
-        xy *= t
-        if origin is None:  # one origin per ray: repeated with the rest
-            xy += rows[2:k]
-            x0, y0 = np.minimum.reduce(rays[2:], axis=1).tolist()
-            x1, y1 = np.maximum.reduce(rays[2:], axis=1).tolist()
-        else:
-            xy += np.array([[origin[0]], [origin[1]]])
-            x0 = x1 = origin[0]
-            y0 = y1 = origin[1]
-        np.floor(xy, out=xy)
-        fx, fy = xy
-        ny, nx = self._log_odds.shape
-        # |cos t| <= t for every sample, and rounding is monotonic: all of them lie
-        # within the farthest sample's t of its origin, so when that square round every
-        # origin is on the grid, so is every sample, and the flat index is formed in
-        # floats (whole numbers far below 2**53: exact)
-        reach = (int(np.maximum.reduce(n_samples)) - 1) * step
-        if not (x0 - reach >= 0 and y0 - reach >= 0 and x1 + reach < nx and y1 + reach < ny):
-            if first_ray is not None:
-                return None
-            return self._inside(fy.astype(np.int64), fx.astype(np.int64)), None
-        fy *= nx
-        fy += fx
-        # a sample in the cell of the sample before it adds nothing
-        keep = np.concatenate(([True], fy[1:] != fy[:-1]))
-        if first_ray is None:
-            # (`compress`, not a boolean index: twice as fast on an irregular mask)
-            return fy.compress(keep).astype(np.int64), None
-        # each batch's first sample is kept (it is its own observation); where each
-        # batch's kept samples start: the kept samples before its first sample
-        first = np.append(start, total)[first_ray].tolist()
-        kept = [0]
-        for a, b in zip(first[:-1], first[1:], strict=True):
-            if a < total:
-                keep[a] = True
-            # (a count per batch, not a cumulative sum over every sample: 2 against 43 us)
-            kept.append(kept[-1] + int(np.count_nonzero(keep[a:b])))
-        return fy.compress(keep).astype(np.int64), np.array(kept)
 
     def _ramp(self, n: int) -> np.ndarray:
         """0, step, 2 step, ... (n values), from a cached ramp grown as needed."""
@@ -500,14 +381,6 @@ class OccupancyGrid:
         # (`compress`, not a boolean index: twice as fast on an irregular mask)
         return (flat_idx.compress(scratch[flat_idx] == pos),
                 hits.compress(scratch[hits] == marks))
-
-    def _inside(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Flat indices of the (row, col) cells that lie on the grid (the others dropped)."""
-        ny, nx = self._log_odds.shape
-        # a negative index reads as a huge unsigned one: one comparison per axis
-        inside = (rows.view(np.uint64) < ny) & (cols.view(np.uint64) < nx)
-        flat = rows * nx + cols
-        return flat if np.logical_and.reduce(inside) else flat[inside]
 
     def _splat_hits(self, hx: np.ndarray, hy: np.ndarray) -> None:
         """Add each hit [cells] to the four nearest cell centres, bilinearly: the counts
