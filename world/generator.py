@@ -52,17 +52,28 @@ def generate(seed: int, index: int = 0) -> Scenario:
         geoms.append(g)
         obstacles.append(spec)
     hide, decoy = _spots(rng, w, h, geoms)
-    lines = [f'name = "generated-{seed}-{index}"',
-             f'description = "Procedural room {index} of campaign seed {seed}."',
+    heading = float(rng.integers(0, 4) * 90)
+    return room_scenario(f"generated-{seed}-{index}",
+                         f"Procedural room {index} of campaign seed {seed}.",
+                         f"generated:{seed}/{index}", (w, h), obstacles,
+                         (*hide, heading), decoy)
+
+
+def room_scenario(name: str, description: str, source: str, size: tuple[float, float],
+                  obstacles: list[tuple[str, list[float]]],
+                  hide: tuple[float, float, float], decoy: tuple[float, float]) -> Scenario:
+    """A generated room as TOML, parsed back (so it passes a file's validation): the
+    rovers at `STARTS`, the hide spot ``(x, y, heading)`` and guesses (decoy, hide spot)."""
+    w, h = size
+    lines = [f'name = "{name}"', f'description = "{description}"',
              "[room]", f"size_cm = [{w:g}, {h:g}]"]
     for kind, vals in obstacles:
         lines += ["[[obstacles]]", f"{kind} = [{', '.join(f'{v:g}' for v in vals)}]"]
     lines.append("[rovers]")
     lines += [f"{role} = [{x}, {y}, {a}]" for role, (x, y, a) in STARTS.items()]
-    heading = float(rng.integers(0, 4) * 90)
-    lines += ["[game]", f"hide_at = [{hide[0]:g}, {hide[1]:g}, {heading:g}]",
+    lines += ["[game]", f"hide_at = [{hide[0]:g}, {hide[1]:g}, {hide[2]:g}]",
               f"seek_at = [[{decoy[0]:g}, {decoy[1]:g}], [{hide[0]:g}, {hide[1]:g}]]"]
-    return parse_scenario("\n".join(lines) + "\n", f"generated:{seed}/{index}")
+    return parse_scenario("\n".join(lines) + "\n", source)
 
 
 def _spots(rng: np.random.Generator, w: float, h: float,

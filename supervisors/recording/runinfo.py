@@ -25,6 +25,7 @@ from world.scenario import (
     ScheduledFault,
     generate_scenario,
     load_scenario,
+    parse_generated,
     parse_scenario,
 )
 
@@ -107,11 +108,10 @@ class RunInfo:
             base = game_from_ref(rest)[0]
         elif kind == "generated":
             try:
-                s, i = (int(v) for v in rest.split(":"))
-            except ValueError:
+                base = generate_scenario(*parse_generated(rest))
+            except ScenarioError:
                 raise ScenarioError(f"recording: bad scenario reference {self.scenario_ref!r}"
                                     ) from None
-            base = generate_scenario(s, i)
         elif kind == "builtin":
             base = load_scenario(rest)
             if self.toml and scenario_text(base) != self.toml:
