@@ -28,6 +28,7 @@ NARROW_CM = 45.0
 #: how far from both obstacles, as a share of their distance, the passage reaches
 REACH = 0.6
 _SIDE_CM = 10.0     # thickness of the strips standing for the room's sides
+_TOLERANCE_CM = 1e-6  # rounding of coordinates written to 0.1 cm
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,7 +60,7 @@ def narrow_passages(scenario: Scenario, narrow_cm: float = NARROW_CM) -> list[Pa
     for i, a in enumerate(geoms):
         for b in geoms[i + 1:]:
             d = float(a.distance(b))
-            if not 0 < d <= narrow_cm:
+            if not 0 < d <= narrow_cm + _TOLERANCE_CM:
                 continue
             (x0, y0), (x1, y1) = shapely.shortest_line(a, b).coords
             region = (a.buffer(REACH * d).intersection(b.buffer(REACH * d))
