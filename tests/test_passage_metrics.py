@@ -12,6 +12,7 @@ from supervisors.harness.campaign import (
     summarize,
 )
 from supervisors.harness.campaign.play import play_campaign_game
+from supervisors.recording.runinfo import RunInfo
 from tui import cmd_campaign
 from world.passages import PassageCounter, narrow_passages
 from world.scenario import generate_scenario, load_scenario
@@ -133,3 +134,11 @@ def test_a_campaign_game_in_a_passage_room_counts_every_rovers_trips() -> None:
     assert trips["hider"]["through"] >= 1
     for t in trips.values():
         assert t["entries"] == t["through"] + t["back"] + t["inside"]
+
+
+def test_a_recordings_reference_rebuilds_the_room_of_either_family() -> None:
+    for family, ref in (("obstacles", "generated:3:2"), ("passages", "generated:passages:3:2")):
+        room = generate_scenario(3, 2, family)
+        info = RunInfo.for_scenario(room, 5)
+        assert info.scenario_ref == ref
+        assert info.scenario() == room

@@ -118,8 +118,9 @@ def test_the_default_family_draws_the_rooms_it_always_drew() -> None:
 
 
 def test_generated_room_references_read_family_seed_and_index() -> None:
-    assert parse_generated("11:0") == ("obstacles", 11, 0)
-    assert parse_generated("passages:3:2") == ("passages", 3, 2)
+    assert parse_generated("11:0") == (11, 0, "obstacles")
+    assert parse_generated("passages:3:2") == (3, 2, "passages")
+    assert generate_scenario(*parse_generated("passages:3:2")).name == "passages-3-2"
     for bad in ("11", "x:1", "mazes:1:2", "1:2:3:4", "passages:-1:0", ""):
         with pytest.raises(ScenarioError, match="generated room|room family|>= 0"):
             parse_generated(bad)

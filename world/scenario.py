@@ -152,9 +152,9 @@ def generate_scenario(seed: int, index: int = 0, family: str = "obstacles") -> S
                         f"got {family!r}")
 
 
-def parse_generated(text: str) -> tuple[str, int, int]:
+def parse_generated(text: str) -> tuple[int, int, str]:
     """Read ``SEED:INDEX`` (the default family) or ``FAMILY:SEED:INDEX`` into
-    (family, seed, index), what `generate_scenario` takes.
+    (seed, index, family), the arguments of `generate_scenario`.
 
     Raises:
         ScenarioError: malformed text or an unknown family.
@@ -171,7 +171,7 @@ def parse_generated(text: str) -> tuple[str, int, int]:
                             f"got {family!r}")
     if seed < 0 or index < 0:
         raise ScenarioError(f"a generated room's seed and index must be >= 0, got {text!r}")
-    return family, seed, index
+    return seed, index, family
 
 
 def parse_scenario(text: str, source: str = "<string>") -> Scenario:

@@ -1,7 +1,7 @@
 """What a recording says about its run: enough to play the same game again.
 
 A `RunInfo` names how the scenario was made (``builtin:NAME``, ``file:PATH``
-with the file's TOML text kept, ``generated:SEED:INDEX`` or
+with the file's TOML text kept, ``generated:[FAMILY:]SEED:INDEX`` or
 ``campaign:REF``), the seed, the mapping budget and the code version, plus the
 changes a fork made (extra faults, another hide spot or other guesses). It is
 written as the recording's ``hideseek.run`` metadata record and read back by
@@ -63,7 +63,7 @@ class RunInfo:
     """How one headless game was made (see the module docstring)."""
 
     scenario_ref: str
-    """``builtin:NAME``, ``file:PATH``, ``generated:SEED:INDEX`` or ``campaign:REF``."""
+    """``builtin:NAME``, ``file:PATH``, ``generated:[FAMILY:]SEED:INDEX`` or ``campaign:REF``."""
     seed: int
     """The run's seed (the world's noise, the actors' generators, Trio's task order)."""
     budget_s: float = 1200.0
