@@ -37,16 +37,7 @@ def generate(seed: int, index: int = 0) -> Scenario:
     for _ in range(MAX_TRIES):
         if len(geoms) >= want:
             break
-        if rng.random() < 0.6:
-            bw, bh = float(rng.integers(2, 13) * 10), float(rng.integers(2, 13) * 10)
-            x = float(rng.integers(0, int(w - bw) // 10 + 1) * 10)
-            y = float(rng.integers(0, int(h - bh) // 10 + 1) * 10)
-            g, spec = shapely.box(x, y, x + bw, y + bh), ("box", [x, y, bw, bh])
-        else:
-            r = float(rng.integers(10, 41))
-            cx = float(rng.uniform(r + 1, w - r - 1))
-            cy = float(rng.uniform(r + 1, h - r - 1))
-            g, spec = circle(cx, cy, r), ("circle", [round(cx, 1), round(cy, 1), r])
+        g, spec = random_obstacle(rng, w, h)
         if g.intersects(keep_out) or any(g.distance(o) < PASSAGE_CM for o in geoms):
             continue
         geoms.append(g)
@@ -57,6 +48,22 @@ def generate(seed: int, index: int = 0) -> Scenario:
                          f"Procedural room {index} of campaign seed {seed}.",
                          f"generated:{seed}/{index}", (w, h), obstacles,
                          (*hide, heading), decoy)
+
+
+def random_obstacle(rng: np.random.Generator, w: float, h: float, box_cm: int = 120,
+                    radius_cm: int = 40) -> tuple[shapely.Geometry, tuple[str, list[float]]]:
+    """A box (60 %: sides 20..``box_cm`` on a 10 cm grid) or a round obstacle (radius
+    10..``radius_cm``) inside a ``w`` x ``h`` room [cm]: (geometry, scenario spec)."""
+    if rng.random() < 0.6:
+        top = box_cm // 10 + 1
+        bw, bh = float(rng.integers(2, top) * 10), float(rng.integers(2, top) * 10)
+        x = float(rng.integers(0, int(w - bw) // 10 + 1) * 10)
+        y = float(rng.integers(0, int(h - bh) // 10 + 1) * 10)
+        return shapely.box(x, y, x + bw, y + bh), ("box", [x, y, bw, bh])
+    r = float(rng.integers(10, radius_cm + 1))
+    cx = float(rng.uniform(r + 1, w - r - 1))
+    cy = float(rng.uniform(r + 1, h - r - 1))
+    return circle(cx, cy, r), ("circle", [round(cx, 1), round(cy, 1), r])
 
 
 def room_scenario(name: str, description: str, source: str, size: tuple[float, float],

@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from world.generator import CLEARANCE_CM, START_ZONE, STARTS, room_scenario
-from world.geometry import circle, room_polygon, union
+from world.generator import CLEARANCE_CM, START_ZONE, STARTS, random_obstacle, room_scenario
+from world.geometry import room_polygon, union
 from world.scenario import Scenario
 
 FAMILY = "passages"
@@ -79,16 +79,7 @@ def _clutter(rng: np.random.Generator, w: float, h: float,
     for _ in range(_MAX_TRIES):
         if len(geoms) >= want:
             return
-        if rng.random() < 0.6:
-            bw, bh = float(rng.integers(2, 9) * 10), float(rng.integers(2, 9) * 10)
-            x = float(rng.integers(0, int(w - bw) // 10 + 1) * 10)
-            y = float(rng.integers(0, int(h - bh) // 10 + 1) * 10)
-            g, spec = shapely.box(x, y, x + bw, y + bh), ("box", [x, y, bw, bh])
-        else:
-            r = float(rng.integers(10, 31))
-            cx = float(rng.uniform(r + 1, w - r - 1))
-            cy = float(rng.uniform(r + 1, h - r - 1))
-            g, spec = circle(cx, cy, r), ("circle", [round(cx, 1), round(cy, 1), r])
+        g, spec = random_obstacle(rng, w, h, box_cm=80, radius_cm=30)
         if (g.intersects(keep_out) or g.distance(sides) < CLUTTER_GAP_CM
                 or any(g.distance(o) < CLUTTER_GAP_CM for o in geoms)):
             continue
