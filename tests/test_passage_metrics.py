@@ -30,7 +30,8 @@ def _drive(counter: PassageCounter, role: str, points: list[tuple[float, float]]
 def test_the_corridor_is_one_passage_of_its_width() -> None:
     (p,) = narrow_passages(load_scenario("corridor"))
     assert p.width_cm == pytest.approx(30.0)
-    assert p.region.contains(p.region.centroid)
+    assert p.contains(*p.centre) and p.contains(300, 140) and p.contains(450, 158)
+    assert not p.contains(200, 150) and not p.contains(300, 100)
     assert abs(p.axis[0]) == pytest.approx(1.0)  # the corridor runs along x
 
 
@@ -43,6 +44,19 @@ def test_a_drive_through_the_corridor_is_one_entry_through() -> None:
     _drive(counter, "hider", [(100, 150), (600, 150)])
     assert counter.summary() == {"hider": {"entries": 1, "through": 1, "back": 0,
                                            "inside": 0}}
+
+
+def test_a_drive_near_one_side_of_a_gap_is_an_entry_through() -> None:
+    """Off the centre line (a rover 15 cm wide in a gap up to 45 cm has room to be)."""
+    for i in range(6):
+        s = generate_scenario(5, i, "passages")
+        for p in narrow_passages(s):
+            counter = PassageCounter([p])
+            y = p.centre[1] + 0.4 * p.width_cm * (1 if i % 2 else -1)
+            x0, _, x1, _ = p.bounds
+            _drive(counter, "hider", [(x0 - 40, y), (x1 + 40, y)])
+            assert counter.summary()["hider"] == {"entries": 1, "through": 1, "back": 0,
+                                                  "inside": 0}
 
 
 def test_a_rover_that_backs_out_came_back_and_one_left_inside_is_counted_inside() -> None:
@@ -124,14 +138,16 @@ def test_the_summary_counts_passage_entries_and_the_games_with_one_that_found() 
 
 
 def test_a_campaign_game_in_a_passage_room_counts_every_rovers_trips() -> None:
-    """A real game (about 10 CPU s): the hide spot lies beyond a passage, so a game that
-    hid has the hider through one at least; every entry ended or is still inside."""
+    """A real game (about 10 CPU s): the hide spot lies beyond every wall's passage and
+    the decoy before them, so a game that found the hider has the hider and the seeker
+    through each at least once; every entry ended or is still inside."""
     out = play_campaign_game("901:0,mode=none,rooms=generated,family=passages",
                              baseline=False)
     assert out["violations"] == []
     trips = out["passages"]
     assert out["outcome"] == "found"
-    assert trips["hider"]["through"] >= 1
+    walls = len(narrow_passages(plan_game(*parse_game_ref(out["ref"])).scenario()))
+    assert trips["hider"]["through"] >= walls and trips["seeker"]["through"] >= walls
     for t in trips.values():
         assert t["entries"] == t["through"] + t["back"] + t["inside"]
 

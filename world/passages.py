@@ -1,10 +1,11 @@
 """Narrow passages of a room and the rovers' trips through them, from ground truth.
 
 A passage is the floor between two obstacles (the room's sides count as
-obstacles) that stand 0 < d <= `NARROW_CM` apart: the points within
-``REACH * d`` of both and inside neither, so it spans the gap and reaches a
-little past its mouths (about 0.33 d along the centre line), where a rover's
-nose is at the mouth. Its axis runs across the shortest line between the two.
+obstacles) that stand 0 < d <= `NARROW_CM` apart: the points whose distances to
+the two add up to at most ``REACH * d``. Between parallel faces that is the
+whole gap, however long (a corridor); past its mouths it reaches about 0.33 d
+along the centre line, where a rover's nose is at the mouth. Its axis runs
+across the shortest line between the two.
 
 `PassageCounter` follows each rover's true centre: an **entry** is the centre
 coming into a passage; the entry ends when the centre leaves it, **through** when
@@ -19,34 +20,47 @@ from dataclasses import dataclass, field
 
 import shapely
 
-from world.geometry import union
 from world.scenario import Scenario
 
 #: obstacles this close or closer [cm] make a passage (the widest that the passage
 #: room family draws: a rover is 15 cm wide)
 NARROW_CM = 45.0
-#: how far from both obstacles, as a share of their distance, the passage reaches
-REACH = 0.6
+#: a point is in a passage when its distances to the two obstacles add up to at most
+#: this many times their distance
+REACH = 1.2
 _SIDE_CM = 10.0     # thickness of the strips standing for the room's sides
 _TOLERANCE_CM = 1e-6  # rounding of coordinates written to 0.1 cm
+_NEAR_CM = 50.0     # a rover this close to a passage's box has its side noted [cm]
 
 
 @dataclass(frozen=True, slots=True)
 class Passage:
     """The floor between two obstacles that stand `NARROW_CM` or closer."""
 
-    region: shapely.Geometry
+    walls: tuple[shapely.Geometry, shapely.Geometry]
+    """The two obstacles."""
     width_cm: float
     """The obstacles' distance [cm]."""
     centre: tuple[float, float]
     """Midpoint of the shortest line between the obstacles [cm]."""
     axis: tuple[float, float]
     """Unit vector along the passage (across the shortest line)."""
+    bounds: tuple[float, float, float, float]
+    """A box (x0, y0, x1, y1) round the passage [cm]."""
 
     def side(self, x: float, y: float) -> int:
         """Which side of the gap (x, y) lies on: +1 along `axis`, else -1."""
         along = (x - self.centre[0]) * self.axis[0] + (y - self.centre[1]) * self.axis[1]
         return 1 if along >= 0 else -1
+
+    def contains(self, x: float, y: float) -> bool:
+        """Whether (x, y) [cm] lies in the passage."""
+        x0, y0, x1, y1 = self.bounds
+        if not (x0 <= x <= x1 and y0 <= y <= y1):
+            return False
+        p = shapely.Point(x, y)
+        a, b = self.walls
+        return a.distance(p) + b.distance(p) <= REACH * self.width_cm + _TOLERANCE_CM
 
 
 def narrow_passages(scenario: Scenario, narrow_cm: float = NARROW_CM) -> list[Passage]:
@@ -55,7 +69,6 @@ def narrow_passages(scenario: Scenario, narrow_cm: float = NARROW_CM) -> list[Pa
     s = _SIDE_CM
     geoms = [*scenario.obstacles, shapely.box(-s, -s, w + s, 0), shapely.box(-s, h, w + s, h + s),
              shapely.box(-s, 0, 0, h), shapely.box(w, 0, w + s, h)]
-    solid = union(geoms)
     out = []
     for i, a in enumerate(geoms):
         for b in geoms[i + 1:]:
@@ -63,12 +76,9 @@ def narrow_passages(scenario: Scenario, narrow_cm: float = NARROW_CM) -> list[Pa
             if not 0 < d <= narrow_cm + _TOLERANCE_CM:
                 continue
             (x0, y0), (x1, y1) = shapely.shortest_line(a, b).coords
-            region = (a.buffer(REACH * d).intersection(b.buffer(REACH * d))
-                      .difference(solid))
-            if region.is_empty:
-                continue
-            out.append(Passage(region, d, ((x0 + x1) / 2, (y0 + y1) / 2),
-                               (-(y1 - y0) / d, (x1 - x0) / d)))
+            near = a.buffer(REACH * d).intersection(b.buffer(REACH * d))  # holds the passage
+            out.append(Passage((a, b), d, ((x0 + x1) / 2, (y0 + y1) / 2),
+                               (-(y1 - y0) / d, (x1 - x0) / d), near.bounds))
     return out
 
 
@@ -87,14 +97,10 @@ class PassageCounter:
 
     passages: list[Passage]
     trips: dict[str, PassageTrips] = field(default_factory=dict)
-    _bounds: list[tuple[float, float, float, float]] = field(default_factory=list)
     _in: dict[str, tuple[int, int]] = field(default_factory=dict)
     """Rover -> (passage index, side it came in from) while inside one."""
     _side: dict[str, dict[int, int]] = field(default_factory=dict)
     """Rover -> passage index -> the side it was last seen on outside it."""
-
-    def __post_init__(self) -> None:
-        self._bounds = [p.region.bounds for p in self.passages]
 
     def update(self, role: str, x: float, y: float) -> None:
         """Note the rover's true centre (room frame [cm])."""
@@ -114,14 +120,15 @@ class PassageCounter:
             trips.entries += 1
             came = sides.get(now, self.passages[now].side(x, y))
             self._in[role] = (now, came)
-        for k, (x0, y0, x1, y1) in enumerate(self._bounds):
-            if k != now and x0 - 50 <= x <= x1 + 50 and y0 - 50 <= y <= y1 + 50:
-                sides[k] = self.passages[k].side(x, y)
+        for k, p in enumerate(self.passages):
+            x0, y0, x1, y1 = p.bounds
+            if k != now and x0 - _NEAR_CM <= x <= x1 + _NEAR_CM \
+                    and y0 - _NEAR_CM <= y <= y1 + _NEAR_CM:
+                sides[k] = p.side(x, y)
 
     def _inside(self, x: float, y: float) -> int | None:
-        for k, (x0, y0, x1, y1) in enumerate(self._bounds):
-            if x0 <= x <= x1 and y0 <= y <= y1 and self.passages[k].region.contains(
-                    shapely.Point(x, y)):
+        for k, p in enumerate(self.passages):
+            if p.contains(x, y):
                 return k
         return None
 
