@@ -158,3 +158,16 @@ def test_a_recordings_reference_rebuilds_the_room_of_either_family() -> None:
         info = RunInfo.for_scenario(room, 5)
         assert info.scenario_ref == ref
         assert info.scenario() == room
+
+
+def test_the_table_prints_the_passage_line_and_each_failures_trips(capsys) -> None:
+    stuck = {"hider": {"entries": 11, "through": 0, "back": 10, "inside": 1},
+             "mapper": {"entries": 0, "through": 0, "back": 0, "inside": 0}}
+    fine = {"hider": {"entries": 1, "through": 1, "back": 0, "inside": 0}}
+    results = [_result(0, "failed", stuck), _result(1, "found", fine)]
+    s = summarize(CampaignConfig(1, family="passages"), results, wall_s=1.0, workers=1)
+    cmd_campaign._print_table(s)
+    out = capsys.readouterr().out
+    assert ("narrow passages: 12 entries in 2 games (1 through, 10 back, 1 inside at the "
+            "end); found in 1 of those games (50.0 %)") in out
+    assert "    narrow passages entered: hider 11 (0 through, 10 back, inside at the end)\n" in out

@@ -194,6 +194,11 @@ def _print_table(s: dict[str, Any]) -> None:
             print(f"    fault: {fault}")
         for v in f["violations"]:
             print(f"    broken: {v}")
+        trips = [f"{role} {t['entries']} ({t['through']} through, {t['back']} back"
+                 + (", inside at the end)" if t["inside"] else ")")
+                 for role, t in (f.get("passages") or {}).items() if t["entries"]]
+        if trips:
+            print("    narrow passages entered: " + ", ".join(trips))
         if f.get("without_faults"):
             broken = f.get("without_faults_violations") or []
             print(f"    without its faults: {f['without_faults']}"
