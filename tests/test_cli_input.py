@@ -26,6 +26,9 @@ def hideseek(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
     (("play", "--speed", "3"), "--speed"),
     (("play", "--json"), "--json"),
     (("campaign", "--out", "/no/such/dir/c.sqlite"), "/no/such/dir"),
+    (("campaign", "--family", "mazes"), "--family"),
+    (("run", "--generated", "mazes:1:2"), "mazes"),
+    (("run", "--generated", "1"), "[FAMILY:]SEED:INDEX"),
     (("rover", "--role", "mapper", "--link", "carrier-pigeon:1"), "carrier-pigeon"),
 ])
 def test_bad_option_is_one_line_naming_it_and_status_2(args, named) -> None:

@@ -39,7 +39,7 @@ from supervisors.harness.campaign.engines import ENGINES, open_engine
 from supervisors.harness.shrink import DEFAULT_MAX_RUNS, shrink_failures, shrinkable
 from tui import args as args_
 from tui.progress import progress_bar
-from world.scenario import builtin_scenarios
+from world.scenario import ROOM_FAMILIES, builtin_scenarios
 
 _CAUSES = {"faults": "the faults (found, every invariant kept, without them)",
            "game": "the game itself (fails without faults too)"}
@@ -59,6 +59,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             f"{', '.join(builtin_scenarios())})")
     rooms.add_argument("--generated", action="store_true",
                        help="procedurally generated rooms (room i of seed S)")
+    parser.add_argument("--family", choices=ROOM_FAMILIES, default=ROOM_FAMILIES[0],
+                        help="the generated rooms' family: obstacles (boxes and round "
+                             "obstacles, default) or passages (parts joined by 25-45 cm gaps); "
+                             "another than the default implies --generated")
     parser.add_argument("--faults", metavar="KINDS", default=None,
                         help="fault kinds to draw from, comma separated: a label such as "
                              "wifly:loss, a device (lidar, wifly, motor ...), 'actor', or a "
@@ -134,7 +138,8 @@ def config_from_args(args: argparse.Namespace) -> CampaignConfig:
     """
     kw: dict[str, Any] = {"seed": args.seed, "mode": args.mode,
                           "kinds": select_kinds(args.faults),
-                          "mapping_budget_s": args.budget, "generated": args.generated}
+                          "mapping_budget_s": args.budget, "generated": args.generated,
+                          "family": args.family}
     kw["swarm"] = args.swarm
     if args.scenarios:
         kw["rooms"] = tuple(s.strip() for s in args.scenarios.split(",") if s.strip())
@@ -169,6 +174,7 @@ def _print_table(s: dict[str, Any]) -> None:
     if s.get("failures_by_cause"):
         print("  failures by cause: " + ", ".join(f"{k} {v}" for k, v
                                                   in s["failures_by_cause"].items()))
+    _print_passages(s.get("passages") or {})
     print(f"  restarts {s['restarts']}, resent {s['resent']}, dropped {s['dropped']}; "
           f"determinism: {s['determinism']['replayed']} replayed, "
           f"{s['determinism']['mismatched']} mismatched")
@@ -188,6 +194,11 @@ def _print_table(s: dict[str, Any]) -> None:
             print(f"    fault: {fault}")
         for v in f["violations"]:
             print(f"    broken: {v}")
+        trips = [f"{role} {t['entries']} ({t['through']} through, {t['back']} back"
+                 + (", inside at the end)" if t["inside"] else ")")
+                 for role, t in (f.get("passages") or {}).items() if t["entries"]]
+        if trips:
+            print("    narrow passages entered: " + ", ".join(trips))
         if f.get("without_faults"):
             broken = f.get("without_faults_violations") or []
             print(f"    without its faults: {f['without_faults']}"
@@ -195,6 +206,17 @@ def _print_table(s: dict[str, Any]) -> None:
         if f.get("cause"):
             print(f"    cause: {_CAUSES[f['cause']]}")
         print(f"    reproduce: {f['reproduce']}")
+
+
+def _print_passages(p: dict[str, Any]) -> None:
+    """The narrow-passage line of the table (nothing when no rover entered one)."""
+    if not p.get("entries"):
+        return
+    print(f"  narrow passages: {p['entries']} entries in {p['games_with_entries']} games "
+          f"({p['through']} through, {p['back']} back, {p['inside_at_end']} inside at the "
+          f"end); found in {p['found']} of those games ({100 * p['found_rate']:.1f} %)")
+    print("    by rover: " + ", ".join(f"{role} {c['entries']} ({c['through']} through)"
+                                     for role, c in p["by_rover"].items()))
 
 
 def _record_dir(path: str) -> Path:

@@ -24,11 +24,13 @@ from actors import JsonLinesRecorder, Trace, seed_trio_scheduler, virtual_clock
 from supervisors.harness.headless import Budget, GameReport, run_game
 from tui import args as args_
 from world.scenario import (
+    ROOM_FAMILIES,
     Scenario,
     ScenarioError,
     builtin_scenarios,
     generate_scenario,
     load_scenario,
+    parse_generated,
 )
 
 if TYPE_CHECKING:
@@ -39,8 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", default="furniture", metavar="NAME|FILE",
                         help=f"built-in name ({', '.join(builtin_scenarios())}) or a .toml file "
                              "(default: furniture)")
-    parser.add_argument("--generated", metavar="SEED:INDEX",
-                        help="a procedurally generated room instead of --scenario")
+    parser.add_argument("--generated", metavar="[FAMILY:]SEED:INDEX",
+                        help="a procedurally generated room instead of --scenario (families: "
+                             f"{', '.join(ROOM_FAMILIES)}; default {ROOM_FAMILIES[0]})")
     parser.add_argument("--seed", type=args_.seed, default=1, help="the run's seed (default 1)")
     parser.add_argument("--campaign", metavar="S:I[,...]",
                         help="game I of fault campaign S, as `hideseek campaign` printed it "
@@ -73,11 +76,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _scenario(args: argparse.Namespace):
     if args.generated:
-        try:
-            seed, index = (int(v) for v in args.generated.split(":"))
-        except ValueError:
-            raise ScenarioError(f"--generated must be SEED:INDEX, got {args.generated!r}") from None
-        return generate_scenario(seed, index)
+        return generate_scenario(*parse_generated(args.generated))
     return load_scenario(args.scenario)
 
 

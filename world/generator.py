@@ -37,32 +37,50 @@ def generate(seed: int, index: int = 0) -> Scenario:
     for _ in range(MAX_TRIES):
         if len(geoms) >= want:
             break
-        if rng.random() < 0.6:
-            bw, bh = float(rng.integers(2, 13) * 10), float(rng.integers(2, 13) * 10)
-            x = float(rng.integers(0, int(w - bw) // 10 + 1) * 10)
-            y = float(rng.integers(0, int(h - bh) // 10 + 1) * 10)
-            g, spec = shapely.box(x, y, x + bw, y + bh), ("box", [x, y, bw, bh])
-        else:
-            r = float(rng.integers(10, 41))
-            cx = float(rng.uniform(r + 1, w - r - 1))
-            cy = float(rng.uniform(r + 1, h - r - 1))
-            g, spec = circle(cx, cy, r), ("circle", [round(cx, 1), round(cy, 1), r])
+        g, spec = random_obstacle(rng, w, h)
         if g.intersects(keep_out) or any(g.distance(o) < PASSAGE_CM for o in geoms):
             continue
         geoms.append(g)
         obstacles.append(spec)
     hide, decoy = _spots(rng, w, h, geoms)
-    lines = [f'name = "generated-{seed}-{index}"',
-             f'description = "Procedural room {index} of campaign seed {seed}."',
+    heading = float(rng.integers(0, 4) * 90)
+    return room_scenario(f"generated-{seed}-{index}",
+                         f"Procedural room {index} of campaign seed {seed}.",
+                         f"generated:{seed}/{index}", (w, h), obstacles,
+                         (*hide, heading), decoy)
+
+
+def random_obstacle(rng: np.random.Generator, w: float, h: float, box_cm: int = 120,
+                    radius_cm: int = 40) -> tuple[shapely.Geometry, tuple[str, list[float]]]:
+    """A box (60 %: sides 20..``box_cm`` on a 10 cm grid) or a round obstacle (radius
+    10..``radius_cm``) inside a ``w`` x ``h`` room [cm]: (geometry, scenario spec)."""
+    if rng.random() < 0.6:
+        top = box_cm // 10 + 1
+        bw, bh = float(rng.integers(2, top) * 10), float(rng.integers(2, top) * 10)
+        x = float(rng.integers(0, int(w - bw) // 10 + 1) * 10)
+        y = float(rng.integers(0, int(h - bh) // 10 + 1) * 10)
+        return shapely.box(x, y, x + bw, y + bh), ("box", [x, y, bw, bh])
+    r = float(rng.integers(10, radius_cm + 1))
+    cx = float(rng.uniform(r + 1, w - r - 1))
+    cy = float(rng.uniform(r + 1, h - r - 1))
+    return circle(cx, cy, r), ("circle", [round(cx, 1), round(cy, 1), r])
+
+
+def room_scenario(name: str, description: str, source: str, size: tuple[float, float],
+                  obstacles: list[tuple[str, list[float]]],
+                  hide: tuple[float, float, float], decoy: tuple[float, float]) -> Scenario:
+    """A generated room as TOML, parsed back (so it passes a file's validation): the
+    rovers at `STARTS`, the hide spot ``(x, y, heading)`` and guesses (decoy, hide spot)."""
+    w, h = size
+    lines = [f'name = "{name}"', f'description = "{description}"',
              "[room]", f"size_cm = [{w:g}, {h:g}]"]
     for kind, vals in obstacles:
         lines += ["[[obstacles]]", f"{kind} = [{', '.join(f'{v:g}' for v in vals)}]"]
     lines.append("[rovers]")
     lines += [f"{role} = [{x}, {y}, {a}]" for role, (x, y, a) in STARTS.items()]
-    heading = float(rng.integers(0, 4) * 90)
-    lines += ["[game]", f"hide_at = [{hide[0]:g}, {hide[1]:g}, {heading:g}]",
+    lines += ["[game]", f"hide_at = [{hide[0]:g}, {hide[1]:g}, {hide[2]:g}]",
               f"seek_at = [[{decoy[0]:g}, {decoy[1]:g}], [{hide[0]:g}, {hide[1]:g}]]"]
-    return parse_scenario("\n".join(lines) + "\n", f"generated:{seed}/{index}")
+    return parse_scenario("\n".join(lines) + "\n", source)
 
 
 def _spots(rng: np.random.Generator, w: float, h: float,

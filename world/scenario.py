@@ -26,7 +26,7 @@ from world.params import DeviceParams
 
 __all__ = [
     "Scenario", "ScenarioError", "ScheduledFault", "load_scenario", "builtin_scenarios",
-    "parse_scenario", "generate_scenario",
+    "parse_scenario", "generate_scenario", "parse_generated", "ROOM_FAMILIES",
 ]
 
 #: room sizes accepted [cm]
@@ -156,11 +156,50 @@ def load_scenario(name_or_path: str) -> Scenario:
     return parse_scenario(text, str(path))
 
 
-def generate_scenario(seed: int, index: int = 0) -> Scenario:
-    """A seeded procedural room (see `world.generator`); valid by construction."""
-    from world.generator import generate  # noqa: PLC0415 - generator builds on this module
+#: families of procedural rooms: the default (`world.generator`: boxes and round
+#: obstacles) and ``passages`` (`world.passage_rooms`: parts joined by 25-45 cm gaps)
+ROOM_FAMILIES = ("obstacles", "passages")
 
-    return generate(seed, index)
+
+def generate_scenario(seed: int, index: int = 0, family: str = "obstacles") -> Scenario:
+    """A seeded procedural room of ``family`` (`ROOM_FAMILIES`); valid by construction.
+
+    Raises:
+        ScenarioError: an unknown family.
+    """
+    # the generators build on this module: imported here
+    if family == "obstacles":
+        from world.generator import generate  # noqa: PLC0415
+
+        return generate(seed, index)
+    if family == "passages":
+        from world.passage_rooms import generate_passages  # noqa: PLC0415
+
+        return generate_passages(seed, index)
+    raise ScenarioError(f"room family must be one of {', '.join(ROOM_FAMILIES)}, "
+                        f"got {family!r}")
+
+
+def parse_generated(text: str) -> tuple[int, int, str]:
+    """Read ``SEED:INDEX`` (the default family) or ``FAMILY:SEED:INDEX`` into
+    (seed, index, family), the arguments of `generate_scenario`.
+
+    Raises:
+        ScenarioError: malformed text or an unknown family.
+    """
+    parts = text.strip().split(":") if isinstance(text, str) else []
+    family = parts.pop(0) if len(parts) == 3 else ROOM_FAMILIES[0]
+    try:
+        seed, index = (int(v) for v in parts)
+    except ValueError:
+        raise ScenarioError(f"a generated room must be [FAMILY:]SEED:INDEX, got {text!r}"
+                            ) from None
+    if family not in ROOM_FAMILIES:
+        raise ScenarioError(f"room family must be one of {', '.join(ROOM_FAMILIES)}, "
+                            f"got {family!r}")
+    if seed < 0 or index < 0:
+        raise ScenarioError(f"a generated room's seed and index must be >= 0, got {text!r}")
+    return seed, index, family
 
 
 def parse_scenario(text: str, source: str = "<string>") -> Scenario:

@@ -93,6 +93,7 @@ class World:
         self._boxes_at: list[tuple[float, float, float] | None] = [None, None]
         """The hider's and seeker's states the caster's boxes were placed at (None: parked)."""
         self._body_radius = math.hypot(p.length_cm, p.width_cm) / 2
+        self._step_observers: list[Callable[[], None]] = []
 
     # ------------------------------------------------------------------ public API
 
@@ -118,6 +119,11 @@ class World:
         its range and field of view; for campaign invariants only, never for firmware)."""
         seeker, hider = self.physics.state("seeker"), self.physics.state("hider")
         return self.ir.reading(seeker, hider, 0.0) > self.params.ir_low
+
+    def observe_steps(self, observer: Callable[[], None]) -> None:
+        """Call ``observer()`` after every tick (metrics probes reading ground truth: it
+        must neither draw from the run's generator nor change the world)."""
+        self._step_observers.append(observer)
 
     def inject_fault(self, target: str, kind: str, duration_s: float = 0.0, **params: float) -> int:
         """Start a device fault now; returns its id.
@@ -205,6 +211,8 @@ class World:
             elif role == "seeker":
                 self._ir_tick(dt)
             self._wifly_tick(role, now, dt)
+        for observer in self._step_observers:
+            observer()
 
     def _encoders(self, role: str, z_left: float, z_right: float) -> None:
         """Count this tick's tread travel with slip (`slipped_travel`: the error grows

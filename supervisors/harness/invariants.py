@@ -29,7 +29,9 @@ The probes are taps, like a logic analyser on the rover's UART: they see
 copies of bytes and calls and change nothing (they never await, so a
 tapped run keeps its trace hash). `DeliveryProbe` decodes the bytes each
 rover writes to its WiFly link and observes what the server delivers to its
-game logic through `server.Server.observe_frames`.
+game logic through `server.Server.observe_frames`. `install_passage_counter`
+is a metric, not an invariant: it counts the rovers' trips through narrow
+passages, which campaigns report.
 """
 
 from __future__ import annotations
@@ -56,11 +58,13 @@ from server.protocol import (
     decode_line,
     read_data,
 )
+from world.params import ROLES
+from world.passages import PassageCounter, narrow_passages
 
 __all__ = [
     "Violation", "Delivery", "DeliveryProbe", "TraceCounts", "check_ended", "check_actors_alive",
     "check_no_escalation", "check_exactly_once", "check_maps_equal", "check_honesty",
-    "check_module_honesty", "check_determinism", "UNRELIABLE_CMDS",
+    "check_module_honesty", "check_determinism", "install_passage_counter", "UNRELIABLE_CMDS",
 ]
 
 #: frames that are re-sent by design on every (re)connection: not subject to no-loss
@@ -247,6 +251,23 @@ class FoundProbe:
     def _delivered(self, _rover_id: str, role: str, frame: Frame) -> None:
         if role == "seeker" and frame.cmd == "found" and len(self.founds) < 100:
             self.founds.append(self._in_view())
+
+
+def install_passage_counter(system: Any) -> PassageCounter:
+    """Count each rover's entries into the room's narrow passages and whether it got
+    through (`world.passages`), from the true poses after every world tick (a step
+    observer: it never awaits nor draws, so the run keeps its trace hash)."""
+    counter = PassageCounter(narrow_passages(system.scenario))
+    world = system.world
+
+    def sample() -> None:
+        for role in ROLES:
+            p = world.true_pose(role)
+            counter.update(role, p.x, p.y)
+
+    if counter.passages:
+        world.observe_steps(sample)
+    return counter
 
 
 # ---------------------------------------------------------------------------- checks

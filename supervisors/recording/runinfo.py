@@ -1,7 +1,7 @@
 """What a recording says about its run: enough to play the same game again.
 
 A `RunInfo` names how the scenario was made (``builtin:NAME``, ``file:PATH``
-with the file's TOML text kept, ``generated:SEED:INDEX`` or
+with the file's TOML text kept, ``generated:[FAMILY:]SEED:INDEX`` or
 ``campaign:REF``), the seed, the mapping budget and the code version, plus the
 changes a fork made (extra faults, another hide spot or other guesses). It is
 written as the recording's ``hideseek.run`` metadata record and read back by
@@ -25,6 +25,7 @@ from world.scenario import (
     ScheduledFault,
     generate_scenario,
     load_scenario,
+    parse_generated,
     parse_scenario,
 )
 
@@ -62,7 +63,7 @@ class RunInfo:
     """How one headless game was made (see the module docstring)."""
 
     scenario_ref: str
-    """``builtin:NAME``, ``file:PATH``, ``generated:SEED:INDEX`` or ``campaign:REF``."""
+    """``builtin:NAME``, ``file:PATH``, ``generated:[FAMILY:]SEED:INDEX`` or ``campaign:REF``."""
     seed: int
     """The run's seed (the world's noise, the actors' generators, Trio's task order)."""
     budget_s: float = 1200.0
@@ -107,11 +108,10 @@ class RunInfo:
             base = game_from_ref(rest)[0]
         elif kind == "generated":
             try:
-                s, i = (int(v) for v in rest.split(":"))
-            except ValueError:
+                base = generate_scenario(*parse_generated(rest))
+            except ScenarioError:
                 raise ScenarioError(f"recording: bad scenario reference {self.scenario_ref!r}"
                                     ) from None
-            base = generate_scenario(s, i)
         elif kind == "builtin":
             base = load_scenario(rest)
             if self.toml and scenario_text(base) != self.toml:

@@ -9,7 +9,7 @@ device, link faults, and crash/hang/flood on a firmware actor such as
 the fault window and a duration (transient faults: permanent ones are what
 docs/faults.md explains the system cannot survive). The room is a built-in
 scenario chosen round-robin (its hide spot and guesses with it), or
-``generate_scenario(S, i)``.
+``generate_scenario(S, i, family)``.
 """
 
 from __future__ import annotations
@@ -93,8 +93,8 @@ class GameSpec:
 
     def scenario(self) -> Scenario:
         """The room with this game's fault schedule."""
-        base = (generate_scenario(self.config.seed, self.index) if self.room == "generated"
-                else load_scenario(self.room))
+        base = (generate_scenario(self.config.seed, self.index, self.config.family)
+                if self.room == "generated" else load_scenario(self.room))
         if self.devices:
             base = dataclasses.replace(base, devices={**base.devices, **dict(self.devices)})
         return dataclasses.replace(base, faults=tuple(sorted(

@@ -101,7 +101,8 @@ async def play_checked_scenario(scenario: Scenario, run_seed: int, budget: Budge
 
     Returns:
         (report, checks) where checks has ``violations`` (list of str),
-        ``faults_fired`` and the event counts.
+        ``faults_fired``, the event counts and ``passages`` (per rover: entries
+        into the room's narrow passages, `world.passages.PassageCounter.summary`).
     """
     report = GameReport(scenario.name, run_seed)
     with Store(":memory:") as store:
@@ -109,6 +110,7 @@ async def play_checked_scenario(scenario: Scenario, run_seed: int, budget: Budge
                                    trace=trace, nav_factory=nav_factory) as system:
             probe = inv.DeliveryProbe.install(system, trio.current_time)
             founds = inv.FoundProbe.install(system)
+            passages = inv.install_passage_counter(system)
             counts = inv.TraceCounts(system.actors.trace)
             t_start = trio.current_time()
             try:
@@ -129,7 +131,8 @@ async def play_checked_scenario(scenario: Scenario, run_seed: int, budget: Budge
                 + [inv.Violation("harness.fault_refused", r) for r in counts.refused_faults])
             counts.close()
     checks = {"violations": [str(v) for v in violations], "faults_fired": fired,
-              "events": dict(counts.counts), "escalations": list(counts.escalations)}
+              "events": dict(counts.counts), "escalations": list(counts.escalations),
+              "passages": passages.summary()}
     return report, checks
 
 
@@ -270,6 +273,8 @@ def play_campaign_game(ref: str, *, determinism: bool = False,
         ``restarts``, ``resent``, ``dropped``, ``sim_s``, ``wall_s``, ``cpu_s``
         (this process's CPU time for the game, replays included [s]),
         ``trace_hash``, ``replay_hash`` (None unless replayed), ``events``,
+        ``passages`` (per rover: ``entries`` into the room's narrow passages,
+        ``through``, ``back``, ``inside`` at the end),
         ``baseline`` (outcome without the faults, or None when not played),
         ``baseline_violations`` (the invariants that broke without the
         faults: a failure whose violation repeats without them is the game's,
@@ -321,7 +326,7 @@ def _blank_result(spec: GameSpec) -> dict[str, Any]:
         "restarts": 0, "resent": 0, "dropped": 0, "sim_s": 0.0, "wall_s": 0.0, "cpu_s": 0.0,
         "trace_hash": "", "replay_hash": None, "events": {}, "baseline": None,
         "baseline_violations": [], "wider_search": False, "hide_attempts": 0,
-        "devices": dict(spec.devices),
+        "devices": dict(spec.devices), "passages": {},
     }
 
 
@@ -333,7 +338,8 @@ def _play_into(out: dict[str, Any], spec: GameSpec, *, determinism: bool, baseli
                resent=report.resent, dropped=report.dropped, sim_s=report.sim_seconds,
                trace_hash=report.trace_hash, violations=checks["violations"],
                faults_fired=checks["faults_fired"], events=checks["events"],
-               wider_search=report.wider_search, hide_attempts=report.hide_attempts)
+               wider_search=report.wider_search, hide_attempts=report.hide_attempts,
+               passages=checks["passages"])
     if determinism:
         again, _ = _run_one(spec, wall_timeout_s, nav_factory)
         out["replay_hash"] = again.trace_hash

@@ -15,7 +15,7 @@ from typing import Any
 
 from supervisors.harness.headless import Budget
 from world.faults import ACTOR_FAULTS, DEVICE_FAULTS
-from world.scenario import ScenarioError, builtin_scenarios
+from world.scenario import ROOM_FAMILIES, ScenarioError, builtin_scenarios
 
 MODES = ("single", "overlapping", "none")
 #: every fault kind a campaign draws from: ``device:kind`` or ``actor:kind``
@@ -72,7 +72,10 @@ class CampaignConfig:
     rooms: tuple[str, ...] = ()
     """Built-in scenario names, round-robin (empty: every built-in)."""
     generated: bool = False
-    """Procedural rooms (`generate_scenario(seed, i)`) instead of built-ins."""
+    """Procedural rooms (`generate_scenario(seed, i, family)`) instead of built-ins."""
+    family: str = ROOM_FAMILIES[0]
+    """The procedural rooms' family (`world.scenario.ROOM_FAMILIES`); another than the
+    default makes the rooms procedural."""
     window_s: tuple[float, float] = (5.0, 240.0)
     """Simulated time range in which faults start [s]."""
     mapping_budget_s: float = 1200.0
@@ -101,6 +104,13 @@ class CampaignConfig:
         lo, hi = self.window_s
         if not 0 <= lo <= hi or not math.isfinite(hi):
             raise CampaignError(f"fault window must be 0 <= start <= end, got {lo}-{hi}")
+        if self.family not in ROOM_FAMILIES:
+            raise CampaignError(f"room family must be one of {', '.join(ROOM_FAMILIES)}, "
+                                f"got {self.family!r}")
+        if self.family != ROOM_FAMILIES[0]:
+            if self.rooms:
+                raise CampaignError("a room family is for generated rooms, not built-in ones")
+            object.__setattr__(self, "generated", True)  # frozen: set once, at construction
         if not isinstance(self.swarm, bool):
             raise CampaignError(f"swarm must be True or False, got {self.swarm!r}")
         if not 0 < self.mapping_budget_s <= 1e6:
@@ -123,6 +133,8 @@ class CampaignConfig:
             parts.append(f"mode={self.mode}")
         if self.generated:
             parts.append("rooms=generated")
+            if self.family != default.family:
+                parts.append(f"family={self.family}")
         elif self.rooms:
             parts.append("rooms=" + "+".join(self.rooms))
         if self.kinds != default.kinds:
@@ -139,7 +151,8 @@ class CampaignConfig:
 def parse_game_ref(text: str) -> tuple[CampaignConfig, int]:
     """Read a game reference ``S:i[,mode=..][,rooms=..][,faults=..][,window=A-B][,budget=..]...``.
 
-    Options: ``mode``, ``rooms``, ``faults``, ``window``, ``budget``, ``swarm`` (``on``).
+    Options: ``mode``, ``rooms``, ``family``, ``faults``, ``window``, ``budget``, ``swarm``
+    (``on``).
 
     Raises:
         CampaignError: malformed reference or bad option.
@@ -166,6 +179,8 @@ def parse_game_ref(text: str) -> tuple[CampaignConfig, int]:
                 kw["generated"] = True
             elif key == "rooms":
                 kw["rooms"] = tuple(v for v in value.split("+") if v)
+            elif key == "family":
+                kw["family"] = value
             elif key == "faults":
                 kw["kinds"] = select_kinds(value)
             elif key == "window":
@@ -180,7 +195,7 @@ def parse_game_ref(text: str) -> tuple[CampaignConfig, int]:
                                     f"got {value!r}")
             else:
                 raise CampaignError(f"unknown game reference option {key!r} (options: mode, "
-                                    "rooms, faults, window, budget, swarm)")
+                                    "rooms, family, faults, window, budget, swarm)")
         except ValueError as exc:
             if isinstance(exc, CampaignError):
                 raise

@@ -33,6 +33,34 @@ def _cause(r: dict[str, Any]) -> str | None:
     return "faults" if r["baseline"] == "found" and not r.get("baseline_violations") else "game"
 
 
+def _rooms(config: CampaignConfig) -> str | list[str]:
+    """``generated`` (``generated:FAMILY`` for another family than the default), or the
+    built-in rooms' names."""
+    if not config.generated:
+        return list(config.room_names())
+    default = CampaignConfig(0).family
+    return "generated" if config.family == default else f"generated:{config.family}"
+
+
+def _passages(results: list[dict[str, Any]]) -> dict[str, Any]:
+    """Trips through narrow passages (`world.passages`) over the games, per rover and in
+    all; ``found_rate`` is the share of the games with an entry that found the hider."""
+    per_role: dict[str, Counter] = {}
+    entered = [r for r in results if any(t["entries"] for t in r.get("passages", {}).values())]
+    for r in results:
+        for role, trips in r.get("passages", {}).items():
+            per_role.setdefault(role, Counter()).update(trips)
+    total = sum(per_role.values(), Counter())
+    return {"games_with_entries": len(entered),
+            "found": sum(1 for r in entered if r["outcome"] == "found"),
+            "found_rate": (sum(1 for r in entered if r["outcome"] == "found") / len(entered)
+                           if entered else None),
+            "entries": total["entries"], "through": total["through"], "back": total["back"],
+            "inside_at_end": total["inside"],
+            "by_rover": {role: {k: c[k] for k in ("entries", "through", "back", "inside")}
+                         for role, c in sorted(per_role.items())}}
+
+
 def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
               wall_s: float, workers: int) -> dict[str, Any]:
     """The campaign's JSON summary (what ``hideseek campaign --json`` prints).
@@ -59,7 +87,7 @@ def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
     games = len(results)
     return {
         "campaign": {"seed": config.seed, "mode": config.mode, "kinds": list(config.kinds),
-                     "rooms": "generated" if config.generated else list(config.room_names()),
+                     "rooms": _rooms(config),
                      "window_s": list(config.window_s), "swarm": config.swarm},
         "games": games,
         "found": outcomes.get("found", 0),
@@ -72,6 +100,7 @@ def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
                                      if r["outcome"] == "found" and r.get("wider_search")),
         "found_after_second_hide": sum(1 for r in results if r["outcome"] == "found"
                                        and r.get("hide_attempts", 0) > 1),
+        "passages": _passages(results),
         "fault_kinds": {k: {"injected": c["injected"], "recovered": c["recovered"],
                             "failed": c["failed"], "not_reached": c["not_reached"]}
                         for k, c in sorted(per_kind.items())},
@@ -97,6 +126,7 @@ def summarize(config: CampaignConfig, results: list[dict[str, Any]], *,
                       "without_faults": r.get("baseline"),
                       "without_faults_violations": r.get("baseline_violations", []),
                       "cause": _cause(r),
+                      "passages": r.get("passages") or {},
                       "reproduce": r["reproduce"]}
                      for r in results if _failed(r)],
     }
