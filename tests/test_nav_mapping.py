@@ -453,8 +453,8 @@ def test_the_mapper_steers_and_plans_home_from_its_map_frame_pose() -> None:
     """Odometry at its start (0, 0) @ 0, the origin (scan matching's correction) putting
     the rover at (40, 0) in the map: the obstacle check sees the wall 30 cm ahead in the
     map (a 30 cm move is cut to 10; odometry alone would see it 70 cm off and drive all
-    30), and homing plans a route back to the map's (0, 0) (odometry alone would say it is
-    home)."""
+    30), and homing finds a route back to the map's (0, 0) (odometry alone would say it
+    is home: no route)."""
     from actors.firmware.nav.route import Motion
     from server.protocol.pose import Pose
 
@@ -467,9 +467,9 @@ def test_the_mapper_steers_and_plans_home_from_its_map_frame_pose() -> None:
     assert nav.memory.origin == (40.0, 0.0, 0.0)
     shortened = nav.explorer.mind_the_obstacle(Motion("move", 30.0))
     assert shortened.amount == pytest.approx(10.0, abs=2.6)
-    assert nav.homing.plan_home() and nav.ex.target == (0.0, 0.0)
-    assert nav.ex.follower is not None
-    assert nav.ex.follower.next_motion(nav.map_pose) == Motion("turn", pytest.approx(180.0))
+    assert nav.homing.plan_home()
+    nav.set_origin(Pose(0.0, 0.0, 0.0))
+    assert not nav.homing.plan_home()  # at the map's (0, 0): home
 
 
 def _homing_nav() -> MappingNav:
@@ -534,6 +534,7 @@ async def test_homing_holds_for_odometry_instead_of_counting_a_block_in_the_open
     blocks would upload the map from wherever the mapper stands. A block at a mapped
     wall backs off and counts as before; once the holds have doubled to the longest, a
     block in the open counts too. Observed through what navigation says and commands."""
+    from actors.firmware.nav.homing import HOME_BLOCKS
     from actors.firmware.nav.route import Motion
     from actors.firmware.nav.sensor_watch import ODO_HOLD_S
 
@@ -555,19 +556,26 @@ async def test_homing_holds_for_odometry_instead_of_counting_a_block_in_the_open
 
     monkeypatch.setattr(nav, "status", status)
     monkeypatch.setattr(nav, "stop_motor", stop_motor)
+    async def finish(reason: str, **_: object) -> None:
+        said.append(("finish", reason))
+
     monkeypatch.setattr(nav, "command", command)
+    monkeypatch.setattr(nav, "finish", finish)
     nav.last_motion = Motion("move", 20.0)
     await nav.after_motion(True, 14.0)
-    assert holds() == 1 and commands == [] and nav.ex.blocks == 0
+    assert holds() == 1 and commands == []  # held: no back-off, not counted
     await trio.sleep(ODO_HOLD_S + 0.1)  # the hold ends
     _set_column(nav, 23, OCCUPIED)  # a wall at the front: a real block
     await nav.after_motion(True, 14.0)
-    assert holds() == 1 and commands == [Motion("move", -nav.o.backoff_cm)]
-    assert nav.ex.blocks == 1
+    backoff = Motion("move", -nav.o.backoff_cm)
+    assert holds() == 1 and commands == [backoff]  # backed off: counted
     _set_column(nav, 23, FREE)
     for strike in (2, 3, 4):  # more blocks in the open: each hold twice the last
         await nav.after_motion(True, 14.0)
-        assert holds() == strike and nav.ex.blocks == 1
+        assert holds() == strike and commands == [backoff]
         await trio.sleep(ODO_HOLD_S * 2 ** (strike - 1) + 0.1)
     await nav.after_motion(True, 14.0)  # held the longest already: it counts
-    assert holds() == 4 and nav.ex.blocks == 2
+    assert holds() == 4 and commands == [backoff, backoff]
+    assert HOME_BLOCKS == 3 and not [d for s, d in said if s == "finish"]
+    await nav.after_motion(True, 14.0)  # the third block counted: home is given up
+    assert said[-1] == ("finish", f"{nav.finish_reason}; home blocked")
