@@ -418,20 +418,44 @@ def scraped_nav(yaw_deg: float, sigma_cm: float = 4.0, memory: NavMemory | None 
     return believe(nav, sigma_cm)
 
 
-def test_a_contact_either_side_explains_is_kept_as_two_hypotheses() -> None:
+def commands_of(nav: Any, monkeypatch: pytest.MonkeyPatch) -> list[Motion]:
+    """The motions navigation ``nav`` (not started) commands from now on, recorded
+    instead of sent to Motor Control."""
+    commands: list[Motion] = []
+
+    async def command(motion: Motion) -> None:
+        commands.append(motion)
+
+    monkeypatch.setattr(nav, "command", command)
+    return commands
+
+
+def lateral_cm(nav: Any) -> float:
+    """The standard deviation of navigation's believed y [cm] (the corridor's cross axis)."""
+    return math.sqrt(float(nav.spread.covariance[1, 1]))
+
+
+@pytest.mark.trio
+async def test_a_contact_either_side_explains_is_kept_as_two_hypotheses(
+        autojump_clock, monkeypatch) -> None:
     """No yaw: the left side on the upper wall and the right side on the lower wall
-    explain the block alike. The belief keeps both (its weight each side of the
-    corridor's axis, little on it) instead of discarding the contact; a stalled turn
-    says nothing."""
+    explain the block alike. The belief keeps both instead of discarding the contact:
+    the contact counts, the pose navigation reports stays on the corridor's axis, and
+    the lateral doubt grows (its weight each side of the axis, little on it; discarded
+    it would stay as it was, one side taken would narrow it). A stalled turn says
+    nothing: the reported pose stays. Either way the rover backs off."""
     nav = scraped_nav(0.0, sigma_cm=5.0)
-    nav.localiser.contact_update()
-    y, w = nav.localiser.belief.particles[:, 1], nav.localiser.belief.weights
-    assert float(w[y < 146.0].sum()) > 0.25 and float(w[y > 154.0].sum()) > 0.25
-    assert float(w[abs(y - 150.0) < 2.0].sum()) < 0.15
+    commands, before = commands_of(nav, monkeypatch), lateral_cm(nav)
+    await nav.blocked_route("blocked")
+    assert commands == [Motion("move", -nav.o.backoff_cm)]
     assert nav.counters["contacts"] == 1
+    assert nav.pose_data()["y"] == pytest.approx(150.0, abs=2.5)
+    assert lateral_cm(nav) > before + 1.5
     nav = scraped_nav(3.0)
     nav.last_motion = Motion("turn", 20.0)
-    assert not nav.localiser.contact_update() and nav.counters["contacts"] == 0
+    commands, before = commands_of(nav, monkeypatch), nav.pose_data()
+    await nav.blocked_route("blocked")
+    assert nav.counters["contacts"] == 0 and nav.pose_data() == before
 
 
 def test_the_doubt_grows_with_driving_and_more_with_a_tread_report() -> None:
@@ -451,12 +475,12 @@ def test_the_doubt_grows_with_driving_and_more_with_a_tread_report() -> None:
         ds = 12.0
         x, y = 100.0 + ds * math.cos(dtheta / 2), 100.0 + ds * math.sin(dtheta / 2)
         nav.pose = Pose(x, y, math.degrees(dtheta))
-        nav.localiser.track_belief()
+        nav.on_pose_at_rest()
         for _ in range(4):
             nav.last_motion = Motion("move", 20.0)
             x, y = x + 20.0 * math.cos(dtheta), y + 20.0 * math.sin(dtheta)
             nav.pose = Pose(x, y, math.degrees(dtheta))
-            nav.localiser.track_belief()
+            nav.on_pose_at_rest()
         return nav.drift_cm - start
     healthy, reported = driven(False), driven(True)
     assert healthy > 0.0
@@ -478,14 +502,20 @@ def gap_blocked_nav(sigma_cm: float) -> Any:
     return believe(nav, sigma_cm)
 
 
-def test_a_gap_edge_contact_moves_the_belief_to_the_edge_and_keeps_the_far_face() -> None:
-    """A narrow belief: the lower edge is the only likely explanation, the pose moves
-    down. A wide one (after a long drive): the upper face explains it too, and the
-    belief keeps that hypothesis beside the lower edge's."""
+@pytest.mark.trio
+async def test_a_gap_edge_contact_moves_the_belief_to_the_edge_and_keeps_the_far_face(
+        autojump_clock, monkeypatch) -> None:
+    """A narrow belief: the lower edge is the only likely explanation, the pose
+    navigation reports moves down. A wide one (after a long drive): the upper face
+    explains it too, and the belief keeps that hypothesis beside the lower edge's."""
     nav = gap_blocked_nav(3.0)
-    assert nav.localiser.contact_update() and nav.map_pose.y < 312.5
+    commands = commands_of(nav, monkeypatch)
+    await nav.blocked_route("blocked")
+    assert nav.counters["contacts"] == 1 and nav.pose_data()["y"] < 311.0
+    assert commands == [Motion("move", -nav.o.backoff_cm)]
     nav = gap_blocked_nav(12.0)
-    nav.localiser.contact_update()
+    commands_of(nav, monkeypatch)
+    await nav.blocked_route("blocked")
     ys = [c.pose.y for c in nav.spread.clusters]
     assert any(y < 305.0 for y in ys) and any(y > 318.0 for y in ys)
 
