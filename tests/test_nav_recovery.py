@@ -35,7 +35,7 @@ from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.recovery import REPLAN_LIMIT
 from actors.firmware.nav.route import Motion
 from actors.firmware.nav.tread_faults import TREAD_CHECK_CM
-from server.protocol.pose import Pose, compose, inverse
+from server.protocol.pose import Pose
 from tests.test_nav_common import (
     Body,
     Truth,
@@ -680,30 +680,50 @@ async def test_a_rover_off_a_corridors_mouth_probes_both_sides_and_gets_through(
     assert len(blocks) <= 6
 
 
-def test_probe_points_are_held_in_the_rovers_own_frame() -> None:
-    """A probe of the mouth is drawn from the series' first block, held in the rover's
-    own frame: when a contact moves the belief (the origin, map -> own frame, shifts 7
-    cm across the corridor, as a contact on the other wall's end would), the sidestep
-    and the point through the mouth stay where they were for the rover (its own frame);
-    the map-frame waypoints of the route do not drag them along."""
-    nav = scraped_nav(0.0, sigma_cm=5.0)
-    nav.pose = Pose(185.0, 100.0, 0.0)  # backed off from the block at own (190, 100)
-    nav.nudges.anchor = (190.0, 100.0, 0.0)
-    nav.nudges.nudge = Nudge(nav.nudges.anchor, 10.0, probe=True)
-    pts = [(270.0, 150.0), (600.0, 150.0)]  # through the corridor's axis (map frame)
+async def ended(nav: Any, commands: list[Motion], own: Pose) -> None:
+    """The last motion navigation commanded ended where Motor Control's dead reckoning
+    says ``own`` (own frame): navigation decides its next step from there."""
+    nav.last_motion, nav.motion_from = commands[-1], nav.map_pose
+    nav.pose = own
+    await nav.after_motion(False, commands[-1].amount)
 
-    def own(route: list[tuple[float, float]]) -> list[tuple[float, float]]:
-        back = inverse(nav.origin)
-        return [c for q in (compose(back, Pose(x, y, 0.0)) for x, y in route)
-                for c in (q.x, q.y)]
-    before = nav.nudges.nudged(pts)
-    assert before is not None
-    held = own(before)[:4]
-    assert held[:2] == pytest.approx([185.0, 110.0]) and held[3] == pytest.approx(110.0)
-    assert held[2] > 210.0  # through the mouth on the line, the body past its walls
-    nav.origin = Pose(50.0, 57.0, 0.0)  # a contact fix: the believed map pose moved 7 cm
-    after = nav.nudges.nudged(pts)
-    assert after is not None and own(after)[:4] == pytest.approx(held)
+
+@pytest.mark.trio
+async def test_probe_points_are_held_in_the_rovers_own_frame(autojump_clock,
+                                                              monkeypatch) -> None:
+    """The hider is blocked twice at own (190, 100) (map (240, 150), 10 cm before the
+    corridor's mouth) and backs off to own (184, 100) each time. The contacts move its
+    belief: the origin (map -> own frame) shifts over 5 cm across the corridor, so the
+    pose it reports is that far off dead reckoning. The second block starts a probe of
+    the mouth drawn from the first block, held in the rover's own frame: a sidestep
+    square to the block's heading (turn 90, move the series' first offset of 12 cm, turn
+    back) and on along the shifted line through the mouth. Held in the map frame, the
+    probe would have moved with the belief, and the sidestep with it."""
+    nav = scraped_nav(0.0, sigma_cm=5.0)
+    commands = commands_of(nav, monkeypatch)
+
+    async def set_state(state: str, detail: str | None = None) -> None:
+        pass
+
+    monkeypatch.setattr(nav, "set_state", set_state)
+    nav.pose = Pose(150.0, 100.0, 0.0)
+    assert await nav.goto((600.0, 150.0), None)
+    for _ in range(2):
+        nav.pose, nav.last_motion = Pose(190.0, 100.0, 0.0), Motion("move", 20.0)
+        nav.motion_from = Pose(220.0, 150.0, 0.0)
+        await nav.blocked_route("blocked")
+        assert commands[-1] == Motion("move", -nav.o.backoff_cm)
+        await ended(nav, commands, Pose(184.0, 100.0, 0.0))
+    assert abs(nav.pose_data()["y"] - 150.0) > 5.0  # the belief moved across
+    assert commands[-1] == Motion("turn", pytest.approx(90.0))
+    await ended(nav, commands, Pose(184.0, 100.0, 90.0))
+    assert commands[-1] == Motion("move", pytest.approx(12.0))
+    await ended(nav, commands, Pose(184.0, 112.0, 90.0))
+    assert commands[-1] == Motion("turn", pytest.approx(-90.0))
+    await ended(nav, commands, Pose(184.0, 112.0, 0.0))
+    assert commands[-1] == Motion("move", 20.0)
+    await ended(nav, commands, Pose(204.0, 112.0, 0.0))
+    assert commands[-1] == Motion("move", 20.0)  # on the line: through the mouth
     assert at_mouth(nav.map, Pose(240.0, 150.0, 0.0), 10.0)
     assert not at_mouth(nav.map, Pose(300.0, 150.0, 0.0), 10.0)  # inside: not a mouth
 
