@@ -204,6 +204,13 @@ def ring_hit(at: Pose, bearing_deg: float, r: float = 100.0) -> tuple[float, flo
     return at.x + r * math.cos(h), at.y + r * math.sin(h)
 
 
+async def map_sent(system, log: list) -> np.ndarray:
+    """The cells of the map Map Management sends navigation when asked (``MAP_GET``)."""
+    system.send_nowait("mapper/map", Message.uint(Cmd.MAP_GET, 0))
+    await trio.sleep(0.01)
+    return [p for c, p in log if c == Cmd.NAV_MAP_UPDATE][-1].cells
+
+
 def occupied_at(log: list, x: float, y: float) -> bool:
     """Whether the last snapshot Map Management sent navigation has (x, y) [cm] occupied."""
     snap = [p for c, p in log if c == Cmd.NAV_MAP_UPDATE][-1]
@@ -233,7 +240,7 @@ async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_cloc
                 Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
         await trio.sleep(0.6)
         mm = system.whereis("mapper/map").actor
-        before = mm.grid.cells()
+        before = await map_sent(system, log)
         turned = Pose(truth.x, truth.y, 90.0)
         a, r = _room_scans(turned)
         odom = Pose(truth.x, truth.y, 94.0)
@@ -244,7 +251,7 @@ async def test_scans_with_a_heading_error_are_matched_onto_the_map(autojump_cloc
         assert mm.matched >= 1
         # (the rest: later)
         assert origin_sent(log).heading_deg == pytest.approx(-4.0, abs=2.0)
-        after = mm.grid.cells()
+        after = await map_sent(system, log)
         assert _stray_walls(before, after) <= 3  # no second wall (without matching: > 10)
         origin = [(c, p) for c, p in log
                   if c in (Cmd.NAV_MAP_ORIGIN_XY, Cmd.NAV_MAP_ORIGIN_HEADING)]
@@ -319,8 +326,8 @@ async def test_without_matching_a_heading_error_draws_a_second_wall(autojump_clo
                 Cmd.MAP_SCAN, pool.put(Scan(pose, a.astype(np.float32), r.astype(np.float32)))))
             await trio.sleep(0.3)
             if pose is truth:
-                before = system.whereis("mapper/map").actor.grid.cells()
-        after = system.whereis("mapper/map").actor.grid.cells()
+                before = await map_sent(system, log)
+        after = await map_sent(system, log)
         assert _stray_walls(before, after) > 10
 
 
@@ -424,16 +431,16 @@ def test_an_odometry_stamp_across_the_heading_wrap_is_the_same_stamp() -> None:
     assert not same_stamp(Pose(10.0, 5.0, 0.0), None)
 
 
-async def _reference(system, spec: SupervisorSpec, send_truth) -> tuple:
+async def _reference(system, spec: SupervisorSpec, send_truth, log: list) -> tuple:
     """Start the map tree ``spec`` and give it three reference batches (``send_truth``
-    sends one taken at the true pose); returns Map Management, its grid's cells and its
-    scan count then."""
+    sends one taken at the true pose; ``log`` records what navigation is sent); returns
+    Map Management, the cells of the map it sends then (`map_sent`) and its scan count."""
     await system.start_supervisor(spec, "mapper")
     for _ in range(3):
         send_truth()
     await trio.sleep(0.6)
     mm = system.whereis("mapper/map").actor
-    return mm, mm.grid.cells(), mm.scans
+    return mm, await map_sent(system, log), mm.scans
 
 
 @pytest.mark.trio
@@ -455,7 +462,7 @@ async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_
         _send_room_scan(system, pool, truth, taken_at)
 
     async with open_actor_system(1) as system:
-        mm, before, scans = await _reference(system, spec, lambda: send(system, truth))
+        mm, before, scans = await _reference(system, spec, lambda: send(system, truth), log)
         assert not mm.wide(mm.matching)
         system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -102, 102))
         await trio.sleep(0.01)
@@ -469,7 +476,8 @@ async def test_a_both_silent_turn_widens_the_belief_and_the_wide_search_refinds_
         assert mm.searched >= 1
         assert not mm.wide(mm.matching)
         assert mm.scans > scans  # placed again once found
-        assert _stray_walls(before, mm.grid.cells()) <= 3  # (2: rays 3 deg apart land elsewhere)
+        # (2 stray: rays 3 deg apart land elsewhere)
+        assert _stray_walls(before, await map_sent(system, log)) <= 3
         await trio.sleep(0.3)  # the last update goes out
         assert origin_sent(log).heading_deg == pytest.approx(50.0, abs=1.5)
 
@@ -497,7 +505,7 @@ async def test_a_batch_taken_while_the_rover_coasts_after_a_tread_report_is_not_
             _send_room_scan(system, pool, truth, truth)
         await trio.sleep(1.2)  # the stamps stand still longer than settle_s
         mm = system.whereis("mapper/map").actor
-        before = mm.grid.cells()
+        before = await map_sent(system, log)
         system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -102, 102))
         await trio.sleep(0.01)
         assert mm.wide(mm.matching)
@@ -509,7 +517,7 @@ async def test_a_batch_taken_while_the_rover_coasts_after_a_tread_report_is_not_
         await trio.sleep(0.3)  # the last update goes out
         assert map_pose_sent(log, truth).heading_deg == pytest.approx(50.0, abs=1.5)
         assert not mm.wide(mm.matching)
-        assert _stray_walls(before, mm.grid.cells()) <= 3
+        assert _stray_walls(before, await map_sent(system, log)) <= 3
 
 
 def _symmetric_room(kind: str) -> np.ndarray:
@@ -553,7 +561,7 @@ async def test_a_wide_search_narrows_the_belief_only_on_a_view_that_tells_headin
             Cmd.MAP_SCAN, pool.put(Scan(truth, a.astype(np.float32), r.astype(np.float32)))))
 
     async with open_actor_system(1) as system:
-        mm, before, scans = await _reference(system, spec, lambda: send(system, truth))
+        mm, before, scans = await _reference(system, spec, lambda: send(system, truth), log)
         system.send_nowait("mapper/map", Message.pair(Cmd.MAP_TREAD_FAULT, -400, 400))
         await trio.sleep(0.01)
         assert mm.wide(mm.matching)
@@ -564,11 +572,11 @@ async def test_a_wide_search_narrows_the_belief_only_on_a_view_that_tells_headin
             assert mm.searched >= 1 and not mm.wide(mm.matching)
             await trio.sleep(0.3)  # the last update goes out
             assert map_pose_sent(log, truth).heading_deg == pytest.approx(120.0, abs=1.5)
-            assert _stray_walls(before, mm.grid.cells()) <= 3
+            assert _stray_walls(before, await map_sent(system, log)) <= 3
         else:
             assert mm.searched == 0 and mm.refusals["ambiguous"] >= 3
             assert mm.wide(mm.matching)
-            assert mm.scans == scans and (mm.grid.cells() == before).all()
+            assert mm.scans == scans and (await map_sent(system, log) == before).all()
 
 
 @pytest.mark.trio
@@ -620,7 +628,7 @@ async def test_an_unseen_turn_of_a_standing_rover_is_refound_not_drawn(autojump_
             await trio.sleep(0.1)
             if k == 2:
                 mm = system.whereis("mapper/map").actor
-                before, scans = mm.grid.cells(), mm.scans
+                before, scans = await map_sent(system, log), mm.scans
             elif k == 3:  # the first bad scan alone does not outweigh the prior
                 assert mm.searched == 0 and mm.scans == scans and not mm.wide(mm.matching)
         assert mm.refusals["odometry in doubt"] == 1
@@ -628,7 +636,7 @@ async def test_an_unseen_turn_of_a_standing_rover_is_refound_not_drawn(autojump_
         await trio.sleep(0.3)  # the last update goes out
         assert origin_sent(log).heading_deg == pytest.approx(50.0, abs=1.5)
         assert not mm.wide(mm.matching)
-        assert _stray_walls(before, mm.grid.cells()) <= 3  # (the rotated copy drew 102)
+        assert _stray_walls(before, await map_sent(system, log)) <= 3  # (the rotated copy drew 102)
 
 
 @pytest.mark.trio
@@ -655,7 +663,7 @@ async def test_frozen_stamps_of_a_rover_that_turns_unseen_are_not_read_as_standi
         for _ in range(15):  # standing: matched, then placed unmatched after settle_s
             _send_room_scan(system, pool, odom, truth)
             await trio.sleep(0.1)
-        matched, before, unplaced = mm.matched, mm.grid.cells(), mm.unplaced
+        matched, before, unplaced = mm.matched, await map_sent(system, log), mm.unplaced
         assert matched >= 1
         for _ in range(3):
             _send_room_scan(system, pool, odom, truth)
@@ -667,7 +675,7 @@ async def test_frozen_stamps_of_a_rover_that_turns_unseen_are_not_read_as_standi
         assert mm.searched >= 1
         await trio.sleep(0.3)  # the last update goes out
         assert map_pose_sent(log, odom).heading_deg == pytest.approx(30.0, abs=1.5)
-        assert _stray_walls(before, mm.grid.cells()) <= 3
+        assert _stray_walls(before, await map_sent(system, log)) <= 3
 
 
 @pytest.mark.trio
@@ -687,8 +695,7 @@ async def test_a_slip_the_encoders_did_not_report_is_recovered(autojump_clock) -
         for _ in range(3):
             _send_room_scan(system, pool, Pose(x, y, 0.0), Pose(x, y, 0.0))
             await trio.sleep(0.1)
-        mm = system.whereis("mapper/map").actor
-        before = mm.grid.cells()
+        before = await map_sent(system, log)
         for k in range(1, 4):  # the turn: 20 deg counted, 30 deg turned per batch
             _send_room_scan(system, pool, Pose(x, y, 20.0 * k), Pose(x, y, 30.0 * k))
             await trio.sleep(0.05)
@@ -698,7 +705,7 @@ async def test_a_slip_the_encoders_did_not_report_is_recovered(autojump_clock) -
         await trio.sleep(0.3)  # the last update goes out
         assert origin_sent(log).heading_deg == pytest.approx(30.0, abs=2.0)
         assert map_pose_sent(log, Pose(x, y, 60.0)).heading_deg == pytest.approx(90.0, abs=2.0)
-        assert _stray_walls(before, mm.grid.cells()) <= 6
+        assert _stray_walls(before, await map_sent(system, log)) <= 6
 
 
 def _send_room_part(system, pool: BufferPool, odom, taken_at, part: int) -> None:
@@ -776,7 +783,7 @@ async def test_a_window_is_processed_after_the_rover_moved_update_min_cm(
     matched and fused."""
     async with _mapped(update_min_cm=8.0) as (system, pool, mm, truth, log):
         scans, matched, windows = mm.scans, mm.matched, mm.windows
-        before = mm.grid.cells()
+        before = await map_sent(system, log)
         pose = await _drive(system, pool, truth, mm, batches=2)
         for k in (2, 3):
             pose = Pose(truth.x + k + 1.0, truth.y, 0.0)
@@ -784,7 +791,7 @@ async def test_a_window_is_processed_after_the_rover_moved_update_min_cm(
             await trio.sleep(0.05)
         assert (mm.scans, mm.matched, mm.windows, mm.predicted) == (
             scans + 4, matched, windows, 1)
-        assert np.array_equal(mm.grid.cells(), before)  # dropped from the grid
+        assert np.array_equal(await map_sent(system, log), before)  # dropped from the grid
         assert origin_sent(log) is None  # the prediction: the belief follows odometry
         for k in range(4, 8):
             pose = Pose(truth.x + k + 1.0, truth.y, 0.0)
@@ -959,7 +966,7 @@ async def test_frozen_stamps_of_a_rover_that_drives_on_a_little_are_not_read_as_
         for k in range(40):  # stands: matched for settle_s, then placed unmatched
             _send_room_part(system, pool, stamp, stamp, k)
             await trio.sleep(0.05)
-        windows, before = mm.windows, mm.grid.cells()
+        windows, before = mm.windows, await map_sent(system, log)
         moved = Pose(stamp.x + 8.0, stamp.y, 0.0)
         for k in range(4):  # the first revolution there: a window placed nowhere yet
             _send_room_part(system, pool, stamp, moved, k)
@@ -975,4 +982,4 @@ async def test_frozen_stamps_of_a_rover_that_drives_on_a_little_are_not_read_as_
             _send_room_part(system, pool, stamp, moved, k)
             await trio.sleep(0.05)
         assert mm.refusals["outside the belief"] == outside and mm.scans == scans + 8
-        assert _stray_walls(before, mm.grid.cells()) <= 3
+        assert _stray_walls(before, await map_sent(system, log)) <= 3
