@@ -423,29 +423,32 @@ async def test_a_tread_fault_from_motor_stops_and_holds_the_rover(autojump_clock
         assert "MAP_TREAD_FAULT" in body.map_msgs
 
 
-def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target() -> None:
+def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target(
+        monkeypatch) -> None:
     """A route the obstacle check refuses to drive (the rover would turn toward it, be
     refused and turn away for minutes): after ``OBSTACLE_TURNS`` turns away toward
-    one target the target is blacklisted and the trip ends; another target starts over."""
+    one target the target is blacklisted and the trip ends (its 10 cells count as a
+    visit: with a window of one visit, exploration turns futile); another target
+    starts over."""
     from actors.firmware.nav import exploration
 
     assert exploration.OBSTACLE_TURNS == 3
+    monkeypatch.setattr(exploration, "FUTILE_TRIPS", 1)
     nav = make_nav("mapper", pool=BufferPool(4))
     cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
     cells.reshape(-1)[:100] = 0
     nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
-    nav.ex.trip_known = 60
+    nav.ex.trip_known = 90
     nav.ex.target = (462.5, -32.5)
     assert not nav.explorer.turned_away() and not nav.explorer.turned_away()
     nav.ex.target = (100.0, 100.0)  # another frontier: the count starts over
     assert not nav.explorer.turned_away()
     nav.ex.target = (462.5, -32.5)
     assert not nav.explorer.turned_away() and not nav.explorer.turned_away()
-    assert nav.ex.blacklist == []
+    assert not nav.explorer.futile()  # the trip goes on
     nav.ex.target = (460.0, -30.0)  # the same frontier, its target moved a little
-    assert nav.explorer.turned_away()
-    assert nav.ex.blacklist == [(460.0, -30.0)]
-    assert nav.ex.gains == [40] and nav.ex.trip_known is None  # the visit ended
+    assert nav.explorer.turned_away()  # blacklisted
+    assert nav.explorer.futile()  # the visit ended: 10 cells, fewer than 30
 
 
 def test_the_mapper_steers_and_plans_home_from_its_map_frame_pose() -> None:
