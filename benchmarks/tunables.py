@@ -97,12 +97,11 @@ KINDS: dict[str, dict[str, str]] = {
                               "CORRECTION_STEP_DEG": "policy"},
     "mapping.scan_match": {
         "ITERATIONS": "structural", "BLUR_WIDE": "structural", "BLUR_NARROW": "structural",
-        "DAMPING": "structural", "MIN_POINTS": "structural", "MIN_SUPPORT": "policy",
+        "DAMPING": "structural", "MIN_SUPPORT": "policy",
         "RELOCALISE_TURN_DEG": "structural", "RELOCALISE_STEP_DEG": "structural",
         "RELOCALISE_MIN_SCORE": "policy", "RELOCALISE_MIN_SUPPORT": "policy",
         "RELOCALISE_MARGIN": "policy"},
     "mapping.scan_match.MatchOptions": {"max_shift_cm": "physical", "max_turn_deg": "physical",
-                                        "min_range_cm": "physical",
                                         "prior_per_point": "physical"},
     "mapping.scan_window": {"WINDOW_SWEEP_DEG": "physical", "WINDOW_TURN_DEG": "structural",
                             "_STILL_CM": "structural", "WINDOW_TRAVEL_CM": "policy"},

@@ -39,7 +39,7 @@ import numpy as np
 
 from actors.firmware import ndimage
 from actors.firmware.arrays import pad_border
-from actors.firmware.mapping.sensor_model import LogOddsModel
+from actors.firmware.scan_hits import MAX_RANGE_CM, MIN_POINTS, MIN_RANGE_CM
 from server.protocol.pose import Pose
 
 __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",
@@ -61,14 +61,9 @@ BLUR_NARROW = 1
 """Passes of the [1, 2, 1] blur for the final level."""
 DAMPING = 0.05
 """Levenberg damping, relative to the diagonal of the normal matrix."""
-MIN_POINTS = 12
-"""Fewest hits a scan needs to be matched."""
 MIN_SUPPORT = 0.35
 """Share of the hits that must land on mapped obstacles (narrow field > 0.25) at the guess
 or at the result: a scan of a part of the room never seen is not matched."""
-MAX_RANGE_CM = LogOddsModel().max_range_cm
-"""Hits farther than this are ignored [cm]: the occupancy model's ``max_range_cm``, beyond
-which a return is too uncertain to mark (600 cm)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,7 +78,7 @@ class MatchOptions:
     """How far from the guess the local match reaches in heading [deg]: the basin's
     three cells seen at 1.5 m. A pose belief whose 95 % heading is wider is searched by
     `relocalise`."""
-    min_range_cm: float = 12.0
+    min_range_cm: float = MIN_RANGE_CM
     """Hits nearer than this are ignored [cm] (too close to tell direction well)."""
     prior_per_point: float = 2e-4
     """Pull toward the guess per hit [1/cm^2] (heading: times the hits' mean square range):
