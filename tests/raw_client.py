@@ -2,14 +2,24 @@
 
 `Outside` is a memory link the server treats as a link from outside (identity
 rules apply), `open_raw_tcp` a real loopback socket; both speak bytes, and
-`hello` builds the line a rover opens with.
+`hello` builds the line a rover opens with; `free_port` finds a loopback port.
 """
 
 from __future__ import annotations
 
+import socket
+
 import trio
 
 from server.protocol import Frame, decode_line, encode_frame, make_frame
+
+
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    """A loopback port of ``kind`` (TCP by default, ``socket.SOCK_DGRAM`` for UDP) that
+    nothing holds at the moment of the call."""
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def hello(rid: str, role: str, token: str | None = None, seq_base: int = 1) -> bytes:

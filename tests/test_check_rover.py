@@ -22,6 +22,7 @@ import trio.testing
 
 from server.conformance import RULES, Options, check_rover, parse_rover_link
 from server.conformance.rules import FAIL, PASS, SKIP
+from tests.raw_client import free_port
 
 from .conformance_rover import BREAKS, STREAMS, PairLink, TestRover
 
@@ -122,12 +123,6 @@ SLACK = "1.0"  # timing bounds widened for a loaded host at x8 (the in-process t
 _ALWAYS_OPTIONAL = ("telemetry.", "fault.")  # run once the rover lists them, else skipped
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _hideseek(*argv: str, **kwargs) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "tui.cli", *argv], cwd=ROOT, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **kwargs)
@@ -159,7 +154,7 @@ def _stop(proc: subprocess.Popen) -> str:
 def test_hideseek_rover_over_tcp_passes_every_rule_it_supports() -> None:
     """``hideseek rover --role hider --link tcpin:`` (x8) checked over ``tcp:``: every rule
     of a hider passes; the sections it does not list are skipped."""
-    port = _free_port()
+    port = free_port()
     rover = _hideseek("rover", "--role", "hider", "--scenario", "empty", "--link",
                       f"tcpin:127.0.0.1:{port}", "--speed", str(SPEED))
     try:
@@ -224,7 +219,7 @@ def test_bad_or_unreachable_link_is_one_line_and_status_2(link, message) -> None
 
 def test_nothing_listening_at_a_tcp_link_is_status_2() -> None:
     """``tcp:`` to a port nobody listens on: one line naming the address, status 2."""
-    port = _free_port()
+    port = free_port()
     done = subprocess.run([sys.executable, "-m", "tui.cli", "check-rover",
                            f"tcp:127.0.0.1:{port}"], cwd=ROOT, capture_output=True, text=True,
                           timeout=60)

@@ -35,6 +35,7 @@ from supervisors.harness.headless import Budget, GameReport, play_game
 from supervisors.remote import Uplink, open_remote_rover
 from supervisors.rover import IdleNav
 from supervisors.system import open_sim_system
+from tests.raw_client import free_port
 from tui import cmd_rover
 from world.scenario import load_scenario
 
@@ -44,12 +45,6 @@ PTY_CLOCK_THRESHOLD_S = 0.0005  # real time with nothing to do before the clock 
 
 def _idle_nav(role, *, pool, **_):
     return IdleNav(pool)
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _pty_pair() -> tuple[trio.lowlevel.FdStream, str, int]:
@@ -83,7 +78,7 @@ def test_uplink_is_bounded_and_drops_while_disconnected() -> None:
 def test_unreachable_server_is_reported_and_retried_with_backoff() -> None:
     """No server on the port: one readable line per attempt, the waits doubling to the cap."""
     lines: list[str] = []
-    port = _free_port()
+    port = free_port()
 
     async def main() -> None:
         scenario = load_scenario("empty")
@@ -122,7 +117,7 @@ def test_udp_rover_without_a_server_says_no_answer_and_retries() -> None:
 
 def test_rover_reconnects_after_the_server_restarts() -> None:
     """The server goes away and comes back on the same port: the rover says hello again."""
-    port = _free_port()
+    port = free_port()
     lines: list[str] = []
 
     async def serve_until_hello(store: Store) -> None:
@@ -153,7 +148,7 @@ def test_rover_on_tcpin_waits_for_a_server_that_connects_out_and_then_says_conne
     """``--link tcpin:HOST:PORT``: the rover listens; the server connects out to it (the
     console's ``--rover ROLE=tcp:HOST:PORT``, pyserial's ``socket://``); "connected" is
     said only once the server has answered."""
-    port = _free_port()
+    port = free_port()
     lines: list[str] = []
 
     async def main() -> None:
@@ -384,7 +379,7 @@ def test_rover_is_welcomed_at_once_after_the_server_was_away_long() -> None:
     """The server is away 20 s (the rover's hello backoff grows meanwhile) and comes back:
     the rover's first hello on the new connection is accepted (no "no hello in time"),
     within 5 s of the server listening, as its reconnect backoff is capped."""
-    port = _free_port()
+    port = free_port()
     seen: dict = {}
 
     async def serve_until_hello(store: Store, key: str) -> None:
@@ -455,9 +450,7 @@ def test_hideseek_rover_on_udpout_plays_a_whole_game_against_hideseek_serve_on_u
     udpout:127.0.0.1:P`` (the mapper) and ``hideseek serve --listen udpin:127.0.0.1:P
     --rover mapper=udp`` (hider and seeker simulated there), driven from serve's console:
     found, and the status line says lost 0; both stop with status 0."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port(socket.SOCK_DGRAM)
     cli = [sys.executable, "-m", "tui.cli"]
     common = ["--scenario", "empty", "--speed", "8"]
     serve = subprocess.Popen(

@@ -6,7 +6,6 @@ from __future__ import annotations
 import functools
 import os
 import signal
-import socket
 import sqlite3
 import subprocess
 import sys
@@ -19,6 +18,7 @@ from server.protocol import GridMap, Pose
 from server.server import ServerConfig, open_server
 from server.store import Store
 from tests.fake_rover import FakeRover, memory_pipe, room_map
+from tests.raw_client import free_port
 from tui import cmd_maps
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -194,12 +194,6 @@ def _cli(fns, prog: str, argv: list[str]) -> int:
     return run(parser.parse_args(argv))
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 async def _tcp_rover(rover: FakeRover, port: int) -> None:
     """Run a fake rover over TCP, reconnecting whenever the server goes away."""
     while True:
@@ -246,7 +240,7 @@ def test_hideseek_serve_killed_with_sigkill_at_every_phase_resumes_the_game(tmp_
     """The real thing: one game in which ``hideseek serve`` is killed with SIGKILL in
     every phase and restarted on the same database; each time it resumes the game in
     that phase, the rovers reconnect over TCP, and the game is won."""
-    db, port = str(tmp_path / "g.db"), _free_port()
+    db, port = str(tmp_path / "g.db"), free_port()
     rovers = _rovers()
     procs: list[subprocess.Popen] = []
     resumed: list[str] = []
