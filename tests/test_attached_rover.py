@@ -13,7 +13,8 @@ from server.links import parse_link
 from server.server import ServerConfig, open_server
 from server.store import Store
 from supervisors.remote import open_remote_rover
-from tests.test_remote import _free_port, _idle_nav
+from tests.raw_client import free_port
+from tests.test_remote import _idle_nav
 from world.scenario import load_scenario
 
 
@@ -24,7 +25,7 @@ async def _until(pred, events=None, limit_s: float = 30.0):
 
 
 def _run_attached(body, *, accept_faults: bool) -> list[str]:
-    port = _free_port()
+    port = free_port()
     lines: list[str] = []
 
     async def main() -> None:

@@ -13,7 +13,7 @@ import subprocess
 import sys
 
 from server.links import parse_link
-from tests.test_remote import _free_port
+from tests.raw_client import free_port
 from tests.test_tui_app import inject_from_dialog, notes, press, tree_text, until
 from tui.app import ConsoleApp
 from tui.live import LiveSystem
@@ -26,7 +26,7 @@ def test_console_shows_an_attached_rovers_queues_tree_and_takes_its_faults() -> 
     """An attached mapper's wifly, motor, lidar, map and nav mailboxes show on the Queues
     tab and its tree on the Tree tab, from telemetry; the fault dialog lists its faults
     and the link's, and lidar dead reaches it (its reply and its events come back)."""
-    port = _free_port()
+    port = free_port()
     live = LiveSystem(load_scenario("empty"), remote={"mapper": parse_link("tcp")},
                       listen=[parse_link(f"tcp:127.0.0.1:{port}")])
     app = ConsoleApp(live)
