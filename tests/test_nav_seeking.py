@@ -246,14 +246,15 @@ def test_the_ring_grows_with_the_drift_and_stays_on_free_ground() -> None:
     for driven in (600.0, 1000.0, 1500.0):
         nav = searching_nav((150.0, 100.0), driven)
         assert nav.plan_search() and nav.stage == "search"
-        rings.append((len(nav.search_points), nav.ring_cm))
-        for q in nav.search_points:
-            assert 0.5 * nav.ring_cm - 0.1 <= math.dist(q, (150.0, 100.0)) <= nav.ring_cm + 0.1
+        rings.append((len(nav.search.points), nav.search.ring_cm))
+        ring = nav.search.ring_cm
+        for q in nav.search.points:
+            assert 0.5 * ring - 0.1 <= math.dist(q, (150.0, 100.0)) <= ring + 0.1
             assert passable_at(nav.nav.map, q[0], q[1], nav.nav.radius_cm, 0.0)
     assert rings == sorted(rings) and rings[0] != rings[-1]
     first = searching_nav((150.0, 100.0), 1500.0)
     first.plan_search()
-    assert first.search_points[0][0] > 150.0  # facing +x: the point ahead first
+    assert first.search.points[0][0] > 150.0  # facing +x: the point ahead first
 
 
 def test_ring_points_in_walls_are_pulled_in_or_left_out() -> None:
@@ -262,14 +263,14 @@ def test_ring_points_in_walls_are_pulled_in_or_left_out() -> None:
     nav = searching_nav((20.0, 20.0), 1000.0)
     assert nav.plan_search()
     open_room = searching_nav((150.0, 100.0), 1000.0)
-    assert open_room.plan_search() and open_room.ring_cm == nav.ring_cm
-    assert 0 < len(nav.search_points) < len(open_room.search_points)
+    assert open_room.plan_search() and open_room.search.ring_cm == nav.search.ring_cm
+    assert 0 < len(nav.search.points) < len(open_room.search.points)
     by_wall = searching_nav((40.0, 100.0), 1000.0)
     assert by_wall.plan_search()
-    assert len(by_wall.search_points) == len(open_room.search_points)
-    assert any(math.dist(q, (40.0, 100.0)) < by_wall.ring_cm - 1.0
-               for q in by_wall.search_points)
-    for q in nav.search_points + by_wall.search_points:
+    assert len(by_wall.search.points) == len(open_room.search.points)
+    assert any(math.dist(q, (40.0, 100.0)) < by_wall.search.ring_cm - 1.0
+               for q in by_wall.search.points)
+    for q in nav.search.points + by_wall.search.points:
         assert passable_at(nav.nav.map, q[0], q[1], nav.nav.radius_cm, 0.0)
 
 
@@ -390,7 +391,7 @@ async def test_a_search_point_where_the_seeker_stands_is_scanned_and_the_search_
     def here_first(self: Seek) -> bool:
         if not plan(self):
             return False
-        self.search_points.insert(0, (self.nav.map_pose.x, self.nav.map_pose.y))
+        self.search.points.insert(0, (self.nav.map_pose.x, self.nav.map_pose.y))
         return True
 
     monkeypatch.setattr(Seek, "plan_search", here_first)

@@ -1,7 +1,7 @@
 """The seeker's search when the scans at the place saw nothing: rings of scan
 points round the place, then a sweep by touch.
 
-Why the ring (`Search.plan_search`): the seeker stands where dead
+Why the ring (`Search.plan`): the seeker stands where dead
 reckoning says; after metres of driving that may be tens of cm from the
 place, and a hider within IR range of the place may then be beyond what the
 scan from it sees. The ring is sized by the seeker's drift estimate
@@ -21,21 +21,22 @@ where blocked; no map, no pose.
 from __future__ import annotations
 
 import math
+from enum import Enum
 from typing import TYPE_CHECKING
 
 import numpy as np
 import trio
 
 from actors.firmware.nav.route import Motion, passable_at
-from server.protocol.grid_map import FREE
+from server.protocol.grid_map import FREE, GridMap
 from server.protocol.pose import angle_diff_deg
 
 if TYPE_CHECKING:
     from actors.firmware.nav.route_nav import RouteNav
     from actors.firmware.nav.seeker import SeekingOptions
 
-__all__ = ["Search", "ring_outer_cm", "ring_reach_cm", "search_ring", "search_rings",
-           "SEARCH_IR_WAIT_S", "SEARCH_SCAN_DEG"]
+__all__ = ["Next", "Search", "ring_outer_cm", "ring_reach_cm", "search_ring", "search_rings",
+           "unseen_free", "SEARCH_IR_WAIT_S", "SEARCH_SCAN_DEG"]
 
 # Bounds and fixed geometry of the search. Each bounds the cost of one search (drives and
 # scans of about 15 s a point), or is geometry that follows from what the scan from the
@@ -126,35 +127,78 @@ def search_rings(need_cm: float, reach_cm: float, max_points: int, max_cm: float
     return rings
 
 
+class Next(Enum):
+    """What the seeker does after `Search.next_point`."""
+
+    ROUTE = "route"
+    """A route to a ring point is under way (`on_arrived` then looks outward)."""
+    SWEEP = "sweep"
+    """The rings are over and a wider search has time left: a step of the sweep by touch
+    (`Search.sweep`)."""
+    OVER = "over"
+    """The search is over without the hider: ``not_found`` (`Search.over_reason`)."""
+
+
+def unseen_free(grid: GridMap, place: tuple[float, float], q: tuple[float, float],
+                reach_cm: float, seen_cm: float, need_cm: float) -> bool:
+    """Whether a free cell of ``grid`` lies within ``reach_cm`` of ``q``, farther than
+    ``seen_cm`` from ``place`` and within ``need_cm`` of it [cm]."""
+    px, py = place
+    reach = reach_cm
+    res = grid.resolution_cm
+    r0, c0 = grid.world_to_cell(q[0] - reach, q[1] - reach)
+    r1, c1 = grid.world_to_cell(q[0] + reach, q[1] + reach)
+    ny, nx = grid.shape
+    r0, c0, r1, c1 = max(0, r0), max(0, c0), min(ny, r1 + 1), min(nx, c1 + 1)
+    if r0 >= r1 or c0 >= c1:
+        return False
+    cells = np.asarray(grid.cells)[r0:r1, c0:c1]
+    ox, oy = grid.origin_cm
+    ys = oy + (np.arange(r0, r1) + 0.5) * res
+    xs = ox + (np.arange(c0, c1) + 0.5) * res
+    X, Y = np.meshgrid(xs, ys)
+    dp = np.hypot(X - px, Y - py)
+    mask = (cells == FREE) & (np.hypot(X - q[0], Y - q[1]) <= reach) & \
+        (dp > seen_cm) & (dp <= need_cm)
+    return bool(mask.any())
+
+
 class Search:
-    """Rings round the place and the sweep by touch: the part of `seeker.Seek` that
-    searches, on its public state (``nav``, ``place``, ``stage``, ``s``, ``reach_cm``,
-    ``search_points`` ...)."""
+    """Rings round the place and the sweep by touch: a part the seeker's role behaviour
+    (`seeker.Seek`) owns and calls. It plans the rings (`plan`), drives to their points
+    (`next_point`, which says what comes next) and steps the sweep (`sweep`,
+    `motion_ended`); the looking, and the answer, stay the seeker's.
 
-    nav: RouteNav
-    place: tuple[float, float] | None
-    stage: str
-    s: SeekingOptions
-    reach_cm: float
-    search_points: list[tuple[float, float]]
-    ring_cm: float
-    search_until: float
-    rings_until: float
-    sweep_turned: bool
-    sweep_blocked: bool
-    sweep_steps: int
-    leg_heading: float
+    Args:
+        nav: the navigation actor it drives (its public names: ``map``, ``map_pose``,
+            ``drift_cm``, ``memory``, ``goto_as``, ``set_state``, ``command``).
+        seeking: the seeker's quantities (``range_cm``, ``wide_search_s``,
+            ``sweep_step_cm``).
+        reach_cm: how far from the seeker's centre an all-round scan sees a hider's
+            centre [cm] (`seeker.SeekingOptions.reach_cm`); also the spacing of a wider
+            search's ring points.
+    """
 
-    async def not_found(self, reason: str) -> None:
-        """Answer ``not_found`` for ``reason`` (`seeker.Seek.not_found`)."""
-        raise NotImplementedError
+    def __init__(self, nav: RouteNav, seeking: SeekingOptions, reach_cm: float) -> None:
+        self.nav = nav
+        self.s = seeking
+        self.reach_cm = reach_cm
+        self.points: list[tuple[float, float]] = []
+        """Ring points still to look from (map frame [cm])."""
+        self.ring_cm = 0.0
+        """Radius of the (outermost) search ring planned [cm]."""
+        self.until = math.inf
+        """When the search in progress gives up [s] (a wider search only)."""
+        self.rings_until = math.inf
+        """When a wider search's rings give way to the sweep by touch [s]."""
+        self.sweep_turned = False  # the sweep's step in progress has turned, and drives
+        self.sweep_blocked = False  # the sweep's last step was blocked: the next leg turns
+        self.sweep_steps = 0  # steps of the sweep's leg in progress
+        self.leg_heading = 0.0  # the sweep's leg heading (map frame, as believed) [deg]
 
-    async def after_other_motion(self, blocked: bool, done: float) -> None:
-        """Go on after a motion outside a route (`seeker.Seek.after_other_motion`)."""
-        raise NotImplementedError
-
-    def plan_search(self) -> bool:
-        """After the scan from the place saw nothing: choose the ring(s) to look from.
+    def plan(self, place: tuple[float, float]) -> bool:
+        """After the scan from ``place`` saw nothing: choose the ring(s) to look from;
+        True when there are points to look from (`points`).
 
         A guess within IR range has the hider's centre within ``range_cm`` of
         it (a destination's ``within``, when given, replaces that); the seeker's
@@ -165,17 +209,18 @@ class Search:
         after it (`search_rings`).
         Points that are not passable are pulled in toward the place; points
         from which no free cell beyond what was seen before is within reach
-        (walls, the map's edge) are left out.
+        (walls, the map's edge) are left out (`unseen_free`).
         """
         s = self.s
-        if self.place is None or self.nav.map is None:
+        grid = self.nav.map
+        if grid is None:
             return False
         drift = self.nav.drift_cm
         within = self.nav.memory.within
-        self.search_until = self.rings_until = math.inf
+        self.until = self.rings_until = math.inf
         if within is not None:
             now = trio.current_time()
-            self.search_until = now + s.wide_search_s
+            self.until = now + s.wide_search_s
             # a pose in more doubt than the guess: rings planned from it may all be
             # somewhere else, and the sweep by touch gets half the time
             share = DOUBT_RINGS_SHARE if drift > within else 1.0
@@ -185,9 +230,9 @@ class Search:
                              self.reach_cm, 1 if within is None else WIDE_MAX_RINGS)
         if not rings:
             return False
-        px, py = self.place
+        px, py = place
         p = self.nav.map_pose
-        if math.dist((p.x, p.y), self.place) > 2.0 * self.nav.o.goal_tol_cm:
+        if math.dist((p.x, p.y), place) > 2.0 * self.nav.o.goal_tol_cm:
             first = math.atan2(p.y - py, p.x - px)  # nearest the seeker first
         else:
             first = math.radians(p.heading_deg)  # on the place: the one it faces
@@ -202,8 +247,8 @@ class Search:
                 for r in pulls:
                     q = (px + r * math.cos(a), py + r * math.sin(a))
                     # it turns there
-                    if passable_at(self.nav.map, q[0], q[1], self.nav.radius_cm, 0.0):
-                        if self._unseen_free(q, seen, need):
+                    if passable_at(grid, q[0], q[1], self.nav.radius_cm, 0.0):
+                        if unseen_free(grid, place, q, self.reach_cm, seen, need):
                             points.append(q)
                         break
             if points:  # the next ring starts beside where this one ends
@@ -212,59 +257,38 @@ class Search:
         points = points[:WIDE_MAX_POINTS]
         if not points:
             return False
-        self.stage = "search"
         self.ring_cm = rings[-1][1]
-        self.search_points = points
+        self.points = points
         return True
 
-    def _unseen_free(self, q: tuple[float, float], seen_cm: float, need_cm: float) -> bool:
-        """Whether a free cell of the map lies within ``reach_cm`` of ``q``, farther than
-        ``seen_cm`` from the place and within ``need_cm`` of it [cm]."""
-        assert self.nav.map is not None and self.place is not None
-        g = self.nav.map
-        px, py = self.place
-        reach = self.reach_cm
-        res = g.resolution_cm
-        r0, c0 = g.world_to_cell(q[0] - reach, q[1] - reach)
-        r1, c1 = g.world_to_cell(q[0] + reach, q[1] + reach)
-        ny, nx = g.shape
-        r0, c0, r1, c1 = max(0, r0), max(0, c0), min(ny, r1 + 1), min(nx, c1 + 1)
-        if r0 >= r1 or c0 >= c1:
-            return False
-        cells = np.asarray(g.cells)[r0:r1, c0:c1]
-        ox, oy = g.origin_cm
-        ys = oy + (np.arange(r0, r1) + 0.5) * res
-        xs = ox + (np.arange(c0, c1) + 0.5) * res
-        X, Y = np.meshgrid(xs, ys)
-        dp = np.hypot(X - px, Y - py)
-        mask = (cells == FREE) & (np.hypot(X - q[0], Y - q[1]) <= reach) & \
-            (dp > seen_cm) & (dp <= need_cm)
-        return bool(mask.any())
-
-    async def next_search_point(self) -> None:
-        """Drive to the next ring point (then `on_arrived` scans outward); at the end of
-        the ring, ``not_found`` -- or, in a wider search with time left, the sweep."""
+    async def next_point(self) -> Next:
+        """Drive to the next ring point that a route reaches (`Next.ROUTE`); at the end of
+        the rings, or once the rings' time is over, the sweep when a wider search has time
+        left (`Next.SWEEP`), else `Next.OVER`."""
         now = trio.current_time()
         if now >= self.rings_until:
-            self.search_points = []  # out of time: answer while the operator still listens
-        while self.search_points:
-            q = self.search_points.pop(0)
+            self.points = []  # out of time: answer while the operator still listens
+        while self.points:
+            q = self.points.pop(0)
             if await self.nav.goto_as(q, None, "searching",
-                                  f"round the place, ring {self.ring_cm:.0f} cm"):
-                return
-        if self.nav.memory.within is not None and now < self.search_until < math.inf:
-            await self.sweep()
-            return
-        rings = "a ring of" if self.nav.memory.within is None else "rings out to"
-        swept = ", nor sweeping the room by touch" if self.stage == "sweep" else ""
-        await self.not_found(f"the IR sensor saw nothing there, nor on {rings} "
-                              f"{self.ring_cm:.0f} cm round it{swept}")
+                                      f"round the place, ring {self.ring_cm:.0f} cm"):
+                return Next.ROUTE
+        if self.nav.memory.within is not None and now < self.until < math.inf:
+            return Next.SWEEP
+        return Next.OVER
 
-    async def sweep(self) -> None:
-        """One step of the sweep by touch: face the leg's heading, drive ``sweep_step_cm``
-        (or until blocked), then scan all round (`_confirm`). A leg goes straight step
-        after step until a step is blocked (or ``SWEEP_MAX_STEPS``); the next leg turns
-        ``SWEEP_TURN_DEG`` from it.
+    def over_reason(self, swept: bool) -> str:
+        """Why the search found nothing (``swept``: the sweep by touch ran too)."""
+        rings = "a ring of" if self.nav.memory.within is None else "rings out to"
+        sweep = ", nor sweeping the room by touch" if swept else ""
+        return (f"the IR sensor saw nothing there, nor on {rings} "
+                f"{self.ring_cm:.0f} cm round it{sweep}")
+
+    async def sweep(self, first: bool) -> None:
+        """One step of the sweep by touch (``first``: the sweep's first): face the leg's
+        heading, drive ``sweep_step_cm`` (or until blocked; `motion_ended`), then the
+        seeker scans all round. A leg goes straight step after step until a step is
+        blocked (or ``SWEEP_MAX_STEPS``); the next leg turns ``SWEEP_TURN_DEG`` from it.
 
         Why: the rings are planned on the map from the pose; when they saw nothing the
         pose may be far off (a heading lost unseen), and a rover that trusts it drives
@@ -272,17 +296,27 @@ class Search:
         by the golden angle, cross the whole room like a billiard ball whatever the pose
         says; short legs in random directions would wander about where they began.
         """
-        first = self.stage != "sweep"
-        self.stage = "sweep"
         if first or self.sweep_blocked or self.sweep_steps >= SWEEP_MAX_STEPS:
             base = self.nav.map_pose.heading_deg if first else self.leg_heading
             self.leg_heading = base + SWEEP_TURN_DEG
             self.sweep_steps = 0
         self.sweep_turned = False
-        left = self.search_until - trio.current_time()
+        left = self.until - trio.current_time()
         await self.nav.set_state("sweeping", f"by touch, the pose in doubt ({left:.0f} s left)")
         turn = angle_diff_deg(self.leg_heading, self.nav.map_pose.heading_deg)
         if abs(turn) <= self.nav.o.heading_tol_deg:
-            await self.after_other_motion(False, 0.0)
+            await self.motion_ended(False)
         else:
             await self.nav.command(Motion("turn", turn))
+
+    async def motion_ended(self, blocked: bool) -> bool:
+        """A motion of the sweep's step ended (``blocked``: stopped by contact): after its
+        turn, drive the step (False); after the drive, count the step: True, the scan from
+        here is next."""
+        if not self.sweep_turned:
+            self.sweep_turned = True
+            await self.nav.command(Motion("move", self.s.sweep_step_cm))
+            return False
+        self.sweep_blocked = blocked
+        self.sweep_steps += 1
+        return True

@@ -57,7 +57,8 @@ from actors import Message
 from actors.firmware.commands import Cmd
 from actors.firmware.nav.role import RoleBehaviour
 from actors.firmware.nav.route import Motion, passable_at
-from actors.firmware.nav.search import SEARCH_IR_WAIT_S, SEARCH_SCAN_DEG, Search
+from actors.firmware.nav.search import SEARCH_IR_WAIT_S, SEARCH_SCAN_DEG, Next, Search
+from actors.firmware.planning.clearance import turning_radius_cm
 from server.protocol.pose import angle_diff_deg
 
 if TYPE_CHECKING:
@@ -143,7 +144,7 @@ class SeekingOptions:
         centre half the width plus the turning radius of a body like the seeker's away),
         so consecutive headings leave no hole even beside it, and the hider is seen
         whatever the heading's error; at most 1.5 ``ir_half_fov_deg``."""
-        near = 0.5 * width_cm + 0.5 * math.hypot(length_cm, width_cm)
+        near = 0.5 * width_cm + turning_radius_cm(length_cm, width_cm)
         return min(1.5 * self.ir_half_fov_deg, 2.0 * self.view_half_deg(length_cm, near))
 
     def reach_cm(self, length_cm: float) -> float:
@@ -174,8 +175,10 @@ class SeekingOptions:
         return tuple(step * i for i in range(-k, k + 1))
 
 
-class Seek(Search, RoleBehaviour):
-    """The seeker's role behaviour (its actor is registered as ``seeker/nav``).
+class Seek(RoleBehaviour):
+    """The seeker's role behaviour (its actor is registered as ``seeker/nav``): the
+    approach and the IR confirmation; the rings and the sweep by touch are its part
+    ``search`` (`search.Search`).
 
     Args:
         nav: the navigation actor it drives.
@@ -196,20 +199,10 @@ class Seek(Search, RoleBehaviour):
         """The IR sensor sits on an ADC rail (it cannot tell; `drivers.ir`)."""
         """The IR actor's latest decision."""
         self.stage = "standoff"
-        """``standoff`` (looking from near the place), ``close`` (from the place itself) or
-        ``search`` (from points on a ring round it)."""
-        self.search_points: list[tuple[float, float]] = []
-        """Ring points still to look from (map frame [cm])."""
-        self.ring_cm = 0.0
-        """Radius of the search ring in progress [cm]."""
-        self.search_until = math.inf
-        """When the search in progress gives up [s] (a wider search only)."""
-        self.rings_until = math.inf
-        """When a wider search's rings give way to the sweep by touch [s]."""
-        self.sweep_turned = False  # the sweep's step in progress has turned, and drives
-        self.sweep_blocked = False  # the sweep's last step was blocked: the next leg turns
-        self.sweep_steps = 0  # steps of the sweep's leg in progress
-        self.leg_heading = 0.0  # the sweep's leg heading (map frame, as believed) [deg]
+        """``standoff`` (looking from near the place), ``close`` (from the place itself),
+        ``search`` (from points on a ring round it) or ``sweep`` (the sweep by touch)."""
+        self.search = Search(nav, self.s, self.reach_cm)
+        """The rings round the place and the sweep by touch."""
         self._ir_at = -math.inf
         self._scan: tuple[float, ...] = ()  # headings of the scan in progress [deg], map frame
         self._scan_index = 0
@@ -228,7 +221,7 @@ class Seek(Search, RoleBehaviour):
     async def on_goal(self, x: float, y: float, heading: float | None) -> None:
         self.place = (x, y)
         self.stage = "standoff"
-        self.search_points = []
+        self.search.points = []
         self._backing = None
         if self._distance() <= self.reach_cm:
             await self._confirm()
@@ -287,11 +280,32 @@ class Seek(Search, RoleBehaviour):
         if self.stage == "standoff":
             await self._approach()
         elif self.stage == "search":
-            await self.next_search_point()
+            await self._search_on()
         elif self.plan_search() or self.nav.memory.within is not None:
-            await self.next_search_point()  # with ``within``: the sweep, ring or not
+            await self._search_on()  # with ``within``: the sweep, ring or not
         else:
             await self.not_found(f"cannot get near the place: {reason}")
+
+    # ------------------------------------------------------------------ the search
+    def plan_search(self) -> bool:
+        """After the scan from the place saw nothing: plan the search's rings
+        (`search.Search.plan`); True, and the ``search`` stage, when there are points to
+        look from."""
+        if self.place is None or not self.search.plan(self.place):
+            return False
+        self.stage = "search"
+        return True
+
+    async def _search_on(self) -> None:
+        """Drive to the next ring point; at the end of the rings, the sweep by touch (a
+        wider search with time left) or ``not_found``."""
+        step = await self.search.next_point()
+        if step is Next.SWEEP:
+            first = self.stage != "sweep"
+            self.stage = "sweep"
+            await self.search.sweep(first)
+        elif step is Next.OVER:
+            await self.not_found(self.search.over_reason(swept=self.stage == "sweep"))
 
     # ------------------------------------------------------------------ IR confirmation
     async def _confirm(self, again: bool = False) -> None:
@@ -347,13 +361,8 @@ class Seek(Search, RoleBehaviour):
                 await self._back_off()
             else:
                 self._start_check()
-        elif self.nav.state == "sweeping" and not self.sweep_turned:
-            self.sweep_turned = True
-            await self.nav.command(Motion("move", self.s.sweep_step_cm))
-        elif self.nav.state == "sweeping":
-            self.sweep_blocked = blocked
-            self.sweep_steps += 1
-            await self._confirm()
+        elif self.nav.state == "sweeping" and await self.search.motion_ended(blocked):
+            await self._confirm()  # the sweep's step drove: look all round
 
     def _touching_unmapped(self) -> bool:
         """The look's turn ended blocked where the map shows free ground round the body
@@ -445,9 +454,9 @@ class Seek(Search, RoleBehaviour):
                 await self._approach()
             elif self.stage == "close" and (self.plan_search()
                                             or self.nav.memory.within is not None):
-                await self.next_search_point()  # with ``within``: the sweep, ring or not
+                await self._search_on()  # with ``within``: the sweep, ring or not
             elif self.stage in ("search", "sweep"):
-                await self.next_search_point()
+                await self._search_on()
             else:
                 await self.not_found("the IR sensor saw nothing there")
 
