@@ -832,12 +832,11 @@ async def test_a_turn_in_place_is_processed_every_update_min_deg(autojump_clock)
     """A turn in place one heading quantum (2.2 deg) a batch: each batch is a window of its
     own, and only one that turned ``update_min_deg`` (10 deg: the fifth quantum) since the
     last processed window is matched; the ones between only predict."""
-    from actors.firmware.mapping.scan_window import HEADING_QUANTUM_DEG
 
     async with _mapped(update_min_deg=10.0) as (system, pool, mm, truth, log):
         windows = mm.windows
         for k in range(1, 9):
-            at = Pose(truth.x, truth.y, k * HEADING_QUANTUM_DEG)
+            at = Pose(truth.x, truth.y, k * BENCH.heading_quantum_deg)
             _send_room_part(system, pool, at, at, k)
             await trio.sleep(0.05)
         # windows of batches 1..7 were cut (each before the next turned): the 5th processed
@@ -851,12 +850,12 @@ async def test_a_drives_heading_flicker_is_one_window_placed_at_the_drives_headi
     tread's interrupt before the other's), the last of them too, while the rover's
     heading does not move: its revolution is one window, matched once and placed at the
     drive's heading, and the belief keeps it."""
-    from actors.firmware.mapping.scan_window import HEADING_QUANTUM_DEG
     from server.protocol.pose import Pose
 
     async with _mapped(update_min_cm=0.0) as (system, pool, mm, truth, log):
         scans, matched, windows = mm.scans, mm.matched, mm.windows
-        for k, flicker in enumerate([0.0, HEADING_QUANTUM_DEG, 0.0, HEADING_QUANTUM_DEG]):
+        q = BENCH.heading_quantum_deg
+        for k, flicker in enumerate([0.0, q, 0.0, q]):
             taken = Pose(truth.x + k + 1.0, truth.y, 0.0)
             _send_room_part(system, pool, Pose(taken.x, taken.y, flicker), taken, k)
             await trio.sleep(0.05)
@@ -872,7 +871,6 @@ async def test_a_drives_heading_flicker_is_one_window_placed_at_the_drives_headi
 async def test_a_turn_in_place_by_a_heading_quantum_cuts_the_window(autojump_clock) -> None:
     """A stamp a quantum off the window's heading with the position still is a turn (the
     treads went opposite ways), not a drive's flicker: the window is cut before it."""
-    from actors.firmware.mapping.scan_window import HEADING_QUANTUM_DEG
     from server.protocol.pose import Pose
 
     async with _mapped() as (system, pool, mm, truth, log):
@@ -880,7 +878,7 @@ async def test_a_turn_in_place_by_a_heading_quantum_cuts_the_window(autojump_clo
         at = Pose(truth.x + 1.0, truth.y, 0.0)
         _send_room_part(system, pool, at, at, 0)
         await trio.sleep(0.05)
-        turned = Pose(at.x, at.y, HEADING_QUANTUM_DEG)
+        turned = Pose(at.x, at.y, BENCH.heading_quantum_deg)
         _send_room_part(system, pool, turned, turned, 1)
         await trio.sleep(0.05)
         assert mm.scans + mm.unplaced == scans + 1  # the first was placed (or dropped) alone

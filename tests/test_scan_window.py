@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from actors.firmware.drivers.lidar import Scan
+from actors.firmware.hardware import HardwareSpec
 from actors.firmware.mapping.scan_match import MatchOptions
 from actors.firmware.mapping.scan_window import (
-    HEADING_QUANTUM_DEG,
     WINDOW_SWEEP_DEG,
     WINDOW_TRAVEL_CM,
     WINDOW_TURN_DEG,
@@ -18,6 +18,8 @@ from actors.firmware.mapping.scan_window import (
 )
 from server.protocol.pose import Pose, compose
 
+HEADING_QUANTUM_DEG = HardwareSpec.bench("mapper").heading_quantum_deg
+"""The bench rover's dead-reckoned heading quantum (0.5 cm over the 13 cm track) [deg]."""
 WALL_X = 150.0  # a straight wall along y at x = 150 cm (odometry frame)
 
 
@@ -39,7 +41,7 @@ def turning_window() -> tuple[ScanWindow, list[Pose]]:
     are coarser than this; a stamp neither on the drive's heading nor a quantum off it
     is de-skewed by its own heading.)"""
     stamps = [Pose(10.0 + 1.5 * k, 5.0, -6.0 + 0.5 * k) for k in range(4)]
-    window = ScanWindow()
+    window = ScanWindow(HEADING_QUANTUM_DEG)
     for k, stamp in enumerate(stamps):
         window.add(wall_batch(stamp, -40.0 + 20.0 * k, n=20))
     return window, stamps
@@ -86,7 +88,7 @@ def _inverse_xy(p: Pose) -> tuple[float, float, float]:
 def test_a_window_is_full_at_a_revolution_or_its_travel_budget(budget) -> None:
     """A window is full once its batches swept a revolution, or the odometry counted its
     travel budget within it; before that it is not."""
-    window = ScanWindow()
+    window = ScanWindow(HEADING_QUANTUM_DEG)
     step = {"sweep": Pose(), "travel": Pose(WINDOW_TRAVEL_CM / 2.5, 0.0, 0.0)}[budget]
     pose = Pose()
     k = 0
@@ -104,7 +106,7 @@ def test_a_batch_whose_stamp_turned_starts_a_new_window() -> None:
     dead-reckoned heading off the drive's (2.2 deg each: one encoder interrupt of one
     tread), or one quantum off with the position still (a turn in place), does not join
     it."""
-    window = ScanWindow()
+    window = ScanWindow(HEADING_QUANTUM_DEG)
     window.add(wall_batch(Pose(), 0.0))
     straight = wall_batch(Pose(1.0, 0.0, 0.1), 60.0)  # (within the stamps' rounding)
     assert window.fits(straight)
@@ -123,7 +125,7 @@ def flicker_drive() -> tuple[ScanWindow, list[Pose], list[Pose]]:
     flicker = [0.0, q, 0.0, -q]
     truths = [Pose(10.0 + k, 5.0, -6.0) for k in range(4)]
     stamps = [Pose(p.x, p.y, p.heading_deg + f) for p, f in zip(truths, flicker, strict=True)]
-    window = ScanWindow()
+    window = ScanWindow(HEADING_QUANTUM_DEG)
     for k, (truth, stamp) in enumerate(zip(truths, stamps, strict=True)):
         batch = wall_batch(truth, -40.0 + 20.0 * k, n=20)
         assert window.fits(Scan(stamp, batch.angles_deg, batch.ranges_cm))

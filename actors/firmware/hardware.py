@@ -53,6 +53,7 @@ way it turned. Distance per interrupt is a calibration constant of the rover
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
@@ -135,6 +136,13 @@ class HardwareSpec:
         20 x 15 cm body): what a firmware part is built with when the rover tree gives
         no spec of its own (a test, a tool). The one place these numbers are written."""
         return cls(role, cm_per_interrupt=0.5, track_width_cm=13.0)
+
+    @property
+    def heading_quantum_deg(self) -> float:
+        """The dead-reckoned heading's quantum: one interrupt of one tread
+        (``cm_per_interrupt``) over the track (``track_width_cm``) [deg]; 2.2 deg on the
+        bench."""
+        return math.degrees(self.cm_per_interrupt / self.track_width_cm)
 
 
 Handler = Callable[[Any], None]

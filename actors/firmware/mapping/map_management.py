@@ -76,7 +76,7 @@ from actors.firmware.mapping.scan_match import (
     relocalise,
 )
 from actors.firmware.mapping.scan_window import ScanWindow, same_stamp
-from actors.firmware.origin_wire import PoseHalves
+from actors.firmware.origin_wire import MM, PoseHalves, xy_half
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg
 
@@ -147,7 +147,7 @@ class MapManagement(Actor):
         self.settle_s = settle_s
         self.update_min_cm = update_min_cm
         self.update_min_deg = update_min_deg
-        self._quantum_deg = math.degrees(spec.cm_per_interrupt / spec.track_width_cm)
+        self._quantum_deg = spec.heading_quantum_deg
         self._prev_odom: Pose | None = None  # odometry pose of the previous batch
         self._still_since = -float("inf")  # time odometry last changed between two batches
         self.localiser = MapperLocaliser(
@@ -237,9 +237,9 @@ class MapManagement(Actor):
                 self.publisher.sent_correction = origin
             self._await_correction_until = -float("inf")
         elif cmd == Cmd.MAP_TREAD_FAULT:
-            left_mm, right_mm = message.as_pair()
+            left_cm, right_cm = xy_half(message, MM)  # one length per tread (`length_pair`)
             self._flush()  # the batches before the report are placed as the counts say
-            self._tread_fault(left_mm / 10.0, right_mm / 10.0)
+            self._tread_fault(left_cm, right_cm)
         elif cmd == Cmd.NOOP:
             self.noops += 1  # a flood fault: costs a queue slot, never a restart
         else:

@@ -66,7 +66,7 @@ from actors.firmware.drivers.lidar import Scan
 from actors.firmware.mapping.scan_match import MatchOptions, hits_to_local, usable_hits
 from server.protocol.pose import Pose, angle_diff_deg, compose, relative
 
-__all__ = ["HEADING_QUANTUM_DEG", "ScanWindow", "WINDOW_SWEEP_DEG", "WINDOW_TURN_DEG",
+__all__ = ["ScanWindow", "WINDOW_SWEEP_DEG", "WINDOW_TURN_DEG",
            "WINDOW_TRAVEL_CM", "same_stamp"]
 
 WINDOW_SWEEP_DEG = 360.0
@@ -74,9 +74,6 @@ WINDOW_SWEEP_DEG = 360.0
 WINDOW_TURN_DEG = 0.3
 """Two stamps' headings this close are the same quantum [deg] (the odometry's heading
 moves in quanta of 2.2 deg)."""
-HEADING_QUANTUM_DEG = math.degrees(0.5 / 13.0)
-"""The dead-reckoned heading's quantum when no hardware spec is given: one 0.5 cm
-interrupt of one tread over the 13 cm track [deg]."""
 _STILL_CM = 0.5
 """Two stamps' positions this close are the same (positions come rounded to the cm) [cm]."""
 WINDOW_TRAVEL_CM = 10.0
@@ -92,13 +89,13 @@ class ScanWindow:
 
     Args:
         quantum_deg: the dead-reckoned heading's quantum (one interrupt of one tread
-            over the track) [deg].
+            over the track: `hardware.HardwareSpec.heading_quantum_deg`) [deg].
     """
 
     __slots__ = ("scans", "sweep_deg", "travel_cm", "quantum_deg", "_beams", "_deskew",
                  "_relative")
 
-    def __init__(self, quantum_deg: float = HEADING_QUANTUM_DEG) -> None:
+    def __init__(self, quantum_deg: float) -> None:
         self.scans: list[Scan] = []
         """The batches, oldest first."""
         self.sweep_deg = 0.0
