@@ -224,14 +224,16 @@ def test_futile_trips_count_whole_visits_and_end_exploration(monkeypatch) -> Non
         show(known[0] + gain - gain // 2)  # the map grows while the rover drives...
         nav.ex.target = (1.0, 2.0)
         nav.explorer.blacklist((1.0, 2.0))  # ...and the visit ends (given up)
-    assert not nav.explorer.futile()  # the 500-cell visit is still in the window
+    assert nav.ex.gains == [500, 10, 20]
+    assert not exploration.futile(nav.ex.gains, known[0])  # the 500-cell visit counts
     nav.ex.trip_known = known[0]
     show(known[0] + 5)
     nav.ex.target = (3.0, 4.0)
     nav.explorer.blacklist((9.0, 9.0))  # another point: the visit goes on...
-    assert not nav.explorer.futile()  # ...(ended, its 5 cells would push the 500 out)
+    assert nav.ex.gains == [500, 10, 20]  # ...(ended, its 5 cells would push the 500 out)
     nav.explorer.blacklist((3.0, 4.0))
-    assert nav.explorer.futile()  # 10 + 20 + 5 cells: fewer than 3 x 30
+    assert nav.ex.gains == [10, 20, 5]
+    assert exploration.futile(nav.ex.gains, known[0])  # 35 cells: fewer than 3 x 30
 
 
 
@@ -241,14 +243,11 @@ def test_the_least_useful_gain_grows_with_the_map(monkeypatch) -> None:
     from actors.firmware.nav import exploration
 
     monkeypatch.setattr(exploration, "FUTILE_TRIPS", 2)
-    nav = make_nav("mapper", pool=BufferPool(4))
-    cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
-    cells.reshape(-1)[:30000] = 0
-    nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
-    nav.ex.gains = [60, 60]
-    assert nav.explorer.futile()
-    nav.ex.gains = [60, 120]
-    assert not nav.explorer.futile()
+    assert exploration.min_gain(30000) == 90.0
+    assert exploration.futile([60, 60], 30000)
+    assert not exploration.futile([60, 60], 3000)  # a small map: 60 cells count
+    assert not exploration.futile([60, 120], 30000)
+    assert not exploration.futile([60], 30000)  # one visit is no window yet
 
 
 def test_one_visit_just_above_the_limit_does_not_restart_the_futile_count() -> None:
@@ -257,20 +256,17 @@ def test_one_visit_just_above_the_limit_does_not_restart_the_futile_count() -> N
     from actors.firmware.nav import exploration
 
     assert exploration.FUTILE_TRIPS == 4
-    nav = make_nav("mapper", pool=BufferPool(4))
-    cells = np.full((200, 200), UNKNOWN, dtype=np.int8)
-    cells.reshape(-1)[:10785] = 0
-    nav.grid = GridMap(cells, 5.0, (0.0, 0.0))
-    nav.ex.gains = [21, 7, 4, 34]
-    assert nav.explorer.futile()
-    nav.ex.gains = [21, 7, 4, 120]  # a visit that found a real opening
-    assert not nav.explorer.futile()
+    assert exploration.futile([21, 7, 4, 34], 10785)
+    assert exploration.futile([500, 21, 7, 4, 34], 10785)  # the window: the last four
+    assert not exploration.futile([21, 7, 4, 120], 10785)  # a visit that found an opening
 
 
-def _walled_room(gaps: dict[str, int]) -> GridMap:
+def _walled_room(gaps: dict[str, int], known_outside: int = 0) -> GridMap:
     """A 3 x 3 m free room around the origin walled in, with openings to the unknown:
-    ``gaps`` maps a side ("west", "east") to an opening's length [cells]."""
+    ``gaps`` maps a side ("west", "east") to an opening's length [cells];
+    ``known_outside`` cells far outside the walls are known (occupied)."""
     cells = np.full((80, 80), UNKNOWN, dtype=np.int8)
+    cells.reshape(-1)[:known_outside] = OCCUPIED  # the first rows, south of the walls
     cells[10:70, 10:70] = OCCUPIED
     cells[11:69, 11:69] = FREE
     for side, n in gaps.items():
@@ -283,23 +279,33 @@ def _walled_room(gaps: dict[str, int]) -> GridMap:
 async def test_after_futile_visits_only_viewpoints_worth_the_whole_window_count(
         autojump_clock, monkeypatch) -> None:
     """Futile visits raise the least gain to what the futile window together should have
-    shown: a small opening is dismissed, a big one (a room's unseen part) still chosen,
-    and a fruitful visit lets the small one count again."""
+    shown: after two visits given up with nothing made known, a small opening is
+    dismissed, a big one (a room's unseen part) still chosen, and a fruitful visit lets
+    the small one count again."""
     from actors.firmware.nav import exploration
 
     monkeypatch.setattr(exploration, "FUTILE_TRIPS", 2)
     monkeypatch.setattr(exploration, "MIN_GAIN_CELLS", 200)
     nav = make_nav("mapper", pool=BufferPool(4))
-    nav.grid = _walled_room({"west": 8})  # viewpoints reveal about 290 cells
-    assert nav.explorer.choose(keep=False) and nav.ex.target[0] < 0.0
-    nav.ex = type(nav.ex)(gains=[0, 0])
-    assert nav.explorer.futile()
+    small = _walled_room({"west": 8})  # viewpoints reveal about 290 cells
+    both = _walled_room({"west": 8, "east": 40})  # the east opening: about 700
+    nav.grid = small
+    assert nav.explorer.choose(keep=False) and nav.ex.target[0] < 0.0  # it counts
+    nav.grid = both
+    for _ in range(2):  # two visits given up, the map unchanged
+        assert nav.explorer.choose(keep=False)
+        nav.explorer.blacklist(nav.ex.target)
+    assert nav.ex.gains == [0, 0]
+    assert all(b[0] > -100.0 for b in nav.ex.blacklist)  # the small opening's not among them
+    nav.grid = small
     assert not nav.explorer.choose(keep=False) and nav.ex.no_frontier  # less than 2 x 200
-    nav.grid = _walled_room({"west": 8, "east": 40})  # the east opening: about 700
+    nav.grid = both
     assert nav.explorer.choose(keep=False) and nav.ex.target[0] > -100.0
-    nav.grid = _walled_room({"west": 8})
-    nav.ex.gains = [500, 0]  # a fruitful visit: the small opening counts again
-    assert nav.explorer.choose(keep=False) and nav.ex.target[0] < 0.0
+    nav.grid = _walled_room({"west": 8, "east": 40}, known_outside=500)
+    nav.explorer.blacklist(nav.ex.target)  # a fruitful visit...
+    assert nav.ex.gains == [0, 500]
+    nav.grid = small
+    assert nav.explorer.choose(keep=False) and nav.ex.target[0] < 0.0  # ...counts it again
 
 
 @pytest.mark.trio
@@ -445,10 +451,11 @@ def test_turning_away_from_an_obstacle_again_and_again_blacklists_the_target(
     assert not nav.explorer.turned_away()
     nav.ex.target = (462.5, -32.5)
     assert not nav.explorer.turned_away() and not nav.explorer.turned_away()
-    assert not nav.explorer.futile()  # the trip goes on
+    assert nav.ex.gains == []  # the trip goes on
     nav.ex.target = (460.0, -30.0)  # the same frontier, its target moved a little
     assert nav.explorer.turned_away()  # blacklisted
-    assert nav.explorer.futile()  # the visit ended: 10 cells, fewer than 30
+    assert nav.ex.gains == [10]  # the visit ended...
+    assert exploration.futile(nav.ex.gains, 100)  # ...with 10 cells, fewer than 30
 
 
 def test_the_mapper_steers_and_plans_home_from_its_map_frame_pose() -> None:

@@ -31,6 +31,7 @@ Blocked motions
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -51,7 +52,8 @@ from server.protocol.grid_map import UNKNOWN
 if TYPE_CHECKING:
     from actors.firmware.nav.mapper import MappingNav
 
-__all__ = ["Exploration", "ExplorationState", "MIN_FACE_CELLS", "MAX_INCIDENCE_DEG",
+__all__ = ["Exploration", "ExplorationState", "futile", "least_gain", "min_gain",
+           "MIN_FACE_CELLS", "MAX_INCIDENCE_DEG",
            "RECHOOSE_STEPS", "OBSTACLE_TURNS", "MAX_CHOICES", "KEEP_CM", "KEEP_SHARE",
            "BLACKLIST", "BLACKLIST_RADIUS_CM", "SIGHTINGS", "UNSEEABLE", "TRIP_MAX_S",
            "FUTILE_TRIPS", "MIN_GAIN_CELLS", "MIN_GAIN_SHARE"]
@@ -105,6 +107,32 @@ MIN_GAIN_SHARE = 0.003
 give a few dozen cells per visit for ever). Counted per visit, not per minute: crossing a
 big hall to a far frontier reveals nothing for a while."""
 
+
+def min_gain(known: int) -> float:
+    """The least a trip must make known, and a viewpoint reveal, to count [cells]:
+    ``MIN_GAIN_CELLS``, or ``MIN_GAIN_SHARE`` of the ``known`` cells when that is more."""
+    return max(MIN_GAIN_CELLS, MIN_GAIN_SHARE * known)
+
+
+def futile(gains: Sequence[int], known: int) -> bool:
+    """Whether the last ``FUTILE_TRIPS`` trips, which made ``gains`` cells known each
+    (oldest first), together revealed too little to go on, ``known`` cells being known.
+
+    Judged on their sum (a running window), not on each: one visit just above the
+    limit among small ones would start the count over, and mapping would go on for
+    90-s trips gaining 21, 7, 4 and 34 cells (limit 32)."""
+    if len(gains) < FUTILE_TRIPS:
+        return False
+    return sum(gains[-FUTILE_TRIPS:]) < min_gain(known) * FUTILE_TRIPS
+
+
+def least_gain(gains: Sequence[int], known: int) -> float:
+    """The least a viewpoint must reveal to be worth a trip [cells]: `min_gain`, and after
+    futile trips (`futile`) as much as the futile window together should have shown (what
+    an obstacle hid in a big room still counts; each is blacklisted once reached, so
+    this ends)."""
+    least = min_gain(known)
+    return least * FUTILE_TRIPS if futile(gains, known) else least
 
 
 @dataclass
@@ -254,11 +282,8 @@ class Exploration:
         reachable pose sees enough of the unknown."""
         assert self.nav.grid is not None
         ex = self.nav.ex
-        # after futile visits only viewpoints revealing much still count (what an obstacle
-        # hid in a big room), and each is blacklisted once reached (below), so this ends
-        least = self._min_gain(self._known())
-        if self.futile():
-            least *= FUTILE_TRIPS  # as much as the futile visits together should have shown
+        # after futile visits only viewpoints revealing much still count (`least_gain`)
+        least = least_gain(ex.gains, self._known())
         views = [v for v in self._viewpoints() if v.gain_cells >= least and not any(
             math.dist(v.point_cm, b) <= BLACKLIST_RADIUS_CM for b in ex.blacklist)]
         if not views:
@@ -339,21 +364,6 @@ class Exploration:
         nav = self.nav
         return plan_tiers(nav.radius_cm, nav.width_cm, nav.o.plan_margin_cm,
                           nav.o.narrow_margin_cm)
-
-    def _min_gain(self, known: int) -> float:
-        return max(MIN_GAIN_CELLS, MIN_GAIN_SHARE * known)
-
-    def futile(self) -> bool:
-        """Whether the last ``FUTILE_TRIPS`` visits together revealed too little to go on.
-
-        Judged on their sum (a running window), not on each: one visit just above the
-        limit among small ones would start the count over, and mapping would go on for
-        90-s trips gaining 21, 7, 4 and 34 cells (limit 32)."""
-        g = self.nav.ex.gains
-        if len(g) < FUTILE_TRIPS:
-            return False
-        least = self._min_gain(self._known() if self.nav.grid is not None else 0)
-        return sum(g[-FUTILE_TRIPS:]) < least * FUTILE_TRIPS
 
     def _known(self) -> int:
         assert self.nav.grid is not None
