@@ -32,8 +32,10 @@ import time
 
 import numpy as np
 
+from actors.firmware.hardware import HardwareSpec
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.mapping.scan_match import MatchFields, MatchOptions, hits_to_local, match_scan
+from actors.firmware.planning.clearance import turning_radius_cm
 from actors.firmware.planning.frontier import find_frontiers
 from actors.firmware.planning.grid_search import astar
 from actors.firmware.planning.planner import plan_path, traversable
@@ -41,6 +43,8 @@ from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
 from server.protocol.pose import Pose
 
 ROOM = (-300.0, 700.0, -200.0, 600.0)  # x0, x1, y0, y1 [cm]: a 10 m x 8 m hall
+_BODY = HardwareSpec.bench("mapper")
+RADIUS_CM = turning_radius_cm(_BODY.length_cm, _BODY.width_cm)  # the bench rover's [cm]
 
 
 def box_ranges(pose: Pose, angles_deg: np.ndarray) -> np.ndarray:
@@ -160,16 +164,17 @@ def _bench_astar(rng: np.random.Generator, rep: int, figures: dict[str, float],
                  rows: list[Row]) -> None:
     """A* on a hall, against Dijkstra (A* with no heuristic), and the inflation."""
     m = GridMap(hall_cells(rng), 5.0, (0.0, 0.0))
-    passable = traversable(m)
+    passable = traversable(m, RADIUS_CM)
     start, goal = (125.0, 325.0), (875.0, 325.0)
-    plan = plan_path(m, start, goal, passable=passable)
+    plan = plan_path(m, start, goal, robot_radius_cm=RADIUS_CM, passable=passable)
     assert plan is not None, "benchmark hall must be solvable"
-    t_astar = timed(lambda: plan_path(m, start, goal, passable=passable), rep)
+    t_astar = timed(lambda: plan_path(m, start, goal, robot_radius_cm=RADIUS_CM,
+                                      passable=passable), rep)
     s_cell, g_cell = m.world_to_cell(*start), m.world_to_cell(*goal)
     dijkstra = astar(passable, s_cell, g_cell, heuristic_weight=0.0)
     t_dij = timed(lambda: astar(passable, s_cell, g_cell, heuristic_weight=0.0),
                   max(2, rep // 4))
-    t_inflate = timed(lambda: traversable(m), rep)
+    t_inflate = timed(lambda: traversable(m, RADIUS_CM), rep)
     figures.update(astar_ms=t_astar * 1e3, dijkstra_ms=t_dij * 1e3,
                    astar_speedup=t_dij / t_astar, astar_expanded=plan.expanded,
                    dijkstra_expanded=dijkstra[2], inflate_ms=t_inflate * 1e3,
@@ -187,8 +192,9 @@ def _bench_frontier(angles: np.ndarray, poses: list[Pose], scans: list, rep: int
     for p, r in scans[:3]:
         explored.integrate(p, angles, r)
     snap = explored.snapshot()
-    fs = find_frontiers(snap, (poses[0].x, poses[0].y))
-    t_front = timed(lambda: find_frontiers(snap, (poses[0].x, poses[0].y)), rep)
+    at = (poses[0].x, poses[0].y)
+    fs = find_frontiers(snap, at, robot_radius_cm=RADIUS_CM)
+    t_front = timed(lambda: find_frontiers(snap, at, robot_radius_cm=RADIUS_CM), rep)
     crop = snap.crop_known(8).cells
     t_mask_py = timed(lambda: python_frontier_mask(crop), max(2, rep // 4))
     figures.update(frontier_ms=t_front * 1e3, frontier_mask_python_ms=t_mask_py * 1e3,

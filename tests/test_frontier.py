@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from actors.firmware.hardware import HardwareSpec
+from actors.firmware.planning.clearance import turning_radius_cm
 from actors.firmware.planning.frontier import (
     Frontier,
     find_frontiers,
@@ -14,6 +16,10 @@ from actors.firmware.planning.frontier import (
     label_clusters,
 )
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
+
+BENCH = HardwareSpec.bench("mapper")
+RADIUS_CM = turning_radius_cm(BENCH.length_cm, BENCH.width_cm)
+"""The bench rover's turning radius (half its 20 x 15 cm body's diagonal: 12.5 cm)."""
 
 
 def test_frontier_mask_is_free_cells_next_to_unknown():
@@ -56,7 +62,7 @@ def explored_room() -> GridMap:
 def test_find_frontiers_reports_the_boundary_with_distance_and_target():
     """The known/unknown boundary is one cluster; its target is reachable and near it."""
     m = explored_room()
-    fs = find_frontiers(m, (50.0, 100.0), split_cm=None)
+    fs = find_frontiers(m, (50.0, 100.0), robot_radius_cm=RADIUS_CM, split_cm=None)
     assert len(fs) == 1
     f = fs[0]
     assert f.size == 38  # rows 1..38 at column 29
@@ -74,7 +80,8 @@ def test_walled_off_frontier_is_unreachable():
     """A frontier behind a wall is not reachable."""
     cells = explored_room().cells.copy()
     cells[:, 15] = OCCUPIED
-    fs = find_frontiers(GridMap(cells, 5.0, (0, 0)), (30.0, 100.0), split_cm=None)
+    fs = find_frontiers(GridMap(cells, 5.0, (0, 0)), (30.0, 100.0), robot_radius_cm=RADIUS_CM,
+                        split_cm=None)
     assert len(fs) == 1 and not fs[0].reachable
 
 
@@ -82,8 +89,8 @@ def test_a_long_frontier_is_split_into_pieces_with_their_own_targets():
     """The 190 cm boundary, cut by a 100 cm grid: pieces that together hold every frontier
     cell, each with a target near its own part (not all at the point nearest the rover)."""
     m = explored_room()
-    whole = find_frontiers(m, (50.0, 100.0), split_cm=None)[0]
-    fs = find_frontiers(m, (50.0, 100.0), split_cm=100.0)
+    whole = find_frontiers(m, (50.0, 100.0), robot_radius_cm=RADIUS_CM, split_cm=None)[0]
+    fs = find_frontiers(m, (50.0, 100.0), robot_radius_cm=RADIUS_CM, split_cm=100.0)
     assert len(fs) >= 2
     assert sum(f.size for f in fs) == whole.size
     assert all(f.reachable for f in fs)
@@ -97,7 +104,8 @@ def test_fully_known_room_has_no_frontier():
     """A closed, fully mapped room has no frontier at all."""
     cells = explored_room().cells.copy()
     cells[1:-1, 1:-1] = FREE
-    assert find_frontiers(GridMap(cells, 5.0, (0, 0)), (50.0, 100.0)) == []
+    assert find_frontiers(GridMap(cells, 5.0, (0, 0)), (50.0, 100.0),
+                          robot_radius_cm=RADIUS_CM) == []
 
 
 def make(size: int, distance: float, share: float, at=(0.0, 0.0), target=(0.0, 0.0)) -> Frontier:

@@ -12,6 +12,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from actors.firmware.hardware import HardwareSpec
+from actors.firmware.planning.clearance import turning_radius_cm
 from actors.firmware.planning.grid_search import MOVES, _astar_padded, astar, bfs_steps
 from actors.firmware.planning.planner import (
     inflate,
@@ -22,6 +24,10 @@ from actors.firmware.planning.planner import (
     traversable,
 )
 from server.protocol.grid_map import FREE, OCCUPIED, UNKNOWN, GridMap
+
+BENCH = HardwareSpec.bench("mapper")
+RADIUS_CM = turning_radius_cm(BENCH.length_cm, BENCH.width_cm)
+"""The bench rover's turning radius (half its 20 x 15 cm body's diagonal: 12.5 cm)."""
 
 
 def room(ny: int = 40, nx: int = 60) -> np.ndarray:
@@ -73,10 +79,10 @@ def test_inflate_radius_blocks_cells_within_reach():
 def test_traversable_keeps_the_rover_radius_off_walls():
     """With 12.5 + 3 cm at 5 cm cells, the 3 cells next to a wall are blocked, the 4th free."""
     m = GridMap(room(), 5.0, (0, 0))
-    p = traversable(m, 12.5, 3.0)
+    p = traversable(m, RADIUS_CM, 3.0)
     assert not p[20, 1:4].any()  # gaps 0.5..2.5 cells = 2.5..12.5 cm < 15.5 cm
     assert p[20, 4]  # gap 3.5 cells = 17.5 cm
-    assert not traversable(m, 12.5, 5.1)[20, 4]
+    assert not traversable(m, RADIUS_CM, 5.1)[20, 4]
 
 
 def test_unknown_is_blocked_or_costly_as_asked():
@@ -85,8 +91,9 @@ def test_unknown_is_blocked_or_costly_as_asked():
     cells[:, 30] = UNKNOWN
     cells[0, 30] = cells[-1, 30] = OCCUPIED
     m = GridMap(cells, 5.0, (0, 0))
-    assert plan_path(m, (50, 100), (250, 100)) is None
-    plan = plan_path(m, (50, 100), (250, 100), unknown="costly")
+    assert plan_path(m, (50, 100), (250, 100), robot_radius_cm=RADIUS_CM) is None
+    plan = plan_path(m, (50, 100), (250, 100), robot_radius_cm=RADIUS_CM,
+                     unknown="costly")
     assert plan is not None
     assert plan.cost_cm > 200  # the unknown crossing costs extra
 
@@ -94,7 +101,7 @@ def test_unknown_is_blocked_or_costly_as_asked():
 def test_open_room_path_is_one_straight_leg_to_the_exact_goal():
     """In an empty room the plan is start -> goal, exactly, with the straight length."""
     m = GridMap(room(), 5.0, (0, 0))
-    plan = plan_path(m, (52.0, 51.0), (247.0, 149.0))
+    plan = plan_path(m, (52.0, 51.0), (247.0, 149.0), robot_radius_cm=RADIUS_CM)
     assert plan.waypoints_cm == ((52.0, 51.0), (247.0, 149.0))
     assert plan.length_cm == pytest.approx(math.dist((52, 51), (247, 149)))
     assert not plan.goal_snapped
@@ -105,11 +112,11 @@ def test_path_goes_around_a_wall_through_the_gap():
     cells = room()
     cells[1:30, 30] = OCCUPIED  # gap rows 30..38 (45 cm) at the top
     m = GridMap(cells, 5.0, (0, 0))
-    plan = plan_path(m, (50, 50), (250, 50))
+    plan = plan_path(m, (50, 50), (250, 50), robot_radius_cm=RADIUS_CM)
     assert plan is not None
     assert max(y for _, y in plan.waypoints_cm) > 150  # went up to the gap
     assert len(plan.waypoints_cm) >= 3
-    passable = traversable(m)
+    passable = traversable(m, RADIUS_CM)
     assert all(passable[r, c] for r, c in plan.cells)
 
 
@@ -117,7 +124,8 @@ def test_unreachable_goal_returns_none():
     """A goal behind a full wall has no plan."""
     cells = room()
     cells[:, 30] = OCCUPIED
-    assert plan_path(GridMap(cells, 5.0, (0, 0)), (50, 50), (250, 50)) is None
+    assert plan_path(GridMap(cells, 5.0, (0, 0)), (50, 50), (250, 50),
+                     robot_radius_cm=RADIUS_CM) is None
 
 
 def _four_connected(p: np.ndarray, a: tuple[int, int], b: tuple[int, int]) -> bool:
@@ -158,10 +166,11 @@ def test_astar_finds_a_path_exactly_between_4_connected_cells():
 def test_goal_inside_inflation_snaps_to_nearest_passable_cell():
     """A goal 5 cm from a wall is moved to the nearest cell the rover can occupy."""
     m = GridMap(room(), 5.0, (0, 0))
-    plan = plan_path(m, (100, 100), (100, 7.5))
+    plan = plan_path(m, (100, 100), (100, 7.5), robot_radius_cm=RADIUS_CM)
     assert plan.goal_snapped
     assert plan.waypoints_cm[-1] == pytest.approx((102.5, 22.5), abs=5)
-    assert plan_path(m, (100, 100), (100, 7.5), snap_radius_cm=5) is None
+    assert plan_path(m, (100, 100), (100, 7.5), robot_radius_cm=RADIUS_CM,
+                     snap_radius_cm=5) is None
 
 
 def test_snap_to_passable_prefers_the_cell_itself():
@@ -177,7 +186,7 @@ def test_astar_matches_dijkstra_cost_and_expands_fewer_nodes():
     """The tie-broken heuristic costs at most 0.1 % extra and saves expansions."""
     cells = room(80, 100)
     cells[10:70, 50] = OCCUPIED
-    p = traversable(GridMap(cells, 5.0, (0, 0)))
+    p = traversable(GridMap(cells, 5.0, (0, 0)), RADIUS_CM)
     a = astar(p, (40, 10), (40, 90))
     d = astar(p, (40, 10), (40, 90), heuristic_weight=0.0)
     assert a[1] <= d[1] * 1.001
@@ -257,8 +266,8 @@ def obstacle_maps(draw):
 def test_every_plan_stays_on_passable_ground(case):
     """Every A* cell and every straight leg of the waypoints is passable on the inflated grid."""
     m, start, goal = case
-    p = traversable(m)
-    plan = plan_path(m, start, goal, passable=p)
+    p = traversable(m, RADIUS_CM)
+    plan = plan_path(m, start, goal, robot_radius_cm=RADIUS_CM, passable=p)
     if plan is None:
         return
     assert all(p[r, c] for r, c in plan.cells)
@@ -274,13 +283,14 @@ def test_plan_path_needs_a_matching_mask():
     """A precomputed mask of the wrong shape is refused."""
     m = GridMap(room(), 5.0, (0, 0))
     with pytest.raises(ValueError, match="passable must have the grid's shape"):
-        plan_path(m, (50, 50), (60, 60), passable=np.ones((3, 3), dtype=bool))
+        plan_path(m, (50, 50), (60, 60), robot_radius_cm=RADIUS_CM,
+                  passable=np.ones((3, 3), dtype=bool))
 
 
 def test_traversable_rejects_bad_unknown_mode():
     """The unknown mode is checked."""
     with pytest.raises(ValueError, match="unknown must be 'blocked' or 'costly'"):
-        traversable(GridMap(room(), 5.0, (0, 0)), unknown="maybe")  # type: ignore[arg-type]
+        traversable(GridMap(room(), 5.0, (0, 0)), RADIUS_CM, unknown="maybe")  # type: ignore[arg-type]
 
 
 def test_free_constant_is_zero():

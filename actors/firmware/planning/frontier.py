@@ -144,7 +144,7 @@ def find_frontiers(
     grid: GridMap,
     rover_cm: tuple[float, float],
     *,
-    robot_radius_cm: float = 12.5,
+    robot_radius_cm: float,
     margin_cm: float = 3.0,
     approach_cm: float = 30.0,
     explore_radius_cm: float = 100.0,

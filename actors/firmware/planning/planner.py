@@ -114,7 +114,7 @@ def inflate(blocked: np.ndarray, radius_cells: float) -> np.ndarray:
 
 def traversable(
     grid: GridMap,
-    robot_radius_cm: float = 12.5,
+    robot_radius_cm: float,
     margin_cm: float = 3.0,
     unknown: Literal["blocked", "costly"] = "blocked",
 ) -> np.ndarray:
@@ -227,7 +227,7 @@ def plan_path(
     start_cm: tuple[float, float],
     goal_cm: tuple[float, float],
     *,
-    robot_radius_cm: float = 12.5,
+    robot_radius_cm: float,
     margin_cm: float = 3.0,
     unknown: Literal["blocked", "costly"] = "blocked",
     unknown_cost: float = 4.0,
