@@ -257,6 +257,25 @@ def test_the_ring_grows_with_the_drift_and_stays_on_free_ground() -> None:
     assert first.search.points[0][0] > 150.0  # facing +x: the point ahead first
 
 
+@pytest.mark.trio
+async def test_the_search_says_what_comes_after_its_rings(autojump_clock) -> None:
+    """The search is a part the seeker calls, and it answers what comes next: with no
+    ring point left, the end (and why) for a plain guess; for a wider guess (``within``)
+    planned with time left, a step of the sweep by touch, ring or not."""
+    from actors.firmware.nav.search import Next
+
+    seek = searching_nav((150.0, 100.0), 100.0)  # drift 4 cm: no ring is needed
+    assert not seek.search.plan(seek.place)
+    assert await seek.search.next_point() is Next.OVER
+    assert seek.search.over_reason(swept=False).startswith(
+        "the IR sensor saw nothing there, nor on a ring of")
+    wider = searching_nav((150.0, 100.0), 100.0)
+    wider.nav.memory.within = 40.0  # the operator's wider search: 40 + 4 cm < the reach
+    assert not wider.search.plan(wider.place)  # no ring...
+    assert await wider.search.next_point() is Next.SWEEP  # ...but the sweep's time
+    assert "rings out to" in wider.search.over_reason(swept=True)
+
+
 def test_ring_points_in_walls_are_pulled_in_or_left_out() -> None:
     """Ring points in or near the walls are pulled in toward the place (a place by a
     wall), or left out when no pulled-in point is passable either (in a corner)."""
