@@ -13,7 +13,7 @@ from server.protocol import make_frame
 from server.server import ServerConfig, open_server
 from server.store import Store
 from tests.fake_rover import FakeRover, attach_outside, memory_pipe
-from tui.cmd_serve import parse_command_line, run_fault
+from tui.serve_console import parse_command_line, run_fault
 from world.faults import DEVICE_FAULTS
 
 

@@ -23,7 +23,7 @@ from server.store import Store
 from supervisors.harness.headless import Budget, GameReport, play_game
 from supervisors.remote import open_remote_rover
 from supervisors.system import open_sim_system
-from tui.cmd_serve import format_status
+from tui.serve_console import format_status
 from world.scenario import load_scenario
 
 PTY_CLOCK_THRESHOLD_S = 0.0005  # real time with nothing to do before the clock jumps [s]

@@ -10,7 +10,7 @@ import pytest
 from server.links.spec import LISTEN, SERVE_ROVER
 from server.protocol import GridMap, Pose
 from server.store import Store
-from tui import cmd_maps, cmd_serve
+from tui import cmd_maps, cmd_serve, serve_console
 
 
 def _args(module, prog: str, argv: list[str]) -> argparse.Namespace:
@@ -55,16 +55,16 @@ def test_serve_refuses_bad_setups_with_a_message(argv, message, tmp_path, capsys
 
 def test_operator_command_lines_parse() -> None:
     """The stdin command syntax of serve."""
-    assert cmd_serve.parse_command_line("hide 10 20 90 room") == (
+    assert serve_console.parse_command_line("hide 10 20 90 room") == (
         "hide", {"x": 10.0, "y": 20.0, "heading": 90.0, "frame": "room"})
-    assert cmd_serve.parse_command_line("seek 1 2") == ("seek", {"x": 1.0, "y": 2.0,
+    assert serve_console.parse_command_line("seek 1 2") == ("seek", {"x": 1.0, "y": 2.0,
                                                                  "frame": "map"})
     with pytest.raises(ValueError, match=r"usage: hide X Y \[HEADING\] \[room\|map\]"):
-        cmd_serve.parse_command_line("hide 1")
-    assert cmd_serve.parse_command_line("seek 1 2 room within=120") == (
+        serve_console.parse_command_line("hide 1")
+    assert serve_console.parse_command_line("seek 1 2 room within=120") == (
         "seek", {"within": 120.0, "x": 1.0, "y": 2.0, "frame": "room"})
     with pytest.raises(ValueError, match=r"within=CM must be a number"):
-        cmd_serve.parse_command_line("seek 1 2 within=far")
+        serve_console.parse_command_line("seek 1 2 within=far")
     assert cmd_serve.parse_origin("h1=1,2,3") == ("h1", Pose(1.0, 2.0, 3.0))
 
 

@@ -11,7 +11,7 @@ import time
 from server.protocol import LinkStats
 from server.server import RoverView, ServerSnapshot
 from server.store import Store
-from tui.cmd_serve import CONSOLE_COMMANDS, format_status
+from tui.serve_console import CONSOLE_COMMANDS, format_status
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

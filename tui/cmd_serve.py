@@ -16,7 +16,7 @@ server stopped or killed mid-game resumes it; rovers reconnect and resync);
 ``--fresh-game`` starts a new one instead.
 
 Operator commands are read from standard input, one per line (a prompt with
-line editing and history when it is a terminal)::
+line editing and history when it is a terminal; `tui.serve_console`)::
 
     start_mapping | stop_mapping | new_game | status | help | quit
     hide X Y [HEADING] [room|map]      (cm, deg; map frame unless "room")
@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 import sys
 from typing import TYPE_CHECKING
 
@@ -49,34 +48,12 @@ if TYPE_CHECKING:
     from server.links.spec import LinkSpec
 
 __all__ = ["add_arguments", "run", "parse_assignment", "parse_origin", "parse_listens",
-           "check_listen", "parse_command_line", "CONSOLE_COMMANDS", "DEFAULT_LISTEN",
-           "DEFAULT_UDP_LISTEN", "HELP", "format_status", "parse_fault_words", "run_fault"]
+           "check_listen", "DEFAULT_LISTEN", "DEFAULT_UDP_LISTEN"]
 
 DEFAULT_LISTEN = "tcp:127.0.0.1:7878"
 """Where ``serve`` listens without ``--listen``."""
 DEFAULT_UDP_LISTEN = "udp:127.0.0.1:7878"
 """... and for rovers on ``udp`` (``--rover ID=udp``)."""
-CONSOLE_COMMANDS = ("start_mapping", "stop_mapping", "hide", "seek", "new_game", "fault",
-                    "clear", "status", "help", "quit")
-"""Every command the operator console takes."""
-HELP = """\
-  start_mapping                      the mapper explores the room
-  stop_mapping                       the mapper stops and uploads what it has
-  hide X Y [HEADING] [room|map]      send the hider there (cm, deg; map frame unless room)
-  seek X Y [HEADING] [room|map] [within=CM]
-                                     send the seeker to look there (within: search radius)
-  fault ROVER/TARGET KIND [DURATION] [NAME=VALUE ...]
-                                     break a rover's device, actor or link (s; status
-                                     lists an attached rover's faults), e.g.
-                                     fault mapper/link loss 60 percent=30
-  clear ROVER/TARGET [KIND]          end the faults on a target (all kinds by default)
-  new_game                           end this game (stopped by the operator), start another
-  status                             game phase and each rover's link
-  help                               this list
-  quit                               stop the server (as Ctrl-C or Ctrl-D); the game resumes
-                                     at the next start"""
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--listen", action="append", metavar="tcpin:HOST:PORT|udpin:HOST:PORT",
                         help=f"where rovers connect over TCP, or send over UDP: {LISTEN.forms} "
@@ -153,167 +130,15 @@ def parse_origin(text: str):
     return rid, Pose(x, y, h)
 
 
-def parse_command_line(line: str) -> tuple[str, dict]:
-    """An operator line -> (command, kwargs). Raises ValueError with usage."""
-    words = line.split()
-    if not words:
-        raise ValueError("empty command")
-    name, rest = words[0], words[1:]
-    if name not in CONSOLE_COMMANDS:
-        raise ValueError(f"unknown command {name!r}; commands: {', '.join(CONSOLE_COMMANDS)}")
-    if name in ("hide", "seek"):
-        usage = f"usage: {name} X Y [HEADING] [room|map]"
-        if name == "seek":
-            usage += " [within=CM]"
-        kw: dict = {}
-        if name == "seek" and rest and rest[-1].startswith("within="):
-            try:
-                kw["within"] = float(rest.pop()[len("within="):])
-            except ValueError:
-                raise ValueError(f"seek: within=CM must be a number, {usage}") from None
-        frame = "map"
-        if rest and rest[-1] in ("room", "map"):
-            frame = rest.pop()
-        if len(rest) not in (2, 3):
-            raise ValueError(usage)
-        try:
-            nums = [float(w) for w in rest]
-        except ValueError:
-            raise ValueError(f"{name}: X, Y and HEADING must be numbers, got {rest}") from None
-        kw.update(x=nums[0], y=nums[1], frame=frame)
-        if len(nums) == 3:
-            kw["heading"] = nums[2]
-        return name, kw
-    if name in ("fault", "clear"):
-        return name, parse_fault_words(name, rest)
-    if rest:
-        raise ValueError(f"{name} takes no arguments")
-    return name, {}
-
-
-def parse_fault_words(name: str, words: list[str]) -> dict:
-    """``fault``/``clear`` arguments -> ``rover, target, kind, duration_s, params``.
-
-    Raises:
-        ValueError: naming the word that is wrong, with the usage.
-    """
-    usage = ("usage: fault ROVER/TARGET KIND [DURATION] [NAME=VALUE ...]" if name == "fault"
-             else "usage: clear ROVER/TARGET [KIND]")
-    if not words or words[0].count("/") != 1 or "" in words[0].split("/"):
-        raise ValueError(usage)
-    rover, target = words[0].split("/")
-    rest = words[1:]
-    if name == "clear":
-        if len(rest) > 1:
-            raise ValueError(usage)
-        return {"rover": rover, "target": target, "kind": rest[0] if rest else "*"}
-    if not rest:
-        raise ValueError(usage)
-    kind, rest = rest[0], rest[1:]
-    duration = 0.0
-    if rest and "=" not in rest[0]:
-        try:
-            duration = float(rest.pop(0))
-        except ValueError:
-            raise ValueError(f"fault: DURATION must be a number of seconds, {usage}") from None
-        if not 0 <= duration <= 86400:
-            raise ValueError(f"fault: DURATION must be within 0..86400 s, got {duration:g}")
-    params = {}
-    for word in rest:
-        key, _, value = word.partition("=")
-        try:
-            params[key] = float(value)
-        except ValueError:
-            raise ValueError(f"fault: {word!r} is not NAME=NUMBER, {usage}") from None
-    return {"rover": rover, "target": target, "kind": kind, "duration_s": duration,
-            "params": params}
-
-
-def format_status(snap) -> str:
-    """A server snapshot as lines for people: the game, then one row per rover."""
-    head = f"game {snap.game_id}: {snap.phase}" + (f" ({snap.reason})" if snap.reason else "")
-    lines = [head]
-    if snap.rovers:
-        lines.append(f"  {'rover':<12} {'role':<7} {'link':<24} {'up':<4} {'rtt':>8} "
-                     f"{'in':>6} {'out':>6} {'lost':>5} {'resent':>6} {'bad':>5}")
-    for r in snap.rovers:
-        st = r.stats
-        faults = getattr(r, "faults", ())
-        rtt = f"{st.rtt_s * 1000:.0f} ms" if st.rtt_s is not None else "-"
-        lines.append(f"  {r.id:<12} {r.role:<7} {(r.link or '(none)'):<24} "
-                     f"{'yes' if st.up else 'no':<4} {rtt:>8} {st.frames_in:>6} "
-                     f"{st.frames_out:>6} {st.lost:>5} {st.resent:>6} {st.bad_frames:>5}")
-        if faults:
-            lines.append(f"  {'':<12} faults: {', '.join(faults)}")
-    if not snap.rovers:
-        lines.append("  no rover has said hello yet")
-    refused = getattr(snap, "refused", {}) or {}
-    lines.append(f"  connections {getattr(snap, 'connections', 0)}; refused since start: "
-                 f"{refused.get('bad_frame', 0)} bad frames, "
-                 f"{refused.get('auth_failed', 0)} failed hellos, "
-                 f"{refused.get('conn_closed', 0)} links closed")
-    return "\n".join(lines)
-
-
 def run(args: argparse.Namespace) -> int:
-    from server.config import ServerConfig
-    from server.links import is_loopback
-    from server.links.spec import parse_link_for
     from server.store import Store, StoreError
-    from server.trust import beyond_loopback_refusal
     from tui.stopping import is_interrupt, leaves
 
     try:
-        tokens: dict[str, str] = {}
-        for t in args.token:
-            if "=" in t:
-                rid, tok = parse_assignment(t, "--token")
-                tokens[rid] = tok
-            else:
-                tokens["*"] = t
+        tokens = _tokens(args.token)
         origins = dict(parse_origin(o) for o in args.origin)
-        rovers = [(rid, parse_link_for(link, SERVE_ROVER)) for rid, link in
-                  (parse_assignment(r, "--rover") for r in args.rover)]
-        listens = parse_listens(args.listen or [DEFAULT_LISTEN])
-        if not 0 < args.speed <= 1000:
-            raise ValueError(f"--speed must be within 0..1000, got {args.speed:g}")
-        if args.max_connections < 1:
-            raise ValueError(f"--max-connections must be at least 1, got {args.max_connections}")
-        sim_roles: list[str] = []
-        for rid, spec in rovers:
-            if spec.kind == "sim":
-                if rid not in ROLES:
-                    raise ValueError(f"--rover {rid}=sim: a simulated rover's ID is its role, "
-                                     f"one of {', '.join(ROLES)}")
-                if rid in sim_roles:
-                    raise ValueError(f"--rover {rid}=sim given twice")
-                sim_roles.append(rid)
-        if args.listen is None and any(spec.kind == "udp" for _, spec in rovers):
-            listens += parse_listens([DEFAULT_UDP_LISTEN])
-        for kind in ("tcp", "udp"):
-            if any(spec.kind == kind for _, spec in rovers) and not any(
-                    proto == kind for proto, _ in listens):
-                raise ValueError(f"a rover on {kind} needs --listen {kind}:HOST:PORT")
-        config = ServerConfig(
-            tokens=tokens, origins=origins,
-            rovers=frozenset(rid for rid, spec in rovers if spec.kind != "sim"),
-            open_enrolment=args.open_enrolment, simulated=tuple(sim_roles),
-            max_connections=args.max_connections, resume=not args.fresh_game)
-        for _, listen in listens:
-            if not is_loopback(listen.host):
-                refusal = beyond_loopback_refusal(listen.host, config)
-                if refusal:
-                    raise ValueError(refusal)
-        scenario = None
-        if sim_roles:
-            from supervisors.system import scenario_origins
-            from world.scenario import ScenarioError, load_scenario
-
-            try:
-                scenario = load_scenario(args.scenario)
-            except ScenarioError as exc:
-                raise ValueError(str(exc)) from None
-            config = _with_origins(config, {**scenario_origins(scenario), **origins})
+        rovers, listens, sim_roles = _links(args)
+        config, scenario = _config(args, tokens, origins, rovers, listens, sim_roles)
         for proto, listen in listens:  # before the store: a refusal leaves the database as it was
             check_listen(proto, listen.host, listen.port)
         store = Store(args.db)
@@ -337,6 +162,92 @@ def run(args: argparse.Namespace) -> int:
     finally:
         store.close()
     return 0
+
+
+def _links(args: argparse.Namespace) -> tuple[list[tuple[str, LinkSpec]],
+                                              list[tuple[str, LinkSpec]], list[str]]:
+    """The rovers' links, where the server listens and the simulated roles, from the
+    options: ``(rovers, listens, sim_roles)``.
+
+    Raises:
+        ValueError: a bad ``--rover``, ``--listen``, ``--speed`` or ``--max-connections``,
+            a simulated rover's id that is no role or given twice, or a rover on a link
+            no ``--listen`` serves.
+    """
+    from server.links.spec import parse_link_for
+
+    rovers = [(rid, parse_link_for(link, SERVE_ROVER)) for rid, link in
+              (parse_assignment(r, "--rover") for r in args.rover)]
+    listens = parse_listens(args.listen or [DEFAULT_LISTEN])
+    if not 0 < args.speed <= 1000:
+        raise ValueError(f"--speed must be within 0..1000, got {args.speed:g}")
+    if args.max_connections < 1:
+        raise ValueError(f"--max-connections must be at least 1, got {args.max_connections}")
+    sim_roles: list[str] = []
+    for rid, spec in rovers:
+        if spec.kind == "sim":
+            if rid not in ROLES:
+                raise ValueError(f"--rover {rid}=sim: a simulated rover's ID is its role, "
+                                 f"one of {', '.join(ROLES)}")
+            if rid in sim_roles:
+                raise ValueError(f"--rover {rid}=sim given twice")
+            sim_roles.append(rid)
+    if args.listen is None and any(spec.kind == "udp" for _, spec in rovers):
+        listens += parse_listens([DEFAULT_UDP_LISTEN])
+    for kind in ("tcp", "udp"):
+        if any(spec.kind == kind for _, spec in rovers) and not any(
+                proto == kind for proto, _ in listens):
+            raise ValueError(f"a rover on {kind} needs --listen {kind}:HOST:PORT")
+    return rovers, listens, sim_roles
+
+
+def _tokens(texts: list[str]) -> dict[str, str]:
+    """``--token`` values -> {rover id or ``*`` (any rover): token}."""
+    tokens: dict[str, str] = {}
+    for t in texts:
+        if "=" in t:
+            rid, tok = parse_assignment(t, "--token")
+            tokens[rid] = tok
+        else:
+            tokens["*"] = t
+    return tokens
+
+
+def _config(args: argparse.Namespace, tokens: dict[str, str], origins: dict,
+            rovers: list[tuple[str, LinkSpec]], listens: list[tuple[str, LinkSpec]],
+            sim_roles: list[str]):
+    """The server's `ServerConfig` from the options, and the simulated rovers' scenario
+    (None without any): ``(config, scenario)``.
+
+    Raises:
+        ValueError: a listening address beyond loopback the trust rules refuse, or a
+            scenario that does not load.
+    """
+    from server.config import ServerConfig
+    from server.links import is_loopback
+    from server.trust import beyond_loopback_refusal
+
+    config = ServerConfig(
+        tokens=tokens, origins=origins,
+        rovers=frozenset(rid for rid, spec in rovers if spec.kind != "sim"),
+        open_enrolment=args.open_enrolment, simulated=tuple(sim_roles),
+        max_connections=args.max_connections, resume=not args.fresh_game)
+    for _, listen in listens:
+        if not is_loopback(listen.host):
+            refusal = beyond_loopback_refusal(listen.host, config)
+            if refusal:
+                raise ValueError(refusal)
+    scenario = None
+    if sim_roles:
+        from supervisors.system import scenario_origins
+        from world.scenario import ScenarioError, load_scenario
+
+        try:
+            scenario = load_scenario(args.scenario)
+        except ScenarioError as exc:
+            raise ValueError(str(exc)) from None
+        config = _with_origins(config, {**scenario_origins(scenario), **origins})
+    return config, scenario
 
 
 def check_listen(proto: str, host: str, port: int) -> None:
@@ -396,6 +307,7 @@ async def _serve(store, config, listens, rovers, sim=None, console: bool = True)
     import trio
 
     from server.server import open_server
+    from tui.serve_console import run_console
 
     sim_system = None
     async with open_server(store, config) as server, contextlib.AsyncExitStack() as stack:
@@ -428,94 +340,7 @@ async def _serve(store, config, listens, rovers, sim=None, console: bool = True)
         t0 = trio.current_time()
         async with trio.open_nursery() as nursery:
             if console:
-                nursery.start_soon(_console, server, nursery.cancel_scope, sim_system)
+                nursery.start_soon(run_console, server, nursery.cancel_scope, sim_system)
             async for event in events:
                 if event.kind != "pose":
                     print(event.format(t0), flush=True)
-
-
-def run_fault(server, sim_system, name: str, kw: dict) -> str:
-    """Carry out a parsed ``fault``/``clear``: an attached rover through the server, a
-    simulated one through its world or runtime. Raises ValueError with the reason."""
-    rover, target = kw["rover"], kw["target"]
-    simulated = sim_system is not None and rover in sim_system.trees
-    if not simulated:
-        if name == "clear":
-            return server.rover_fault(rover, "clear", target, kw["kind"])
-        return server.rover_fault(rover, "inject", target, kw["kind"], kw["duration_s"],
-                                  kw["params"])
-    if name == "clear":
-        return f"{sim_system.clear_fault(f'{rover}/{target}')} fault(s) cleared"
-    fid = sim_system.inject_fault(f"{rover}/{target}", kw["kind"], kw["duration_s"],
-                                  **kw["params"])
-    return f"fault {fid}: {kw['kind']} on {rover}/{target}"
-
-
-async def _console(server, stop, sim_system=None) -> None:
-    """Operator commands until end of input or ``quit``, then stop the server."""
-    lines = _tty_lines() if sys.stdin.isatty() else _pipe_lines()
-    async for line in lines:
-        if not line:
-            continue
-        if line in ("quit", "exit"):
-            break
-        if line == "help":
-            print(HELP, flush=True)
-            continue
-        if line == "status":
-            print(format_status(server.snapshot()), flush=True)
-            continue
-        try:
-            name, kw = parse_command_line(line)
-        except ValueError as exc:
-            print(f"? {exc}", flush=True)
-            continue
-        if name in ("fault", "clear"):
-            try:
-                print(run_fault(server, sim_system, name, kw), flush=True)
-            except ValueError as exc:
-                print(f"refused: {exc}", flush=True)
-            continue
-        result = await server.command(name, **kw)
-        print("ok" if result.ok else f"refused: {result.reason}", flush=True)
-    else:
-        print("end of input: stopping the server", flush=True)
-    stop.cancel()
-
-
-async def _tty_lines():
-    """Lines typed at a terminal, with a prompt, line editing and history (readline)."""
-    import trio
-
-    with contextlib.suppress(ImportError):
-        import readline  # noqa: F401  (input() then edits lines and keeps history)
-    while True:
-        try:
-            line = await trio.to_thread.run_sync(input, "hideseek> ", abandon_on_cancel=True)
-        except EOFError:
-            print(flush=True)
-            return
-        yield line.strip()
-
-
-async def _pipe_lines():
-    """Lines from a pipe or file on standard input, each at most 1024 bytes."""
-    import trio
-
-    try:
-        stdin = trio.lowlevel.FdStream(os.dup(sys.stdin.fileno()))
-    except (OSError, ValueError):
-        return
-    buf = b""
-    async with stdin:
-        while True:
-            data = await stdin.receive_some(1024)
-            if not data:
-                if buf.strip():
-                    yield buf.decode("utf-8", "replace").strip()
-                return
-            buf += data
-            *lines, buf = buf.split(b"\n")
-            buf = buf[-1024:]
-            for raw in lines:
-                yield raw.decode("utf-8", "replace").strip()
