@@ -44,8 +44,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import math
-import os
-import socket
 from collections import Counter, OrderedDict
 from collections.abc import Iterable
 from typing import Any
@@ -55,6 +53,7 @@ import trio
 from .config import ServerConfig
 from .core import ServerCore
 from .links.serial import serve_serial_port
+from .links.tcp import as_stream, read_now, second_handle
 from .peers import Conn
 from .protocol import (
     ACK,
@@ -81,34 +80,6 @@ FAIR_WAIT_S = 1.0
 hold about as many connections without hello as its own [s]."""
 
 
-def _second_handle(listener: Any) -> socket.socket | None:
-    """A second handle on a listener's socket, to take the rest of a burst of connections
-    without a scheduler round each (None where the system cannot make one)."""
-    sock = getattr(listener, "socket", None)
-    if sock is None:
-        return None
-    try:
-        return socket.socket(fileno=os.dup(sock.fileno()))
-    except OSError:
-        return None
-
-
-def _stream(sock: socket.socket) -> trio.SocketStream:
-    """A standard socket as a Trio stream."""
-    return trio.SocketStream(trio.socket.from_stdlib_socket(sock))
-
-
-def _read_now(sock: Any) -> bytes | None:
-    """What a new connection (a non-blocking socket) has sent already, up to a line's
-    worth, without waiting (None when the peer has closed or reset it)."""
-    try:
-        return os.read(sock.fileno(), MAX_LINE_BYTES + 1) or None
-    except BlockingIOError:
-        return b""
-    except OSError:
-        return None
-
-
 class Connections(ServerCore):
     """The link side of a `Server`: one task per byte stream, and the TCP accept loop."""
 
@@ -127,7 +98,7 @@ class Connections(ServerCore):
 
     async def _accept_loop(self, listener: trio.SocketListener) -> None:
         delay = 0.0
-        burst = _second_handle(listener)
+        burst = second_handle(listener)
         try:
             async with listener:
                 while True:
@@ -174,9 +145,9 @@ class Connections(ServerCore):
         now = trio.current_time()
         refusal = self._no_room(addr, now)
         if not refusal:
-            self._serve(stream or _stream(sock), self._new_conn(name, peer=addr, timed=True))
+            self._serve(stream or as_stream(sock), self._new_conn(name, peer=addr, timed=True))
             return
-        first = _read_now(sock)
+        first = read_now(sock)
         if first is not None and b"\n" not in first and self.config.max_waiting > 0:
             victim = None
             if len(self._waiting) >= self.config.max_waiting:
@@ -186,13 +157,13 @@ class Connections(ServerCore):
                                 "theirs", name, now)
                     sock.close()
                     return
-            self._wait(stream or _stream(sock), addr, name, now, first, victim)
+            self._wait(stream or as_stream(sock), addr, name, now, first, victim)
             return
         conn = self._admission(addr, name, first or b"", now)
         if conn is None:
             sock.close()
         else:
-            self._serve(stream or _stream(sock), conn, first or b"")
+            self._serve(stream or as_stream(sock), conn, first or b"")
 
     def _admit_peer(self, stream: Any, addr: str, name: str, first: bytes = b"") -> bool:
         """Serve a new UDP peer within the caps, or beyond them when its first datagram
