@@ -1,11 +1,12 @@
 """Recording games as MCAP, reading them back, and forking them (docs/recording.md).
 
 Layering: ``schemas`` (channels and JSON Schemas, no project imports) <-
-``runinfo`` (how a run was made: world.scenario) <- ``recorder`` (watches a
-`SimSystem`, writes the file) and ``reading`` (reads a file back) <- ``fork``
-(re-simulates a recording to a time, checks it, plays on with a change) and
-``play`` (one recorded headless game). Wiring, like ``supervisors.system``: it
-reads the world and the server.
+``runinfo`` (how a run was made: world.scenario) and ``records`` (what is
+written: Foxglove messages, checkpoints, game states) <- ``recorder`` (watches
+a `SimSystem`, writes the file) and ``reading`` (reads a file back) <-
+``fork`` (re-simulates a recording to a time, checks it, plays on with a
+change) and ``play`` (one recorded headless game). Wiring, like
+``supervisors.system``: it reads the world and the server.
 """
 
 from .fork import ForkChecker, ForkDiverged, ForkError, fork_game, plan_fork

@@ -5,7 +5,7 @@ which a recording names (`RunInfo`). `fork_game` rebuilds them, adds the
 change (faults scheduled at T or later, another hide spot, other guesses) and
 plays the game again in virtual time with a `ForkChecker` watching: at every
 whole second before T it compares the run's checkpoint (runtime trace hash and
-message count, `supervisors.recording.recorder.checkpoint`) with the one
+message count, `supervisors.recording.records.checkpoint`) with the one
 recorded at that second. A mismatch means this is not the recorded game (other
 code, other options, a changed scenario file): the run is cancelled and
 `ForkDiverged` says where and what differed. A fork with no change plays the
@@ -36,7 +36,8 @@ from world.faults import check_fault
 from world.scenario import ScenarioError, ScheduledFault
 
 from .reading import Recording, read_recording
-from .recorder import Recorder, checkpoint
+from .recorder import Recorder
+from .records import checkpoint
 from .runinfo import RunInfo, code_version
 
 __all__ = ["ForkChecker", "ForkDiverged", "ForkError", "fork_game", "plan_fork"]

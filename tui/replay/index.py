@@ -122,7 +122,7 @@ class ReplayIndex:
         self._drops: dict[str, list[float]] = defaultdict(list)
         for t, d in rec.topic("/actors/drops"):
             self._drops[d["queue"]].append(t)
-        # when the recording began and the game's state then (`recorder.game_state`): what
+        # when the recording began and the game's state then (`records.game_state`): what
         # a recording started mid-game replays from (none in older recordings)
         states = rec.topic("/game/state")
         self._state_t, self._state = states[0] if states else (-math.inf, {})
