@@ -14,7 +14,8 @@ speed changes are real changes of simulated time) and all randomness comes from
 one seeded generator. It is not a simulation: rovers pass through obstacles on
 the way to a spot, and the map frame is the room's frame shifted to the
 mapper's start. The room itself (its truth, the tour, ray casting) is
-`tui.fake_room`.
+`tui.fake_room`; the fake's workers, fault catalogue and supervision tree are
+`tui.fake_parts`.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import trio
 import trio.testing
 
 from tui.controller import QueuedController
+from tui.fake_parts import CAPACITY, WORKERS, Node, fault_catalogue, tree_view
 from tui.fake_room import (
     LIDAR_RAYS,
     RES_CM,
@@ -46,7 +48,6 @@ from tui.snapshot import (
     MAX_TIMELINE,
     UNKNOWN,
     ActiveFault,
-    FaultTarget,
     GridView,
     LinkStats,
     LogLine,
@@ -56,7 +57,6 @@ from tui.snapshot import (
     RoverView,
     Snapshot,
     TimelineEvent,
-    TreeNode,
 )
 
 __all__ = ["FakeSystem", "COMMAND_CAPACITY", "TICK_S"]
@@ -70,21 +70,6 @@ RESTART_DELAY_S = 0.5
 WATCHDOG_S = 1.0
 FOUND_RADIUS_CM = 40.0
 
-WORKERS = {
-    "mapper": ("motor", "lidar", "map", "navigation", "wifly"),
-    "hider": ("motor", "navigation", "wifly"),
-    "seeker": ("motor", "ir", "navigation", "wifly"),
-}
-CAPACITY = {"motor": 16, "lidar": 64, "map": 8, "navigation": 16, "wifly": 32, "ir": 16}
-DEVICE_FAULTS = {
-    "lidar": ("dead", "garbage", "stuck", "noisy"),
-    "encoder": ("stuck", "slipping"),
-    "motor": ("stall", "weak"),
-    "ir": ("stuck_high", "stuck_low"),
-    "wifly": ("drop", "loss", "corrupt", "latency"),
-}
-ACTOR_FAULTS = ("crash", "hang", "flood")
-
 
 @dataclass(slots=True)
 class _Rover:
@@ -96,16 +81,6 @@ class _Rover:
     drift: np.ndarray = field(default_factory=lambda: np.zeros(2))
     goal: tuple[float, float] | None = None
     path: list[tuple[float, float]] = field(default_factory=list)
-
-
-@dataclass(slots=True)
-class _Node:
-    state: str = "running"
-    restarts: int = 0
-    last_exit: str | None = None
-    last_exit_s: float | None = None
-    wake_s: float | None = None  # when restarting ends, or when a hang is detected
-    hung: bool = False
 
 
 class FakeSystem(QueuedController):
@@ -135,10 +110,10 @@ class FakeSystem(QueuedController):
         self._event_seq = 0
         self._fault_seq = 0
         self._faults: dict[str, ActiveFault] = {}
-        self._nodes: dict[str, _Node] = {}
+        self._nodes: dict[str, Node] = {}
         self._queues: dict[str, list] = {}  # name -> [depth, capacity, count_window, rate, drops]
         self._links: dict[str, list[int | bool | float]] = {}
-        self._catalogue = self._make_catalogue()
+        self._catalogue = fault_catalogue()
         self._now = 0.0
         self._reset_game()
 
@@ -267,18 +242,10 @@ class FakeSystem(QueuedController):
         for rid, workers in WORKERS.items():
             self._links.setdefault(rid, [True, 12.0, 0, 0, 0, 0, 0])
             for w in workers:
-                self._nodes.setdefault(f"{rid}/{w}", _Node())
+                self._nodes.setdefault(f"{rid}/{w}", Node())
                 self._queues.setdefault(f"{rid}/{w}", [0, CAPACITY[w], 0, 0.0, 0])
         for name in ("system", "server", "world", "mapper", "hider", "seeker"):
-            self._nodes.setdefault(name, _Node())
-
-    def _make_catalogue(self) -> tuple[FaultTarget, ...]:
-        actors = [FaultTarget(f"{r}/{w}", ACTOR_FAULTS) for r, ws in WORKERS.items() for w in ws]
-        devices = [FaultTarget(f"{r}.{d}", DEVICE_FAULTS[d])
-                   for r, ws in WORKERS.items() for d in ("lidar", "encoder", "motor", "ir",
-                                                          "wifly")
-                   if d in ws or d == "encoder"]
-        return tuple(actors + devices)
+            self._nodes.setdefault(name, Node())
 
     def _set_phase(self, phase: str) -> None:
         self._phase = phase
@@ -487,7 +454,7 @@ class FakeSystem(QueuedController):
             queues=tuple(QueueStats(n.split("/")[0], n, q[0], q[1], q[3], q[4])
                          for n, q in self._queues.items()),
             log=tuple(self._log),
-            tree=self._tree(),
+            tree=tree_view(self._nodes),
             links=tuple(LinkStats(rid, bool(ln[0]), float(ln[1]) if ln[0] else None,
                                   *(int(v) for v in ln[2:]))
                         for rid, ln in self._links.items()),
@@ -495,16 +462,3 @@ class FakeSystem(QueuedController):
             faults=tuple(self._faults.values()),
             catalogue=self._catalogue,
         )
-
-    def _tree(self) -> TreeNode:
-        def node(name: str, kind: str, children: tuple[TreeNode, ...] = ()) -> TreeNode:
-            n = self._nodes[name]
-            return TreeNode(name, kind, n.state, n.restarts, n.last_exit,  # type: ignore[arg-type]
-                            n.last_exit_s, children)
-
-        rovers = tuple(node(rid, "supervisor",
-                            tuple(node(f"{rid}/{w}", "worker") for w in ws))
-                       for rid, ws in WORKERS.items())
-        return node("system", "supervisor",
-                    (node("server", "worker"), node("world", "worker")) + rovers)
-
