@@ -43,8 +43,10 @@ from tui.keymap import (
     SPEEDS,
     WIDER_SEARCH_CM,
     UiAction,
+    nearest_speed,
 )
 from tui.pacing import REFRESH_HZ, FramePacer
+from tui.screenshot import save_screenshot
 from tui.snapshot import CommandResult, Snapshot, System
 from tui.widgets import (
     FaultDialog,
@@ -393,32 +395,17 @@ class ConsoleApp(App[int]):
         (the export directory by default) and say where."""
         folder = pathlib.Path(path or self.export_dir).expanduser().resolve()
         try:
-            if not folder.is_dir():
-                raise OSError(f"no directory {folder}")
-            svg = pathlib.Path(self.save_screenshot(filename, str(folder)))
+            saved = save_screenshot(self, filename, folder)
         except OSError as exc:
             self.notify(str(exc), title="screenshot: error", severity="error")
             return
-        saved = [str(svg)]
-        try:
-            import cairosvg  # noqa: PLC0415 - optional: PNG only where it is installed
-        except ImportError:
-            pass
-        else:
-            png = svg.with_suffix(".png")
-            cairosvg.svg2png(url=str(svg), write_to=str(png))
-            saved.append(str(png))
         self.notify(", ".join(saved), title="screenshot saved", timeout=5)
 
     def _speed_index(self) -> int:
         asked = self._asked_speed
         if asked is not None and self.snapshots_shown - asked[1] < 3:
             return asked[0]  # a key pressed again before a snapshot showed the last one
-        speed = self.snapshot.speed if self.snapshot else 1.0
-        if speed is None:
-            return len(self.speeds) - 1
-        steps = range(len(self.speeds) - (self.speeds[-1] is None))
-        return min(steps, key=lambda i: abs(self.speeds[i] - speed))  # type: ignore[operator]
+        return nearest_speed(self.speeds, self.snapshot.speed if self.snapshot else 1.0)
 
     def action_faster(self) -> None:
         self._step_speed(+1)

@@ -3,7 +3,8 @@
 Every action is one `UiAction` row of `ACTIONS`: its key binding, footer label,
 help text and command palette entry all come from that row. `ACTION_COMMANDS`
 names the controller commands behind each action (a key is greyed when the
-system refuses all of them), `MAP_KEYS` the keys of the map itself.
+system refuses all of them), `MAP_KEYS` the keys of the map itself, `SPEEDS`
+the speed steps (`nearest_speed`: the step a speed is on).
 """
 
 from __future__ import annotations
@@ -11,13 +12,22 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 __all__ = ["UiAction", "ACTIONS", "ACTION_COMMANDS", "MAP_KEYS", "KEY_NAMES", "SPEEDS",
-           "WIDER_SEARCH_CM"]
+           "WIDER_SEARCH_CM", "nearest_speed"]
 
 #: Speed steps for faster / slower; None is "as fast as possible".
 SPEEDS: tuple[float | None, ...] = (1.0, 4.0, 16.0, None)
 #: A wider search (``w``): the hider believed within this of the cursor [cm] (the
 #: headless operator's `supervisors.harness.headless.Budget.wider_within_cm`).
 WIDER_SEARCH_CM = 120.0
+
+
+def nearest_speed(speeds: tuple[float | None, ...], speed: float | None) -> int:
+    """The index of the step of ``speeds`` nearest ``speed`` (None, as fast as possible: the
+    last step)."""
+    if speed is None:
+        return len(speeds) - 1
+    steps = range(len(speeds) - (speeds[-1] is None))
+    return min(steps, key=lambda i: abs(speeds[i] - speed))  # type: ignore[operator]
 
 
 @dataclass(frozen=True, slots=True)
