@@ -178,7 +178,8 @@ def _print_probe(probe: dict[str, dict[str, float]], *, json_line: bool = True) 
                                     for k, v in probe.items()}, "load": round(_load(), 2)}))
 
 
-def main(argv: list[str] | None = None) -> None:
+def _parse_args(argv: list[str] | None) -> tuple[argparse.ArgumentParser, argparse.Namespace]:
+    """The parser (for its errors) and the checked options."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.campaign")
     parser.add_argument("--quick", action="store_true", help="4 short games per run")
     parser.add_argument("--games", type=int, default=None, help="games per run (default 24)")
@@ -199,6 +200,11 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--games must be within 1..10000, got {args.games}")
     if args.budget is not None and not 0 < args.budget <= 1e6:
         parser.error(f"--budget must be within (0, 1e6] s, got {args.budget}")
+    return parser, args
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser, args = _parse_args(argv)
     if args.base:
         from benchmarks.side_by_side import compare_campaign  # noqa: PLC0415
 
@@ -211,13 +217,19 @@ def main(argv: list[str] | None = None) -> None:
     games = args.games or (4 if args.quick else 24)
     budget = args.budget or (30.0 if args.quick else 1200.0)
     config = CampaignConfig(1, mode="single", mapping_budget_s=budget)
-    cpus = default_workers()
     if args.probe_only:
         _print_probe(_probe(2 if args.quick else 8))
         return
     one = _measure(config, games, 1)
     two = _measure(config, games, 2)
     probe = None if args.no_probe else _probe(2 if args.quick else 8)
+    _print_report(games, budget, default_workers(), one, two, probe)
+
+
+def _print_report(games: int, budget: float, cpus: int, one: dict[str, Any],
+                  two: dict[str, Any], probe: dict[str, Any] | None) -> None:
+    """The table of the two runs (``one``: 1 worker, ``two``: 2), the ratio split into its
+    factors, the probe's figures, and all of it as one JSON line."""
     ratio = two["games_per_min"] / one["games_per_min"]
     same = one["hashes"] == two["hashes"]
     paired = [one["cpu_by_index"][i] / two["cpu_by_index"][i] for i in one["cpu_by_index"]

@@ -329,9 +329,7 @@ def _load() -> float:
         return -1.0
 
 
-def main(argv: list[str] | None = None) -> int:
-    from world.scenario import ScenarioError, builtin_scenarios, load_scenario  # noqa: PLC0415
-
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.game",
                                  description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true",
@@ -351,7 +349,13 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --base: game pairs per room and seed (default 1)")
     ap.add_argument("--world-runs", type=int, default=3,
                     help="with --base: world-alone runs per tree (default 3)")
-    args = ap.parse_args(argv)
+    return ap.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    from world.scenario import ScenarioError, builtin_scenarios, load_scenario  # noqa: PLC0415
+
+    args = _parse_args(argv)
     try:
         names = ([s.strip() for s in args.scenarios.split(",") if s.strip()] if args.scenarios
                  else list(QUICK_SCENARIOS if args.quick else builtin_scenarios()))
@@ -378,23 +382,9 @@ def main(argv: list[str] | None = None) -> int:
           f"load {_load():.2f}", flush=True)
     print(HEADER)
     print(UNITS, flush=True)
-    rows: list[dict[str, Any]] = []
     wall0 = time.perf_counter()
     load0 = _load()
-    if args.workers == 1:
-        results = map(play_one, jobs)
-        pool = None
-    else:
-        pool = multiprocessing.get_context("spawn").Pool(args.workers)
-        results = pool.imap(play_one, jobs)
-    try:
-        for r in results:
-            rows.append(r)
-            print(_row(r), flush=True)
-    finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
+    rows = _play(jobs, args.workers)
     wall = time.perf_counter() - wall0
     load1 = _load()
     per = {n: aggregate([r for r in rows if r["scenario"] == n]) for n in names}
@@ -419,6 +409,27 @@ def main(argv: list[str] | None = None) -> int:
     }
     print(json.dumps(figures))
     return 0
+
+
+def _play(jobs: list[tuple[str, int, float, bool]], workers: int) -> list[dict[str, Any]]:
+    """Play ``jobs`` in this process (one worker) or a pool of ``workers``, printing each
+    game's row as it ends: the rows, in the jobs' order."""
+    rows: list[dict[str, Any]] = []
+    if workers == 1:
+        results = map(play_one, jobs)
+        pool = None
+    else:
+        pool = multiprocessing.get_context("spawn").Pool(workers)
+        results = pool.imap(play_one, jobs)
+    try:
+        for r in results:
+            rows.append(r)
+            print(_row(r), flush=True)
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
+    return rows
 
 
 if __name__ == "__main__":
