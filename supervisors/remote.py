@@ -276,6 +276,28 @@ async def _keep_connected(rover: RemoteRover, link: WiflyLink, report: Report,
         delay = min(delay * 2, most)
 
 
+def _check_remote(role: str, link: LinkSpec, retry_s: tuple[float, float]) -> None:
+    """Check `open_remote_rover`'s arguments.
+
+    Raises:
+        ValueError: an unknown role, a link kind a rover cannot use, or a backoff that is
+            not ``0 < first <= most``.
+    """
+    if role not in ROLES:
+        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
+    if link.kind not in ROVER_LINK.kinds:
+        raise ValueError(f"{ROVER_LINK.option} must be {ROVER_LINK.forms}, got {link.text!r}")
+    first, most = retry_s
+    if not 0 < first <= most:
+        raise ValueError(f"retry_s must be (first, most) with 0 < first <= most, got {retry_s!r}")
+
+
+def _link_bytes_s(link: LinkSpec) -> float:
+    """The rate of ``link`` for the telemetry budget [bytes/s]: a serial link's baud / 10,
+    else `DEFAULT_LINK_BYTES_S`."""
+    return link.baud / 10 if link.kind == "serial" and link.baud else DEFAULT_LINK_BYTES_S
+
+
 @contextlib.asynccontextmanager
 async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, seed: int = 1,
                             rover_id: str | None = None, token: str | None = None,
@@ -308,13 +330,7 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
         ValueError: unknown role, or a link kind a rover cannot use.
         OSError: ``pty`` and the system has no free pseudo-terminals.
     """
-    if role not in ROLES:
-        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
-    if link.kind not in ROVER_LINK.kinds:
-        raise ValueError(f"{ROVER_LINK.option} must be {ROVER_LINK.forms}, got {link.text!r}")
-    first, most = retry_s
-    if not 0 < first <= most:
-        raise ValueError(f"retry_s must be (first, most) with 0 < first <= most, got {retry_s!r}")
+    _check_remote(role, link, retry_s)
     report = report or (lambda _text: None)
     cable = open_pty_cable() if link.kind == "pty" else None
     ports: list[RoverFaultPort] = []
@@ -323,8 +339,7 @@ async def open_remote_rover(scenario: Scenario, role: str, link: LinkSpec, *, se
                       p.world_event(kind, target, detail) for p in ports])
     wifly = world.wifly_link(role)
     if link_bytes_s is None:
-        link_bytes_s = link.baud / 10 if link.kind == "serial" and link.baud else \
-            DEFAULT_LINK_BYTES_S
+        link_bytes_s = _link_bytes_s(link)
     lane = TelemetryLane(link_bytes_s) if telemetry else None
     uplink = Uplink()
     wifly.on_server_receive = uplink.put

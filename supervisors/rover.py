@@ -218,7 +218,6 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
     # retained memory (survives actor restarts; a new tree is a rover reset)
     pose_memory = PoseMemory()
     link_memory = _Retained(LinkMemory)  # made lazily: LinkMemory reads Trio's clock
-    map_starts = [0]
     isrs = _Isrs(role, names, pool)
 
     def make_wifly() -> Actor:
@@ -226,11 +225,6 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
                      memory=link_memory.get(), isr=isrs.wifly, addresses=names,
                      hold_until_welcome=hold_until_welcome, telemetry=telemetry,
                      streams=streams, faults=faults)
-
-    def make_map() -> Actor:
-        map_starts[0] += 1
-        return MapManagement(pool, hardware.spec, size_cm=map_size_cm,
-                             restarted=map_starts[0] > 1, addresses=names)
 
     def child(cid: str, start: Callable[[], Actor], *, driver: bool = True) -> ChildSpec:
         return ChildSpec(cid, start, mailbox=MAILBOX[cid], watchdog=WATCHDOG_S[cid],
@@ -242,16 +236,31 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
                                             lidar=role == "mapper",
                                             tuning=motor_tuning, addresses=names)),
     ]
-    if role == "mapper":
-        children += [
-            child("lidar", lambda: LidarControl(hardware, pool, isr=isrs.lidar,
-                                                addresses=names)),
-            child("map", make_map),
-        ]
-    if role == "seeker":
-        children.append(child("ir", lambda: IrSensor(hardware, rate_hz=ir_rate_hz,
-                                                     adc_isr=isrs.ir, addresses=names)))
+    children += [child(cid, start) for cid, start in
+                 _sensor_starts(role, hardware, pool, names, isrs, map_size_cm, ir_rate_hz)]
     children.append(child("nav", lambda: factory(role, pool=pool, spec=hardware.spec,
                                                  rover_id=rover_id, **options), driver=False))
     return SupervisorSpec(children, intensity=intensity, period=period,
                           backoff=Backoff(min=0.05, max=1.0, jitter=0.1, reset_after=10.0))
+
+
+def _sensor_starts(role: str, hardware: RoverHardware, pool: BufferPool, names: Addresses,
+                   isrs: _Isrs, map_size_cm: tuple[float, float], ir_rate_hz: float,
+                   ) -> list[tuple[str, Callable[[], Actor]]]:
+    """The children a role has beyond the WiFly, the motor and navigation, in start order,
+    with their start functions: the mapper's LIDAR and Map Management (told from its
+    second incarnation on that it restarts), the seeker's IR sensor."""
+    if role == "mapper":
+        map_starts = [0]
+
+        def make_map() -> Actor:
+            map_starts[0] += 1
+            return MapManagement(pool, hardware.spec, size_cm=map_size_cm,
+                                 restarted=map_starts[0] > 1, addresses=names)
+
+        return [("lidar", lambda: LidarControl(hardware, pool, isr=isrs.lidar, addresses=names)),
+                ("map", make_map)]
+    if role == "seeker":
+        return [("ir", lambda: IrSensor(hardware, rate_hz=ir_rate_hz, adc_isr=isrs.ir,
+                                        addresses=names))]
+    return []
