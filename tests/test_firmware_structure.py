@@ -146,23 +146,3 @@ def test_one_notion_of_a_usable_hit() -> None:
     assert scan_match.MIN_POINTS == scan_hits.MIN_POINTS
     assert scan_match.MAX_RANGE_CM == scan_hits.MAX_RANGE_CM == LogOddsModel().max_range_cm
     assert scan_match.MatchOptions().min_range_cm == scan_hits.MIN_RANGE_CM
-
-
-MAX_MODULE_LINES = 500
-MAX_FUNCTION_LINES = 80
-
-
-def _function_lines(path: Path) -> list[tuple[int, str]]:
-    return [(n.end_lineno - n.lineno + 1, n.name) for n in ast.walk(ast.parse(path.read_text()))
-            if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef) and n.end_lineno]
-
-
-def test_no_firmware_module_over_500_lines_nor_function_over_80() -> None:
-    """Small modules, one idea each: no module of ``actors/firmware`` over 500 lines, no
-    function over 80."""
-    long_modules = {str(p.relative_to(FIRMWARE)) for p in _modules()
-                    if len(p.read_text().splitlines()) > MAX_MODULE_LINES}
-    assert long_modules == set()
-    long_functions = [f"{p.relative_to(FIRMWARE)}: {name} ({n} lines)" for p in _modules()
-                      for n, name in _function_lines(p) if n > MAX_FUNCTION_LINES]
-    assert long_functions == []
