@@ -54,6 +54,8 @@ DEFAULT_LISTEN = "tcp:127.0.0.1:7878"
 """Where ``serve`` listens without ``--listen``."""
 DEFAULT_UDP_LISTEN = "udp:127.0.0.1:7878"
 """... and for rovers on ``udp`` (``--rover ID=udp``)."""
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--listen", action="append", metavar="tcpin:HOST:PORT|udpin:HOST:PORT",
                         help=f"where rovers connect over TCP, or send over UDP: {LISTEN.forms} "
