@@ -381,10 +381,13 @@ def test_layout_fits_both_terminal_sizes(size):
     """Every panel has room at 120x40 and 80x24 (no zero-sized or clipped widgets)."""
 
     async def test(app, fake):
-        await asyncio.sleep(0.2)
+        def laid_out() -> bool:
+            return all(app.query_one(s).region.width >= 20 and app.query_one(s).region.height >= 5
+                       for s in ("#map", "#game", "#tabs"))
+
+        await until(laid_out, "every panel laid out with room")
         for selector in ("#map", "#game", "#tabs"):
             region = app.query_one(selector).region
-            assert region.width >= 20 and region.height >= 5, (selector, region)
             assert region.right <= size[0] and region.bottom <= size[1] - 1, (selector, region)
 
     drive(test, speed=1.0, size=size)
