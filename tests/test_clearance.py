@@ -125,6 +125,23 @@ def test_obstacle_ahead_sees_a_box_to_the_side_within_the_cone():
                           **AHEAD) is None
 
 
+def test_obstacle_ahead_leaves_out_cells_beside_the_body():
+    """A wall beside the body (cell centres up to its half length ahead) is not ahead of
+    it; the same wall further along still is, and so is a wall across the way."""
+    cells = np.full((40, 40), FREE, dtype=np.int8)
+    cells[18, 19:22] = OCCUPIED  # centres (97.5..107.5, 92.5): 7.5 cm right of the line
+    m = GridMap(cells, RES, (0, 0))
+    pose = Pose(100, 100, 0)
+    assert obstacle_ahead(m, pose, 30, half_angle_deg=0.0, half_width_cm=7.5,
+                          beyond_cm=10.0) is None
+    cells[18, 22] = OCCUPIED  # centre 12.5 cm ahead: beyond the nose
+    m = GridMap(cells, RES, (0, 0))
+    ob = obstacle_ahead(m, pose, 30, half_angle_deg=0.0, half_width_cm=7.5, beyond_cm=10.0)
+    assert ob is not None and ob.forward_cm == pytest.approx(12.5)
+    with pytest.raises(ValueError, match="beyond_cm"):
+        obstacle_ahead(m, pose, 30, half_angle_deg=0.0, half_width_cm=7.5, beyond_cm=30.0)
+
+
 def test_passage_width_across_the_heading():
     """A 30 cm corridor along x (walls' cells from y 165 and below y 135): about 30 cm
     across it anywhere inside; along it, or in the open, no wall on both sides (None)."""

@@ -481,6 +481,29 @@ def test_the_mapper_steers_and_plans_home_from_its_map_frame_pose() -> None:
     assert not nav.homing.plan_home()  # at the map's (0, 0): home
 
 
+def test_the_mapper_drives_a_passage_mapped_four_cells_wide() -> None:
+    """A 25-30 cm passage maps as four free cells (each wall's face lies in a cell marked
+    occupied); the narrowest tier routes along one of the middle two, 7.5 cm from one
+    wall's cells. A move along it, and one 2 cm nearer that wall, is driven in full; a
+    wall across the passage ahead still shortens the move."""
+    from actors.firmware.nav.route import Motion
+    from server.protocol.pose import Pose
+
+    nav = make_nav("mapper", pool=BufferPool(4))
+    cells = np.full((40, 60), FREE, dtype=np.int8)  # x -100..200, y -100..100
+    cells[:20, 20:40] = OCCUPIED  # y < 0, x 0..100
+    cells[24:, 20:40] = OCCUPIED  # y >= 20: free cells y 0..20 between
+    nav.grid = GridMap(cells, 5.0, (-100.0, -100.0))
+    nav.pose, nav.pose_known = Pose(-20.0, 7.5, 0.0), True
+    nav.set_origin(Pose(0.0, 0.0, 0.0))
+    assert nav.explorer.mind_the_obstacle(Motion("move", 30.0)) == Motion("move", 30.0)
+    nav.pose = Pose(30.0, 5.5, 0.0)  # inside, 2 cm off the route toward the wall
+    assert nav.explorer.mind_the_obstacle(Motion("move", 30.0)) == Motion("move", 30.0)
+    cells[20:24, 32] = OCCUPIED  # a wall across the passage at x 60..65, 32.5 cm ahead
+    nav.grid = GridMap(cells, 5.0, (-100.0, -100.0))
+    assert nav.explorer.mind_the_obstacle(Motion("move", 30.0)) == Motion("move", 12.5)
+
+
 def _homing_nav() -> MappingNav:
     """A mapper going home at (0, 0) @ 0 on free floor (x, y -100..100, 5 cm cells)."""
     from server.protocol.pose import Pose

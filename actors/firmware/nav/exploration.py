@@ -15,11 +15,14 @@ Choosing where to go
 
 Obstacles ahead
     Before each straight move, `clearance.obstacle_ahead` looks ``move +
-    stop_cm`` ahead on the map: the move is shortened to stop ``stop_cm``
-    (20 cm: inside the seed's 15-30 cm) before the obstacle, and when that
-    leaves nothing to drive the rover turns away from it and chooses again;
-    after ``OBSTACLE_TURNS`` such turns toward one target without a move between,
-    the target is blacklisted (the route passes where the rover will not drive).
+    stop_cm`` ahead on the map for an occupied cell the body would sweep (its
+    centre ahead of the nose and within half the body's width of the line
+    driven: the planner's narrowest tier, measured to where a mapped face lies
+    on average). The move is shortened to stop ``stop_cm`` (20 cm: inside the
+    seed's 15-30 cm) before the obstacle, and when that leaves nothing to drive
+    the rover turns away from it and chooses again; after ``OBSTACLE_TURNS``
+    such turns toward one target without a move between, the target is
+    blacklisted (the map changed under the route and keeps refusing it).
 
 Blocked motions
     A motion that ended blocked backs off (or turns, when a back-off was blocked too)
@@ -244,11 +247,10 @@ class Exploration:
         """Count a turn away from an obstacle; True (target blacklisted, decide again
         at the next tick) after ``OBSTACLE_TURNS`` toward one target without a move.
 
-        Why: the route (planned with the narrowest clearance tier) can pass where the
-        obstacle check refuses to drive; the rover then turned toward the route, was
-        refused, turned away and planned the same route again, minutes on end by one
-        wall (90-s trips revealing a few dozen cells), and turning in place by a wall
-        is where scan matching drifts."""
+        Why: a route planned on one map can pass where the obstacle check, on a
+        newer one, refuses to drive; the rover would then turn toward the route, be
+        refused, turn away and plan the same route again, minutes on end by one wall,
+        and turning in place by a wall is where scan matching drifts. A bound."""
         ex = self.nav.ex
         if ex.target is None:
             return False
@@ -264,11 +266,19 @@ class Exploration:
         return True
 
     def mind_the_obstacle(self, motion: Motion) -> Motion:
-        """Shorten a move to stop ``stop_cm`` before an obstacle, or turn away from it."""
+        """Shorten a move to stop ``stop_cm`` before an obstacle, or turn away from it.
+
+        An obstacle is an occupied cell the body would sweep: its centre ahead of the
+        nose and within half the body's width of the line driven. The centre is where
+        a mapped face lies on average (the face is somewhere in its cell), so the test
+        is the planner's narrowest tier (half the body width from the cells' squares)
+        with the cell's half width given back: a 25-30 cm passage, mapped as four free
+        cells with the route on one of the middle two, is driven, not refused."""
         assert self.nav.grid is not None
         look = motion.amount + self.nav.m.stop_cm
-        ob = obstacle_ahead(self.nav.grid, self.nav.map_pose, look, half_angle_deg=20.0,
-                            half_width_cm=0.5 * self.nav.width_cm + 2.5)
+        ob = obstacle_ahead(self.nav.grid, self.nav.map_pose, look, half_angle_deg=0.0,
+                            half_width_cm=0.5 * self.nav.width_cm,
+                            beyond_cm=0.5 * self.nav.length_cm)
         if ob is None:
             return motion
         room = ob.forward_cm - self.nav.m.stop_cm

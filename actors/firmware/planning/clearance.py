@@ -17,7 +17,7 @@ Algorithm
     refuse it. The disc with its margin must lie inside the map.
 
     `obstacle_ahead`: the nearest occupied cell whose centre lies ahead of the
-    rover (forward distance in (0, distance]) inside the cone of
+    rover (forward distance in (beyond, distance]) inside the cone of
     ``half_angle_deg`` or the corridor of the rover's half width plus margin,
     whichever is wider there: the corridor covers the body close in, the cone
     the sides further out.
@@ -176,6 +176,7 @@ def obstacle_ahead(
     *,
     half_angle_deg: float,
     half_width_cm: float,
+    beyond_cm: float = 0.0,
 ) -> Obstacle | None:
     """The nearest occupied cell ahead of ``pose`` within ``distance_cm``, or None.
 
@@ -186,6 +187,8 @@ def obstacle_ahead(
         half_angle_deg: half-angle of the cone ahead [deg].
         half_width_cm: half-width of the corridor ahead (body half-width plus a
             margin) [cm].
+        beyond_cm: only cells whose centre lies more than this far ahead count (the
+            body's half length: a cell beside the body is not ahead of it) [cm].
 
     Raises:
         ValueError: for a non-positive distance, or a half-angle outside [0, 90).
@@ -194,6 +197,8 @@ def obstacle_ahead(
         raise ValueError(f"distance_cm must be positive, got {distance_cm!r}")
     if not 0 <= half_angle_deg < 90:
         raise ValueError(f"half_angle_deg must be in [0, 90), got {half_angle_deg!r}")
+    if not 0 <= beyond_cm < distance_cm:
+        raise ValueError(f"beyond_cm must be in [0, distance_cm), got {beyond_cm!r}")
     reach = math.hypot(distance_cm, max(half_width_cm,
                                         distance_cm * math.tan(math.radians(half_angle_deg))))
     near = occupied_near(grid, pose, reach)
@@ -201,7 +206,7 @@ def obstacle_ahead(
         return None
     px, py, fwd, lat = near
     width = np.maximum(half_width_cm, fwd * math.tan(math.radians(half_angle_deg)))
-    ahead = (fwd > 0) & (fwd <= distance_cm) & (np.abs(lat) <= width)
+    ahead = (fwd > beyond_cm) & (fwd <= distance_cm) & (np.abs(lat) <= width)
     if not ahead.any():
         return None
     dist = np.hypot(px, py)
