@@ -83,7 +83,7 @@ KINDS: dict[str, dict[str, str]] = {
                                                 "d2_match_wide": "structural",
                                                 "d2_match_alt": "structural"},
     "localisation.scan_likelihood": {
-        "MAX_BEAMS": "structural", "UNKNOWN_HIT": "structural", "MIN_JUDGED": "policy",
+        "MAX_BEAMS": "structural", "UNKNOWN_HIT": "structural",
         "MIN_FIT": "policy", "GATE_CHI2": "structural", "FLOOR_CM": "physical",
         "FLOOR_DEG": "physical"},
     "localisation.scan_likelihood.ScanOptions": {
@@ -97,7 +97,7 @@ KINDS: dict[str, dict[str, str]] = {
                               "CORRECTION_STEP_DEG": "policy"},
     "mapping.scan_match": {
         "ITERATIONS": "structural", "BLUR_WIDE": "structural", "BLUR_NARROW": "structural",
-        "DAMPING": "structural", "MIN_SUPPORT": "policy",
+        "DAMPING": "structural",
         "RELOCALISE_TURN_DEG": "structural", "RELOCALISE_STEP_DEG": "structural",
         "RELOCALISE_MIN_SCORE": "policy", "RELOCALISE_MIN_SUPPORT": "policy",
         "RELOCALISE_MARGIN": "policy"},
@@ -177,8 +177,8 @@ KINDS: dict[str, dict[str, str]] = {
         "_BACKOFF_CELLS": "structural", "_SNAP_CELLS": "structural",
         "_VIEW_TURNS_DEG": "structural"},
     "planning.viewpoint.Viewpoint": {"face_cells": "structural"},
-    "scan_hits": {"MIN_POINTS": "structural", "MIN_RANGE_CM": "physical",
-                  "MAX_RANGE_CM": "physical"},
+    "scan_hits": {"MIN_POINTS": "structural", "MIN_JUDGED": "policy",
+                  "MIN_RANGE_CM": "physical", "MAX_RANGE_CM": "physical"},
 }
 
 
