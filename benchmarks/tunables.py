@@ -53,7 +53,7 @@ KINDS: dict[str, dict[str, str]] = {
     "drivers.tread_monitor": {
         "SILENT_INTERRUPTS": "policy", "SILENT_OTHER": "policy", "SHORT_AFTER_CM": "policy",
         "SHORT_RATIO": "policy", "SHORT_OTHER_RATIO": "policy", "BOTH_MOVE_RATIO": "policy",
-        "PUSH_RATIO": "policy", "PUSH_WINDOW_CM": "policy", "UNEVEN_CM": "policy",
+        "PUSH_RATIO": "policy", "UNEVEN_CM": "policy",
         "_NO_CARRY": "structural"},
     "drivers.wifly": {"_GRID_TOLERANCE": "structural", "_MAX_STEPS": "structural"},
     "hardware": {"LIDAR_SYNC": "structural", "LIDAR_PACKET_SIZE": "structural",
