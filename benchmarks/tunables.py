@@ -40,7 +40,7 @@ KIND_NAMES = ("derived", "physical", "structural", "policy")
 # the code is derived whatever is written here, so only typed numbers are listed.
 KINDS: dict[str, dict[str, str]] = {
     "drivers.ir": {"ADC_RAILS": "physical", "MAX_LEASE_S": "structural"},
-    "drivers.lidar": {"MIN_SAMPLES": "structural", "STUCK_SPAN_DEG": "policy",
+    "drivers.lidar": {"MIN_SAMPLES": "structural",
                       "MIN_TRIPLES": "structural", "GARBLED_SHARE": "policy",
                       "GARBLED_MIN": "structural", "FAULT_BATCHES": "policy",
                       "RECOVER_BATCHES": "policy"},
@@ -57,6 +57,7 @@ KINDS: dict[str, dict[str, str]] = {
         "_NO_CARRY": "structural"},
     "drivers.wifly": {"_GRID_TOLERANCE": "structural", "_MAX_STEPS": "structural"},
     "hardware": {"LIDAR_SYNC": "structural", "LIDAR_PACKET_SIZE": "structural",
+                 "LIDAR_SAMPLES_PER_REV": "physical",
                  "TREAD_LEFT": "structural", "TREAD_RIGHT": "structural"},
     "hardware.HardwareSpec": {"length_cm": "physical", "width_cm": "physical",
                               "max_speed_cm_s": "physical"},
