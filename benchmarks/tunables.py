@@ -94,8 +94,7 @@ KINDS: dict[str, dict[str, str]] = {
     "mapping.map_management": {"_CORRECTION_WAIT_S": "structural",
                                "_SEARCH_EVERY_S": "structural", "UPDATE_MIN_CM": "policy",
                                "UPDATE_MIN_DEG": "policy", "_END_BATCHES": "policy"},
-    "mapping.map_publisher": {"CORRECTION_STEP_CM": "policy",
-                              "CORRECTION_STEP_DEG": "policy"},
+    "mapping.map_publisher": {"CORRECTION_STEP_DEG": "policy"},
     "mapping.scan_match": {
         "ITERATIONS": "structural", "BLUR_WIDE": "structural", "BLUR_NARROW": "structural",
         "DAMPING": "structural",
