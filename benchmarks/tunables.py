@@ -40,7 +40,7 @@ KIND_NAMES = ("derived", "physical", "structural", "policy")
 # the code is derived whatever is written here, so only typed numbers are listed.
 KINDS: dict[str, dict[str, str]] = {
     "drivers.ir": {"ADC_RAILS": "physical", "MAX_LEASE_S": "structural"},
-    "drivers.lidar": {"MIN_SAMPLES": "structural", "STUCK_SPAN_DEG": "policy",
+    "drivers.lidar": {"MIN_SAMPLES": "structural",
                       "MIN_TRIPLES": "structural", "GARBLED_SHARE": "policy",
                       "GARBLED_MIN": "structural", "FAULT_BATCHES": "policy",
                       "RECOVER_BATCHES": "policy"},
@@ -53,10 +53,11 @@ KINDS: dict[str, dict[str, str]] = {
     "drivers.tread_monitor": {
         "SILENT_INTERRUPTS": "policy", "SILENT_OTHER": "policy", "SHORT_AFTER_CM": "policy",
         "SHORT_RATIO": "policy", "SHORT_OTHER_RATIO": "policy", "BOTH_MOVE_RATIO": "policy",
-        "PUSH_RATIO": "policy", "PUSH_WINDOW_CM": "policy", "UNEVEN_CM": "policy",
+        "PUSH_RATIO": "policy", "UNEVEN_CM": "policy",
         "_NO_CARRY": "structural"},
     "drivers.wifly": {"_GRID_TOLERANCE": "structural", "_MAX_STEPS": "structural"},
     "hardware": {"LIDAR_SYNC": "structural", "LIDAR_PACKET_SIZE": "structural",
+                 "LIDAR_SAMPLES_PER_REV": "physical",
                  "TREAD_LEFT": "structural", "TREAD_RIGHT": "structural"},
     "hardware.HardwareSpec": {"length_cm": "physical", "width_cm": "physical",
                               "max_speed_cm_s": "physical"},
@@ -83,7 +84,7 @@ KINDS: dict[str, dict[str, str]] = {
                                                 "d2_match_wide": "structural",
                                                 "d2_match_alt": "structural"},
     "localisation.scan_likelihood": {
-        "MAX_BEAMS": "structural", "UNKNOWN_HIT": "structural", "MIN_JUDGED": "policy",
+        "MAX_BEAMS": "structural", "UNKNOWN_HIT": "structural",
         "MIN_FIT": "policy", "GATE_CHI2": "structural", "FLOOR_CM": "physical",
         "FLOOR_DEG": "physical"},
     "localisation.scan_likelihood.ScanOptions": {
@@ -93,11 +94,10 @@ KINDS: dict[str, dict[str, str]] = {
     "mapping.map_management": {"_CORRECTION_WAIT_S": "structural",
                                "_SEARCH_EVERY_S": "structural", "UPDATE_MIN_CM": "policy",
                                "UPDATE_MIN_DEG": "policy", "_END_BATCHES": "policy"},
-    "mapping.map_publisher": {"CORRECTION_STEP_CM": "policy",
-                              "CORRECTION_STEP_DEG": "policy"},
+    "mapping.map_publisher": {"CORRECTION_STEP_DEG": "policy"},
     "mapping.scan_match": {
         "ITERATIONS": "structural", "BLUR_WIDE": "structural", "BLUR_NARROW": "structural",
-        "DAMPING": "structural", "MIN_SUPPORT": "policy",
+        "DAMPING": "structural",
         "RELOCALISE_TURN_DEG": "structural", "RELOCALISE_STEP_DEG": "structural",
         "RELOCALISE_MIN_SCORE": "policy", "RELOCALISE_MIN_SUPPORT": "policy",
         "RELOCALISE_MARGIN": "policy"},
@@ -177,8 +177,8 @@ KINDS: dict[str, dict[str, str]] = {
         "_BACKOFF_CELLS": "structural", "_SNAP_CELLS": "structural",
         "_VIEW_TURNS_DEG": "structural"},
     "planning.viewpoint.Viewpoint": {"face_cells": "structural"},
-    "scan_hits": {"MIN_POINTS": "structural", "MIN_RANGE_CM": "physical",
-                  "MAX_RANGE_CM": "physical"},
+    "scan_hits": {"MIN_POINTS": "structural", "MIN_JUDGED": "policy",
+                  "MIN_RANGE_CM": "physical", "MAX_RANGE_CM": "physical"},
 }
 
 

@@ -75,6 +75,7 @@ __all__ = [
     "Handler",
     "LIDAR_SYNC",
     "LIDAR_PACKET_SIZE",
+    "LIDAR_SAMPLES_PER_REV",
     "TREAD_LEFT",
     "TREAD_RIGHT",
     "encode_counter",
@@ -94,6 +95,9 @@ class Interrupt(enum.IntEnum):
 
 LIDAR_SYNC = 0xA5
 LIDAR_PACKET_SIZE = 6
+LIDAR_SAMPLES_PER_REV = 360
+"""Samples the LIDAR takes per revolution of its rotor, at whole multiples of
+``360 / LIDAR_SAMPLES_PER_REV`` deg (1 deg) [1/rev]."""
 
 TREAD_LEFT = 0
 TREAD_RIGHT = 1

@@ -50,7 +50,7 @@ from actors.firmware.arrays import wrap_angle
 from actors.firmware.commands import Cmd
 from actors.firmware.drivers.isr import LidarSamples, LidarUartIsr
 from actors.firmware.handles import post
-from actors.firmware.hardware import Interrupt, RoverHardware
+from actors.firmware.hardware import LIDAR_SAMPLES_PER_REV, Interrupt, RoverHardware
 from actors.firmware.origin_wire import CM, PoseHalves
 from server.protocol.pose import Pose
 
@@ -130,9 +130,9 @@ _DEFAULT_HEALTH = HealthOptions()
 # from a stray one; none is a property a rover team sets.
 MIN_SAMPLES = 8
 """Batches with fewer samples are not judged for rotor or noise (too little to tell)."""
-STUCK_SPAN_DEG = 1.0
-"""A batch whose angles all lie within this (one sample step) is from a rotor that does
-not turn [deg]."""
+STUCK_SPAN_DEG = 360.0 / LIDAR_SAMPLES_PER_REV
+"""A batch whose angles all lie within this (one sample step: a revolution over
+`hardware.LIDAR_SAMPLES_PER_REV`) is from a rotor that does not turn [deg]."""
 MIN_TRIPLES = 12
 """Roughness needs at least this many triples of neighbouring returns."""
 GARBLED_SHARE = 0.25

@@ -168,8 +168,10 @@ distance."""
 PUSH_RATIO = 0.2
 """Both treads counting under this share of their modelled travel lately, in a move:
 pushing against something, blocked (see `TreadMonitor.pushing`)."""
-PUSH_WINDOW_CM = 10.0
-""""Lately": the last 10-20 cm of both treads' modelled travel together [cm]."""
+PUSH_WINDOW_CM = 2 * SHORT_AFTER_CM
+""""Lately" is judged per this much of both treads' modelled travel together: each tread's
+judging distance, ``SHORT_AFTER_CM``, for the two treads; a push is judged on the last one
+to two of these, 10-20 cm [cm]."""
 UNEVEN_CM = 2.0
 """In a straight move, a tread whose modelled travel exceeds its count by this much more
 than the other's counts short too [cm]: the cross-coupling keeps the counts level, so an

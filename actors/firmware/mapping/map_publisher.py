@@ -17,15 +17,17 @@ from collections.abc import Callable
 from actors import BufferPool, Message
 from actors.firmware.commands import Cmd
 from actors.firmware.handles import post
+from actors.firmware.localisation.scan_likelihood import FLOOR_CM
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.origin_wire import pose_messages
 from server.protocol.pose import Pose
 
 __all__ = ["MapPublisher", "CORRECTION_STEP_CM", "CORRECTION_STEP_DEG"]
 
-CORRECTION_STEP_CM = 1.0
-"""The correction is sent again once it moved this far in x or y [cm] (less is below what
-navigation steers by)."""
+CORRECTION_STEP_CM = FLOOR_CM
+"""The correction is sent again once it moved this far in x or y [cm]: a stamp's own error
+(`localisation.scan_likelihood.FLOOR_CM`); a smaller move is within the error of the
+poses it was found from, and below what navigation steers by."""
 CORRECTION_STEP_DEG = 0.5
 """... or turned this much [deg]."""
 

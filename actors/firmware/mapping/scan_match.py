@@ -39,12 +39,12 @@ import numpy as np
 
 from actors.firmware import ndimage
 from actors.firmware.arrays import pad_border
-from actors.firmware.scan_hits import MAX_RANGE_CM, MIN_POINTS, MIN_RANGE_CM
+from actors.firmware.scan_hits import MAX_RANGE_CM, MIN_JUDGED, MIN_POINTS, MIN_RANGE_CM
 from server.protocol.pose import Pose
 
 __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",
            "match_scan", "relocalise", "ITERATIONS", "BLUR_WIDE",
-           "BLUR_NARROW", "DAMPING", "MIN_POINTS", "MIN_SUPPORT", "MAX_RANGE_CM",
+           "BLUR_NARROW", "DAMPING", "MIN_POINTS", "MIN_JUDGED", "MAX_RANGE_CM",
            "RELOCALISE_TURN_DEG", "RELOCALISE_STEP_DEG", "RELOCALISE_MIN_SCORE",
            "RELOCALISE_MIN_SUPPORT", "RELOCALISE_MARGIN"]
 
@@ -61,9 +61,6 @@ BLUR_NARROW = 1
 """Passes of the [1, 2, 1] blur for the final level."""
 DAMPING = 0.05
 """Levenberg damping, relative to the diagonal of the normal matrix."""
-MIN_SUPPORT = 0.35
-"""Share of the hits that must land on mapped obstacles (narrow field > 0.25) at the guess
-or at the result: a scan of a part of the room never seen is not matched."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -380,7 +377,7 @@ def match_scan(fields: MatchFields, points: np.ndarray, guess: Pose,
     score0, support0 = _score(fields, hom, guess.x, guess.y, theta0)
     start = np.array([guess.x, guess.y, theta0])
     est, score1, support1 = _fit(fields, hom, start, _prior(pts, o), o)
-    if max(support0, support1) < MIN_SUPPORT:
+    if max(support0, support1) < MIN_JUDGED:
         return MatchResult(guess, False, score0, score0,
                            f"only {max(support0, support1):.0%} of the hits on mapped obstacles")
     if score1 < score0:
