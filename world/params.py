@@ -11,7 +11,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from actors.firmware.hardware import ROLES, HardwareSpec
+from actors.firmware.hardware import LIDAR_SAMPLES_PER_REV, ROLES, HardwareSpec
 
 __all__ = ["DeviceParams", "LIMITS", "POSITIVE", "ROLES", "rover_spec"]
 """``ROLES`` is the contract's list, re-exported: the world steps the rovers in its order."""
@@ -53,7 +53,7 @@ class DeviceParams:
     # -- LIDAR (mapper) ----------------------------------------------------
     lidar_rev_s_full_pwm: float = 11.0
     """Rotation rate at PWM 1.0 [rev/s]; proportional to PWM (0.5 gives 5.5 rev/s)."""
-    lidar_samples_per_rev: int = 360
+    lidar_samples_per_rev: int = LIDAR_SAMPLES_PER_REV
     """Range samples per revolution."""
     lidar_range_cm: float = 4000.0
     """Maximum range; farther gives distance 0 ("no return") [cm]."""
