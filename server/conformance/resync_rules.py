@@ -31,9 +31,10 @@ def _next_seq(c: Checker) -> int:
 
 async def _rehello(c: Checker, rule: str, since: int, pending: Seen | None,
                    wait_s: float) -> Seen | None:
-    """The hello from transcript index ``since``, its seq_base checked, and its session
-    when the first hello said one (it must not change while the rover keeps its
-    numbering); None (and the rule failed) when none came or either is wrong."""
+    """The hello from transcript index ``since``, its seq_base checked; None (and the rule
+    failed) when none came or it is wrong. A session other than the first hello's
+    (when that said one: it must not change while the rover keeps its numbering)
+    fails the rule too, but the phase goes on, so no other rule pays for it."""
     hello = await c.tx.wait_cmd("hello", wait_s, since)
     if hello is None:
         c.found.fail(rule, f"no hello within {wait_s:g} s", c.tx.rover(since)[:3])
@@ -51,7 +52,6 @@ async def _rehello(c: Checker, rule: str, since: int, pending: Seen | None,
         c.found.fail(rule, f"hello says session {said}, the rover's numbering is session "
                      f"{first} (a new session restarts the server's reception: frames it "
                      "took already would be taken twice)", [hello])
-        return None
     return hello
 
 
