@@ -393,9 +393,10 @@ class Wifly(Actor):
 
     # ------------------------------------------------------------------ receiving
     def _receive(self, data: bytes, now: float) -> None:
-        # line by line: a welcome resets in-order reception, so it must act before the
-        # session takes the frames after it (a chunk may hold the welcome and the
-        # frames that follow it; taken together, they were counted and then rewound)
+        # line by line: a welcome of a new server session restarts in-order reception,
+        # so it must act before the session takes the frames after it (a chunk may hold
+        # the welcome and the frames that follow it; taken together, they were counted
+        # and then rewound)
         start = 0
         while start < len(data):
             end = data.find(b"\n", start)
