@@ -4,7 +4,8 @@
 those facts from the live links and sessions, counts and answers refusals
 (a link that keeps failing is closed, its address backed off), and on success
 binds the link to the rover id's `ReliableSession` (kept per id, so a
-reconnecting rover resumes where it left off) and answers ``welcome``.
+reconnecting rover resumes where it left off; its ``session`` id, said in every
+welcome, is new only when this server makes the session) and answers ``welcome``.
 Sessions whose link is gone and that play no role are reclaimed.
 """
 
@@ -24,6 +25,7 @@ from .protocol import (
     ReliableSession,
     make_frame,
     read_data,
+    session_id_for,
 )
 from .rover_telemetry import RoverTelemetry
 from .trust import Held, admit
@@ -101,11 +103,11 @@ class Hellos(ServerCore):
         origin = self.config.origins.get(hello.id, self.config.origins.get(hello.role))
         if origin is not None:
             self._start_poses[hello.role] = origin
-        rover.session.reset_peer(hello.seq_base)
+        rover.session.reset_peer(hello.seq_base, hello.session)
         rover.session.receive(frame, now)
         welcome = {"server": PROTOCOL_NAME, "heartbeat_s": self.config.heartbeat_s,
                    "down_after_s": self.config.down_after_s,
-                   "seq_base": rover.session.seq_base}
+                   "seq_base": rover.session.seq_base, "session": rover.session.session_id}
         asked = {s: v for s, v in self.config.telemetry.items() if s in (hello.streams or ())}
         if asked:  # only a rover that offers telemetry hears of it
             welcome["telemetry"] = asked
@@ -124,7 +126,7 @@ class Hellos(ServerCore):
     def _new_rover(self, rid: str, role: str, now: float) -> Rover:
         rover = Rover(rid, role, ReliableSession(
             now=now, heartbeat_s=self.config.heartbeat_s, down_after_s=self.config.down_after_s,
-            outbox_limit=MAX_MAP_CHUNKS))
+            outbox_limit=MAX_MAP_CHUNKS, session_id=session_id_for(f"server/{rid}", now)))
         rover.gone_since = now
         self._rovers[rid] = rover
         return rover

@@ -217,7 +217,7 @@ def rover_tree(role: str, hardware: RoverHardware, *, rover_id: str | None = Non
 
     # retained memory (survives actor restarts; a new tree is a rover reset)
     pose_memory = PoseMemory()
-    link_memory = _Retained(LinkMemory)  # made lazily: LinkMemory reads Trio's clock
+    link_memory = _Retained(lambda: LinkMemory(owner=rover_id))  # lazily: it reads the clock
     isrs = _Isrs(role, names, pool)
 
     def make_wifly() -> Actor:

@@ -47,6 +47,7 @@ BREAKS = {
     "oversized_telemetry": "sends tm_map frames over 1024 bytes",
     "unasked_stream": "sends every stream it lists, asked for or not",
     "fault_without_opt_in": "lists no faults yet accepts lidar/dead",
+    "new_session": "says a session in hello, a new one in every hello",
 }
 """``breaks`` -> what the rover does wrong."""
 
@@ -119,6 +120,7 @@ class TestRover:
         self._next_hello = 0.0
         self._hello_wait = 1.0
         self._kick = trio.Event()
+        self.hellos_said = 0  # new_session: the session of the last hello
 
     # -- the link -------------------------------------------------------------------
 
@@ -210,6 +212,9 @@ class TestRover:
             data["streams"] = list(self.streams)
         if self.faults_field:
             data["faults"] = list(_FAULTS) if self.accept_faults else []
+        if self.breaks == "new_session":
+            self.hellos_said += 1
+            data["session"] = self.hellos_said
         return Frame("hello", "rover", data)
 
     def _due(self, now: float) -> bytes:
@@ -309,7 +314,7 @@ class TestRover:
             self.session.reject(exc, frame)
             return
         if cmd == "welcome":
-            self.session.reset_peer(body.seq_base)
+            self.session.reset_peer(body.seq_base, body.session)
             self.welcomed = True
             self._hello_wait = 1.0
             self.session.send(make_frame("status", {"state": "idle"}))

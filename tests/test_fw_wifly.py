@@ -43,10 +43,14 @@ class FakeServer:
         for f in self.session.feed(data, trio.current_time()):
             self.got.append(f)
             if f.cmd == "hello":
-                self.session.reset_peer(read_data(f).seq_base)
-                self.session.send(make_frame("welcome", {
-                    "server": "fake/1", "heartbeat_s": 1.0, "down_after_s": 5.0,
-                    "seq_base": self.session.seq_base}))
+                hello = read_data(f)
+                self.session.reset_peer(hello.seq_base, hello.session)
+                self.session.send(make_frame("welcome", self.welcome()))
+
+    def welcome(self) -> dict:
+        """The welcome's data now, as the server says it (its session id included)."""
+        return {"server": "fake/1", "heartbeat_s": 1.0, "down_after_s": 5.0,
+                "seq_base": self.session.seq_base, "session": self.session.session_id}
 
     async def run(self) -> None:
         while True:
@@ -294,11 +298,13 @@ async def test_a_tick_dropped_by_a_full_mailbox_does_not_stop_the_timer(
 
 
 @pytest.mark.trio
+@pytest.mark.parametrize("hold", [False, True], ids=["sim-link", "real-link"])
 async def test_a_welcome_sharing_a_chunk_with_later_frames_and_a_late_second_welcome_rewind_nothing(
-        autojump_clock) -> None:
+        autojump_clock, hold: bool) -> None:
     """A slow line brings the welcome and the reliable frames after it in one chunk, and
-    later a second welcome (the answer to a hello repeated meanwhile) naming a seq already
-    delivered: every frame reaches navigation once, in order, and none waits for a resend."""
+    later a second welcome of the same server session (the answer to a hello repeated
+    meanwhile) naming a seq already delivered: every frame reaches navigation once, in
+    order, and none waits for a resend."""
     hw, pool, log = FakeHardware(), BufferPool(64), []
     async with trio.open_nursery() as nursery, open_actor_system(1) as system:
         server = FakeServer(hw)
@@ -316,11 +322,10 @@ async def test_a_welcome_sharing_a_chunk_with_later_frames_and_a_late_second_wel
         spec = SupervisorSpec([
             ChildSpec("nav", lambda: Recorder(log, pool)),
             ChildSpec("wifly", lambda: Wifly(hw, pool, rover_id="h", role="hider",
-                                             hold_until_welcome=True), mailbox=256)])
+                                             hold_until_welcome=hold), mailbox=256)])
         await system.start_supervisor(spec, "hider")
         await trio.sleep(1.0)
-        server.session.send(make_frame("welcome", {"server": "fake/1", "heartbeat_s": 1.0,
-                                                   "down_after_s": 5.0, "seq_base": 1}))
+        server.session.send(make_frame("welcome", {**server.welcome(), "seq_base": 1}))
         server.session.send(make_frame("destination", {"x": 1.0, "y": 2.0}))
         await trio.sleep(3.0)
         frames = [p.cmd for c, p in log if c == Cmd.NAV_NET]

@@ -12,6 +12,7 @@ from server.protocol import (
     decode_line,
     encode_frame,
     make_frame,
+    session_id_for,
 )
 
 
@@ -182,6 +183,84 @@ def test_reset_peer_restarts_in_order_reception() -> None:
     fresh.feed(b.transmit(0.2), 0.2)
     fresh.send(_status(9), reliable=True)
     assert [f.data["state"] for f in b.feed(fresh.transmit(0.3), 0.3)] == ["s9"]
+
+
+def _three_delivered(session_id: int = 7) -> tuple[ReliableSession, ReliableSession]:
+    """a (session ``session_id``) has announced itself to b and b took seq 1-3."""
+    a, b = ReliableSession(session_id=session_id), ReliableSession(session_id=70)
+    b.reset_peer(a.seq_base, a.session_id)
+    a.feed(b.transmit(0.0), 0.0)
+    for i in range(3):
+        a.send(_status(i), reliable=True)
+    assert [f.data["state"] for f in b.feed(a.transmit(0.1), 0.1)] == ["s0", "s1", "s2"]
+    return a, b
+
+
+def test_a_welcome_of_the_same_session_after_frames_at_its_seq_base_does_not_rewind() -> None:
+    """A welcome (same session id) naming seq 1 after seq 1-3 were delivered keeps reception
+    at 4: the next frame is delivered and acknowledged, and a resend of 2 stays a duplicate."""
+    a, b = _three_delivered()
+    stale_base = 1  # a's seq_base when it answered a hello that crossed seq 1-3
+    a.feed(b.transmit(0.2), 0.2)  # ack 3: a drops 1-3 from its window for good
+    assert a.stats(0.2).unacked == 0
+    b.reset_peer(stale_base, a.session_id)
+    assert b.ack_value == 3
+    a.send(_status(3), reliable=True)
+    assert [f.data["state"] for f in b.feed(a.transmit(0.3), 0.3)] == ["s3"]
+    assert [f.ack for f in _frames(b.transmit(0.3))] == [4]
+    resent = encode_frame(Frame("status", "status", {"state": "s1"}, seq=2))
+    assert b.feed(resent, 0.4) == []
+    assert b.stats(0.4).duplicates == 1
+
+
+def test_the_same_session_with_a_higher_seq_base_skips_forward() -> None:
+    """The same session naming a seq_base ahead of reception moves it there (never back)."""
+    a, b = _three_delivered()
+    b.reset_peer(6, a.session_id)
+    assert b.ack_value == 5
+    assert b.feed(encode_frame(Frame("status", "status", {"state": "x"}, seq=6)), 0.2) != []
+
+
+def test_a_new_session_with_a_lower_seq_base_restarts_reception() -> None:
+    """A rebooted peer (a new session id) saying seq_base 1 after 1-3 were delivered gets
+    its new seq 1 delivered, not dropped as a duplicate."""
+    a, b = _three_delivered()
+    rebooted = ReliableSession(session_id=8)
+    b.reset_peer(rebooted.seq_base, rebooted.session_id)
+    assert b.ack_value == 0 and b.peer_session == 8
+    rebooted.feed(b.transmit(0.2), 0.2)
+    rebooted.send(_status(9), reliable=True)
+    assert [f.data["state"] for f in b.feed(rebooted.transmit(0.3), 0.3)] == ["s9"]
+
+
+@pytest.mark.parametrize("before", [None, 7], ids=["never-said", "said-before"])
+def test_a_peer_without_a_session_restarts_reception_at_every_announcement(before) -> None:
+    """An announcement without a session id restarts reception at seq_base, as it always
+    did, whatever was said before (a peer whose firmware sends none)."""
+    a, b = _three_delivered()
+    b.reset_peer(1, before)
+    b.reset_peer(1)
+    assert b.ack_value == 0 and b.peer_session is None
+    b.reset_peer(1)
+    assert b.ack_value == 0
+    again = encode_frame(Frame("status", "status", {"state": "n1"}, seq=1))
+    assert [f.data["state"] for f in b.feed(again, 0.2)] == ["n1"]
+
+
+def test_session_ids_are_deterministic_and_new_per_owner_and_instant() -> None:
+    """session_id_for repeats for the same owner and instant and differs otherwise."""
+    assert session_id_for("seeker", 12.5) == session_id_for("seeker", 12.5)
+    ids = {session_id_for(o, t) for o in ("seeker", "hider") for t in (0.0, 12.5, 12.50001)}
+    assert len(ids) == 6
+    assert all(0 <= i < 2 ** 32 for i in ids)
+    assert ReliableSession(now=3.0).session_id == session_id_for("", 3.0)
+
+
+@pytest.mark.parametrize("bad", [-1, 2 ** 32])
+def test_a_session_id_outside_32_bits_is_refused(bad: int) -> None:
+    """session_id must fit 32 unsigned bits."""
+    with pytest.raises(ValueError, match=rf"^session_id must be in \[0, 2\*\*32\), got {bad}$"):
+        ReliableSession(session_id=bad)
 
 
 def test_bad_lines_are_answered_and_counted() -> None:

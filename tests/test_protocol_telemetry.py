@@ -157,7 +157,7 @@ def test_server_asks_only_for_offered_streams_and_ignores_the_rest() -> None:
                     nursery.cancel_scope.cancel()
 
     trio.run(main, clock=trio.testing.MockClock(autojump_threshold=0.01))
-    assert set(welcomes["a"]) == {"server", "heartbeat_s", "down_after_s", "seq_base"}
+    assert set(welcomes["a"]) == {"server", "heartbeat_s", "down_after_s", "seq_base", "session"}
     assert welcomes["b"]["telemetry"] == {"tree": 2.0}
     assert welcomes["b"]["telemetry_share"] == 0.25
     view = welcomes["view"]

@@ -7,6 +7,7 @@ Times are the rover's seconds (the check runs on a clock at the rover's
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -18,10 +19,12 @@ from .link import RoverLink
 from .peer import Peer, Seen, Transcript
 from .rules import Findings
 
-__all__ = ["Options", "Checker", "Expect", "SERVER_NAME", "TELEMETRY_STREAMS"]
+__all__ = ["Options", "Checker", "Expect", "SERVER_NAME", "SERVER_SESSION", "TELEMETRY_STREAMS"]
 
 SERVER_NAME = "hideseek-check/1"
 """What the checker's welcome calls the server."""
+SERVER_SESSION = zlib.crc32(SERVER_NAME.encode())
+"""The ``session`` of the checker's first numbering; each restart it claims adds one."""
 TELEMETRY_STREAMS = ("mailboxes", "tree", "map", "pose", "events")
 """The telemetry streams a hello may list."""
 
@@ -82,6 +85,7 @@ class Checker:
     """The streams the welcome asked for, and their intervals [s]."""
     expects: list[Expect] = field(default_factory=list)
     epoch: int = 0
+    """Restarts of the checker's numbering claimed so far (a new ``session`` each)."""
     welcomes: list[tuple[int, float]] = field(default_factory=list)
     """(transcript index, time) of every welcome sent."""
     quiet: list[tuple[float, float]] = field(default_factory=list)
@@ -111,10 +115,16 @@ class Checker:
             self.expects.append(Expect(seq, index, self.tx.now(), self.epoch))
         return seq, index
 
+    @property
+    def session(self) -> int:
+        """The ``session`` the checker says in its welcomes: new with every ``epoch``."""
+        return (SERVER_SESSION + self.epoch) % 2 ** 32
+
     async def welcome(self, seq_base: int) -> int:
         """Send the welcome (telemetry asked as `asked`); returns its transcript index."""
         data: dict[str, Any] = {"server": SERVER_NAME, "heartbeat_s": 1.0,
-                                "down_after_s": 5.0, "seq_base": seq_base}
+                                "down_after_s": 5.0, "seq_base": seq_base,
+                                "session": self.session}
         if self.asked:
             data["telemetry"] = dict(self.asked)
             data["telemetry_share"] = self.opts.tm_share

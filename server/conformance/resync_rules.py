@@ -3,8 +3,10 @@
 Both leave a reliable frame of the rover unacknowledged (``pending``) and
 expect, after the new hello, ``seq_base`` = that frame's ``seq`` (or the
 rover's next ``seq`` when nothing is pending) and the frame resent unchanged.
-The resync also claims a restarted server: its welcome says ``seq_base`` 1,
-and the next frame of the checker, numbered 1, must be taken and acknowledged.
+The resync also claims a restarted server: its welcome says ``seq_base`` 1 and a
+new ``session``, and the next frame of the checker, numbered 1, must be taken and
+acknowledged. A rover whose first hello said a ``session`` must say the same one
+in both hellos (it kept its numbering).
 """
 
 from __future__ import annotations
@@ -30,7 +32,9 @@ def _next_seq(c: Checker) -> int:
 async def _rehello(c: Checker, rule: str, since: int, pending: Seen | None,
                    wait_s: float) -> Seen | None:
     """The hello from transcript index ``since``, its seq_base checked; None (and the rule
-    failed) when none came or it is wrong."""
+    failed) when none came or it is wrong. A session other than the first hello's
+    (when that said one: it must not change while the rover keeps its numbering)
+    fails the rule too, but the phase goes on, so no other rule pays for it."""
     hello = await c.tx.wait_cmd("hello", wait_s, since)
     if hello is None:
         c.found.fail(rule, f"no hello within {wait_s:g} s", c.tx.rover(since)[:3])
@@ -42,6 +46,12 @@ async def _rehello(c: Checker, rule: str, since: int, pending: Seen | None,
         c.found.fail(rule, f"hello says seq_base {base}, {what} is {want}",
                      [hello] + ([pending] if pending else []))
         return None
+    first = c.hello.get("session")
+    said = hello.frame.data.get("session") if isinstance(hello.frame.data, dict) else None
+    if first is not None and said != first:
+        c.found.fail(rule, f"hello says session {said}, the rover's numbering is session "
+                     f"{first} (a new session restarts the server's reception: frames it "
+                     "took already would be taken twice)", [hello])
     return hello
 
 

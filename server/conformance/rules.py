@@ -59,9 +59,11 @@ RULES: tuple[Rule, ...] = (
     Rule("report.seek", "a seeker answers a destination with found or not_found, reliably "
          "and well-formed", ("seeker",)),
     Rule("reconnect.resume", "after the link drops the rover says hello again with its "
-         "oldest unacknowledged seq as seq_base and resends that frame"),
-    Rule("resync.hello_first", "'send hello first' is answered with hello (seq_base right); "
-         "the rover then follows welcome.seq_base and resends what was unacknowledged"),
+         "oldest unacknowledged seq as seq_base (and its first hello's session, if it said "
+         "one) and resends that frame"),
+    Rule("resync.hello_first", "'send hello first' is answered with hello (seq_base right, "
+         "session unchanged); the rover then follows welcome.seq_base of a new server "
+         "session and resends what was unacknowledged"),
     Rule("malformed.answered", "a line that is not a frame, too long, of an unknown cmd or "
          "a wrong type is answered with an error frame naming the fault"),
     Rule("malformed.reliable", "a reliable frame whose data does not fit is answered "

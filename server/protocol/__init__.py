@@ -75,7 +75,7 @@ from .grid_map import (
 from .lines import TOO_LONG, LineBuffer
 from .mapcodec import CHUNK_B64_CHARS, MapAssembler, decode_runs, encode_runs, map_chunks
 from .pose import ZERO_POSE, Pose, angle_diff_deg, compose, inverse, relative, wrap_deg
-from .session import LinkStats, OutboxFull, ReliableSession
+from .session import SESSION_ID_LIMIT, LinkStats, OutboxFull, ReliableSession, session_id_for
 from .telemetry import (
     DEFAULT_INTERVALS,
     DEFAULT_LINK_BYTES_S,
@@ -109,7 +109,8 @@ __all__ = [
     "MapError", "CHUNK_B64_CHARS", "MapAssembler",
     "decode_runs", "encode_runs", "map_chunks",
     "Pose", "ZERO_POSE", "angle_diff_deg", "compose", "inverse", "relative", "wrap_deg",
-    "LinkStats", "OutboxFull", "ReliableSession", "FAULT", "FAULT_REPLY",
+    "LinkStats", "OutboxFull", "ReliableSession", "SESSION_ID_LIMIT", "session_id_for",
+    "FAULT", "FAULT_REPLY",
     "DEFAULT_INTERVALS", "DEFAULT_LINK_BYTES_S", "DEFAULT_SHARE", "EVENT_KINDS", "FAULT_RESULTS",
     "STREAM_CMDS", "STREAMS", "TELEMETRY_CMDS", "FaultCommand", "FaultReply", "LaneStats",
     "TelemetryLane", "TmEvent", "TmMailboxes", "TmMap", "TmPose", "TmTree", "split_cells",

@@ -101,6 +101,9 @@ class Hello(msgspec.Struct, frozen=True):
     """Shared secret, required when the server is configured with tokens."""
     seq_base: Annotated[int, msgspec.Meta(ge=1)] = 1
     """``seq`` of the rover's oldest unacknowledged reliable frame (or its next one)."""
+    session: Annotated[int, msgspec.Meta(ge=0, lt=2 ** 32)] | None = None
+    """Identity of the rover's numbering of reliable frames (new after a reboot);
+    absent: every hello restarts the server's reception at ``seq_base``."""
     streams: Annotated[list[Literal["mailboxes", "tree", "map", "pose", "events"]],
                        msgspec.Meta(max_length=len(STREAMS))] | None = None
     """Telemetry streams the rover can send (absent: none)."""
@@ -120,6 +123,9 @@ class Welcome(msgspec.Struct, frozen=True):
     """Silence after which a link counts as down [s]."""
     seq_base: int
     """``seq`` of the server's oldest unacknowledged reliable frame (or its next one)."""
+    session: Annotated[int, msgspec.Meta(ge=0, lt=2 ** 32)] | None = None
+    """Identity of the server's numbering of reliable frames toward this rover (new
+    after a server restart); absent: every welcome restarts reception at ``seq_base``."""
     telemetry: dict[Literal["mailboxes", "tree", "map", "pose", "events"],
                     Annotated[float, msgspec.Meta(ge=0, le=3600)]] | None = None
     """Stream -> interval [s] the server wants (0 = as it happens); absent: none."""

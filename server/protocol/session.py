@@ -38,13 +38,26 @@ Rules (the spec in docs/protocol.md says the same):
   ``down_after_s``; a heartbeat leaves when nothing was sent for
   ``heartbeat_s``. No reliable frame is sent for the first time while the
   link is down.
+* **session**: every session has a ``session_id`` (an int in [0, 2**32)),
+  chosen by its owner when the session is made: the identity of this
+  numbering of reliable frames. A rebooted rover or a restarted server makes
+  a new session, so a new id; an owner that restarts and keeps its session
+  (the WiFly's `LinkMemory`) keeps the id. `session_id_for` derives one from
+  the owner's name and the creation instant, deterministic under a virtual
+  clock.
 * **reset**: a ``hello`` / ``welcome`` tells the receiver the peer's
-  ``seq_base`` (its oldest unacknowledged ``seq``): `reset_peer` restarts
-  in-order reception there, which is how a rebooted peer starts over.
+  ``seq_base`` (its oldest unacknowledged ``seq``) and its ``session``
+  (`reset_peer`). The same session as the peer last announced is the same
+  numbering: in-order reception never goes back (a hello or welcome that
+  crossed frames in flight names a ``seq`` delivered since, which the peer
+  will never resend), it only skips forward to ``seq_base``. A new or unknown
+  session, or none (a peer that does not send one), restarts in-order
+  reception at ``seq_base``: that is how a rebooted peer starts over.
 """
 
 from __future__ import annotations
 
+import zlib
 from collections import deque
 from dataclasses import dataclass
 
@@ -53,7 +66,21 @@ from .frame import MAX_SEQ, Fault, Frame, FrameError, decode_line, encode_frame,
 from .lines import TOO_LONG, LineBuffer
 from .telemetry import TELEMETRY_CMDS
 
-__all__ = ["LinkStats", "OutboxFull", "ReliableSession"]
+__all__ = ["LinkStats", "OutboxFull", "ReliableSession", "SESSION_ID_LIMIT", "session_id_for"]
+
+SESSION_ID_LIMIT = 2 ** 32
+"""Session ids are ints in ``[0, SESSION_ID_LIMIT)``."""
+
+
+def session_id_for(owner: str, now: float) -> int:
+    """A session id for a session ``owner`` makes at ``now`` [s]: CRC-32 of both.
+
+    Deterministic under a virtual clock (a simulation replays it); two sessions
+    of one owner made at different instants get different ids (up to CRC-32
+    collisions, 1 in 2**32). Under Trio's real clock ``now`` has a random
+    offset per run, so a restarted process does not repeat its ids.
+    """
+    return zlib.crc32(f"{owner}@{now!r}".encode())
 
 
 class OutboxFull(RuntimeError):
@@ -115,12 +142,22 @@ class ReliableSession:
         outbox_limit: reliable frames waiting for the window at most.
         unreliable_limit: unreliable frames waiting for `transmit` at most
             (the oldest is dropped and counted beyond it).
+        session_id: this session's identity, said in hello/welcome (see
+            `session_id`); None: `session_id_for` with no owner name and ``now``.
+
+    Raises:
+        ValueError: a bound below 1, timings out of order, or ``session_id``
+            outside ``[0, 2**32)``.
     """
 
     def __init__(self, *, now: float = 0.0, heartbeat_s: float = 1.0, down_after_s: float = 5.0,
                  rto_initial_s: float = 1.0, rto_min_s: float = 0.3, rto_max_s: float = 8.0,
                  max_tries: int = 8, window: int = 8, outbox_limit: int = 256,
-                 unreliable_limit: int = 64) -> None:
+                 unreliable_limit: int = 64, session_id: int | None = None) -> None:
+        if session_id is None:
+            session_id = session_id_for("", now)
+        if not 0 <= session_id < SESSION_ID_LIMIT:
+            raise ValueError(f"session_id must be in [0, 2**32), got {session_id}")
         if window < 1 or outbox_limit < 1 or unreliable_limit < 1 or max_tries < 1:
             raise ValueError("window, outbox_limit, unreliable_limit and max_tries must be >= 1")
         if not 0 < heartbeat_s < down_after_s:
@@ -134,6 +171,9 @@ class ReliableSession:
         self.window = window
         self.outbox_limit = outbox_limit
         self.unreliable_limit = unreliable_limit
+        self.session_id = session_id
+        """The identity of this numbering of reliable frames: said as ``session`` in
+        hello/welcome, so the peer tells a resent announcement from a restart."""
         self._lines = LineBuffer()
         # sending side
         self._next_seq = 1
@@ -147,6 +187,7 @@ class ReliableSession:
         # receiving side
         self._rx_next = 1                             # next peer seq expected in order
         self._held: dict[int, Frame] = {}             # peer frames ahead of a gap
+        self._peer_session: int | None = None         # last announced; None: none said
         self._highest_seen = 0
         self._ack_due = False
         self._last_heard: float | None = None
@@ -377,10 +418,34 @@ class ReliableSession:
             self._rx_next += 1
         return [f for f in out if f.cmd not in (ACK, HEARTBEAT)]
 
-    def reset_peer(self, seq_base: int) -> None:
-        """The peer announced (hello/welcome) that its next in-order ``seq`` is ``seq_base``."""
+    @property
+    def peer_session(self) -> int | None:
+        """The ``session`` the peer last announced, None before one (or from a peer
+        that sends none)."""
+        return self._peer_session
+
+    def reset_peer(self, seq_base: int, session: int | None = None) -> None:
+        """The peer announced (hello/welcome) its oldest unacknowledged ``seq_base``.
+
+        ``session`` equal to the one last announced: the same numbering, so in-order
+        reception never goes back (frames below it stay duplicates); it moves
+        forward to ``seq_base`` when that is ahead. Otherwise (a new session, the
+        first one heard, or None from a peer that says none) reception restarts at
+        ``seq_base`` and ``session`` is remembered.
+
+        Raises:
+            ValueError: ``seq_base`` below 1.
+        """
         if seq_base < 1:
             raise ValueError(f"seq_base must be >= 1, got {seq_base}")
+        same = session is not None and session == self._peer_session
+        self._peer_session = session
+        if same:
+            if seq_base > self._rx_next:  # the peer gave up frames we never took
+                self._rx_next = seq_base
+                self._highest_seen = max(self._highest_seen, seq_base - 1)
+                self._held.clear()
+            return
         self._rx_next = seq_base
         self._highest_seen = seq_base - 1
         self._held.clear()

@@ -19,7 +19,7 @@ waits on a neighbour (navigation's mailbox full, the outbox with room for the
 backlog, a stalled link to be declared down) the timer polls every ``tick_s``.
 
 Protocol (server.protocol, docs/protocol.md)
-    * **connect**: ``hello`` (id, role, token, ``seq_base``) is sent until the
+    * **connect**: ``hello`` (id, role, token, ``seq_base``, ``session``) is sent until the
       server answers ``welcome``; unanswered hellos back off from ``hello_s``
       doubling up to ``hello_max_s``; ``send hello first`` from the server
       asks for one at once. With ``hold_until_welcome`` (a rover on a real
@@ -30,9 +30,12 @@ Protocol (server.protocol, docs/protocol.md)
       resends them until acknowledged, drops duplicates and keeps order.
     * **drop and reconnect**: when the server has not been heard for
       ``down_after_s`` (or resends stalled) the link is down: hello again
-      with backoff. Hello carries our oldest unacknowledged ``seq``, so the
-      server restarts in-order reception there and the frames that were in
-      flight are resent: nothing reliable is lost to a link fault.
+      with backoff. Hello carries our oldest unacknowledged ``seq`` and our
+      session id: the server's reception continues (never going back) and the
+      frames that were in flight are resent: nothing reliable is lost to a
+      link fault. A welcome naming the server session we know never takes our
+      reception back either (it may answer a hello that crossed frames in
+      flight); a new server session restarts it at its ``seq_base``.
     * **incoming**: frames checked against the catalogue (a bad one is
       answered with ``error``); ``map`` chunks are assembled here and the
       whole map goes to navigation as one ``NAV_MAP_DOWNLOAD`` (handle of a
@@ -47,8 +50,9 @@ and a queue of deliveries waiting for room in navigation's mailbox
 Restarts: the session (sequence numbers, frames in flight, the backlog) lives
 in a `LinkMemory` made by the rover tree, the model of the UART driver's
 buffers in retained RAM: a restarted WiFly says hello again with its
-``seq_base`` and resends what was not acknowledged. A rover reset (a new
-tree) starts a fresh session, which the server accepts by the same hello.
+``seq_base`` and session id and resends what was not acknowledged. A rover
+reset (a new tree) starts a fresh session with a new id, so the server
+restarts its reception at that hello's ``seq_base``.
 """
 
 from __future__ import annotations
@@ -85,6 +89,7 @@ from server.protocol import (
     make_frame,
     map_chunks,
     read_data,
+    session_id_for,
 )
 
 _TICK = Message.uint(Cmd.WIFLY_TIMER, 0)
@@ -110,14 +115,19 @@ class LinkMemory:
     Made once per rover by the tree builder; only the WiFly actor touches it.
 
     Args:
-        session: the session (a new one with default timing when None).
+        session: the session (when None, a new one with default timing and a
+            ``session_id`` from ``owner`` and the instant it is made).
+        owner: the rover id, named in the new session's id.
     """
 
     __slots__ = ("session", "backlog", "to_nav", "map_id", "dropped", "faults")
 
-    def __init__(self, session: ReliableSession | None = None) -> None:
-        self.session = session or ReliableSession(now=trio.current_time())
-        """The reliable session with the server."""
+    def __init__(self, session: ReliableSession | None = None, *, owner: str = "") -> None:
+        if session is None:
+            now = trio.current_time()
+            session = ReliableSession(now=now, session_id=session_id_for(owner, now))
+        self.session = session
+        """The reliable session with the server; its id lives as long as this memory."""
         self.backlog: deque[Frame] = deque()
         """Reliable frames waiting for room in the session's outbox, in order."""
         self.to_nav: deque[tuple[int, Any]] = deque()
@@ -201,7 +211,7 @@ class Wifly(Actor):
     async def on_start(self) -> None:
         self._nav = (self._addresses or Addresses.beside(self.ctx.name)).nav
         if self.memory is None:
-            self.memory = LinkMemory()
+            self.memory = LinkMemory(owner=self.rover_id)
         self._to_nav = self.memory.to_nav
         if self._isr is None:
             self._isr = WiflyUartIsr(self._post, self.pool)
@@ -373,7 +383,8 @@ class Wifly(Actor):
 
     def _hello(self) -> Frame:
         body: dict[str, Any] = {"id": self.rover_id, "role": self.role, "token": self.token,
-                                "seq_base": self.session.seq_base}
+                                "seq_base": self.session.seq_base,
+                                "session": self.session.session_id}
         if self.streams:
             body["streams"] = list(self.streams)
         if self.fault_port is not None:
@@ -382,9 +393,10 @@ class Wifly(Actor):
 
     # ------------------------------------------------------------------ receiving
     def _receive(self, data: bytes, now: float) -> None:
-        # line by line: a welcome resets in-order reception, so it must act before the
-        # session takes the frames after it (a chunk may hold the welcome and the
-        # frames that follow it; taken together, they were counted and then rewound)
+        # line by line: a welcome of a new server session restarts in-order reception,
+        # so it must act before the session takes the frames after it (a chunk may hold
+        # the welcome and the frames that follow it; taken together, they were counted
+        # and then rewound)
         start = 0
         while start < len(data):
             end = data.find(b"\n", start)
@@ -401,12 +413,9 @@ class Wifly(Actor):
                 session.reject(exc, frame)
                 continue
             if frame.cmd == WELCOME:
-                if self.welcomed and self.hold_until_welcome:
-                    # the answer to a hello repeated while the first answer was on its
-                    # way (a slow line): its seq_base may be a frame delivered since, and
-                    # going back to it would wait forever for a frame acknowledged already
-                    continue
-                session.reset_peer(body.seq_base)
+                # a welcome of the server session we know (one answering a hello that
+                # crossed frames in flight) never takes reception back; a new one restarts it
+                session.reset_peer(body.seq_base, body.session)
                 self._hello_wait = self.hello_s
                 if self.telemetry is not None:
                     self.telemetry.configure(body.telemetry, body.telemetry_share)
