@@ -528,40 +528,6 @@ def _set_column(nav: MappingNav, col: int | None, value: int) -> None:
     nav.grid = GridMap(cells, 5.0, (-100.0, -100.0))
 
 
-@pytest.mark.trio
-async def test_homing_uploads_once_the_obstacle_check_refused_the_way_home_home_blocks_times(
-        monkeypatch) -> None:
-    """A wall mapped across the route home after it was planned: the obstacle check
-    refuses the move, the mapper turns away and plans again; refused ``HOME_BLOCKS``
-    times it uploads from where it stands instead of planning and turning until the
-    homing budget runs out."""
-    from actors.firmware.nav.homing import HOME_BLOCKS
-    from actors.firmware.nav.route import Motion
-    from server.protocol.pose import Pose
-
-    nav = _homing_nav()
-    nav.pose = Pose(60.0, 0.0, 180.0)  # facing home, 60 cm away
-    commands: list[Motion] = []
-    finished: list[str] = []
-
-    async def command(motion: Motion) -> None:
-        commands.append(motion)
-
-    async def finish(reason: str, **_: object) -> None:
-        finished.append(reason)
-
-    monkeypatch.setattr(nav, "command", command)
-    monkeypatch.setattr(nav, "finish", finish)
-    monkeypatch.setattr(type(nav), "can_move", property(lambda self: True))  # settled
-    for _ in range(HOME_BLOCKS):
-        assert nav.homing.plan_home()
-        _set_column(nav, 29, OCCUPIED)  # x 45..50: the map grew a wall across the way
-        await nav.homing.home_step()
-        _set_column(nav, 29, FREE)
-    assert [m.kind for m in commands] == ["turn"] * (HOME_BLOCKS - 1)
-    assert finished and finished[0].endswith("home blocked")
-
-
 def test_a_move_blocked_with_nothing_mapped_at_its_leading_edge_is_blocked_in_the_open(
 ) -> None:
     """Both encoders stuck end a move blocked as a wall would: the map tells them apart. A

@@ -5,9 +5,7 @@ Homing
     hider needs (a corridor barely wider than a rover: the hider pushes it and
     gives up). So when mapping completes by itself, the mapper first drives
     back to its start pose, the LIDAR still scanning (scan matching keeps its
-    pose honest), bounded by ``home_budget_s`` and ``HOME_BLOCKS`` (blocked motions,
-    and moves the obstacle check refused: a route the map keeps refusing would
-    otherwise be planned and refused until the budget ran out); then it
+    pose honest), bounded by ``home_budget_s`` and ``HOME_BLOCKS``; then it
     uploads. A motion blocked in the open (nothing mapped in its way: both encoders
     stuck, most likely) is not one of those blocks: it holds for odometry
     (`sensor_watch`). A stop from the server or the time budget uploads at once.
@@ -26,8 +24,7 @@ if TYPE_CHECKING:
 __all__ = ["Homing", "HOME_BLOCKS"]
 
 HOME_BLOCKS = 3
-"""Blocked or refused motions on the way home before uploading from where the rover is
-(a bound)."""
+"""Blocked motions on the way home before uploading from where the rover is (a bound)."""
 
 
 class Homing:
@@ -78,12 +75,8 @@ class Homing:
             return
         if motion.kind == "move":
             motion = self.nav.explorer.mind_the_obstacle(motion)
-            if motion.kind == "turn":  # turned away from an obstacle: plan again from there
-                ex.follower = None
-                ex.blocks += 1  # the way home refused, as a block would have
-                if ex.blocks >= HOME_BLOCKS:
-                    await self.nav.finish(self.nav.finish_reason + "; home blocked")
-                    return
+            if motion.kind == "turn":
+                ex.follower = None  # turned away from an obstacle: plan again from there
         ex.steps += 1
         await self.nav.command(motion)
 
