@@ -13,7 +13,7 @@ from typing import Any
 
 import trio
 
-from ..protocol import Frame, FrameError, read_data
+from ..protocol import SESSION_ID_LIMIT, Frame, FrameError, read_data
 from ..protocol.frame import Fault
 from .link import RoverLink
 from .peer import Peer, Seen, Transcript
@@ -118,7 +118,7 @@ class Checker:
     @property
     def session(self) -> int:
         """The ``session`` the checker says in its welcomes: new with every ``epoch``."""
-        return (SERVER_SESSION + self.epoch) % 2 ** 32
+        return (SERVER_SESSION + self.epoch) % SESSION_ID_LIMIT
 
     async def welcome(self, seq_base: int) -> int:
         """Send the welcome (telemetry asked as `asked`); returns its transcript index."""

@@ -35,6 +35,7 @@ from .catalogue import (
     ORIGIN,
     POSE,
     ROLES,
+    SESSION_ID_LIMIT,
     START,
     STATUS,
     STOP,
@@ -75,7 +76,7 @@ from .grid_map import (
 from .lines import TOO_LONG, LineBuffer
 from .mapcodec import CHUNK_B64_CHARS, MapAssembler, decode_runs, encode_runs, map_chunks
 from .pose import ZERO_POSE, Pose, angle_diff_deg, compose, inverse, relative, wrap_deg
-from .session import SESSION_ID_LIMIT, LinkStats, OutboxFull, ReliableSession, session_id_for
+from .session import LinkStats, OutboxFull, ReliableSession, session_id_for
 from .telemetry import (
     DEFAULT_INTERVALS,
     DEFAULT_LINK_BYTES_S,

@@ -57,10 +57,16 @@ __all__ = [
     "FOUND", "NOT_FOUND", "FAULT", "FAULT_REPLY",
     "Hello", "Welcome", "PoseData", "Destination", "Status", "Reason", "Found", "ErrorInfo",
     "MapChunk", "MAX_WITHIN_CM", "Spec", "CATALOGUE", "make_frame", "read_data",
+    "SESSION_ID_LIMIT", "SessionId",
 ]
 
 ROLES = ("mapper", "hider", "seeker")
 """The three rover roles."""
+
+SESSION_ID_LIMIT = 2 ** 32
+"""Session ids (``hello.session``, ``welcome.session``) are ints in ``[0, SESSION_ID_LIMIT)``."""
+SessionId = Annotated[int, msgspec.Meta(ge=0, lt=SESSION_ID_LIMIT)]
+"""A session id on the wire (`SESSION_ID_LIMIT`)."""
 
 HELLO = "hello"
 WELCOME = "welcome"
@@ -101,7 +107,7 @@ class Hello(msgspec.Struct, frozen=True):
     """Shared secret, required when the server is configured with tokens."""
     seq_base: Annotated[int, msgspec.Meta(ge=1)] = 1
     """``seq`` of the rover's oldest unacknowledged reliable frame (or its next one)."""
-    session: Annotated[int, msgspec.Meta(ge=0, lt=2 ** 32)] | None = None
+    session: SessionId | None = None
     """Identity of the rover's numbering of reliable frames (new after a reboot);
     absent: every hello restarts the server's reception at ``seq_base``."""
     streams: Annotated[list[Literal["mailboxes", "tree", "map", "pose", "events"]],
@@ -123,7 +129,7 @@ class Welcome(msgspec.Struct, frozen=True):
     """Silence after which a link counts as down [s]."""
     seq_base: int
     """``seq`` of the server's oldest unacknowledged reliable frame (or its next one)."""
-    session: Annotated[int, msgspec.Meta(ge=0, lt=2 ** 32)] | None = None
+    session: SessionId | None = None
     """Identity of the server's numbering of reliable frames toward this rover (new
     after a server restart); absent: every welcome restarts reception at ``seq_base``."""
     telemetry: dict[Literal["mailboxes", "tree", "map", "pose", "events"],

@@ -61,15 +61,13 @@ import zlib
 from collections import deque
 from dataclasses import dataclass
 
-from .catalogue import ACK, CATALOGUE, HEARTBEAT, read_data
+from .catalogue import ACK, CATALOGUE, HEARTBEAT, SESSION_ID_LIMIT, read_data
 from .frame import MAX_SEQ, Fault, Frame, FrameError, decode_line, encode_frame, error_frame
 from .lines import TOO_LONG, LineBuffer
 from .telemetry import TELEMETRY_CMDS
 
-__all__ = ["LinkStats", "OutboxFull", "ReliableSession", "SESSION_ID_LIMIT", "session_id_for"]
+__all__ = ["LinkStats", "OutboxFull", "ReliableSession", "session_id_for"]
 
-SESSION_ID_LIMIT = 2 ** 32
-"""Session ids are ints in ``[0, SESSION_ID_LIMIT)``."""
 
 
 def session_id_for(owner: str, now: float) -> int:
@@ -441,13 +439,13 @@ class ReliableSession:
         same = session is not None and session == self._peer_session
         self._peer_session = session
         if same:
-            if seq_base > self._rx_next:  # the peer gave up frames we never took
-                self._rx_next = seq_base
-                self._highest_seen = max(self._highest_seen, seq_base - 1)
-                self._held.clear()
-            return
-        self._rx_next = seq_base
-        self._highest_seen = seq_base - 1
+            if seq_base <= self._rx_next:
+                return  # frames below our next one were taken already
+            # the peer gave up frames we never took
+            highest = max(self._highest_seen, seq_base - 1)
+        else:
+            highest = seq_base - 1
+        self._rx_next, self._highest_seen = seq_base, highest
         self._held.clear()
 
     def reject(self, exc: FrameError, frame: Frame | None = None) -> None:
