@@ -328,8 +328,11 @@ def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
         yield
 
     async def main() -> None:
-        seen["rovers"] = await _game_over_udp(scenario, report, Budget(
-            hello=160, mapping=400, hiding=200, seeking=200), bring_mapper)
+        # The default phase budgets: this game's first guess misses on purpose and its
+        # search takes about 160 s, and at x8 on a real clock the game is not the
+        # virtual-time one (each run's timing differs), so a tight budget fails by chance.
+        seen["rovers"] = await _game_over_udp(scenario, report, Budget(hello=160),
+                                              bring_mapper)
 
     try:
         trio.run(main, clock=scaled_clock(speed))
@@ -338,7 +341,7 @@ def test_hideseek_rover_over_udp_plays_a_whole_game() -> None:
         if proc is not None:
             proc.send_signal(signal.SIGINT)
             out, _ = proc.communicate(timeout=20)
-    assert report.outcome == "found", (report.reason, report.events, out)
+    assert report.outcome == "found", "\n".join([report.reason, *report.events, out])
     mapper = seen["rovers"]["mapper"]
     assert mapper.link.startswith("udp:127.0.0.1:")
     assert mapper.stats.bad_frames == 0
