@@ -255,8 +255,7 @@ def test_whole_game_with_the_mapper_on_a_pty_serial_link() -> None:
                         async with open_remote_rover(scenario, "mapper",
                                                      parse_link(f"serial:{rover_path},115200"),
                                                      seed=1) as rover:
-                            await play_game(system, report, Budget(hello=30, mapping=400,
-                                                                   hiding=200, seeking=200))
+                            await play_game(system, report, Budget(hello=30))
                             seen["rovers"] = {r.id: r for r in system.server.snapshot().rovers}
                             seen["bytes"] = (rover.bytes_in, rover.bytes_out)
                 cable.cancel_scope.cancel()
@@ -299,8 +298,7 @@ def test_whole_game_with_the_mapper_on_udp() -> None:
                                  seed=1)
 
     async def main() -> None:
-        seen["rovers"] = await _game_over_udp(scenario, report, Budget(
-            hello=30, mapping=400, hiding=200, seeking=200), bring_mapper)
+        seen["rovers"] = await _game_over_udp(scenario, report, Budget(hello=30), bring_mapper)
 
     trio.run(main, clock=trio.testing.MockClock(autojump_threshold=PTY_CLOCK_THRESHOLD_S))
     assert report.outcome == "found", (report.reason, report.events)

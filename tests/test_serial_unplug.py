@@ -147,8 +147,7 @@ def _game_with_unplugs(tmp_path: pathlib.Path, *, unplugs: int, renamed: bool) -
                                                  report=lines.append) as rover:
                         async with trio.open_nursery() as game:
                             game.start_soon(unplugger, system, cable, outer)
-                            await play_game(system, report, Budget(
-                                hello=30, mapping=400, hiding=200, seeking=200))
+                            await play_game(system, report, Budget(hello=30))
                             game.cancel_scope.cancel()
                         seen["rovers"] = {r.id: r for r in system.server.snapshot().rovers}
                         seen["status"] = format_status(system.server.snapshot())
