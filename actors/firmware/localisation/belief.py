@@ -372,6 +372,19 @@ class PoseBelief:
         p[:, 2] = _wrap(p[:, 2])
         self._p = p
 
+    def reposition(self, particles: np.ndarray) -> None:
+        """Put the particles where a part of the motion model that needs the map (`slide_model`)
+        says they went; the weights stay.
+
+        Raises:
+            ValueError: for particles not of this belief's shape, or not finite.
+        """
+        p = np.array(particles, dtype=float)
+        if p.shape != self._p.shape or not np.isfinite(p).all():
+            raise ValueError(f"particles must be finite of shape {self._p.shape}, got "
+                             f"shape {p.shape}")
+        self._p = p
+
     def update(self, log_likelihood: np.ndarray, rng: np.random.Generator) -> UpdateReport:
         """Weigh the particles by a measurement and resample when they have thinned out.
 

@@ -53,7 +53,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.drivers.tread_monitor import BOTH_MOVE_RATIO, TreadFault
 from actors.firmware.localisation.belief import PoseBelief, Spread
 from actors.firmware.localisation.contact import stalled_side
 from actors.firmware.localisation.contact_model import (
@@ -66,6 +66,7 @@ from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import free_space_log_likelihood
 from actors.firmware.localisation.motion_model import TreadMotion, TreadReport
 from actors.firmware.localisation.odometry import tread_travel
+from actors.firmware.localisation.slide_model import slide_along_faces
 from actors.firmware.nav.route import Motion
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose, angle_diff_deg, compose, inverse
@@ -275,7 +276,13 @@ class Localiser:
             driven = self._driven(left, right, w)
         motion = TreadMotion(left, right, driven[0], driven[1], *self._reports,
                              *self._reported_before)
+        before = self.belief.particles
         self.belief.predict(motion, w, self.nav.o.motion, self._rng)
+        field = self._distance_field()
+        if field is not None:
+            body = (self.nav.length_cm, self.nav.width_cm)
+            self.belief.reposition(slide_along_faces(field, before, self.belief.particles,
+                                                     body, BOTH_MOVE_RATIO))
         if self._dead is not None:
             self._dead.predict(motion, w, self.nav.o.motion, self._dead_rng)
         self._belief_odom, self._spread = self.nav.pose, None
