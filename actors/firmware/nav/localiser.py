@@ -16,7 +16,9 @@ What drives it
       motion marks the tread(s) reported; their modelled travel is the other
       tread's count (one tread reported: both are driven alike in size) or the
       commanded motion's (both reported), so the doubt follows from the
-      geometry, not from added degrees.
+      geometry, not from added degrees. On the server's map, a particle the
+      motion carried into a face at a slant slides along it (`slide_model`):
+      the encoders count only the part of a slide along the heading.
     * **Free space**: at every rest the particles whose body overlaps a wall of
       the server's map lose weight (`free_space_model`).
     * **Contact**: a straight move that ended blocked weighs the particles by
