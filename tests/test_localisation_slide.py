@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from actors.firmware.localisation.contact_model import contact_gap_cm
 from actors.firmware.localisation.distance_field import DistanceField
 from actors.firmware.localisation.free_space_model import inside_obstacle
 from actors.firmware.localisation.slide_model import slide_along_faces
@@ -25,14 +26,23 @@ def _moved(x: float, y: float, heading_deg: float, counted_cm: float) -> tuple[n
     return before, after
 
 
+def _counted(before: np.ndarray, after: np.ndarray) -> float:
+    """The motion's part along the heading: what the encoders count."""
+    h = after[0, 2]
+    return float((after[0, 0] - before[0, 0]) * math.cos(h)
+                 + (after[0, 1] - before[0, 1]) * math.sin(h))
+
+
 def test_a_body_driven_into_a_wall_at_a_slant_slides_along_it() -> None:
-    """Heading 30 deg into the top wall, 17.4 cm counted: the body went 17.4 / cos 30 along
-    the wall, no nearer to it than it started."""
+    """Heading 30 deg into the top wall, 17.4 cm counted: the body goes on until its front
+    edge meets the wall, then along the wall, and ends touching it; the slide's part along
+    the heading is still the 17.4 cm counted."""
     before, after = _moved(60.0, 82.0, 30.0, 17.4)
     assert inside_obstacle(FIELD, after, BODY)[0]
     slid = slide_along_faces(FIELD, before, after, BODY, SHARE)
-    assert slid[0, 0] == pytest.approx(60.0 + 17.4 / math.cos(math.radians(30.0)), abs=0.5)
-    assert slid[0, 1] == pytest.approx(82.0, abs=0.5)
+    assert contact_gap_cm(FIELD, slid, BODY, 1, 0)[0] == pytest.approx(0.0, abs=0.3)
+    assert _counted(before, slid) == pytest.approx(17.4, abs=0.05)
+    assert slid[0, 1] < after[0, 1] and slid[0, 0] > after[0, 0]  # along the wall, not in
     assert slid[0, 2] == after[0, 2]
 
 
@@ -55,10 +65,11 @@ def test_particles_clear_of_the_walls_or_inside_before_do_not_slide() -> None:
 
 
 def test_a_backward_slide_goes_back_along_the_face() -> None:
-    """Reversing at a slant into the bottom wall (its cells y 0..5): the body slides the
-    other way along it, by the counted travel over the slant's cosine."""
+    """Reversing at a slant into the bottom wall (its cells y 0..5): the rear edge meets the
+    wall and the body slides the other way along it, ending against it."""
     before, after = _moved(100.0, 18.0, 30.0, -17.4)
     assert inside_obstacle(FIELD, after, BODY)[0]
     slid = slide_along_faces(FIELD, before, after, BODY, SHARE)
-    assert slid[0, 0] == pytest.approx(100.0 - 17.4 / math.cos(math.radians(30.0)), abs=0.5)
-    assert slid[0, 1] == pytest.approx(18.0, abs=0.5)
+    assert contact_gap_cm(FIELD, slid, BODY, -1, 0)[0] == pytest.approx(0.0, abs=0.3)
+    assert _counted(before, slid) == pytest.approx(-17.4, abs=0.05)
+    assert slid[0, 1] > after[0, 1] and slid[0, 0] < after[0, 0]

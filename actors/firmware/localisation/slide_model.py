@@ -13,11 +13,16 @@ Why
 
 Algorithm
     For each such particle, the face's normal ``n`` is the distance field's
-    gradient at the point of the leading edge nearest an obstacle, and the
+    gradient at the point of the leading edge nearest an obstacle before the
+    motion (clear of it: inside a wall one cell thick the field rises again
+    towards the wall's far side), and the
     tangent ``t`` is the perpendicular of ``n`` on the side of the heading
     ``h``. The counts give the motion's part along the heading, ``c = d . h``
-    (``d`` the particle's displacement); the body went ``s`` along ``t`` with
-    ``s (t . h) = c``. A slide at a slant ``a`` (``cos a = t . h``) counts
+    (``d`` the particle's displacement). The body goes free along ``h`` until
+    its leading edge meets the face (``f``: the edge's gap before the motion,
+    the distance field's distance less half a cell as in `contact_model`, over
+    the rate ``-h . n`` it closes at), then ``s`` along ``t`` with ``f + s (t . h)
+    = c``: it ends touching the face. A slide at a slant ``a`` (``cos a = t . h``) counts
     ``cos(a)**2`` of the travel the treads drove; Motor Control reports both
     treads short under ``min_count_share`` of it, so without that report the
     slant is at most ``acos(sqrt(min_count_share))``. A particle that would
@@ -71,21 +76,29 @@ def slide_along_faces(field: DistanceField, before: np.ndarray, after: np.ndarra
         sel = np.flatnonzero(np.sign(c) == direction)
         if sel.size == 0:
             continue
-        x, y = to_map(a[sel], edge_points(body_cm[0], body_cm[1], direction, 0, e))
-        k = np.argmin(field.at(x, y), axis=1)
+        # the face: nearest the leading edge before the motion, where the edge was clear
+        x, y = to_map(b[sel], edge_points(body_cm[0], body_cm[1], direction, 0, e))
+        d = field.at(x, y)
+        k = np.argmin(d, axis=1)
         rows = np.arange(sel.size)
         px, py = x[rows, k], y[rows, k]
+        gap = np.maximum(d[rows, k] - e, 0.0)
         gx = field.at(px + e, py) - field.at(px - e, py)
         gy = field.at(px, py + e) - field.at(px, py - e)
         norm = np.hypot(gx, gy)
         safe = np.where(norm > 0, norm, 1.0)
-        tx, ty = -gy / safe, gx / safe  # along the face
+        nx, ny = gx / safe, gy / safe  # away from the face
+        tx, ty = -ny, nx  # along it
         cos_a = tx * h[sel, 0] + ty * h[sel, 1]
         side = np.where(cos_a * direction < 0, -1.0, 1.0)  # the tangent the motion took
         tx, ty, cos_a = tx * side, ty * side, cos_a * side
         slid = (norm > 0) & (np.abs(cos_a) >= min_cos)
-        s = c[sel][slid] / cos_a[slid]
+        # free along the heading until the leading edge meets the face, then along it
+        approach = -direction * (h[sel, 0] * nx + h[sel, 1] * ny)
+        free = np.minimum(gap / np.where(approach > 0, approach, np.inf), np.abs(c[sel]))
+        free = direction * free[slid]
+        s = (c[sel][slid] - free) / cos_a[slid]
         rows = sel[slid]
-        out[idx[rows], 0] = b[rows, 0] + tx[slid] * s
-        out[idx[rows], 1] = b[rows, 1] + ty[slid] * s
+        out[idx[rows], 0] = b[rows, 0] + h[rows, 0] * free + tx[slid] * s
+        out[idx[rows], 1] = b[rows, 1] + h[rows, 1] * free + ty[slid] * s
     return out
