@@ -215,9 +215,11 @@ async def test_a_nudge_mid_corridor_shifts_the_route_left_and_drives_on(autojump
     """Blocked mid-corridor with no waypoint near the block: after the back-off the rover
     turns a little left (toward the route shifted 4 cm that way) and drives on to the
     end of the corridor, left of where dead reckoning had it at the block (the pose it
-    reports is the belief's, which the contact split across the corridor)."""
+    reports is the belief's, which the contact split across the corridor). The split's
+    left part may slide along the left wall on the way (the counts cannot tell a slide
+    at a few degrees from a free move) and the rover step sideways when it weighs more."""
     blocks = Blocks((250.0, 0.0))
-    body = await drive_corridor(blocks, after_s=6.0)
+    body = await drive_corridor(blocks, after_s=10.0)
     motions = [(c, v) for _, c, v in motions_after(body, 0, blocks)]
     assert motions[0] == ("MOTOR_MOVE", -6.0)
     assert motions[1][0] == "MOTOR_TURN" and 0.0 < motions[1][1] < 45.0
