@@ -14,15 +14,15 @@ Why
 Algorithm
     For each such particle, the face's normal ``n`` is the distance field's
     gradient at the point of the leading edge nearest an obstacle before the
-    motion (clear of it: inside a wall one cell thick the field rises again
-    towards the wall's far side), and the
-    tangent ``t`` is the perpendicular of ``n`` on the side of the heading
-    ``h``. The counts give the motion's part along the heading, ``c = d . h``
-    (``d`` the particle's displacement). The body goes free along ``h`` until
-    its leading edge meets the face (``f``: the edge's gap before the motion,
-    the distance field's distance less half a cell as in `contact_model`, over
-    the rate ``-h . n`` it closes at), then ``s`` along ``t`` with ``f + s (t . h)
-    = c``: it ends touching the face. A slide at a slant ``a`` (``cos a = t . h``) counts
+    motion (where the edge was clear: inside a wall one cell thick the field
+    rises again towards the wall's far side), and the tangent ``t`` is the
+    perpendicular of ``n`` on the side of the heading ``h``. The counts give
+    the motion's part along the heading, ``c = d . h`` (``d`` the particle's
+    displacement). The body goes free along ``h`` until its leading edge meets
+    the face (``f``: the edge's gap before the motion, the distance field's
+    distance less half a cell as in `contact_model`, over the rate ``-h . n``
+    it closes at), then ``s`` along ``t`` with ``f + s (t . h) = c``: it ends
+    touching the face. A slide at a slant ``a`` (``cos a = t . h``) counts
     ``cos(a)**2`` of the travel the treads drove; Motor Control reports both
     treads short under ``min_count_share`` of it, so without that report the
     slant is at most ``acos(sqrt(min_count_share))``. A particle that would
