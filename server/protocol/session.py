@@ -69,7 +69,6 @@ from .telemetry import TELEMETRY_CMDS
 __all__ = ["LinkStats", "OutboxFull", "ReliableSession", "session_id_for"]
 
 
-
 def session_id_for(owner: str, now: float) -> int:
     """A session id for a session ``owner`` makes at ``now`` [s]: CRC-32 of both.
 

@@ -49,7 +49,8 @@ from actors.firmware.localisation.free_space_model import (
     to_map,
 )
 
-__all__ = ["ContactOptions", "edge_points", "contact_gap_cm", "contact_log_likelihood"]
+__all__ = ["ContactOptions", "edge_points", "nearest_edge_point", "contact_gap_cm",
+           "contact_log_likelihood"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,16 +97,27 @@ def edge_points(length_cm: float, width_cm: float, direction: int, side: int,
     return np.column_stack([np.full(n, 0.5 * length_cm * direction), lat])
 
 
-def contact_gap_cm(field: DistanceField, particles: np.ndarray, body_cm: tuple[float, float],
-                   direction: int = 1, side: int = 0) -> np.ndarray:
-    """Gap [cm] between each particle's leading edge (of a body ``body_cm``: length,
-    width [cm]) and the nearest mapped face: (N,)."""
+def nearest_edge_point(field: DistanceField, particles: np.ndarray,
+                       body_cm: tuple[float, float], direction: int = 1, side: int = 0
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each particle, the point of its leading edge (of a body ``body_cm``: length,
+    width [cm]) nearest a mapped obstacle, map x and y [cm], and the gap [cm] between the
+    edge there and the nearest mapped face: three (N,) arrays."""
     length, width = body_cm
     res = field.resolution_cm
     pts = edge_points(length, width, direction, side, 0.5 * res)
     x, y = to_map(np.asarray(particles, dtype=float), pts)
-    d = field.at(x, y).min(axis=1)
-    return np.maximum(d - 0.5 * res, 0.0)
+    d = field.at(x, y)
+    k = np.argmin(d, axis=1)
+    rows = np.arange(d.shape[0])
+    return x[rows, k], y[rows, k], np.maximum(d[rows, k] - 0.5 * res, 0.0)
+
+
+def contact_gap_cm(field: DistanceField, particles: np.ndarray, body_cm: tuple[float, float],
+                   direction: int = 1, side: int = 0) -> np.ndarray:
+    """Gap [cm] between each particle's leading edge (of a body ``body_cm``: length,
+    width [cm]) and the nearest mapped face: (N,) (`nearest_edge_point`)."""
+    return nearest_edge_point(field, particles, body_cm, direction, side)[2]
 
 
 def contact_log_likelihood(field: DistanceField, particles: np.ndarray,

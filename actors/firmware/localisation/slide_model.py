@@ -39,9 +39,9 @@ import math
 
 import numpy as np
 
-from actors.firmware.localisation.contact_model import edge_points
+from actors.firmware.localisation.contact_model import nearest_edge_point
 from actors.firmware.localisation.distance_field import DistanceField
-from actors.firmware.localisation.free_space_model import inside_obstacle, to_map
+from actors.firmware.localisation.free_space_model import inside_obstacle
 
 __all__ = ["slide_along_faces"]
 
@@ -77,12 +77,7 @@ def slide_along_faces(field: DistanceField, before: np.ndarray, after: np.ndarra
         if sel.size == 0:
             continue
         # the face: nearest the leading edge before the motion, where the edge was clear
-        x, y = to_map(b[sel], edge_points(body_cm[0], body_cm[1], direction, 0, e))
-        d = field.at(x, y)
-        k = np.argmin(d, axis=1)
-        rows = np.arange(sel.size)
-        px, py = x[rows, k], y[rows, k]
-        gap = np.maximum(d[rows, k] - e, 0.0)
+        px, py, gap = nearest_edge_point(field, b[sel], body_cm, direction)
         gx = field.at(px + e, py) - field.at(px - e, py)
         gy = field.at(px, py + e) - field.at(px, py - e)
         norm = np.hypot(gx, gy)
