@@ -30,10 +30,12 @@ from actors.firmware.drivers.tread_monitor import TreadFault
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.belief import Spread
 from actors.firmware.nav.base import NavBase
+from actors.firmware.nav.lateral_touch import LateralTouch
 from actors.firmware.nav.localiser import Localiser
 from actors.firmware.nav.nudge import PROBE_PROGRESS_CM
 from actors.firmware.nav.nudge_series import NudgeSeries
 from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.passage_approach import square_to_axis
 from actors.firmware.nav.recovery import (
     RECOVERIES,
     Action,
@@ -126,6 +128,8 @@ class RouteNav(NavBase):
         """What a tread report does (stop, hold, check the treads)."""
         self.nudges = NudgeSeries(self)
         """The route's sideways search."""
+        self.touch = LateralTouch(self)
+        """The route's touch of a face across a passage it may miss."""
         self.recoveries = RECOVERIES
         """The recovery behaviours, in the order they are tried."""
         self.behaviour = behaviour(self)
@@ -230,6 +234,7 @@ class RouteNav(NavBase):
         self.replans, self._progress_mark, self.stall_holds = 0, math.inf, 0
         self.treads.forget_tread_check()
         self.nudges.new_route()
+        self.touch.new_route()
         self._probe = False
         if not self.plan():
             return False
@@ -259,22 +264,29 @@ class RouteNav(NavBase):
 
     def plan(self) -> bool:
         """Plan the route to the goal from the map-frame pose, in tiers (`plan_tiers`),
-        with the sideways search's nudge applied; False when there is no route."""
+        with the sideways search's nudge applied; False when there is no route.
+
+        A route whose first narrow passage the rover may miss goes first to touch a
+        face across it (`lateral_touch.LateralTouch.detour`), or crosses it square to
+        its axis (`passage_approach.square_to_axis`)."""
         assert self.work_map is not None and self.goal is not None
         p = self.map_pose
-        plan = None
-        for radius, margin in self.plan_tiers():
-            plan = plan_route(self.work_map, (p.x, p.y), self.goal, radius_cm=radius,
-                              margin_cm=margin)
-            if plan is not None:
-                self.tier = (radius, margin)
-                break
-        if plan is None:
+        pts = self._route_to(self.goal)
+        if pts is None:
             self.follower = None
             return False
-        pts = route_points(plan, (p.x, p.y))
-        if plan.goal_snapped:
-            pts.append(self.goal)  # the goal itself; the spot check vouched for it
+        spread = self.spread
+        if self.nudges.nudge is None and spread is not None:
+            touch = self.touch.detour(pts)
+            to_stand = None if touch is None else self._route_to(touch.stand)
+            if touch is not None and to_stand is not None:
+                self.follower = PathFollower(to_stand, touch.heading_deg, self.o)
+                self._budget = self.follower.budget(p)
+                return True
+            self.touch.touch = None
+            pts = square_to_axis(self.work_map, (p.x, p.y), pts, covariance=spread.covariance,
+                                 body_cm=(self.length_cm, self.width_cm),
+                                 turn_radius_cm=self.radius_cm)
         nudged = self.nudges.nudged(pts)
         if nudged is None:
             self.follower = None
@@ -286,6 +298,26 @@ class RouteNav(NavBase):
         self._budget = self.follower.budget(p)
         return True
 
+    def _route_to(self, goal: tuple[float, float]) -> list[tuple[float, float]] | None:
+        """A*'s waypoints from the map-frame pose to ``goal`` [cm] on the working map, in
+        tiers (`plan_tiers`; the tier used is kept in ``tier``); None when no tier has
+        a path."""
+        assert self.work_map is not None
+        p = self.map_pose
+        plan = None
+        for radius, margin in self.plan_tiers():
+            plan = plan_route(self.work_map, (p.x, p.y), goal, radius_cm=radius,
+                              margin_cm=margin)
+            if plan is not None:
+                self.tier = (radius, margin)
+                break
+        if plan is None:
+            return None
+        pts = route_points(plan, (p.x, p.y))
+        if plan.goal_snapped:
+            pts.append(goal)  # the goal itself; the spot check vouched for it
+        return pts
+
     async def _step(self) -> None:
         if self.follower is None or self.moving:
             return
@@ -294,6 +326,10 @@ class RouteNav(NavBase):
             return
         motion = self.follower.next_motion(self.map_pose)
         if motion is None:
+            motion = self.touch.touch_motion()
+            if motion is not None:
+                await self.command(motion)
+                return
             self.follower = None
             await self.behaviour.on_arrived()
             return
@@ -303,7 +339,14 @@ class RouteNav(NavBase):
         if self.follower is None:
             await self.after_other_motion(blocked, done)
             return
+        touched = self.touch.take_touch()
         if await self.treads.check_treads(blocked, done):
+            return
+        if touched:  # weigh the belief by the contact, back off, plan from the new pose
+            if blocked:
+                self.localiser.contact_update()
+            self._replan = True
+            await self.command(Motion("move", -self.o.backoff_cm))
             return
         if blocked:
             await self.blocked_route("blocked")

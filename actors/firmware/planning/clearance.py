@@ -43,7 +43,7 @@ from server.protocol.grid_map import OCCUPIED, UNKNOWN, GridMap
 from server.protocol.pose import Pose, angle_diff_deg
 
 __all__ = ["check_spot", "turning_radius_cm", "Obstacle", "obstacle_ahead", "occupied_near",
-           "passage_width"]
+           "passage_width", "cross_section", "first_occupied"]
 
 
 def turning_radius_cm(length_cm: float, width_cm: float) -> float:
@@ -220,38 +220,68 @@ def obstacle_ahead(
 def passage_width(grid: GridMap, x: float, y: float, heading_deg: float, *,
                   max_cm: float = 40.0, step_cm: float = 1.0) -> float | None:
     """Free width across the heading at (x, y): the distance between the first occupied
-    cells met walking to the left and to the right [cm].
+    cells met walking to the left and to the right [cm] (`cross_section`'s two sides).
 
     Why: a block in a passage with mapped walls close on both sides is most likely
     the rover's own drift into one of them (which one, dead reckoning cannot tell),
     not an obstacle the map does not show.
 
-    Args:
-        grid: the map; unknown cells and the grid's edge count as no wall.
-        x, y: the point [cm].
-        heading_deg: the direction of travel [deg].
-        max_cm: how far to look each side [cm].
-        step_cm: sampling step [cm].
-
     Returns:
         The width [cm], or None when either side has no occupied cell within ``max_cm``.
     """
+    sides = cross_section(grid, x, y, heading_deg, max_cm=max_cm, step_cm=step_cm)
+    return None if sides is None else sides[0] + sides[1]
+
+
+def cross_section(grid: GridMap, x: float, y: float, heading_deg: float, *,
+                  max_cm: float = 40.0, step_cm: float = 1.0
+                  ) -> tuple[float, float] | None:
+    """How far the first occupied cell lies to the left and to the right of (x, y),
+    across the heading [cm] (`first_occupied` either side).
+
+    Returns:
+        (left, right) [cm], or None when either side has no occupied cell within
+        ``max_cm``.
+    """
     h = math.radians(heading_deg)
     nx_, ny_ = -math.sin(h), math.cos(h)  # the left normal
+    left = _ray(grid, x, y, nx_, ny_, max_cm, step_cm)
+    if left is None:
+        return None
+    right = _ray(grid, x, y, -nx_, -ny_, max_cm, step_cm)
+    return None if right is None else (left, right)
+
+
+def first_occupied(grid: GridMap, x: float, y: float, direction_deg: float, *,
+                   max_cm: float = 40.0, step_cm: float = 1.0) -> float | None:
+    """How far the first occupied cell lies from (x, y) along ``direction_deg`` [cm].
+
+    Args:
+        grid: the map; unknown cells and the grid's edge count as no wall.
+        x, y: the point [cm].
+        direction_deg: the direction to look in [deg].
+        max_cm: how far to look [cm].
+        step_cm: sampling step [cm].
+
+    Returns:
+        The distance [cm], or None when no occupied cell lies within ``max_cm``.
+    """
+    h = math.radians(direction_deg)
+    return _ray(grid, x, y, math.cos(h), math.sin(h), max_cm, step_cm)
+
+
+def _ray(grid: GridMap, x: float, y: float, ux: float, uy: float, max_cm: float,
+         step_cm: float) -> float | None:
+    """`first_occupied` along the unit vector (ux, uy)."""
     d = np.arange(0.0, max_cm + 1e-9, step_cm)
-    sides = []
-    for sign in (1.0, -1.0):
-        px = x + sign * nx_ * d
-        py = y + sign * ny_ * d
-        ox, oy = grid.origin_cm
-        cols = np.floor((px - ox) / grid.resolution_cm).astype(int)
-        rows = np.floor((py - oy) / grid.resolution_cm).astype(int)
-        ny, nx = grid.shape
-        inside = (rows >= 0) & (rows < ny) & (cols >= 0) & (cols < nx)
-        occ = np.zeros(d.shape, dtype=bool)
-        occ[inside] = grid.cells[rows[inside], cols[inside]] == OCCUPIED
-        hit = np.flatnonzero(occ)
-        if hit.size == 0:
-            return None
-        sides.append(float(d[hit[0]]))
-    return sides[0] + sides[1]
+    px = x + ux * d
+    py = y + uy * d
+    ox, oy = grid.origin_cm
+    cols = np.floor((px - ox) / grid.resolution_cm).astype(int)
+    rows = np.floor((py - oy) / grid.resolution_cm).astype(int)
+    ny, nx = grid.shape
+    inside = (rows >= 0) & (rows < ny) & (cols >= 0) & (cols < nx)
+    occ = np.zeros(d.shape, dtype=bool)
+    occ[inside] = grid.cells[rows[inside], cols[inside]] == OCCUPIED
+    hit = np.flatnonzero(occ)
+    return None if hit.size == 0 else float(d[hit[0]])

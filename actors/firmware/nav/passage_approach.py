@@ -1,0 +1,302 @@
+"""The approach to a narrow passage along its axis, for a rover unsure across it.
+
+Why
+    A gap in a wall is a place across which the hider and the seeker cannot
+    measure their position before they are in it: they have no range sensor, and
+    the faces round a gap's mouth are square to its axis, so a contact with one
+    tells how far the rover is from the wall, not where along it. What tells
+    the lateral place is the gap itself: a body whose nose enters it has its
+    lateral offset within the passage's play (the free-space model weighs out
+    the rest at the next rest), and a nose that meets the face beside the mouth
+    head-on gives a contact with two explanations, either side of the mouth (the
+    probe series of `nudge` steps between them). Both need the body square to
+    the passage. A route drawn by A* crosses a gap along whatever line it came
+    from: at a slant ``a`` a body of ``length x width`` spans
+    ``width cos a + length sin a`` across the gap (a 15 x 20 cm body at 30 deg:
+    23 cm of a 25 cm gap), it scrapes a jamb on its way through, and what the
+    scrape says about the pose is muddled by the turn it forces.
+
+    So when the belief's lateral 95 % spread across the passage is more than half
+    the passage's play (its free width less the body's width), the route is
+    drawn to a point on the passage's axis, a turning radius and a cell before
+    the passage opens, then straight along the axis to the same distance beyond
+    it. Where the rover's lateral doubt is within the play, the route is left as
+    A* drew it.
+
+What is a passage here
+    The route's first stretch, within one of its legs, where the map's free width
+    across the leg is under `nudge.PROBE_WIDTH_CM` (`planning.clearance`). Its
+    axis is the direction, within `AXIS_SWEEP_DEG` of the leg, across which the
+    free width at its narrowest point is least (across a gap's axis the width is
+    least; across a slanted line it is the gap's width over the cosine); its
+    centre is the middle of that narrowest section; its ends are where the
+    width across the axis opens again, looked for along the leg's length.
+
+Pure functions: no actor, no clock. Frame and units: map frame, [cm], [deg].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from actors.firmware.nav.nudge import PROBE_WIDTH_CM
+from actors.firmware.planning.clearance import cross_section, first_occupied
+from actors.firmware.planning.planner import traversable
+from server.protocol.grid_map import GridMap
+from server.protocol.pose import angle_diff_deg
+
+__all__ = ["Passage", "Touch", "AXIS_SWEEP_DEG", "Z95", "passage_on_leg",
+           "lateral_spread95_cm", "body_span_cm", "misses", "square_to_axis",
+           "approach_point", "face_across"]
+
+Point = tuple[float, float]
+
+AXIS_SWEEP_DEG = 45
+"""The passage's axis is looked for within this many degrees either side of the leg
+that crosses it, in whole degrees [deg]: a leg crossing a gap more steeply than 45 deg
+from its axis has its body across the gap and does not pass at all."""
+
+Z95 = 1.959964
+"""The standard normal's two-sided 95 % quantile: the lateral 95 % spread of a
+Gaussian is this many standard deviations either side [1]."""
+
+
+@dataclass(frozen=True, slots=True)
+class Passage:
+    """A narrow passage a route leg crosses (map frame)."""
+
+    centre: Point
+    """The middle of its narrowest cross-section [cm]."""
+    axis_deg: float
+    """Its axis, pointing the way the route crosses it [deg]."""
+    width_cm: float
+    """The map's free width across the axis at the centre [cm]."""
+    entry_cm: float
+    """From the centre back along the axis to where it opens [cm]."""
+    exit_cm: float
+    """From the centre on along the axis to where it opens [cm]."""
+
+    @property
+    def unit(self) -> Point:
+        """The axis as a unit vector."""
+        h = math.radians(self.axis_deg)
+        return math.cos(h), math.sin(h)
+
+    def along(self, t: float) -> Point:
+        """The point ``t`` [cm] along the axis from the centre (negative: before it)."""
+        ux, uy = self.unit
+        return self.centre[0] + t * ux, self.centre[1] + t * uy
+
+
+def _width(grid: GridMap, p: Point, heading_deg: float) -> tuple[float, float] | None:
+    """The free cross-section at ``p`` across ``heading_deg`` when narrower than
+    ``PROBE_WIDTH_CM`` (left, right) [cm], else None."""
+    sides = cross_section(grid, p[0], p[1], heading_deg, max_cm=PROBE_WIDTH_CM)
+    return sides if sides is not None and sum(sides) < PROBE_WIDTH_CM else None
+
+
+def passage_on_leg(grid: GridMap, a: Point, b: Point) -> Passage | None:
+    """The first narrow passage the leg ``a`` -> ``b`` crosses and leaves again, or None.
+
+    A passage that reaches either end of the leg (the leg starts or ends in it, or
+    the passage turns with the route) is not one this approach can square up to.
+    """
+    leg = math.dist(a, b)
+    step = grid.resolution_cm
+    if leg < 2.0 * step:
+        return None
+    heading = math.degrees(math.atan2(b[1] - a[1], b[0] - a[0]))
+    ts = np.arange(0.0, leg + 1e-9, step)
+    narrow = [_width(grid, (a[0] + (b[0] - a[0]) * t / leg, a[1] + (b[1] - a[1]) * t / leg),
+                     heading) for t in ts]
+    first = next((k for k, w in enumerate(narrow) if w is not None), None)
+    if first is None or first == 0:
+        return None
+    last = first
+    while last + 1 < len(narrow) and narrow[last + 1] is not None:
+        last += 1
+    if last == len(narrow) - 1:
+        return None
+    k = min(range(first, last + 1), key=lambda i: sum(narrow[i]))  # type: ignore[arg-type]
+    t = float(ts[k])
+    p = (a[0] + (b[0] - a[0]) * t / leg, a[1] + (b[1] - a[1]) * t / leg)
+    best: tuple[float, float, tuple[float, float]] | None = None  # (width, |turn|, sides)
+    axis = heading
+    for turn in range(-AXIS_SWEEP_DEG, AXIS_SWEEP_DEG + 1):
+        sides = _width(grid, p, heading + turn)
+        if sides is not None and (best is None or (sum(sides), abs(turn)) < best[:2]):
+            best, axis = (sum(sides), abs(turn), sides), heading + turn
+    if best is None:
+        return None
+    left, right = best[2]
+    h = math.radians(axis)
+    off = 0.5 * (left - right)  # the middle, left of p positive
+    centre = (p[0] - math.sin(h) * off, p[1] + math.cos(h) * off)
+    ends = []
+    for sign in (-1.0, 1.0):
+        d = step
+        while d <= leg and _width(grid, (centre[0] + sign * d * math.cos(h),
+                                         centre[1] + sign * d * math.sin(h)), axis) is not None:
+            d += step
+        if d > leg:
+            return None
+        ends.append(d)
+    return Passage(centre, axis, best[0], ends[0], ends[1])
+
+
+def lateral_spread95_cm(covariance: np.ndarray, axis_deg: float, ahead_cm: float = 0.0
+                        ) -> float:
+    """The belief's 95 % spread across ``axis_deg`` (either side) [cm], now or after
+    driving ``ahead_cm`` [cm] along the axis: the heading's doubt (and its correlation
+    with the position's) carries the rover sideways by ``ahead_cm`` times its error.
+
+    Args:
+        covariance: the belief's covariance of (x [cm], y [cm], heading [rad]).
+        axis_deg: the passage's axis [deg].
+        ahead_cm: the distance still to drive to the passage [cm].
+    """
+    h = math.radians(axis_deg)
+    g = np.array([-math.sin(h), math.cos(h), ahead_cm])  # d(lateral)/d(x, y, heading)
+    return Z95 * math.sqrt(max(float(g @ covariance @ g), 0.0))
+
+
+def body_span_cm(body_cm: tuple[float, float], slant_deg: float) -> float:
+    """How wide a body (length, width) [cm] turned ``slant_deg`` [deg] from a passage's
+    axis is across it [cm]."""
+    a = math.radians(min(abs(slant_deg), 90.0))
+    return body_cm[1] * math.cos(a) + body_cm[0] * math.sin(a)
+
+
+def misses(passage: Passage, lateral95_cm: float, span_cm: float) -> bool:
+    """A body spanning ``span_cm`` across the passage, whose place across it is known to
+    ``lateral95_cm`` (95 %, either side), may touch its walls: the doubt is more than
+    half the play the passage leaves it [cm]."""
+    return lateral95_cm > 0.5 * (passage.width_cm - span_cm)
+
+
+def square_to_axis(grid: GridMap, start: Point, pts: list[Point], *, covariance: np.ndarray,
+                   body_cm: tuple[float, float], turn_radius_cm: float) -> list[Point]:
+    """``pts`` (the route's waypoints from ``start``, the goal last) with its first
+    narrow passage driven along its axis when the leg crosses it at a slant that makes
+    the body miss (`misses`, with `body_span_cm` at the slant).
+
+    The leg that crosses the passage is replaced by: the point on the axis a turning
+    radius and a cell before the passage opens (`approach_point`), the point as far
+    beyond it, then the leg's end. Left as it is when no leg crosses a passage, the
+    leg is square to it already or the body fits at its slant, the leg starts or ends
+    within the approach, or the new legs would cross the map's walls for a body of half
+    the width (the route's own narrowest tier).
+
+    Args:
+        grid: the map the route was planned on.
+        start: the rover's position [cm].
+        pts: the route's waypoints [cm].
+        covariance: the belief's covariance of (x, y, heading) [cm^2, rad^2].
+        body_cm: the body (length, width) [cm].
+        turn_radius_cm: the radius the body sweeps turning in place [cm].
+    """
+    legs = [start, *pts]
+    for i in range(len(pts)):
+        a, b = legs[i], legs[i + 1]
+        passage = passage_on_leg(grid, a, b)
+        if passage is None:
+            continue
+        slant = angle_diff_deg(passage.axis_deg, math.degrees(math.atan2(b[1] - a[1],
+                                                                           b[0] - a[0])))
+        lateral = lateral_spread95_cm(covariance, passage.axis_deg)
+        if abs(slant) < 1.0 or not misses(passage, lateral, body_span_cm(body_cm, slant)):
+            return pts
+        standoff = turn_radius_cm + grid.resolution_cm
+        before = approach_point(passage, standoff)
+        beyond_t = passage.exit_cm + standoff
+        beyond = passage.along(beyond_t)
+        if _axial(passage, a) > -(passage.entry_cm + standoff) or _axial(passage, b) < beyond_t:
+            return pts
+        ok = traversable(grid, 0.5 * body_cm[1], 0.0, "blocked")
+        if not all(_clear_line(grid, ok, p, q) for p, q in ((a, before), (before, beyond),
+                                                             (beyond, b))):
+            return pts
+        return [*pts[:i], before, beyond, *pts[i:]]
+    return pts
+
+
+def approach_point(passage: Passage, standoff_cm: float) -> Point:
+    """The point on the axis ``standoff_cm`` [cm] before the passage opens."""
+    return passage.along(-(passage.entry_cm + standoff_cm))
+
+
+def _axial(passage: Passage, p: Point) -> float:
+    """How far ``p`` lies along the passage's axis from its centre [cm]."""
+    ux, uy = passage.unit
+    return (p[0] - passage.centre[0]) * ux + (p[1] - passage.centre[1]) * uy
+
+
+def _clear_line(grid: GridMap, ok: np.ndarray, a: Point, b: Point) -> bool:
+    """Every point of the segment ``a`` -> ``b`` lies on a cell of ``grid`` where ``ok``
+    (`planning.planner.traversable`) lets the rover's centre be (sampled every half
+    cell)."""
+    n = max(2, math.ceil(2.0 * math.dist(a, b) / grid.resolution_cm) + 1)
+    for t in np.linspace(0.0, 1.0, n):
+        r, c = grid.world_to_cell(a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t)
+        if not grid.contains(r, c) or not ok[r, c]:
+            return False
+    return True
+
+
+@dataclass(frozen=True, slots=True)
+class Touch:
+    """Where to touch a face across a passage's axis, and how."""
+
+    stand: Point
+    """Where the rover stands to touch, a turning radius and a cell off the face [cm]."""
+    heading_deg: float
+    """Facing the face [deg]."""
+    gap_cm: float
+    """From the nose at ``stand`` to the face [cm]."""
+
+
+def face_across(grid: GridMap, passage: Passage, *, body_cm: tuple[float, float],
+                turn_radius_cm: float, reach_cm: float, ok: np.ndarray) -> Touch | None:
+    """The nearer face square to the passage's lateral direction, within ``reach_cm``
+    [cm] of the approach point along it, flat across the body's width (the map's
+    first occupied cell along the lateral line from the approach point and from points
+    half the body's width before and beyond it agree within a cell), with a stand
+    point before it; None when neither side has one.
+
+    The stand point lies on that line a turning radius and a cell off the face, or
+    nearer the approach point by half cells until ``ok`` (`planning.planner.traversable`
+    for the turning radius) lets the rover turn there.
+    """
+    standoff = turn_radius_cm + grid.resolution_cm
+    s = approach_point(passage, standoff)
+    ux, uy = passage.unit
+    half = 0.5 * body_cm[1]
+    best: tuple[float, float, Point] | None = None  # (distance, side, stand)
+    for side in (1.0, -1.0):
+        direction = passage.axis_deg + side * 90.0
+        hits = [first_occupied(grid, s[0] + k * half * ux, s[1] + k * half * uy, direction,
+                               max_cm=reach_cm, step_cm=1.0) for k in (0.0, -1.0, 1.0)]
+        if any(h is None for h in hits):
+            continue
+        if max(hits) - min(hits) > grid.resolution_cm:  # type: ignore[operator]
+            continue
+        d = float(hits[0])  # type: ignore[arg-type]
+        if best is not None and d >= best[0]:
+            continue
+        h = math.radians(direction)
+        t = d - standoff
+        while t > 0.0:
+            stand = (s[0] + t * math.cos(h), s[1] + t * math.sin(h))
+            r, c = grid.world_to_cell(*stand)
+            if grid.contains(r, c) and ok[r, c]:
+                best = (d, side, stand)
+                break
+            t -= 0.5 * grid.resolution_cm
+    if best is None:
+        return None
+    d, side, stand = best
+    gap = d - math.dist(stand, s) - 0.5 * body_cm[0]
+    return Touch(stand, passage.axis_deg + side * 90.0, gap)
