@@ -28,7 +28,8 @@ What is a passage here
     across the leg is under `nudge.PROBE_WIDTH_CM` (`planning.clearance`). Its
     axis is the direction, within `AXIS_SWEEP_DEG` of the leg, across which the
     free width at its narrowest point is least (across a gap's axis the width is
-    least; across a slanted line it is the gap's width over the cosine); its
+    least; across a slanted line it is the gap's width over the cosine, so the
+    middle of the directions that give the least width); its
     centre is the middle of that narrowest section; its ends are where the
     width across the axis opens again, looked for along the leg's length.
 
@@ -95,7 +96,9 @@ def _width(grid: GridMap, p: Point, heading_deg: float) -> tuple[float, float] |
     """The free cross-section at ``p`` across ``heading_deg`` when narrower than
     ``PROBE_WIDTH_CM`` (left, right) [cm], else None."""
     sides = cross_section(grid, p[0], p[1], heading_deg, max_cm=PROBE_WIDTH_CM)
-    return sides if sides is not None and sum(sides) < PROBE_WIDTH_CM else None
+    if sides is None or min(sides) == 0.0:  # none, or ``p`` is in a wall
+        return None
+    return sides if sum(sides) < PROBE_WIDTH_CM else None
 
 
 def passage_on_leg(grid: GridMap, a: Point, b: Point) -> Passage | None:
@@ -123,15 +126,19 @@ def passage_on_leg(grid: GridMap, a: Point, b: Point) -> Passage | None:
     k = min(range(first, last + 1), key=lambda i: sum(narrow[i]))  # type: ignore[arg-type]
     t = float(ts[k])
     p = (a[0] + (b[0] - a[0]) * t / leg, a[1] + (b[1] - a[1]) * t / leg)
-    best: tuple[float, float, tuple[float, float]] | None = None  # (width, |turn|, sides)
-    axis = heading
-    for turn in range(-AXIS_SWEEP_DEG, AXIS_SWEEP_DEG + 1):
-        sides = _width(grid, p, heading + turn)
-        if sides is not None and (best is None or (sum(sides), abs(turn)) < best[:2]):
-            best, axis = (sum(sides), abs(turn), sides), heading + turn
+    widths = {turn: sides for turn in range(-AXIS_SWEEP_DEG, AXIS_SWEEP_DEG + 1)
+              if (sides := _width(grid, p, heading + turn)) is not None}
+    if not widths:
+        return None
+    least = min(sum(sides) for sides in widths.values())
+    # the width varies as 1/cos near the axis, flat within the sampling: the axis is the
+    # middle of the directions that give the least
+    turns = [turn for turn, sides in widths.items() if sum(sides) == least]
+    axis = heading + 0.5 * (min(turns) + max(turns))
+    best = _width(grid, p, axis)
     if best is None:
         return None
-    left, right = best[2]
+    left, right = best
     h = math.radians(axis)
     off = 0.5 * (left - right)  # the middle, left of p positive
     centre = (p[0] - math.sin(h) * off, p[1] + math.cos(h) * off)
@@ -144,7 +151,7 @@ def passage_on_leg(grid: GridMap, a: Point, b: Point) -> Passage | None:
         if d > leg:
             return None
         ends.append(d)
-    return Passage(centre, axis, best[0], ends[0], ends[1])
+    return Passage(centre, axis, left + right, ends[0], ends[1])
 
 
 def lateral_spread95_cm(covariance: np.ndarray, axis_deg: float, ahead_cm: float = 0.0
