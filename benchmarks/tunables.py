@@ -145,6 +145,7 @@ KINDS: dict[str, dict[str, str]] = {
         "speed_cm_s": "physical", "plan_margin_cm": "physical", "spot_margin_cm": "physical",
         "hide_within_cm": "physical", "narrow_margin_cm": "physical", "backoff_cm": "physical",
         "nudge_step_cm": "physical", "tread_hold_s": "physical", "settle_s": "physical"},
+    "nav.passage_approach": {"AXIS_SWEEP_DEG": "structural"},
     "nav.recovery": {"REPLAN_LIMIT": "structural", "BACKOFF_REPEAT_CM": "policy",
                      "STALL_TURN_DEG": "policy", "STALL_HOLDS": "structural",
                      "REPEAT_BLOCK_CM": "policy", "OBSTACLE_CM": "policy"},

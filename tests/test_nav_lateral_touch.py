@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from actors import BufferPool, open_actor_system
+from actors.firmware.localisation.gaussian_pose import Z_95
 from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.passage_approach import (
-    Z95,
     body_span_cm,
     face_across,
     lateral_spread95_cm,
@@ -58,10 +58,10 @@ def test_a_leg_that_ends_in_a_passage_or_crosses_none_has_no_passage() -> None:
 def test_the_lateral_doubt_grows_with_the_heading_doubt_over_the_way_ahead() -> None:
     sigma_h = math.radians(2.0)
     cov = np.diag([4.0, 9.0, sigma_h ** 2])
-    assert lateral_spread95_cm(cov, 0.0) == pytest.approx(Z95 * 3.0)  # across x: y's doubt
-    assert lateral_spread95_cm(cov, 90.0) == pytest.approx(Z95 * 2.0)
+    assert lateral_spread95_cm(cov, 0.0) == pytest.approx(Z_95 * 3.0)  # across x: y's doubt
+    assert lateral_spread95_cm(cov, 90.0) == pytest.approx(Z_95 * 2.0)
     ahead = lateral_spread95_cm(cov, 0.0, ahead_cm=200.0)
-    assert ahead == pytest.approx(Z95 * math.sqrt(9.0 + (200.0 * sigma_h) ** 2))
+    assert ahead == pytest.approx(Z_95 * math.sqrt(9.0 + (200.0 * sigma_h) ** 2))
 
 
 def test_a_body_misses_a_passage_when_its_doubt_exceeds_half_the_play() -> None:

@@ -43,13 +43,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from actors.firmware.localisation.gaussian_pose import Z_95
 from actors.firmware.nav.nudge import PROBE_WIDTH_CM
 from actors.firmware.planning.clearance import cross_section, first_occupied
 from actors.firmware.planning.planner import traversable
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import angle_diff_deg
 
-__all__ = ["Passage", "Touch", "AXIS_SWEEP_DEG", "Z95", "passage_on_leg",
+__all__ = ["Passage", "Touch", "AXIS_SWEEP_DEG", "passage_on_leg",
            "lateral_spread95_cm", "body_span_cm", "misses", "square_to_axis",
            "approach_point", "face_across"]
 
@@ -59,11 +60,6 @@ AXIS_SWEEP_DEG = 45
 """The passage's axis is looked for within this many degrees either side of the leg
 that crosses it, in whole degrees [deg]: a leg crossing a gap more steeply than 45 deg
 from its axis has its body across the gap and does not pass at all."""
-
-Z95 = 1.959964
-"""The standard normal's two-sided 95 % quantile: the lateral 95 % spread of a
-Gaussian is this many standard deviations either side [1]."""
-
 
 @dataclass(frozen=True, slots=True)
 class Passage:
@@ -167,7 +163,7 @@ def lateral_spread95_cm(covariance: np.ndarray, axis_deg: float, ahead_cm: float
     """
     h = math.radians(axis_deg)
     g = np.array([-math.sin(h), math.cos(h), ahead_cm])  # d(lateral)/d(x, y, heading)
-    return Z95 * math.sqrt(max(float(g @ covariance @ g), 0.0))
+    return Z_95 * math.sqrt(max(float(g @ covariance @ g), 0.0))
 
 
 def body_span_cm(body_cm: tuple[float, float], slant_deg: float) -> float:
