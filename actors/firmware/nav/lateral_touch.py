@@ -25,13 +25,15 @@ What it does
     drives into the face (`touch_motion`: the nose's gap to the mapped face, a
     cell for a face mapped in front of the wall, and the lateral doubt); the
     move ends blocked, the contact update weighs the belief, the rover backs off
-    and the route is planned again from the corrected pose. One touch per route:
-    a touch that taught nothing (the face not met, or something unmapped in
-    the way) is not tried again, and the probe series is left to the mouth.
+    and the route is planned again from the corrected pose. One touch per
+    passage: a touch that taught nothing (the face not met, or something
+    unmapped in the way) is not tried again, and the probe series is left to the
+    mouth. Once the rover is through the passage (`passed`), the route is planned
+    again, so the next passage on it gets its own check.
 
 The navigation actor (`route_nav.RouteNav`) owns one and calls it when it plans
-(`detour`), when the route to the stand point ends (`touch_motion`) and when the
-touch ends (`take_touch`).
+(`detour`), when the route to the stand point ends (`touch_motion`), when the
+touch ends (`take_touch`) and at every step (`passed`).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ import math
 from typing import TYPE_CHECKING
 
 from actors.firmware.nav.passage_approach import (
+    Passage,
     Touch,
     approach_point,
     face_across,
@@ -69,12 +72,29 @@ class LateralTouch:
         self.touch: Touch | None = None
         """The touch the route is driving to (None: none)."""
         self.tried = False
-        """This route has had its touch (one per route)."""
+        """This route has had its touch for the passage ahead."""
+        self.passage: Passage | None = None
+        """The passage the touch was for, until the rover is through it."""
         self._in_flight = False  # the move into the face is the motion in flight
 
     def new_route(self) -> None:
-        """A new route: it may touch once."""
-        self.touch, self.tried, self._in_flight = None, False, False
+        """A new route: it may touch before its first passage."""
+        self.touch, self.tried, self.passage, self._in_flight = None, False, None, False
+
+    def passed(self) -> bool:
+        """The rover is through the passage it touched for, a turning radius and a cell
+        beyond it: the route may touch again before the next passage (True once, then
+        the route is planned again)."""
+        nav, passage = self.nav, self.passage
+        if passage is None or nav.map is None:
+            return False
+        p = nav.map_pose
+        ux, uy = passage.unit
+        beyond = passage.exit_cm + nav.radius_cm + nav.map.resolution_cm
+        if (p.x - passage.centre[0]) * ux + (p.y - passage.centre[1]) * uy < beyond:
+            return False
+        self.passage, self.tried = None, False
+        return True
 
     def detour(self, pts: list[Point]) -> Touch | None:
         """The touch to make before the route ``pts`` (waypoints from the rover's
@@ -115,7 +135,7 @@ class LateralTouch:
                                 ok=traversable(work, nav.radius_cm, 0.0, "blocked"))
             if touch is None:
                 return None
-            self.touch, self.tried = touch, True
+            self.touch, self.tried, self.passage = touch, True, passage
             return touch
         return None
 

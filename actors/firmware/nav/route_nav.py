@@ -324,6 +324,9 @@ class RouteNav(NavBase):
         if self.follower.steps >= self._budget:
             await self.blocked_route("no progress")
             return
+        if self.touch.passed() and not self.plan():  # the next passage gets its check
+            await self.give_up("no path beyond the passage")
+            return
         motion = self.follower.next_motion(self.map_pose)
         if motion is None:
             motion = self.touch.touch_motion()
