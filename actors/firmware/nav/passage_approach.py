@@ -46,7 +46,7 @@ import numpy as np
 from actors.firmware.localisation.gaussian_pose import Z_95
 from actors.firmware.nav.nudge import PROBE_WIDTH_CM
 from actors.firmware.planning.clearance import cross_section, first_occupied
-from actors.firmware.planning.planner import traversable
+from actors.firmware.planning.planner import line_of_sight, traversable
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import angle_diff_deg
 
@@ -238,15 +238,16 @@ def _axial(passage: Passage, p: Point) -> float:
 
 
 def _clear_line(grid: GridMap, ok: np.ndarray, a: Point, b: Point) -> bool:
-    """Every point of the segment ``a`` -> ``b`` lies on a cell of ``grid`` where ``ok``
-    (`planning.planner.traversable`) lets the rover's centre be (sampled every half
-    cell)."""
-    n = max(2, math.ceil(2.0 * math.dist(a, b) / grid.resolution_cm) + 1)
-    for t in np.linspace(0.0, 1.0, n):
-        r, c = grid.world_to_cell(a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t)
-        if not grid.contains(r, c) or not ok[r, c]:
-            return False
-    return True
+    """The segment ``a`` -> ``b`` [cm] crosses only cells of ``grid`` where ``ok``
+    (`planning.planner.traversable`) lets the rover's centre be
+    (`planning.planner.line_of_sight`, in cells)."""
+    ox, oy = grid.origin_cm
+    res = grid.resolution_cm
+
+    def cell(p: Point) -> tuple[float, float]:
+        return (p[1] - oy) / res - 0.5, (p[0] - ox) / res - 0.5
+
+    return line_of_sight(ok, cell(a), cell(b))
 
 
 @dataclass(frozen=True, slots=True)
