@@ -60,6 +60,7 @@ __all__ = ["LateralTouch"]
 
 Point = tuple[float, float]
 
+
 class LateralTouch:
     """One route's touch of a face across a passage (see the module docstring).
 
