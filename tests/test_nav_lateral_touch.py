@@ -22,7 +22,7 @@ from actors.firmware.nav.passage_approach import (
     face_across,
     lateral_spread95_cm,
     misses,
-    passage_on_leg,
+    passage_on_route,
     square_to_axis,
 )
 from actors.firmware.planning.planner import traversable
@@ -40,6 +40,11 @@ BODY = (20.0, 15.0)
 TURN_RADIUS = 0.5 * math.hypot(*BODY)
 
 
+def passage_on_leg(grid, a, b):  # noqa: ANN001, ANN201
+    found = passage_on_route(grid, [a, b])
+    return None if found is None else found.passage
+
+
 def test_a_leg_through_a_gap_finds_its_centre_axis_width_and_ends() -> None:
     passage = passage_on_leg(GAP_MAP, (150.0, 100.0), (350.0, 14.0))
     assert passage is not None
@@ -50,9 +55,17 @@ def test_a_leg_through_a_gap_finds_its_centre_axis_width_and_ends() -> None:
     assert passage.entry_cm + passage.exit_cm <= 40.0
 
 
-def test_a_leg_that_ends_in_a_passage_or_crosses_none_has_no_passage() -> None:
+def test_a_route_that_ends_in_a_passage_or_crosses_none_has_no_passage() -> None:
     assert passage_on_leg(GAP_MAP, (100.0, 150.0), (200.0, 150.0)) is None  # open floor
     assert passage_on_leg(GAP_MAP, (100.0, 52.0), (260.0, 52.0)) is None  # ends inside
+
+
+def test_a_passage_with_a_waypoint_inside_it_is_found_across_the_two_legs() -> None:
+    found = passage_on_route(GAP_MAP, [(100.0, 100.0), (262.0, 52.0), (400.0, 52.0)])
+    assert found is not None
+    assert (found.first_leg, found.last_leg) == (0, 1)
+    assert abs(found.passage.axis_deg) <= 3.0 and 250.0 <= found.passage.centre[0] <= 270.0
+    assert found.along_cm > 150.0
 
 
 def test_the_lateral_doubt_grows_with_the_heading_doubt_over_the_way_ahead() -> None:

@@ -15,7 +15,7 @@ Why
     by the heading's.
 
 What it does
-    When the route's first narrow passage (`passage_approach.passage_on_leg`)
+    When the route's first narrow passage (`passage_approach.passage_on_route`)
     would be missed on its axis (`passage_approach.misses`: the lateral 95 %
     spread expected at the approach point, the heading's doubt carried over the
     distance still to drive, is more than half the play), and a flat face lies
@@ -48,7 +48,7 @@ from actors.firmware.nav.passage_approach import (
     face_across,
     lateral_spread95_cm,
     misses,
-    passage_on_leg,
+    passage_on_route,
 )
 from actors.firmware.nav.route import Motion
 from actors.firmware.planning.planner import traversable
@@ -113,32 +113,28 @@ class LateralTouch:
             return None
         grid = nav.map
         p = nav.map_pose
-        legs = [(p.x, p.y), *pts]
-        driven = 0.0
-        for a, b in zip(legs, legs[1:], strict=False):
-            passage = passage_on_leg(grid, a, b)
-            if passage is None:
-                driven += math.dist(a, b)
-                continue
-            standoff = nav.radius_cm + grid.resolution_cm
-            s = approach_point(passage, standoff)
-            ux, uy = passage.unit
-            if (p.x - s[0]) * ux + (p.y - s[1]) * uy >= 0.0:
-                return None  # the rover is within the approach
-            ahead = driven + math.dist(a, s)
-            lateral = lateral_spread95_cm(spread.covariance, passage.axis_deg, ahead)
-            if not misses(passage, lateral, nav.width_cm):
-                return None
-            work = nav.work_map or grid
-            touch = face_across(grid, passage, body_cm=(nav.length_cm, nav.width_cm),
-                                turn_radius_cm=nav.radius_cm,
-                                reach_cm=math.hypot(*grid.shape) * grid.resolution_cm,
-                                ok=traversable(work, nav.radius_cm, 0.0, "blocked"))
-            if touch is None:
-                return None
-            self.touch, self.tried, self.passage = touch, True, passage
-            return touch
-        return None
+        found = passage_on_route(grid, [(p.x, p.y), *pts])
+        if found is None:
+            return None
+        passage = found.passage
+        standoff = nav.radius_cm + grid.resolution_cm
+        s = approach_point(passage, standoff)
+        ux, uy = passage.unit
+        if (p.x - s[0]) * ux + (p.y - s[1]) * uy >= 0.0:
+            return None  # the rover is within the approach
+        ahead = max(found.along_cm - passage.entry_cm - standoff, 0.0)
+        lateral = lateral_spread95_cm(spread.covariance, passage.axis_deg, ahead)
+        if not misses(passage, lateral, nav.width_cm):
+            return None
+        work = nav.work_map or grid
+        touch = face_across(grid, passage, body_cm=(nav.length_cm, nav.width_cm),
+                            turn_radius_cm=nav.radius_cm,
+                            reach_cm=math.hypot(*grid.shape) * grid.resolution_cm,
+                            ok=traversable(work, nav.radius_cm, 0.0, "blocked"))
+        if touch is None:
+            return None
+        self.touch, self.tried, self.passage = touch, True, passage
+        return touch
 
     def touch_motion(self) -> Motion | None:
         """At the stand point facing the face: the move into it, or None when no touch

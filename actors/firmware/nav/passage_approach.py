@@ -24,14 +24,15 @@ Why
     A* drew it.
 
 What is a passage here
-    The route's first stretch, within one of its legs, where the map's free width
-    across the leg is under `nudge.PROBE_WIDTH_CM` (`planning.clearance`). Its
+    The route's first stretch where the map's free width across the route is
+    under `nudge.PROBE_WIDTH_CM` (`planning.clearance`) and that the route
+    leaves again before its end. Its
     axis is the direction, within `AXIS_SWEEP_DEG` of the leg, across which the
     free width at its narrowest point is least (across a gap's axis the width is
     least; across a slanted line it is the gap's width over the cosine, so the
     middle of the directions that give the least width); its
     centre is the middle of that narrowest section; its ends are where the
-    width across the axis opens again, looked for along the leg's length.
+    width across the axis opens again, looked for as far as the route is long.
 
 Pure functions: no actor, no clock. Frame and units: map frame, [cm], [deg].
 """
@@ -50,7 +51,7 @@ from actors.firmware.planning.planner import line_of_sight, traversable
 from server.protocol.grid_map import GridMap
 from server.protocol.pose import angle_diff_deg
 
-__all__ = ["Passage", "Touch", "AXIS_SWEEP_DEG", "passage_on_leg",
+__all__ = ["Passage", "RoutePassage", "Touch", "AXIS_SWEEP_DEG", "passage_on_route",
            "lateral_spread95_cm", "body_span_cm", "misses", "square_to_axis",
            "approach_point", "face_across"]
 
@@ -97,20 +98,43 @@ def _width(grid: GridMap, p: Point, heading_deg: float) -> tuple[float, float] |
     return sides if sum(sides) < PROBE_WIDTH_CM else None
 
 
-def passage_on_leg(grid: GridMap, a: Point, b: Point) -> Passage | None:
-    """The first narrow passage the leg ``a`` -> ``b`` crosses and leaves again, or None.
+@dataclass(frozen=True, slots=True)
+class RoutePassage:
+    """A passage on a route: the passage, and where on the route it lies."""
 
-    A passage that reaches either end of the leg (the leg starts or ends in it, or
-    the passage turns with the route) is not one this approach can square up to.
+    passage: Passage
+    """The passage."""
+    first_leg: int
+    """The leg (from 0: the rover's position to the first waypoint) it begins on."""
+    last_leg: int
+    """The leg it ends on."""
+    along_cm: float
+    """How far along the route its narrowest section lies [cm]."""
+    slant_deg: float
+    """The route's heading there, less the axis [deg]."""
+
+
+def passage_on_route(grid: GridMap, legs: list[Point]) -> RoutePassage | None:
+    """The first narrow passage the route ``legs`` (the rover's position, then the
+    waypoints) crosses and leaves again, or None.
+
+    The route is sampled every cell; a passage that reaches either end of the route
+    (it starts or ends in one) is not one this approach can square up to.
     """
-    leg = math.dist(a, b)
     step = grid.resolution_cm
-    if leg < 2.0 * step:
-        return None
-    heading = math.degrees(math.atan2(b[1] - a[1], b[0] - a[0]))
-    ts = np.arange(0.0, leg + 1e-9, step)
-    narrow = [_width(grid, (a[0] + (b[0] - a[0]) * t / leg, a[1] + (b[1] - a[1]) * t / leg),
-                     heading) for t in ts]
+    samples: list[tuple[Point, float, int, float]] = []  # (point, heading, leg, along)
+    along = 0.0
+    for k, (a, b) in enumerate(zip(legs, legs[1:], strict=False)):
+        leg = math.dist(a, b)
+        if leg <= 0.0:
+            continue
+        heading = math.degrees(math.atan2(b[1] - a[1], b[0] - a[0]))
+        for t in np.arange(0.0, leg, step):
+            t = float(t)
+            samples.append(((a[0] + (b[0] - a[0]) * t / leg, a[1] + (b[1] - a[1]) * t / leg),
+                            heading, k, along + t))
+        along += leg
+    narrow = [_width(grid, q, h) for q, h, _, _ in samples]
     first = next((k for k, w in enumerate(narrow) if w is not None), None)
     if first is None or first == 0:
         return None
@@ -120,8 +144,7 @@ def passage_on_leg(grid: GridMap, a: Point, b: Point) -> Passage | None:
     if last == len(narrow) - 1:
         return None
     k = min(range(first, last + 1), key=lambda i: sum(narrow[i]))  # type: ignore[arg-type]
-    t = float(ts[k])
-    p = (a[0] + (b[0] - a[0]) * t / leg, a[1] + (b[1] - a[1]) * t / leg)
+    p, heading, _, at = samples[k]
     widths = {turn: sides for turn in range(-AXIS_SWEEP_DEG, AXIS_SWEEP_DEG + 1)
               if (sides := _width(grid, p, heading + turn)) is not None}
     if not widths:
@@ -141,13 +164,16 @@ def passage_on_leg(grid: GridMap, a: Point, b: Point) -> Passage | None:
     ends = []
     for sign in (-1.0, 1.0):
         d = step
-        while d <= leg and _width(grid, (centre[0] + sign * d * math.cos(h),
-                                         centre[1] + sign * d * math.sin(h)), axis) is not None:
+        while d <= along and _width(grid, (centre[0] + sign * d * math.cos(h),
+                                           centre[1] + sign * d * math.sin(h)),
+                                    axis) is not None:
             d += step
-        if d > leg:
+        if d > along:
             return None
         ends.append(d)
-    return Passage(centre, axis, left + right, ends[0], ends[1])
+    passage = Passage(centre, axis, left + right, ends[0], ends[1])
+    return RoutePassage(passage, samples[first][2], samples[last][2], at,
+                        angle_diff_deg(heading, axis))
 
 
 def lateral_spread95_cm(covariance: np.ndarray, axis_deg: float, ahead_cm: float = 0.0
@@ -183,15 +209,15 @@ def misses(passage: Passage, lateral95_cm: float, span_cm: float) -> bool:
 def square_to_axis(grid: GridMap, start: Point, pts: list[Point], *, covariance: np.ndarray,
                    body_cm: tuple[float, float], turn_radius_cm: float) -> list[Point]:
     """``pts`` (the route's waypoints from ``start``, the goal last) with its first
-    narrow passage driven along its axis when the leg crosses it at a slant that makes
-    the body miss (`misses`, with `body_span_cm` at the slant).
+    narrow passage driven along its axis when the route crosses it at a slant that
+    makes the body miss (`misses`, with `body_span_cm` at the slant).
 
-    The leg that crosses the passage is replaced by: the point on the axis a turning
-    radius and a cell before the passage opens (`approach_point`), the point as far
-    beyond it, then the leg's end. Left as it is when no leg crosses a passage, the
-    leg is square to it already or the body fits at its slant, the leg starts or ends
-    within the approach, or the new legs would cross the map's walls for a body of half
-    the width (the route's own narrowest tier).
+    The waypoints within the passage are replaced by: the point on the axis a turning
+    radius and a cell before the passage opens (`approach_point`), then the point as
+    far beyond it. Left as it is when no passage is on the route, the route is square
+    to it already or the body fits at its slant, the legs round it start or end within
+    the approach, or the new legs would cross the map's walls for a body of half the
+    width (the route's own narrowest tier).
 
     Args:
         grid: the map the route was planned on.
@@ -202,28 +228,26 @@ def square_to_axis(grid: GridMap, start: Point, pts: list[Point], *, covariance:
         turn_radius_cm: the radius the body sweeps turning in place [cm].
     """
     legs = [start, *pts]
-    for i in range(len(pts)):
-        a, b = legs[i], legs[i + 1]
-        passage = passage_on_leg(grid, a, b)
-        if passage is None:
-            continue
-        slant = angle_diff_deg(passage.axis_deg, math.degrees(math.atan2(b[1] - a[1],
-                                                                           b[0] - a[0])))
-        lateral = lateral_spread95_cm(covariance, passage.axis_deg)
-        if abs(slant) < 1.0 or not misses(passage, lateral, body_span_cm(body_cm, slant)):
-            return pts
-        standoff = turn_radius_cm + grid.resolution_cm
-        before = approach_point(passage, standoff)
-        beyond_t = passage.exit_cm + standoff
-        beyond = passage.along(beyond_t)
-        if _axial(passage, a) > -(passage.entry_cm + standoff) or _axial(passage, b) < beyond_t:
-            return pts
-        ok = traversable(grid, 0.5 * body_cm[1], 0.0, "blocked")
-        if not all(_clear_line(grid, ok, p, q) for p, q in ((a, before), (before, beyond),
-                                                             (beyond, b))):
-            return pts
-        return [*pts[:i], before, beyond, *pts[i:]]
-    return pts
+    found = passage_on_route(grid, legs)
+    if found is None:
+        return pts
+    passage = found.passage
+    lateral = lateral_spread95_cm(covariance, passage.axis_deg)
+    if abs(found.slant_deg) < 1.0 or \
+            not misses(passage, lateral, body_span_cm(body_cm, found.slant_deg)):
+        return pts
+    standoff = turn_radius_cm + grid.resolution_cm
+    before = approach_point(passage, standoff)
+    beyond_t = passage.exit_cm + standoff
+    beyond = passage.along(beyond_t)
+    a, b = legs[found.first_leg], legs[found.last_leg + 1]
+    if _axial(passage, a) > -(passage.entry_cm + standoff) or _axial(passage, b) < beyond_t:
+        return pts
+    ok = traversable(grid, 0.5 * body_cm[1], 0.0, "blocked")
+    if not all(_clear_line(grid, ok, p, q) for p, q in ((a, before), (before, beyond),
+                                                         (beyond, b))):
+        return pts
+    return [*pts[:found.first_leg], before, beyond, *pts[found.last_leg:]]
 
 
 def approach_point(passage: Passage, standoff_cm: float) -> Point:
