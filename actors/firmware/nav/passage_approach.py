@@ -1,38 +1,36 @@
-"""The approach to a narrow passage along its axis, for a rover unsure across it.
+"""A narrow passage on a route: where it is, how unsure across it the rover will be,
+the face across it a rover can touch, and a slanted crossing squared to its axis.
 
 Why
     A gap in a wall is a place across which the hider and the seeker cannot
     measure their position before they are in it: they have no range sensor, and
     the faces round a gap's mouth are square to its axis, so a contact with one
-    tells how far the rover is from the wall, not where along it. What tells
-    the lateral place is the gap itself: a body whose nose enters it has its
-    lateral offset within the passage's play (the free-space model weighs out
-    the rest at the next rest), and a nose that meets the face beside the mouth
-    head-on gives a contact with two explanations, either side of the mouth (the
-    probe series of `nudge` steps between them). Both need the body square to
-    the passage. A route drawn by A* crosses a gap along whatever line it came
-    from: at a slant ``a`` a body of ``length x width`` spans
-    ``width cos a + length sin a`` across the gap (a 15 x 20 cm body at 30 deg:
-    23 cm of a 25 cm gap), it scrapes a jamb on its way through, and what the
-    scrape says about the pose is muddled by the turn it forces.
-
-    So when the belief's lateral 95 % spread across the passage is more than half
-    the passage's play (its free width less the body's width), the route is
-    drawn to a point on the passage's axis, a turning radius and a cell before
-    the passage opens, then straight along the axis to the same distance beyond
-    it. Where the rover's lateral doubt is within the play, the route is left as
-    A* drew it.
+    tells how far the rover is from the wall, not where along it. What tells the
+    lateral place before the gap is a face square to the lateral direction (the
+    wall the gap's wall meets, a box's side), touched head-on
+    (`lateral_touch.LateralTouch` uses `face_across`). At the gap itself, a body
+    whose nose enters it has its lateral offset within the passage's play (the
+    free-space model weighs out the rest at the next rest), and a nose that meets
+    the face beside the mouth head-on gives a contact with two explanations,
+    either side of the mouth (the probe series of `nudge` steps between them).
+    Both need the body square to the passage: at a slant ``a`` a body of
+    ``length x width`` spans ``width cos a + length sin a`` across the gap (a
+    15 x 20 cm body at 30 deg: 23 cm of a 25 cm gap), so a route that crosses at
+    a slant the doubt makes tight is drawn through the passage along its axis
+    (`square_to_axis`).
 
 What is a passage here
     The route's first stretch where the map's free width across the route is
     under `nudge.PROBE_WIDTH_CM` (`planning.clearance`) and that the route
-    leaves again before its end. Its
-    axis is the direction, within `AXIS_SWEEP_DEG` of the leg, across which the
-    free width at its narrowest point is least (across a gap's axis the width is
-    least; across a slanted line it is the gap's width over the cosine, so the
-    middle of the directions that give the least width); its
-    centre is the middle of that narrowest section; its ends are where the
-    width across the axis opens again, looked for as far as the route is long.
+    leaves again before its end (`passage_on_route`). Its axis is the direction,
+    within `AXIS_SWEEP_DEG` of the route, across which the free width at its
+    narrowest point is least (across a slanted line it is the gap's width over
+    the cosine, flat within the sampling near the axis: the middle of the
+    directions that give the least width); its centre is the middle of that
+    narrowest section; its ends are where the width across the axis opens
+    again, looked for as far as the route is long. The rover may miss it when
+    the belief's lateral 95 % spread at it (`lateral_spread95_cm`) is more than
+    half the play the passage leaves the body (`misses`).
 
 Pure functions: no actor, no clock. Frame and units: map frame, [cm], [deg].
 """
@@ -62,9 +60,10 @@ AXIS_SWEEP_DEG = 45
 that crosses it, in whole degrees [deg]: a leg crossing a gap more steeply than 45 deg
 from its axis has its body across the gap and does not pass at all."""
 
+
 @dataclass(frozen=True, slots=True)
 class Passage:
-    """A narrow passage a route leg crosses (map frame)."""
+    """A narrow passage a route crosses (map frame)."""
 
     centre: Point
     """The middle of its narrowest cross-section [cm]."""
