@@ -44,7 +44,6 @@ from typing import TYPE_CHECKING
 from actors.firmware.nav.passage_approach import (
     Passage,
     Touch,
-    approach_point,
     face_across,
     lateral_spread95_cm,
     misses,
@@ -90,9 +89,7 @@ class LateralTouch:
         if passage is None or nav.map is None:
             return False
         p = nav.map_pose
-        ux, uy = passage.unit
-        beyond = passage.exit_cm + nav.radius_cm + nav.map.resolution_cm
-        if (p.x - passage.centre[0]) * ux + (p.y - passage.centre[1]) * uy < beyond:
+        if passage.axial((p.x, p.y)) < passage.exit_cm + nav.radius_cm + nav.map.resolution_cm:
             return False
         self.passage, self.tried = None, False
         return True
@@ -118,9 +115,7 @@ class LateralTouch:
             return None
         passage = found.passage
         standoff = nav.radius_cm + grid.resolution_cm
-        s = approach_point(passage, standoff)
-        ux, uy = passage.unit
-        if (p.x - s[0]) * ux + (p.y - s[1]) * uy >= 0.0:
+        if passage.axial((p.x, p.y)) >= -(passage.entry_cm + standoff):
             return None  # the rover is within the approach
         ahead = max(found.along_cm - passage.entry_cm - standoff, 0.0)
         lateral = lateral_spread95_cm(spread.covariance, passage.axis_deg, ahead)

@@ -87,6 +87,11 @@ class Passage:
         ux, uy = self.unit
         return self.centre[0] + t * ux, self.centre[1] + t * uy
 
+    def axial(self, p: Point) -> float:
+        """How far ``p`` lies along the axis from the centre [cm] (negative: before it)."""
+        ux, uy = self.unit
+        return (p[0] - self.centre[0]) * ux + (p[1] - self.centre[1]) * uy
+
 
 def _width(grid: GridMap, p: Point, heading_deg: float) -> tuple[float, float] | None:
     """The free cross-section at ``p`` across ``heading_deg`` when narrower than
@@ -240,7 +245,7 @@ def square_to_axis(grid: GridMap, start: Point, pts: list[Point], *, covariance:
     beyond_t = passage.exit_cm + standoff
     beyond = passage.along(beyond_t)
     a, b = legs[found.first_leg], legs[found.last_leg + 1]
-    if _axial(passage, a) > -(passage.entry_cm + standoff) or _axial(passage, b) < beyond_t:
+    if passage.axial(a) > -(passage.entry_cm + standoff) or passage.axial(b) < beyond_t:
         return pts
     ok = traversable(grid, 0.5 * body_cm[1], 0.0, "blocked")
     if not all(_clear_line(grid, ok, p, q) for p, q in ((a, before), (before, beyond),
@@ -252,12 +257,6 @@ def square_to_axis(grid: GridMap, start: Point, pts: list[Point], *, covariance:
 def approach_point(passage: Passage, standoff_cm: float) -> Point:
     """The point on the axis ``standoff_cm`` [cm] before the passage opens."""
     return passage.along(-(passage.entry_cm + standoff_cm))
-
-
-def _axial(passage: Passage, p: Point) -> float:
-    """How far ``p`` lies along the passage's axis from its centre [cm]."""
-    ux, uy = passage.unit
-    return (p[0] - passage.centre[0]) * ux + (p[1] - passage.centre[1]) * uy
 
 
 def _clear_line(grid: GridMap, ok: np.ndarray, a: Point, b: Point) -> bool:
