@@ -56,9 +56,9 @@ __all__ = ["Passage", "RoutePassage", "Touch", "AXIS_SWEEP_DEG", "passage_on_rou
 Point = tuple[float, float]
 
 AXIS_SWEEP_DEG = 45
-"""The passage's axis is looked for within this many degrees either side of the leg
-that crosses it, in whole degrees [deg]: a leg crossing a gap more steeply than 45 deg
-from its axis has its body across the gap and does not pass at all."""
+"""The passage's axis is looked for within this many degrees either side of the route
+where it crosses it, in whole degrees [deg]: a route crossing a gap more steeply than
+45 deg from its axis has the body across the gap and does not pass at all."""
 
 
 @dataclass(frozen=True, slots=True)
