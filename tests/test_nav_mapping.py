@@ -335,50 +335,6 @@ async def test_map_stability_counts_net_growth_not_edge_flicker(autojump_clock,
 
 
 @pytest.mark.trio
-async def test_a_turn_that_moves_the_pose_stops_and_holds_the_rover(autojump_clock,
-                                                                     monkeypatch) -> None:
-    """Odometry contradicted (an in-place turn drags the map-frame pose 15 cm, as scan
-    matching does when a tread's encoder is stuck): MOTOR_STOP at once, no Command A for
-    ``ODO_HOLD_S``, an ``odometry_fault`` status, then exploring goes on."""
-    import tests.test_nav_common as common
-
-    class DraggedMotor(common.FakeMotor):
-        drags = 1
-
-        async def handle(self, message: Message) -> None:
-            if message.command == Cmd.MOTOR_TURN and DraggedMotor.drags > 0:
-                DraggedMotor.drags -= 1
-                b = self.body
-                b.motor_log.append((Cmd(message.command).name, float(message.value)))
-                b.pose = type(b.pose)(b.pose.x + 15.0, b.pose.y, b.pose.heading_deg)
-                self._publish()
-                await trio.sleep(2.0)  # the spin goes on; the stop waits in the queue
-                self.ctx.send_nowait(self.nav, Message.float(Cmd.NAV_MOTION_DONE, 0.0))
-                return
-            await super().handle(message)
-
-    monkeypatch.setattr(common, "FakeMotor", DraggedMotor)
-    body = Body(truth=Truth(**ROOM))
-    pool = BufferPool(256)
-    async with open_actor_system(seed=1) as system:
-        await system.start_supervisor(rover_spec("mapper", body, pool), "mapper")
-        await net(system, pool, "mapper", "start")
-        assert await wait_for(lambda: DraggedMotor.drags == 0, 120.0)
-        t_drag = trio.current_time()
-        assert await wait_for(lambda: body.frames("status")[-1].data["state"]
-                              == "odometry_fault", 1.0)
-        assert body.motor_log[-1][0] == "MOTOR_STOP" or any(
-            c == "MOTOR_STOP" for c, _ in body.motor_log[-3:])
-        moved = _motions(body)
-        await trio.sleep(t_drag + 2.5 - trio.current_time())
-        assert _motions(body) == moved  # holding
-        assert await wait_for(lambda: _motions(body) > moved, 10.0)
-        details = [f.data.get("detail", "") for f in body.frames("status")]
-        assert any(d.startswith("a turn moved the pose 15 cm") for d in details)
-        assert "odometry hold over: driving on" in details
-
-
-@pytest.mark.trio
 @pytest.mark.parametrize(("value", "hold", "text"), [
     (1, 3.0, "the right tread is driven but does not count"),
     (2, 2.0, "the left tread counts short"),

@@ -19,7 +19,6 @@ from actors.firmware.nav.recovery import (
     GiveUp,
     GiveUpRoute,
     Hold,
-    HoldTurnedBackoff,
     NudgeSideways,
     Relocalise,
     Replan,
@@ -43,7 +42,6 @@ class View:
     anchored: bool = False
     ahead: tuple[float, float] = (120.5, 50.0)
     is_stalled: bool = False
-    turned: bool = False
     stuck: bool = False
     moved: bool = False
     passage: bool = False
@@ -56,9 +54,6 @@ class View:
 
     def stalled(self) -> bool:
         return self.is_stalled
-
-    def backoff_turned(self) -> bool:
-        return self.turned
 
     def backoff_stuck(self) -> bool:
         return self.stuck
@@ -85,9 +80,9 @@ def first_action(view: View) -> Action:
 
 
 def test_the_behaviours_are_tried_in_order() -> None:
-    """Stall, give up, turned back-off, wedged, passage, contact, back off."""
-    assert [type(r) for r in RECOVERIES] == [WaitOutStall, GiveUp, HoldTurnedBackoff,
-                                             ReplanWedged, NudgeSideways, Relocalise, BackOff]
+    """Stall, give up, wedged, passage, contact, back off."""
+    assert [type(r) for r in RECOVERIES] == [WaitOutStall, GiveUp, ReplanWedged,
+                                             NudgeSideways, Relocalise, BackOff]
 
 
 def test_a_stalled_back_off_holds_uncounted_each_hold_twice_as_long() -> None:
@@ -109,12 +104,11 @@ def test_too_many_blocks_give_the_route_up_with_the_reason() -> None:
     assert isinstance(first_action(View(replans=REPLAN_LIMIT + 1, is_stalled=True)), Hold)
 
 
-def test_a_back_off_that_turned_holds_counted_and_one_that_did_not_move_replans() -> None:
-    """After the stall holds: a back-off that turned holds ``tread_hold_s``, counted; one
-    that did not move replans where it stands."""
-    assert first_action(View(turned=True, stall_holds=STALL_HOLDS)) == Hold(
-        12.0, uncount=0, stall=False)
-    assert first_action(View(stuck=True)) == Replan()
+def test_a_back_off_that_did_not_move_replans_where_it_stands() -> None:
+    """After the stall holds, a back-off that did not move (wedged) replans; one that did
+    backs off again."""
+    assert first_action(View(stuck=True, stall_holds=STALL_HOLDS)) == Replan()
+    assert isinstance(first_action(View(stall_holds=STALL_HOLDS)), BackOffAndReplan)
 
 
 def test_the_contact_update_comes_before_the_passage_is_judged() -> None:

@@ -39,7 +39,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-import trio
 
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, plan_tiers, route_points
 from actors.firmware.planning.clearance import obstacle_ahead
@@ -58,7 +57,7 @@ if TYPE_CHECKING:
 __all__ = ["Exploration", "ExplorationState", "futile", "least_gain", "min_gain",
            "MIN_FACE_CELLS", "MAX_INCIDENCE_DEG",
            "RECHOOSE_STEPS", "OBSTACLE_TURNS", "MAX_CHOICES", "KEEP_CM", "KEEP_SHARE",
-           "BLACKLIST", "BLACKLIST_RADIUS_CM", "SIGHTINGS", "UNSEEABLE", "TRIP_MAX_S",
+           "BLACKLIST", "BLACKLIST_RADIUS_CM", "SIGHTINGS", "UNSEEABLE",
            "FUTILE_TRIPS", "MIN_GAIN_CELLS", "MIN_GAIN_SHARE"]
 
 # Counts, bounds and shares of frontier exploration and of the futile-trip rule: how the
@@ -94,9 +93,6 @@ UNSEEABLE = 2048
 BLACKLIST_RADIUS_CM = 30.0
 """No viewpoint is chosen this near a blacklisted point [cm] (what one sees, its
 neighbours see too)."""
-TRIP_MAX_S = 90.0
-"""A trip also ends after this long [s] (a rover switching frontiers on the way never
-reaches a target)."""
 FUTILE_TRIPS = 4
 """After this many trips in a row (each until its target was reached or given up) that
 revealed fewer than the least gain (`MIN_GAIN_CELLS`, `MIN_GAIN_SHARE`) each on average,
@@ -151,7 +147,6 @@ class ExplorationState:
     reached: list[tuple[float, float]] = field(default_factory=list)  # targets arrived at
     no_frontier: bool = False  # the last decision found nothing useful to explore
     trip_known: int | None = None  # known cells when the current trip began
-    trip_started: float = 0.0  # trio time the current trip began [s]
     gains: list[int] = field(default_factory=list)  # cells each recent trip made known
     turned_away: int = 0  # turns away from an obstacle toward this target, no move between
     turned_target: tuple[float, float] | None = None  # the target they were toward
@@ -210,12 +205,6 @@ class Exploration:
         ex = self.nav.ex
         pose = self.nav.map_pose
         self.judge_sightings()
-        if ex.trip_known is not None and trio.current_time() - ex.trip_started >= \
-                TRIP_MAX_S:
-            # a rover that keeps switching to new frontiers on the way never ends a trip
-            # (trips of ten minutes in a furnished room): count it as a visit, go on
-            self._end_trip()
-            ex.trip_known, ex.trip_started = self._known(), trio.current_time()
         if ex.follower is not None and ex.steps >= ex.budget:
             self.blacklist(ex.target)  # no progress worth the route
             ex.follower = None
@@ -393,7 +382,6 @@ class Exploration:
         ex = self.nav.ex
         if ex.trip_known is None:  # a trip runs until a target is reached or given up
             ex.trip_known = self._known()
-            ex.trip_started = trio.current_time()
         ex.follower = PathFollower(route_points(plan, (pose.x, pose.y)), None, self.nav.o)
         ex.target = target
         ex.steps = 0

@@ -278,7 +278,7 @@ class MappingNav(NavBase):
 
     @property
     def holding(self) -> bool:
-        """Holding still: the LIDAR is faulty, or odometry was contradicted lately."""
+        """Holding still: the LIDAR is faulty, or odometry is in doubt."""
         return self.watch.holding
 
     async def after_motion(self, blocked: bool, done: float) -> None:

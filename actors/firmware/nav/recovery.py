@@ -9,13 +9,12 @@ None: not this behaviour's case); the navigation actor
    counted (``STALL_HOLDS`` times per route);
 2. `GiveUp`: more than ``REPLAN_LIMIT`` blocks at one place end the route, with
    the reason;
-3. `HoldTurnedBackoff`: a back-off that still turns the rover holds, counted;
-4. `ReplanWedged`: a back-off that did not move replans from where it stands;
-5. `NudgeSideways`: a narrow passage met with the pose unchanged (or its mouth met
+3. `ReplanWedged`: a back-off that did not move replans from where it stands;
+4. `NudgeSideways`: a narrow passage met with the pose unchanged (or its mouth met
    again) starts the sideways probes (`nudge_series`);
-6. `Relocalise`: a contact that moved the pose belief replans from the corrected
+5. `Relocalise`: a contact that moved the pose belief replans from the corrected
    pose;
-7. `BackOff`: back off and replan, learning an obstacle at a second block near
+6. `BackOff`: back off and replan, learning an obstacle at a second block near
    the first.
 
 The view's answers are read lazily and each once, in the order the behaviours
@@ -32,15 +31,15 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from actors.firmware.nav.nudge import Block, at_mouth, in_passage
-from server.protocol.pose import Pose, angle_diff_deg
+from server.protocol.pose import Pose
 
 if TYPE_CHECKING:
     from actors.firmware.nav.route_nav import RouteNav
 
 __all__ = ["BlockView", "Hold", "GiveUpRoute", "Replan", "BackOffAndReplan", "Action",
-           "WaitOutStall", "GiveUp", "HoldTurnedBackoff", "ReplanWedged", "NudgeSideways",
+           "WaitOutStall", "GiveUp", "ReplanWedged", "NudgeSideways",
            "Relocalise", "BackOff", "RECOVERIES", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM",
-           "STALL_TURN_DEG", "STALL_HOLDS", "REPEAT_BLOCK_CM", "OBSTACLE_CM"]
+           "STALL_HOLDS", "REPEAT_BLOCK_CM", "OBSTACLE_CM"]
 
 # The bounds of the recovery behaviours: how long a route may try before it is given up,
 # and how a back-off reads a stalled tread. The geometry of the sideways search is in
@@ -51,10 +50,6 @@ route got ``PROBE_PROGRESS_CM`` nearer its goal than at the last block counted a
 (`route_nav.RouteNav.count_block`)."""
 BACKOFF_REPEAT_CM = 20.0
 """Reverse this far after a second block at one place: room to come back sideways [cm]."""
-STALL_TURN_DEG = 8.0
-"""A back-off that ends blocked having turned more than this holds
-``NavOptions.tread_hold_s`` before the route goes on: a tread stalled (see
-`BlockView.stalled`) [deg]."""
 STALL_HOLDS = 3
 """Holds for a stalled tread or motor per route that do not count toward
 ``REPLAN_LIMIT`` (12 s, 24 s, 48 s: longer than a transient stall); later ones count."""
@@ -158,16 +153,6 @@ class BlockView:
             return None
         return start
 
-    def backoff_turned(self) -> bool:
-        """The last motion, a reverse (a back-off), ended having turned the rover more than
-        ``STALL_TURN_DEG``: one tread drives, the other does not. Backing away from a wall
-        is free ground, so a turn there is no wall's doing."""
-        start = self._backoff_start()
-        if start is None:
-            return False
-        turned = abs(angle_diff_deg(self._nav.map_pose.heading_deg, start.heading_deg))
-        return turned > STALL_TURN_DEG
-
     def backoff_stuck(self) -> bool:
         """The last motion, a back-off, did not move (under 1 cm)."""
         start = self._backoff_start()
@@ -176,8 +161,8 @@ class BlockView:
 
     def stalled(self) -> bool:
         """The last motion, a back-off, ended blocked for the rover's own treads, not for
-        a wall: it reported a tread silent, turned more than ``STALL_TURN_DEG``, or did
-        not move with no mapped wall within the body's radius plus the drift.
+        a wall: it reported a tread silent, or did not move with no mapped wall within
+        the body's radius plus the drift.
 
         Why: a back-off reverses over the ground the rover just came through, so what
         stops it there is seldom a wall. A stalled motor (one tread or both) and stuck
@@ -193,8 +178,6 @@ class BlockView:
             return False
         report = self._nav.treads.reported_in(self._nav.last_motion)
         if report is not None and not report.counts_short:
-            return True
-        if self.backoff_turned():
             return True
         p = self._nav.map_pose
         return math.dist((p.x, p.y), (start.x, start.y)) < 1.0 and \
@@ -250,17 +233,6 @@ class GiveUp:
         return None
 
 
-class HoldTurnedBackoff:
-    """A tread still stalls after the uncounted holds: backing off again only spins the
-    rover where it stands; hold, counted."""
-
-    def decide(self, v: BlockView) -> Action | None:
-        """Hold ``tread_hold_s`` when the back-off turned."""
-        if v.blocked and v.backoff_turned():
-            return Hold(v.tread_hold_s, uncount=0, stall=False)
-        return None
-
-
 class ReplanWedged:
     """A back-off that did not move (beside a mapped wall, or after the stall holds):
     wedged behind; reversing again cannot help."""
@@ -313,6 +285,6 @@ class BackOff:
         return BackOffAndReplan(v.backoff_cm, mark=True)
 
 
-RECOVERIES = (WaitOutStall(), GiveUp(), HoldTurnedBackoff(), ReplanWedged(),
-              NudgeSideways(), Relocalise(), BackOff())
+RECOVERIES = (WaitOutStall(), GiveUp(), ReplanWedged(), NudgeSideways(), Relocalise(),
+              BackOff())
 """The recovery behaviours in the order they are tried."""

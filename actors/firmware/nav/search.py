@@ -58,9 +58,6 @@ SEARCH_IR_WAIT_S = 0.8
 """Longest wait for "in range" at one heading of a search or sweep scan [s]: the IR
 decision comes within about 0.1 s (3 samples at 50 Hz); the scans from the place keep
 ``SeekingOptions.ir_wait_s``."""
-DOUBT_RINGS_SHARE = 0.5
-"""Share of ``wide_search_s`` the rings get when the seeker's drift exceeds the
-destination's ``within``; the sweep by touch gets the rest."""
 SWEEP_TURN_DEG = 137.5
 """Turn between legs of the sweep [deg]: the golden angle, so the legs' headings spread
 evenly round the circle, without a random generator."""
@@ -189,8 +186,6 @@ class Search:
         """Radius of the (outermost) search ring planned [cm]."""
         self.until = math.inf
         """When the search in progress gives up [s] (a wider search only)."""
-        self.rings_until = math.inf
-        """When a wider search's rings give way to the sweep by touch [s]."""
         self.sweep_turned = False  # the sweep's step in progress has turned, and drives
         self.sweep_blocked = False  # the sweep's last step was blocked: the next leg turns
         self.sweep_steps = 0  # steps of the sweep's leg in progress
@@ -217,14 +212,9 @@ class Search:
             return False
         drift = self.nav.drift_cm
         within = self.nav.memory.within
-        self.until = self.rings_until = math.inf
+        self.until = math.inf
         if within is not None:
-            now = trio.current_time()
-            self.until = now + s.wide_search_s
-            # a pose in more doubt than the guess: rings planned from it may all be
-            # somewhere else, and the sweep by touch gets half the time
-            share = DOUBT_RINGS_SHARE if drift > within else 1.0
-            self.rings_until = now + share * s.wide_search_s
+            self.until = trio.current_time() + s.wide_search_s
         need = (s.range_cm if within is None else within) + drift
         rings = search_rings(need, self.reach_cm, RING_POINTS, RING_MAX_CM,
                              self.reach_cm, 1 if within is None else WIDE_MAX_RINGS)
@@ -266,7 +256,7 @@ class Search:
         the rings, or once the rings' time is over, the sweep when a wider search has time
         left (`Next.SWEEP`), else `Next.OVER`."""
         now = trio.current_time()
-        if now >= self.rings_until:
+        if now >= self.until:
             self.points = []  # out of time: answer while the operator still listens
         while self.points:
             q = self.points.pop(0)

@@ -12,21 +12,19 @@ A faulty LIDAR (a map drawn while it fails has phantom or missing obstacles)
     stable window; a fault that outlasts ``lidar_pause_s`` is driven through
     (once per ``lidar_pause_s``): the budget, not the fault, ends mapping.
 
-Odometry that scan matching contradicts (a stuck encoder draws the map from a wrong pose)
+Odometry in doubt (a stuck or slipping encoder draws the map from a wrong pose)
     A tread whose encoder stops counting while it is driven makes the rover
-    spin or veer where dead reckoning sees it stand or go straight; scan
-    matching drags the pose after it, batch by batch, and the map is drawn
-    from a wrong pose. Navigation sees the contradiction in its map-frame pose:
-    an in-place turn that moved it more than ``ODO_TURN_SHIFT_CM``, or a
-    straight move that turned it more than ``ODO_MOVE_TURN_DEG``. It stops the
-    motor at once and holds still (the LIDAR scanning, so matching can settle
-    the pose) for ``ODO_HOLD_S``, doubled for each repeat within a minute up to
+    spin or veer where dead reckoning sees it stand or go straight, and the map
+    would be drawn from a wrong pose. Motor Control sees it first: its
+    ``NAV_TREAD_FAULT`` (a driven tread that does not count) stops the motor at
+    once and holds still (the LIDAR scanning, so matching can settle the pose)
+    for ``ODO_HOLD_S``, doubled for each repeat within a minute up to
     ``ODO_HOLD_MAX_S``, reporting ``odometry_fault`` in its status; the fault
-    cannot be seen from standing still, so it drives on after the hold. Motor
-    Control's ``NAV_TREAD_FAULT`` (a driven tread that does not count) starts
-    the same hold at once, a second or more before the pose shows it; one
+    cannot be seen from standing still, so it drives on after the hold. One
     saying a tread, or both, count short (a slipping encoder, or a weak motor)
     stops the motion too and holds ``SHORT_HOLD_S`` (see `on_tread_fault`).
+    What Motor Control does not see, Map Management's pose belief weighs: its
+    "odometry broke unseen" hypothesis (`localisation.odometry_fault`).
     Every report is relayed to Map Management when the motion ends
     (``MAP_TREAD_FAULT``, `relay_tread_driven`) with the travel Motor Control's
     drive model says each reported tread went beyond its count (``NAV_TREAD_DRIVEN``;
@@ -43,7 +41,7 @@ A motion that ended blocked in the open (both encoders stuck)
     sees, and a turn that counted nothing at all is most likely two stuck encoders
     (as Motor Control judges one its model caught); the odometry is in doubt
     (`blocked_in_the_open`). Exploring or going home, the mapper then holds as for a
-    disagreement instead of backing off: a back-off or a turn on stuck encoders is
+    tread that does not count instead of backing off: a back-off or a turn on stuck encoders is
     driven blind (a few cm, or tens of degrees, per try, unseen, in a corridor 30 cm
     wide), and going home, counting such blocks as the way home being blocked would
     upload the map from where the rover stands, maybe in the passage the hider needs. Holds
@@ -66,30 +64,24 @@ from actors.firmware.localisation.odometry import tread_travel
 from actors.firmware.origin_wire import MM, length_pair
 from actors.firmware.planning.clearance import occupied_near
 from server.protocol.grid_map import UNKNOWN
-from server.protocol.pose import Pose, angle_diff_deg
+from server.protocol.pose import Pose
 
 if TYPE_CHECKING:
     from actors.firmware.nav.mapper import MappingNav
 
-__all__ = ["SensorWatch", "uncounted_travel", "LIDAR_SILENT_S", "ODO_TURN_SHIFT_CM",
-           "ODO_MOVE_TURN_DEG", "ODO_HOLD_S", "ODO_HOLD_MAX_S", "SHORT_HOLD_S",
-           "CONTACT_CELLS"]
+__all__ = ["SensorWatch", "uncounted_travel", "LIDAR_SILENT_S", "ODO_HOLD_S", "ODO_HOLD_MAX_S",
+           "SHORT_HOLD_S", "CONTACT_CELLS"]
 
 # The thresholds and holds of the two watches, fixed beside them: they judge and wait for
 # scan matching (which owns the mapper's pose), not a property of the rover.
 LIDAR_SILENT_S = 1.5
 """No scan counted for this long while scanning: the LIDAR is silent (dead or garbled),
 and navigation holds still [s]: six of Map Management's 0.25 s count reports."""
-ODO_TURN_SHIFT_CM = 10.0
-"""An in-place turn that moved the map-frame position further than this: odometry and
-scan matching disagree grossly (an encoder stuck or slipping) [cm]."""
-ODO_MOVE_TURN_DEG = 25.0
-"""A straight move that turned the map-frame heading by more than this: the same [deg]."""
 ODO_HOLD_S = 3.0
-"""Hold still this long after such a disagreement [s]; doubled for each repeat within
+"""Hold still this long after a tread that does not count [s]; doubled for each repeat within
 60 s, up to ``ODO_HOLD_MAX_S``."""
 ODO_HOLD_MAX_S = ODO_HOLD_S * 2 ** 3
-"""Longest hold for an odometry disagreement: ``ODO_HOLD_S`` doubled three times [s]."""
+"""Longest hold for odometry in doubt: ``ODO_HOLD_S`` doubled three times [s]."""
 SHORT_HOLD_S = 2.0
 """Hold still this long after Motor Control saw a tread (or both) count short [s]: about
 eight scan batches for scan matching to catch up with what was not counted."""
@@ -131,8 +123,8 @@ class SensorWatch:
         self._pause_off_until = -math.inf  # a fault that outlasted lidar_pause_s: drive on
         self._scans_at_pause = 0
         self._odo_hold_until = -math.inf  # holding still for odometry until then
-        self._odo_last = -math.inf  # when the last disagreement was seen
-        self._odo_strikes = 0  # disagreements in a row, each within 60 s of the last
+        self._odo_last = -math.inf  # when the last counted odometry hold began
+        self._odo_strikes = 0  # counted holds in a row, each within 60 s of the last
         self._relayed = (False, False)  # treads reported in this motion, to relay at its end
 
     async def on_lidar_health(self, value: int) -> None:
@@ -187,13 +179,14 @@ class SensorWatch:
 
     @property
     def holding(self) -> bool:
-        """Holding still: the LIDAR is faulty, or odometry was contradicted lately."""
+        """Holding still: the LIDAR is faulty, or odometry is in doubt."""
         return self.nav.lidar_fault is not None or trio.current_time() < self._odo_hold_until
 
     async def odometry_watch(self, now: float) -> bool:
-        """Stop and hold when the motion in flight contradicts odometry; True while holding.
+        """True while holding for odometry; at the end of a hold, drive on with a fresh
+        route and a fresh stable window.
 
-        See "Odometry that scan matching contradicts" in the module docstring."""
+        See "Odometry in doubt" in the module docstring."""
         if self.nav.state not in ("exploring", "homing"):
             return False
         if self._odo_hold_until > -math.inf and now >= self._odo_hold_until:
@@ -204,28 +197,11 @@ class SensorWatch:
             self.nav.last_wait_decide = -math.inf
             await self.nav.status(self.nav.state, "odometry hold over: driving on")
             return False
-        if now < self._odo_hold_until:
-            return True
-        motion, start = self.nav.last_motion, self.nav.motion_from
-        if not self.nav.moving or motion is None or start is None:
-            return False
-        p = self.nav.map_pose
-        if motion.kind == "turn":
-            off = math.hypot(p.x - start.x, p.y - start.y)
-            if off <= ODO_TURN_SHIFT_CM:
-                return False
-            what = f"a turn moved the pose {off:.0f} cm"
-        else:
-            turned = abs(angle_diff_deg(p.heading_deg, start.heading_deg))
-            if turned <= ODO_MOVE_TURN_DEG:
-                return False
-            what = f"a straight move turned the pose {turned:.0f} deg"
-        await self.odometry_hold(now, f"{what}: odometry and scan matching disagree")
-        return True
+        return now < self._odo_hold_until
 
     async def on_tread_fault(self, fault: TreadFault) -> None:
         """Motor Control saw a driven tread that does not count (``NAV_TREAD_FAULT``): its
-        odometry is wrong from now on, so stop at once and hold, as for a disagreement.
+        odometry is wrong from now on, so stop at once and hold.
 
         A tread (or both) that counts short stops the motion too, with a
         short hold (``SHORT_HOLD_S``, not doubled): a slipping encoder makes every
