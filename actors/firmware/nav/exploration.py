@@ -119,7 +119,7 @@ def futile(gains: Sequence[int], known: int) -> bool:
 
     Judged on their sum (a running window), not on each: one visit just above the
     limit among small ones would start the count over, and mapping would go on for
-    90-s trips gaining 21, 7, 4 and 34 cells (limit 32)."""
+    trips gaining 21, 7, 4 and 34 cells (limit 32)."""
     if len(gains) < FUTILE_TRIPS:
         return False
     return sum(gains[-FUTILE_TRIPS:]) < min_gain(known) * FUTILE_TRIPS
