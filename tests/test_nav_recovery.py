@@ -230,23 +230,6 @@ async def test_a_nudge_mid_corridor_shifts_the_route_left_and_drives_on(autojump
 
 
 @pytest.mark.trio
-async def test_a_back_off_that_turns_while_blocked_holds_instead_of_backing_off_again(
-        autojump_clock) -> None:
-    """A back-off ends blocked having turned 25 deg: one tread stalls (backing off again
-    only spins the rover on the spot), so navigation says so, commands nothing for
-    ``tread_hold_s`` and plans again after it."""
-    blocks = Blocks((250.0, 0.0), reverse=(2.0, 25.0))
-    body = await drive_corridor(blocks, after_s=20.0)
-    assert "a tread stalls; holding 12 s" in [f.data.get("detail")
-                                               for f in body.frames("status")]
-    motions = motions_after(body, 0, blocks)
-    assert motions[0][1:] == ("MOTOR_MOVE", -6.0)  # the back-off the script ends
-    t_stall = motions[0][0] + 6.0 / body.speed
-    assert motions[1][0] >= t_stall + NavOptions().tread_hold_s - 0.1
-    assert not (motions[1][1] == "MOTOR_MOVE" and motions[1][2] < 0)
-
-
-@pytest.mark.trio
 async def test_a_back_off_blocked_without_turning_backs_off_again_at_once(
         autojump_clock) -> None:
     """A back-off that moved 2 cm and ended blocked without turning (the rear against
