@@ -253,8 +253,8 @@ class Search:
 
     async def next_point(self) -> Next:
         """Drive to the next ring point that a route reaches (`Next.ROUTE`); at the end of
-        the rings, or once the rings' time is over, the sweep when a wider search has time
-        left (`Next.SWEEP`), else `Next.OVER`."""
+        the rings, the sweep when a wider search has time left (`Next.SWEEP`), else
+        `Next.OVER` (a wider search's time over ends the rings too)."""
         now = trio.current_time()
         if now >= self.until:
             self.points = []  # out of time: answer while the operator still listens

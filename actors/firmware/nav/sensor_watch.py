@@ -40,13 +40,14 @@ A motion that ended blocked in the open (both encoders stuck)
     ``CONTACT_CELLS`` of its leading edge, on known free floor, met nothing the LIDAR
     sees, and a turn that counted nothing at all is most likely two stuck encoders
     (as Motor Control judges one its model caught); the odometry is in doubt
-    (`blocked_in_the_open`). Exploring or going home, the mapper then holds as for a
-    tread that does not count instead of backing off: a back-off or a turn on stuck encoders is
-    driven blind (a few cm, or tens of degrees, per try, unseen, in a corridor 30 cm
-    wide), and going home, counting such blocks as the way home being blocked would
-    upload the map from where the rover stands, maybe in the passage the hider needs. Holds
-    count as strikes; once the hold has doubled to ``ODO_HOLD_MAX_S`` (the fault
-    outlasted about 45 s), such a block counts as a block again.
+    (`blocked_in_the_open`). Exploring or going home, the mapper then holds as for
+    a tread that does not count instead of backing off: a back-off or a turn on
+    stuck encoders is driven blind (a few cm, or tens of degrees, per try, unseen,
+    in a corridor 30 cm wide), and going home, counting such blocks as the way home
+    being blocked would upload the map from where the rover stands, maybe in the
+    passage the hider needs. Holds count as strikes; once the hold has doubled to
+    ``ODO_HOLD_MAX_S`` (the fault outlasted about 45 s), such a block counts as a
+    block again.
 """
 
 from __future__ import annotations
@@ -78,8 +79,8 @@ LIDAR_SILENT_S = 1.5
 """No scan counted for this long while scanning: the LIDAR is silent (dead or garbled),
 and navigation holds still [s]: six of Map Management's 0.25 s count reports."""
 ODO_HOLD_S = 3.0
-"""Hold still this long after a tread that does not count [s]; doubled for each repeat within
-60 s, up to ``ODO_HOLD_MAX_S``."""
+"""Hold still this long after a tread that does not count [s]; doubled for each repeat
+within 60 s, up to ``ODO_HOLD_MAX_S``."""
 ODO_HOLD_MAX_S = ODO_HOLD_S * 2 ** 3
 """Longest hold for odometry in doubt: ``ODO_HOLD_S`` doubled three times [s]."""
 SHORT_HOLD_S = 2.0
