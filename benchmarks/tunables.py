@@ -99,7 +99,7 @@ KINDS: dict[str, dict[str, str]] = {
         "ITERATIONS": "structural", "BLUR_WIDE": "structural", "BLUR_NARROW": "structural",
         "DAMPING": "structural",
         "RELOCALISE_TURN_DEG": "structural", "RELOCALISE_STEP_DEG": "structural",
-        "RELOCALISE_MIN_SCORE": "policy", "RELOCALISE_MIN_SUPPORT": "policy",
+        "RELOCALISE_MIN_SCORE": "policy",
         "RELOCALISE_MARGIN": "policy"},
     "mapping.scan_match.MatchOptions": {"max_shift_cm": "physical", "max_turn_deg": "physical",
                                         "prior_per_point": "physical"},

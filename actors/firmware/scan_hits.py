@@ -19,7 +19,8 @@ MIN_JUDGED = 0.35
 """Share of the usable hits that must be on known ground for a scan to say anything about
 a pose [1]: the scan likelihood judges a fit only when this share is off new ground
 (`localisation.scan_likelihood.judge_fit`), and scan matching matches only when this
-share lands on mapped obstacles at the guess or at the result (`mapping.scan_match`): a
+share lands on mapped obstacles at the guess or at the result, and a re-localisation's
+winner only when this share of its hits does (`mapping.scan_match`): a
 scan of a part of the room never seen is neither judged nor matched."""
 MIN_RANGE_CM = 12.0
 """Nearer hits are not used: too close to tell direction well [cm]."""

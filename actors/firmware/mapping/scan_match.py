@@ -46,7 +46,7 @@ __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits
            "match_scan", "relocalise", "ITERATIONS", "BLUR_WIDE",
            "BLUR_NARROW", "DAMPING", "MIN_POINTS", "MIN_JUDGED", "MAX_RANGE_CM",
            "RELOCALISE_TURN_DEG", "RELOCALISE_STEP_DEG", "RELOCALISE_MIN_SCORE",
-           "RELOCALISE_MIN_SUPPORT", "RELOCALISE_MARGIN"]
+           "RELOCALISE_MARGIN"]
 
 
 # Structural constants of the Gauss-Newton registration and of its verdict: the solver's
@@ -396,9 +396,8 @@ searches its belief's 95 % heading (`map_management`)."""
 RELOCALISE_STEP_DEG = 3.0
 """Between the headings tried [deg] (within the wide field's basin of each other)."""
 RELOCALISE_MIN_SCORE = 0.45
-"""The winner's mean narrow-field value at the hits must reach this..."""
-RELOCALISE_MIN_SUPPORT = 0.6
-"""...and this share of its hits must land on mapped obstacles..."""
+"""The winner's mean narrow-field value at the hits must reach this (and, as for every
+match, ``MIN_JUDGED`` of its hits must land on mapped obstacles)..."""
 RELOCALISE_MARGIN = 0.08
 """...and it must beat any other fit more than 2 ``RELOCALISE_STEP_DEG`` away in heading
 (the guess among them, when the winner lies that far from it) by this much (an ambiguous
@@ -417,7 +416,7 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     outside its basin. Here Gauss-Newton starts from headings every ``RELOCALISE_STEP_DEG`` within
     ``turn_deg`` of the guess; the best fit is accepted only when it is good in itself,
     clearly better than the guess, and unambiguous (``RELOCALISE_MIN_SCORE``,
-    ``RELOCALISE_MIN_SUPPORT``, ``RELOCALISE_MARGIN``). Use it while the rover stands.
+    ``MIN_JUDGED``, ``RELOCALISE_MARGIN``). Use it while the rover stands.
 
     Args:
         fields: the map's fields.
@@ -454,7 +453,7 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     rivals = [f[0] for f in fits
               if abs(math.degrees(f[2][2] - est[2])) > 2.0 * RELOCALISE_STEP_DEG]
     rival = max(rivals, default=0.0)
-    if score < RELOCALISE_MIN_SCORE or support < RELOCALISE_MIN_SUPPORT:
+    if score < RELOCALISE_MIN_SCORE or support < MIN_JUDGED:
         return MatchResult(guess, False, score0, score0,
                            f"best fit too weak ({score:.2f}, {support:.0%} on obstacles)", True)
     # the guess is a rival only when the winner lies away from it: a wide belief whose
