@@ -89,7 +89,7 @@ def test_a_stalled_back_off_holds_uncounted_each_hold_twice_as_long() -> None:
     """The first ``STALL_HOLDS`` stalls of a route hold 12, 24, 48 s and give back the two
     blocks; after them a stall is an ordinary block."""
     holds = [first_action(View(is_stalled=True, stall_holds=k)) for k in range(STALL_HOLDS)]
-    assert holds == [Hold(12.0 * 2 ** k, uncount=2, stall=True) for k in range(STALL_HOLDS)]
+    assert holds == [Hold(12.0 * 2 ** k, uncount=2) for k in range(STALL_HOLDS)]
     assert first_action(View(is_stalled=True, stall_holds=STALL_HOLDS)) == \
         BackOffAndReplan(6.0, mark=True)
 

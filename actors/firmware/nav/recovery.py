@@ -65,12 +65,11 @@ turning radius its centre lies [cm]."""
 @dataclass(frozen=True, slots=True)
 class Hold:
     """Hold still ``seconds`` for a stalled tread or motor, then replan; ``uncount``
-    blocks are taken back from the count toward ``REPLAN_LIMIT``."""
+    blocks are taken back from the count toward ``REPLAN_LIMIT``. Each counts among the
+    route's ``STALL_HOLDS`` holds."""
 
     seconds: float
     uncount: int
-    stall: bool
-    """One of the route's first ``STALL_HOLDS`` holds (counted among them)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -219,7 +218,7 @@ class WaitOutStall:
     def decide(self, v: BlockView) -> Action | None:
         """Hold when the back-off stalled, at most ``STALL_HOLDS`` times a route."""
         if v.blocked and v.stall_holds < STALL_HOLDS and v.stalled():
-            return Hold(v.tread_hold_s * 2.0 ** v.stall_holds, uncount=2, stall=True)
+            return Hold(v.tread_hold_s * 2.0 ** v.stall_holds, uncount=2)
         return None
 
 

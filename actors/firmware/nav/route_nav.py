@@ -421,8 +421,7 @@ class RouteNav(NavBase):
 
     async def _act(self, action: Action, view: BlockView) -> None:
         if isinstance(action, Hold):
-            if action.stall:
-                self.stall_holds += 1
+            self.stall_holds += 1
             self.replans = max(0, self.replans - action.uncount)
             self.counters["stall_holds"] += 1
             self._replan = True
