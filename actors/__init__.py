@@ -14,6 +14,7 @@ Layering inside the package (each module imports only those above it):
     serving   serve: the message loop of one incarnation
     incarnation  run_actor: one incarnation's life, start to stop
     system    ActorSystem, open_actor_system: registry, sending, faults, lifetime
+    running   run: trio.run where Ctrl-C reaches the program, never an actor's code
 
 Supervision lives in the ``supervisors`` package, built on these names.
 """

@@ -42,12 +42,16 @@ async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
     ``started(reason)`` with a ``start_failed``/``killed`` reason when the start
     failed, so ``await nursery.start(run_actor, ...)`` returns None on success.
     ``cell.scope`` is the incarnation's kill switch (cancel it: reason ``killed``).
+    What the start does not survive it does not report: a ``KeyboardInterrupt`` or a
+    cancellation from outside leaves through ``nursery.start`` as itself, so a
+    Ctrl-C during a start stops the program as Ctrl-C, not as a failed start.
 
     Returns:
         The exit reason (`IGNORE` when ignored).
     """
     trace = system.trace
     started = False
+    leaving = False  # a BaseException (Ctrl-C, an outer cancel) is on its way out
     reason: ExitReason | Ignore = KILLED
     ctx: ActorContext | None = None
     cell.state = ActorState.STARTING
@@ -85,8 +89,12 @@ async def run_actor(system: ActorSystem, cell: Cell, factory: Any, *,
         if scope.cancelled_caught:
             reason = KILLED  # the supervisor traces why it killed
         return reason
+    except BaseException:
+        leaving = True
+        raise
     finally:
-        _end(cell, ctx, reason, trace, task_status if not started else None)
+        _end(cell, ctx, reason, trace, started=started,
+             unstarted=None if started or leaving else task_status)
 
 
 def _make(system: ActorSystem, cell: Cell, factory: Any, timers: trio.Nursery) -> Actor | Ignore:
@@ -119,12 +127,13 @@ async def _start_hooks(actor: Actor, init: Callable[[Actor], Any] | None) -> Ign
     return IGNORE if await actor.on_start() is IGNORE else None
 
 
-def _end(cell: Cell, ctx: ActorContext | None, reason: ExitReason | Ignore, trace: Trace,
-         unstarted: trio.TaskStatus[ExitReason | Ignore | None] | None) -> None:
+def _end(cell: Cell, ctx: ActorContext | None, reason: ExitReason | Ignore, trace: Trace, *,
+         started: bool, unstarted: trio.TaskStatus[ExitReason | Ignore | None] | None) -> None:
     """Settle what an incarnation leaves, however it ended: its timers stop, calls it
     held fail, its exit is recorded; an incarnation that never started reports its
-    reason to ``unstarted`` (its task status), a started one traces its stop and
-    notifies its monitors."""
+    reason to ``unstarted`` (its task status; None when an exception carries the news
+    out of ``nursery.start``), a started one traces its stop and notifies its
+    monitors."""
     if ctx is not None:
         ctx._timers = None
         ctx._cancel_timers()  # timers stop with the incarnation, however it ended
@@ -136,8 +145,9 @@ def _end(cell: Cell, ctx: ActorContext | None, reason: ExitReason | Ignore, trac
     if type(reason) is ExitReason:
         cell.last_exit = reason
         cell.fail_calls(reason)
-    if unstarted is not None:
-        unstarted.started(reason)
+    if not started:
+        if unstarted is not None:
+            unstarted.started(reason)
     else:
         trace.emit(EventKind.STOP, cell.name, cell.name, None, cell.mailbox.depth, str(reason))
         cell.notify_down(reason)

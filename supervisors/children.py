@@ -137,6 +137,9 @@ class ChildLifecycle:
                 run.reason = await sup.run(task_status=_Relay(started_cb))
             if scope.cancelled_caught:
                 run.reason = KILLED
+        except BaseException:  # Ctrl-C or an outer cancel: it leaves `nursery.start` itself
+            started = True
+            raise
         finally:
             if not started:
                 task_status.started(run.reason or KILLED)

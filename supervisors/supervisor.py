@@ -296,7 +296,9 @@ class Supervisor(Restarts):
         """Start the children, supervise them until stopped, giving up or auto-shutdown.
 
         Reports ``task_status.started(None)`` when every child started, or
-        ``started(reason)`` after a failed start (the started ones stopped).
+        ``started(reason)`` after a failed start (the started ones stopped); a
+        ``KeyboardInterrupt`` or an outer cancel during the start is not a failed start
+        and leaves through ``nursery.start`` as itself.
 
         Returns:
             ``shutdown`` when stopped, `MAX_INTENSITY` when it gave up,
@@ -323,6 +325,9 @@ class Supervisor(Restarts):
                     await self._stop_children(list(self._children.values()))
                 nursery.cancel_scope.cancel()
             return reason
+        except BaseException:  # Ctrl-C or an outer cancel: it leaves `nursery.start` itself
+            reported = True
+            raise
         finally:
             self._open = False
             self.exit_reason = reason

@@ -88,6 +88,35 @@ async def test_failed_start_stops_started_children_and_fails_with_reason(autojum
     assert log == [("start", "a"), ("stop", "a", "shutdown")]
 
 
+class Interrupted(Actor):
+    """Ctrl-C arrives while it starts."""
+
+    async def on_start(self) -> None:
+        raise KeyboardInterrupt
+
+
+@pytest.mark.trio
+@pytest.mark.parametrize("nested", [False, True], ids=["worker", "in-a-supervisor"])
+async def test_an_interrupt_during_a_start_leaves_as_itself_not_as_a_failed_start(
+        autojump_clock, nested) -> None:
+    """Rule 1: a start is failed by what the child raised (an ``Exception``); a Ctrl-C while
+    b starts (or a child of b) travels out of ``start_supervisor`` as the interrupt it is,
+    and c never starts."""
+    from tui.stopping import is_interrupt, leaves
+
+    log: list = []
+    b = ChildSpec("b", Interrupted)
+    if nested:
+        inner = SupervisorSpec([b])
+        b = ChildSpec("inner", lambda: inner, type=ChildType.SUPERVISOR)
+    spec = SupervisorSpec([worker(log, "a"), b, worker(log, "c")])
+    with pytest.raises(BaseException) as info:  # noqa: PT011 - the interrupt, in groups
+        async with open_actor_system() as system:
+            await system.start_supervisor(spec, "top")
+    assert is_interrupt(info.value), leaves(info.value)
+    assert log == [("start", "a")]
+
+
 # ---------------------------------------------------------------- 2. restart types
 @pytest.mark.trio
 @pytest.mark.parametrize(

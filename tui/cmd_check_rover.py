@@ -52,16 +52,15 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"hideseek check-rover: {exc}", file=sys.stderr)
         return 2
-    import trio
 
-    from actors import scaled_clock
+    from actors import running, scaled_clock
     from server.conformance import as_json, as_table, check_rover, summary
 
     opts = Options(role=args.role, timeout_s=args.timeout, map_s=args.map_seconds,
                    slack_s=args.slack)
     clock = None if args.speed == 1.0 else scaled_clock(args.speed)
     try:
-        findings, transcript = trio.run(check_rover, RoverLink(spec), opts, clock=clock)
+        findings, transcript = running.run(check_rover, RoverLink(spec), opts, clock=clock)
     except LinkUnreachable as exc:
         print(f"hideseek check-rover: {exc}", file=sys.stderr)
         return 2

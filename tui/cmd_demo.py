@@ -27,6 +27,7 @@ from actors import (
     JsonLinesRecorder,
     TraceEvent,
     open_actor_system,
+    running,
     scaled_clock,
     seed_trio_scheduler,
     virtual_clock,
@@ -167,7 +168,7 @@ def run(args: argparse.Namespace, out: Any = None) -> int:
     try:
         if args.trace_out:
             stream = open(args.trace_out, "w", encoding="utf-8")  # noqa: SIM115
-        return trio.run(_demo, args, out, stream, clock=clock)
+        return running.run(_demo, args, out, stream, clock=clock)
     except OSError as exc:
         print(f"hideseek demo: cannot write trace: {exc}", file=sys.stderr)
         return 1

@@ -51,9 +51,8 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, ScenarioError, OSError) as exc:
         print(f"hideseek rover: {exc}", file=sys.stderr)
         return 2
-    import trio
 
-    from actors import scaled_clock, seed_trio_scheduler
+    from actors import running, scaled_clock, seed_trio_scheduler
     from supervisors.remote import run_remote_rover
 
     def report(text: str) -> None:
@@ -65,10 +64,10 @@ def run(args: argparse.Namespace) -> int:
           f"speed x{args.speed:g}, faults over the link "
           f"{'accepted' if args.accept_faults else 'refused'}; Ctrl-C stops", flush=True)
     try:
-        trio.run(lambda: run_remote_rover(scenario, args.role, link, seed=args.seed,
-                                          rover_id=args.rover_id, token=args.token,
-                                          report=report, accept_faults=args.accept_faults,
-                                          telemetry=not args.no_telemetry), clock=clock)
+        running.run(lambda: run_remote_rover(scenario, args.role, link, seed=args.seed,
+                                             rover_id=args.rover_id, token=args.token,
+                                             report=report, accept_faults=args.accept_faults,
+                                             telemetry=not args.no_telemetry), clock=clock)
     except BaseException as exc:  # noqa: BLE001 - sorted out below: never a traceback
         bad = [e for e in leaves(exc) if isinstance(e, OSError | ValueError)]
         if not bad or is_interrupt(exc):

@@ -18,9 +18,7 @@ import tempfile
 import time
 from typing import TYPE_CHECKING
 
-import trio
-
-from actors import JsonLinesRecorder, Trace, seed_trio_scheduler, virtual_clock
+from actors import JsonLinesRecorder, Trace, running, seed_trio_scheduler, virtual_clock
 from supervisors.harness.headless import Budget, GameReport, run_game
 from tui import args as args_
 from world.scenario import (
@@ -231,10 +229,10 @@ def run(args: argparse.Namespace) -> int:
     seed_trio_scheduler(args.seed)
     wall0 = time.perf_counter()  # wall time is measured for the report only
     try:
-        report = trio.run(lambda: run_game(scenario, args.seed, db=args.db, budget=budget,
-                                           trace=trace,
-                                           observers=[recorder] if recorder else []),
-                          clock=virtual_clock())
+        report = running.run(lambda: run_game(scenario, args.seed, db=args.db, budget=budget,
+                                              trace=trace,
+                                              observers=[recorder] if recorder else []),
+                             clock=virtual_clock())
     finally:  # also when a signal stops the game: the trace is kept to that point
         if trace_file is not None:
             trace_file.close()

@@ -147,14 +147,14 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, StoreError, OSError) as exc:
         print(f"hideseek serve: {exc}", file=sys.stderr)
         return 2
-    import trio
 
-    from actors import scaled_clock
+    from actors import running, scaled_clock
 
     sim = (scenario, args.seed, tuple(sim_roles)) if sim_roles else None
     clock = None if args.speed == 1.0 else scaled_clock(args.speed)
     try:
-        trio.run(_serve, store, config, listens, rovers, sim, not args.no_console, clock=clock)
+        running.run(_serve, store, config, listens, rovers, sim, not args.no_console,
+                    clock=clock)
     except (OSError, ValueError, BaseExceptionGroup) as exc:
         leaf = leaves(exc)[0]
         if is_interrupt(exc) or not isinstance(leaf, OSError | ValueError):

@@ -29,7 +29,7 @@ from typing import Any
 
 import trio
 
-from actors import EventKind, seed_trio_scheduler, virtual_clock
+from actors import EventKind, running, seed_trio_scheduler, virtual_clock
 from supervisors.harness.headless import Budget, GameReport, run_game
 from supervisors.system import SimSystem
 from world.faults import check_fault
@@ -219,7 +219,7 @@ def fork_game(path: str | os.PathLike[str], at_s: float, *,
                                   observers=observers)
         return None
 
-    report = trio.run(main, clock=virtual_clock())
+    report = running.run(main, clock=virtual_clock())
     if checker.diverged is not None or report is None:
         raise ForkDiverged(checker.diverged or "the fork was cancelled")
     return report, checker

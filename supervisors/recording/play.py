@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import os
 
-import trio
-
-from actors import seed_trio_scheduler, virtual_clock
+from actors import running, seed_trio_scheduler, virtual_clock
 from supervisors.harness.headless import Budget, GameReport, run_game
 from world.scenario import Scenario
 
@@ -28,5 +26,5 @@ def record_game(scenario: Scenario, seed: int, path: str | os.PathLike[str], *,
     """
     recorder = Recorder.for_scenario(path, scenario, seed, budget_s=budget_s, campaign=campaign)
     seed_trio_scheduler(seed)
-    return trio.run(lambda: run_game(scenario, seed, budget=Budget(mapping=budget_s),
-                                     observers=[recorder]), clock=virtual_clock())
+    return running.run(lambda: run_game(scenario, seed, budget=Budget(mapping=budget_s),
+                                        observers=[recorder]), clock=virtual_clock())

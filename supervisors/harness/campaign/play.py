@@ -22,7 +22,7 @@ from typing import Any
 
 import trio
 
-from actors import Trace, seed_trio_scheduler, virtual_clock
+from actors import Trace, running, seed_trio_scheduler, virtual_clock
 from server.store import Store, StoreError
 from supervisors.harness import invariants as inv
 from supervisors.harness.campaign.plan import GameSpec, plan_game
@@ -235,7 +235,7 @@ def run_checked(scenario: Scenario, run_seed: int, budget: Budget,
                            + (guards[0].fired if guards else "a cancellation"))
 
     try:
-        return trio.run(main, clock=virtual_clock())
+        return running.run(main, clock=virtual_clock())
     finally:
         for guard in guards:
             guard.stop()
