@@ -20,7 +20,7 @@ import pytest
 from tests.test_shrink import _FAULTS, _ROOM
 from tui.stopping import is_interrupt, stopped_line
 
-CLI = [sys.executable, "-m", "tui.cli"]
+CLI = [sys.executable, "-X", "faulthandler", "-m", "tui.cli"]  # SIGABRT prints its stacks
 SIGNALS = pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
 _ANSI = re.compile(r"\x1b(\[[0-9;?<>=]*[ -/]*[@-~]|\][^\x07\x1b]*(\x07|\x1b\\)|[@-_])")
 
@@ -75,7 +75,13 @@ def _stop(argv: list[str], sig: signal.Signals, ready: Callable[[str], bool], *,
             assert time.monotonic() < deadline, (out.text(), err.text())
             time.sleep(0.05)
         proc.send_signal(sig)
-        proc.wait(timeout=30)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:  # where it hangs: its threads' stacks
+            proc.send_signal(signal.SIGABRT)
+            proc.wait(timeout=10)
+            raise AssertionError("no stop within 30 s of the signal; its stacks:\n"
+                                 + err.text()[-8000:]) from None
     finally:
         if proc.poll() is None:
             proc.kill()
