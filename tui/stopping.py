@@ -1,12 +1,13 @@
 """How every command stops on Ctrl-C, SIGINT and SIGTERM: one line, exit status 0.
 
 `install` makes SIGTERM raise SIGINT, so both signals reach a command as
-Python's ``KeyboardInterrupt``. Inside ``trio.run`` that exception is raised in
-the task that was running and travels out through every nursery on its way;
-Trio's nurseries wrap what leaves them in a ``BaseExceptionGroup`` (strict
-exception groups), so what reaches the command line is a group holding the
-interrupt (and the ``Cancelled`` of tasks stopped beside it), never a bare
-``KeyboardInterrupt``. `is_interrupt` tells such a stop from a failure; the
+Python's ``KeyboardInterrupt``. Every command runs Trio through
+`actors.running.run`, which delivers that exception to the main task at its
+next checkpoint (never inside an actor's code, where it could be taken for a
+failure or lost); it travels out through every nursery on its way, and Trio's
+nurseries wrap what leaves them in a ``BaseExceptionGroup`` (strict exception
+groups), so what reaches the command line is a group holding the interrupt (and
+the ``Cancelled`` of tasks stopped beside it), never a bare ``KeyboardInterrupt``. `is_interrupt` tells such a stop from a failure; the
 command line (`tui.cli.main`) uses it once for every command and prints
 `stopped_line`. The work below (a game's store and recording, a server's
 database) closes on the way out, as the exception passes through its
