@@ -115,9 +115,9 @@ class LateralTouch:
             return None
         passage = found.passage
         standoff = nav.radius_cm + grid.resolution_cm
-        if passage.axial((p.x, p.y)) >= -(passage.entry_cm + standoff):
+        if passage.axial((p.x, p.y)) >= -passage.approach_cm(standoff):
             return None  # the rover is within the approach
-        ahead = max(found.along_cm - passage.entry_cm - standoff, 0.0)
+        ahead = max(found.along_cm - passage.approach_cm(standoff), 0.0)
         lateral = lateral_spread95_cm(spread.covariance, passage.axis_deg, ahead)
         if not misses(passage, lateral, nav.width_cm):
             return None

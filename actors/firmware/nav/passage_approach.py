@@ -92,6 +92,12 @@ class Passage:
         ux, uy = self.unit
         return (p[0] - self.centre[0]) * ux + (p[1] - self.centre[1]) * uy
 
+    def approach_cm(self, standoff_cm: float) -> float:
+        """How far before the centre, along the axis, the approach point lies [cm]:
+        ``standoff_cm`` [cm] before the passage opens. A rover nearer the centre than this
+        is within the approach."""
+        return self.entry_cm + standoff_cm
+
 
 def _width(grid: GridMap, p: Point, heading_deg: float) -> tuple[float, float] | None:
     """The free cross-section at ``p`` across ``heading_deg`` when narrower than
@@ -245,7 +251,7 @@ def square_to_axis(grid: GridMap, start: Point, pts: list[Point], *, covariance:
     beyond_t = passage.exit_cm + standoff
     beyond = passage.along(beyond_t)
     a, b = legs[found.first_leg], legs[found.last_leg + 1]
-    if passage.axial(a) > -(passage.entry_cm + standoff) or passage.axial(b) < beyond_t:
+    if passage.axial(a) > -passage.approach_cm(standoff) or passage.axial(b) < beyond_t:
         return pts
     ok = traversable(grid, 0.5 * body_cm[1], 0.0, "blocked")
     if not all(_clear_line(grid, ok, p, q) for p, q in ((a, before), (before, beyond),
@@ -256,7 +262,7 @@ def square_to_axis(grid: GridMap, start: Point, pts: list[Point], *, covariance:
 
 def approach_point(passage: Passage, standoff_cm: float) -> Point:
     """The point on the axis ``standoff_cm`` [cm] before the passage opens."""
-    return passage.along(-(passage.entry_cm + standoff_cm))
+    return passage.along(-passage.approach_cm(standoff_cm))
 
 
 def _clear_line(grid: GridMap, ok: np.ndarray, a: Point, b: Point) -> bool:
