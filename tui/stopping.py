@@ -7,11 +7,12 @@ next checkpoint (never inside an actor's code, where it could be taken for a
 failure or lost); it travels out through every nursery on its way, and Trio's
 nurseries wrap what leaves them in a ``BaseExceptionGroup`` (strict exception
 groups), so what reaches the command line is a group holding the interrupt (and
-the ``Cancelled`` of tasks stopped beside it), never a bare ``KeyboardInterrupt``. `is_interrupt` tells such a stop from a failure; the
-command line (`tui.cli.main`) uses it once for every command and prints
-`stopped_line`. The work below (a game's store and recording, a server's
-database) closes on the way out, as the exception passes through its
-``with`` blocks and ``finally`` clauses.
+the ``Cancelled`` of tasks stopped beside it), never a bare ``KeyboardInterrupt``.
+`is_interrupt` tells such a stop from a failure; the command line
+(`tui.cli.main`) uses it once for every command and prints `stopped_line`. The
+work below (a game's store and recording, a server's database) closes on the
+way out, as the exception passes through its ``with`` blocks and ``finally``
+clauses.
 
 The Textual consoles (``play``, ``replay``) handle both signals in their asyncio
 loop instead (`tui.guest.quit_on_signals`): the console quits as ``q`` does.
