@@ -85,7 +85,7 @@ KINDS: dict[str, dict[str, str]] = {
                                                 "d2_match_alt": "structural"},
     "localisation.scan_likelihood": {
         "MAX_BEAMS": "structural", "UNKNOWN_HIT": "structural",
-        "MIN_FIT": "policy", "GATE_CHI2": "structural", "FLOOR_CM": "physical",
+        "GATE_CHI2": "structural", "FLOOR_CM": "physical",
         "FLOOR_DEG": "physical"},
     "localisation.scan_likelihood.ScanOptions": {
         "sigma_hit_cm": "physical", "z_rand": "physical", "new_ground_cm": "physical",
@@ -94,12 +94,10 @@ KINDS: dict[str, dict[str, str]] = {
     "mapping.map_management": {"_CORRECTION_WAIT_S": "structural",
                                "_SEARCH_EVERY_S": "structural", "UPDATE_MIN_CM": "policy",
                                "UPDATE_MIN_DEG": "policy", "_END_BATCHES": "policy"},
-    "mapping.map_publisher": {"CORRECTION_STEP_DEG": "policy"},
     "mapping.scan_match": {
         "ITERATIONS": "structural", "BLUR_WIDE": "structural", "BLUR_NARROW": "structural",
         "DAMPING": "structural",
         "RELOCALISE_TURN_DEG": "structural", "RELOCALISE_STEP_DEG": "structural",
-        "RELOCALISE_MIN_SCORE": "policy",
         "RELOCALISE_MARGIN": "policy"},
     "mapping.scan_match.MatchOptions": {"max_shift_cm": "physical", "max_turn_deg": "physical",
                                         "prior_per_point": "physical"},
@@ -128,7 +126,7 @@ KINDS: dict[str, dict[str, str]] = {
     "nav.homing": {"HOME_BLOCKS": "structural"},
     "nav.localiser": {"START_SIGMA_CM": "physical", "START_SIGMA_DEG": "physical",
                       "RETRY_PRIOR_SHARE": "policy"},
-    "nav.mapper": {"FIRST_SCANS": "structural", "STABLE_SCANS": "policy",
+    "nav.mapper": {"FIRST_SCANS": "structural",
                    "CHANGE_CELLS": "policy", "CHANGE_SHARE": "policy", "PROBE_S": "structural",
                    "UPLOAD_WAIT_S": "structural"},
     "nav.mapping_options.MappingOptions": {

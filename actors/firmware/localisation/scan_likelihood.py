@@ -70,11 +70,13 @@ MAX_BEAMS = 60
 """Hits taken per scan for the likelihood of particles [1]."""
 UNKNOWN_HIT = 0.5
 """Least hit term of a hit on new ground [1]: it neither confirms nor refutes."""
-MIN_FIT = 0.6
-"""Least mean hit term over the judged hits for an accepted fit [1]. In a 3 x 2 m test
-room a pose 5 cm or 3 deg off fits 0.74-0.84, 12 cm across the walls or 10 deg off under
-0.5; a shift along most walls' direction keeps their hits on them (15 cm along the long
-walls: 0.67), which only the belief's gate can refuse."""
+MIN_FIT = math.exp(-0.5)
+"""Least mean hit term over the judged hits for an accepted fit [1]: the term of a hit
+one ``sigma_hit_cm`` from its face (0.61), so a scan whose hits lie on average within
+the hit model's spread fits. In a 3 x 2 m test room a pose 5 cm or 3 deg off fits
+0.74-0.84, 12 cm across the walls or 10 deg off under 0.5; a shift along most walls'
+direction keeps their hits on them (15 cm along the long walls: 0.67), which only the
+belief's gate can refuse."""
 GATE_CHI2 = 11.34
 """Largest squared Mahalanobis distance of a matched pose from the belief [1]: the
 chi-square 99 % point for 3 degrees of freedom (x, y, heading)."""

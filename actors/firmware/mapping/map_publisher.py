@@ -5,9 +5,9 @@ of the grid when a cell changed class (``NAV_MAP_UPDATE``, by handle), the
 count of scan batches taken (``NAV_SCAN_COUNT``: "map unchanged while scans
 keep arriving" is not "LIDAR stalled"), and the correction (odometry -> map
 frame, navigation's origin: ``NAV_MAP_ORIGIN_XY`` + ``NAV_MAP_ORIGIN_HEADING``)
-when it moved by a cm or half a degree. A change that comes too soon arms a
-timer (``MAP_GET`` of value 1 back to Map Management), so the last one is sent
-even when no scan follows.
+when it moved by a stamp's own error (a cm, a degree). A change that comes too
+soon arms a timer (``MAP_GET`` of value 1 back to Map Management), so the last
+one is sent even when no scan follows.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from collections.abc import Callable
 from actors import BufferPool, Message
 from actors.firmware.commands import Cmd
 from actors.firmware.handles import post
-from actors.firmware.localisation.scan_likelihood import FLOOR_CM
+from actors.firmware.localisation.scan_likelihood import FLOOR_CM, FLOOR_DEG
 from actors.firmware.mapping.occupancy import OccupancyGrid
 from actors.firmware.origin_wire import pose_messages
 from server.protocol.pose import Pose
@@ -28,8 +28,9 @@ CORRECTION_STEP_CM = FLOOR_CM
 """The correction is sent again once it moved this far in x or y [cm]: a stamp's own error
 (`localisation.scan_likelihood.FLOOR_CM`); a smaller move is within the error of the
 poses it was found from, and below what navigation steers by."""
-CORRECTION_STEP_DEG = 0.5
-"""... or turned this much [deg]."""
+CORRECTION_STEP_DEG = FLOOR_DEG
+"""... or turned this much [deg]: a stamp's own heading error
+(`localisation.scan_likelihood.FLOOR_DEG`, the encoders' quantisation)."""
 
 Send = Callable[[Message], bool]
 """Sends a message to navigation without waiting; False when it could not."""

@@ -45,7 +45,7 @@ from server.protocol.pose import Pose
 __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",
            "match_scan", "relocalise", "ITERATIONS", "BLUR_WIDE",
            "BLUR_NARROW", "DAMPING", "MIN_POINTS", "MIN_JUDGED", "MAX_RANGE_CM",
-           "RELOCALISE_TURN_DEG", "RELOCALISE_STEP_DEG", "RELOCALISE_MIN_SCORE",
+           "RELOCALISE_TURN_DEG", "RELOCALISE_STEP_DEG",
            "RELOCALISE_MARGIN"]
 
 
@@ -395,11 +395,9 @@ RELOCALISE_TURN_DEG = 24.0
 searches its belief's 95 % heading (`map_management`)."""
 RELOCALISE_STEP_DEG = 3.0
 """Between the headings tried [deg] (within the wide field's basin of each other)."""
-RELOCALISE_MIN_SCORE = 0.45
-"""The winner's mean narrow-field value at the hits must reach this (and, as for every
-match, ``MIN_JUDGED`` of its hits must land on mapped obstacles)..."""
 RELOCALISE_MARGIN = 0.08
-"""...and it must beat any other fit more than 2 ``RELOCALISE_STEP_DEG`` away in heading
+"""The winner (``MIN_JUDGED`` of its hits on mapped obstacles, as for every match) must
+beat any other fit more than 2 ``RELOCALISE_STEP_DEG`` away in heading
 (the guess among them, when the winner lies that far from it) by this much (an ambiguous
 view, such as a round wall, is not re-localised)."""
 
@@ -414,9 +412,11 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     Why: `match_scan`'s Gauss-Newton starts from the guess and reaches about
     ``max_turn_deg`` from it; a pose further off (a belief widened by a tread fault) lies
     outside its basin. Here Gauss-Newton starts from headings every ``RELOCALISE_STEP_DEG`` within
-    ``turn_deg`` of the guess; the best fit is accepted only when it is good in itself,
-    clearly better than the guess, and unambiguous (``RELOCALISE_MIN_SCORE``,
-    ``MIN_JUDGED``, ``RELOCALISE_MARGIN``). Use it while the rover stands.
+    ``turn_deg`` of the guess; the best fit is accepted only when it is supported
+    (``MIN_JUDGED``), clearly better than the guess and unambiguous
+    (``RELOCALISE_MARGIN``). How well it fits in itself is judged where every placement
+    is (`localisation.scan_likelihood.judge_fit`: ``MIN_FIT``). Use it while the rover
+    stands.
 
     Args:
         fields: the map's fields.
@@ -453,9 +453,9 @@ def relocalise(fields: MatchFields, points: np.ndarray, guess: Pose,
     rivals = [f[0] for f in fits
               if abs(math.degrees(f[2][2] - est[2])) > 2.0 * RELOCALISE_STEP_DEG]
     rival = max(rivals, default=0.0)
-    if score < RELOCALISE_MIN_SCORE or support < MIN_JUDGED:
+    if support < MIN_JUDGED:
         return MatchResult(guess, False, score0, score0,
-                           f"best fit too weak ({score:.2f}, {support:.0%} on obstacles)", True)
+                           f"best fit unsupported ({support:.0%} on obstacles)", True)
     # the guess is a rival only when the winner lies away from it: a wide belief whose
     # mean is right must be able to find its own mean
     near_guess = abs(math.degrees(est[2] - theta0)) <= 2.0 * RELOCALISE_STEP_DEG

@@ -68,16 +68,13 @@ from actors.firmware.origin_wire import MM, PoseHalves, pose_messages, xy_half
 from server.protocol.grid_map import UNKNOWN, GridMap
 from server.protocol.pose import ZERO_POSE
 
-__all__ = ["MappingOptions", "MappingNav", "FIRST_SCANS", "STABLE_SCANS", "CHANGE_CELLS",
+__all__ = ["MappingOptions", "MappingNav", "FIRST_SCANS", "CHANGE_CELLS",
            "CHANGE_SHARE", "PROBE_S", "UPLOAD_WAIT_S"]
 
 # Counts, shares and fixed waits of the completion test and of a restart; the physical
 # quantities are `MappingOptions`.
 FIRST_SCANS = 3
 """Scan batches to wait for before the first move."""
-STABLE_SCANS = 5
-"""The map is complete when it has not changed for ``stable_window_s`` while at least this
-many scan batches arrived."""
 CHANGE_CELLS = 3
 """The map changed when its count of known cells moved by more than this (or
 ``CHANGE_SHARE`` of it) since the last change; free/occupied flicker is not a change,
@@ -113,8 +110,6 @@ class MappingNav(NavBase):
         """Exploration's state (the route, the target, the blacklist, the trips)."""
         self.changed_at = 0.0
         """Trio time of the last map change [s] (the stable window counts from it)."""
-        self.scans_at_change = 0
-        """The scan count at the last map change."""
         self._known_at_change = 0  # known cells when the map last changed
         self._scans_at_start = 0
         self._started_at = 0.0
@@ -176,7 +171,7 @@ class MappingNav(NavBase):
         # Map Management restarted empty: give it back what we knew (the origin first: it
         # drops scans until the origin arrives); its count restarts at 0
         self._probe_scans = None
-        self._scans_at_start = self.scans_at_change = self.scans = 0
+        self._scans_at_start = self.scans = 0
         xy, heading = pose_messages(Cmd.MAP_ORIGIN_XY, Cmd.MAP_ORIGIN_HEADING,
                                     self.origin or ZERO_POSE)
         if await self.post(self.map_name, xy):
@@ -194,7 +189,7 @@ class MappingNav(NavBase):
         self._probe_until = -math.inf
         self._started_at = now
         self._scans_at_start = self.scans
-        self.changed_at, self.scans_at_change = now, self.scans
+        self.changed_at = now
         self.scan_rise_at = now  # the LIDAR spins up: silence counts from here
         self.lidar_fault = None
         self.ex = ExplorationState()
@@ -217,7 +212,7 @@ class MappingNav(NavBase):
         known = int(np.count_nonzero(grid.cells != UNKNOWN))
         if prev is None or prev.shape != grid.shape or abs(known - self._known_at_change) > max(
                 CHANGE_CELLS, CHANGE_SHARE * known):
-            self.changed_at, self.scans_at_change = now, self.scans
+            self.changed_at = now
             self._known_at_change = known
         if self.state == "uploading":
             await self._upload()
@@ -285,10 +280,10 @@ class MappingNav(NavBase):
         await self.explorer.after_motion(blocked, done)
 
     def complete(self, now: float) -> bool:
-        """Both completion conditions: no useful frontier, and a stable map while scanning."""
+        """Both completion conditions: no useful frontier, and a map that has not changed
+        for ``stable_window_s`` while not holding (a silent LIDAR holds)."""
         return (self.ex.no_frontier and not self.holding
-                and now - self.changed_at >= self.m.stable_window_s
-                and self.scans - self.scans_at_change >= STABLE_SCANS)
+                and now - self.changed_at >= self.m.stable_window_s)
 
     # ------------------------------------------------------------------ finishing
     async def finish(self, reason: str, *, home: bool = False) -> None:

@@ -29,8 +29,8 @@ class MappingOptions:
     stop_cm: float = 20.0
     """Stop this far before an obstacle ahead (centre to cell centre) [cm]."""
     stable_window_s: float = 10.0
-    """The map must not have changed for this long [s] (while at least
-    `mapper.STABLE_SCANS` scan batches arrived) for mapping to be complete."""
+    """The map must not have changed for this long [s], navigation not holding, for
+    mapping to be complete."""
     budget_s: float = 900.0
     """Mapping time budget: upload what is known after this [s]."""
     home_budget_s: float = 180.0

@@ -171,7 +171,7 @@ class SensorWatch:
             self._pause_off_until = now + m.lidar_pause_s
         self.nav.lidar_fault = None
         # what was planned before may have been planned on a map the fault spoiled
-        self.nav.changed_at, self.nav.scans_at_change = now, self.nav.scans
+        self.nav.changed_at = now
         self.nav.ex.follower = None
         self.nav.wait_map = True
         self.nav.last_wait_decide = -math.inf
@@ -192,7 +192,7 @@ class SensorWatch:
             return False
         if self._odo_hold_until > -math.inf and now >= self._odo_hold_until:
             self._odo_hold_until = -math.inf
-            self.nav.changed_at, self.nav.scans_at_change = now, self.nav.scans
+            self.nav.changed_at = now
             self.nav.ex.follower = None
             self.nav.wait_map = True
             self.nav.last_wait_decide = -math.inf
