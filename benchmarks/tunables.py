@@ -136,7 +136,7 @@ KINDS: dict[str, dict[str, str]] = {
         "lidar_pause_s": "physical"},
     "nav.nudge": {"NUDGE_STEP_MAX_CM": "policy", "MAX_NUDGES": "structural",
                   "NUDGE_REACH_CM": "policy", "PROBE_WIDTH_CM": "policy",
-                  "PROBE_PROGRESS_CM": "policy"},
+                  "REPEAT_BLOCK_CM": "policy"},
     "nav.options.NavOptions": {
         "tick_s": "physical", "step_cm": "physical", "waypoint_tol_cm": "physical",
         "goal_tol_cm": "physical", "align_tol_deg": "physical", "heading_tol_deg": "physical",
@@ -146,7 +146,7 @@ KINDS: dict[str, dict[str, str]] = {
     "nav.passage_approach": {"AXIS_SWEEP_DEG": "structural"},
     "nav.recovery": {"REPLAN_LIMIT": "structural", "BACKOFF_REPEAT_CM": "policy",
                      "STALL_HOLDS": "structural",
-                     "REPEAT_BLOCK_CM": "policy", "OBSTACLE_CM": "policy"},
+                     "OBSTACLE_CM": "policy"},
     "nav.route": {"MAX_CORRECTIONS": "structural"},
     "nav.route_nav": {"MAP_RETRY_S": "structural"},
     "nav.search": {"RING_POINTS": "structural", "RING_MAX_CM": "structural",

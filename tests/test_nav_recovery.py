@@ -21,7 +21,7 @@ from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.nudge import (
     MAX_NUDGES,
     NUDGE_STEP_MAX_CM,
-    PROBE_PROGRESS_CM,
+    REPEAT_BLOCK_CM,
     Nudge,
     at_mouth,
     in_passage,
@@ -582,14 +582,14 @@ def test_a_probe_sidesteps_across_before_joining_the_shifted_line() -> None:
 
 
 def test_progress_is_measured_along_the_heading_of_the_first_block() -> None:
-    """A nudged route blocked 25 cm beside the series' first block (and 6 cm short of it,
-    as a contact fix may leave it) made no progress: 26 cm away in a straight line, but
+    """A nudged route blocked 32 cm beside the series' first block (and 6 cm short of it,
+    as a contact fix may leave it) made no progress: 32.6 cm away in a straight line, but
     -6 cm along the heading, so the series goes on. A block 50 cm on starts a new one."""
     first = (300.0, 150.0, 0.0)
-    assert math.dist(first[:2], (294.0, 175.0)) > PROBE_PROGRESS_CM
-    assert progress(first, 294.0, 175.0) == pytest.approx(-6.0)
-    assert progress(first, 350.0, 150.0) > PROBE_PROGRESS_CM
-    assert progress((300.0, 150.0, 90.0), 294.0, 175.0) == pytest.approx(25.0)
+    assert math.dist(first[:2], (294.0, 182.0)) > REPEAT_BLOCK_CM
+    assert progress(first, 294.0, 182.0) == pytest.approx(-6.0)
+    assert progress(first, 350.0, 150.0) > REPEAT_BLOCK_CM
+    assert progress((300.0, 150.0, 90.0), 294.0, 182.0) == pytest.approx(32.0)
 
 
 def test_a_block_short_of_the_mouth_is_near_the_series_but_not_in_a_passage() -> None:

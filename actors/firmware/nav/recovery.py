@@ -30,7 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from actors.firmware.nav.nudge import Block, at_mouth, in_passage
+from actors.firmware.nav.nudge import REPEAT_BLOCK_CM, Block, at_mouth, in_passage
 from server.protocol.pose import Pose
 
 if TYPE_CHECKING:
@@ -39,23 +39,20 @@ if TYPE_CHECKING:
 __all__ = ["BlockView", "Hold", "GiveUpRoute", "Replan", "BackOffAndReplan", "Action",
            "WaitOutStall", "GiveUp", "ReplanWedged", "NudgeSideways",
            "Relocalise", "BackOff", "RECOVERIES", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM",
-           "STALL_HOLDS", "REPEAT_BLOCK_CM", "OBSTACLE_CM"]
+           "STALL_HOLDS", "OBSTACLE_CM"]
 
 # The bounds of the recovery behaviours: how long a route may try before it is given up,
 # and how a back-off reads a stalled tread. The geometry of the sideways search is in
 # `nudge`.
 REPLAN_LIMIT = 10
 """Blocks without progress before a route is given up: a block that comes after the
-route got ``PROBE_PROGRESS_CM`` nearer its goal than at the last block counted afresh
+route got ``nudge.REPEAT_BLOCK_CM`` nearer its goal than at the last block counted afresh
 (`route_nav.RouteNav.count_block`)."""
 BACKOFF_REPEAT_CM = 20.0
 """Reverse this far after a second block at one place: room to come back sideways [cm]."""
 STALL_HOLDS = 3
 """Holds for a stalled tread or motor per route that do not count toward
 ``REPLAN_LIMIT`` (12 s, 24 s, 48 s: longer than a transient stall); later ones count."""
-REPEAT_BLOCK_CM = 30.0
-"""A block this near the last one is the same place met again: something the map does not
-show is there [cm]."""
 OBSTACLE_CM = 8.0
 """Radius of the obstacle learned ahead of a repeated block, and how far beyond the
 turning radius its centre lies [cm]."""
