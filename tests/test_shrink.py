@@ -202,7 +202,7 @@ kind = "latency"
 duration_s = 10
 params = { added_s = 0.1 }
 [[faults]]
-at_s = 10
+at_s = 5
 target = "mapper/lidar"
 kind = "dead"
 [[faults]]
@@ -216,7 +216,8 @@ params = { strength = 0.8 }
 
 def test_shrinking_a_real_game_keeps_the_fatal_fault_shortened_and_the_file_reproduces(
         tmp_path: pathlib.Path, capsys):
-    """A permanent LIDAR death among two harmless faults (mapping budget 120 s, seed 7)."""
+    """A permanent LIDAR death before the mapper saw the room among two harmless faults
+    (mapping budget 120 s, seed 7)."""
     src = tmp_path / "three.toml"
     src.write_text(_ROOM + _FAULTS)
     out = tmp_path / "shrunk.toml"
