@@ -114,9 +114,9 @@ KINDS: dict[str, dict[str, str]] = {
                        "TURN_RATE_DEG_S": "physical"},
     "nav.exploration": {
         "MIN_FACE_CELLS": "policy", "MAX_INCIDENCE_DEG": "physical", "RECHOOSE_STEPS": "policy",
-        "OBSTACLE_TURNS": "policy", "MAX_CHOICES": "structural", "KEEP_CM": "policy",
+        "OBSTACLE_TURNS": "policy", "MAX_CHOICES": "structural",
         "KEEP_SHARE": "policy", "BLACKLIST": "structural", "SIGHTINGS": "policy",
-        "UNSEEABLE": "structural", "BLACKLIST_RADIUS_CM": "policy",
+        "UNSEEABLE": "structural",
         "FUTILE_TRIPS": "policy", "MIN_GAIN_CELLS": "policy", "MIN_GAIN_SHARE": "policy"},
     "nav.exploration.ExplorationState": {"steps": "structural", "budget": "structural",
                                          "blocks": "structural",
@@ -135,8 +135,8 @@ KINDS: dict[str, dict[str, str]] = {
         "home_budget_s": "physical", "home_reach_cm": "physical",
         "lidar_pause_s": "physical"},
     "nav.nudge": {"NUDGE_STEP_MAX_CM": "policy", "MAX_NUDGES": "structural",
-                  "NUDGE_REACH_CM": "policy", "PROBE_WIDTH_CM": "policy",
-                  "REPEAT_BLOCK_CM": "policy"},
+                  "NUDGE_REACH_CM": "policy", "PROBE_WIDTH_CM": "policy"},
+    "nav.place": {"SAME_PLACE_CM": "policy"},
     "nav.options.NavOptions": {
         "tick_s": "physical", "step_cm": "physical", "waypoint_tol_cm": "physical",
         "goal_tol_cm": "physical", "align_tol_deg": "physical", "heading_tol_deg": "physical",

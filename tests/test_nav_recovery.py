@@ -21,7 +21,6 @@ from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.nudge import (
     MAX_NUDGES,
     NUDGE_STEP_MAX_CM,
-    REPEAT_BLOCK_CM,
     Nudge,
     at_mouth,
     in_passage,
@@ -32,6 +31,7 @@ from actors.firmware.nav.nudge import (
     series_offset,
 )
 from actors.firmware.nav.options import NavMemory, NavOptions
+from actors.firmware.nav.place import SAME_PLACE_CM
 from actors.firmware.nav.recovery import REPLAN_LIMIT
 from actors.firmware.nav.route import Motion
 from actors.firmware.nav.tread_faults import TREAD_CHECK_CM
@@ -586,9 +586,9 @@ def test_progress_is_measured_along_the_heading_of_the_first_block() -> None:
     as a contact fix may leave it) made no progress: 32.6 cm away in a straight line, but
     -6 cm along the heading, so the series goes on. A block 50 cm on starts a new one."""
     first = (300.0, 150.0, 0.0)
-    assert math.dist(first[:2], (294.0, 182.0)) > REPEAT_BLOCK_CM
+    assert math.dist(first[:2], (294.0, 182.0)) > SAME_PLACE_CM
     assert progress(first, 294.0, 182.0) == pytest.approx(-6.0)
-    assert progress(first, 350.0, 150.0) > REPEAT_BLOCK_CM
+    assert progress(first, 350.0, 150.0) > SAME_PLACE_CM
     assert progress((300.0, 150.0, 90.0), 294.0, 182.0) == pytest.approx(32.0)
 
 

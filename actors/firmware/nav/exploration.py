@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from actors.firmware.nav.place import SAME_PLACE_CM
 from actors.firmware.nav.route import Motion, PathFollower, plan_route, plan_tiers, route_points
 from actors.firmware.planning.clearance import obstacle_ahead
 from actors.firmware.planning.viewpoint import (
@@ -56,8 +57,8 @@ if TYPE_CHECKING:
 
 __all__ = ["Exploration", "ExplorationState", "futile", "least_gain", "min_gain",
            "MIN_FACE_CELLS", "MAX_INCIDENCE_DEG",
-           "RECHOOSE_STEPS", "OBSTACLE_TURNS", "MAX_CHOICES", "KEEP_CM", "KEEP_SHARE",
-           "BLACKLIST", "BLACKLIST_RADIUS_CM", "SIGHTINGS", "UNSEEABLE",
+           "RECHOOSE_STEPS", "OBSTACLE_TURNS", "MAX_CHOICES", "KEEP_SHARE",
+           "BLACKLIST", "SIGHTINGS", "UNSEEABLE",
            "FUTILE_TRIPS", "MIN_GAIN_CELLS", "MIN_GAIN_SHARE"]
 
 # Counts, bounds and shares of frontier exploration and of the futile-trip rule: how the
@@ -78,11 +79,10 @@ OBSTACLE_TURNS = 3
 target is blacklisted (the route passes where the rover will not drive)."""
 MAX_CHOICES = 8
 """Frontiers tried per decision before waiting for the map to change."""
-KEEP_CM = 40.0
-"""A viewpoint this near the current target is that target [cm]..."""
 KEEP_SHARE = 0.5
-"""...and the route to it is kept while its score is at least this share of the best
-(a new best must be clearly better to turn the rover round)."""
+"""The route to the current target (a viewpoint within ``place.SAME_PLACE_CM`` of it is
+that target) is kept while its score is at least this share of the best (a new best
+must be clearly better to turn the rover round)."""
 BLACKLIST = 256
 """Most blacklisted points kept."""
 SIGHTINGS = 3
@@ -90,9 +90,6 @@ SIGHTINGS = 3
 revealed by looking (a decision comes every ADP step, a second or two)."""
 UNSEEABLE = 2048
 """Most unseeable face cells kept (and most cells counted toward it)."""
-BLACKLIST_RADIUS_CM = 30.0
-"""No viewpoint is chosen this near a blacklisted point [cm] (what one sees, its
-neighbours see too)."""
 FUTILE_TRIPS = 4
 """After this many trips in a row (each until its target was reached or given up) that
 revealed fewer than the least gain (`MIN_GAIN_CELLS`, `MIN_GAIN_SHARE`) each on average,
@@ -284,14 +281,14 @@ class Exploration:
         # after futile visits only viewpoints revealing much still count (`least_gain`)
         least = least_gain(ex.gains, self._known())
         views = [v for v in self._viewpoints() if v.gain_cells >= least and not any(
-            math.dist(v.point_cm, b) <= BLACKLIST_RADIUS_CM for b in ex.blacklist)]
+            math.dist(v.point_cm, b) <= SAME_PLACE_CM for b in ex.blacklist)]
         if not views:
             ex.no_frontier = True
             ex.follower = None
             return False
         ex.no_frontier = False
         if keep and ex.target is not None:
-            current = [v for v in views if math.dist(v.point_cm, ex.target) <= KEEP_CM]
+            current = [v for v in views if math.dist(v.point_cm, ex.target) <= SAME_PLACE_CM]
             if current and current[0].score >= KEEP_SHARE * views[0].score:
                 return True  # the target still sees about as much: keep the route
         for v in views[:MAX_CHOICES]:

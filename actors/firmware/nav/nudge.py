@@ -26,7 +26,7 @@ from server.protocol.grid_map import GridMap
 from server.protocol.pose import Pose
 
 __all__ = ["Block", "Nudge", "NUDGE_STEP_MAX_CM", "MAX_NUDGES", "NUDGE_REACH_CM",
-           "PROBE_WIDTH_CM", "REPEAT_BLOCK_CM", "nudge_step", "series_offset",
+           "PROBE_WIDTH_CM", "nudge_step", "series_offset",
            "on_free_ground", "nudged_route", "probe_route", "with_sidestep", "progress",
            "near_block", "in_passage", "at_mouth", "probe_step", "through_distance"]
 
@@ -47,11 +47,6 @@ PROBE_WIDTH_CM = 40.0
 """A block where the map's passage across the heading is narrower than this probes
 sideways at once (`in_passage`), the nudged route beginning with a sidestep across the
 heading of the block (`with_sidestep`) [cm]."""
-REPEAT_BLOCK_CM = 30.0
-"""Two blocks this near each other are the same place met again [cm]: something the map
-does not show is there (a repeated block learns an obstacle, `recovery`); further on is
-progress (a nudge series starts afresh, `progress`; a route's count of blocks starts
-afresh, `route_nav.RouteNav.count_block`)."""
 
 
 @dataclass(frozen=True, slots=True)

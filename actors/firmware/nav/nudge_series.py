@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING
 from actors.firmware.nav.nudge import (
     MAX_NUDGES,
     NUDGE_REACH_CM,
-    REPEAT_BLOCK_CM,
     Block,
     Nudge,
     near_block,
@@ -28,6 +27,7 @@ from actors.firmware.nav.nudge import (
     series_offset,
     through_distance,
 )
+from actors.firmware.nav.place import SAME_PLACE_CM
 from server.protocol.pose import Pose, compose
 
 if TYPE_CHECKING:
@@ -148,12 +148,12 @@ class NudgeSeries:
         Dead reckoning cannot tell which wall the rover scraped (its heading
         error is invisible to it), so it tries the nudge series (`plan`)
         without first learning an obstacle, which in a passage would only close
-        it. Once a probe made progress (the next block is ``REPEAT_BLOCK_CM`` on,
+        it. Once a probe made progress (the next block is ``SAME_PLACE_CM`` on,
         `nudge.progress`: another place), a new series starts on the side that helped.
         """
         nav = self.nav
         q = nav.pose
-        if self.anchor is None or progress(self.anchor, q.x, q.y) > REPEAT_BLOCK_CM:
+        if self.anchor is None or progress(self.anchor, q.x, q.y) > SAME_PLACE_CM:
             self.anchor, self.nudge, self.tried = self.last_block, None, 0
         if self.tried == 0 and nav.map is not None and self.mouth:  # step by the play
             s = nav.spread

@@ -30,7 +30,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from actors.firmware.nav.nudge import REPEAT_BLOCK_CM, Block, at_mouth, in_passage
+from actors.firmware.nav.nudge import Block, at_mouth, in_passage
+from actors.firmware.nav.place import SAME_PLACE_CM
 from server.protocol.pose import Pose
 
 if TYPE_CHECKING:
@@ -46,7 +47,7 @@ __all__ = ["BlockView", "Hold", "GiveUpRoute", "Replan", "BackOffAndReplan", "Ac
 # `nudge`.
 REPLAN_LIMIT = 10
 """Blocks without progress before a route is given up: a block that comes after the
-route got ``nudge.REPEAT_BLOCK_CM`` nearer its goal than at the last block counted afresh
+route got ``place.SAME_PLACE_CM`` nearer its goal than at the last block counted afresh
 (`route_nav.RouteNav.count_block`)."""
 BACKOFF_REPEAT_CM = 20.0
 """Reverse this far after a second block at one place: room to come back sideways [cm]."""
@@ -275,7 +276,7 @@ class BackOff:
         if not v.blocked:
             return BackOffAndReplan(v.backoff_cm)
         last = v.last_block
-        if last is not None and math.dist(last[:2], v.here[:2]) <= REPEAT_BLOCK_CM:
+        if last is not None and math.dist(last[:2], v.here[:2]) <= SAME_PLACE_CM:
             return BackOffAndReplan(BACKOFF_REPEAT_CM, mark=True,
                                     obstacle=(*v.ahead, OBSTACLE_CM))
         return BackOffAndReplan(v.backoff_cm, mark=True)

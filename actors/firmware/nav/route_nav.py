@@ -32,10 +32,10 @@ from actors.firmware.localisation.belief import Spread
 from actors.firmware.nav.base import NavBase
 from actors.firmware.nav.lateral_touch import LateralTouch
 from actors.firmware.nav.localiser import Localiser
-from actors.firmware.nav.nudge import REPEAT_BLOCK_CM
 from actors.firmware.nav.nudge_series import NudgeSeries
 from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.passage_approach import square_to_axis
+from actors.firmware.nav.place import SAME_PLACE_CM
 from actors.firmware.nav.recovery import (
     RECOVERIES,
     Action,
@@ -394,12 +394,12 @@ class RouteNav(NavBase):
         long passage every metre or so; each scrape is a block, but one that comes
         after the route got nearer its goal is not the same place tried again. What
         the limit bounds is trying one place: the count starts again once the route's
-        remaining length is ``REPEAT_BLOCK_CM`` under what it was at the block that
+        remaining length is ``SAME_PLACE_CM`` under what it was at the block that
         last started it. Still bounded: that mark only falls, by that much each time.
         """
         left = self.follower.remaining_cm(self.map_pose) if self.follower is not None \
             else math.inf
-        if left < self._progress_mark - REPEAT_BLOCK_CM:
+        if left < self._progress_mark - SAME_PLACE_CM:
             self.replans = 0
             self._progress_mark = left
         self.replans += 1
