@@ -117,6 +117,34 @@ async def test_stalled_lidar_never_reads_as_complete(autojump_clock) -> None:
 
 
 @pytest.mark.trio
+async def test_a_lidar_dead_after_the_room_was_seen_still_lets_the_map_complete(
+        autojump_clock) -> None:
+    """A room one spot sees whole, the LIDAR dead after its first scans: the rover holds
+    while it is silent; once the hold gives up (``lidar_pause_s``) its map, with no useful
+    frontier left, is complete and uploads. A silent LIDAR never completes a map while
+    navigation holds for it."""
+    truth = Truth(x0=-50, y0=-60, x1=150, y1=60)
+    body = Body(truth=truth)
+    pool = BufferPool(256)
+    options = MappingOptions(lidar_pause_s=15.0, home_budget_s=0.0)
+    async with open_actor_system(seed=1) as system:
+        await system.start_supervisor(rover_spec("mapper", body, pool, mapping=options),
+                                      "mapper")
+        await net(system, pool, "mapper", "start")
+        assert await wait_for(lambda: body.frames("status")
+                              and body.frames("status")[-1].data["state"] == "exploring", 30.0)
+        await trio.sleep(4.0)  # a few revolutions from where it stands
+        body.lidar_on = False
+        await trio.sleep(4.0)  # silent, and held: no upload while it holds
+        assert not any(c == "WIFLY_SEND_MAP" for c, _ in body.sent)
+        assert await wait_for(lambda: any(c == "WIFLY_SEND_MAP" for c, _ in body.sent), 120.0)
+        details = [f.data.get("detail", "") for f in body.frames("status")]
+        assert any("driving on" in d for d in details)
+        grid = next(o for c, o in body.sent if c == "WIFLY_SEND_MAP")
+        assert coverage(grid, truth) >= 0.9
+
+
+@pytest.mark.trio
 async def test_silent_lidar_pause_ends_when_scans_return(autojump_clock) -> None:
     """A LIDAR silent for 10 s: the rover holds still, then explores on to an upload."""
     truth = Truth(**ROOM)
