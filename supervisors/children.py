@@ -95,6 +95,8 @@ class ChildLifecycle:
                     return
                 status = _InPlace(self, child)
         finally:
+            if isinstance(status, _InPlace):
+                status.settle()  # a start cut short by Ctrl-C or a cancel still ends its restart
             self._ended_run(run)
 
     def _restart_in_place(self, run: Run, reason: ExitReason | Ignore) -> bool:
@@ -204,13 +206,22 @@ class _InPlace:
     `supervisors.restart.Restarts._restart_in_place`): ends the restart when its
     start returned."""
 
-    __slots__ = ("_sup", "_child")
+    __slots__ = ("_sup", "_child", "_reported")
 
     def __init__(self, sup: ChildLifecycle, child: ChildRecord) -> None:
         self._sup = sup
         self._child = child
+        self._reported = False
+
+    def settle(self) -> None:
+        """End the restart as ``killed`` unless its start reported: an incarnation that a
+        ``KeyboardInterrupt`` or a cancel stops while it starts reports nothing (the
+        exception carries the news), and the restart must still end (its lock freed)."""
+        if not self._reported:
+            self.started(KILLED)
 
     def started(self, value: Started = None) -> None:
+        self._reported = True
         child = self._child
         child.restarting = False
         if value is IGNORE:
