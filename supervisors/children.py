@@ -112,7 +112,7 @@ class ChildLifecycle:
     async def _supervisor_task(self, run: Run, *,
                                task_status: trio.TaskStatus[Started]) -> None:
         child = run.child
-        started = False
+        reported = False  # the start's outcome reached the task status, or leaves as an exception
         try:
             with trio.CancelScope() as scope:
                 run.scope = scope
@@ -132,18 +132,18 @@ class ChildLifecycle:
                 run.sup = child.sup = sup
 
                 def started_cb(value: Started = None) -> None:
-                    nonlocal started
-                    started = True
+                    nonlocal reported
+                    reported = True
                     task_status.started(value)
 
                 run.reason = await sup.run(task_status=_Relay(started_cb))
             if scope.cancelled_caught:
                 run.reason = KILLED
         except BaseException:  # Ctrl-C or an outer cancel: it leaves `nursery.start` itself
-            started = True
+            reported = True
             raise
         finally:
-            if not started:
+            if not reported:
                 task_status.started(run.reason or KILLED)
             self._ended_run(run)
 

@@ -45,8 +45,7 @@ from server.protocol.pose import Pose
 __all__ = ["MatchOptions", "MatchResult", "OccupancyField", "MatchFields", "hits_to_local",
            "match_scan", "relocalise", "ITERATIONS", "BLUR_WIDE",
            "BLUR_NARROW", "DAMPING", "MIN_POINTS", "MIN_JUDGED", "MAX_RANGE_CM",
-           "RELOCALISE_TURN_DEG", "RELOCALISE_STEP_DEG",
-           "RELOCALISE_MARGIN"]
+           "RELOCALISE_TURN_DEG", "RELOCALISE_STEP_DEG", "RELOCALISE_MARGIN"]
 
 
 # Structural constants of the Gauss-Newton registration and of its verdict: the solver's
