@@ -9,15 +9,49 @@ Why
     matching comes about a second late with the heading several degrees off.
     Motor Control knows sooner: it drives the tread, and the motors follow
     their PWM with a first-order lag (``motor_tau_s``), so the monitor models
-    how far each tread should have gone since its last Int E.
+    how far each tread should have gone.
+
+The healthy model
+    Over a stretch of ``m`` cm of a tread's modelled travel, a healthy tread
+    counts ``c`` with ``m - c`` normal of mean 0 and standard deviation
+    ``hypot(MODEL_SIGMA * m, unit)``: the lag model's relative error, which is
+    common to both treads (they are driven alike and share the model), and the
+    count lagging the travel by up to one interrupt (``unit``, the encoder's
+    ``cm_per_interrupt``). Every finding is one test of that model: the
+    uncounted travel lies more than ``FAULT_Z`` standard deviations beyond it.
+    Healthy treads in the simulated world stay within 2 (tests/test_tread_monitor.py).
+
+A tread that counts short
+    Over the command (with the turns carried, below), one tread's uncounted
+    travel is beyond the model while the other's is not. A slipping encoder
+    counts about half; a weak motor on that side looks the same (it really
+    goes half as far, and then its odometry is right). Short travel says
+    little: the interrupt's lag dominates, so a few cm are needed.
+
+One tread driven harder for level counts
+    The cross-coupling keeps the counts level, so an encoder slipping at 0.8
+    shows only in the PWM its tread needs. The difference of the two treads'
+    uncounted travel cancels the common relative error and leaves the two
+    interrupts' lags: a difference beyond ``FAULT_Z`` times ``sqrt(2) * unit``
+    is that tread counting short (about 2 cm).
+
+Both treads counting short
+    Both treads' uncounted travel beyond the model: both encoders slipping
+    alike, two weak motors, or a rover sliding along a face it met at an angle
+    (a slide counts ``cos(a)^2`` of the travel driven): in a straight move of
+    the hider or seeker, whose slides are common, both must also count under
+    ``BOTH_MOVE_RATIO``. In such a move, both short while lately counting
+    hardly at all (under ``PUSH_RATIO`` of ``PUSH_WINDOW_CM``) is a push, not a
+    fault: the move ends blocked (`TreadMonitor.pushing`), also after a
+    both-short report (a slide that ends against the face).
 
 A tread that is driven but does not count (silent)
-    When the modelled travel since a tread's last Int E reaches
-    ``SILENT_INTERRUPTS`` (2.5) interrupts while the other tread counted at least
-    ``SILENT_OTHER`` interrupts in a row meanwhile and is that many ahead in
-    the command (two treads slow alike keep level counts, their interrupts
-    interleaved irregularly), the tread is silent. A stalled motor on one
-    side looks the same as a stuck encoder here.
+    The same test over the stretch since the tread's last Int E (its count
+    there is 0), provided the other tread counted at least ``SILENT_OTHER``
+    interrupts in a row meanwhile and is that many ahead in the command (two
+    treads slow alike keep level counts, their interrupts interleaved
+    irregularly). A stalled motor on one side looks the same as a stuck
+    encoder here.
 
 Both treads silent (blocked)
     No Int E from either tread while the model says one went ``blocked_cm``:
@@ -25,41 +59,17 @@ Both treads silent (blocked)
     wall reads the same; the command ends blocked, only sooner than the
     blocked timer (`TreadMonitor.both_silent`).
 
-A tread that counts short
-    Once a tread's modelled travel in the command reaches ``SHORT_AFTER_CM``,
-    a count under ``SHORT_RATIO`` of it while the other tread counts at least
-    ``SHORT_OTHER_RATIO`` of its own is short (a slipping encoder counts
-    about half). A weak motor on that side looks the same (it really goes
-    half as far, and then its odometry is right).
-
-Both treads counting short
-    Both slipping alike keep the treads equal, so the comparison above says
-    nothing, yet the rover turns more than it counts. Once both modelled
-    travels reach ``SHORT_AFTER_CM`` and each tread counted under its share
-    (``SHORT_RATIO`` in turns and on the mapper, ``BOTH_MOVE_RATIO`` in the
-    straight moves of the hider and seeker: a rover sliding along a wall
-    counts 0.55-0.65), both count short. Two weak motors read the same. Both
-    short in a move while lately counting hardly at all is a push, not a
-    fault: the move ends blocked (`TreadMonitor.pushing`).
-
-One tread driven harder for level counts
-    In a straight move the cross-coupling keeps the counts level, so an
-    encoder slipping at 0.8 shows only in the PWM its tread needs; a tread
-    whose modelled travel runs ``UNEVEN_CM`` further ahead of its count than
-    the other's counts short too.
-
 Turns too short to judge alone
-    A seeker's look turns 20 deg at a time: 2.3 cm of each tread, under
-    ``SHORT_AFTER_CM``, so encoders slipping at 0.5 would never be judged and
-    the heading would drift by the uncounted half of every turn. The travel of
-    a turn that ended unjudged (no finding, a tread under ``SHORT_AFTER_CM``)
-    is carried into the next turn's judgement of counting short, the last
-    ``SHORT_AFTER_CM`` of it per tread (the ratio kept), each carried turn's
-    count granted one interrupt (the one a turn may end owing): a run of short
-    turns is judged as one. A move, a judged turn or a finding clears the carry.
+    A seeker's look turns 20 deg at a time: 2.3 cm of each tread, too little
+    for the test, so encoders slipping at 0.5 would never be found and the
+    heading would drift by the uncounted half of every turn. A turn that ends
+    without a finding is carried into the next turn's judgement: the travel
+    adds up, the interrupts' lag does not (a turn that ends owing part of an
+    interrupt has it counted early in the next), and each turn's relative
+    error is its own (variances add). A move or a finding clears the carry.
 
 Each finding is sent at most once per tread per command (short is not sent
-after silent).
+after silent), a push at most once per command.
 """
 
 from __future__ import annotations
@@ -68,9 +78,8 @@ import enum
 import math
 from typing import Protocol
 
-__all__ = ["MonitorTuning", "TreadFault", "TreadVerdict", "TreadMonitor", "SILENT_INTERRUPTS",
-           "SILENT_OTHER", "SHORT_AFTER_CM", "SHORT_RATIO", "SHORT_OTHER_RATIO",
-           "BOTH_MOVE_RATIO", "PUSH_RATIO", "PUSH_WINDOW_CM", "UNEVEN_CM"]
+__all__ = ["MonitorTuning", "TreadFault", "TreadVerdict", "TreadMonitor", "MODEL_SIGMA",
+           "FAULT_Z", "BOTH_MOVE_RATIO", "SILENT_OTHER", "PUSH_RATIO", "PUSH_WINDOW_CM"]
 
 
 class TreadFault(enum.IntFlag):
@@ -140,48 +149,33 @@ class MonitorTuning(Protocol):
     blocked_cm: float
 
 
-# The monitor's detection thresholds. Each is fixed by what the calibrated treads and
-# encoders give, measured in the simulated world (tests/test_tread_monitor.py and the
-# figures below), not a property a rover team sets: together they are the line between a
-# healthy tread and a faulty one.
-SILENT_INTERRUPTS = 2.5
-"""A tread the model says went this many encoder interrupts since its last Int E is
-silent (1.25 cm with 0.5 cm interrupts)."""
-SILENT_OTHER = 2
-"""...provided the other tread counted this many Int E in a row meanwhile, and has counted
-this many more in the command: two treads going slow alike (two weak motors at 0.3, a rover
-pushing against something) interleave their interrupts irregularly, and one could look
-silent with the counts level (each false report costs the seeker a blocked move)."""
-SHORT_AFTER_CM = 5.0
-"""Judge a tread's count against its modelled travel once this far into a command [cm]."""
-SHORT_RATIO = 0.65
-"""A tread that counted less than this share of its modelled travel counts short (a
-healthy tread counts 0.77 or more after 6 cm; a slipping encoder about 0.45), provided
-the other counted at least ``SHORT_OTHER_RATIO`` of its own."""
-SHORT_OTHER_RATIO = 0.8
-"""See ``SHORT_RATIO``."""
+MODEL_SIGMA = 0.1
+"""Relative error of the lagged tread model: the standard deviation of a healthy tread's
+travel against its modelled travel, common to both treads [1] (`localisation.motion_model`
+samples a reported tread's driven travel with it)."""
+FAULT_Z = 3.0
+"""A tread's uncounted travel more than this many standard deviations of the healthy model
+beyond 0 is a finding [1]."""
 BOTH_MOVE_RATIO = 0.5
-"""Both treads counting short in a straight move of the hider or seeker: under this share
-of their modelled travel (``SHORT_RATIO`` elsewhere). A rover sliding along a wall it meets
-at an angle counts 0.55-0.65; encoders slipping at 0.3-0.5 go 2-3 times the counted
-distance."""
+"""Both treads count short in a straight move of the hider or seeker only under this share
+of their modelled travel as well [1]: a rover sliding along a face it meets at an angle
+``a`` counts ``cos(a)^2`` of it (0.55-0.65 along most walls it meets), while encoders
+slipping at 0.3-0.5 go 2-3 times the counted distance."""
+SILENT_OTHER = 2
+"""A silent tread needs the other tread to have counted this many Int E in a row meanwhile,
+and this many more in the command: two treads going slow alike (two weak motors at 0.3, a
+rover pushing against something) interleave their interrupts irregularly, and one could
+look silent with the counts level (each false report costs the seeker a blocked move)."""
 PUSH_RATIO = 0.2
 """Both treads counting under this share of their modelled travel lately, in a move:
 pushing against something, blocked (see `TreadMonitor.pushing`)."""
-PUSH_WINDOW_CM = 2 * SHORT_AFTER_CM
-""""Lately" is judged per this much of both treads' modelled travel together: each tread's
-judging distance, ``SHORT_AFTER_CM``, for the two treads; a push is judged on the last one
-to two of these, 10-20 cm [cm]."""
-UNEVEN_CM = 2.0
-"""In a straight move, a tread whose modelled travel exceeds its count by this much more
-than the other's counts short too [cm]: the cross-coupling keeps the counts level, so an
-encoder slipping at 0.8 shows only as the PWM its tread needs (25 % more than the
-other's), while dead reckoning sees a straight line and the rover turns about 23 deg per
-20 cm. Healthy 20 cm moves differ by 0.6 cm at most, an interrupt's quantum (0.5 cm)
-either way included."""
+PUSH_WINDOW_CM = 10.0
+""""Lately" is judged per this much of both treads' modelled travel together: a push is
+judged on the last one to two of these, 10-20 cm [cm]."""
 
 
-_NO_CARRY = ((0.0, 0.0), (0.0, 0.0))  # no unjudged turn carried: (modelled, counted) per tread
+_NO_CARRY = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+# no turn carried: (modelled, counted, variance of the relative error) per tread
 
 
 class TreadMonitor:
@@ -191,8 +185,8 @@ class TreadMonitor:
         tuning: the motor's physical quantities (``motor.MotorTuning``).
         unit_cm: tread travel per Int E [cm].
         vmax_cm_s: tread speed at full PWM [cm/s].
-        mapper: the rover has its own LIDAR (both-short uses ``SHORT_RATIO`` in moves
-            too, and a push is not judged: the mapper's scan matching sees it).
+        mapper: the rover has its own LIDAR (a push is not judged: the mapper's scan
+            matching sees it).
     """
 
     def __init__(self, tuning: MonitorTuning, unit_cm: float, vmax_cm_s: float,
@@ -210,6 +204,7 @@ class TreadMonitor:
         self.counted = [0.0, 0.0]
         """Counted travel in this command [cm]."""
         self._short_sent = [False, False]  # counts short found in this command
+        self._push_sent = False        # a push found in this command
         self._marks = [(0.0, 0.0)]     # (modelled, counted) sums every PUSH_WINDOW_CM, last two
         self._run = [0, 0]             # Int E in a row without one from the other tread
         self._silent_sent = [False, False]  # silent found in this command
@@ -217,11 +212,18 @@ class TreadMonitor:
         """The duties last set while driving."""
         self._model_t = 0.0            # when the model was last advanced [s]
         self._turning = False          # the command is a turn (as `watch` was last told)
-        self._carry = _NO_CARRY  # unjudged turns' (modelled, counted) per tread
+        self._carry = _NO_CARRY        # earlier turns of the run, judged with this one
+
+    def beyond(self, uncounted: float, modelled: float, variance: float = 0.0) -> bool:
+        """Whether ``uncounted`` travel [cm] over a stretch of ``modelled`` travel [cm]
+        lies beyond the healthy model (``FAULT_Z`` standard deviations); ``variance``
+        [cm^2] is the relative error's of earlier stretches judged with it."""
+        sd = math.sqrt((MODEL_SIGMA * modelled) ** 2 + variance + self._unit ** 2)
+        return uncounted > FAULT_Z * sd
 
     def begin(self, now: float) -> None:
         """A new Command A starts at ``now`` [s]: every count and finding starts over,
-        save an unjudged turn's travel (see "Turns too short to judge alone")."""
+        save the turns carried (see "Turns too short to judge alone")."""
         self._carry_over()
         self._silent_sent = [False, False]
         self._unticked = [0.0, 0.0]
@@ -229,6 +231,7 @@ class TreadMonitor:
         self.modelled = [0.0, 0.0]
         self.counted = [0.0, 0.0]
         self._short_sent = [False, False]
+        self._push_sent = False
         self._marks = [(0.0, 0.0)]
         self.model_v = [0.0, 0.0]
         self._run = [0, 0]
@@ -237,20 +240,17 @@ class TreadMonitor:
 
     def _carry_over(self) -> None:
         """Carry the command that ends into the next turn's judgement when it was a turn
-        that ended unjudged; clear the carry otherwise."""
-        found = any(self._short_sent) or any(self._silent_sent)
-        if not self._turning or found or min(self.modelled) >= SHORT_AFTER_CM:
+        without a finding; clear the carry otherwise."""
+        if not self._turning or any(self._short_sent) or any(self._silent_sent):
             self._carry = _NO_CARRY
             return
-        carry: list[tuple[float, float]] = []
-        for tread in (0, 1):
-            m = self._carry[tread][0] + self.modelled[tread]
-            # an interrupt's grace per carried turn: a turn that ends may owe up to one
-            # interrupt its model already went (healthy short turns count 0.6-1.1 alone)
-            c = self._carry[tread][1] + self.counted[tread] + self._unit
-            keep = min(1.0, SHORT_AFTER_CM / m) if m > 0.0 else 1.0  # the last part, same ratio
-            carry.append((m * keep, c * keep))
-        self._carry = (carry[0], carry[1])
+        c0, c1 = self._carry
+        # an interrupt's grace per carried turn: a turn that ends may owe up to one
+        # interrupt its model already went (healthy short turns count 0.6-1.1 alone)
+        self._carry = tuple(  # type: ignore[assignment]
+            (m + self.modelled[i], c + self.counted[i] + self._unit,
+             v + (MODEL_SIGMA * self.modelled[i]) ** 2)
+            for i, (m, c, v) in enumerate((c0, c1)))
 
     def tick(self, tread: int, now: float) -> None:
         """One Int E of ``tread`` at ``now`` [s]."""
@@ -298,8 +298,6 @@ class TreadMonitor:
         """
         found: list[tuple[TreadVerdict, TreadFault]] = []
         self._turning = not moving
-        if not period_pending:
-            self._watch_counts(moving, found)
         t = self.tuning
         for tread in (0, 1):
             other = 1 - tread
@@ -310,43 +308,43 @@ class TreadMonitor:
             owed = self._unticked[tread]
             if period_pending:
                 owed -= abs(self.model_v[tread]) * t.period_s
-            if owed >= SILENT_INTERRUPTS * self._unit:
+            if self.beyond(owed, owed):
                 self._silent_sent[tread] = True
                 found.append((TreadVerdict.FAULT, TreadFault.silent(tread)))
+        if not period_pending:  # after silence: a tread that stopped counting is silent
+            self._watch_counts(moving, found)
         return found
 
     def _watch_counts(self, moving: bool, found: list[tuple[TreadVerdict, TreadFault]]) -> None:
         """Both treads counting short (a push in a move of the hider or seeker), or one
-        counting short, or driven further for the same count in a move."""
+        counting short, or driven further for the same count."""
         modelled = sum(self.modelled)
         if modelled - self._marks[-1][0] >= PUSH_WINDOW_CM:
             self._marks = [self._marks[-1], (modelled, sum(self.counted))]
-        ratio = SHORT_RATIO if not moving or self._mapper else BOTH_MOVE_RATIO
-        # a turn is judged with the unjudged turns before it; a move on its own
+        # a turn is judged with the turns carried before it; a move on its own
         carry = _NO_CARRY if moving else self._carry
-        judged_m = [self.modelled[i] + carry[i][0] for i in (0, 1)]
-        judged_c = [self.counted[i] + carry[i][1] for i in (0, 1)]
-        if not (any(self._short_sent) or any(self._silent_sent)) \
-                and min(judged_m) >= SHORT_AFTER_CM \
-                and all(judged_c[i] < ratio * judged_m[i] for i in (0, 1)):
-            self._short_sent = [True, True]
-            if moving and not self._mapper and self.pushing():
+        m = [self.modelled[i] + carry[i][0] for i in (0, 1)]
+        c = [self.counted[i] + carry[i][1] for i in (0, 1)]
+        both = all(self.beyond(m[i] - c[i], self.modelled[i], carry[i][2]) for i in (0, 1))
+        if both and moving and not self._mapper:  # a slide counts cos(a)^2 of the drive
+            both = all(c[i] < BOTH_MOVE_RATIO * m[i] for i in (0, 1))
+        if both:
+            if moving and not self._mapper and not self._push_sent and self.pushing():
+                self._push_sent = self._short_sent[0] = self._short_sent[1] = True
                 found.append((TreadVerdict.PUSH, TreadFault.BOTH_SHORT))
                 return
-            found.append((TreadVerdict.FAULT, TreadFault.BOTH_SHORT))
+            if not (any(self._short_sent) or any(self._silent_sent)):
+                self._short_sent = [True, True]
+                found.append((TreadVerdict.FAULT, TreadFault.BOTH_SHORT))
             return
+        # one tread short: its uncounted travel beyond the other's, where the common
+        # relative error cancels and the two interrupts' lags are left
+        lag = FAULT_Z * math.sqrt(2.0) * self._unit
         for tread in (0, 1):
             other = 1 - tread
-            modelled, counted = judged_m[tread], judged_c[tread]
-            if self._short_sent[tread] or self._silent_sent[tread] or modelled < SHORT_AFTER_CM:
+            if self._short_sent[tread] or self._silent_sent[tread]:
                 continue
-            short = counted < SHORT_RATIO * modelled and \
-                judged_c[other] >= SHORT_OTHER_RATIO * judged_m[other]
-            if not short and moving and counted > 0.0:
-                # driven further than the other for the same count (see ``UNEVEN_CM``)
-                short = (modelled - counted) - (judged_m[other] - judged_c[other]) \
-                    >= UNEVEN_CM
-            if short:
+            if (m[tread] - c[tread]) - (m[other] - c[other]) > lag:
                 self._short_sent[tread] = True
                 found.append((TreadVerdict.FAULT, TreadFault.short(tread)))
 

@@ -66,6 +66,8 @@ from enum import IntEnum
 
 import numpy as np
 
+from actors.firmware.drivers.tread_monitor import MODEL_SIGMA
+
 __all__ = ["TreadReport", "TreadMotion", "MotionNoise", "sample_motion", "reports_from_value"]
 
 
@@ -145,9 +147,10 @@ class MotionNoise:
     """Heading error from the treads scrubbing in a turn: standard deviation over 1 deg
     turned, growing with the square root of the turn [deg / sqrt(deg)] (1.9 deg over a
     90 deg turn)."""
-    driven_sigma: float = 0.1
+    driven_sigma: float = MODEL_SIGMA
     """Relative error of Motor Control's modelled travel of a reported tread [1]: the
-    far end of that tread's range is ``driven * (1 + N(0, driven_sigma**2))``."""
+    far end of that tread's range is ``driven * (1 + N(0, driven_sigma**2))``; the tread
+    monitor's healthy model (`drivers.tread_monitor.MODEL_SIGMA`)."""
 
     def __post_init__(self) -> None:
         for name in ("encoder_sigma", "turn_sigma", "driven_sigma"):
