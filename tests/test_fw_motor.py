@@ -434,9 +434,9 @@ async def test_both_treads_counting_short_are_reported_to_the_mapper_and_in_turn
         autojump_clock, counts, lidar, expected) -> None:
     """Both encoders slipping alike (each counts 0.45): navigation gets value 6 once in
     each command long enough to judge (the moves and the 90 deg turn), and no
-    single-tread report with it. A hider's moves are judged at 0.5, not 0.65: counting
-    0.6 (a rover sliding along a wall counts 0.55-0.65) is reported in
-    the turn only, the mapper's everywhere; one tread short is still reported as that
+    single-tread report with it. Both short in a hider's move must also count under
+    ``BOTH_MOVE_RATIO``: counting 0.6 (a rover sliding along a wall counts 0.55-0.65)
+    is reported in the turn only, the mapper's everywhere; one tread short is still reported as that
     tread."""
     log, _ = await run_commands(counts, FOUR, horizon=30.0, lidar=lidar)
     assert [r for r in tread_reports(log) if r & 2] == expected
@@ -448,10 +448,10 @@ async def test_both_treads_counting_short_are_reported_to_the_mapper_and_in_turn
                          ids=["left-0.8", "right-0.8", "healthy"])
 async def test_a_tread_driven_harder_for_level_counts_counts_short_in_a_move(
         autojump_clock, counts, expected) -> None:
-    """One encoder counting 0.8 (above ``SHORT_RATIO``): the cross-coupling keeps the counts
-    level, so only the PWM it needs shows it (23 deg turned unseen per 20 cm). In the 40 cm
-    move that tread is reported as counting short; healthy treads
-    are not (their modelled travel stays within the ``UNEVEN_CM`` of each other)."""
+    """One encoder counting 0.8: the cross-coupling keeps the counts level, so only the
+    PWM it needs shows it (23 deg turned unseen per 20 cm). In the 40 cm move that tread
+    is reported as counting short; healthy treads are not (the difference of their
+    uncounted travel stays within two interrupts' lags)."""
     log, _ = await run_commands(counts, [(Cmd.MOTOR_MOVE, 40.0)], horizon=10.0)
     assert set(tread_reports(log)) == expected
 

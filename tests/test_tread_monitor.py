@@ -76,13 +76,15 @@ def turns(monitor: TreadMonitor, n: int, counts: tuple[float, float],
 
 
 def test_short_turns_too_short_to_judge_alone_are_judged_together() -> None:
-    """Both encoders slipping at 0.45 in a run of look turns, each under the 5 cm a
-    judgement needs: the first turn alone says nothing, the run says both count short."""
+    """Both encoders slipping at 0.45 in a run of look turns, each too short for the
+    interrupts' lag to let the model tell: the first turn alone says nothing, the run
+    says both count short."""
     m = monitor()
     found = turns(m, 4, (0.45, 0.45))
     assert found[0] == []
     assert [(TreadVerdict.FAULT, TreadFault.BOTH_SHORT)] in found[1:]
-    assert max(m.modelled) < 5.0  # each turn alone was too short to judge
+    travel = max(m.modelled)  # each turn alone was too short for the model to tell
+    assert not m.beyond(0.55 * travel, travel)
 
 
 def test_healthy_short_turns_give_no_finding() -> None:
@@ -96,3 +98,26 @@ def test_a_move_clears_the_carried_turns() -> None:
     assert turns(m, 1, (0.45, 0.45)) == [[]]
     assert drive(m, 0.12, (1.0, 1.0)) == []
     assert turns(m, 1, (0.45, 0.45)) == [[]]
+
+
+def test_a_push_after_a_both_short_report_still_ends_the_move() -> None:
+    """Both encoders slipping at 0.45 in a hider's move (value 6), then the rover meets a
+    wall and the treads hardly count: the push is found all the same (the move ends
+    blocked), once."""
+    m = monitor()
+    m.begin(0.0)
+    m.pwm = (1.0, 1.0)
+    found, t, owed = [], 0.0, [0.0, 0.0]
+    while t < 3.0:
+        t += 0.05
+        share = 0.45 if t < 1.0 else 0.05
+        before = list(m.modelled)
+        m.advance(t)
+        for tread in (0, 1):
+            owed[tread] += (m.modelled[tread] - before[tread]) * share
+            while owed[tread] >= 0.5:
+                owed[tread] -= 0.5
+                m.tick(tread, t)
+        found += m.watch(True, period_pending=False)
+    assert found == [(TreadVerdict.FAULT, TreadFault.BOTH_SHORT),
+                     (TreadVerdict.PUSH, TreadFault.BOTH_SHORT)]
