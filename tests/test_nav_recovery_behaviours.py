@@ -8,8 +8,6 @@ from dataclasses import dataclass, field
 import pytest
 
 from actors.firmware.nav.recovery import (
-    BACKOFF_REPEAT_CM,
-    OBSTACLE_CM,
     RECOVERIES,
     REPLAN_LIMIT,
     STALL_HOLDS,
@@ -37,6 +35,8 @@ class View:
     stall_holds: int = 0
     tread_hold_s: float = 12.0
     backoff_cm: float = 6.0
+    length_cm: float = 20.0
+    obstacle_cm: float = 7.5
     here: tuple[float, float, float] = (100.0, 50.0, 0.0)
     last_block: tuple[float, float, float] | None = None
     anchored: bool = False
@@ -137,11 +137,11 @@ def test_a_passage_probes_sideways_and_a_contact_relocalises(
 
 def test_a_second_block_near_the_first_learns_an_obstacle_and_backs_off_further() -> None:
     """Nothing explains a block: it is remembered; a second within 30 cm of the first
-    learns a small obstacle ahead and backs off ``BACKOFF_REPEAT_CM``."""
+    learns an obstacle as wide as the body's front ahead and backs off a body length."""
     assert first_action(View()) == BackOffAndReplan(6.0, mark=True)
     near = View(last_block=(110.0, 60.0, 0.0))
-    assert first_action(near) == BackOffAndReplan(
-        BACKOFF_REPEAT_CM, mark=True, obstacle=(120.5, 50.0, OBSTACLE_CM))
+    assert first_action(near) == BackOffAndReplan(20.0, mark=True,
+                                                  obstacle=(120.5, 50.0, 7.5))
     assert first_action(View(last_block=(200.0, 50.0, 0.0))) == BackOffAndReplan(
         6.0, mark=True)
     assert first_action(View(why="no progress")) == BackOffAndReplan(6.0)

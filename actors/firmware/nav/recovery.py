@@ -39,8 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = ["BlockView", "Hold", "GiveUpRoute", "Replan", "BackOffAndReplan", "Action",
            "WaitOutStall", "GiveUp", "ReplanWedged", "NudgeSideways",
-           "Relocalise", "BackOff", "RECOVERIES", "REPLAN_LIMIT", "BACKOFF_REPEAT_CM",
-           "STALL_HOLDS", "OBSTACLE_CM"]
+           "Relocalise", "BackOff", "RECOVERIES", "REPLAN_LIMIT", "STALL_HOLDS"]
 
 # The bounds of the recovery behaviours: how long a route may try before it is given up,
 # and how a back-off reads a stalled tread. The geometry of the sideways search is in
@@ -49,14 +48,9 @@ REPLAN_LIMIT = 10
 """Blocks without progress before a route is given up: a block that comes after the
 route got ``place.SAME_PLACE_CM`` nearer its goal than at the last block counted afresh
 (`route_nav.RouteNav.count_block`)."""
-BACKOFF_REPEAT_CM = 20.0
-"""Reverse this far after a second block at one place: room to come back sideways [cm]."""
 STALL_HOLDS = 3
 """Holds for a stalled tread or motor per route that do not count toward
 ``REPLAN_LIMIT`` (12 s, 24 s, 48 s: longer than a transient stall); later ones count."""
-OBSTACLE_CM = 8.0
-"""Radius of the obstacle learned ahead of a repeated block, and how far beyond the
-turning radius its centre lies [cm]."""
 
 
 # ---------------------------------------------------------------------- actions
@@ -132,8 +126,13 @@ class BlockView:
         """The last block remembered (own frame), if any."""
         self.anchored = nav.nudges.anchor is not None
         """A probe series is anchored."""
+        self.length_cm = nav.length_cm
+        """The body's length [cm]."""
+        self.obstacle_cm = 0.5 * nav.width_cm
+        """Radius of an obstacle met head-on [cm]: the contact lies anywhere across the
+        body's front, so the obstacle is as wide as it."""
         p = nav.map_pose
-        ahead = nav.radius_cm + OBSTACLE_CM
+        ahead = nav.radius_cm + self.obstacle_cm  # just beyond the turning circle
         h = math.radians(p.heading_deg)
         self.ahead = (p.x + ahead * math.cos(h), p.y + ahead * math.sin(h))
         """Where an obstacle met head-on would be (map frame [cm])."""
@@ -269,7 +268,10 @@ class Relocalise:
 class BackOff:
     """Anything else: back off and replan. A second block near the first means something
     the map does not show is there (one block alone may be a restarted motor cutting its
-    command short): a small obstacle is learned and the back-off is longer."""
+    command short): an obstacle as wide as the body's front is learned just beyond its
+    turning circle (`BlockView.ahead`), and the back-off is a body length: the body
+    clears the place it met by its own length, room to turn and come back on another
+    line."""
 
     def decide(self, v: BlockView) -> Action | None:
         """Back off, learning an obstacle at a repeated block."""
@@ -277,8 +279,8 @@ class BackOff:
             return BackOffAndReplan(v.backoff_cm)
         last = v.last_block
         if last is not None and math.dist(last[:2], v.here[:2]) <= SAME_PLACE_CM:
-            return BackOffAndReplan(BACKOFF_REPEAT_CM, mark=True,
-                                    obstacle=(*v.ahead, OBSTACLE_CM))
+            return BackOffAndReplan(v.length_cm, mark=True,
+                                    obstacle=(*v.ahead, v.obstacle_cm))
         return BackOffAndReplan(v.backoff_cm, mark=True)
 
 
