@@ -19,7 +19,8 @@ The healthy model
     count lagging the travel by up to one interrupt (``unit``, the encoder's
     ``cm_per_interrupt``). Every finding is one test of that model: the
     uncounted travel lies more than ``FAULT_Z`` standard deviations beyond it.
-    Healthy treads in the simulated world stay within 2 (tests/test_tread_monitor.py).
+    Healthy treads of the simulated world stay within 2 standard deviations
+    away from contacts.
 
 A tread that counts short
     Over the command (with the turns carried, below), one tread's uncounted
@@ -171,6 +172,7 @@ look silent with the counts level (each false report costs the seeker a blocked 
 PUSH_RATIO = 0.2
 """Both treads counting under this share of their modelled travel lately, in a move:
 pushing against something, blocked (see `TreadMonitor.pushing`)."""
+
 
 def push_window_cm(unit_cm: float) -> float:
     """How far each tread must go for the healthy model to tell a tread that counts
