@@ -24,17 +24,17 @@ The healthy model
 
 A tread that counts short
     Over the command (with the turns carried, below), one tread's uncounted
-    travel is beyond the model while the other's is not. A slipping encoder
-    counts about half; a weak motor on that side looks the same (it really
-    goes half as far, and then its odometry is right). Short travel says
-    little: the interrupt's lag dominates, so a few cm are needed.
+    travel runs beyond the other's. A slipping encoder counts about half; a
+    weak motor on that side looks the same (it really goes half as far, and
+    then its odometry is right). Short travel says little: the interrupts'
+    lag dominates, so a few cm are needed.
 
-One tread driven harder for level counts
-    The cross-coupling keeps the counts level, so an encoder slipping at 0.8
-    shows only in the PWM its tread needs. The difference of the two treads'
-    uncounted travel cancels the common relative error and leaves the two
-    interrupts' lags: a difference beyond ``FAULT_Z`` times ``sqrt(2) * unit``
-    is that tread counting short (about 2 cm).
+    The difference of the two treads' uncounted travel cancels the common
+    relative error and leaves the two interrupts' lags: a difference beyond
+    ``FAULT_Z`` times ``sqrt(2) * unit`` (about 2 cm; each carried turn adds
+    its own two lags) is that tread counting short. So is one encoder slipping
+    at 0.8 in a move, which the cross-coupling keeps level in its count: it
+    shows only in the PWM its tread needs.
 
 Both treads counting short
     Both treads' uncounted travel beyond the model: both encoders slipping
@@ -221,6 +221,7 @@ class TreadMonitor:
         self._model_t = 0.0            # when the model was last advanced [s]
         self._turning = False          # the command is a turn (as `watch` was last told)
         self._carry = _NO_CARRY        # earlier turns of the run, judged with this one
+        self._carried_turns = 0        # how many
 
     def beyond(self, uncounted: float, modelled: float, variance: float = 0.0) -> bool:
         """Whether ``uncounted`` travel [cm] over a stretch of ``modelled`` travel [cm]
@@ -250,8 +251,9 @@ class TreadMonitor:
         """Carry the command that ends into the next turn's judgement when it was a turn
         without a finding; clear the carry otherwise."""
         if not self._turning or any(self._short_sent) or any(self._silent_sent):
-            self._carry = _NO_CARRY
+            self._carry, self._carried_turns = _NO_CARRY, 0
             return
+        self._carried_turns += 1
         c0, c1 = self._carry
         # an interrupt's grace per carried turn: a turn that ends may owe up to one
         # interrupt its model already went (healthy short turns count 0.6-1.1 alone)
@@ -346,8 +348,10 @@ class TreadMonitor:
                 found.append((TreadVerdict.FAULT, TreadFault.BOTH_SHORT))
             return
         # one tread short: its uncounted travel beyond the other's, where the common
-        # relative error cancels and the two interrupts' lags are left
-        lag = FAULT_Z * math.sqrt(2.0) * self._unit
+        # relative error cancels and the two interrupts' lags are left, each turn judged
+        # adding its own (a turn ends owing part of an interrupt on each tread)
+        turns = 0 if moving else self._carried_turns
+        lag = FAULT_Z * math.sqrt(2.0 * (1 + turns)) * self._unit
         for tread in (0, 1):
             other = 1 - tread
             if self._short_sent[tread] or self._silent_sent[tread]:
