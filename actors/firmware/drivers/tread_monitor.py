@@ -32,7 +32,8 @@ A tread that counts short
     The difference of the two treads' uncounted travel cancels the common
     relative error and leaves the two interrupts' lags: a difference beyond
     ``FAULT_Z`` times ``sqrt(2) * unit`` (about 2 cm; each carried turn adds
-    its own two lags) is that tread counting short. So is one encoder slipping
+    its own two lags) is that tread counting short. A tread that counted more
+    than its model (pushed round by something) is taken as level with it. So is one encoder slipping
     at 0.8 in a move, which the cross-coupling keeps level in its count: it
     shows only in the PWM its tread needs.
 
@@ -356,7 +357,9 @@ class TreadMonitor:
             other = 1 - tread
             if self._short_sent[tread] or self._silent_sent[tread]:
                 continue
-            if (m[tread] - c[tread]) - (m[other] - c[other]) > lag:
+            # a tread that counted more than its model was turned by something else
+            # (pushed round): that says nothing about the other
+            if (m[tread] - c[tread]) - max(m[other] - c[other], 0.0) > lag:
                 self._short_sent[tread] = True
                 found.append((TreadVerdict.FAULT, TreadFault.short(tread)))
 
