@@ -145,6 +145,29 @@ class FakeHardware:
 
 
 @pytest.mark.trio
+@pytest.mark.parametrize("seed", [1, 2, 3])
+async def test_healthy_treads_of_the_simulated_world_stay_within_the_tread_model(
+        autojump_clock, seed) -> None:
+    """Moves, a square turn and a run of look turns (20 deg each) on the world's healthy
+    treads, with its default slip noise: Motor Control reports no tread fault."""
+    world = World(empty_room(None), np.random.default_rng(seed))
+    hw = world.hardware("hider")
+    log: list = []
+    commands = [(Cmd.MOTOR_MOVE, 40.0), (Cmd.MOTOR_TURN, 90.0)] + \
+        [(Cmd.MOTOR_TURN, 20.0)] * 9 + [(Cmd.MOTOR_MOVE, -30.0), (Cmd.MOTOR_TURN, -45.0),
+                                        (Cmd.MOTOR_MOVE, 15.0)]
+    async with trio.open_nursery() as nursery, open_actor_system(seed) as system:
+        nursery.start_soon(run_world, world)
+        await system.start_supervisor(motor_tree(hw, PoseMemory(), log), "hider")
+        for command, amount in commands:
+            await system.send("hider/motor", Message.float(command, amount))
+            done = await wait_for(log, {Cmd.NAV_MOTION_DONE, Cmd.NAV_MOTION_BLOCKED})
+            assert done.command == Cmd.NAV_MOTION_DONE
+        nursery.cancel_scope.cancel()
+    assert tread_reports(log) == []
+
+
+@pytest.mark.trio
 async def test_no_encoder_progress_reports_blocked(autojump_clock) -> None:
     """Treads commanded with no Int E while the model says one went 3 cm (about 0.25 s from
     standing, the lag included): NAV_MOTION_BLOCKED and treads stopped."""
