@@ -52,7 +52,7 @@ KINDS: dict[str, dict[str, str]] = {
         "motor_tau_s": "physical"},
     "drivers.tread_monitor": {
         "MODEL_SIGMA": "physical", "FAULT_Z": "policy", "BOTH_MOVE_RATIO": "policy",
-        "SILENT_OTHER": "policy", "PUSH_RATIO": "policy",
+        "SILENT_OTHER": "policy", "PUSH_RATIO": "policy", "PUSH_WINDOW_CM": "policy",
         "_NO_CARRY": "structural"},
     "drivers.wifly": {"_GRID_TOLERANCE": "structural", "_MAX_STEPS": "structural"},
     "hardware": {"LIDAR_SYNC": "structural", "LIDAR_PACKET_SIZE": "structural",

@@ -43,8 +43,7 @@ Both treads counting short
     (a slide counts ``cos(a)^2`` of the travel driven): in a straight move of
     the hider or seeker, whose slides are common, both must also count under
     ``BOTH_MOVE_RATIO``. In such a move, both short while lately counting
-    hardly at all (under ``PUSH_RATIO`` of the travel over which the model can
-    tell that share, `push_window_cm`) is a push, not a
+    hardly at all (under ``PUSH_RATIO`` of ``PUSH_WINDOW_CM``) is a push, not a
     fault: the move ends blocked (`TreadMonitor.pushing`), also after a
     both-short report (a slide that ends against the face).
 
@@ -83,7 +82,7 @@ from typing import Protocol
 
 __all__ = ["MonitorTuning", "TreadFault", "TreadVerdict", "TreadMonitor", "MODEL_SIGMA",
            "FAULT_Z", "BOTH_MOVE_RATIO", "SILENT_OTHER", "PUSH_RATIO",
-           "push_window_cm"]
+           "PUSH_WINDOW_CM"]
 
 
 class TreadFault(enum.IntFlag):
@@ -173,13 +172,10 @@ look silent with the counts level (each false report costs the seeker a blocked 
 PUSH_RATIO = 0.2
 """Both treads counting under this share of their modelled travel lately, in a move:
 pushing against something, blocked (see `TreadMonitor.pushing`)."""
-
-
-def push_window_cm(unit_cm: float) -> float:
-    """How far each tread must go for the healthy model to tell a tread that counts
-    ``PUSH_RATIO`` of its travel [cm]: "lately", for a push (`TreadMonitor.pushing`).
-    With 0.5 cm interrupts, 2.0 cm."""
-    return FAULT_Z * unit_cm / math.sqrt((1.0 - PUSH_RATIO) ** 2 - (FAULT_Z * MODEL_SIGMA) ** 2)
+PUSH_WINDOW_CM = 10.0
+""""Lately" is judged per this much of both treads' modelled travel together: a push is
+judged on the last one to two of these, 10-20 cm [cm]. Shorter, the interrupt granted
+(`TreadMonitor.pushing`) hides a rover that slides on at 0.1 of its drive."""
 
 
 _NO_CARRY = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
@@ -203,7 +199,6 @@ class TreadMonitor:
         self._unit = unit_cm
         self._vmax = vmax_cm_s
         self._mapper = mapper
-        self._window = 2.0 * push_window_cm(unit_cm)  # both treads' travel together [cm]
         self.model_v = [0.0, 0.0]
         """Modelled tread speed (lagged PWM) [cm/s]."""
         self._unticked = [0.0, 0.0]    # modelled travel since the tread's last Int E [cm]
@@ -214,7 +209,7 @@ class TreadMonitor:
         """Counted travel in this command [cm]."""
         self._short_sent = [False, False]  # counts short found in this command
         self._push_sent = False        # a push found in this command
-        self._marks = [(0.0, 0.0)]     # (modelled, counted) sums every window, last two
+        self._marks = [(0.0, 0.0)]     # (modelled, counted) sums every PUSH_WINDOW_CM, last two
         self._run = [0, 0]             # Int E in a row without one from the other tread
         self._silent_sent = [False, False]  # silent found in this command
         self.pwm = (0.0, 0.0)
@@ -330,7 +325,7 @@ class TreadMonitor:
         """Both treads counting short (a push in a move of the hider or seeker), or one
         counting short, or driven further for the same count."""
         modelled = sum(self.modelled)
-        if modelled - self._marks[-1][0] >= self._window:
+        if modelled - self._marks[-1][0] >= PUSH_WINDOW_CM:
             self._marks = [self._marks[-1], (modelled, sum(self.counted))]
         # a turn is judged with the turns carried before it; a move on its own
         carry = _NO_CARRY if moving else self._carry
@@ -370,8 +365,8 @@ class TreadMonitor:
         Slipping encoders count 0.3-0.8 of the travel from the moment they slip; a
         rover that meets a wall counts right until then and next to nothing after, or
         a few % while it slides along a face it meets at an angle. Judged on the last
-        one to two `push_window_cm` of each tread's modelled travel (both together),
-        one interrupt's quantum granted (two weak motors at 0.3 must not read as a push).
+        ``PUSH_WINDOW_CM`` to twice that of both treads' modelled travel, one
+        interrupt's quantum granted (two weak motors at 0.3 must not read as a push).
         """
         modelled0, counted0 = self._marks[0]
         modelled = sum(self.modelled) - modelled0
