@@ -159,7 +159,7 @@ KINDS: dict[str, dict[str, str]] = {
     "nav.sensor_watch": {"LIDAR_SILENT_S": "policy", "ODO_HOLD_S": "policy",
                          "SHORT_HOLD_S": "policy", "CONTACT_CELLS": "policy"},
     "nav.tread_faults": {"TREAD_HOLDS": "structural", "TREAD_CONTACT_S": "policy",
-                         "TREAD_STOP_S": "structural", "TREAD_CHECK_CM": "policy"},
+                         "TREAD_STOP_S": "structural"},
     "origin_wire": {"_INT16": "structural", "MM": "structural", "CM": "structural"},
     "payloads.Field": {"scale": "structural"},
     "telemetry": {"_POLL_S": "structural", "_MAP_FRAMES_PER_ROUND": "structural",

@@ -16,6 +16,7 @@ import trio
 
 from actors import BufferPool, open_actor_system
 from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.nav.factory import make_nav
 from actors.firmware.nav.nudge import (
@@ -34,7 +35,7 @@ from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.place import SAME_PLACE_CM
 from actors.firmware.nav.recovery import REPLAN_LIMIT
 from actors.firmware.nav.route import Motion
-from actors.firmware.nav.tread_faults import TREAD_CHECK_CM
+from actors.firmware.nav.tread_faults import check_cm
 from server.protocol.pose import Pose
 from tests.test_nav_common import (
     Body,
@@ -330,7 +331,7 @@ async def test_after_a_turn_on_silent_treads_a_short_move_checks_them_before_tur
         autojump_clock) -> None:
     """The motor stalls for 30 s as the hider makes its first turn (both treads reported
     silent). Turning again while the fault is on would add as much heading doubt once
-    more, so after each hold it checks the treads with a 2 cm straight move, holds again
+    more, so after each hold it checks the treads with a short straight move, holds again
     (24 s) while that ends blocked, and drives on only once the check passes; it
     arrives."""
     stall = StalledMotor(0.0, 30.0, report_turns=True)
@@ -340,9 +341,10 @@ async def test_after_a_turn_on_silent_treads_a_short_move_checks_them_before_tur
                if c in ("MOTOR_TURN", "MOTOR_MOVE")]
     assert motions[0][1] == "MOTOR_TURN"  # the turn the stall stops
     hold = NavOptions().tread_hold_s
-    assert motions[1][1:] == ("MOTOR_MOVE", TREAD_CHECK_CM)
+    check = pytest.approx(check_cm(HardwareSpec.bench("hider").cm_per_interrupt))  # the message carries a float32
+    assert motions[1][1:] == ("MOTOR_MOVE", check)
     assert motions[1][0] >= motions[0][0] + hold
-    assert motions[2][1:] == ("MOTOR_MOVE", TREAD_CHECK_CM)  # the first check ended blocked
+    assert motions[2][1:] == ("MOTOR_MOVE", check)  # the first check ended blocked
     assert motions[2][0] >= motions[1][0] + 2.0 * hold
     assert motions[2][0] >= stall.t1  # the second check passed: the route goes on
     assert "the treads still do not count; holding 24 s" in [
@@ -363,7 +365,8 @@ async def test_a_tread_check_that_counted_before_a_block_passes_and_the_route_ta
     await drive_until_answered(body, 600.0, OPEN_ROOM)
     motions = [(t, c, v) for t, (c, v) in zip(body.motor_at, body.motor_log, strict=True)
                if c in ("MOTOR_TURN", "MOTOR_MOVE")]
-    assert motions[1][1:] == ("MOTOR_MOVE", TREAD_CHECK_CM)
+    check = pytest.approx(check_cm(HardwareSpec.bench("hider").cm_per_interrupt))  # the message carries a float32
+    assert motions[1][1:] == ("MOTOR_MOVE", check)
     assert motions[2][1:] == ("MOTOR_MOVE", -NavOptions().backoff_cm)
     assert motions[2][0] - motions[1][0] < 2.0
     assert not any("still do not count" in f.data.get("detail", "")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from benchmarks import tunables
 
-MAX_POLICY = 41
+MAX_POLICY = 40
 """Policy numbers (thresholds of hand-tuned rules) in the firmware, at most: a new one
 replaces one, or is shown to be physical, structural or derived."""
 

@@ -82,7 +82,7 @@ from typing import Protocol
 
 __all__ = ["MonitorTuning", "TreadFault", "TreadVerdict", "TreadMonitor", "MODEL_SIGMA",
            "FAULT_Z", "BOTH_MOVE_RATIO", "SILENT_OTHER", "PUSH_RATIO",
-           "PUSH_WINDOW_CM"]
+           "PUSH_WINDOW_CM", "silent_reach_cm"]
 
 
 class TreadFault(enum.IntFlag):
@@ -176,6 +176,13 @@ PUSH_WINDOW_CM = 10.0
 """"Lately" is judged per this much of both treads' modelled travel together: a push is
 judged on the last one to two of these, 10-20 cm [cm]. Shorter, the interrupt granted
 (`TreadMonitor.pushing`) hides a rover that slides on at 0.1 of its drive."""
+
+
+def silent_reach_cm(unit_cm: float) -> float:
+    """How far a tread that does not count must be driven for the healthy model to call
+    it silent [cm]: the modelled travel ``u`` with no Int E for which
+    ``u > FAULT_Z * hypot(MODEL_SIGMA * u, unit_cm)``. With 0.5 cm interrupts, 1.6 cm."""
+    return FAULT_Z * unit_cm / math.sqrt(1.0 - (FAULT_Z * MODEL_SIGMA) ** 2)
 
 
 _NO_CARRY = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))

@@ -15,13 +15,13 @@ from typing import TYPE_CHECKING
 
 import trio
 
-from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.drivers.tread_monitor import TreadFault, silent_reach_cm
 from actors.firmware.nav.route import Motion
 
 if TYPE_CHECKING:
     from actors.firmware.nav.route_nav import RouteNav
 
-__all__ = ["TreadFaults", "TREAD_HOLDS", "TREAD_CONTACT_S", "TREAD_STOP_S", "TREAD_CHECK_CM"]
+__all__ = ["TreadFaults", "TREAD_HOLDS", "TREAD_CONTACT_S", "TREAD_STOP_S", "check_cm"]
 
 TREAD_HOLDS = 2
 """Holds in a row (each report within a minute of the last), at most; a further report
@@ -33,10 +33,15 @@ scraping along the wall it met counts short as well."""
 TREAD_STOP_S = 1.0
 """A tread fault that ends its motion as blocked waits this long before deciding [s]: the
 stopped motion's last pose and end arrive meanwhile and are ignored."""
-TREAD_CHECK_CM = 2.0
-"""After a hold for a silent tread in a turn, a straight move this long checks the treads
-before the route turns again [cm] (`TreadFaults.check_treads`): four encoder interrupts,
-under Motor Control's ``blocked_cm``, so a fault still on ends it within a few cm."""
+
+
+def check_cm(cm_per_interrupt: float) -> float:
+    """The length of the straight move that checks the treads after a hold for a silent
+    tread in a turn [cm] (`TreadFaults.check_treads`): the shortest over which Motor
+    Control's tread monitor calls a tread that does not count silent
+    (`drivers.tread_monitor.silent_reach_cm`), so a fault still on ends it within a
+    couple of cm, under Motor Control's ``blocked_cm``."""
+    return silent_reach_cm(cm_per_interrupt)
 
 
 class TreadFaults:
@@ -126,7 +131,7 @@ class TreadFaults:
 
     async def check_treads(self, blocked: bool, done: float) -> bool:
         """After a hold for a silent tread in a turn: check the treads with a short
-        straight move (``TREAD_CHECK_CM``, away from the nearer mapped wall:
+        straight move (`check_cm`, away from the nearer mapped wall:
         `check_sign`) before the route turns again, and hold once more while the check
         ends blocked having counted under half of it (``tread_hold_s`` doubled each
         time, at most ``TREAD_HOLDS`` times). True when it commanded or held (the
@@ -147,7 +152,7 @@ class TreadFaults:
             self._checking = None
             # counted under half its length: the fault is on (a block after the treads
             # counted is a wall's or an obstacle's, for the route's block handling)
-            if blocked and abs(done) < 0.5 * TREAD_CHECK_CM and \
+            if blocked and abs(done) < 0.5 * check_cm(nav.spec.cm_per_interrupt) and \
                     self._check_holds < TREAD_HOLDS:
                 self._check_holds += 1
                 hold = nav.o.tread_hold_s * 2.0 ** self._check_holds
@@ -160,7 +165,7 @@ class TreadFaults:
         if not self._check_due:
             return False
         self._check_due = False
-        self._checking = Motion("move", nav.check_sign() * TREAD_CHECK_CM)
+        self._checking = Motion("move", nav.check_sign() * check_cm(nav.spec.cm_per_interrupt))
         await nav.command(self._checking)
         return True
 
