@@ -341,7 +341,8 @@ async def test_after_a_turn_on_silent_treads_a_short_move_checks_them_before_tur
                if c in ("MOTOR_TURN", "MOTOR_MOVE")]
     assert motions[0][1] == "MOTOR_TURN"  # the turn the stall stops
     hold = NavOptions().tread_hold_s
-    check = pytest.approx(check_cm(HardwareSpec.bench("hider").cm_per_interrupt))  # the message carries a float32
+    # the message carries a float32
+    check = pytest.approx(check_cm(HardwareSpec.bench("hider").cm_per_interrupt))
     assert motions[1][1:] == ("MOTOR_MOVE", check)
     assert motions[1][0] >= motions[0][0] + hold
     assert motions[2][1:] == ("MOTOR_MOVE", check)  # the first check ended blocked
@@ -365,7 +366,8 @@ async def test_a_tread_check_that_counted_before_a_block_passes_and_the_route_ta
     await drive_until_answered(body, 600.0, OPEN_ROOM)
     motions = [(t, c, v) for t, (c, v) in zip(body.motor_at, body.motor_log, strict=True)
                if c in ("MOTOR_TURN", "MOTOR_MOVE")]
-    check = pytest.approx(check_cm(HardwareSpec.bench("hider").cm_per_interrupt))  # the message carries a float32
+    # the message carries a float32
+    check = pytest.approx(check_cm(HardwareSpec.bench("hider").cm_per_interrupt))
     assert motions[1][1:] == ("MOTOR_MOVE", check)
     assert motions[2][1:] == ("MOTOR_MOVE", -NavOptions().backoff_cm)
     assert motions[2][0] - motions[1][0] < 2.0
