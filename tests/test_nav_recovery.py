@@ -15,7 +15,7 @@ import pytest
 import trio
 
 from actors import BufferPool, open_actor_system
-from actors.firmware.drivers.tread_monitor import TreadFault
+from actors.firmware.drivers.tread_monitor import TreadFault, silent_reach_cm
 from actors.firmware.hardware import HardwareSpec
 from actors.firmware.localisation.motion_model import MotionNoise
 from actors.firmware.nav.factory import make_nav
@@ -35,7 +35,6 @@ from actors.firmware.nav.options import NavMemory, NavOptions
 from actors.firmware.nav.place import SAME_PLACE_CM
 from actors.firmware.nav.recovery import REPLAN_LIMIT
 from actors.firmware.nav.route import Motion
-from actors.firmware.nav.tread_faults import check_cm
 from server.protocol.pose import Pose
 from tests.test_nav_common import (
     Body,
@@ -342,7 +341,7 @@ async def test_after_a_turn_on_silent_treads_a_short_move_checks_them_before_tur
     assert motions[0][1] == "MOTOR_TURN"  # the turn the stall stops
     hold = NavOptions().tread_hold_s
     # the message carries a float32
-    check = pytest.approx(check_cm(HardwareSpec.bench("hider").cm_per_interrupt))
+    check = pytest.approx(silent_reach_cm(HardwareSpec.bench("hider").cm_per_interrupt))
     assert motions[1][1:] == ("MOTOR_MOVE", check)
     assert motions[1][0] >= motions[0][0] + hold
     assert motions[2][1:] == ("MOTOR_MOVE", check)  # the first check ended blocked
@@ -367,7 +366,7 @@ async def test_a_tread_check_that_counted_before_a_block_passes_and_the_route_ta
     motions = [(t, c, v) for t, (c, v) in zip(body.motor_at, body.motor_log, strict=True)
                if c in ("MOTOR_TURN", "MOTOR_MOVE")]
     # the message carries a float32
-    check = pytest.approx(check_cm(HardwareSpec.bench("hider").cm_per_interrupt))
+    check = pytest.approx(silent_reach_cm(HardwareSpec.bench("hider").cm_per_interrupt))
     assert motions[1][1:] == ("MOTOR_MOVE", check)
     assert motions[2][1:] == ("MOTOR_MOVE", -NavOptions().backoff_cm)
     assert motions[2][0] - motions[1][0] < 2.0

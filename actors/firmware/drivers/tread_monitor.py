@@ -32,10 +32,10 @@ A tread that counts short
     The difference of the two treads' uncounted travel cancels the common
     relative error and leaves the two interrupts' lags: a difference beyond
     ``FAULT_Z`` times ``sqrt(2) * unit`` (about 2 cm; each carried turn adds
-    its own two lags) is that tread counting short. A tread that counted more
-    than its model (pushed round by something) is taken as level with it. So is one encoder slipping
-    at 0.8 in a move, which the cross-coupling keeps level in its count: it
-    shows only in the PWM its tread needs.
+    its own two lags) is that tread counting short. This also finds one
+    encoder slipping at 0.8 in a move, which the cross-coupling keeps level in
+    its count: it shows only in the PWM its tread needs. A tread that counted
+    more than its model (pushed round by something) is taken as level with it.
 
 Both treads counting short
     Both treads' uncounted travel beyond the model: both encoders slipping
@@ -257,13 +257,15 @@ class TreadMonitor:
             self._carry, self._carried_turns = _NO_CARRY, 0
             return
         self._carried_turns += 1
-        c0, c1 = self._carry
-        # an interrupt's grace per carried turn: a turn that ends may owe up to one
-        # interrupt its model already went (healthy short turns count 0.6-1.1 alone)
-        self._carry = tuple(  # type: ignore[assignment]
-            (m + self.modelled[i], c + self.counted[i] + self._unit,
-             v + (MODEL_SIGMA * self.modelled[i]) ** 2)
-            for i, (m, c, v) in enumerate((c0, c1)))
+
+        def grown(tread: int) -> tuple[float, float, float]:
+            m, c, v = self._carry[tread]
+            turn = self.modelled[tread]
+            # an interrupt's grace per carried turn: a turn that ends may owe up to one
+            # interrupt its model already went (healthy short turns count 0.6-1.1 alone)
+            return m + turn, c + self.counted[tread] + self._unit, v + (MODEL_SIGMA * turn) ** 2
+
+        self._carry = (grown(0), grown(1))
 
     def tick(self, tread: int, now: float) -> None:
         """One Int E of ``tread`` at ``now`` [s]."""
@@ -338,11 +340,12 @@ class TreadMonitor:
         carry = _NO_CARRY if moving else self._carry
         m = [self.modelled[i] + carry[i][0] for i in (0, 1)]
         c = [self.counted[i] + carry[i][1] for i in (0, 1)]
+        contact_move = moving and not self._mapper  # slides and pushes are judged here
         both = all(self.beyond(m[i] - c[i], self.modelled[i], carry[i][2]) for i in (0, 1))
-        if both and moving and not self._mapper:  # a slide counts cos(a)^2 of the drive
+        if both and contact_move:  # a slide counts cos(a)^2 of the drive
             both = all(c[i] < BOTH_MOVE_RATIO * m[i] for i in (0, 1))
         if both:
-            if moving and not self._mapper and not self._push_sent and self.pushing():
+            if contact_move and not self._push_sent and self.pushing():
                 self._push_sent = self._short_sent[0] = self._short_sent[1] = True
                 found.append((TreadVerdict.PUSH, TreadFault.BOTH_SHORT))
                 return

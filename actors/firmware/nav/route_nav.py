@@ -55,7 +55,7 @@ from actors.firmware.nav.route import (
     shorten,
     with_obstacle,
 )
-from actors.firmware.nav.tread_faults import TreadFaults, check_cm
+from actors.firmware.nav.tread_faults import TreadFaults
 from actors.firmware.planning.clearance import occupied_near
 from server.protocol.grid_map import GridMap
 
@@ -479,7 +479,7 @@ class RouteNav(NavBase):
         blocked with the treads well and hold for nothing."""
         if self.map is None:
             return 1.0
-        reach = self.radius_cm + self.drift_cm + check_cm(self.spec.cm_per_interrupt)
+        reach = self.radius_cm + self.drift_cm + self.treads.check_cm
         near = occupied_near(self.map, self.map_pose, reach)
         if near is None:
             return 1.0

@@ -21,7 +21,7 @@ from actors.firmware.nav.route import Motion
 if TYPE_CHECKING:
     from actors.firmware.nav.route_nav import RouteNav
 
-__all__ = ["TreadFaults", "TREAD_HOLDS", "TREAD_CONTACT_S", "TREAD_STOP_S", "check_cm"]
+__all__ = ["TreadFaults", "TREAD_HOLDS", "TREAD_CONTACT_S", "TREAD_STOP_S"]
 
 TREAD_HOLDS = 2
 """Holds in a row (each report within a minute of the last), at most; a further report
@@ -35,15 +35,6 @@ TREAD_STOP_S = 1.0
 stopped motion's last pose and end arrive meanwhile and are ignored."""
 
 
-def check_cm(cm_per_interrupt: float) -> float:
-    """The length of the straight move that checks the treads after a hold for a silent
-    tread in a turn [cm] (`TreadFaults.check_treads`): the shortest over which Motor
-    Control's tread monitor calls a tread that does not count silent
-    (`drivers.tread_monitor.silent_reach_cm`), so a fault still on ends it within a
-    couple of cm, under Motor Control's ``blocked_cm``."""
-    return silent_reach_cm(cm_per_interrupt)
-
-
 class TreadFaults:
     """What the hider's and seeker's navigation does about tread reports.
 
@@ -53,6 +44,11 @@ class TreadFaults:
 
     def __init__(self, nav: RouteNav) -> None:
         self.nav = nav
+        self.check_cm = silent_reach_cm(nav.spec.cm_per_interrupt)
+        """The length of the straight move that checks the treads (`check_treads`) [cm]:
+        the shortest over which Motor Control's tread monitor calls a tread that does
+        not count silent, so a fault still on ends it within a couple of cm, under
+        Motor Control's ``blocked_cm``."""
         self._reported: tuple[Motion, TreadFault] | None = None
         # the last report and the motion it came in: (motion, fault); see `reported_in`
         self._check_due = False  # a hold for a silent tread in a turn is on: check after it
@@ -131,7 +127,7 @@ class TreadFaults:
 
     async def check_treads(self, blocked: bool, done: float) -> bool:
         """After a hold for a silent tread in a turn: check the treads with a short
-        straight move (`check_cm`, away from the nearer mapped wall:
+        straight move (``check_cm``, away from the nearer mapped wall:
         `check_sign`) before the route turns again, and hold once more while the check
         ends blocked having counted under half of it (``tread_hold_s`` doubled each
         time, at most ``TREAD_HOLDS`` times). True when it commanded or held (the
@@ -152,7 +148,7 @@ class TreadFaults:
             self._checking = None
             # counted under half its length: the fault is on (a block after the treads
             # counted is a wall's or an obstacle's, for the route's block handling)
-            if blocked and abs(done) < 0.5 * check_cm(nav.spec.cm_per_interrupt) and \
+            if blocked and abs(done) < 0.5 * self.check_cm and \
                     self._check_holds < TREAD_HOLDS:
                 self._check_holds += 1
                 hold = nav.o.tread_hold_s * 2.0 ** self._check_holds
@@ -165,7 +161,7 @@ class TreadFaults:
         if not self._check_due:
             return False
         self._check_due = False
-        self._checking = Motion("move", nav.check_sign() * check_cm(nav.spec.cm_per_interrupt))
+        self._checking = Motion("move", nav.check_sign() * self.check_cm)
         await nav.command(self._checking)
         return True
 
