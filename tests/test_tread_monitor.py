@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from actors.firmware.drivers.motor import MotorTuning
 from actors.firmware.drivers.tread_monitor import TreadFault, TreadMonitor, TreadVerdict
 
 
-def drive(monitor: TreadMonitor, seconds: float, counts: tuple[float, float],
+def drive(monitor: TreadMonitor, seconds: float,
+          counts: tuple[float, float] | Callable[[float], tuple[float, float]],
           moving: bool = True) -> list[tuple[TreadVerdict, TreadFault]]:
     """Drive both treads at full PWM for ``seconds``; each tread counts the given share
-    of its modelled travel. Returns every finding, control step by control step."""
+    of its modelled travel (``counts``, or ``counts(t)`` at time ``t``). Returns every
+    finding, control step by control step."""
+    share = counts if callable(counts) else lambda _t: counts
     found = []
     t, owed = 0.0, [0.0, 0.0]
     monitor.begin(0.0)
@@ -19,7 +24,7 @@ def drive(monitor: TreadMonitor, seconds: float, counts: tuple[float, float],
         before = list(monitor.modelled)
         monitor.advance(t)
         for tread in (0, 1):
-            owed[tread] += (monitor.modelled[tread] - before[tread]) * counts[tread]
+            owed[tread] += (monitor.modelled[tread] - before[tread]) * share(t)[tread]
             while owed[tread] >= 0.5:
                 owed[tread] -= 0.5
                 monitor.tick(tread, t)
@@ -104,20 +109,6 @@ def test_a_push_after_a_both_short_report_still_ends_the_move() -> None:
     """Both encoders slipping at 0.45 in a hider's move (value 6), then the rover meets a
     wall and the treads hardly count: the push is found all the same (the move ends
     blocked), once."""
-    m = monitor()
-    m.begin(0.0)
-    m.pwm = (1.0, 1.0)
-    found, t, owed = [], 0.0, [0.0, 0.0]
-    while t < 3.0:
-        t += 0.05
-        share = 0.45 if t < 1.0 else 0.05
-        before = list(m.modelled)
-        m.advance(t)
-        for tread in (0, 1):
-            owed[tread] += (m.modelled[tread] - before[tread]) * share
-            while owed[tread] >= 0.5:
-                owed[tread] -= 0.5
-                m.tick(tread, t)
-        found += m.watch(True, period_pending=False)
+    found = drive(monitor(), 3.0, lambda t: (0.45, 0.45) if t < 1.0 else (0.05, 0.05))
     assert found == [(TreadVerdict.FAULT, TreadFault.BOTH_SHORT),
                      (TreadVerdict.PUSH, TreadFault.BOTH_SHORT)]
